@@ -1,0 +1,5 @@
+"""``python -m stiffmap`` runs the command line."""
+
+from stiffmap.cli.main import run
+
+run()

@@ -1,0 +1,75 @@
+"""Shared pieces of the command-line interface: consoles, errors, formatting."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from ..errors import InputError
+from ..io import dumps_json
+
+#: Results go to stdout (so ``--json`` output can be piped); messages to stderr.
+out = Console(highlight=False, soft_wrap=True)
+err = Console(stderr=True, highlight=False, soft_wrap=True)
+
+#: Exit status for a user mistake (bad file, bad option value).
+EXIT_INPUT = 2
+#: Exit status when some items failed but others were processed.
+EXIT_PARTIAL = 1
+
+
+def fail(message: str, code: int = EXIT_INPUT) -> typer.Exit:
+    """Print ``error: message`` on stderr and return an Exit to raise."""
+    err.print(f"[bold red]error:[/] {escape(message)}", markup=True, highlight=False)
+    return typer.Exit(code)
+
+
+def warn(message: str) -> None:
+    """Print ``warning: message`` on stderr."""
+    err.print(f"[yellow]warning:[/] {escape(message)}", markup=True, highlight=False)
+
+
+def print_json(obj) -> None:
+    """Print ``obj`` as JSON on stdout (numpy converted, NaN as null)."""
+    sys.stdout.write(dumps_json(obj) + "\n")
+    sys.stdout.flush()
+
+
+def input_error(e: InputError) -> typer.Exit:
+    """Report a user input error as one line and return the Exit to raise."""
+    return fail(str(e))
+
+
+def fmt(x: float, digits: int = 5) -> str:
+    """A number with ``digits`` significant digits, or ``n/a`` when not finite."""
+    try:
+        xf = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    if xf != xf or xf in (float("inf"), float("-inf")):
+        return "n/a"
+    return f"{xf:.{digits}g}"
+
+
+def fmt_pm(x: float, s: float, digits: int = 5) -> str:
+    """``x ± s``."""
+    return f"{fmt(x, digits)} ± {fmt(s, 2)}"
+
+
+def parse_key_values(items: Sequence[str], what: str) -> dict[str, str]:
+    """Parse ``a=1,b=2`` or repeated ``a=1`` options into a dict (clear error otherwise)."""
+    outd: dict[str, str] = {}
+    for item in items:
+        for part in item.split(","):
+            part = part.strip()
+            if not part:
+                continue
+            if "=" not in part:
+                raise InputError(f"{what}: {part!r} should look like NAME=VALUE")
+            k, v = part.split("=", 1)
+            outd[k.strip()] = v.strip()
+    return outd

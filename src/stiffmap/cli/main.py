@@ -1,0 +1,63 @@
+"""Entry point of the ``stiffmap`` command."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import typer
+
+from .. import __version__
+from ..errors import InputError
+from .common import EXIT_INPUT, fail
+
+app = typer.Typer(
+    name="stiffmap",
+    help=(
+        "Measure, model and map the stiffness and static positioning error of robots.\n\n"
+        "Units inside stiffmap are N, mm, MPa and rad; options that take other units say so "
+        "in their name (--square-mm, --scale-um-per-v). See docs/ for the conventions."
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"stiffmap {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: bool = typer.Option(
+        False, "--version", help="Print the version and exit.", callback=_version, is_eager=True
+    ),
+) -> None:
+    """stiffmap: stiffness and static-error measurement, models and maps."""
+
+
+#: Command modules; each defines ``register(app)``.
+_COMMAND_MODULES = ("identify", "demo")
+
+for _name in _COMMAND_MODULES:
+    importlib.import_module(f"{__package__}.{_name}").register(app)
+
+
+def run() -> None:
+    """Console-script entry point: user errors become one line and a non-zero exit."""
+    try:
+        app()
+    except InputError as e:
+        fail(str(e))
+        sys.exit(EXIT_INPUT)
+    except KeyboardInterrupt:
+        fail("interrupted", 130)
+        sys.exit(130)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    run()

@@ -1,0 +1,616 @@
+"""Stiffness identification from applied loads and measured displacements.
+
+Model: each load case i applies a force (or wrench) f_i and the robot moves by
+d_i = C f_i + e_i, where C = K^-1 is the compliance and e_i the measurement
+error of the displacement. Three estimators are offered:
+
+``compliance`` (default)
+    Least squares of displacements on forces, D = C F (weighted when
+    displacement covariances are given), then K = C^-1. Forces are known far
+    better than displacements (calibrated masses versus image or sensor
+    measurements), so the errors are in D and this regression is unbiased in C.
+    Regressing forces on noisy displacements instead (the ``paper`` estimator)
+    is the errors-in-variables situation: noise in the regressor inflates
+    D D^T by about n Sigma and shrinks K toward zero (regression dilution,
+    attenuation bias), by a relative amount of order n sigma^2 / |D|^2.
+
+``paper``
+    The reference vision study's estimator (its eq. 10): K = F D^T (D D^T)^-1.
+    Kept for comparison with published results.
+
+``spd``
+    The compliance model constrained to a symmetric positive-definite C
+    (hence K): a physically admissible stiffness (Maxwell-Betti reciprocity
+    and stability). Solved as symmetric least squares, and through a Cholesky
+    parameterisation when the unconstrained symmetric solution is not
+    positive definite.
+
+Uncertainty: the covariance of vec(C) is (F W F^T)^-1-type from the given
+displacement covariances, or (F F^T)^-1 kron Sigma with Sigma estimated from the
+residuals (multivariate regression, n - m degrees of freedom); it is carried to
+K by the first-order rule dK = -K dC K. Confidence intervals use Student's t
+with Welch-Satterthwaite effective degrees of freedom when Sigma is estimated.
+
+Shapes: m = 3 (forces, N, and translations, mm: K in N/mm) or m = 6 (wrenches
+N, N*mm and displacements mm, rad). Load cases are columns: F and D are m x n.
+Covariances of K are over ``K.ravel()`` (row-major).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from scipy import optimize, stats
+
+from .errors import DesignError, IllConditionedWarning
+
+__all__ = [
+    "METHODS",
+    "StiffnessFit",
+    "StiffnessIndices",
+    "identify_stiffness",
+    "stiffness_indices",
+    "physical_flags",
+    "directional_stiffness",
+    "compliance_from_stiffness",
+    "stiffness_from_compliance",
+]
+
+Method = Literal["compliance", "paper", "spd"]
+METHODS: tuple[str, ...] = ("compliance", "paper", "spd")
+
+#: Above this condition number of the normalised load design a warning is issued.
+CONDITION_WARN = 1e3
+#: Relative asymmetry flagged when no covariance is available to test it.
+ASYMMETRY_FLAG = 0.1
+
+
+def compliance_from_stiffness(K) -> np.ndarray:
+    """Compliance C = K^-1 (mm/N for 3x3)."""
+    return np.linalg.inv(np.asarray(K, dtype=np.float64))
+
+
+def stiffness_from_compliance(C) -> np.ndarray:
+    """Stiffness K = C^-1 (N/mm for 3x3)."""
+    return np.linalg.inv(np.asarray(C, dtype=np.float64))
+
+
+@dataclass(frozen=True)
+class StiffnessIndices:
+    """Scalar and directional summaries of a stiffness matrix.
+
+    For a 6x6 matrix the principal values, directions and condition number are
+    given for the translational block ``K[:3, :3]`` (N/mm) and, separately, for
+    the rotational block ``K[3:, 3:]`` (N*mm/rad); the blocks have different
+    units, so indices of the whole 6x6 matrix would mix them.
+    """
+
+    det: float
+    eigenvalues: np.ndarray  # principal stiffnesses of the symmetric part, ascending
+    directions: np.ndarray  # columns are the principal directions
+    min_principal: float
+    condition: float  # 2-norm condition number of the (block) matrix
+    asymmetry: float  # ||K - K^T||_F / ||K||_F
+    rotational_eigenvalues: np.ndarray | None = None
+    rotational_directions: np.ndarray | None = None
+    rotational_condition: float | None = None
+
+
+def _check_matrix(K, name: str = "K") -> np.ndarray:
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape not in ((3, 3), (6, 6), (2, 2)):
+        raise ValueError(f"{name} must be 2x2, 3x3 or 6x6, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return K
+
+
+def _principal(Kb: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    S = 0.5 * (Kb + Kb.T)
+    w, V = np.linalg.eigh(S)
+    s = np.linalg.svd(Kb, compute_uv=False)
+    cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    return w, V, cond
+
+
+def stiffness_indices(K) -> StiffnessIndices:
+    """Indices of a stiffness matrix.
+
+    Parameters
+    ----------
+    K : array_like, shape (2, 2), (3, 3) or (6, 6)
+        Stiffness, N/mm (translational block).
+
+    Returns
+    -------
+    StiffnessIndices
+        ``det`` is det(K) of the whole matrix (the reference paper's map value;
+        (N/mm)^3 for 3x3). Principal stiffnesses are the eigenvalues of the
+        symmetric part (K + K^T)/2.
+    """
+    K = _check_matrix(K)
+    m = K.shape[0]
+    Kt = K[:3, :3] if m == 6 else K
+    w, V, cond = _principal(Kt)
+    nK = np.linalg.norm(K)
+    asym = float(np.linalg.norm(K - K.T) / nK) if nK > 0 else 0.0
+    rot = (None, None, None)
+    if m == 6:
+        rot = _principal(K[3:, 3:])
+    return StiffnessIndices(
+        det=float(np.linalg.det(K)),
+        eigenvalues=w,
+        directions=V,
+        min_principal=float(w[0]),
+        condition=cond,
+        asymmetry=asym,
+        rotational_eigenvalues=rot[0],
+        rotational_directions=rot[1],
+        rotational_condition=rot[2],
+    )
+
+
+def directional_stiffness(K, u) -> float:
+    """Stiffness felt along a unit direction u: 1 / (u^T K^-1 u).
+
+    A force F u applied to the robot moves it by K^-1 F u; the component of
+    that displacement along u is F u^T K^-1 u, so this is the force over the
+    displacement along the force's own direction (N/mm for 3x3).
+
+    Parameters
+    ----------
+    K : array_like, shape (m, m)
+    u : array_like, shape (m,)
+        Direction (normalised here).
+    """
+    K = _check_matrix(K)
+    u = np.asarray(u, dtype=np.float64)
+    if u.shape != (K.shape[0],):
+        raise ValueError(f"direction must have shape ({K.shape[0]},), got {u.shape}")
+    n = np.linalg.norm(u)
+    if not np.isfinite(n) or n == 0:
+        raise ValueError("direction must be a non-zero finite vector")
+    u = u / n
+    return float(1.0 / (u @ np.linalg.solve(K, u)))
+
+
+def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG) -> tuple[str, ...]:
+    """Physical admissibility checks of an identified stiffness.
+
+    - ``asymmetric``: K differs from K^T more than its uncertainty allows
+      (chi-square test of the antisymmetric part at 1 % when ``K_cov`` is
+      given), or by more than ``asymmetry_threshold`` relative otherwise;
+    - ``not positive definite``: the symmetric part has an eigenvalue <= 0
+      (the robot would give way under some load);
+    - ``det <= 0``: the reference paper published such matrices without comment.
+
+    Returns
+    -------
+    tuple of str
+        Human-readable flags; empty when K passes every check.
+    """
+    K = _check_matrix(K)
+    idx = stiffness_indices(K)
+    flags: list[str] = []
+    m = K.shape[0]
+    iu = np.triu_indices(m, 1)
+    a = (K - K.T)[iu]
+    if K_cov is not None and np.all(np.isfinite(K_cov)):
+        # Linear map from K.ravel() to the upper-triangle entries of K - K^T.
+        A = np.zeros((a.size, m * m))
+        for k, (i, j) in enumerate(zip(*iu, strict=True)):
+            A[k, i * m + j] = 1.0
+            A[k, j * m + i] = -1.0
+        Sa = A @ np.asarray(K_cov) @ A.T
+        try:
+            chi2 = float(a @ np.linalg.solve(Sa, a))
+            p = float(stats.chi2.sf(chi2, a.size))
+        except np.linalg.LinAlgError:
+            p = 0.0 if idx.asymmetry > asymmetry_threshold else 1.0
+        if p < 0.01:
+            flags.append(
+                f"asymmetric: |K-K^T|/|K| = {idx.asymmetry:.3g}, beyond its uncertainty (p = {p:.2g})"
+            )
+    elif idx.asymmetry > asymmetry_threshold:
+        flags.append(f"asymmetric: |K-K^T|/|K| = {idx.asymmetry:.3g} > {asymmetry_threshold:g}")
+    S = 0.5 * (K + K.T)
+    w = np.linalg.eigvalsh(S)
+    if np.any(w <= 0):
+        bad = ", ".join(f"{x:.4g}" for x in w[w <= 0])
+        flags.append(f"not positive definite: symmetric part has eigenvalue(s) {bad}")
+    if idx.det <= 0:
+        flags.append(f"det <= 0: det(K) = {idx.det:.4g}")
+    return tuple(flags)
+
+
+@dataclass(frozen=True)
+class StiffnessFit:
+    """Result of :func:`identify_stiffness`.
+
+    Attributes
+    ----------
+    K : ndarray, shape (m, m)
+        Stiffness, N/mm (3x3) or mixed units (6x6), in the frame of the data.
+    K_cov : ndarray, shape (m*m, m*m)
+        Covariance of ``K.ravel()`` (row-major). NaN when it cannot be known
+        (no residual degrees of freedom and no given covariance).
+    K_std : ndarray, shape (m, m)
+        Standard errors of K's entries.
+    C : ndarray, shape (m, m)
+        Compliance K^-1 (mm/N for 3x3).
+    method : str
+    rank : int
+        Rank of the load design F.
+    condition : float
+        Condition number of the load design (F with rows scaled to unit norm).
+    residuals : ndarray, shape (m, n)
+        d_i - C f_i for every load case (mm; rad for rotations).
+    residual_rms : ndarray, shape (m,)
+        RMS residual per displacement component.
+    dof : int
+        Residual degrees of freedom per displacement component, n - m.
+    sigma : ndarray, shape (m, m)
+        Displacement error covariance used for the uncertainty: estimated from
+        the residuals or the mean of the given covariances.
+    dof_effective : ndarray, shape (m, m)
+        Welch-Satterthwaite degrees of freedom of each entry's variance
+        (``inf`` when the covariance was given).
+    chi2_reduced : float or None
+        Weighted residual sum of squares per degree of freedom when
+        displacement covariances were given (about 1 when they are right).
+    flags : tuple of str
+        Design and physical warnings (see :func:`physical_flags`).
+    """
+
+    K: np.ndarray
+    K_cov: np.ndarray
+    K_std: np.ndarray
+    C: np.ndarray
+    method: str
+    rank: int
+    condition: float
+    residuals: np.ndarray
+    residual_rms: np.ndarray
+    dof: int
+    sigma: np.ndarray
+    dof_effective: np.ndarray
+    chi2_reduced: float | None
+    flags: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def indices(self) -> StiffnessIndices:
+        return stiffness_indices(self.K)
+
+    def confidence_interval(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """Two-sided confidence interval of every entry of K.
+
+        Uses Student's t with each entry's effective degrees of freedom.
+
+        Returns
+        -------
+        lower, upper : ndarray, shape (m, m)
+        """
+        if not 0 < level < 1:
+            raise ValueError(f"level must be in (0, 1), got {level}")
+        q = stats.t.ppf(0.5 + level / 2, self.dof_effective)
+        return self.K - q * self.K_std, self.K + q * self.K_std
+
+
+def _as_design(F, D, force_name: str, disp_name: str) -> tuple[np.ndarray, np.ndarray]:
+    F = np.asarray(F, dtype=np.float64)
+    D = np.asarray(D, dtype=np.float64)
+    for a, name in ((F, force_name), (D, disp_name)):
+        if a.ndim != 2 or a.shape[0] not in (3, 6):
+            raise ValueError(
+                f"{name} must have shape (3, n) or (6, n) (one column per load case), got {a.shape}"
+            )
+        if not np.all(np.isfinite(a)):
+            bad = np.argwhere(~np.isfinite(a))[0]
+            raise ValueError(f"{name} has a NaN or infinite value (component {bad[0]}, load case {bad[1]})")
+    if F.shape != D.shape:
+        raise ValueError(
+            f"{force_name} is {F.shape[0]}x{F.shape[1]} but {disp_name} is {D.shape[0]}x{D.shape[1]}: "
+            "they need the same components and one column per load case"
+        )
+    return F, D
+
+
+def _design_rank(F: np.ndarray) -> tuple[int, float]:
+    norms = np.linalg.norm(F, axis=1)
+    m = F.shape[0]
+    if np.any(norms == 0):
+        s = np.linalg.svd(F, compute_uv=False)
+        rank = int(np.sum(s > s[0] * 1e-10)) if s[0] > 0 else 0
+        return rank, float("inf")
+    Fn = F / norms[:, None]
+    s = np.linalg.svd(Fn, compute_uv=False)
+    rank = int(np.sum(s > s[0] * 1e-10))
+    cond = float(s[0] / s[-1]) if rank == m else float("inf")
+    return rank, cond
+
+
+def _check_cov(cov, m: int, n: int, name: str) -> np.ndarray | None:
+    if cov is None:
+        return None
+    S = np.asarray(cov, dtype=np.float64)
+    if S.shape == (m, n):  # standard deviations per component
+        S = np.stack([np.diag(S[:, i] ** 2) for i in range(n)])
+    if S.shape == (m, m):
+        S = np.broadcast_to(S, (n, m, m)).copy()
+    if S.shape != (n, m, m):
+        raise ValueError(f"{name} must have shape ({n}, {m}, {m}), ({m}, {m}) or ({m}, {n}); got {S.shape}")
+    if not np.all(np.isfinite(S)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    for i in range(n):
+        w = np.linalg.eigvalsh(0.5 * (S[i] + S[i].T))
+        if w[0] <= 0:
+            raise ValueError(f"{name} of load case {i} is not positive definite (eigenvalue {w[0]:.3g})")
+    return S
+
+
+def _gls_compliance(F: np.ndarray, D: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Generalised least squares of vec(C) for d_i = C f_i, weights W_i = Sigma_i^-1.
+
+    Returns C and the covariance of C.ravel() (row-major) = N^-1.
+    """
+    m, n = F.shape
+    # Row-major vec: C.ravel() = c, C f = (I kron f^T) c.
+    N = np.zeros((m * m, m * m))
+    b = np.zeros(m * m)
+    eye = np.eye(m)
+    for i in range(n):
+        A = np.kron(eye, F[:, i][None, :])  # (m, m*m)
+        N += A.T @ W[i] @ A
+        b += A.T @ W[i] @ D[:, i]
+    Ninv = np.linalg.inv(N)
+    c = Ninv @ b
+    return c.reshape(m, m), Ninv
+
+
+def _inverse_jacobian(K: np.ndarray) -> np.ndarray:
+    """Jacobian of K.ravel() with respect to C.ravel() for K = C^-1 (row-major).
+
+    dK = -K dC K  =>  vec_r(dK) = -(K kron K^T) vec_r(dC).
+    """
+    return -np.kron(K, K.T)
+
+
+def _satterthwaite(G_rows: np.ndarray, P: np.ndarray, Sigma: np.ndarray, nu: int) -> np.ndarray:
+    """Effective dof of variances tr(M Sigma_hat), M = G P G^T, Sigma_hat ~ W(Sigma, nu)/nu."""
+    out = np.empty(G_rows.shape[0])
+    m = Sigma.shape[0]
+    for k in range(G_rows.shape[0]):
+        G = G_rows[k].reshape(m, m)  # row-major vec(C) -> C-shaped weights
+        M = G @ P @ G.T
+        A = M @ Sigma
+        tr = np.trace(A)
+        tr2 = np.trace(A @ A)
+        out[k] = nu * tr * tr / tr2 if tr2 > 0 else np.inf
+    return out
+
+
+def _sym_basis(m: int) -> np.ndarray:
+    """Map from the m(m+1)/2 upper-triangle entries of a symmetric matrix to its ravel()."""
+    iu = np.triu_indices(m)
+    B = np.zeros((m * m, iu[0].size))
+    for k, (i, j) in enumerate(zip(*iu, strict=True)):
+        B[i * m + j, k] = 1.0
+        B[j * m + i, k] = 1.0
+    return B
+
+
+def _spd_compliance(
+    F: np.ndarray, D: np.ndarray, W: np.ndarray, Sigma: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    """Symmetric positive-definite C minimising sum (d_i - C f_i)^T W_i (d_i - C f_i).
+
+    Returns C, the covariance of C.ravel() from the symmetric least-squares
+    sandwich with displacement covariances ``Sigma`` (n, m, m) (None if not
+    given), and whether the positive-definite constraint was active.
+    """
+    m, n = F.shape
+    B = _sym_basis(m)
+    eye = np.eye(m)
+    A = [np.kron(eye, F[:, i][None, :]) @ B for i in range(n)]  # (m, p) each
+    H = sum(A[i].T @ W[i] @ A[i] for i in range(n))
+    g = sum(A[i].T @ W[i] @ D[:, i] for i in range(n))
+    Hinv = np.linalg.inv(H)
+    x = Hinv @ g
+    cov = None
+    if Sigma is not None:
+        meat = sum(A[i].T @ W[i] @ Sigma[i] @ W[i] @ A[i] for i in range(n))
+        cov = B @ (Hinv @ meat @ Hinv) @ B.T
+    C = (B @ x).reshape(m, m)
+    w, V = np.linalg.eigh(C)
+    if w[0] > 0:
+        return C, cov, False
+    # Constrained: C = L L^T with L lower triangular and a log-parameterised diagonal,
+    # started from the eigenvalue-clipped symmetric solution.
+    floor = max(abs(w[-1]) * 1e-6, 1e-12)
+    L0 = np.linalg.cholesky((V * np.maximum(w, floor)) @ V.T)
+    il = np.tril_indices(m)
+    diag = il[0] == il[1]
+    Lw = [np.linalg.cholesky(W[i]) for i in range(n)]
+
+    def unpack(theta: np.ndarray) -> np.ndarray:
+        vals = theta.copy()
+        vals[diag] = np.exp(theta[diag])
+        L = np.zeros((m, m))
+        L[il] = vals
+        return L
+
+    def resid(theta: np.ndarray) -> np.ndarray:
+        L = unpack(theta)
+        Cc = L @ L.T
+        return np.concatenate([Lw[i].T @ (D[:, i] - Cc @ F[:, i]) for i in range(n)])
+
+    theta0 = L0[il].copy()
+    theta0[diag] = np.log(theta0[diag])
+    sol = optimize.least_squares(resid, theta0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    L = unpack(sol.x)
+    return L @ L.T, cov, True
+
+
+def identify_stiffness(
+    F,
+    D,
+    *,
+    method: Method = "compliance",
+    disp_cov=None,
+    force_cov=None,
+    names: tuple[str, str] = ("forces", "displacements"),
+) -> StiffnessFit:
+    """Identify a stiffness matrix from load cases.
+
+    Parameters
+    ----------
+    F : array_like, shape (m, n)
+        Applied forces (N), or wrenches (N, N*mm) for m = 6; one column per
+        load case (repeats are extra columns with the same force).
+    D : array_like, shape (m, n)
+        Measured displacements (mm; rad for rotations), same order.
+    method : {"compliance", "paper", "spd"}
+        See the module docstring. ``compliance`` is the default and the one to
+        trust; ``paper`` is the reference study's eq. 10; ``spd`` constrains K to
+        be symmetric positive definite.
+    disp_cov : array_like, optional
+        Displacement covariance per load case, shape (n, m, m), one (m, m)
+        for all, or standard deviations of shape (m, n). When given, the fit is
+        weighted and K's covariance is propagated from it; otherwise the
+        covariance is estimated from the residuals.
+    force_cov : array_like, optional
+        Force covariance per load case (same shapes), e.g. from the friction
+        correction. Used with ``disp_cov``: a force error e_f moves the
+        prediction by C e_f, so the effective displacement covariance is
+        Sigma_d + C Sigma_f C^T (iterated with the estimate of C).
+    names : (str, str)
+        What to call F and D in error messages (file names from the CLI).
+
+    Returns
+    -------
+    StiffnessFit
+
+    Raises
+    ------
+    DesignError
+        If the loads span fewer independent directions than there are
+        components (the rank found and needed are in the message).
+    ValueError
+        On bad shapes, NaN, an unknown method.
+
+    Warns
+    -----
+    IllConditionedWarning
+        When the normalised load design has a condition number above 1e3.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    F, D = _as_design(F, D, *names)
+    m, n = F.shape
+    comp = "forces fx, fy, fz" if m == 3 else "wrench components fx, fy, fz, mx, my, mz"
+    rank, cond = _design_rank(F)
+    if rank < m:
+        raise DesignError(
+            f"the loads span rank {rank} but {m} linearly independent load directions are needed "
+            f"({comp}) to determine a {m}x{m} stiffness; add load cases along the missing directions",
+            source=names[0] if names[0] != "forces" else None,
+        )
+    flags: list[str] = []
+    if cond > CONDITION_WARN:
+        msg = f"badly conditioned load design (condition number {cond:.3g}): K is sensitive to noise"
+        warnings.warn(msg, IllConditionedWarning, stacklevel=2)
+        flags.append(msg)
+    Sd = _check_cov(disp_cov, m, n, "disp_cov")
+    Sf = _check_cov(force_cov, m, n, "force_cov")
+    dof = n - m
+    given = Sd is not None
+
+    # Compliance estimate and its weights (the weighted fit when covariances are given).
+    if given:
+        S_eff = Sd.copy()
+        W = np.linalg.inv(S_eff)
+        C, covC = _gls_compliance(F, D, W)
+        if Sf is not None:
+            for _ in range(3):
+                S_eff = Sd + np.einsum("ij,njk,lk->nil", C, Sf, C)
+                W = np.linalg.inv(S_eff)
+                C, covC = _gls_compliance(F, D, W)
+    else:
+        S_eff = None
+        W = np.broadcast_to(np.eye(m), (n, m, m))
+        C = D @ F.T @ np.linalg.inv(F @ F.T)
+
+    spd_active = False
+    if method == "compliance":
+        K = np.linalg.inv(C)
+    elif method == "paper":
+        K = F @ D.T @ np.linalg.inv(D @ D.T)  # reference paper, eq. 10
+    else:
+        Cs, covC_spd, spd_active = _spd_compliance(F, D, W, S_eff)
+        K = np.linalg.inv(Cs)
+        K = 0.5 * (K + K.T)
+        if spd_active:
+            flags.append("spd constraint active: the unconstrained symmetric fit was not positive definite")
+
+    Cm = np.linalg.inv(K)
+    R = D - Cm @ F
+    rms = np.sqrt(np.mean(R**2, axis=1))
+    chi2_red: float | None = None
+    J = _inverse_jacobian(K)
+    # Covariance of C.ravel(). To first order the paper's estimator has the same
+    # covariance as the compliance one (dK = -K E F^T (F F^T)^-1 K for both); the
+    # symmetric fit has its own (smaller) one.
+    if given:
+        chi2 = float(sum(R[:, i] @ W[i] @ R[:, i] for i in range(n)))
+        if dof > 0:
+            chi2_red = chi2 / (m * dof)
+            p = float(stats.chi2.sf(chi2, m * dof))
+            if p < 0.01:
+                flags.append(
+                    f"residuals exceed the given displacement uncertainty "
+                    f"(reduced chi-square {chi2_red:.3g}, p = {p:.2g})"
+                )
+        sigma = S_eff.mean(axis=0)
+        if method == "spd":
+            covC = covC_spd
+        K_cov = J @ covC @ J.T
+        dof_eff = np.full((m, m), np.inf)
+    elif dof > 0:
+        sigma = R @ R.T / dof
+        P = np.linalg.inv(F @ F.T)
+        if method == "spd":
+            _, covC, _ = _spd_compliance(F, D, W, np.broadcast_to(sigma, (n, m, m)))
+            dof_eff = np.full((m, m), float(dof))  # conservative: Satterthwaite >= dof
+        else:
+            covC = np.kron(sigma, P)  # row-major vec: Cov(C[i, :], C[j, :]) = sigma_ij P
+            dof_eff = _satterthwaite(J, P, sigma, dof).reshape(m, m)
+        K_cov = J @ covC @ J.T
+    else:
+        sigma = np.full((m, m), np.nan)
+        K_cov = np.full((m * m, m * m), np.nan)
+        dof_eff = np.full((m, m), np.nan)
+        flags.append(
+            f"no residual degrees of freedom ({n} load cases for {m} components): "
+            "the uncertainty of K is unknown; add load cases or give displacement uncertainties"
+        )
+    K_std = np.sqrt(np.clip(np.diag(K_cov), 0, None)).reshape(m, m)
+    flags.extend(physical_flags(K, K_cov if np.all(np.isfinite(K_cov)) else None))
+    return StiffnessFit(
+        K=K,
+        K_cov=K_cov,
+        K_std=K_std,
+        C=Cm,
+        method=method,
+        rank=rank,
+        condition=cond,
+        residuals=R,
+        residual_rms=rms,
+        dof=dof,
+        sigma=sigma,
+        dof_effective=dof_eff,
+        chi2_reduced=chi2_red,
+        flags=tuple(flags),
+    )

@@ -1,0 +1,206 @@
+"""Reading user tables and writing results safely.
+
+- :func:`read_csv_columns` reads a CSV with a header into float columns and
+  raises :class:`~stiffmap.errors.InputError` naming the file, the row (as the
+  line number in the file) and the column for every problem: missing file,
+  missing column, empty table, a cell that is not a number, NaN.
+- :func:`atomic_write_text` / :func:`atomic_write_bytes` write through a
+  temporary file in the same directory and ``os.replace``, so a reader never
+  sees a half-written result and an interrupted run leaves the old file.
+- :func:`to_jsonable` turns numpy arrays and floats into JSON values
+  (NaN and infinities become ``null``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = [
+    "Table",
+    "read_csv_columns",
+    "atomic_write_text",
+    "atomic_write_bytes",
+    "to_jsonable",
+    "dumps_json",
+]
+
+
+@dataclass(frozen=True)
+class Table:
+    """Numeric columns of a CSV file.
+
+    Attributes
+    ----------
+    path : str
+    columns : dict of str to ndarray, shape (n,)
+    lines : ndarray of int, shape (n,)
+        The 1-based line number in the file of each data row (for messages).
+    text : dict of str to list of str
+        Raw text of the columns that were read as text.
+    """
+
+    path: str
+    columns: dict[str, np.ndarray]
+    lines: np.ndarray
+    text: dict[str, list[str]]
+
+    def __len__(self) -> int:
+        return int(self.lines.size)
+
+    def has(self, name: str) -> bool:
+        return name in self.columns
+
+    def stack(self, names: Sequence[str]) -> np.ndarray:
+        """Columns as rows of an array, shape (len(names), n)."""
+        return np.stack([self.columns[c] for c in names])
+
+
+def read_csv_columns(
+    path: str | os.PathLike,
+    required: Iterable[str],
+    optional: Iterable[str] = (),
+    *,
+    text_columns: Iterable[str] = (),
+    allow_nan: bool = False,
+) -> Table:
+    """Read named numeric columns from a CSV file with a header row.
+
+    Parameters
+    ----------
+    path : path-like
+    required : iterable of str
+        Columns that must be present (case-insensitive, surrounding spaces ignored).
+    optional : iterable of str
+        Columns read when present.
+    text_columns : iterable of str
+        Columns (required or optional) kept as text rather than parsed as numbers.
+    allow_nan : bool
+        Accept empty cells and ``nan`` (otherwise a clear error).
+
+    Raises
+    ------
+    InputError
+        Naming the file, and the line and column of the first bad cell.
+    """
+    p = Path(path)
+    src = str(path)
+    required = [c.strip().lower() for c in required]
+    optional = [c.strip().lower() for c in optional]
+    text_columns = {c.strip().lower() for c in text_columns}
+    if not p.exists():
+        raise InputError("file not found", source=src)
+    if p.is_dir():
+        raise InputError("is a directory, expected a CSV file", source=src)
+    try:
+        raw = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(f"not a text CSV file ({e.reason} at byte {e.start})", source=src) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror}", source=src) from None
+    rows = list(csv.reader(raw.splitlines()))
+    # Skip leading blank and comment lines.
+    start = 0
+    while start < len(rows) and (not rows[start] or rows[start][0].lstrip().startswith("#")):
+        start += 1
+    if start >= len(rows):
+        raise InputError(f"empty file; expected a header with columns {', '.join(required)}", source=src)
+    header = [h.strip().lower() for h in rows[start]]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputError(
+            f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(c) for c in missing)} "
+            f"(header has {', '.join(repr(h) for h in header)})",
+            source=src,
+        )
+    dup = {h for h in header if header.count(h) > 1 and h}
+    if dup & set(required + optional):
+        raise InputError(f"column {sorted(dup)[0]!r} appears more than once", source=src)
+    wanted = [c for c in required + optional if c in header]
+    idx = {c: header.index(c) for c in wanted}
+    data: dict[str, list[float]] = {c: [] for c in wanted if c not in text_columns}
+    text: dict[str, list[str]] = {c: [] for c in wanted if c in text_columns}
+    lines: list[int] = []
+    for k in range(start + 1, len(rows)):
+        row = rows[k]
+        if not row or all(not cell.strip() for cell in row) or row[0].lstrip().startswith("#"):
+            continue
+        line = k + 1
+        for c in wanted:
+            j = idx[c]
+            cell = row[j].strip() if j < len(row) else ""
+            if c in text_columns:
+                text[c].append(cell)
+                continue
+            if cell == "" and not allow_nan:
+                raise InputError(f"line {line}, column {c!r}: empty cell, expected a number", source=src)
+            try:
+                v = float(cell) if cell != "" else math.nan
+            except ValueError:
+                raise InputError(f"line {line}, column {c!r}: {cell!r} is not a number", source=src) from None
+            if not math.isfinite(v) and not allow_nan:
+                raise InputError(f"line {line}, column {c!r}: {cell!r} is not a finite number", source=src)
+            data[c].append(v)
+        lines.append(line)
+    if not lines:
+        raise InputError("no data rows after the header", source=src)
+    return Table(src, {c: np.asarray(v, dtype=np.float64) for c, v in data.items()}, np.asarray(lines), text)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write UTF-8 ``text`` to ``path`` atomically."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def to_jsonable(obj):
+    """Convert numpy values (recursively) to plain JSON values; NaN/inf become None."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def dumps_json(obj, *, indent: int | None = 2) -> str:
+    """JSON text of ``obj`` after :func:`to_jsonable`."""
+    return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False)

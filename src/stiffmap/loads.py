@@ -1,0 +1,196 @@
+"""Load cases: forces from calibrated masses, friction correction, presets.
+
+Masses in kg become forces in N here, once, with the campaign's g (default
+9.80665 m/s^2; the reference vision study used 9.81). Directions are unit
+vectors in the robot base frame.
+
+Friction correction: the reference study applied X and Y loads through a
+pulley; the force reaching the platform is the weight minus a friction force
+measured with a dynamometer (28 g +- 8 g on a 500 g load, 10 repeats). The
+applied force is ``nominal - friction`` along the load direction, and the
+friction's standard deviation becomes the force's uncertainty along that
+direction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .units import G_REFERENCE_PAPER, G_STANDARD
+
+__all__ = [
+    "LoadCase",
+    "load_from_mass",
+    "with_friction",
+    "forces_matrix",
+    "force_covariances",
+    "paper9",
+    "PRESETS",
+    "preset",
+    "AXES",
+]
+
+#: Named directions in the base frame.
+AXES: dict[str, tuple[float, float, float]] = {
+    "+x": (1.0, 0.0, 0.0),
+    "-x": (-1.0, 0.0, 0.0),
+    "+y": (0.0, 1.0, 0.0),
+    "-y": (0.0, -1.0, 0.0),
+    "+z": (0.0, 0.0, 1.0),
+    "-z": (0.0, 0.0, -1.0),
+}
+
+
+def _direction(direction) -> np.ndarray:
+    if isinstance(direction, str):
+        key = direction.strip().lower()
+        key = key if key[0] in "+-" else "+" + key
+        if key not in AXES:
+            raise ValueError(
+                f"unknown direction {direction!r}; expected one of x, y, z, -x, -y, -z or a vector"
+            )
+        return np.array(AXES[key])
+    u = np.asarray(direction, dtype=np.float64)
+    if u.shape != (3,) or not np.all(np.isfinite(u)):
+        raise ValueError(f"direction must be a finite 3-vector, got {direction!r}")
+    n = np.linalg.norm(u)
+    if n == 0:
+        raise ValueError("direction must be non-zero")
+    return u / n
+
+
+@dataclass(frozen=True)
+class LoadCase:
+    """One load case: a force (N) in the base frame, with its covariance.
+
+    Attributes
+    ----------
+    force : ndarray, shape (3,)
+        Applied force, N.
+    cov : ndarray, shape (3, 3)
+        Covariance of the applied force, N^2 (zero for an exact load).
+    label : str
+        Human-readable name, e.g. ``"0.5 kg -y"``.
+    """
+
+    force: np.ndarray
+    cov: np.ndarray
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        f = np.asarray(self.force, dtype=np.float64)
+        c = np.asarray(self.cov, dtype=np.float64)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise ValueError(f"force must be a finite 3-vector in N, got {self.force!r}")
+        if c.shape != (3, 3) or not np.all(np.isfinite(c)):
+            raise ValueError(f"cov must be a finite 3x3 matrix in N^2, got shape {c.shape}")
+        f.setflags(write=False)
+        c.setflags(write=False)
+        object.__setattr__(self, "force", f)
+        object.__setattr__(self, "cov", c)
+
+    @property
+    def magnitude(self) -> float:
+        """|force|, N."""
+        return float(np.linalg.norm(self.force))
+
+
+def load_from_mass(mass_kg: float, direction, *, g: float = G_STANDARD, label: str | None = None) -> LoadCase:
+    """Load case of a hanging mass.
+
+    Parameters
+    ----------
+    mass_kg : float
+        Mass, kg (> 0).
+    direction : str or array_like, shape (3,)
+        ``"x"``, ``"-z"``... or a vector in the base frame (normalised).
+    g : float
+        Gravity, m/s^2.
+    """
+    if not (np.isfinite(mass_kg) and mass_kg > 0):
+        raise ValueError(f"mass must be a positive number of kg, got {mass_kg!r}")
+    if not (np.isfinite(g) and g > 0):
+        raise ValueError(f"g must be a positive number of m/s^2, got {g!r}")
+    u = _direction(direction)
+    name = label if label is not None else f"{mass_kg:g} kg {_dir_name(u)}"
+    return LoadCase(mass_kg * g * u, np.zeros((3, 3)), name)
+
+
+def _dir_name(u: np.ndarray) -> str:
+    for k, v in AXES.items():
+        if np.allclose(u, v):
+            return k
+    return "(" + ", ".join(f"{x:.3g}" for x in u) + ")"
+
+
+def with_friction(
+    load: LoadCase, friction_kg: float, friction_std_kg: float = 0.0, *, g: float = G_STANDARD
+) -> LoadCase:
+    """Subtract a measured friction force along the load's direction.
+
+    Parameters
+    ----------
+    load : LoadCase
+    friction_kg, friction_std_kg : float
+        Mean and standard deviation of the friction, as a mass (kg), measured
+        with a dynamometer (the reference study: 0.028 and 0.008 kg for 0.5 kg).
+    g : float
+        Gravity, m/s^2.
+
+    Returns
+    -------
+    LoadCase
+        Force (|F| - friction g) along the same direction; covariance
+        increased by (friction_std g)^2 along it.
+    """
+    if not (np.isfinite(friction_kg) and friction_kg >= 0):
+        raise ValueError(f"friction must be a non-negative mass in kg, got {friction_kg!r}")
+    if not (np.isfinite(friction_std_kg) and friction_std_kg >= 0):
+        raise ValueError(f"friction standard deviation must be >= 0 kg, got {friction_std_kg!r}")
+    mag = load.magnitude
+    if mag == 0:
+        raise ValueError("cannot correct a zero load for friction")
+    fr = friction_kg * g
+    if fr >= mag:
+        raise ValueError(f"friction ({fr:.4g} N) is not smaller than the load ({mag:.4g} N)")
+    u = load.force / mag
+    cov = load.cov + (friction_std_kg * g) ** 2 * np.outer(u, u)
+    return LoadCase(load.force - fr * u, cov, f"{load.label} - friction")
+
+
+def forces_matrix(loads: Sequence[LoadCase]) -> np.ndarray:
+    """Forces of load cases as columns, shape (3, n), N."""
+    return np.stack([ld.force for ld in loads], axis=1)
+
+
+def force_covariances(loads: Sequence[LoadCase]) -> np.ndarray:
+    """Force covariances of load cases, shape (n, 3, 3), N^2."""
+    return np.stack([ld.cov for ld in loads])
+
+
+def paper9(*, g: float = G_REFERENCE_PAPER) -> list[LoadCase]:
+    """The reference vision study's nine load cases (its Table II).
+
+    0.5, 0.2 and 0.1 kg along +y, -x and -z, in that order; with its g = 9.81
+    the forces are (0, 4.905, 0), (-4.905, 0, 0), (0, 0, -4.905), (0, 1.962, 0),
+    (-1.962, 0, 0), (0, 0, -1.962), (0, 0.981, 0), (-0.981, 0, 0), (0, 0, -0.981) N.
+    """
+    out = []
+    for m in (0.5, 0.2, 0.1):
+        for d in ("+y", "-x", "-z"):
+            out.append(load_from_mass(m, d, g=g))
+    return out
+
+
+#: Named load designs.
+PRESETS = {"paper9": paper9}
+
+
+def preset(name: str, *, g: float | None = None) -> list[LoadCase]:
+    """A named load design (``paper9``)."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown load preset {name!r}; known: {', '.join(PRESETS)}")
+    return PRESETS[name]() if g is None else PRESETS[name](g=g)

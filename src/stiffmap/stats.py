@@ -1,0 +1,241 @@
+"""Repeat statistics after ISO 5725-2 (precision of a measurement method).
+
+A *condition* (ISO 5725's "laboratory": a position, a day, an operator, a
+load case...) holds n_i repeated measurements of the same quantity. From p
+conditions this module computes:
+
+- per condition: mean, standard deviation, n;
+- the repeatability standard deviation s_r and limit r = 2.8 s_r;
+- the between-condition standard deviation s_L, the reproducibility standard
+  deviation s_R = sqrt(s_L^2 + s_r^2) and limit R = 2.8 s_R;
+- Mandel's h (between) and k (within) statistics, Cochran's C (largest
+  variance), and the single Grubbs statistic (largest and smallest mean);
+- stragglers (5 %) and outliers (1 %) judged by critical values computed
+  from the t and F distributions (ISO 5725-2, 7.3.3-7.3.4 and Annex B
+  formulas), not read from tables.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+__all__ = [
+    "ConditionStats",
+    "PrecisionResult",
+    "precision",
+    "describe",
+    "mandel_h_critical",
+    "mandel_k_critical",
+    "cochran_critical",
+    "grubbs_critical",
+]
+
+STRAGGLER_ALPHA = 0.05
+OUTLIER_ALPHA = 0.01
+
+
+def _check_p(p: int, minimum: int) -> None:
+    if int(p) != p or p < minimum:
+        raise ValueError(f"p (number of conditions) must be an integer >= {minimum}, got {p}")
+
+
+def mandel_h_critical(p: int, alpha: float) -> float:
+    """Critical value of Mandel's h for p conditions at level alpha (two-sided).
+
+    h = (p - 1) t / sqrt(p (t^2 + p - 2)), t the upper alpha/2 quantile of
+    Student's t with p - 2 degrees of freedom.
+    """
+    _check_p(p, 3)
+    t = stats.t.ppf(1 - alpha / 2, p - 2)
+    return float((p - 1) * t / np.sqrt(p * (t * t + p - 2)))
+
+
+def mandel_k_critical(p: int, n: int, alpha: float) -> float:
+    """Critical value of Mandel's k for p conditions of n repeats at level alpha.
+
+    k = sqrt(p / (1 + (p - 1) / F)), F the upper alpha quantile of
+    F(n - 1, (p - 1)(n - 1)).
+    """
+    _check_p(p, 2)
+    if n < 2:
+        raise ValueError(f"n (repeats per condition) must be >= 2, got {n}")
+    f = stats.f.ppf(1 - alpha, n - 1, (p - 1) * (n - 1))
+    return float(np.sqrt(p / (1 + (p - 1) / f)))
+
+
+def cochran_critical(p: int, n: int, alpha: float) -> float:
+    """Critical value of Cochran's C for p conditions of n repeats at level alpha.
+
+    C = 1 / (1 + (p - 1) / F), F the upper alpha/p quantile of
+    F(n - 1, (p - 1)(n - 1)).
+    """
+    _check_p(p, 2)
+    if n < 2:
+        raise ValueError(f"n (repeats per condition) must be >= 2, got {n}")
+    f = stats.f.ppf(1 - alpha / p, n - 1, (p - 1) * (n - 1))
+    return float(1 / (1 + (p - 1) / f))
+
+
+def grubbs_critical(p: int, alpha: float) -> float:
+    """Critical value of the single Grubbs statistic for p values at level alpha.
+
+    G = (p - 1) / sqrt(p) * sqrt(t^2 / (p - 2 + t^2)), t the upper alpha/(2p)
+    quantile of Student's t with p - 2 degrees of freedom.
+    """
+    _check_p(p, 3)
+    t = stats.t.ppf(1 - alpha / (2 * p), p - 2)
+    return float((p - 1) / np.sqrt(p) * np.sqrt(t * t / (p - 2 + t * t)))
+
+
+@dataclass(frozen=True)
+class ConditionStats:
+    """Mean, standard deviation (n - 1 in the denominator) and count of one condition."""
+
+    mean: float
+    std: float
+    n: int
+
+
+def describe(values) -> ConditionStats:
+    """Mean, standard deviation and n of repeated values (NaN are refused)."""
+    x = np.asarray(values, dtype=np.float64).ravel()
+    if x.size == 0:
+        raise ValueError("no values")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("values contain NaN or infinite entries")
+    std = float(np.std(x, ddof=1)) if x.size > 1 else float("nan")
+    return ConditionStats(float(np.mean(x)), std, int(x.size))
+
+
+@dataclass(frozen=True)
+class PrecisionResult:
+    """ISO 5725-2 precision of a set of conditions (see :func:`precision`)."""
+
+    conditions: tuple[ConditionStats, ...]
+    grand_mean: float
+    s_r: float
+    r: float
+    s_L: float
+    s_R: float
+    R: float
+    h: np.ndarray
+    k: np.ndarray
+    cochran_C: float | None
+    grubbs_high: float | None
+    grubbs_low: float | None
+    critical: dict[str, tuple[float, float]]
+    stragglers: tuple[str, ...]
+    outliers: tuple[str, ...]
+
+
+def precision(groups: Sequence[Sequence[float]], labels: Sequence[str] | None = None) -> PrecisionResult:
+    """ISO 5725-2 analysis of repeated measurements under p conditions.
+
+    Parameters
+    ----------
+    groups : sequence of p sequences
+        The repeated values of each condition (any unit; results in the same).
+    labels : sequence of str, optional
+        Names of the conditions for the straggler and outlier messages.
+
+    Returns
+    -------
+    PrecisionResult
+        ``critical`` maps ``"h"``, ``"k"``, ``"C"``, ``"G"`` to the
+        (5 %, 1 %) critical values; ``stragglers`` and ``outliers`` list the
+        conditions beyond them, with the test that found each. With unequal
+        repeat counts the k and C critical values use the mean n, rounded.
+    """
+    p = len(groups)
+    if p < 1:
+        raise ValueError("at least one condition is needed")
+    labels = list(labels) if labels is not None else [f"condition {i + 1}" for i in range(p)]
+    if len(labels) != p:
+        raise ValueError(f"{len(labels)} labels for {p} conditions")
+    cs = tuple(describe(g) for g in groups)
+    n = np.array([c.n for c in cs], dtype=float)
+    means = np.array([c.mean for c in cs])
+    stds = np.array([c.std for c in cs])
+    if np.any(n < 2):
+        bad = [labels[i] for i in np.flatnonzero(n < 2)]
+        raise ValueError(f"every condition needs at least 2 repeats; too few in: {', '.join(bad)}")
+    N = n.sum()
+    grand = float((n * means).sum() / N)
+    s_r2 = float(((n - 1) * stds**2).sum() / (n - 1).sum())
+    if p > 1:
+        s_d2 = float((n * (means - grand) ** 2).sum() / (p - 1))
+        nbar = float((N - (n**2).sum() / N) / (p - 1))
+        s_L2 = max((s_d2 - s_r2) / nbar, 0.0)
+        dev = means - means.mean()
+        sb = np.sqrt((dev**2).sum() / (p - 1))
+        h = dev / sb if sb > 0 else np.zeros(p)
+    else:
+        s_L2 = 0.0
+        h = np.zeros(p)
+    ssum = (stds**2).sum()
+    k = stds * np.sqrt(p) / np.sqrt(ssum) if ssum > 0 else np.zeros(p)
+    s_r = float(np.sqrt(s_r2))
+    s_R = float(np.sqrt(s_L2 + s_r2))
+
+    critical: dict[str, tuple[float, float]] = {}
+    stragglers: list[str] = []
+    outliers: list[str] = []
+    n_rep = int(round(n.mean()))
+    cochran_C = grubbs_hi = grubbs_lo = None
+
+    def judge(stat: float, crit: tuple[float, float], what: str) -> None:
+        if stat > crit[1]:
+            outliers.append(what)
+        elif stat > crit[0]:
+            stragglers.append(what)
+
+    if p >= 3:
+        critical["h"] = (mandel_h_critical(p, STRAGGLER_ALPHA), mandel_h_critical(p, OUTLIER_ALPHA))
+        critical["G"] = (grubbs_critical(p, STRAGGLER_ALPHA), grubbs_critical(p, OUTLIER_ALPHA))
+        for i in range(p):
+            judge(abs(h[i]), critical["h"], f"{labels[i]}: Mandel h = {h[i]:.3f}")
+        sd_means = float(np.std(means, ddof=1))
+        if sd_means > 0:
+            grubbs_hi = float((means.max() - means.mean()) / sd_means)
+            grubbs_lo = float((means.mean() - means.min()) / sd_means)
+            judge(
+                grubbs_hi, critical["G"], f"{labels[int(means.argmax())]}: Grubbs G = {grubbs_hi:.3f} (high)"
+            )
+            judge(
+                grubbs_lo, critical["G"], f"{labels[int(means.argmin())]}: Grubbs G = {grubbs_lo:.3f} (low)"
+            )
+    if p >= 2:
+        critical["k"] = (
+            mandel_k_critical(p, n_rep, STRAGGLER_ALPHA),
+            mandel_k_critical(p, n_rep, OUTLIER_ALPHA),
+        )
+        critical["C"] = (
+            cochran_critical(p, n_rep, STRAGGLER_ALPHA),
+            cochran_critical(p, n_rep, OUTLIER_ALPHA),
+        )
+        for i in range(p):
+            judge(k[i], critical["k"], f"{labels[i]}: Mandel k = {k[i]:.3f}")
+        if ssum > 0:
+            cochran_C = float(stds.max() ** 2 / ssum)
+            judge(cochran_C, critical["C"], f"{labels[int(stds.argmax())]}: Cochran C = {cochran_C:.3f}")
+    return PrecisionResult(
+        conditions=cs,
+        grand_mean=grand,
+        s_r=s_r,
+        r=2.8 * s_r,
+        s_L=float(np.sqrt(s_L2)),
+        s_R=s_R,
+        R=2.8 * s_R,
+        h=h,
+        k=k,
+        cochran_C=cochran_C,
+        grubbs_high=grubbs_hi,
+        grubbs_low=grubbs_lo,
+        critical=critical,
+        stragglers=tuple(stragglers),
+        outliers=tuple(outliers),
+    )

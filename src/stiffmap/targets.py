@@ -1,0 +1,173 @@
+"""Planar calibration targets: chessboards and ChArUco boards (pure geometry).
+
+The board frame is canonical (``docs/conventions.md``): x along the columns of
+inner corners, y along the rows, z = x cross y into the board (right-handed);
+inner corner (c, r) is at (c * s, r * s, 0) mm for square size s.
+
+Squares are indexed by the inner corner at their lower (x, y) side plus one:
+square (i, j), i in -1..cols-1, j in -1..rows-1, covers
+[i s, (i+1) s] x [j s, (j+1) s]. Square (i, j) is **black when i + j is even**,
+so the square diagonally outside the origin corner, (-1, -1), is black. When
+``cols + rows`` is odd the colour pattern is not invariant under a half turn,
+so the origin is fixed by the colours in every image; when it is even, the board
+looks the same turned by 180 degrees and the ordering must follow continuity
+with a reference image.
+
+This module holds no image code: ``stiffmap.vision`` detects these boards and
+``stiffmap.sim`` renders them.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Chessboard", "CharucoBoard", "parse_board_size"]
+
+_SIZE = re.compile(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$")
+
+
+def parse_board_size(text: str) -> tuple[int, int]:
+    """Parse ``"COLSxROWS"`` (inner corners) into (cols, rows).
+
+    Raises
+    ------
+    ValueError
+        If the text is not two integers >= 2 joined by ``x``.
+    """
+    m = _SIZE.match(str(text))
+    if not m:
+        raise ValueError(f"board size must look like COLSxROWS (inner corners), e.g. 13x12; got {text!r}")
+    cols, rows = int(m.group(1)), int(m.group(2))
+    if cols < 2 or rows < 2:
+        raise ValueError(f"a board needs at least 2x2 inner corners, got {cols}x{rows}")
+    return cols, rows
+
+
+def _check_positive(value: float, name: str) -> float:
+    v = float(value)
+    if not np.isfinite(v) or v <= 0:
+        raise ValueError(f"{name} must be a positive number of mm, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Chessboard:
+    """A chessboard target.
+
+    Parameters
+    ----------
+    cols, rows : int
+        Inner corners along x and along y (``COLSxROWS``).
+    square_mm : float
+        Side of a square, mm.
+    """
+
+    cols: int
+    rows: int
+    square_mm: float
+
+    def __post_init__(self) -> None:
+        if int(self.cols) < 2 or int(self.rows) < 2:
+            raise ValueError(f"a board needs at least 2x2 inner corners, got {self.cols}x{self.rows}")
+        object.__setattr__(self, "cols", int(self.cols))
+        object.__setattr__(self, "rows", int(self.rows))
+        object.__setattr__(self, "square_mm", _check_positive(self.square_mm, "square_mm"))
+
+    @classmethod
+    def parse(cls, size: str, square_mm: float) -> Chessboard:
+        """Board from ``"COLSxROWS"`` and a square size in mm."""
+        cols, rows = parse_board_size(size)
+        return cls(cols, rows, square_mm)
+
+    @property
+    def size(self) -> str:
+        """``"COLSxROWS"``."""
+        return f"{self.cols}x{self.rows}"
+
+    @property
+    def n_corners(self) -> int:
+        return self.cols * self.rows
+
+    @property
+    def pattern_size(self) -> tuple[int, int]:
+        """(cols, rows), the ``patternSize`` OpenCV expects."""
+        return (self.cols, self.rows)
+
+    @property
+    def orientation_from_colours(self) -> bool:
+        """True when the square colours fix the origin (``cols + rows`` odd)."""
+        return (self.cols + self.rows) % 2 == 1
+
+    def object_points(self) -> np.ndarray:
+        """Inner corners in the board frame.
+
+        Returns
+        -------
+        ndarray, shape (cols * rows, 3), mm
+            Row-major: index ``r * cols + c`` is corner (c, r) at (c s, r s, 0).
+        """
+        c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
+        pts = np.zeros((self.rows * self.cols, 3))
+        pts[:, 0] = c.ravel() * self.square_mm
+        pts[:, 1] = r.ravel() * self.square_mm
+        return pts
+
+    def square_is_black(self, i, j):
+        """Colour of square (i, j) (see the module docstring): black when i + j is even."""
+        return (np.asarray(i) + np.asarray(j)) % 2 == 0
+
+    def extent_mm(self) -> tuple[float, float, float, float]:
+        """Printed area (x0, y0, x1, y1) in the board frame, mm, without any white margin."""
+        s = self.square_mm
+        return (-s, -s, self.cols * s, self.rows * s)
+
+
+@dataclass(frozen=True)
+class CharucoBoard:
+    """A ChArUco board: a chessboard with ArUco markers in its white squares.
+
+    Parameters
+    ----------
+    squares_x, squares_y : int
+        Squares along x and y; inner corners are (squares_x - 1) x (squares_y - 1).
+    square_mm, marker_mm : float
+        Side of a square and of a marker, mm (marker_mm < square_mm).
+    dictionary : str
+        OpenCV predefined dictionary name, e.g. ``"DICT_5X5_100"``.
+
+    The board frame and the corner numbering are those of :class:`Chessboard`
+    with ``cols = squares_x - 1`` and ``rows = squares_y - 1``; the markers
+    identify each corner, so a partly hidden board is still usable.
+    """
+
+    squares_x: int
+    squares_y: int
+    square_mm: float
+    marker_mm: float
+    dictionary: str = "DICT_5X5_100"
+
+    def __post_init__(self) -> None:
+        if int(self.squares_x) < 3 or int(self.squares_y) < 3:
+            raise ValueError(
+                f"a ChArUco board needs at least 3x3 squares, got {self.squares_x}x{self.squares_y}"
+            )
+        object.__setattr__(self, "squares_x", int(self.squares_x))
+        object.__setattr__(self, "squares_y", int(self.squares_y))
+        sq = _check_positive(self.square_mm, "square_mm")
+        mk = _check_positive(self.marker_mm, "marker_mm")
+        if mk >= sq:
+            raise ValueError(f"marker_mm ({mk}) must be smaller than square_mm ({sq})")
+        object.__setattr__(self, "square_mm", sq)
+        object.__setattr__(self, "marker_mm", mk)
+
+    @property
+    def chessboard(self) -> Chessboard:
+        """The underlying chessboard (inner corners and frame)."""
+        return Chessboard(self.squares_x - 1, self.squares_y - 1, self.square_mm)
+
+    def object_points(self) -> np.ndarray:
+        """Inner corners in the board frame, shape ((sx-1)(sy-1), 3), mm, row-major."""
+        return self.chessboard.object_points()
