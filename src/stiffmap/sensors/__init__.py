@@ -1,0 +1,1 @@
+"""Sensor measurement: displacement-sensor and load recordings to load-displacement curves."""
