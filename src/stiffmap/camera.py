@@ -1,0 +1,363 @@
+"""Pinhole camera with OpenCV's lens-distortion model, and the ``camera.json`` file.
+
+Pure NumPy (no OpenCV): the vision path produces a :class:`CameraModel` by
+calibration, the virtual test-bed renders through one, and both read and write
+the same ``camera.json``.
+
+Model (OpenCV's, pixels (x right, y down), pixel centres at integer
+coordinates): a point (X, Y, Z) in the camera frame (mm, Z > 0 in front) has
+normalised coordinates x = X/Z, y = Y/Z; with r^2 = x^2 + y^2,
+
+    radial = (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)
+    x' = x radial + 2 p1 x y + p2 (r^2 + 2 x^2) + s1 r^2 + s2 r^4
+    y' = y radial + p1 (r^2 + 2 y^2) + 2 p2 x y + s3 r^2 + s4 r^4
+    u = fx x' + cx,  v = fy y' + cy.
+
+``dist`` holds (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4]]]), the
+order OpenCV uses; missing terms are zero. The tilted-sensor terms (14
+coefficients) are not supported.
+
+``camera.json``::
+
+    {"image_size": [w, h], "fx": ..., "fy": ..., "cx": ..., "cy": ...,
+     "dist": [k1, k2, p1, p2, k3],
+     "std": {"fx": ..., "fy": ..., "cx": ..., "cy": ..., "dist": [...]},   # 1 sigma
+     "rms_px": ..., "residual_std_px": [sx, sy],
+     "views": [{"image": ..., "used": true, "rms_px": ..., "reason": ""}]}
+
+Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["CameraModel", "reference_camera", "load_camera", "save_camera"]
+
+_DIST_LENGTHS = (4, 5, 8, 12)
+
+
+def _dist12(dist: np.ndarray) -> np.ndarray:
+    d = np.zeros(12)
+    d[: dist.size] = dist
+    return d
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics and distortion of a camera (see the module docstring).
+
+    Attributes
+    ----------
+    image_size : (int, int)
+        (width, height) in px.
+    fx, fy, cx, cy : float
+        Focal lengths and principal point, px.
+    dist : tuple of float
+        (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4]]]).
+    std : dict or None
+        1-sigma uncertainties, same keys (``fx``, ``fy``, ``cx``, ``cy``, ``dist``).
+    rms_px : float or None
+        Calibration reprojection RMS, px.
+    residual_std_px : (float, float) or None
+        Standard deviation of the calibration residuals per axis, px.
+    views : tuple of dict
+        Per calibration image: ``image``, ``used``, ``rms_px``, ``reason``.
+    """
+
+    image_size: tuple[int, int]
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    dist: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    std: dict[str, Any] | None = None
+    rms_px: float | None = None
+    residual_std_px: tuple[float, float] | None = None
+    views: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        w, h = (int(v) for v in self.image_size)
+        if w <= 0 or h <= 0:
+            raise ValueError(f"image_size must be positive [w, h], got {self.image_size}")
+        object.__setattr__(self, "image_size", (w, h))
+        for k in ("fx", "fy", "cx", "cy"):
+            v = float(getattr(self, k))
+            if not math.isfinite(v):
+                raise ValueError(f"{k} must be finite, got {v}")
+            object.__setattr__(self, k, v)
+        if self.fx <= 0 or self.fy <= 0:
+            raise ValueError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+        d = np.asarray(self.dist, dtype=np.float64).ravel()
+        if d.size not in _DIST_LENGTHS or not np.all(np.isfinite(d)):
+            raise ValueError(f"dist must hold 4, 5, 8 or 12 finite coefficients, got {list(self.dist)}")
+        object.__setattr__(self, "dist", tuple(float(x) for x in d))
+        object.__setattr__(self, "views", tuple(self.views))
+
+    # ------------------------------------------------------------------ arrays
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 3x3 camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def dist_array(self) -> np.ndarray:
+        """Distortion coefficients as a float64 array (OpenCV order)."""
+        return np.asarray(self.dist, dtype=np.float64)
+
+    # ------------------------------------------------------------- projection
+    def distort(self, xy) -> np.ndarray:
+        """Apply the lens distortion to normalised coordinates.
+
+        Parameters
+        ----------
+        xy : array_like, shape (..., 2)
+            Ideal normalised coordinates (X/Z, Y/Z).
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+            Distorted normalised coordinates (x', y').
+        """
+        xy = np.asarray(xy, dtype=np.float64)
+        out, _ = _distort(xy, _dist12(self.dist_array), jacobian=False)
+        return out
+
+    def undistort(self, xy_distorted, *, tol: float = 1e-14, max_iter: int = 50) -> np.ndarray:
+        """Invert :meth:`distort` by Newton's method (vectorised).
+
+        Parameters
+        ----------
+        xy_distorted : array_like, shape (..., 2)
+            Distorted normalised coordinates.
+        tol : float
+            Convergence tolerance on the normalised coordinates (1e-14 is about
+            1e-11 px at f = 4000 px).
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+
+        Raises
+        ------
+        ValueError
+            If Newton's method does not converge (far outside the image, where
+            the distortion polynomial folds over).
+        """
+        target = np.asarray(xy_distorted, dtype=np.float64)
+        d = _dist12(self.dist_array)
+        x = target.copy()
+        for _ in range(max_iter):
+            f, J = _distort(x, d, jacobian=True)
+            r = f - target
+            # Solve J dx = r per point (2x2).
+            a, b, c, e = J[..., 0, 0], J[..., 0, 1], J[..., 1, 0], J[..., 1, 1]
+            det = a * e - b * c
+            dx0 = (e * r[..., 0] - b * r[..., 1]) / det
+            dx1 = (-c * r[..., 0] + a * r[..., 1]) / det
+            x = x - np.stack([dx0, dx1], axis=-1)
+            if np.all(np.abs(r) < tol):
+                return x
+        f, _ = _distort(x, d, jacobian=False)
+        if not np.all(np.abs(f - target) < 1e3 * tol):
+            raise ValueError("undistortion did not converge (points far outside the calibrated field?)")
+        return x
+
+    def project(self, points_cam) -> np.ndarray:
+        """Pixel coordinates of 3D points given in the camera frame.
+
+        Parameters
+        ----------
+        points_cam : array_like, shape (..., 3)
+            Points in the camera frame, mm, Z > 0.
+
+        Returns
+        -------
+        ndarray, shape (..., 2)
+            (u, v) in px.
+        """
+        P = np.asarray(points_cam, dtype=np.float64)
+        if P.shape[-1] != 3:
+            raise ValueError(f"points_cam must have shape (..., 3), got {P.shape}")
+        if np.any(P[..., 2] <= 0):
+            raise ValueError("points behind the camera (Z <= 0) cannot be projected")
+        xy = P[..., :2] / P[..., 2:3]
+        return self.pixels_from_normalized(self.distort(xy))
+
+    def pixels_from_normalized(self, xy_distorted) -> np.ndarray:
+        """(u, v) = (fx x' + cx, fy y' + cy) from distorted normalised coordinates."""
+        xy = np.asarray(xy_distorted, dtype=np.float64)
+        return np.stack([self.fx * xy[..., 0] + self.cx, self.fy * xy[..., 1] + self.cy], axis=-1)
+
+    def normalized_from_pixels(self, uv) -> np.ndarray:
+        """Distorted normalised coordinates of pixel positions (no undistortion)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        return np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
+
+    def rays_from_pixels(self, uv) -> np.ndarray:
+        """Ideal normalised coordinates (X/Z, Y/Z) of the rays through pixel positions."""
+        return self.undistort(self.normalized_from_pixels(uv))
+
+    # -------------------------------------------------------------------- json
+    def to_dict(self) -> dict[str, Any]:
+        """The ``camera.json`` object."""
+        d: dict[str, Any] = {
+            "image_size": list(self.image_size),
+            "fx": self.fx,
+            "fy": self.fy,
+            "cx": self.cx,
+            "cy": self.cy,
+            "dist": list(self.dist),
+        }
+        if self.std is not None:
+            d["std"] = self.std
+        if self.rms_px is not None:
+            d["rms_px"] = self.rms_px
+        if self.residual_std_px is not None:
+            d["residual_std_px"] = list(self.residual_std_px)
+        if self.views:
+            d["views"] = list(self.views)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "camera.json") -> CameraModel:
+        """Validate a ``camera.json`` object.
+
+        Raises
+        ------
+        InputError
+            Naming ``source`` and the key that is missing or wrong.
+        """
+        if not isinstance(data, dict):
+            raise InputError(
+                "expected a JSON object with keys image_size, fx, fy, cx, cy, dist; "
+                f"got {type(data).__name__}",
+                source=source,
+            )
+        missing = [k for k in ("image_size", "fx", "fy", "cx", "cy", "dist") if k not in data]
+        if missing:
+            raise InputError(
+                f"missing key{'s' if len(missing) > 1 else ''} {', '.join(repr(k) for k in missing)}",
+                source=source,
+            )
+
+        def number(key: str, v: Any, positive: bool = False) -> float:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InputError(f"key {key!r} must be a finite number, got {v!r}", source=source)
+            if positive and v <= 0:
+                raise InputError(f"key {key!r} must be positive, got {v!r}", source=source)
+            return float(v)
+
+        size = data["image_size"]
+        if (
+            not isinstance(size, list)
+            or len(size) != 2
+            or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)
+        ):
+            raise InputError(
+                f"key 'image_size' must be [width, height] in px (positive integers), got {size!r}",
+                source=source,
+            )
+        vals = {k: number(k, data[k], positive=k in ("fx", "fy")) for k in ("fx", "fy", "cx", "cy")}
+        dist = data["dist"]
+        if not isinstance(dist, list) or len(dist) not in _DIST_LENGTHS:
+            raise InputError(
+                f"key 'dist' must be a list of 4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...], got {dist!r}",
+                source=source,
+            )
+        dist = [number(f"dist[{i}]", v) for i, v in enumerate(dist)]
+        std = data.get("std")
+        if std is not None and not isinstance(std, dict):
+            raise InputError(
+                f"key 'std' must be an object with keys fx, fy, cx, cy, dist; got {std!r}", source=source
+            )
+        rms = data.get("rms_px")
+        rms = number("rms_px", rms) if rms is not None else None
+        rsd = data.get("residual_std_px")
+        if rsd is not None:
+            if not isinstance(rsd, list) or len(rsd) != 2:
+                raise InputError(f"key 'residual_std_px' must be [sx, sy], got {rsd!r}", source=source)
+            rsd = (number("residual_std_px[0]", rsd[0]), number("residual_std_px[1]", rsd[1]))
+        views = data.get("views", [])
+        if not isinstance(views, list):
+            raise InputError(f"key 'views' must be a list, got {views!r}", source=source)
+        return cls(
+            image_size=(size[0], size[1]),
+            dist=tuple(dist),
+            std=std,
+            rms_px=rms,
+            residual_std_px=rsd,
+            views=tuple(views),
+            **vals,
+        )
+
+
+def _distort(xy: np.ndarray, d: np.ndarray, *, jacobian: bool):
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d
+    x = xy[..., 0]
+    y = xy[..., 1]
+    r2 = x * x + y * y
+    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+    rad = num / den
+    xd = x * rad + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + r2 * (s1 + s2 * r2)
+    yd = y * rad + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + r2 * (s3 + s4 * r2)
+    out = np.stack([xd, yd], axis=-1)
+    if not jacobian:
+        return out, None
+    dnum = k1 + r2 * (2 * k2 + 3 * k3 * r2)
+    dden = k4 + r2 * (2 * k5 + 3 * k6 * r2)
+    drad = (dnum * den - num * dden) / (den * den)  # d rad / d r2
+    sx = s1 + 2 * s2 * r2  # d(s1 r2 + s2 r4)/d r2
+    sy = s3 + 2 * s4 * r2
+    J = np.empty((*x.shape, 2, 2))
+    J[..., 0, 0] = rad + 2 * x * x * drad + 2 * p1 * y + 6 * p2 * x + 2 * x * sx
+    J[..., 0, 1] = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y + 2 * y * sx
+    J[..., 1, 0] = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y + 2 * x * sy
+    J[..., 1, 1] = rad + 2 * y * y * drad + 6 * p1 * y + 2 * p2 * x + 2 * y * sy
+    return out, J
+
+
+def reference_camera() -> CameraModel:
+    """The reference vision study's camera (its Table IV): 2592x1944 px, DFK 72UC02.
+
+    fx = 3733.27, fy = 3722.85, cx = 1466.77, cy = 904.81 px, k1 = -0.09, k2 = 0.11.
+    """
+    return CameraModel(
+        image_size=(2592, 1944),
+        fx=3733.27,
+        fy=3722.85,
+        cx=1466.77,
+        cy=904.81,
+        dist=(-0.09, 0.11, 0.0, 0.0, 0.0),
+    )
+
+
+def load_camera(path: str | Path) -> CameraModel:
+    """Read and validate a ``camera.json`` file (InputError naming the file and key)."""
+    p = Path(path)
+    src = str(path)
+    if not p.is_file():
+        raise InputError("camera file not found", source=src)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise InputError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})", source=src) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read: {e}", source=src) from None
+    return CameraModel.from_dict(data, source=src)
+
+
+def save_camera(camera: CameraModel, path: str | Path) -> None:
+    """Write ``camera.json`` atomically."""
+    from .io import atomic_write_text, dumps_json
+
+    atomic_write_text(path, dumps_json(camera.to_dict()) + "\n")

@@ -1,0 +1,88 @@
+"""Camera model: NumPy projection against OpenCV, undistortion round trip, camera.json."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from stiffmap.camera import CameraModel, load_camera, reference_camera, save_camera
+from stiffmap.errors import InputError
+
+DISTS = [
+    (-0.09, 0.11, 0.0, 0.0, 0.0),  # the reference study's camera
+    (-0.25403, 0.12143, -0.00021, 0.00002, 0.0),  # Bouguet's calibration example
+    (0.1, -0.05, 1e-3, -2e-3, 0.01, 0.02, -0.01, 0.005),  # rational model
+    (0.1, -0.05, 1e-3, -2e-3, 0.01, 0.02, -0.01, 0.005, 1e-3, -1e-3, 2e-3, 5e-4),  # thin prism
+]
+
+
+@pytest.mark.parametrize("dist", DISTS)
+def test_projection_matches_opencv(dist, rng):
+    cam = CameraModel((2592, 1944), 3733.27, 3722.85, 1466.77, 904.81, dist)
+    P = np.c_[rng.uniform(-200, 200, size=(500, 2)), rng.uniform(500, 900, size=500)]
+    ours = cam.project(P)
+    ref, _ = cv2.projectPoints(P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.matrix, cam.dist_array)
+    np.testing.assert_allclose(ours, ref.reshape(-1, 2), atol=1e-8)  # px
+
+
+@pytest.mark.parametrize("dist", DISTS)
+def test_undistort_inverts_distort_over_the_image(dist):
+    cam = CameraModel((2592, 1944), 3733.27, 3722.85, 1466.77, 904.81, dist)
+    u, v = np.meshgrid(np.linspace(0, 2591, 40), np.linspace(0, 1943, 30))
+    uv = np.stack([u, v], axis=-1)
+    rays = cam.rays_from_pixels(uv)
+    back = cam.pixels_from_normalized(cam.distort(rays))
+    np.testing.assert_allclose(back, uv, atol=1e-9)  # px
+
+
+def test_distortion_jacobian_matches_finite_differences(rng):
+    from stiffmap.camera import _dist12, _distort
+
+    d = _dist12(np.asarray(DISTS[3]))
+    xy = rng.uniform(-0.4, 0.4, size=(50, 2))
+    _, J = _distort(xy, d, jacobian=True)
+    h = 1e-6
+    for k in range(2):
+        e = np.zeros(2)
+        e[k] = h
+        fd = (_distort(xy + e, d, jacobian=False)[0] - _distort(xy - e, d, jacobian=False)[0]) / (2 * h)
+        np.testing.assert_allclose(J[..., :, k], fd, rtol=1e-6, atol=1e-9)
+
+
+def test_camera_json_round_trip(tmp_path):
+    cam = CameraModel(
+        (640, 480),
+        657.46,
+        657.95,
+        303.14,
+        242.57,
+        (-0.254, 0.121, -2e-4, 2e-5, 0.0),
+        std={"fx": 0.1, "fy": 0.1, "cx": 0.2, "cy": 0.2, "dist": [1e-3, 3e-3, 4e-5, 4e-5, 0.0]},
+        rms_px=0.17,
+        residual_std_px=(0.12, 0.12),
+        views=({"image": "Image1.tif", "used": True, "rms_px": 0.15, "reason": ""},),
+    )
+    path = tmp_path / "camera.json"
+    save_camera(cam, path)
+    assert load_camera(path) == cam
+    assert reference_camera().image_size == (2592, 1944)
+
+
+@pytest.mark.parametrize(
+    "content, expected",
+    [
+        ("{not json", "not valid JSON"),
+        ('{"fx": 1}', "missing keys 'image_size'"),
+        ('{"image_size": [640], "fx": 1, "fy": 1, "cx": 1, "cy": 1, "dist": [0,0,0,0,0]}', "'image_size'"),
+        ('{"image_size": [640, 480], "fx": "a", "fy": 1, "cx": 1, "cy": 1, "dist": [0,0,0,0,0]}', "'fx'"),
+        ('{"image_size": [640, 480], "fx": -5, "fy": 1, "cx": 1, "cy": 1, "dist": [0,0,0,0,0]}', "positive"),
+        ('{"image_size": [640, 480], "fx": 5, "fy": 1, "cx": 1, "cy": 1, "dist": [0,0,0]}', "'dist'"),
+    ],
+)
+def test_malformed_camera_json_names_file_and_key(tmp_path, content, expected):
+    path = tmp_path / "cam.json"
+    path.write_text(content)
+    with pytest.raises(InputError, match=expected) as info:
+        load_camera(path)
+    assert str(path) in str(info.value)
