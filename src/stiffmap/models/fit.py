@@ -215,7 +215,8 @@ def _check_sigma(sigma, shape: tuple[int, ...], name: str) -> np.ndarray | None:
         raise ValueError(f"{name} must have shape {shape}, got {s.shape}")
     if not np.all(np.isfinite(s) & (s > 0)):
         i = np.unravel_index(int(np.flatnonzero(~(np.isfinite(s) & (s > 0)))[0]), shape)
-        raise ValueError(f"{name} must be positive and finite; entry {tuple(int(v) for v in i)} is {s[i]!r}")
+        where = tuple(int(v) for v in i)
+        raise ValueError(f"{name} must be positive and finite; entry {where} is {float(s[i])!r}")
     return s
 
 
