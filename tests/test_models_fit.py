@@ -153,3 +153,61 @@ def test_bad_requests_are_refused_clearly():
         m.with_params(kj=0.0)
     with pytest.raises(ValueError, match=r"K must have shape \(48, 3, 3\)"):
         fit_stiffness(DeltaRobot(), paper48(), np.zeros((48, 2, 2)))
+
+
+@dataclasses.dataclass(frozen=True)
+class _AxisSprings:
+    """A user-defined mechanism (not part of stiffmap): a planar gantry whose tool is held by a
+    spring kx along x and ky along y, reachable in the square [0, 100]^2 mm."""
+
+    kx: float = 50.0
+    ky: float = 80.0
+    name = "gantry"
+    dim = 2
+
+    def params(self):
+        return {"kx": self.kx, "ky": self.ky}
+
+    def with_params(self, **p):
+        return dataclasses.replace(self, **p)
+
+    def inverse_kinematics(self, points):
+        from stiffmap.models import IKSolution
+
+        P = np.atleast_2d(np.asarray(points, dtype=float))
+        ok = np.all((P >= 0) & (P <= 100), axis=1)
+        return IKSolution(
+            np.where(ok[:, None], P, np.nan), ok, tuple("" if o else "unreachable: off" for o in ok)
+        )
+
+    def evaluate(self, points):
+        from stiffmap.models.base import model_map
+
+        P = np.atleast_2d(np.asarray(points, dtype=float))
+        ik = self.inverse_kinematics(P)
+        K = np.broadcast_to(np.diag([self.kx, self.ky]), (P.shape[0], 2, 2))
+        return model_map(self.name, self.params(), P, K, ik.reachable, ik.reasons, ik.q, np.ones(P.shape[0]))
+
+    def stiffness(self, points):
+        return self.evaluate(points).K
+
+    def static_error(self, points, force):
+        return self.evaluate(points).static_error(force)
+
+
+def test_a_user_defined_mechanism_plugs_into_maps_and_fits():
+    from stiffmap.models import Mechanism
+
+    g = _AxisSprings()
+    assert isinstance(g, Mechanism)
+    m = g.evaluate([[10.0, 10.0], [200.0, 0.0]])
+    np.testing.assert_array_equal(m.valid, [True, False])
+    assert np.isnan(m.K[1]).all() and m.det[0] == pytest.approx(4000.0)
+    rng = np.random.default_rng(11)
+    P = rng.uniform(0, 100, size=(30, 2))
+    F = rng.normal(scale=20.0, size=(30, 2))
+    U = np.tile([[1.0, 0.0], [0.0, 1.0]], (15, 1))
+    y = static_error_predictions(_AxisSprings(kx=42.0, ky=95.0), P, F, U)
+    f = fit_static_errors(g, P, F, U, y, params=("kx", "ky"))
+    np.testing.assert_allclose([f.values["kx"], f.values["ky"]], [42.0, 95.0], rtol=1e-8)
+    assert f.model.name == "gantry"

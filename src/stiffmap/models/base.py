@@ -90,7 +90,8 @@ class Mechanism(Protocol):
     in the mechanism's base frame.
 
     ``inverse_kinematics(points) -> IKSolution``
-        Joint coordinates and a reachable mask; never raises for a bad pose.
+        Joint coordinates and a reachable mask (arrays of N rows; N = 1 for one
+        pose); never raises for a bad pose.
     ``stiffness(points) -> ndarray, shape (N, dim, dim)``
         K (N/mm) at the tool point in the base frame; ``(dim, dim)`` for one
         pose. Raises :class:`PoseError` naming the first unreachable or singular pose.
@@ -281,6 +282,10 @@ def model_map(
     conditioning: np.ndarray,
 ) -> ModelMap:
     """Assemble a :class:`ModelMap`: blank K where invalid and compute the indices.
+
+    The helper for a new mechanism's ``evaluate``: give the stiffness at every
+    point, the validity mask and the reasons; it computes det, principal
+    stiffnesses and condition numbers and makes the arrays read-only.
 
     Parameters
     ----------

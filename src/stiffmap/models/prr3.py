@@ -365,7 +365,8 @@ class PRR3:
             K = np.einsum("ni,nij,nik->njk", kl, np.nan_to_num(lg.n), np.nan_to_num(lg.n))
         K = 0.5 * (K + np.swapaxes(K, 1, 2))  # exactly symmetric (roundoff of the sum)
         q = np.where(lg.reachable[:, None], lg.l, np.nan)
-        return model_map(self.name, self.params(), T, K, valid, reasons, q, np.fmin(serial, parallel))
+        cond = np.where(lg.reachable, np.fmin(serial, parallel), np.nan)
+        return model_map(self.name, self.params(), T, K, valid, reasons, q, cond)
 
     def evaluate(self, points) -> ModelMap:
         """Stiffness map over many poses, flagging unreachable and singular ones.
