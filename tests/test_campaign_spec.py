@@ -98,3 +98,13 @@ def test_pattern_placeholders_are_checked():
     )
     with pytest.raises(InputError, match=r"unknown placeholder"):
         parse_spec(text)
+
+
+def test_position_presets_resolve():
+    spec = parse_spec(EXAMPLE_TOML)
+    pts = spec.positions.resolve()
+    assert pts.shape == (48, 3)
+    assert sorted(set(pts[:, 2])) == [-400.0, -310.0, -200.0]
+    text = EXAMPLE_TOML.replace('preset = "paper48"', 'preset = "paper50"')
+    with pytest.raises(ValueError, match="unknown position preset"):
+        parse_spec(text).positions.resolve()
