@@ -166,13 +166,9 @@ class PositionsSpec(_Spec):
     def resolve(self) -> np.ndarray:
         """Positions, shape (n, 3) mm (z = 0 for planar points)."""
         if self.preset is not None:
-            from ..models.presets import POSITION_PRESETS
+            from ..models.presets import preset_points
 
-            if self.preset not in POSITION_PRESETS:
-                raise ValueError(
-                    f"unknown positions preset {self.preset!r}; known: {', '.join(POSITION_PRESETS)}"
-                )
-            pts = np.asarray(POSITION_PRESETS[self.preset](), dtype=float)
+            pts = np.asarray(preset_points(self.preset), dtype=float)
         elif self.points is not None:
             pts = np.array([list(p) + [0.0] * (3 - len(p)) for p in self.points], dtype=float)
         else:
