@@ -300,13 +300,13 @@ def detect_plateaus(
                 continue
         merged.append(r)
     # The step statistic stops a run up to w samples before a transition; move each
-    # edge out while the next few samples still sit at the plateau's level.
+    # edge out (by at most w) while the next few samples still sit at the plateau's level.
     m = max(5, w // 5)
     for j, r in enumerate(merged):
         lo_lim = merged[j - 1][1] if j > 0 else 0
         hi_lim = merged[j + 1][0] if j + 1 < len(merged) else n
         lv = [level(k, r[0], r[1])[0] for k in range(len(ys))]
-        tols = [threshold_sigma * noise[k] / math.sqrt(m) + floors[k] for k in range(len(ys))]
+        tols = [threshold_sigma * noise[k] / math.sqrt(m) for k in range(len(ys))]
 
         def fits(a: int, b: int, lv=lv, tols=tols) -> bool:
             if not ok[a:b].all():
@@ -314,10 +314,10 @@ def detect_plateaus(
             return all(abs(filled[k][a:b].mean() - lv[k]) <= tols[k] for k in range(len(ys)))
 
         a = r[0]
-        while a - m >= lo_lim and fits(a - m, a):
+        while a - m >= max(lo_lim, r[0] - w) and fits(a - m, a):
             a -= m
         b = r[1]
-        while b + m <= hi_lim and fits(b, b + m):
+        while b + m <= min(hi_lim, r[1] + w) and fits(b, b + m):
             b += m
         stable[a : r[0]] = True
         stable[r[1] : b] = True
