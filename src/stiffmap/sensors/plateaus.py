@@ -260,7 +260,12 @@ def detect_plateaus(
                 thr2 = np.maximum(threshold_sigma * noise[k] * sc2, split_floors[k])
                 stable[a:b] &= np.abs(D2 - drifts[k] * w2) <= thr2
         mult *= 2
-    runs = [list(r) for r in spans_from_mask(stable)]
+    runs = []
+    for r in spans_from_mask(stable):
+        if r[1] - r[0] >= max(3, w // 4):
+            runs.append(list(r))
+        else:
+            stable[r[0] : r[1]] = False  # a few quiet samples amid a spike or a transition
 
     def level(k: int, a: int, b: int) -> tuple[float, int]:
         m = stable[a:b] & ok[a:b]
@@ -268,14 +273,17 @@ def detect_plateaus(
         return (float(filled[k][a:b][m].mean()) if cnt else float("nan")), cnt
 
     def gap_stays(k: int, a: int, b: int, ref: float, tol: float) -> bool:
-        """Do the window means of y[a:b] stay within tol of ref (no excursion in the gap)?"""
+        """Do the running medians of y[a:b] stay within tol of ref (no excursion in the gap)?
+
+        Medians over w samples: a spike shorter than w/2 does not move them, an excursion
+        that holds longer does.
+        """
         g = filled[k][a:b]
         if g.size == 0:
             return True
         wg = min(w, g.size)
-        c = np.concatenate([[0.0], np.cumsum(g - ref)])
-        means = (c[wg:] - c[:-wg]) / wg
-        return bool(np.abs(means).max() <= tol + threshold_sigma * noise[k] / math.sqrt(wg))
+        med = np.median(np.lib.stride_tricks.sliding_window_view(g, wg), axis=1)
+        return bool(np.abs(med - ref).max() <= tol + 1.25 * threshold_sigma * noise[k] / math.sqrt(wg))
 
     # Merge neighbouring runs at the same level whose gap stays at that level (a
     # spike, a false split); a real excursion between two equal plateaus is kept.
