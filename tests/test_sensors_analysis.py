@@ -231,3 +231,40 @@ def test_reference_load_beyond_the_loads_is_flagged():
     r = analyse_recording(tr.recording)
     assert any("static error extrapolated" in f for f in r.flags)
     assert 1e3 * abs(r.static_error_mm - 0.5) <= _tol_um(0.5) * 2.5  # x2.5 extrapolation of the slope
+
+
+@pytest.mark.parametrize(("vib_hz", "settle_s"), [(3.0, 0.0), (50.0, 0.0), (0.0, 0.2)])
+def test_vibration_lines_and_settling_do_not_break_the_plateaus(vib_hz, settle_s):
+    """Non-white noise (a 5 um vibration line at 3 or 50 Hz) and a 0.2 s settling after each change."""
+    chain = dataclasses.replace(FAST_CHAIN, vibration_um=5.0 if vib_hz else 0.0, vibration_hz=vib_hz or 50.0)
+    for seed in range(4):
+        tr = quick_trace(0.4, seed=seed, chain=chain, settle_s=settle_s)
+        r = analyse_recording(tr.recording)
+        assert len(r.plateaus) == 7
+        assert 1e3 * abs(r.static_error_mm - 0.4) <= _tol_um(0.4)
+
+
+def test_load_channel_checked_against_the_table_and_load_cell_in_volts():
+    tr = quick_trace(0.5, seed=15)
+    wrong = (0, 50, 40, 35, 20, 10, 0)  # the operator wrote 35 for 30 kgf
+    r = analyse_recording(tr.recording, SensorConfig(steps=wrong))
+    (flag,) = [f for f in r.flags if "load channel reads" in f]
+    assert flag.startswith("plateau 4 (") and "294.3 N, the table says 343.4 N" in flag
+    # A load cell read in volts (100 N/V): the same result as the channel in N.
+    rec = tr.recording
+    volts = Recording("lc.csv", rec.time_s, rec.displacement_v, rec.load * 9.81 / 100.0, "V", "load_v")
+    with pytest.raises(InputError, match=r"--load-n-per-v"):
+        analyse_recording(volts)
+    rv = analyse_recording(volts, SensorConfig(load_n_per_v=100.0))
+    assert rv.static_error_mm == pytest.approx(analyse_recording(rec).static_error_mm, rel=1e-9)
+
+
+def test_config_checks():
+    with pytest.raises(ValueError, match="scale_um_per_v must be a positive number"):
+        SensorConfig(scale_um_per_v=0)
+    with pytest.raises(ValueError, match="step times must be in time order and not overlap"):
+        SensorConfig(step_times_s=((0, 2), (1, 3)))
+    with pytest.raises(ValueError, match="steps must hold at least 2 finite loads"):
+        SensorConfig(steps=(50,))
+    with pytest.raises(ValueError, match="detect_on must be one of"):
+        SensorConfig(detect_on="volts")

@@ -152,3 +152,24 @@ def test_recording_checks_its_arrays():
         Recording("r", [0, 1, 2], [0, 1])
     with pytest.raises(InputError, match="time of sample 1 is not a finite number"):
         Recording("r", [0, np.nan, 2], [0, 1, 2])
+
+
+def test_tdms_channel_in_two_groups_asks_for_the_group(tmp_path):
+    t = np.arange(100) / 100.0
+    with TdmsWriter(tmp_path / "two.tdms") as w:
+        w.write_segment(
+            [
+                RootObject(),
+                GroupObject("a"),
+                GroupObject("b"),
+                ChannelObject("a", "displacement_v", t),
+                ChannelObject("b", "displacement_v", -t),
+                ChannelObject("a", "time_s", t),
+            ]
+        )
+    with pytest.raises(InputError, match=r"channel 'displacement_v' is in several groups \('a', 'b'\)"):
+        read_recording(tmp_path / "two.tdms")
+    rec = read_recording(tmp_path / "two.tdms", parse_channel_map("group=b,time=none,rate=100"))
+    np.testing.assert_array_equal(rec.displacement_v, -t)
+    with pytest.raises(InputError, match=r"no TDMS group 'c' \(groups: 'a', 'b'\)"):
+        read_recording(tmp_path / "two.tdms", parse_channel_map("group=c"))

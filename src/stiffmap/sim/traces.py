@@ -12,7 +12,8 @@ The signal chain, per sample:
     F(t)    the applied load: plateaus joined by raised-cosine transitions, N
     x(t)    = c * play(F)(t): compliance c (mm/N) along the sensor axis; play() is a
             backlash of half-width ``hysteresis_n`` (identity when 0), so the
-            unloading branch sits c * 2 * hysteresis_n above the loading one
+            unloading branch sits c * 2 * hysteresis_n above the loading one;
+            optionally lagging the load by a first-order settling (``settle_s``)
     drift   linear rate + a slow random wander (sum of sinusoids, periods of
             ``drift_period_s`` and longer), µm
     noise   white Gaussian + an optional vibration line (e.g. 50 Hz), µm
@@ -265,6 +266,7 @@ def simulate_trace(
     reference_load_n: float = 490.5,
     axis_sign: int = 1,
     hysteresis_n: float = 0.0,
+    settle_s: float = 0.0,
     dropouts: Sequence[tuple[float, float]] = (),
     dropout_kind: str = "nan",
     seed: int | np.random.Generator | None = 0,
@@ -287,6 +289,9 @@ def simulate_trace(
         -1 for a mirror in the beam: the file's volts have the opposite sign.
     hysteresis_n : float
         Half-width of the backlash between loading and unloading, N.
+    settle_s : float
+        Time constant of a first-order lag of the structure behind the load (creep,
+        friction settling), s; 0: none.
     dropouts : sequence of (start_s, end_s)
         Spans where the sensor signal is lost.
     dropout_kind : {"nan", "gap"}
@@ -346,6 +351,13 @@ def simulate_trace(
             L[m] = applied[i] + (applied[i + 1] - applied[i]) * 0.5 * (1 - np.cos(np.pi * s))
     F = L * to_n
     x_mm = c * _play(F, float(hysteresis_n))
+    if settle_s < 0 or not math.isfinite(settle_s):
+        raise ValueError(f"settle_s must be >= 0, got {settle_s!r}")
+    if settle_s > 0:
+        from scipy.signal import lfilter
+
+        alpha = dt / (settle_s + dt)
+        x_mm = lfilter([alpha], [1.0, alpha - 1.0], x_mm, zi=[(1.0 - alpha) * x_mm[0]])[0]
     # Slow drift: linear + random wander (three sinusoids, periods >= drift_period_s).
     drift_um = ch.drift_um_per_s * t
     if ch.drift_wander_um > 0:
