@@ -384,7 +384,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         "inputs_hash": ihash,
         "version": __version__,
     }
-    pick = "k_theta"
+    fit_names = tuple(spec.robot.fit) if spec.robot.fit else ("k_theta",)
     if len(ok) >= 1:
         try:
             mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))
@@ -395,7 +395,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
                 model,
                 np.array([[r["x"], r["y"], r["z"]] for r in good]),
                 np.array([from_json(r["K"]) for r in good]),
-                params=(pick,),
+                params=fit_names,
                 K_std=np.array([from_json(r["K_std"]) for r in good]),
             )
             fitted = fit.model
