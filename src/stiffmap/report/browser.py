@@ -399,7 +399,8 @@ def check_page(
         wait = (
             "new Promise(r => { const t0 = Date.now(); (function f() {"
             " const s = window.stiffmapReady;"
-            " if (s === true || (s === undefined && Date.now() - t0 > 200)) r(true); else if (s === false) r(false);"
+            " if (s === true || (s === undefined && Date.now() - t0 > 200)) r(true);"
+            " else if (s === false) r(false);"
             f" else if (Date.now() - t0 > {limit_ms}) r(false); else setTimeout(f, 50); }})(); }})"
         )
         ready = bool(
