@@ -62,7 +62,7 @@ def _array(obj, name: str, value, shape: tuple, dims: dict[str, int], *, finite:
         a = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"{name}: expected numbers, got {type(value).__name__}") from None
-    want = "(" + ", ".join(str(s) for s in shape) + ")"
+    want = "(" + ", ".join(str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
     if a.ndim != len(shape):
         raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
     for s, k in zip(shape, a.shape, strict=True):

@@ -133,8 +133,8 @@ def example_vision(seed: int = 0, *, repeats: int = 10, noise_mm: float = 0.004)
         D = np.linalg.solve(Kt[i], Fi)[:, :, None] + rng.normal(0.0, noise_mm, size=(3, L, repeats))
         nrm = np.linalg.norm(D, axis=0)
         if i == 5:
-            nrm[2, 7:] = np.nan  # two repeats lost
-            D[:, 2, 7:] = np.nan
+            nrm[2, 8:] = np.nan  # two repeats lost
+            D[:, 2, 8:] = np.nan
         norms[i] = nrm
         if i in failed:
             norms[i, 4 if i == 13 else 1, :] = np.nan
