@@ -82,7 +82,8 @@ def stiffness_map_3d(data: ReportData) -> Figure | None:
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
     ax.set_title("Stiffness map: marker diameter ∝ det K")
-    ax.legend(loc="upper left", fontsize=8)
+    leg = ax.legend(loc="upper left", fontsize=8)
+    leg.legend_handles[0].set_sizes([60.0])  # the legend's marker, not the largest det
     ax.view_init(elev=22, azim=-60)
     return fig
 
