@@ -34,7 +34,8 @@ def vision():
 
 @pytest.fixture(scope="module")
 def vision_report(vision, tmp_path_factory) -> Path:
-    return write_report(vision, tmp_path_factory.mktemp("vision") / "report")
+    """The reference layout's page (48 x 9 x 10); PNGs are tested on a smaller campaign."""
+    return write_report(vision, tmp_path_factory.mktemp("vision") / "report", png=False)
 
 
 def _png_size(b: bytes) -> tuple[int, int]:
@@ -52,8 +53,11 @@ def _figures(page: str) -> dict[str, dict]:
     return out
 
 
-def test_vision_report_files_and_pngs(vision_report: Path) -> None:
-    d = vision_report.parent
+def test_vision_report_files_and_pngs(tmp_path) -> None:
+    # Two planes of 3 x 3 positions: every figure, at a third of the 48-panel drawing cost.
+    data = example_vision(seed=4, planes=(-200.0, -400.0), per_side=3, repeats=4)
+    index = write_report(data, tmp_path / "report")
+    d = index.parent
     names = {p.name for p in d.iterdir()}
     want = {
         "index.html",
@@ -70,6 +74,10 @@ def test_vision_report_files_and_pngs(vision_report: Path) -> None:
     for n in want - {"index.html", "data.json"}:
         w, h = _png_size((d / n).read_bytes())
         assert w >= 600 and h >= 400, n
+    assert data.measured.n == 18 and data.measured.flags[14]  # the swapped position is flagged
+    page = index.read_text(encoding="utf-8")
+    for n in want - {"index.html"}:
+        assert f"<a href='{n}'>" in page
 
 
 def test_page_is_self_contained(vision_report: Path) -> None:

@@ -23,6 +23,7 @@ numbers describe no real robot.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -110,17 +111,32 @@ def _camera(rng: np.random.Generator) -> tuple[dict, np.ndarray]:
     return cam, res
 
 
-def example_vision(seed: int = 0, *, repeats: int = 10, noise_mm: float = 0.004) -> ReportData:
-    """A complete vision campaign (48 positions x 9 loads x ``repeats``), see the module docstring."""
+def example_vision(
+    seed: int = 0,
+    *,
+    repeats: int = 10,
+    noise_mm: float = 0.004,
+    planes: Sequence[float] = REFERENCE_PLANES_Z,
+    per_side: int = 4,
+) -> ReportData:
+    """A complete vision campaign, see the module docstring.
+
+    By default the reference layout: ``per_side`` x ``per_side`` positions with x, y in
+    [-200, 200] mm on each of ``planes`` (48 positions), the nine load cases, ``repeats``
+    repeats. Positions 14 and 39 fail (when they exist), position 6 loses two repeats of
+    load case 3 and position 45 (the last but three when fewer) has two load cases swapped.
+    """
     rng = np.random.default_rng(seed)
-    g = np.linspace(-200.0, 200.0, 4)
-    pos = np.array([(x, y, z) for z in REFERENCE_PLANES_Z for y in g for x in g])
+    g = np.linspace(-200.0, 200.0, per_side)
+    pos = np.array([(x, y, z) for z in planes for y in g for x in g])
     n = len(pos)
     loads = paper9()
     F = forces_matrix(loads)  # (3, L)
     L = F.shape[1]
     Kt = example_field(pos)
     failed = {13: "pos14_load5_rep3.png: mobile board not found", 38: "pos39_load2_rep1.png: file not found"}
+    failed = {i: msg for i, msg in failed.items() if i < n}
+    swapped = 44 if n > 44 else n - 4
     K = np.full((n, 3, 3), np.nan)
     K_std = np.full((n, 3, 3), np.nan)
     flags: list[tuple[str, ...]] = []
@@ -128,7 +144,7 @@ def example_vision(seed: int = 0, *, repeats: int = 10, noise_mm: float = 0.004)
     norms = np.full((n, L, repeats), np.nan)
     for i in range(n):
         Fi = F.copy()
-        if i == 44:
+        if i == swapped:
             Fi[:, 0], Fi[:, 1] = F[:, 1].copy(), F[:, 0].copy()  # two load cases swapped by the operator
         D = np.linalg.solve(Kt[i], Fi)[:, :, None] + rng.normal(0.0, noise_mm, size=(3, L, repeats))
         nrm = np.linalg.norm(D, axis=0)
@@ -160,7 +176,7 @@ def example_vision(seed: int = 0, *, repeats: int = 10, noise_mm: float = 0.004)
     s = float(a @ b / (a @ a))
     s_std = float(np.sqrt(np.sum((b - s * a) ** 2) / (a.size - 1) / (a @ a)))
     gx = np.linspace(-220.0, 220.0, 23)
-    mp = np.array([(x, y, z) for z in REFERENCE_PLANES_Z for y in gx for x in gx])
+    mp = np.array([(x, y, z) for z in planes for y in gx for x in gx])
     Km = s * example_field(mp, soften=0.5, coupling=0.7)
     det = np.linalg.det(Km)
     minp = np.linalg.eigvalsh(0.5 * (Km + np.swapaxes(Km, 1, 2)))[:, 0]
@@ -179,8 +195,9 @@ def example_vision(seed: int = 0, *, repeats: int = 10, noise_mm: float = 0.004)
             date="2026-11-22T10:00:00",
             campaign_dir="examples/vision",
             notes=(
-                "Synthetic data in the reference study's layout: 48 positions, the nine load cases "
-                "of its Table II, ten repeats. Position 45 had two load cases swapped by the operator."
+                f"Synthetic data in the reference study's layout: {n} positions, the nine load cases "
+                f"of its Table II, {repeats} repeats. Position {swapped + 1} had two load cases swapped "
+                "by the operator."
             ),
         ),
         measured=measured,
