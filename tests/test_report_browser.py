@@ -116,3 +116,23 @@ def test_external_request_classification() -> None:
     )
     assert r.external_requests == ("https://cdn.example/x.js", "http://h/")
     assert [e.text for e in r.errors] == ["e"]
+
+
+def test_page_with_every_position_failed_renders(chromium, tmp_path) -> None:
+    import numpy as np
+
+    from stiffmap.report.data import CampaignInfo, LoadData, MeasuredStiffness, ReportData
+
+    pos = np.array([[0.0, 0.0, -200.0], [100.0, 0.0, -200.0], [0.0, 0.0, -300.0]])
+    data = ReportData(
+        CampaignInfo("all failed", "vision"),
+        measured=MeasuredStiffness.from_K(
+            pos, np.full((3, 3, 3), np.nan), messages=["a.png", "b.png", "c.png"]
+        ),
+        loads=LoadData(("l1",), np.array([[1.0, 0.0, 0.0]]), np.full((3, 1, 2), np.nan)),
+    )
+    index = write_report(data, tmp_path, png=False)
+    r = check_page(index, script="document.getElementById('pos-select').options.length", chromium=chromium)
+    assert r.ready
+    assert r.errors == (), r.errors
+    assert r.result == 3

@@ -266,3 +266,46 @@ def test_grid_detection_and_planes() -> None:
     np.testing.assert_array_equal(
         plane_values(np.array([-400, -200, -310, -200.0])), [-200.0, -310.0, -400.0]
     )
+
+
+def _degenerate() -> dict[str, ReportData]:
+    from stiffmap.report.data import LoadData, MeasuredStiffness, SensorResults
+
+    pos = np.array([[0.0, 0.0, -200.0], [100.0, 0.0, -200.0], [0.0, 0.0, -300.0]])
+    return {
+        "all positions failed": ReportData(
+            CampaignInfo("all failed", "vision"),
+            measured=MeasuredStiffness.from_K(
+                pos, np.full((3, 3, 3), np.nan), messages=["a.png", "b.png", "c.png"]
+            ),
+            loads=LoadData(("l1",), np.array([[1.0, 0.0, 0.0]]), np.full((3, 1, 2), np.nan)),
+        ),
+        "one position, nothing else": ReportData(
+            CampaignInfo("one", "vision"), measured=MeasuredStiffness.from_K(pos[:1], 5.0 * np.eye(3)[None])
+        ),
+        "two sensor points, one failed, no model": ReportData(
+            CampaignInfo("sensor", "sensor"),
+            sensor=SensorResults(
+                points=np.array([[0.0, 0.0], [1.0, 1.0]]),
+                direction=("y", "y"),
+                error_um=[1.0, np.nan],
+                error_std_um=[np.nan, np.nan],
+            ),
+        ),
+    }
+
+
+@pytest.mark.parametrize("case", list(_degenerate()))
+def test_degenerate_data_still_render(case: str, tmp_path) -> None:
+    """No stiffness at all, a single position, too few points to interpolate: a page, no crash, no warning."""
+    data = _degenerate()[case]
+    page = write_report(data, tmp_path).read_text(encoding="utf-8")
+    figs = _figures(page)
+    assert figs  # something is drawn
+    if data.measured is not None:
+        m = data.measured
+        assert f"{int(m.ok.sum())} of {m.n} positions with a stiffness" in page
+        for msg in (msg for msg, ok in zip(m.messages, m.ok, strict=True) if not ok):
+            assert f"<td class=l colspan=4>{msg}</td>" in page
+    else:
+        assert "1 of 2 point-direction measurements" in page and "no measurement" in page
