@@ -293,3 +293,17 @@ def test_arrays_are_read_only(rng) -> None:
     d = _random_vision(rng)
     with pytest.raises(ValueError, match="read-only"):
         d.measured.K[0, 0, 0] = 1.0
+
+
+def test_importing_the_report_package_loads_no_plotting_library() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, stiffmap.report, stiffmap.report.data; "
+        "heavy = sorted(m for m in ('plotly', 'matplotlib', 'scipy') if m in sys.modules); "
+        "print(','.join(heavy))"
+    )
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == ""
