@@ -307,6 +307,7 @@ class SensorRecordingSpec(_Spec):
     direction: Literal["x", "y", "z", "-x", "-y", "-z"]
     file: str
     sign: Literal[1, -1] = 1
+    label: str | None = None  # e.g. the point's number on the workspace drawing
 
 
 class SensorSpec(_Spec):

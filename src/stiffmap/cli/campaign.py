@@ -131,13 +131,15 @@ def run(
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the JSON summary instead of tables."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bars."),
+    report: bool = typer.Option(True, "--report/--no-report", help="Write CAMPAIGN/report/ (HTML + PNG)."),
 ) -> None:
     """Measure, identify, fit and export a campaign (resumable: a re-run does only what changed).
 
     Vision campaigns: every image's boards and poses, the compliant displacement of each load
     case and repeat, K per position with standard errors and flags, the model fit.
     Sensor campaigns: every recording's steps, fit and static error, the model fit.
-    Results go to CAMPAIGN/stiffmap.db, tables to CAMPAIGN/exports/ (CSV, Parquet, summary.json).
+    Results go to CAMPAIGN/stiffmap.db, tables to CAMPAIGN/exports/ (CSV, Parquet, summary.json),
+    the report to CAMPAIGN/report/index.html (self-contained, opens offline) with PNG figures.
 
     Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
     """
@@ -169,6 +171,11 @@ def run(
         failures = res.failures or []
     with Store(root / DB_NAME) as store:
         export_tables(store, root / "exports", spec.name, failures)
+        if report:
+            from ..campaign.report_data import report_data
+            from ..report import write_report
+
+            page = write_report(report_data(root, spec, store, failures), root / "report")
         if as_json:
             print_json(summary_dict(store, spec.name, failures))
         elif spec.kind == "vision":
@@ -184,7 +191,10 @@ def run(
             )
         else:
             out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")
-        out.print(f"results: {root / DB_NAME}; tables: {root / 'exports'} ({time.perf_counter() - t0:.1f} s)")
+        out.print(f"results: {root / DB_NAME}; tables: {root / 'exports'}")
+        if report:
+            out.print(f"report: {page}")
+        out.print(f"done in {time.perf_counter() - t0:.1f} s")
     if failures:
         for f in failures:
             warn(f)

@@ -125,6 +125,12 @@ def sensor_rows(data: ReportData, direction: str) -> np.ndarray:
     return np.array([i for i, d in enumerate(s.direction) if d == direction], dtype=int)
 
 
+def spans_plane(points: np.ndarray) -> bool:
+    """True when at least 3 points that are not all on one line (a triangulation exists)."""
+    p = np.asarray(points, dtype=float)
+    return len(p) >= 3 and np.linalg.matrix_rank(p - p.mean(axis=0)) >= 2
+
+
 def interpolate_measured(points: np.ndarray, values: np.ndarray, n: int = 60) -> SensorGrid | None:
     """Linear interpolation (Delaunay) of scattered values on a regular grid; None if < 3 points.
 
@@ -134,7 +140,7 @@ def interpolate_measured(points: np.ndarray, values: np.ndarray, n: int = 60) ->
 
     ok = np.isfinite(values)
     p, v = points[ok], values[ok]
-    if len(p) < 3 or np.linalg.matrix_rank(p - p.mean(axis=0)) < 2:
+    if not spans_plane(p):
         return None
     xs = np.linspace(p[:, 0].min(), p[:, 0].max(), n)
     ys = np.linspace(p[:, 1].min(), p[:, 1].max(), n)

@@ -23,6 +23,7 @@ from ._common import (
     plane_values,
     position_labels,
     sensor_rows,
+    spans_plane,
     symmetric_range,
 )
 from .data import ReportData
@@ -343,7 +344,7 @@ def sensor_maps(data: ReportData) -> Figure | None:
         norm = Normalize(lo, hi)
         ok = np.isfinite(e)
         ax = axes[r, 0]
-        if ok.sum() >= 3:
+        if spans_plane(p[ok]):
             ax.tricontourf(p[ok, 0], p[ok, 1], e[ok], levels=14, cmap=SEQ, norm=norm)
         sc = ax.scatter(
             p[ok, 0], p[ok, 1], c=e[ok], cmap=SEQ, norm=norm, s=45, edgecolors="k", linewidths=0.6
@@ -361,7 +362,7 @@ def sensor_maps(data: ReportData) -> Figure | None:
             g = as_grid(dense.points, dense.error_um) if dense is not None else None
             if g is not None:
                 ax.pcolormesh(g[0], g[1], g[2], cmap=SEQ, norm=norm, shading="nearest")
-            elif model is not None and np.isfinite(model).sum() >= 3:
+            elif model is not None and spans_plane(p[np.isfinite(model)]):
                 mk = np.isfinite(model)
                 ax.tricontourf(p[mk, 0], p[mk, 1], model[mk], levels=14, cmap=SEQ, norm=norm)
             if model is not None:

@@ -1,0 +1,202 @@
+"""Fill the report's data contract (:class:`stiffmap.report.data.ReportData`) from a campaign's database."""
+
+from __future__ import annotations
+
+import json
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import load_camera
+from ..errors import InputError
+from .spec import CampaignSpec
+from .store import Store, from_json
+
+__all__ = ["report_data", "failures_as_items"]
+
+
+def failures_as_items(failures: list[str]):
+    """``Failure(item, message)`` records from "item: message" strings."""
+    from ..report.data import Failure
+
+    out = []
+    for f in failures:
+        item, _, msg = f.partition(": ")
+        out.append(Failure(item or "run", msg or f))
+    return tuple(out)
+
+
+def _parameters(store: Store, name: str):
+    from ..report.data import Parameter
+
+    rows = store.rows("SELECT * FROM model_fit WHERE name=?", (name,))
+    if not rows or rows[0]["status"] != "ok":
+        return ()
+    est = from_json(rows[0]["params"], array=False)
+    std = from_json(rows[0]["std"], array=False)
+    units = {
+        "k_theta": "N*mm/rad",
+        "kj": "N/mm",
+        "kb": "N/mm",
+        "E": "MPa",
+        "area": "mm^2",
+        "h": "mm",
+        "L": "mm",
+    }
+    return tuple(
+        Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, units.get(k, ""))
+        for k, v in est.items()
+    )
+
+
+def _fitted_model(spec: CampaignSpec, store: Store, fit_name: str):
+    from ..models import MECHANISMS
+
+    model = MECHANISMS[spec.robot.model]()
+    if spec.robot.params:
+        model = model.with_params(**spec.robot.params)
+    params = {p.name: p.value for p in _parameters(store, fit_name)}
+    return model.with_params(**params) if params else model
+
+
+def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
+    from ..report.data import (
+        CalibrationData,
+        LoadData,
+        MeasuredStiffness,
+        ModelMap,
+        ModelStiffness,
+        TruthStiffness,
+    )
+
+    rows = store.rows("SELECT * FROM stiffness ORDER BY position")
+    n = len(rows)
+    if n == 0:
+        return {}
+    pos = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+    K = np.full((n, 3, 3), np.nan)
+    S = np.full((n, 3, 3), np.nan)
+    for i, r in enumerate(rows):
+        if r["status"] == "ok":
+            K[i] = from_json(r["K"])
+            S[i] = from_json(r["K_std"])
+    measured = MeasuredStiffness.from_K(
+        pos,
+        K,
+        S,
+        status=[r["status"] for r in rows],
+        messages=[r["error"] or "" for r in rows],
+        flags=[tuple(from_json(r["flags"], array=False) or ()) for r in rows],
+    )
+    out: dict = {"measured": measured}
+    loads = spec.loads.resolve(spec.g)
+    norms = np.full((n, len(loads), spec.repeats), np.nan)
+    index = {r["position"]: i for i, r in enumerate(rows)}
+    for d in store.rows("SELECT position, load, repeat, d FROM displacements WHERE status='ok'"):
+        i = index.get(d["position"])
+        if i is not None and d["load"] <= len(loads) and d["repeat"] <= spec.repeats:
+            norms[i, d["load"] - 1, d["repeat"] - 1] = float(np.linalg.norm(from_json(d["d"])[:3]))
+    out["loads"] = LoadData(tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms)
+    if spec.robot.model == "delta":
+        model = _fitted_model(spec, store, "stiffness")
+        Km = np.full((n, 3, 3), np.nan)
+        for r in store.rows("SELECT * FROM model_stiffness ORDER BY position"):
+            i = index.get(r["position"])
+            if i is not None and r["valid"]:
+                Km[i] = from_json(r["K"])
+        # A dense map on the measured planes, over the measured x-y extent.
+        grid = []
+        for z in np.unique(pos[:, 2]):
+            xs = np.linspace(pos[:, 0].min(), pos[:, 0].max(), 25)
+            ys = np.linspace(pos[:, 1].min(), pos[:, 1].max(), 25)
+            X, Y = np.meshgrid(xs, ys)
+            grid.append(np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)])
+        g = np.concatenate(grid)
+        mm = model.evaluate(g)
+        dense = ModelMap(g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan))
+        out["model"] = ModelStiffness.from_K("delta", _parameters(store, "stiffness"), Km, map=dense)
+    truth = root / "truth.json"
+    if truth.is_file():
+        try:
+            t = json.loads(truth.read_text())
+            Kt = np.array([p["K"] for p in t["positions"]], dtype=float)
+            if Kt.shape == (n, 3, 3):
+                out["truth"] = TruthStiffness(Kt)
+        except (OSError, ValueError, KeyError, TypeError):
+            pass  # truth.json is an optional extra of simulated campaigns
+    try:
+        out["calibration"] = CalibrationData(load_camera(root / spec.camera.file).to_dict())
+    except InputError:
+        pass
+    return out
+
+
+def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
+    from ..report.data import SensorMap, SensorResults
+    from .sensor_runner import measured_static_errors
+
+    m = measured_static_errors(spec, store)
+    if m["points"].shape[1] != 2:
+        return {}
+    pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
+    model_um = None
+    maps: tuple = ()
+    middle = None
+    name = ""
+    params: tuple = ()
+    if spec.robot.model == "3prr":
+        name = "3prr"
+        params = _parameters(store, "static_error")
+        model_um = np.array([1e3 * pred[f] if pred.get(f) is not None else np.nan for f in m["files"]])
+        model = _fitted_model(spec, store, "static_error")
+        h = model.params()["h"]
+        xs = np.linspace(0.0, h, 41)
+        ys = np.linspace(0.0, h * np.sqrt(3) / 2, 36)
+        X, Y = np.meshgrid(xs, ys)
+        g = np.c_[X.ravel(), Y.ravel()]
+        mm = model.evaluate(g)
+        ref = m["reference_load_n"]
+        dirs = sorted({_axis(u) for u in m["directions"]})
+        maps = tuple(
+            SensorMap(a, g, 1e3 * mm.static_error(ref * _unit(a))[:, "xy".index(a)])
+            for a in dirs
+            if a in ("x", "y")
+        )
+        middle = np.abs(m["points"][:, 0] - h / 2) < 1e-6
+        if not middle.any():
+            middle = None
+    sr = SensorResults(
+        points=m["points"],
+        direction=tuple(_axis(u) for u in m["directions"]),
+        error_um=1e3 * m["value_mm"],
+        error_std_um=1e3 * m["std_mm"],
+        labels=tuple(r.label or Path(r.file).stem for r in spec.sensor.recordings),
+        model_error_um=model_um,
+        middle_line=middle,
+        reference_load_n=m["reference_load_n"],
+        model_name=name,
+        parameters=params,
+        maps=maps,
+    )
+    return {"sensor": sr}
+
+
+def _axis(u: np.ndarray) -> str:
+    k = int(np.argmax(np.abs(u)))
+    return "xyz"[k]
+
+
+def _unit(axis: str) -> np.ndarray:
+    u = np.zeros(2)
+    u["xy".index(axis)] = 1.0
+    return u
+
+
+def report_data(root: Path, spec: CampaignSpec, store: Store, failures: list[str]):
+    """The :class:`~stiffmap.report.data.ReportData` of a campaign, from its database."""
+    from ..report.data import CampaignInfo, ReportData
+
+    info = CampaignInfo(name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root))
+    parts = _vision(root, spec, store) if spec.kind == "vision" else _sensor(root, spec, store)
+    return ReportData(campaign=info, failures=failures_as_items(failures), **parts)
