@@ -146,6 +146,12 @@ def test_output_directory_rules(tmp_path):
     (out / "extra_user_file.txt").write_text("keep me")
     write_campaign(out, cfg, render_images=False, force=True)  # a previous simulation: allowed
     assert (out / "extra_user_file.txt").read_text() == "keep me"
+    # An interrupted simulation (no truth.json yet, the marker written first) can be overwritten.
+    (out / "truth.json").unlink()
+    (out / "images" / "p01").mkdir(parents=True)
+    (out / "images" / "p01" / "half_written.png").write_bytes(b"...")
+    write_campaign(out, cfg, render_images=False, force=True)
+    assert not (out / "images").exists() and (out / "truth.json").is_file()
     foreign = tmp_path / "real_campaign"
     (foreign / "images").mkdir(parents=True)
     (foreign / "images" / "img.png").write_bytes(b"raw")

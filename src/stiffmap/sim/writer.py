@@ -8,6 +8,7 @@ Layout (``docs/simulation.md``)::
       images/p01/l01_r01_unloaded.png, images/p01/l01_r01_loaded.png, ...
       truth.json               # the ground truth (written last: its presence marks a finished run)
       truth_corners.json.gz    # every image's true board poses and corner pixels
+      .stiffmap-simulation     # marker written first (lets --force clean up an interrupted run)
 
 Every file is written atomically. A directory that is not empty is refused
 unless ``force``, and ``force`` only overwrites a previous simulation (a
@@ -47,11 +48,15 @@ __all__ = [
     "write_campaign",
     "load_truth",
     "campaign_spec_dict",
+    "check_output_dir",
+    "MARKER_NAME",
 ]
 
 TRUTH_NAME = "truth.json"
 CORNERS_NAME = "truth_corners.json.gz"
 TRUTH_FORMAT = "stiffmap-sim-truth/1"
+#: Written first: marks a directory as the simulator's even if a run was interrupted.
+MARKER_NAME = ".stiffmap-simulation"
 _OWN_FILES = ("campaign.toml", "camera.json", TRUTH_NAME, CORNERS_NAME)
 
 
@@ -90,32 +95,54 @@ class SimSummary:
 # ------------------------------------------------------------------ directory
 
 
-def _prepare_dir(out: Path, force: bool) -> None:
+def check_output_dir(out_dir: str | os.PathLike, force: bool = False) -> bool:
+    """Check that a campaign may be written to ``out_dir`` (nothing is changed).
+
+    Returns
+    -------
+    bool
+        True when a previous simulation is there and will be overwritten (``force``).
+
+    Raises
+    ------
+    InputError
+        Not a directory; not empty without ``force``; not a previous simulation with ``force``.
+    """
+    out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a directory", source=str(out))
     if not out.exists() or not any(out.iterdir()):
-        out.mkdir(parents=True, exist_ok=True)
-        return
+        return False
     if not force:
         raise InputError(
             "the output directory is not empty; choose a new one, or give --force to overwrite "
             "a previous simulation",
             source=str(out),
         )
-    truth = out / TRUTH_NAME
     ours = False
-    if truth.is_file():
-        try:
-            ours = json.loads(truth.read_text(encoding="utf-8")).get("format") == TRUTH_FORMAT
-        except (OSError, ValueError, AttributeError):
-            ours = False
+    for name in (MARKER_NAME, TRUTH_NAME):
+        if (out / name).is_file():
+            try:
+                ours = (
+                    ours or json.loads((out / name).read_text(encoding="utf-8")).get("format") == TRUTH_FORMAT
+                )
+            except (OSError, ValueError, AttributeError):
+                pass
     if not ours:
         raise InputError(
             f"--force only overwrites a previous simulation (a directory with the {TRUTH_NAME} that "
             "'stiffmap simulate' writes); this one is not, so nothing was deleted",
             source=str(out),
         )
-    # truth.json goes first: an interrupted clean-up never leaves a "finished" mark.
+    return True
+
+
+def _prepare_dir(out: Path, force: bool) -> None:
+    if not check_output_dir(out, force):
+        out.mkdir(parents=True, exist_ok=True)
+        return
+    # truth.json goes first: an interrupted clean-up never leaves a "finished" mark; the
+    # marker stays, so a second --force can finish the job.
     for name in (TRUTH_NAME, *_OWN_FILES):
         p = out / name
         if p.is_file():
@@ -296,6 +323,7 @@ def write_campaign(
     render_images: bool = True,
     progress: Callable[[int, int], None] | None = None,
     command: str = "",
+    plan: CampaignPlan | None = None,
 ) -> SimSummary:
     """Simulate a campaign and write its directory.
 
@@ -316,6 +344,8 @@ def write_campaign(
         Called as ``progress(done, total)`` after each finished image.
     command : str
         The command line, recorded in truth.json.
+    plan : CampaignPlan, optional
+        ``plan_campaign(config)`` if already computed.
 
     Returns
     -------
@@ -333,13 +363,15 @@ def write_campaign(
     out = Path(out_dir)
     if int(workers) < 1:
         raise InputError(f"workers must be >= 1, got {workers}")
-    try:
-        plan = plan_campaign(config)
-    except InputError:
-        raise
-    except ValueError as e:
-        raise InputError(str(e)) from None
+    if plan is None:
+        try:
+            plan = plan_campaign(config)
+        except InputError:
+            raise
+        except ValueError as e:
+            raise InputError(str(e)) from None
     _prepare_dir(out, force)
+    atomic_write_text(out / MARKER_NAME, json.dumps({"format": TRUTH_FORMAT}) + "\n")
     save_camera(config.scene.camera, out / "camera.json")
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
