@@ -66,3 +66,19 @@ def test_dump_is_read_only(tmp_path):
     with pytest.raises(sqlite3.OperationalError):
         conn = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
         conn.execute("INSERT INTO meta VALUES ('x', 'y')")
+
+
+def test_atomic_write_keeps_default_permissions_and_leaves_no_temporary(tmp_path):
+    import os
+    import stat
+
+    from stiffmap.io import atomic_write_text
+
+    p = tmp_path / "out" / "a.txt"
+    atomic_write_text(p, "one")
+    atomic_write_text(p, "two")
+    assert p.read_text() == "two"
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~umask
+    assert [x.name for x in p.parent.iterdir()] == ["a.txt"]

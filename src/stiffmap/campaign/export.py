@@ -13,7 +13,9 @@ Tables (one row each):
   rx, ry, rz (rad) in the base frame, their propagated standard deviations;
 - ``repeat_stats``: per position, load case and quantity: mean, std, n;
 - ``measurements``: per image: status, error, reprojection RMS (px), corners, tracked;
-- ``model_stiffness``: the model's K at every position (when a model is given).
+- ``model_stiffness``: the model's K at every position (when a model is given);
+- ``sensor_results``: per recording the point (mm), direction, static error and its
+  standard error (um), stiffness (N/mm), the model's static error (um), flags.
 """
 
 from __future__ import annotations
@@ -109,6 +111,30 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
         row.update(det=r["det"], min_principal_n_per_mm=r["min_principal"])
         rows.append(row)
     out["model_stiffness"] = rows
+    pred = {r["recording"]: r for r in store.rows("SELECT * FROM model_static_error")}
+    rows = []
+    for r in store.rows("SELECT * FROM sensor_results ORDER BY rowid"):
+        res = from_json(r["result"], array=False) or {}
+        pt = from_json(r["point"], array=False) or []
+        m = pred.get(r["recording"])
+        rows.append(
+            {
+                "file": r["recording"],
+                **{f"{a}_mm": (pt[k] if k < len(pt) else None) for k, a in enumerate("xyz")},
+                "direction": r["direction"],
+                "status": r["status"],
+                "error": r["error"],
+                "static_error_um": res.get("static_error_um"),
+                "static_error_std_um": res.get("static_error_std_um"),
+                "stiffness_n_per_mm": res.get("stiffness_n_per_mm"),
+                "stiffness_std_n_per_mm": res.get("stiffness_std_n_per_mm"),
+                "model_static_error_um": None
+                if m is None or m["predicted_mm"] is None
+                else 1e3 * m["predicted_mm"],
+                "flags": " | ".join(res.get("flags", [])),
+            }
+        )
+    out["sensor_results"] = rows
     return out
 
 
@@ -162,10 +188,14 @@ def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]
                 "condition": r["condition"],
             }
         )
+    sensors = [
+        {k: v for k, v in r.items() if k not in ("flags",)} for r in read_tables(store)["sensor_results"]
+    ]
     return {
         "campaign": name,
         "stiffmap_version": __version__,
         "positions": positions,
+        "sensor_results": sensors,
         "model_fits": fits,
         "failures": failures,
     }

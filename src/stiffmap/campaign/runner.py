@@ -384,7 +384,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         "inputs_hash": ihash,
         "version": __version__,
     }
-    pick = "k_theta"
+    fit_names = tuple(spec.robot.fit) if spec.robot.fit else ("k_theta",)
     if len(ok) >= 1:
         try:
             mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))
@@ -395,7 +395,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
                 model,
                 np.array([[r["x"], r["y"], r["z"]] for r in good]),
                 np.array([from_json(r["K"]) for r in good]),
-                params=(pick,),
+                params=fit_names,
                 K_std=np.array([from_json(r["K_std"]) for r in good]),
             )
             fitted = fit.model
@@ -457,7 +457,8 @@ class RunSummary:
     db: str = ""
 
 
-ProgressHook = Callable[[str, int, int], None]
+#: ``progress(images_done, images_total, images_measured)`` after each position.
+ProgressHook = Callable[[int, int, int], None]
 
 
 def _ctx(spec: CampaignSpec, root: Path, camera: CameraModel) -> MeasureContext:
@@ -507,7 +508,8 @@ def run_campaign(
     method : str
         Identification method (see :func:`stiffmap.identify.identify_stiffness`).
     progress : callable, optional
-        ``progress(stage, done, total)`` after each position (stage ``"measure"``).
+        ``progress(images_done, images_total, images_measured)`` after each
+        position (reused positions count as done but not as measured).
 
     Returns
     -------
@@ -582,10 +584,11 @@ def run_campaign(
                     to_measure.append(t)
         by_index = {t.index: t for t in tasks}
         done = 0
-        total = len(tasks)
+        measured_images = 0
+        total = sum(len(t.images) for t in tasks)
 
-        def finish(t: PositionTask, rows: list[ImageRow] | None, shas_known: bool) -> None:
-            nonlocal done
+        def finish(t: PositionTask, rows: list[ImageRow] | None) -> None:
+            nonlocal done, measured_images
             st_row = store.rows("SELECT inputs_hash, status FROM stiffness WHERE position=?", (t.index,))
             rowmap = {r.image: r for r in rows} if rows is not None else cached[t.index]
             if rows is None and st_row and st_row[0]["inputs_hash"] == hashes[t.index]:
@@ -632,17 +635,18 @@ def run_campaign(
                 summary.images += len(rows)
                 summary.image_seconds += sum(r.seconds for r in rows)
                 summary.failures.extend(f"{r.image}: {r.error}" for r in rows if not r.ok)
-            done += 1
+                measured_images += len(t.images)
+            done += len(t.images)
             if progress is not None:
-                progress("measure", done, total)
+                progress(done, total, measured_images)
 
         for t in tasks:
             if t.index in cached:
-                finish(t, None, True)
+                finish(t, None)
         if to_measure:
             if workers <= 1:
                 for t in to_measure:
-                    finish(t, measure_position(ctx, t), False)
+                    finish(t, measure_position(ctx, t))
             else:
                 with ProcessPoolExecutor(max_workers=workers) as pool:
                     pending = {pool.submit(_measure_worker, ctx, t) for t in to_measure}
@@ -652,9 +656,9 @@ def run_campaign(
                             idx, rows = fut.result()
                             if isinstance(rows, str):
                                 summary.failures.append(f"position {idx}: {rows.splitlines()[-1]}")
-                                done += 1
+                                done += len(by_index[idx].images)
                                 continue
-                            finish(by_index[idx], rows, False)
+                            finish(by_index[idx], rows)
         summary.failures.extend(fit_and_evaluate_model(store, spec))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})

@@ -72,6 +72,8 @@ class RobotSpec(_Spec):
 
     model: Literal["delta", "3prr", "none"] = "none"
     params: dict[str, Finite] = Field(default_factory=dict)
+    #: Parameters fitted to the measurements (default: k_theta for the Delta, kj for the 3PRR).
+    fit: list[str] | None = None
 
 
 class CameraSpec(_Spec):

@@ -68,6 +68,9 @@ CREATE TABLE IF NOT EXISTS model_fit (
 CREATE TABLE IF NOT EXISTS model_stiffness (
     position INTEGER PRIMARY KEY, model TEXT NOT NULL, valid INTEGER NOT NULL, reason TEXT,
     K TEXT, det REAL, min_principal REAL, inputs_hash TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS model_static_error (
+    recording TEXT PRIMARY KEY, model TEXT NOT NULL, valid INTEGER NOT NULL, reason TEXT,
+    predicted_mm REAL, inputs_hash TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS sensor_results (
     recording TEXT PRIMARY KEY, point TEXT, direction TEXT, sha256 TEXT, params_hash TEXT NOT NULL,
     version TEXT NOT NULL, status TEXT NOT NULL, error TEXT, result TEXT);
