@@ -189,3 +189,22 @@ def test_default_scene_sees_both_boards_at_every_paper48_position():
             width_mm = (9 + 1 + 2) * 10.0 if name == "fixed" else (6 + 1 + 2) * 10.0
             assert np.linalg.norm(uv[1] - uv[0]) / width_mm > 2.3, (name, p)
     assert isinstance(sc.camera.to_dict(), dict)
+
+
+def test_sensor_campaign_is_reproducible_and_names_bad_points(tmp_path):
+    from stiffmap.models.prr3 import PRR3
+    from stiffmap.sim.sensor_campaign import write_sensor_campaign
+
+    pts = [[400.0, 270.0], [300.0, 320.0]]
+    a = write_sensor_campaign(tmp_path / "a", PRR3(kj=600.0), pts, directions=("y",), repeats=2, seed=9)
+    write_sensor_campaign(tmp_path / "b", PRR3(kj=600.0), pts, directions=("y",), repeats=2, seed=9)
+    assert a.n_recordings == 4
+    for f in sorted((tmp_path / "a").rglob("*")):
+        if f.is_file():
+            assert f.read_bytes() == (tmp_path / "b" / f.relative_to(tmp_path / "a")).read_bytes(), f
+    truth = load_truth(tmp_path / "a")
+    assert truth.camera is None and truth.K.shape == (2, 2, 2)
+    np.testing.assert_allclose(truth.K, PRR3(kj=600.0).stiffness(np.array(pts)), rtol=1e-12)
+    with pytest.raises(InputError, match=r"position 2 \(400, 900\) mm: the robot model has no stiffness"):
+        write_sensor_campaign(tmp_path / "c", PRR3(), [[400.0, 270.0], [400.0, 900.0]])
+    assert not (tmp_path / "c").exists()

@@ -102,7 +102,12 @@ def test_user_errors_are_one_line(tmp_path):
         stiffmap("simulate", tmp_path / "full", "--truth-only", "--force"), "nothing was deleted"
     )
     assert (tmp_path / "full" / "x.png").read_bytes() == b"raw"
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--robot", "3prr"), "not yet supported")
+    assert_one_line_error(
+        stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--positions", "paper48"), "delta model"
+    )
+    assert_one_line_error(
+        stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--directions", "z"), "x and/or y"
+    )
     assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--positions", "1,2"), "--positions", "x,y,z")
     assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--select", "0,49"), "between 1 and 48")
     assert_one_line_error(
@@ -115,3 +120,35 @@ def test_user_errors_are_one_line(tmp_path):
     bad.write_text("fx,fy\n1,2\n")
     assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--loads", bad), str(bad), "'fz'")
     assert not (tmp_path / "n").exists()
+
+
+def test_3prr_sensor_campaign_round_trip(tmp_path):
+    # The 3PRR is measured by an LDV: 'simulate --robot 3prr' writes a sensor campaign whose
+    # recordings 'stiffmap run' analyses; the static errors come back to the truth.
+    out = tmp_path / "s"
+    p = stiffmap(
+        "simulate", out, "--robot", "3prr", "--select", "2,8,19", "--repeats", "1", "--seed", "5", "--json"
+    )
+    assert p.returncode == 0, p.stderr
+    info = json.loads(p.stdout)
+    assert info["kind"] == "sensor" and info["recordings"] == 6
+    spec = load_spec(out)
+    assert spec.kind == "sensor" and spec.robot.model == "3prr"
+    assert [r.direction for r in spec.sensor.recordings] == ["x", "y"] * 3
+    assert [r.sign for r in spec.sensor.recordings] == [-1, 1] * 3  # x through a mirror
+    truth = load_truth(out)
+    from stiffmap.models.presets import prr3_points22
+    from stiffmap.models.prr3 import PRR3
+
+    pts = prr3_points22()[[1, 7, 18]]
+    np.testing.assert_allclose(truth.positions, pts)
+    np.testing.assert_allclose(truth.K, PRR3().stiffness(pts), rtol=1e-12)  # N/mm
+    r = stiffmap("run", out, "--json")
+    assert r.returncode == 0, r.stderr
+    res = {x["file"]: x for x in json.loads(r.stdout)["sensor_results"]}
+    for rec in truth.data["recordings"]:
+        got = res[rec["file"]]["static_error_um"]
+        assert abs(got - rec["static_error_um"]) <= 1.0 + 0.01 * abs(rec["static_error_um"])  # um
+    # Static errors along the load at 50 kgf, from K: u . K^-1 (490.5 N u).
+    e0 = truth.data["positions"][0]
+    assert e0["static_error_y_mm"] == pytest.approx(np.linalg.solve(truth.K[0], [0.0, 490.5])[1], rel=1e-12)

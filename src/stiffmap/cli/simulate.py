@@ -1,4 +1,4 @@
-"""``stiffmap simulate``: write a virtual vision campaign with its ground truth."""
+"""``stiffmap simulate``: write a virtual campaign (vision, or sensor for the 3PRR) with its ground truth."""
 
 from __future__ import annotations
 
@@ -31,31 +31,33 @@ class ImageFormat(StrEnum):
 _BYTES_PER_PIXEL = {"png": 0.55, "jpeg": 0.2}
 
 
-def _positions(text: str, select: str | None):
+def _positions(text: str, select: str | None, mech: str = "delta"):
     import numpy as np
 
     from ..io import read_csv_columns
     from ..models.presets import POSITION_PRESETS
 
+    cols = ("x", "y", "z") if mech == "delta" else ("x", "y")
     key = text.strip().lower()
     if key in POSITION_PRESETS:
         owner, fn = POSITION_PRESETS[key]
-        if owner != "delta":
-            raise InputError(f"--positions {text}: that preset is for the {owner} model, not the Delta")
+        if owner != mech:
+            raise InputError(f"--positions {text}: that preset is for the {owner} model, not {mech}")
         P = np.asarray(fn(), dtype=np.float64)
     elif Path(text).suffix.lower() == ".csv" or Path(text).is_file():
-        t = read_csv_columns(text, ("x", "y", "z"))
-        P = t.stack(("x", "y", "z")).T
+        t = read_csv_columns(text, cols)
+        P = t.stack(cols).T
     else:
         try:
             P = np.array([[float(v) for v in item.split(",")] for item in text.split(";") if item.strip()])
         except ValueError:
             P = np.zeros((0, 0))
-        if P.ndim != 2 or P.shape[0] == 0 or P.shape[1] != 3 or not np.all(np.isfinite(P)):
-            presets = ", ".join(k for k, v in POSITION_PRESETS.items() if v[0] == "delta")
+        if P.ndim != 2 or P.shape[0] == 0 or P.shape[1] != len(cols) or not np.all(np.isfinite(P)):
+            presets = ", ".join(k for k, v in POSITION_PRESETS.items() if v[0] == mech)
+            c = ",".join(cols)
             raise InputError(
-                f"--positions {text!r}: expected a preset ({presets}), a CSV file with columns x, y, z (mm), "
-                "or positions 'x,y,z;x,y,z' in mm"
+                f"--positions {text!r}: expected a preset ({presets}), a CSV file with columns "
+                f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for the {mech} robot"
             )
     if select:
         try:
@@ -111,10 +113,11 @@ def simulate(
         help="Robot model giving the true stiffness field (delta: stiffmap.models).",
     ),
     positions: str = typer.Option(
-        "paper48",
+        None,
         "--positions",
-        help="paper48 (the reference study's 48 positions), a CSV file with columns x, y, z (mm), "
-        "or 'x,y,z;x,y,z' (mm).",
+        help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
+        "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'.",
+        show_default=False,
     ),
     select: str = typer.Option(
         None, "--select", help="Keep only these positions, 1-based, e.g. 1,22,48.", show_default=False
@@ -124,7 +127,18 @@ def simulate(
         "--loads",
         help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N).",
     ),
-    repeats: int = typer.Option(3, "--repeats", min=1, help="Unloaded/loaded image pairs per load case."),
+    repeats: int = typer.Option(
+        3,
+        "--repeats",
+        min=1,
+        help="Unloaded/loaded image pairs per load case (3PRR: recordings per point/axis).",
+    ),
+    directions: str = typer.Option(
+        "x,y", "--directions", help="3PRR: load and measurement axes at each point (x, y or x,y)."
+    ),
+    trace_format: str = typer.Option(
+        "csv", "--trace-format", help="3PRR: recording format (csv, tdms, mat)."
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of every random draw (same seed, same files)."),
     workers: int = typer.Option(
         0, "--workers", min=0, help="Processes rendering images (0: one per available CPU)."
@@ -183,13 +197,25 @@ def simulate(
     from ..sim.writer import check_output_dir, write_campaign
     from ..units import G_REFERENCE_PAPER
 
-    if robot is RobotName.prr3:
-        raise InputError(
-            "--robot 3prr: not yet supported: the 3PRR is measured with displacement sensors, and "
-            "'stiffmap simulate' cannot write sensor traces yet (stiffmap.sim.traces is not available)"
-        )
     check_output_dir(out_dir, force)
-    P = _positions(positions, select)
+    command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
+    if robot is RobotName.prr3:
+        _simulate_sensor(
+            out_dir,
+            positions,
+            select,
+            directions,
+            repeats,
+            seed,
+            trace_format,
+            force,
+            param,
+            name,
+            command,
+            as_json,
+        )
+        return
+    P = _positions(positions or "paper48", select)
     load_cases = _loads(loads, G_REFERENCE_PAPER)
     cam = load_camera(camera_file) if camera_file is not None else reference_camera()
     given = parse_key_values(param, "--param")
@@ -267,7 +293,6 @@ def simulate(
             f"{n_images} images (~{need / 1e9:.2f} GB) with {n_workers} process(es) -> {out_dir}",
             highlight=False,
         )
-    command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
     t0 = time.perf_counter()
     if as_json or truth_only:
         summary = write_campaign(
@@ -338,6 +363,88 @@ def simulate(
     t.add_row("time", f"{summary.seconds:.1f} s")
     t.add_row("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/")
     out.print(t)
+
+
+def _simulate_sensor(
+    out_dir: Path,
+    positions: str | None,
+    select: str | None,
+    directions: str,
+    repeats: int,
+    seed: int,
+    trace_format: str,
+    force: bool,
+    param: list[str],
+    name: str,
+    command: str,
+    as_json: bool,
+) -> None:
+    """The 3PRR: LDV recordings of stepped loads, written as a sensor campaign."""
+    from ..models.prr3 import PRR3
+    from ..sim.sensor_campaign import write_sensor_campaign
+
+    P = _positions(positions or "points22", select, "3prr")
+    given = parse_key_values(param, "--param")
+    try:
+        model = PRR3(**{k: float(v) for k, v in given.items()})
+    except ValueError as e:
+        raise InputError(f"--param: {e}") from None
+    except TypeError:
+        bad = sorted(set(given) - set(PRR3.param_names()))
+        raise InputError(
+            f"--param: unknown 3PRR parameter(s) {', '.join(bad)}; valid: {', '.join(PRR3.param_names())}"
+        ) from None
+    dirs = tuple(d.strip() for d in directions.split(",") if d.strip())
+    fmt = trace_format.strip().lower()
+    if fmt not in ("csv", "tdms", "mat"):
+        raise InputError(f"--trace-format {trace_format!r}: expected csv, tdms or mat")
+    s = write_sensor_campaign(
+        out_dir,
+        model,
+        P,
+        directions=dirs,
+        repeats=repeats,
+        seed=seed,
+        fmt=fmt,
+        force=force,
+        name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
+        command=command,
+    )
+    params = {k: v for k, v in model.params().items()}
+    lo, hi = s.static_error_range_mm
+    if as_json:
+        print_json(
+            {
+                "out_dir": str(s.out_dir),
+                "kind": "sensor",
+                "points": s.n_points,
+                "directions": list(s.directions),
+                "repeats": s.repeats,
+                "recordings": s.n_recordings,
+                "format": fmt,
+                "bytes": s.bytes_written,
+                "seconds": s.seconds,
+                "seed": seed,
+                "robot": "3prr",
+                "params": params,
+                "static_error_range_mm": [lo, hi],
+                "files": ["campaign.toml", "truth.json", "recordings/"],
+            }
+        )
+        return
+    t = Table(title=f"simulated sensor campaign in {s.out_dir}", show_header=False)
+    t.add_row("recordings", f"{s.n_recordings} {fmt} ({s.bytes_written / 1e6:.1f} MB)")
+    t.add_row("points x axes x repeats", f"{s.n_points} x {len(s.directions)} x {s.repeats}")
+    t.add_row("robot", f"3prr ({', '.join(f'{k}={v:g}' for k, v in params.items())})")
+    t.add_row("true static errors at 50 kgf", f"{fmt_mm(lo)} to {fmt_mm(hi)} mm")
+    t.add_row("seed", str(seed))
+    t.add_row("time", f"{s.seconds:.1f} s")
+    t.add_row("files", "campaign.toml, truth.json, recordings/ (+ index.csv); run: stiffmap run DIR")
+    out.print(t)
+
+
+def fmt_mm(x: float) -> str:
+    return fmt(x, 4)
 
 
 def register(app: typer.Typer) -> None:

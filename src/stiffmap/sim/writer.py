@@ -147,8 +147,9 @@ def _prepare_dir(out: Path, force: bool) -> None:
         p = out / name
         if p.is_file():
             p.unlink()
-    if (out / "images").is_dir():
-        shutil.rmtree(out / "images")
+    for sub in ("images", "recordings"):  # a vision or a sensor simulation
+        if (out / sub).is_dir():
+            shutil.rmtree(out / sub)
 
 
 # ------------------------------------------------------------------ spec/truth
@@ -228,6 +229,7 @@ def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str
     return to_jsonable(
         {
             "format": TRUTH_FORMAT,
+            "kind": "vision",
             "generator": {"tool": "stiffmap simulate", "version": __version__, "command": command},
             "seed": config.seed,
             "units": "mm, N, rad; K in N/mm (K_tcp: 6x6 at the tool point, blocks N/mm, N, N*mm/rad)",
@@ -449,18 +451,19 @@ class SimTruth:
     ----------
     root : Path
         The campaign directory.
-    camera : CameraModel
-    cam2base : ndarray, shape (4, 4)
-    positions : ndarray, shape (n, 3), mm
-    K : ndarray, shape (n, 3, 3), N/mm
+    camera : CameraModel or None
+        None for a sensor campaign.
+    cam2base : ndarray, shape (4, 4), or None
+    positions : ndarray, shape (n, 3) (vision) or (n, 2) (sensor, planar), mm
+    K : ndarray, shape (n, 3, 3) or (n, 2, 2), N/mm
         What a force-only identification should recover at each position.
     data : dict
         The whole truth.json.
     """
 
     root: Path
-    camera: CameraModel
-    cam2base: np.ndarray
+    camera: CameraModel | None
+    cam2base: np.ndarray | None
     positions: np.ndarray
     K: np.ndarray
     data: dict
@@ -507,10 +510,15 @@ def load_truth(path: str | os.PathLike) -> SimTruth:
     if not isinstance(d, dict) or d.get("format") != TRUTH_FORMAT:
         raise InputError(f"not a stiffmap simulation truth (expected format {TRUTH_FORMAT!r})", source=src)
     try:
-        cam = CameraModel.from_dict(d["camera"], source=f"{src}: camera")
-        pos = np.asarray([e["position"] for e in d["positions"]], dtype=np.float64).reshape(-1, 3)
-        K = np.asarray([e["K"] for e in d["positions"]], dtype=np.float64).reshape(-1, 3, 3)
-        cam2base = np.asarray(d["cam2base"], dtype=np.float64)
+        if d.get("kind") == "sensor":
+            cam, cam2base = None, None
+            m = 2
+        else:
+            cam = CameraModel.from_dict(d["camera"], source=f"{src}: camera")
+            cam2base = np.asarray(d["cam2base"], dtype=np.float64)
+            m = 3
+        pos = np.asarray([e["position"] for e in d["positions"]], dtype=np.float64).reshape(-1, m)
+        K = np.asarray([e["K"] for e in d["positions"]], dtype=np.float64).reshape(-1, m, m)
     except KeyError as e:
         raise InputError(f"missing key {e.args[0]!r}", source=src) from None
     except (TypeError, ValueError) as e:
