@@ -31,3 +31,81 @@ def brute_force_reflectance(camera: CameraModel, target, roi, n: int = 64, backg
     p = lam[..., None] * d - t
     refl, alpha = target.texture().sample(p @ R[:, 0], p @ R[:, 1])
     return (refl * alpha + (1 - alpha) * background).mean(axis=(2, 3))
+
+
+def scaled_camera(camera: CameraModel, s: float) -> CameraModel:
+    """The same optics on a sensor with s times fewer pixels per side (same field of view)."""
+    w, h = camera.image_size
+    return CameraModel(
+        (round(w * s), round(h * s)),
+        camera.fx * s,
+        camera.fy * s,
+        (camera.cx + 0.5) * s - 0.5,
+        (camera.cy + 0.5) * s - 0.5,
+        camera.dist,
+    )
+
+
+def pnp_pose(obj: np.ndarray, uv: np.ndarray, camera: CameraModel) -> np.ndarray:
+    """board2cam from corners by OpenCV's solvePnP, refined by Levenberg-Marquardt."""
+    import cv2
+
+    from stiffmap.geometry import transform_from
+
+    ok, rvec, tvec = cv2.solvePnP(obj, uv, camera.matrix, camera.dist_array)
+    assert ok
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-12)
+    rvec, tvec = cv2.solvePnPRefineLM(obj, uv, camera.matrix, camera.dist_array, rvec, tvec, crit)
+    R, _ = cv2.Rodrigues(rvec)
+    return transform_from(R, tvec.ravel())
+
+
+def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
+    """Measure a simulated campaign from its exported corners and identify K per position.
+
+    Each image's board poses come from solvePnP on the true corners (plus Gaussian
+    noise of ``noise_px``); displacements and K come from the campaign runner's own
+    derivation (``stiffmap.campaign.runner.derive_position``: cam2base from the mean
+    fixed-board pose of the position, displacement of ``point_mm`` in the base frame,
+    the compliance estimator).
+
+    Returns
+    -------
+    list of (K, K_std, K_true) per position.
+    """
+    import dataclasses
+
+    from stiffmap.campaign.runner import ImageRow, derive_position, plan
+    from stiffmap.campaign.spec import load_spec
+    from stiffmap.campaign.store import from_json
+    from stiffmap.sim.writer import load_truth
+    from stiffmap.targets import Chessboard
+
+    spec = load_spec(root)
+    truth = load_truth(root)
+    cam = truth.camera
+    fb = Chessboard.parse(spec.targets.fixed.board, spec.targets.fixed.square_mm)
+    mb = Chessboard.parse(spec.targets.mobile.board, spec.targets.mobile.square_mm)
+    rng = np.random.default_rng(seed)
+    rows = {}
+    for f, c in truth.corners().items():
+        uv_m = c["mobile"]["corners_px"] + rng.normal(scale=noise_px, size=c["mobile"]["corners_px"].shape)
+        uv_f = c["fixed"]["corners_px"] + rng.normal(scale=noise_px, size=c["fixed"]["corners_px"].shape)
+        rows[f] = ImageRow(
+            f,
+            True,
+            mobile2cam=pnp_pose(mb.object_points(), uv_m, cam),
+            mobile_cov=np.zeros((6, 6)),  # not used by the identification
+            fixed2cam=pnp_pose(fb.object_points(), uv_f, cam),
+            fixed_cov=np.zeros((6, 6)),
+        )
+    loads = spec.loads.resolve(spec.g)
+    out = []
+    for task in plan(spec, root):
+        task = dataclasses.replace(task, missing=())  # the images need not exist for this path
+        res = derive_position(task, rows, loads, spec, "compliance", "", "")
+        assert res.stiffness["status"] == "ok", res.problems
+        out.append(
+            (from_json(res.stiffness["K"]), from_json(res.stiffness["K_std"]), truth.K[task.index - 1])
+        )
+    return out

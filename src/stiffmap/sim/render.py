@@ -135,7 +135,8 @@ class Photometry:
         function plus any defocus (default 0.8 px, a sharp lens on a sensor
         with pixels of a few micrometres; 0: an ideal step edge).
     vignetting : float
-        0..1: blend of the cos^4 law of the ray angle (1: full cos^4 fall-off).
+        0..1: blend of the cos^4 law of the angle between a pixel's line of sight and
+        the optical axis (pinhole angle, distortion neglected; 1: full cos^4 fall-off).
     background : float
         Reflectance of the scene behind the targets.
     clutter : bool

@@ -97,6 +97,25 @@ class Scene:
                 out[tg.name] = self.camera.project(P)
         return out
 
+    def visibility_problem(self, tcp2base, *, border_px: float = 20.0) -> str | None:
+        """Why a board is not fully visible with the platform at ``tcp2base`` (None if it is).
+
+        A board must lie in front of the camera, its printed outline at least
+        ``border_px`` from the image border.
+        """
+        w, h = self.camera.image_size
+        for name, uv in self.outline_pixels(tcp2base).items():
+            if not np.all(np.isfinite(uv)):
+                return f"the {name} board reaches behind the camera"
+            if (
+                uv[:, 0].min() < border_px
+                or uv[:, 1].min() < border_px
+                or uv[:, 0].max() > w - 1 - border_px
+                or uv[:, 1].max() > h - 1 - border_px
+            ):
+                return f"the {name} board leaves the image (or comes within {border_px:g} px of its border)"
+        return None
+
     def check_visible(self, positions, *, border_px: float = 20.0, slack_mm: float = 0.0) -> None:
         """Raise ValueError naming the first position at which a board leaves the image.
 
@@ -110,25 +129,14 @@ class Scene:
             Extra displacement of the platform, in every direction, that must keep it visible.
         """
         P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-        w, h = self.camera.image_size
         shifts = [np.zeros(3)]
         if slack_mm > 0:
             shifts += [slack_mm * s for s in np.vstack([np.eye(3), -np.eye(3)])]
         for i, p in enumerate(P):
             for d in shifts:
-                for name, uv in self.outline_pixels(transform_from(np.eye(3), p + d)).items():
-                    bad = (
-                        not np.all(np.isfinite(uv))
-                        or uv[:, 0].min() < border_px
-                        or uv[:, 1].min() < border_px
-                        or uv[:, 0].max() > w - 1 - border_px
-                        or uv[:, 1].max() > h - 1 - border_px
-                    )
-                    if bad:
-                        raise ValueError(
-                            f"position {i + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the {name} board "
-                            f"leaves the image (or comes within {border_px:g} px of its border)"
-                        )
+                why = self.visibility_problem(transform_from(np.eye(3), p + d), border_px=border_px)
+                if why:
+                    raise ValueError(f"position {i + 1} ({', '.join(f'{v:g}' for v in p)}) mm: {why}")
 
 
 def default_scene(camera: CameraModel | None = None) -> Scene:

@@ -1,0 +1,304 @@
+"""The virtual robot: a known stiffness field, position repeatability, compliant poses.
+
+A robot of the test-bed is a stiffness field ``K(points)`` over the workspace
+-- from a mechanism model (:func:`delta_robot`, the default; anything with a
+``stiffness(points)`` method) or any callable -- and the noise of its own
+positioning. Conventions: ``docs/conventions.md`` (mm, N, rad; ``F = K u``).
+
+The platform of a translational robot keeps its orientation; the tool point is
+the origin of the ``tcp`` frame, whose axes are the base's. A load case is a
+force F (N) applied at ``load_point_mm`` (tcp frame, default the tool point).
+
+- 3x3 field (N/mm): the tool point moves by ``K^-1 F``; the orientation does not change.
+- 6x6 field at the tool point (blocks N/mm, N, N*mm/rad; wrench (F, M) with M in
+  N*mm, displacement (u, rotation vector)): the wrench at the tool point is
+  (F, r x F) for the load point r, and ``(u, w) = K^-1 (F, r x F)``; the platform
+  turns by the rotation vector w (base frame) about the tool point, which moves by u.
+
+Repeatability: reaching a commanded position, the platform lands off by a
+Gaussian error (``repeatability_mm`` per axis, ``repeatability_rad`` per axis of
+a small rotation), shared by the unloaded and the loaded image of one
+measurement (the robot does not move while the load is hung); each image adds
+its own small jitter (``jitter_mm``: settling, vibration).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..geometry import matrix_from_rotvec, transform_from
+
+__all__ = [
+    "VirtualRobot",
+    "delta_robot",
+    "smooth_field",
+    "with_rotational_compliance",
+    "translational_stiffness",
+]
+
+
+def smooth_field(points) -> np.ndarray:
+    """A smooth symmetric positive-definite stiffness field (N/mm) for tests and demos.
+
+    Not a mechanism: principal stiffnesses 2, 4 and 9 N/mm (x-ish, y-ish, z-ish) at
+    (0, 0, -300) mm, a third lower at the corners (+-200, +-200) of the reference grid,
+    growing by a factor e^0.25 per 100 mm upwards, with principal axes turning slowly
+    with x and y: ``K(p) = s(p) Q(p) diag(2, 4, 9) Q(p)^T`` with
+    ``s = exp((z + 300) / 400) / (1 + (x^2 + y^2) / 160000)``; positive definite everywhere.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3), mm
+
+    Returns
+    -------
+    ndarray, shape (N, 3, 3), N/mm
+    """
+    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    x, y, z = P[:, 0], P[:, 1], P[:, 2]
+    s = np.exp((z + 300.0) / 400.0) / (1.0 + (x**2 + y**2) / 160000.0)
+    a = 0.002 * x - 0.001 * y  # rad about z
+    b = 0.0015 * y  # rad about x
+    ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
+    Q = np.zeros((P.shape[0], 3, 3))
+    # Q = Rz(a) Rx(b)
+    Q[:, 0, 0] = ca
+    Q[:, 0, 1] = -sa * cb
+    Q[:, 0, 2] = sa * sb
+    Q[:, 1, 0] = sa
+    Q[:, 1, 1] = ca * cb
+    Q[:, 1, 2] = -ca * sb
+    Q[:, 2, 1] = sb
+    Q[:, 2, 2] = cb
+    D = np.array([2.0, 4.0, 9.0])
+    return s[:, None, None] * np.einsum("nij,j,nkj->nik", Q, D, Q)
+
+
+def with_rotational_compliance(field3, k_rot_nmm_per_rad: float, coupling_n: float = 0.0):
+    """A 6x6 field at the tool point from a 3x3 field and a rotational stiffness.
+
+    ``K6 = [[K3, c I], [c I, k_rot I]]`` (N/mm, N, N*mm/rad) with a small coupling
+    c (N) between translation and rotation; positive definite when
+    ``c^2 < lambda_min(K3) k_rot``.
+
+    Parameters
+    ----------
+    field3 : callable
+        (N, 3) mm -> (N, 3, 3) N/mm.
+    k_rot_nmm_per_rad : float
+        Rotational stiffness about each axis, N*mm/rad.
+    coupling_n : float
+        Coupling c, N.
+    """
+    k = float(k_rot_nmm_per_rad)
+    c = float(coupling_n)
+    if not (math.isfinite(k) and k > 0):
+        raise ValueError(
+            f"k_rot_nmm_per_rad must be a positive number of N*mm/rad, got {k_rot_nmm_per_rad!r}"
+        )
+    if not math.isfinite(c):
+        raise ValueError(f"coupling_n must be a finite number of N, got {coupling_n!r}")
+
+    def field6(points) -> np.ndarray:
+        K3 = np.asarray(field3(points), dtype=np.float64).reshape(-1, 3, 3)
+        K = np.zeros((K3.shape[0], 6, 6))
+        K[:, :3, :3] = K3
+        K[:, :3, 3:] = c * np.eye(3)
+        K[:, 3:, :3] = c * np.eye(3)
+        K[:, 3:, 3:] = k * np.eye(3)
+        return K
+
+    return field6
+
+
+def translational_stiffness(K, load_point_mm=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The 3x3 stiffness a force-only identification sees.
+
+    For a 3x3 K, K itself. For a 6x6 K at the tool point and forces applied at
+    ``load_point_mm`` (tcp frame), the tool point moves by
+    ``C_tt F + C_tr (r x F) = (C_tt + C_tr [r]x) F`` with C = K^-1, so the
+    answer is ``(C_tt + C_tr [r]x)^-1`` (N/mm).
+
+    Parameters
+    ----------
+    K : array_like, shape (..., 3, 3) or (..., 6, 6)
+    load_point_mm : array_like, shape (3,)
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3), N/mm
+    """
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape[-2:] == (3, 3):
+        return K.copy()
+    if K.shape[-2:] != (6, 6):
+        raise ValueError(f"K must be 3x3 or 6x6, got shape {K.shape}")
+    C = np.linalg.inv(K)
+    r = np.asarray(load_point_mm, dtype=np.float64)
+    S = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    return np.linalg.inv(C[..., :3, :3] + C[..., :3, 3:] @ S)
+
+
+@dataclass(frozen=True)
+class VirtualRobot:
+    """A robot with a known stiffness field and its own positioning noise.
+
+    Attributes
+    ----------
+    field : callable
+        ``field(points (N, 3) mm) -> (N, 3, 3)`` N/mm, or ``(N, 6, 6)`` at the tool
+        point (module docstring).
+    repeatability_mm : float
+        1 sigma per axis of the platform's position error on reaching a
+        commanded position (shared by an unloaded/loaded pair), mm.
+    repeatability_rad : float
+        1 sigma per axis of its small orientation error, rad.
+    jitter_mm : float
+        1 sigma per axis of each image's own position error (settling), mm.
+    load_point_mm : (float, float, float)
+        Where the loads act, tcp frame, mm.
+    model : str
+        ``"delta"``, ``"3prr"`` or ``"none"`` (written to campaign.toml).
+    params : dict
+        The model's parameters (written to campaign.toml and truth.json).
+    """
+
+    field: Callable[[np.ndarray], np.ndarray]
+    repeatability_mm: float = 0.02
+    repeatability_rad: float = 2e-5
+    jitter_mm: float = 0.001
+    load_point_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    model: str = "none"
+    params: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not callable(self.field):
+            raise ValueError("field must be a callable: points (N, 3) mm -> K (N, 3, 3) N/mm")
+        for k in ("repeatability_mm", "repeatability_rad", "jitter_mm"):
+            v = float(getattr(self, k))
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{k} must be a finite number >= 0, got {getattr(self, k)!r}")
+            object.__setattr__(self, k, v)
+        lp = tuple(float(v) for v in self.load_point_mm)
+        if len(lp) != 3 or not all(math.isfinite(v) for v in lp):
+            raise ValueError(f"load_point_mm must be three finite numbers (mm), got {self.load_point_mm!r}")
+        object.__setattr__(self, "load_point_mm", lp)
+
+    def stiffness(self, points) -> np.ndarray:
+        """K at the tool point (N/mm; 6x6 for a 6x6 field), checked.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3), mm
+
+        Returns
+        -------
+        ndarray, shape (N, m, m), m = 3 or 6
+
+        Raises
+        ------
+        ValueError
+            If the field returns the wrong shape, non-finite values or a matrix
+            whose symmetric part is not positive definite (naming the position).
+        """
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        K = np.asarray(self.field(P), dtype=np.float64)
+        if K.ndim == 2:
+            K = K[None]
+        if K.shape not in ((P.shape[0], 3, 3), (P.shape[0], 6, 6)):
+            raise ValueError(
+                f"the stiffness field returned shape {K.shape} for {P.shape[0]} points; "
+                f"expected ({P.shape[0]}, 3, 3) or ({P.shape[0]}, 6, 6)"
+            )
+        for i in range(K.shape[0]):
+            if not np.all(np.isfinite(K[i])):
+                raise ValueError(f"the stiffness at {P[i].tolist()} mm is not finite")
+            if np.linalg.eigvalsh(0.5 * (K[i] + K[i].T))[0] <= 0:
+                raise ValueError(f"the stiffness at {P[i].tolist()} mm is not positive definite")
+        return K
+
+    def compliant_motion(self, K, force) -> tuple[np.ndarray, np.ndarray]:
+        """Displacement of the tool point (mm) and rotation vector (rad) under a force.
+
+        Parameters
+        ----------
+        K : array_like, shape (3, 3) or (6, 6)
+            From :meth:`stiffness` at the position.
+        force : array_like, shape (3,), N
+
+        Returns
+        -------
+        u : ndarray, shape (3,), mm
+        w : ndarray, shape (3,), rad (zero for a 3x3 field)
+        """
+        K = np.asarray(K, dtype=np.float64)
+        F = np.asarray(force, dtype=np.float64)
+        if F.shape != (3,) or not np.all(np.isfinite(F)):
+            raise ValueError(f"force must be a finite 3-vector in N, got {force!r}")
+        if K.shape == (3, 3):
+            return np.linalg.solve(K, F), np.zeros(3)
+        if K.shape != (6, 6):
+            raise ValueError(f"K must be 3x3 or 6x6, got shape {K.shape}")
+        wrench = np.concatenate([F, np.cross(np.asarray(self.load_point_mm), F)])
+        d = np.linalg.solve(K, wrench)
+        return d[:3], d[3:]
+
+    def reach(self, commanded_mm, rng: np.random.Generator) -> np.ndarray:
+        """The platform's true pose on reaching a commanded position (repeatability).
+
+        Returns
+        -------
+        tcp2base : ndarray, shape (4, 4)
+        """
+        p = np.asarray(commanded_mm, dtype=np.float64)
+        dt = rng.normal(scale=self.repeatability_mm, size=3) if self.repeatability_mm > 0 else np.zeros(3)
+        dr = rng.normal(scale=self.repeatability_rad, size=3) if self.repeatability_rad > 0 else np.zeros(3)
+        return transform_from(matrix_from_rotvec(dr), p + dt)
+
+    def image_pose(self, tcp2base, rng: np.random.Generator, K=None, force=None) -> np.ndarray:
+        """The pose seen in one image: the reached pose, its jitter, and the load's motion.
+
+        Parameters
+        ----------
+        tcp2base : ndarray, shape (4, 4)
+            From :meth:`reach`.
+        rng : numpy Generator
+        K, force : optional
+            Stiffness at the position and the applied force (N) of a loaded image.
+
+        Returns
+        -------
+        tcp2base : ndarray, shape (4, 4)
+        """
+        T = np.array(tcp2base, dtype=np.float64)
+        if self.jitter_mm > 0:
+            T[:3, 3] += rng.normal(scale=self.jitter_mm, size=3)
+        if force is not None:
+            u, w = self.compliant_motion(K, force)
+            # Rotation w about the tool point (the tcp origin), in the base frame.
+            T[:3, :3] = matrix_from_rotvec(w) @ T[:3, :3]
+            T[:3, 3] += u
+        return T
+
+
+def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
+    """The Delta-type robot of :mod:`stiffmap.models.delta` as a virtual robot.
+
+    Parameters
+    ----------
+    params : dict, optional
+        Model parameters (``DeltaRobot.param_names()``: base_radius, platform_radius,
+        arm_length, forearm_length (mm), k_theta (N*mm/rad), k_arm, k_forearm (N/mm)).
+    **kw
+        :class:`VirtualRobot` fields (repeatability_mm, jitter_mm, ...).
+    """
+    from ..models.delta import DeltaRobot
+
+    model = DeltaRobot().with_params(**(params or {}))
+    finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
+    return VirtualRobot(field=model.stiffness, model="delta", params=finite, **kw)

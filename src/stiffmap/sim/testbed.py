@@ -1,0 +1,249 @@
+"""A virtual vision campaign: every image's true poses, lighting and noise seed (no I/O).
+
+:func:`plan_campaign` turns a :class:`SimConfig` (scene, robot, positions,
+loads, repeats, seed) into the list of images a real experiment would take --
+for each position, load case and repeat an unloaded and a loaded image
+(``docs/simulation.md``) -- each with the platform's true pose, the lighting
+and the seed of its noise; :func:`render_job` renders one of them. The
+stiffness is evaluated at the commanded positions: that is the truth.
+
+Randomness: the seed and the 1-based indices (position, load, repeat) key a
+:class:`numpy.random.SeedSequence`, so every image is the same whatever the
+order or the number of processes that render them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..loads import LoadCase
+from ..units import G_REFERENCE_PAPER
+from .render import Photometry, Rendering, encode_image, render
+from .robot import VirtualRobot, translational_stiffness
+from .scene import Scene
+
+__all__ = ["SimConfig", "ImageJob", "CampaignPlan", "plan_campaign", "render_job", "DEFAULT_PATTERNS"]
+
+#: The campaign spec's default image names (1-based indices).
+DEFAULT_PATTERNS = (
+    "images/p{position:02d}/l{load:02d}_r{repeat:02d}_unloaded.png",
+    "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png",
+)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """What to simulate.
+
+    Attributes
+    ----------
+    scene : Scene
+        Camera and boards.
+    robot : VirtualRobot
+        Stiffness field and positioning noise.
+    positions : ndarray, shape (n, 3)
+        Commanded positions of the tool point, base frame, mm.
+    loads : tuple of LoadCase
+        Forces (N, base frame) applied at the robot's load point.
+    repeats : int
+        Measurements (unloaded + loaded image pairs) per position and load case.
+    seed : int
+        Seed of every random draw.
+    photometry : Photometry
+        Camera response and noise (per image, the gain and offset are jittered).
+    gain_jitter : float
+        Relative 1 sigma of the illumination between images.
+    offset_jitter_dn : float
+        1 sigma of the black level between images, DN.
+    image_format : {"png", "jpeg"}
+    jpeg_quality : int
+    name : str
+        Campaign name.
+    g : float
+        Gravity written to campaign.toml (m/s^2).
+    border_px : float
+        Every board must stay this far inside the image in every image.
+    """
+
+    scene: Scene
+    robot: VirtualRobot
+    positions: np.ndarray
+    loads: tuple[LoadCase, ...]
+    repeats: int = 3
+    seed: int = 0
+    photometry: Photometry = field(default_factory=Photometry)
+    gain_jitter: float = 0.03
+    offset_jitter_dn: float = 1.0
+    image_format: str = "png"
+    jpeg_quality: int = 95
+    name: str = "virtual test-bed"
+    g: float = G_REFERENCE_PAPER
+    border_px: float = 20.0
+
+    def __post_init__(self) -> None:
+        P = np.array(self.positions, dtype=np.float64)
+        if P.ndim != 2 or P.shape[1] != 3 or P.shape[0] == 0 or not np.all(np.isfinite(P)):
+            raise ValueError(f"positions must be a non-empty (n, 3) array of finite mm, got shape {P.shape}")
+        P.setflags(write=False)
+        object.__setattr__(self, "positions", P)
+        loads = tuple(self.loads)
+        if not loads or not all(isinstance(ld, LoadCase) for ld in loads):
+            raise ValueError("loads must be a non-empty sequence of LoadCase")
+        object.__setattr__(self, "loads", loads)
+        if int(self.repeats) < 1:
+            raise ValueError(f"repeats must be >= 1, got {self.repeats}")
+        object.__setattr__(self, "repeats", int(self.repeats))
+        if int(self.seed) < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
+        object.__setattr__(self, "seed", int(self.seed))
+        fmt = str(self.image_format).lower()
+        if fmt not in ("png", "jpeg", "jpg"):
+            raise ValueError(f"image_format must be png or jpeg, got {self.image_format!r}")
+        object.__setattr__(self, "image_format", "jpeg" if fmt == "jpg" else fmt)
+        for k in ("gain_jitter", "offset_jitter_dn"):
+            v = float(getattr(self, k))
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{k} must be a finite number >= 0, got {getattr(self, k)!r}")
+
+    @property
+    def patterns(self) -> tuple[str, str]:
+        """(unloaded, loaded) image-name patterns, with the format's extension."""
+        if self.image_format == "png":
+            return DEFAULT_PATTERNS
+        return tuple(p[: -len(".png")] + ".jpg" for p in DEFAULT_PATTERNS)
+
+
+@dataclass(frozen=True)
+class ImageJob:
+    """One image to render and its truth.
+
+    Attributes
+    ----------
+    file : str
+        Path relative to the campaign directory.
+    position, load, repeat : int
+        1-based indices.
+    state : {"unloaded", "loaded"}
+    commanded_mm : ndarray, shape (3,)
+    tcp2base : ndarray, shape (4, 4)
+        True platform pose in this image, mm.
+    gain, offset_dn : float
+        Photometry of this image (illumination change).
+    """
+
+    file: str
+    position: int
+    load: int
+    repeat: int
+    state: str
+    commanded_mm: np.ndarray
+    tcp2base: np.ndarray
+    gain: float
+    offset_dn: float
+
+    @property
+    def spawn_key(self) -> tuple[int, int, int, int]:
+        return (self.position, self.load, self.repeat, 0 if self.state == "unloaded" else 1)
+
+
+@dataclass(frozen=True)
+class CampaignPlan:
+    """Every image of a campaign and the true stiffness.
+
+    Attributes
+    ----------
+    jobs : tuple of ImageJob
+        In acquisition order: position, load case, repeat, unloaded then loaded.
+    K : ndarray, shape (n, m, m)
+        Field at each commanded position (m = 3, or 6 at the tool point).
+    K3 : ndarray, shape (n, 3, 3), N/mm
+        The translational stiffness a force-only identification recovers.
+    """
+
+    jobs: tuple[ImageJob, ...]
+    K: np.ndarray
+    K3: np.ndarray
+
+
+def _seq(seed: int, *key: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(int(k) for k in key)))
+
+
+def plan_campaign(config: SimConfig) -> CampaignPlan:
+    """Every image's true poses and photometry; checks that the boards stay in view.
+
+    Raises
+    ------
+    ValueError
+        If the stiffness field is bad at a position, or a board leaves the image
+        in some image (naming the position, load and repeat).
+    """
+    from ..models.base import PoseError
+
+    cfg = config
+    P = cfg.positions
+    try:
+        K = cfg.robot.stiffness(P)
+    except PoseError as e:
+        if e.index is None:
+            raise
+        p = P[e.index]
+        raise ValueError(
+            f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the robot model has no "
+            f"stiffness there ({e.reason or e.detail})"
+        ) from None
+    K3 = translational_stiffness(K, cfg.robot.load_point_mm)
+    pat_u, pat_l = cfg.patterns
+    jobs: list[ImageJob] = []
+    ph = cfg.photometry
+    for ip, p in enumerate(P, start=1):
+        for il, ld in enumerate(cfg.loads, start=1):
+            for ir in range(1, cfg.repeats + 1):
+                rng = _seq(cfg.seed, ip, il, ir)
+                reached = cfg.robot.reach(p, rng)
+                T_u = cfg.robot.image_pose(reached, rng)
+                T_l = cfg.robot.image_pose(reached, rng, K[ip - 1], ld.force)
+                for state, T, pat in (("unloaded", T_u, pat_u), ("loaded", T_l, pat_l)):
+                    gain = ph.gain * max(1.0 + cfg.gain_jitter * rng.standard_normal(), 0.05)
+                    offset = max(ph.offset_dn + cfg.offset_jitter_dn * rng.standard_normal(), 0.0)
+                    why = cfg.scene.visibility_problem(T, border_px=cfg.border_px)
+                    if why:
+                        raise ValueError(
+                            f"position {ip} ({', '.join(f'{v:g}' for v in p)}) mm, load {il}, repeat {ir}, "
+                            f"{state}: {why}"
+                        )
+                    T.setflags(write=False)
+                    jobs.append(
+                        ImageJob(
+                            file=pat.format(position=ip, load=il, repeat=ir),
+                            position=ip,
+                            load=il,
+                            repeat=ir,
+                            state=state,
+                            commanded_mm=p,
+                            tcp2base=T,
+                            gain=float(gain),
+                            offset_dn=float(offset),
+                        )
+                    )
+    return CampaignPlan(tuple(jobs), K, K3)
+
+
+def render_job(
+    scene: Scene, photometry: Photometry, seed: int, job: ImageJob, image_format: str = "png", jpeg_quality=95
+) -> tuple[bytes, Rendering]:
+    """Render and encode one planned image.
+
+    Returns
+    -------
+    data : bytes
+        The encoded image.
+    rendering : Rendering
+        The image array and the true poses and corners of the ``fixed`` and
+        ``mobile`` targets.
+    """
+    ph = replace(photometry, gain=job.gain, offset_dn=job.offset_dn)
+    r = render(scene.camera, scene.targets(job.tcp2base), photometry=ph, seed=_seq(seed, *job.spawn_key))
+    return encode_image(r.image, image_format, jpeg_quality=jpeg_quality), r

@@ -1,0 +1,526 @@
+"""Write a simulated vision campaign directory, and read its ground truth back.
+
+Layout (``docs/simulation.md``)::
+
+    OUT_DIR/
+      campaign.toml            # stiffmap's campaign spec (positions and loads as explicit lists)
+      camera.json              # the true camera
+      images/p01/l01_r01_unloaded.png, images/p01/l01_r01_loaded.png, ...
+      truth.json               # the ground truth (written last: its presence marks a finished run)
+      truth_corners.json.gz    # every image's true board poses and corner pixels
+      .stiffmap-simulation     # marker written first (lets --force clean up an interrupted run)
+
+Every file is written atomically. A directory that is not empty is refused
+unless ``force``, and ``force`` only overwrites a previous simulation (a
+directory whose ``truth.json`` this module wrote): raw images of a real
+campaign are never deleted.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import os
+import shutil
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..camera import CameraModel, save_camera
+from ..errors import InputError
+from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
+from .render import true_corners
+from .testbed import CampaignPlan, ImageJob, SimConfig, plan_campaign, render_job
+
+__all__ = [
+    "TRUTH_NAME",
+    "CORNERS_NAME",
+    "TRUTH_FORMAT",
+    "SimSummary",
+    "SimTruth",
+    "write_campaign",
+    "load_truth",
+    "campaign_spec_dict",
+    "check_output_dir",
+    "MARKER_NAME",
+]
+
+TRUTH_NAME = "truth.json"
+CORNERS_NAME = "truth_corners.json.gz"
+TRUTH_FORMAT = "stiffmap-sim-truth/1"
+#: Written first: marks a directory as the simulator's even if a run was interrupted.
+MARKER_NAME = ".stiffmap-simulation"
+_OWN_FILES = ("campaign.toml", "camera.json", TRUTH_NAME, CORNERS_NAME)
+
+
+@dataclass(frozen=True)
+class SimSummary:
+    """What :func:`write_campaign` wrote.
+
+    Attributes
+    ----------
+    out_dir : Path
+    n_positions, n_loads, repeats, n_images : int
+    images_rendered : bool
+        False when only the truth was written (``render_images=False``).
+    bytes_written : int
+        Size of the images, bytes.
+    seconds : float
+        Wall time.
+    principal_range : (float, float)
+        Smallest and largest principal stiffness over the positions, N/mm.
+    files : tuple of str
+        The campaign's own files (relative paths), images excluded.
+    """
+
+    out_dir: Path
+    n_positions: int
+    n_loads: int
+    repeats: int
+    n_images: int
+    images_rendered: bool
+    bytes_written: int
+    seconds: float
+    principal_range: tuple[float, float]
+    files: tuple[str, ...]
+
+
+# ------------------------------------------------------------------ directory
+
+
+def check_output_dir(out_dir: str | os.PathLike, force: bool = False) -> bool:
+    """Check that a campaign may be written to ``out_dir`` (nothing is changed).
+
+    Returns
+    -------
+    bool
+        True when a previous simulation is there and will be overwritten (``force``).
+
+    Raises
+    ------
+    InputError
+        Not a directory; not empty without ``force``; not a previous simulation with ``force``.
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a directory", source=str(out))
+    if not out.exists() or not any(out.iterdir()):
+        return False
+    if not force:
+        raise InputError(
+            "the output directory is not empty; choose a new one, or give --force to overwrite "
+            "a previous simulation",
+            source=str(out),
+        )
+    ours = False
+    for name in (MARKER_NAME, TRUTH_NAME):
+        if (out / name).is_file():
+            try:
+                ours = (
+                    ours or json.loads((out / name).read_text(encoding="utf-8")).get("format") == TRUTH_FORMAT
+                )
+            except (OSError, ValueError, AttributeError):
+                pass
+    if not ours:
+        raise InputError(
+            f"--force only overwrites a previous simulation (a directory with the {TRUTH_NAME} that "
+            "'stiffmap simulate' writes); this one is not, so nothing was deleted",
+            source=str(out),
+        )
+    return True
+
+
+def _prepare_dir(out: Path, force: bool) -> None:
+    if not check_output_dir(out, force):
+        out.mkdir(parents=True, exist_ok=True)
+        return
+    # truth.json goes first: an interrupted clean-up never leaves a "finished" mark; the
+    # marker stays, so a second --force can finish the job.
+    for name in (TRUTH_NAME, *_OWN_FILES):
+        p = out / name
+        if p.is_file():
+            p.unlink()
+    for sub in ("images", "recordings"):  # a vision or a sensor simulation
+        if (out / sub).is_dir():
+            shutil.rmtree(out / sub)
+
+
+# ------------------------------------------------------------------ spec/truth
+
+
+def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
+    """The ``campaign.toml`` content (a dict for :class:`stiffmap.campaign.spec.CampaignSpec`)."""
+    sc = config.scene
+    pat_u, pat_l = config.patterns
+    return {
+        "name": config.name,
+        "kind": "vision",
+        "g": float(config.g),
+        "repeats": config.repeats,
+        "robot": {"model": config.robot.model, "params": dict(config.robot.params)},
+        "camera": {"file": "camera.json"},
+        "targets": {
+            "fixed": {
+                "board": sc.fixed_board.size,
+                "square_mm": sc.fixed_board.square_mm,
+                "fixed2base": sc.fixed2base.tolist(),
+            },
+            "mobile": {
+                "board": sc.mobile_board.size,
+                "square_mm": sc.mobile_board.square_mm,
+                "point_mm": [float(v) for v in sc.point_mm],
+                "mobile2tcp": sc.mobile2tcp.tolist(),
+            },
+        },
+        "positions": {"list": [[float(v) for v in p] for p in config.positions]},
+        "loads": {
+            "cases": [
+                {"force_n": [float(v) for v in ld.force], "label": ld.label or f"load {i}"}
+                for i, ld in enumerate(config.loads, start=1)
+            ]
+        },
+        "images": {"unloaded": pat_u, "loaded": pat_l},
+    }
+
+
+def _compact_json(obj: Any, indent: int = 0, depth: int = 2) -> str:
+    """JSON with dicts broken over lines down to ``depth`` and everything below on one line."""
+    if depth <= 0 or not isinstance(obj, (dict, list)) or not obj:
+        return json.dumps(obj, allow_nan=False, separators=(", ", ": "))
+    pad = "  " * (indent + 1)
+    if isinstance(obj, dict):
+        items = [f"{pad}{json.dumps(k)}: {_compact_json(v, indent + 1, depth - 1)}" for k, v in obj.items()]
+        return "{\n" + ",\n".join(items) + "\n" + "  " * indent + "}"
+    items = [f"{pad}{_compact_json(v, indent + 1, depth - 1)}" for v in obj]
+    return "[\n" + ",\n".join(items) + "\n" + "  " * indent + "]"
+
+
+def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str, Any]:
+    sc = config.scene
+    rb = config.robot
+    positions = []
+    for i, (p, K3, K) in enumerate(zip(config.positions, plan.K3, plan.K, strict=True), start=1):
+        w = np.linalg.eigvalsh(0.5 * (K3 + K3.T))
+        entry = {"index": i, "position": p, "K": K3, "det": float(np.linalg.det(K3)), "eigenvalues": w}
+        if K.shape == (6, 6):
+            entry["K_tcp"] = K
+        positions.append(entry)
+    images = [
+        {
+            "file": j.file,
+            "position": j.position,
+            "load": j.load,
+            "repeat": j.repeat,
+            "state": j.state,
+            "commanded_mm": j.commanded_mm,
+            "tcp2base": j.tcp2base,
+            "gain": j.gain,
+            "offset_dn": j.offset_dn,
+        }
+        for j in plan.jobs
+    ]
+    return to_jsonable(
+        {
+            "format": TRUTH_FORMAT,
+            "kind": "vision",
+            "generator": {"tool": "stiffmap simulate", "version": __version__, "command": command},
+            "seed": config.seed,
+            "units": "mm, N, rad; K in N/mm (K_tcp: 6x6 at the tool point, blocks N/mm, N, N*mm/rad)",
+            "camera": sc.camera.to_dict(),
+            "cam2base": sc.cam2base,
+            "targets": {
+                "fixed": {
+                    "board": sc.fixed_board.size,
+                    "square_mm": sc.fixed_board.square_mm,
+                    "margin_mm": sc.margin_mm,
+                    "fixed2base": sc.fixed2base,
+                },
+                "mobile": {
+                    "board": sc.mobile_board.size,
+                    "square_mm": sc.mobile_board.square_mm,
+                    "margin_mm": sc.margin_mm,
+                    "mobile2tcp": sc.mobile2tcp,
+                    "point_mm": sc.point_mm,
+                },
+            },
+            "robot": {
+                "model": rb.model,
+                "params": rb.params,
+                "field": f"{plan.K.shape[1]}x{plan.K.shape[2]}",
+                "repeatability_mm": rb.repeatability_mm,
+                "repeatability_rad": rb.repeatability_rad,
+                "jitter_mm": rb.jitter_mm,
+                "load_point_mm": list(rb.load_point_mm),
+            },
+            "loads": [{"force_n": ld.force, "label": ld.label} for ld in config.loads],
+            "repeats": config.repeats,
+            "photometry": {
+                **asdict(config.photometry),
+                "gain_jitter": config.gain_jitter,
+                "offset_jitter_dn": config.offset_jitter_dn,
+                "format": config.image_format,
+            },
+            "positions": positions,
+            "corners_file": CORNERS_NAME,
+            "images": images,
+        }
+    )
+
+
+# ------------------------------------------------------------------ rendering
+
+_CTX: dict[str, Any] = {}
+
+
+def _init_worker(ctx: dict[str, Any]) -> None:
+    import cv2
+
+    cv2.setNumThreads(1)
+    _CTX.clear()
+    _CTX.update(ctx)
+
+
+def _image_truth(scene, job: ImageJob, rendering=None) -> dict[str, Any]:
+    targets = scene.targets(job.tcp2base) if rendering is None else None
+    out: dict[str, Any] = {"file": job.file}
+    if rendering is not None:
+        for t in rendering.targets:
+            out[t.name] = {"board2cam": t.board2cam, "corners_px": t.corners_px}
+    else:
+        for tg in targets:
+            out[tg.name] = {
+                "board2cam": tg.board2cam,
+                "corners_px": true_corners(scene.camera, tg.board, tg.board2cam),
+            }
+    return out
+
+
+def _do_job(job: ImageJob) -> tuple[dict[str, Any], int]:
+    c = _CTX
+    scene = c["scene"]
+    if not c["render"]:
+        return _image_truth(scene, job), 0
+    data, r = render_job(scene, c["photometry"], c["seed"], job, c["format"], c["quality"])
+    atomic_write_bytes(Path(c["out"]) / job.file, data)
+    return _image_truth(scene, job, r), len(data)
+
+
+def _do_chunk(jobs: list[ImageJob]) -> list[tuple[dict[str, Any], int]]:
+    return [_do_job(j) for j in jobs]
+
+
+def write_campaign(
+    out_dir: str | os.PathLike,
+    config: SimConfig,
+    *,
+    workers: int = 1,
+    force: bool = False,
+    render_images: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+    command: str = "",
+    plan: CampaignPlan | None = None,
+) -> SimSummary:
+    """Simulate a campaign and write its directory.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Created if needed; must be empty (or a previous simulation, with ``force``).
+    config : SimConfig
+    workers : int
+        Processes rendering images (1: in this process). The images do not
+        depend on it.
+    force : bool
+        Overwrite a previous simulation in ``out_dir``.
+    render_images : bool
+        False: write the spec, camera and truth but no images (for tests of the
+        measurement chain on the true corners).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each finished image.
+    command : str
+        The command line, recorded in truth.json.
+    plan : CampaignPlan, optional
+        ``plan_campaign(config)`` if already computed.
+
+    Returns
+    -------
+    SimSummary
+
+    Raises
+    ------
+    InputError
+        Output directory not usable; a position where the robot model has no
+        stiffness or a board leaves the image (naming it).
+    """
+    from ..campaign.spec import CampaignSpec, dump_spec
+
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    if int(workers) < 1:
+        raise InputError(f"workers must be >= 1, got {workers}")
+    if plan is None:
+        try:
+            plan = plan_campaign(config)
+        except InputError:
+            raise
+        except ValueError as e:
+            raise InputError(str(e)) from None
+    _prepare_dir(out, force)
+    atomic_write_text(out / MARKER_NAME, json.dumps({"format": TRUTH_FORMAT}) + "\n")
+    save_camera(config.scene.camera, out / "camera.json")
+    spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
+    header = (
+        f"Simulated by 'stiffmap simulate' (stiffmap {__version__}, seed {config.seed}).\n"
+        f"The ground truth (true K at every position, every image's poses and corners) is in {TRUTH_NAME}."
+    )
+    atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
+
+    jobs = list(plan.jobs)
+    ctx = {
+        "scene": config.scene,
+        "photometry": config.photometry,
+        "seed": config.seed,
+        "format": config.image_format,
+        "quality": config.jpeg_quality,
+        "out": str(out),
+        "render": bool(render_images),
+    }
+    results: dict[str, tuple[dict[str, Any], int]] = {}
+    total = len(jobs)
+    if progress:
+        progress(0, total)
+    if workers == 1 or not render_images:
+        _init_worker(ctx)
+        for k, job in enumerate(jobs, start=1):
+            results[job.file] = _do_job(job)
+            if progress:
+                progress(k, total)
+    else:
+        chunk = 2
+        chunks = [jobs[i : i + chunk] for i in range(0, len(jobs), chunk)]
+        with ProcessPoolExecutor(
+            max_workers=int(workers),
+            mp_context=get_context("spawn"),
+            initializer=_init_worker,
+            initargs=(ctx,),
+        ) as ex:
+            pending = {ex.submit(_do_chunk, c) for c in chunks}
+            done_n = 0
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    for truth, nbytes in f.result():
+                        results[truth["file"]] = (truth, nbytes)
+                        done_n += 1
+                if progress:
+                    progress(done_n, total)
+    corners = [results[j.file][0] for j in jobs]
+    data = json.dumps(to_jsonable({"format": TRUTH_FORMAT, "images": corners}), allow_nan=False)
+    atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
+    atomic_write_text(out / TRUTH_NAME, _compact_json(_truth_dict(config, plan, command)) + "\n")
+    eig = np.linalg.eigvalsh(0.5 * (plan.K3 + np.swapaxes(plan.K3, 1, 2)))
+    return SimSummary(
+        out_dir=out,
+        n_positions=len(config.positions),
+        n_loads=len(config.loads),
+        repeats=config.repeats,
+        n_images=total if render_images else 0,
+        images_rendered=bool(render_images),
+        bytes_written=int(sum(n for _, n in results.values())),
+        seconds=time.perf_counter() - t0,
+        principal_range=(float(eig.min()), float(eig.max())),
+        files=_OWN_FILES,
+    )
+
+
+# ------------------------------------------------------------------ reading
+
+
+@dataclass(frozen=True)
+class SimTruth:
+    """The ground truth of a simulated campaign (:func:`load_truth`).
+
+    Attributes
+    ----------
+    root : Path
+        The campaign directory.
+    camera : CameraModel or None
+        None for a sensor campaign.
+    cam2base : ndarray, shape (4, 4), or None
+    positions : ndarray, shape (n, 3) (vision) or (n, 2) (sensor, planar), mm
+    K : ndarray, shape (n, 3, 3) or (n, 2, 2), N/mm
+        What a force-only identification should recover at each position.
+    data : dict
+        The whole truth.json.
+    """
+
+    root: Path
+    camera: CameraModel | None
+    cam2base: np.ndarray | None
+    positions: np.ndarray
+    K: np.ndarray
+    data: dict
+
+    def images(self) -> list[dict]:
+        """Per image: file, indices, state, commanded and true tcp2base, photometry."""
+        return self.data["images"]
+
+    def corners(self) -> dict[str, dict]:
+        """Per image file: ``{"fixed": {"board2cam", "corners_px"}, "mobile": {...}}`` (arrays)."""
+        p = self.root / self.data.get("corners_file", CORNERS_NAME)
+        try:
+            raw = json.loads(gzip.decompress(p.read_bytes()).decode("utf-8"))
+        except (OSError, ValueError, EOFError) as e:
+            raise InputError(f"cannot read the true corners: {e}", source=str(p)) from None
+        out = {}
+        for im in raw["images"]:
+            out[im["file"]] = {
+                k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()}
+                for k, v in im.items()
+                if k != "file"
+            }
+        return out
+
+
+def load_truth(path: str | os.PathLike) -> SimTruth:
+    """Read ``truth.json`` (a file, or a campaign directory holding one).
+
+    Raises
+    ------
+    InputError
+        Missing file, not JSON, not a stiffmap simulation truth, or a key missing.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / TRUTH_NAME
+    src = str(p)
+    if not p.is_file():
+        raise InputError("no truth.json (not a simulated campaign?)", source=src)
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise InputError(f"cannot read as JSON: {e}", source=src) from None
+    if not isinstance(d, dict) or d.get("format") != TRUTH_FORMAT:
+        raise InputError(f"not a stiffmap simulation truth (expected format {TRUTH_FORMAT!r})", source=src)
+    try:
+        if d.get("kind") == "sensor":
+            cam, cam2base = None, None
+            m = 2
+        else:
+            cam = CameraModel.from_dict(d["camera"], source=f"{src}: camera")
+            cam2base = np.asarray(d["cam2base"], dtype=np.float64)
+            m = 3
+        pos = np.asarray([e["position"] for e in d["positions"]], dtype=np.float64).reshape(-1, m)
+        K = np.asarray([e["K"] for e in d["positions"]], dtype=np.float64).reshape(-1, m, m)
+    except KeyError as e:
+        raise InputError(f"missing key {e.args[0]!r}", source=src) from None
+    except (TypeError, ValueError) as e:
+        raise InputError(f"malformed truth: {e}", source=src) from None
+    return SimTruth(root=p.parent, camera=cam, cam2base=cam2base, positions=pos, K=K, data=d)
