@@ -374,6 +374,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         problems.append(f"campaign.toml robot.params: {e}")
         return problems
     rows = store.rows("SELECT position, x, y, z, status, K, K_std FROM stiffness ORDER BY position")
+    if not rows:
+        return problems
     pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
     ok = [r for r in rows if r["status"] == "ok"]
     ihash = params_hash({"model": name, "params": spec.robot.params, "K": [r["K"] for r in ok]})
