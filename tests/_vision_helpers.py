@@ -15,12 +15,28 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from stiffmap.camera import CameraModel, _dist12, _distort
 from stiffmap.targets import Chessboard
+
+
+def _find_calib_example() -> Path:
+    """The real calibration photographs (../shared/data/calib_example), also from a git worktree."""
+    from conftest import SHARED_DATA
+
+    here = Path(__file__).resolve().parents[1]
+    for cand in (SHARED_DATA / "calib_example", here.parents[1] / "shared" / "data" / "calib_example"):
+        if (cand / "Image1.tif").is_file():
+            return cand
+    raise FileNotFoundError(f"calib_example data not found next to the repository ({SHARED_DATA})")
+
+
+#: Bouguet's calibration example: 20 real 640x480 photographs of a 13x12 board, 30 mm squares.
+CALIB_DIR = _find_calib_example()
 
 
 @dataclass(frozen=True)

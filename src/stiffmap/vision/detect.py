@@ -485,6 +485,8 @@ def _diagnose(
     ok, c, meta = cv2.findChessboardCornersSBWithMeta(small, (3, 3), flags=cv2.CALIB_CB_LARGER)
     if ok and meta is not None and c is not None:
         r, q = meta.shape[:2]
+        if (q >= r) != (board.cols >= board.rows):
+            q, r = r, q  # name the grid in the orientation of the size asked for
         seen = f"{q}x{r}"
         if (q >= board.cols and r >= board.rows) or (q >= board.rows and r >= board.cols):
             return DetectionError(
