@@ -91,10 +91,15 @@ def _tri(x: np.ndarray, s: float) -> np.ndarray:
     return np.where(m < s, m, 2 * s - m)
 
 
-def _box_wave(x: np.ndarray, a: np.ndarray, s: float) -> np.ndarray:
-    """Mean of the square wave over [x - a, x + a] (exact; the sign at a -> 0)."""
+def _box_wave(x: np.ndarray, a: np.ndarray, s: float, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+    """Box means over [x - a, x + a] of the indicator of [lo, hi] and of the square wave times it.
+
+    Exact: the box is clipped to [lo, hi] and the square wave integrated there.
+    """
     a = np.maximum(a, 1e-9 * s)
-    return (_tri(x + a, s) - _tri(x - a, s)) / (2 * a)
+    u = np.clip(x - a, lo, hi)
+    v = np.clip(x + a, lo, hi)
+    return (v - u) / (2 * a), (_tri(v, s) - _tri(u, s)) / (2 * a)
 
 
 def _board_value(
@@ -102,18 +107,16 @@ def _board_value(
 ) -> np.ndarray:
     """Mean reflectance (0 black, 1 white) over a box of half-widths (ax, ay) mm around board points.
 
-    The checker is the product of two square waves, so its mean over an
-    axis-aligned box is the product of the waves' means (exact); NaN outside the
-    target, white on the margin around the printed squares.
+    Black is [inside the printed squares] (1 + Sx Sy) / 2 with the square waves
+    Sx = (-1)^floor(x / s), Sy likewise (square (i, j) black when i + j is even):
+    a sum of two separable products, so its mean over an axis-aligned box is
+    exact. NaN outside the target (printed squares plus a white margin).
     """
     s = board.square_mm
-    # Square (i, j) is black when i + j is even: Sx(x) Sy(y) = +1 there with
-    # Sx = (-1)^floor(x / s).
-    prod = _box_wave(bx, ax, s) * _box_wave(by, ay, s)
-    val = 0.5 * (1.0 - prod)
     x0, y0, x1, y1 = board.extent_mm()
-    inside_print = (bx >= x0) & (bx <= x1) & (by >= y0) & (by <= y1)
-    val = np.where(inside_print, val, 1.0)
+    fx, gx = _box_wave(bx, ax, s, x0, x1)
+    fy, gy = _box_wave(by, ay, s, y0, y1)
+    val = 1.0 - 0.5 * (fx * fy + gx * gy)
     m = margin_sq * s
     on_target = (bx >= x0 - m) & (bx <= x1 + m) & (by >= y0 - m) & (by <= y1 + m)
     return np.where(on_target, val, np.nan)

@@ -778,9 +778,12 @@ def detect_boards(
                     )
             missing = [k for k in todo_chess if out[k] is None]
             if missing:
-                masks = [_mask_polygon(found[j][0]) for j in found]
                 # Boards already found in this image are masked for the diagnosis.
-                raise _diagnose(img, boards[missing[0]], masks, scale)
+                masks = [_mask_polygon(found[j][0]) for j in found]
+                errs = [_diagnose(img, boards[k], masks, scale) for k in missing]
+                if len(errs) == 1:
+                    raise errs[0]
+                raise DetectionError("; ".join(e.detail for e in errs), reason=errs[0].reason)
     except DetectionError as e:
         if source:
             raise e.with_source(source) from None
