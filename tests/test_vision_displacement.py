@@ -25,8 +25,14 @@ def _perturb(T, delta):
 
 def _pose(T, cov):
     return BoardPose(
-        board2cam=T, cov=cov, rms_px=0.0, n_corners=42, residuals_px=np.zeros((42, 2)), sigma_px=0.0,
-        condition=1.0, iterations=0,
+        board2cam=T,
+        cov=cov,
+        rms_px=0.0,
+        n_corners=42,
+        residuals_px=np.zeros((42, 2)),
+        sigma_px=0.0,
+        condition=1.0,
+        iterations=0,
     )
 
 
@@ -37,7 +43,10 @@ def _meas(name, M, cov_m, F=None, cov_f=None, fixed2base=None):
     if F is not None and fixed2base is not None:
         m2b, m2b_cov = mobile2base_from_poses(M, cov_m, F, cov_f, fixed2base)
     return ImageMeasurement(
-        image=name, mobile=_pose(M, cov_m), fixed=None if F is None else _pose(F, cov_f), mobile2base=m2b,
+        image=name,
+        mobile=_pose(M, cov_m),
+        fixed=None if F is None else _pose(F, cov_f),
+        mobile2base=m2b,
         mobile2base_cov=m2b_cov,
     )
 

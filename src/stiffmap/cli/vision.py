@@ -180,15 +180,8 @@ def pose(
         print_json(rows)
     else:
         t = Table(title=f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
-        for col in (
-            "image",
-            "t (mm)",
-            "1 sigma t (mm)",
-            "rotation vector (rad)",
-            "RMS (px)",
-            "corners",
-            "ms",
-        ):
+        t.add_column("image", overflow="fold")
+        for col in ("t (mm)", "1 sigma t (mm)", "rotation vector (rad)", "RMS (px)", "corners", "ms"):
             t.add_column(col)
         for m in ms:
             if not m.ok:
@@ -302,7 +295,8 @@ def displacement(
         t = Table(
             title=f"displacement relative to {len(refs)} reference image(s), {frame} frame (+/- 1 sigma)"
         )
-        for col in ("image", "dx, dy, dz (mm)", "1 sigma (mm)", "rx, ry, rz (rad)", "|d| (mm)"):
+        t.add_column("image", overflow="fold")
+        for col in ("dx, dy, dz (mm)", "1 sigma (mm)", "rx, ry, rz (rad)", "|d| (mm)"):
             t.add_column(col)
         for m, dsp in per:
             t.add_row(

@@ -482,21 +482,32 @@ def _diagnose(
                     "(wrong board size? COLSxROWS counts inner corners)",
                     reason="wrong_size",
                 )
-    ok, c, meta = cv2.findChessboardCornersSBWithMeta(small, (3, 3), flags=cv2.CALIB_CB_LARGER)
-    if ok and meta is not None and c is not None:
+    # What chessboard grids are there at all? (The detector's "larger" mode returns the
+    # biggest grid it can follow, possibly only part of a board; found ones are masked.)
+    seen: list[tuple[int, int]] = []
+    for _ in range(4):
+        ok, c, meta = cv2.findChessboardCornersSBWithMeta(small, (3, 3), flags=cv2.CALIB_CB_LARGER)
+        if not ok or meta is None or c is None:
+            break
         r, q = meta.shape[:2]
+        g = c.reshape(r, q, 2).astype(np.float64)
         if (q >= r) != (board.cols >= board.rows):
             q, r = r, q  # name the grid in the orientation of the size asked for
-        seen = f"{q}x{r}"
-        if (q >= board.cols and r >= board.rows) or (q >= board.rows and r >= board.cols):
+        seen.append((q, r))
+        cv2.fillConvexPoly(small, np.round(_mask_polygon(g, 1.2)).astype(np.int32), fill)
+    if seen:
+        names = " and ".join(f"{q}x{r}" for q, r in seen)
+        larger = [(q, r) for q, r in seen if (q >= board.cols and r >= board.rows)]
+        if larger:
             return DetectionError(
-                f"no complete {want} chessboard found; the image holds a chessboard grid of at least "
-                f"{seen} inner corners (wrong board size? COLSxROWS counts inner corners)",
+                f"no {want} chessboard found; the image holds a chessboard grid of at least "
+                f"{larger[0][0]}x{larger[0][1]} inner corners "
+                "(wrong board size? COLSxROWS counts inner corners)",
                 reason="wrong_size",
             )
         return DetectionError(
-            f"no complete {want} chessboard found; only a grid of {seen} inner corners is visible "
-            "(board partly hidden, out of the frame, or a different board size)",
+            f"no complete {want} chessboard found; only chessboard grids of {names} inner corners are "
+            "visible (board partly hidden, out of the frame, or a different board size)",
             reason="partial",
         )
     return DetectionError(f"no {want} chessboard found in the image", reason="not_found")
