@@ -232,3 +232,12 @@ def true_corners(camera: CameraModel, board: Chessboard, board2cam: np.ndarray) 
 def small_camera() -> CameraModel:
     """A 640x480 camera with moderate barrel distortion, for quick tests."""
     return CameraModel((640, 480), 900.0, 905.0, 322.5, 236.0, (-0.12, 0.08, 0.0005, -0.0003, 0.0))
+
+
+#: Which renderer the benchmarks use (switch here when ``stiffmap.sim.render`` lands on main).
+RENDERER = "tests/_vision_helpers.render (fixture: exact box-filtered edges, blur 0.7 px, shot + read noise)"
+
+
+def render_scene(camera: CameraModel, scene, rng: np.random.Generator, photometry: Photometry | None = None):
+    """Render a scene for the benchmarks (one place to switch renderers)."""
+    return render(camera, scene, photometry=photometry, rng=rng)

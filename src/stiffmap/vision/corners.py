@@ -104,44 +104,55 @@ def refine_corners(
     gx = cv2.Sobel(roi, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
     gy = cv2.Sobel(roi, cv2.CV_32F, 0, 1, ksize=3, scale=1 / 8)
     rh, rw = roi.shape
-    off = np.arange(-w, w + 1)
-    sigma2 = 2.0 * (w / 2.0) ** 2
     q = pts - [x0, y0]
+    # Gradient products on a patch of half-size P around each corner's starting pixel;
+    # the Gaussian weights (separable, truncated at |offset| <= w) follow the estimate
+    # inside it, and a corner that wanders further gets a new patch.
+    margin = 3
+    P = w + margin
+    off = np.arange(-P, P + 1)
+    sigma2 = 2.0 * (w / 2.0) ** 2
+    centre = np.rint(q).astype(int)
+    n_p = 2 * P + 1
+    G = np.zeros((m, 3, n_p, n_p))  # gx^2, gx gy, gy^2 on each corner's patch
+
+    def extract(idx: np.ndarray) -> np.ndarray:
+        """Fill the patches of corners idx; returns which of them fit inside the ROI."""
+        c = centre[idx]
+        inside = (c[:, 0] - P >= 1) & (c[:, 1] - P >= 1) & (c[:, 0] + P < rw - 1) & (c[:, 1] + P < rh - 1)
+        j = idx[inside]
+        if j.size:
+            X = centre[j, 0, None, None] + off[None, None, :]
+            Y = centre[j, 1, None, None] + off[None, :, None]
+            ax = gx[Y, X].astype(np.float64)
+            ay = gy[Y, X].astype(np.float64)
+            G[j, 0] = ax * ax
+            G[j, 1] = ax * ay
+            G[j, 2] = ay * ay
+        return inside
+
     active = np.ones(m, dtype=bool)
-    margin = 2
+    inside = extract(np.arange(m))
+    ok[~inside] = False
+    active[~inside] = False
     for _ in range(max_iter):
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
         qa = q[idx]
-        ci = np.rint(qa).astype(int)
-        inside = (
-            (ci[:, 0] - w >= margin)
-            & (ci[:, 1] - w >= margin)
-            & (ci[:, 0] + w < rw - margin)
-            & (ci[:, 1] + w < rh - margin)
-        )
-        if not inside.all():
-            ok[idx[~inside]] = False
-            active[idx[~inside]] = False
-            idx = idx[inside]
-            qa = qa[inside]
-            ci = ci[inside]
-            if idx.size == 0:
-                break
-        X = ci[:, 0, None, None] + off[None, None, :]
-        Y = ci[:, 1, None, None] + off[None, :, None]
-        Gx = gx[Y, X].astype(np.float64)
-        Gy = gy[Y, X].astype(np.float64)
-        dx = X - qa[:, 0, None, None]
-        dy = Y - qa[:, 1, None, None]
-        wt = np.exp(-(dx * dx + dy * dy) / sigma2)
-        a = (wt * Gx * Gx).sum(axis=(1, 2))
-        b = (wt * Gx * Gy).sum(axis=(1, 2))
-        c = (wt * Gy * Gy).sum(axis=(1, 2))
+        dx = (centre[idx, 0, None] + off[None, :]) - qa[:, 0, None]  # (k, 2P+1), along x
+        dy = (centre[idx, 1, None] + off[None, :]) - qa[:, 1, None]
+        wx = np.exp(-(dx * dx) / sigma2) * (np.abs(dx) <= w)
+        wy = np.exp(-(dy * dy) / sigma2) * (np.abs(dy) <= w)
+        # All weighted sums at once: S[k, g, r, s] = sum_ij V_r[i] G_g[ij] U_s[j] with
+        # U = (wx, wx dx) along x and V = (wy, wy dy) along y.
+        U = np.stack([wx, wx * dx], axis=2)  # (k, n, 2)
+        V = np.stack([wy, wy * dy], axis=1)  # (k, 2, n)
+        S = V[:, None] @ (G[idx] @ U[:, None])  # (k, 3, 2, 2)
+        a, b, c = S[:, 0, 0, 0], S[:, 1, 0, 0], S[:, 2, 0, 0]
         # Right-hand side relative to the current estimate, for conditioning.
-        bx = (wt * (Gx * Gx * dx + Gx * Gy * dy)).sum(axis=(1, 2))
-        by = (wt * (Gx * Gy * dx + Gy * Gy * dy)).sum(axis=(1, 2))
+        bx = S[:, 0, 0, 1] + S[:, 1, 1, 0]
+        by = S[:, 1, 0, 1] + S[:, 2, 1, 0]
         det = a * c - b * b
         scale = np.maximum(a + c, 1e-12) ** 2
         good = det > 1e-6 * scale
@@ -160,5 +171,13 @@ def refine_corners(
         q[idx] = qa + step
         done = np.abs(step).max(axis=1) < tol
         active[idx[done]] = False
+        # Corners that left their patch's margin get a new patch.
+        moved = idx[np.abs(q[idx] - centre[idx]).max(axis=1) > margin - 1]
+        moved = moved[active[moved]]
+        if moved.size:
+            centre[moved] = np.rint(q[moved]).astype(int)
+            fits = extract(moved)
+            ok[moved[~fits]] = False
+            active[moved[~fits]] = False
     ok &= ~active  # still moving after max_iter: not converged
     return q + [x0, y0], ok

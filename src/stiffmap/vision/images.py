@@ -51,16 +51,13 @@ def _format_of(head: bytes) -> str | None:
     return None
 
 
-def _check_complete(fmt: str, data: np.ndarray, src: str) -> None:
-    """Cheap structural checks that catch truncation before the decoder does."""
-    tail = data[-32:].tobytes()
+def _check_complete(fmt: str, tail: bytes, size: int, src: str) -> None:
+    """Cheap structural checks (the file's last bytes) that catch truncation before decoding."""
     if fmt == "PNG" and _PNG_IEND not in tail:
-        raise ImageError(
-            f"truncated PNG file ({data.size} bytes; the closing IEND chunk is missing)", source=src
-        )
+        raise ImageError(f"truncated PNG file ({size} bytes; the closing IEND chunk is missing)", source=src)
     if fmt == "JPEG" and b"\xff\xd9" not in tail.rstrip(b"\x00"):
         raise ImageError(
-            f"truncated JPEG file ({data.size} bytes; the end-of-image marker is missing)", source=src
+            f"truncated JPEG file ({size} bytes; the end-of-image marker is missing)", source=src
         )
 
 
@@ -88,29 +85,37 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if p.is_dir():
         raise ImageError("is a directory, expected an image file", source=src)
     try:
-        data = np.fromfile(p, dtype=np.uint8)
+        size = p.stat().st_size
+        with open(p, "rb") as f:
+            head = f.read(16)
+            f.seek(max(size - 32, 0))
+            tail = f.read()
     except OSError as e:
         raise ImageError(f"cannot read: {e.strerror or e}", source=src) from None
-    if data.size == 0:
+    if size == 0:
         raise ImageError("empty file (0 bytes), expected an image", source=src)
-    fmt = _format_of(data[:16].tobytes())
+    fmt = _format_of(head)
     if fmt is None:
         raise ImageError(
             "not an image file this tool can read (expected PNG, TIFF, BMP, JPEG, PGM or WebP)",
             source=src,
         )
-    _check_complete(fmt, data, src)
+    _check_complete(fmt, tail, size, src)
+    flags = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     try:
-        img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH)
+        img = cv2.imread(str(p), flags)
+        if img is None:
+            # imread cannot open some paths (non-ASCII names on Windows): decode from memory.
+            img = cv2.imdecode(np.fromfile(p, dtype=np.uint8), flags)
     except cv2.error as e:  # pragma: no cover - OpenCV returns None rather than raising
         raise ImageError(f"cannot decode the {fmt} data: {e}", source=src) from None
     finally:
         cv2.utils.logging.setLogLevel(level)
     if img is None:
         raise ImageError(
-            f"cannot decode the {fmt} data ({data.size} bytes): truncated or corrupt file, "
+            f"cannot decode the {fmt} data ({size} bytes): truncated or corrupt file, "
             "or a variant of the format this OpenCV build does not support",
             source=src,
         )

@@ -192,16 +192,15 @@ def estimate_pose(
         T = np.array(initial, dtype=np.float64)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError(f"initial must be a finite (4, 4) transform, got shape {T.shape}")
+    uv, J = projection_jacobian(T, obj, camera)
+    e = (uv - uv_obs).reshape(-1)
+    cost = float(e @ e)
     it = 0
     while it < max_iter:
         it += 1
-        uv, J = projection_jacobian(T, obj, camera)
-        e = (uv - uv_obs).reshape(-1)
         Jf = J.reshape(-1, 6)
-        JtJ = Jf.T @ Jf
-        g = Jf.T @ e
         try:
-            delta = -np.linalg.solve(JtJ, g)
+            delta = -np.linalg.solve(Jf.T @ Jf, Jf.T @ e)
         except np.linalg.LinAlgError:
             raise DetectionError(
                 f"{board_label(board)}: the pose is undetermined (degenerate corner layout)",
@@ -214,13 +213,14 @@ def estimate_pose(
         # Safeguard: stop when a step would put points behind the camera or raise the error.
         if np.any((obj @ T_new[:3, :3].T + T_new[:3, 3])[:, 2] <= 0):
             break
-        uv_new, _ = projection_jacobian(T_new, obj, camera)
-        if np.sum((uv_new - uv_obs) ** 2) > np.sum(e**2) * (1 + 1e-12) + 1e-18:
+        uv_new, J_new = projection_jacobian(T_new, obj, camera)
+        e_new = (uv_new - uv_obs).reshape(-1)
+        cost_new = float(e_new @ e_new)
+        if cost_new > cost * (1 + 1e-12) + 1e-18:
             break
-        T = T_new
+        T, uv, J, e, cost = T_new, uv_new, J_new, e_new, cost_new
         if np.abs(delta[:3]).max() < 1e-9 * max(1.0, abs(T[2, 3])) and np.abs(delta[3:]).max() < 1e-12:
             break
-    uv, J = projection_jacobian(T, obj, camera)
     res = uv_obs - uv
     Jf = J.reshape(-1, 6)
     JtJ = Jf.T @ Jf
