@@ -64,6 +64,8 @@ METHODS: tuple[str, ...] = ("compliance", "paper", "spd")
 
 #: Above this condition number of the normalised load design a warning is issued.
 CONDITION_WARN = 1e3
+#: Smallest compliance eigenvalue of the ``spd`` fit, relative to the largest.
+SPD_EIGEN_FLOOR = 1e-6
 #: Relative asymmetry flagged when no covariance is available to test it.
 ASYMMETRY_FLAG = 0.1
 
@@ -319,20 +321,27 @@ def _as_design(F, D, force_name: str, disp_name: str) -> tuple[np.ndarray, np.nd
 
 
 def _design_rank(F: np.ndarray) -> tuple[int, float]:
-    norms = np.linalg.norm(F, axis=1)
+    """Rank and condition number of a load design.
+
+    Rows of the same unit are scaled together (forces by the norm of the force
+    block, moments by that of the moment block), so the condition number does
+    not depend on N versus N*mm but does see a direction that is barely loaded.
+    """
     m = F.shape[0]
-    if np.any(norms == 0):
-        s = np.linalg.svd(F, compute_uv=False)
-        rank = int(np.sum(s > s[0] * 1e-10)) if s[0] > 0 else 0
-        return rank, float("inf")
-    Fn = F / norms[:, None]
+    Fn = F.copy()
+    for blk in (slice(0, 3), slice(3, 6)) if m == 6 else (slice(0, m),):
+        nb = np.linalg.norm(F[blk])
+        if nb > 0:
+            Fn[blk] = F[blk] / nb
     s = np.linalg.svd(Fn, compute_uv=False)
+    if s[0] == 0:
+        return 0, float("inf")
     rank = int(np.sum(s > s[0] * 1e-10))
     cond = float(s[0] / s[-1]) if rank == m else float("inf")
     return rank, cond
 
 
-def _check_cov(cov, m: int, n: int, name: str) -> np.ndarray | None:
+def _check_cov(cov, m: int, n: int, name: str, *, semidefinite: bool = False) -> np.ndarray | None:
     if cov is None:
         return None
     S = np.asarray(cov, dtype=np.float64)
@@ -346,8 +355,10 @@ def _check_cov(cov, m: int, n: int, name: str) -> np.ndarray | None:
         raise ValueError(f"{name} contains NaN or infinite values")
     for i in range(n):
         w = np.linalg.eigvalsh(0.5 * (S[i] + S[i].T))
-        if w[0] <= 0:
-            raise ValueError(f"{name} of load case {i} is not positive definite (eigenvalue {w[0]:.3g})")
+        scale = max(abs(w[-1]), np.finfo(float).tiny)
+        if (w[0] < -1e-12 * scale) if semidefinite else (w[0] <= 0):
+            kind = "semi-definite" if semidefinite else "definite"
+            raise ValueError(f"{name} of load case {i} is not positive {kind} (eigenvalue {w[0]:.3g})")
     return S
 
 
@@ -451,7 +462,11 @@ def _spd_compliance(
     theta0[diag] = np.log(theta0[diag])
     sol = optimize.least_squares(resid, theta0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     L = unpack(sol.x)
-    return L @ L.T, cov, True
+    # The optimum may lie on the boundary of the cone (a compliance eigenvalue -> 0, an
+    # infinitely stiff direction); keep K finite with a floor relative to the largest.
+    w, V = np.linalg.eigh(L @ L.T)
+    w = np.maximum(w, SPD_EIGEN_FLOOR * w[-1])
+    return (V * w) @ V.T, cov, True
 
 
 def identify_stiffness(
@@ -524,7 +539,7 @@ def identify_stiffness(
         warnings.warn(msg, IllConditionedWarning, stacklevel=2)
         flags.append(msg)
     Sd = _check_cov(disp_cov, m, n, "disp_cov")
-    Sf = _check_cov(force_cov, m, n, "force_cov")
+    Sf = _check_cov(force_cov, m, n, "force_cov", semidefinite=True)
     dof = n - m
     given = Sd is not None
 
@@ -553,7 +568,10 @@ def identify_stiffness(
         K = np.linalg.inv(Cs)
         K = 0.5 * (K + K.T)
         if spd_active:
-            flags.append("spd constraint active: the unconstrained symmetric fit was not positive definite")
+            flags.append(
+                "spd constraint active: the unconstrained symmetric fit was not positive definite; "
+                "the data are not those of an admissible stiffness"
+            )
 
     Cm = np.linalg.inv(K)
     R = D - Cm @ F

@@ -41,7 +41,7 @@ def _main(
 
 
 #: Command modules; each defines ``register(app)``.
-_COMMAND_MODULES = ("identify", "demo", "vision")
+_COMMAND_MODULES = ("identify", "model", "sensor", "campaign", "report", "demo", "vision")
 
 for _name in _COMMAND_MODULES:
     importlib.import_module(f"{__package__}.{_name}").register(app)

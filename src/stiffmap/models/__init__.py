@@ -1,1 +1,51 @@
-"""Mechanism models: stiffness and static error of robots, evaluated over workspaces and fitted."""
+"""Mechanism models: stiffness and static error of robots, evaluated over workspaces and fitted.
+
+- :mod:`~stiffmap.models.base`: the :class:`Mechanism` protocol any robot model
+  implements, and the :class:`ModelMap` / :class:`IKSolution` results;
+- :mod:`~stiffmap.models.delta`: :class:`DeltaRobot`, a Delta-type translational robot;
+- :mod:`~stiffmap.models.prr3`: :class:`PRR3`, the redundant planar 3PRR of the
+  milling study (truss with flexible prismatic joints);
+- :mod:`~stiffmap.models.presets`: the reference studies' position layouts;
+- :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors
+  (imported on first use: it needs SciPy);
+- :mod:`~stiffmap.models.io`: the files of ``stiffmap model`` and ``stiffmap fit``.
+
+See ``docs/models.md``.
+"""
+
+from __future__ import annotations
+
+from .base import SINGULAR_TOL, IKSolution, Mechanism, ModelMap, PoseError
+from .delta import DeltaRobot
+from .presets import POSITION_PRESETS, paper48, prr3_points22
+from .prr3 import PRR3
+
+__all__ = [
+    "Mechanism",
+    "ModelMap",
+    "IKSolution",
+    "PoseError",
+    "SINGULAR_TOL",
+    "DeltaRobot",
+    "PRR3",
+    "paper48",
+    "prr3_points22",
+    "POSITION_PRESETS",
+    "MECHANISMS",
+    "ModelFit",
+    "fit_stiffness",
+    "fit_static_errors",
+]
+
+#: Mechanism name (as on the command line) -> class.
+MECHANISMS: dict[str, type] = {"delta": DeltaRobot, "3prr": PRR3}
+
+_LAZY = {"ModelFit", "fit_stiffness", "fit_static_errors"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        from . import fit
+
+        return getattr(fit, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

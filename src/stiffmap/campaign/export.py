@@ -1,0 +1,216 @@
+"""Exports derived from a campaign's database: CSV and Parquet tables, a JSON summary.
+
+Written to ``CAMPAIGN/exports/`` atomically; they are always recomputed from
+``stiffmap.db`` and never read back.
+
+Tables (one row each):
+
+- ``stiffness``: per position x, y, z (mm), status, K entries ``k11..k33`` and
+  standard errors ``s11..s33`` (N/mm), det (N/mm)^3, smallest principal
+  stiffness and the three principal stiffnesses (N/mm), condition numbers,
+  flags (joined by " | ");
+- ``displacements``: per position, load case and repeat: dx, dy, dz (mm),
+  rx, ry, rz (rad) in the base frame, their propagated standard deviations;
+- ``repeat_stats``: per position, load case and quantity: mean, std, n;
+- ``measurements``: per image: status, error, reprojection RMS (px), corners, tracked;
+- ``model_stiffness``: the model's K at every position (when a model is given);
+- ``sensor_results``: per recording the point (mm), direction, static error and its
+  standard error (um), stiffness (N/mm), the model's static error (um), flags.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..io import atomic_write_bytes, atomic_write_text, dumps_json
+from .store import Store, from_json
+
+__all__ = ["export_tables", "summary_dict", "read_tables"]
+
+_IJ = [(i, j) for i in range(3) for j in range(3)]
+
+
+def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
+    """The export tables as lists of flat dicts (numbers, strings, None)."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    rows = []
+    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+        K = from_json(r["K"])
+        S = from_json(r["K_std"])
+        eig = from_json(r["eigenvalues"])
+        flags = from_json(r["flags"], array=False) or []
+        row: dict[str, Any] = {
+            "position": r["position"],
+            "x_mm": r["x"],
+            "y_mm": r["y"],
+            "z_mm": r["z"],
+            "status": r["status"],
+            "error": r["error"],
+            "method": r["method"],
+        }
+        for i, j in _IJ:
+            row[f"k{i + 1}{j + 1}_n_per_mm"] = None if K is None else float(K[i, j])
+        for i, j in _IJ:
+            row[f"s{i + 1}{j + 1}_n_per_mm"] = None if S is None else float(S[i, j])
+        row.update(
+            det=r["det"],
+            min_principal_n_per_mm=r["min_principal"],
+            **{f"principal{k + 1}_n_per_mm": (None if eig is None else float(eig[k])) for k in range(3)},
+            K_condition=r["K_condition"],
+            design_condition=r["design_condition"],
+            n_obs=r["n_obs"],
+            flags=" | ".join(flags),
+        )
+        rows.append(row)
+    out["stiffness"] = rows
+    rows = []
+    for r in store.rows("SELECT * FROM displacements ORDER BY position, load, repeat"):
+        d = from_json(r["d"]) if r["d"] is not None else np.full(6, np.nan)
+        cov = from_json(r["cov"]) if r["cov"] is not None else np.full((6, 6), np.nan)
+        s = np.sqrt(np.clip(np.diag(cov), 0, None))
+        row = {"position": r["position"], "load": r["load"], "repeat": r["repeat"], "frame": r["frame"]}
+        for k, name in enumerate(("dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad")):
+            row[name] = None if np.isnan(d[k]) else float(d[k])
+        for k, name in enumerate(("sx_mm", "sy_mm", "sz_mm", "srx_rad", "sry_rad", "srz_rad")):
+            row[name] = None if np.isnan(s[k]) else float(s[k])
+        row.update(status=r["status"], error=r["error"], unloaded=r["unloaded"], loaded=r["loaded"])
+        rows.append(row)
+    out["displacements"] = rows
+    out["repeat_stats"] = [
+        dict(r) for r in store.rows("SELECT * FROM repeat_stats ORDER BY position, load, quantity")
+    ]
+    out["measurements"] = [
+        {
+            "image": r["image"],
+            "position": r["position"],
+            "status": r["status"],
+            "error": r["error"],
+            "rms_px": r["rms_px"],
+            "n_corners": r["n_corners"],
+            "tracked": bool(r["tracked"]) if r["tracked"] is not None else None,
+        }
+        for r in store.rows("SELECT * FROM measurements ORDER BY position, image")
+    ]
+    rows = []
+    for r in store.rows("SELECT * FROM model_stiffness ORDER BY position"):
+        K = from_json(r["K"])
+        row = {
+            "position": r["position"],
+            "model": r["model"],
+            "valid": bool(r["valid"]),
+            "reason": r["reason"],
+        }
+        for i, j in _IJ:
+            row[f"k{i + 1}{j + 1}_n_per_mm"] = None if K is None else float(K[i, j])
+        row.update(det=r["det"], min_principal_n_per_mm=r["min_principal"])
+        rows.append(row)
+    out["model_stiffness"] = rows
+    pred = {r["recording"]: r for r in store.rows("SELECT * FROM model_static_error")}
+    rows = []
+    for r in store.rows("SELECT * FROM sensor_results ORDER BY rowid"):
+        res = from_json(r["result"], array=False) or {}
+        pt = from_json(r["point"], array=False) or []
+        m = pred.get(r["recording"])
+        rows.append(
+            {
+                "file": r["recording"],
+                **{f"{a}_mm": (pt[k] if k < len(pt) else None) for k, a in enumerate("xyz")},
+                "direction": r["direction"],
+                "status": r["status"],
+                "error": r["error"],
+                "static_error_um": res.get("static_error_um"),
+                "static_error_std_um": res.get("static_error_std_um"),
+                "stiffness_n_per_mm": res.get("stiffness_n_per_mm"),
+                "stiffness_std_n_per_mm": res.get("stiffness_std_n_per_mm"),
+                "model_static_error_um": None
+                if m is None or m["predicted_mm"] is None
+                else 1e3 * m["predicted_mm"],
+                "flags": " | ".join(res.get("flags", [])),
+            }
+        )
+    out["sensor_results"] = rows
+    return out
+
+
+def _csv_bytes(rows: list[dict[str, Any]]) -> bytes:
+    buf = io.StringIO()
+    if rows:
+        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if v is None else v) for k, v in r.items()})
+    return buf.getvalue().encode("utf-8")
+
+
+def _parquet_bytes(rows: list[dict[str, Any]]) -> bytes:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pylist(rows) if rows else pa.table({})
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink)
+    return sink.getvalue().to_pybytes()
+
+
+def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]:
+    """The JSON summary: per position K, det, smallest principal stiffness, flags; the model fit."""
+    positions = []
+    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+        positions.append(
+            {
+                "position": r["position"],
+                "xyz_mm": [r["x"], r["y"], r["z"]],
+                "status": r["status"],
+                "error": r["error"],
+                "K": from_json(r["K"]),
+                "K_std": from_json(r["K_std"]),
+                "det": r["det"],
+                "min_principal": r["min_principal"],
+                "flags": from_json(r["flags"], array=False) or [],
+            }
+        )
+    fits = []
+    for r in store.rows("SELECT * FROM model_fit"):
+        fits.append(
+            {
+                "name": r["name"],
+                "model": r["model"],
+                "status": r["status"],
+                "error": r["error"],
+                "params": from_json(r["params"], array=False),
+                "std": from_json(r["std"], array=False),
+                "condition": r["condition"],
+            }
+        )
+    sensors = [
+        {k: v for k, v in r.items() if k not in ("flags",)} for r in read_tables(store)["sensor_results"]
+    ]
+    return {
+        "campaign": name,
+        "stiffmap_version": __version__,
+        "positions": positions,
+        "sensor_results": sensors,
+        "model_fits": fits,
+        "failures": failures,
+    }
+
+
+def export_tables(store: Store, out_dir: str | Path, name: str, failures: list[str]) -> list[Path]:
+    """Write every table as CSV and Parquet, and ``summary.json``; return the paths written."""
+    out = Path(out_dir)
+    written = []
+    for table, rows in read_tables(store).items():
+        for ext, data in (("csv", _csv_bytes(rows)), ("parquet", _parquet_bytes(rows))):
+            p = out / f"{table}.{ext}"
+            atomic_write_bytes(p, data)
+            written.append(p)
+    p = out / "summary.json"
+    atomic_write_text(p, dumps_json(summary_dict(store, name, failures)) + "\n")
+    written.append(p)
+    return written

@@ -1,0 +1,235 @@
+"""``stiffmap run`` on a sensor campaign: recordings -> static errors -> model fit.
+
+Each recording of ``[sensor]`` (a point, a load direction, a file) is analysed
+(:func:`stiffmap.sensors.analysis.analyse_recording`) and its result stored in
+``sensor_results`` in its own transaction, keyed by the file and its SHA-256: an
+unchanged recording is not analysed again. When the campaign names a model
+(``robot.model = "3prr"``), its parameters (``robot.fit``, default ``kj``) are
+fitted to the measured static errors (:func:`stiffmap.models.fit.fit_static_errors`)
+and the fitted model's static errors are stored beside the measured ones.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+from .spec import CampaignSpec
+from .store import Store, from_json, params_hash, to_json
+
+__all__ = ["run_sensor_campaign", "sensor_config", "SensorCampaignResult"]
+
+
+def sensor_config(spec: CampaignSpec):
+    """The :class:`~stiffmap.sensors.analysis.SensorConfig` and channel map of a sensor campaign."""
+    from ..sensors.analysis import SensorConfig
+    from ..sensors.recording import parse_channel_map
+
+    s = spec.sensor
+    cmap = parse_channel_map(",".join(f"{k}={v}" for k, v in s.channel_map.items()) or None)
+    cfg = SensorConfig(
+        scale_um_per_v=s.scale_um_per_v,
+        range_v=s.range_v,
+        load_unit=s.load_unit,
+        steps=tuple(s.steps_kgf) if s.steps_kgf is not None else None,
+        steps_unit="kgf",
+        g=spec.g,
+        reference_load_n=s.reference_load_n,
+    )
+    return cfg, cmap
+
+
+@dataclass
+class SensorCampaignResult:
+    """What a sensor campaign run did."""
+
+    campaign: str
+    recordings: int = 0
+    analysed: int = 0
+    reused: int = 0
+    wall_seconds: float = 0.0
+    failures: list[str] | None = None
+
+
+def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorCampaignResult:
+    """Analyse every recording (reusing unchanged ones) and fit the model."""
+    import dataclasses
+
+    from ..sensors.analysis import analyse_recording
+    from ..sensors.io import read_recording
+
+    t0 = time.perf_counter()
+    cfg, cmap = sensor_config(spec)
+    phash = params_hash({"config": dataclasses.asdict(cfg), "channels": dataclasses.asdict(cmap)})
+    out = SensorCampaignResult(campaign=spec.name, recordings=len(spec.sensor.recordings), failures=[])
+    for rec in spec.sensor.recordings:
+        path = root / rec.file
+        key = rec.file
+        row: dict[str, Any] = {
+            "recording": key,
+            "point": to_json(rec.point),
+            "direction": rec.direction,
+            "params_hash": phash,
+            "version": __version__,
+        }
+        if not path.is_file():
+            with store.transaction():
+                store.upsert(
+                    "sensor_results", {**row, "sha256": None, "status": "failed", "error": "file not found"}
+                )
+            out.failures.append(f"{key}: file not found")
+            continue
+        with store.transaction():
+            sha = store.sha256(path)
+        prev = store.rows(
+            "SELECT sha256, params_hash, status, error FROM sensor_results WHERE recording=?", (key,)
+        )
+        if prev and prev[0]["sha256"] == sha and prev[0]["params_hash"] == phash:
+            out.reused += 1
+            if prev[0]["status"] != "ok":
+                out.failures.append(prev[0]["error"])
+            continue
+        c = dataclasses.replace(cfg, axis_sign=rec.sign)
+        try:
+            res = analyse_recording(read_recording(path, cmap), c)
+            result = res.to_dict()
+            result["static_error_mm"] = res.static_error_mm
+            result["static_error_std_mm"] = res.static_error_std_mm
+            status, error = "ok", None
+        except InputError as e:
+            result, status, error = None, "failed", str(e.with_source(key))
+            out.failures.append(error)
+        with store.transaction():
+            store.upsert(
+                "sensor_results",
+                {**row, "sha256": sha, "status": status, "error": error, "result": to_json(result)},
+            )
+        out.analysed += 1
+    out.failures.extend(_fit_model(spec, store))
+    out.wall_seconds = time.perf_counter() - t0
+    return out
+
+
+def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.ndarray]:
+    """Measured static errors of the campaign's recordings, in spec order.
+
+    Returns
+    -------
+    dict
+        ``points`` (m, d) mm, ``directions`` (m, d) unit, ``value_mm``, ``std_mm`` (m,)
+        (NaN where the recording failed), ``valid`` (m,) bool, ``files`` list.
+    """
+    from ..sensors.batch import direction_from
+
+    recs = spec.sensor.recordings
+    d = max(len(r.point) for r in recs)
+    pts = np.array([list(r.point) + [0.0] * (d - len(r.point)) for r in recs], dtype=float)
+    dirs = np.stack([direction_from(r.direction, d) for r in recs])
+    vals = np.full(len(recs), np.nan)
+    stds = np.full(len(recs), np.nan)
+    rows = {r["recording"]: r for r in store.rows("SELECT * FROM sensor_results")}
+    for i, r in enumerate(recs):
+        row = rows.get(r.file)
+        if row is not None and row["status"] == "ok":
+            res = from_json(row["result"], array=False)
+            vals[i] = res["static_error_mm"]
+            stds[i] = res["static_error_std_mm"] if res["static_error_std_mm"] is not None else np.nan
+    return {
+        "points": pts,
+        "directions": dirs,
+        "value_mm": vals,
+        "std_mm": stds,
+        "valid": np.isfinite(vals),
+        "files": [r.file for r in recs],
+        "reference_load_n": spec.sensor.reference_load_n,
+    }
+
+
+def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
+    from ..models import MECHANISMS
+    from ..models.fit import fit_static_errors
+
+    name = spec.robot.model
+    if name == "none":
+        return []
+    problems: list[str] = []
+    m = measured_static_errors(spec, store)
+    try:
+        model = (
+            MECHANISMS[name]().with_params(**spec.robot.params) if spec.robot.params else MECHANISMS[name]()
+        )
+    except (ValueError, TypeError) as e:
+        return [f"campaign.toml robot.params: {e}"]
+    if m["points"].shape[1] != model.dim:
+        n = m["points"].shape[1]
+        return [f"campaign.toml: sensor points have {n} coordinates but the {name} model has {model.dim}"]
+    v = m["valid"]
+    ref = m["reference_load_n"]
+    fit_names = tuple(spec.robot.fit) if spec.robot.fit else (("kj",) if name == "3prr" else ("k_theta",))
+    ihash = params_hash(
+        {"model": name, "params": spec.robot.params, "fit": fit_names, "values": m["value_mm"]}
+    )
+    row: dict[str, Any] = {
+        "name": "static_error",
+        "model": name,
+        "inputs_hash": ihash,
+        "version": __version__,
+    }
+    fitted = model
+    try:
+        if v.sum() == 0:
+            raise InputError("no usable recording to fit")
+        std = m["std_mm"][v]
+        fit = fit_static_errors(
+            model,
+            m["points"][v],
+            ref * m["directions"][v],
+            m["directions"][v],
+            m["value_mm"][v],
+            params=fit_names,
+            std=std if np.all(np.isfinite(std)) else None,
+        )
+        fitted = fit.model
+        row.update(
+            status="ok",
+            error=None,
+            params=to_json(dict(zip(fit.names, fit.estimate, strict=True))),
+            std=to_json(dict(zip(fit.names, fit.std, strict=True))),
+            cov=to_json(fit.covariance),
+            residuals=to_json(fit.residuals),
+            condition=float(fit.condition),
+            dof=int(fit.dof),
+        )
+    except (InputError, ValueError) as e:
+        row.update(status="failed", error=str(e))
+        problems.append(f"model fit: {e}")
+    # The fitted model's static error along each measured direction, and its reach.
+    mm = fitted.evaluate(m["points"])
+    pred = np.einsum("ij,ij->i", mm.static_error(ref * m["directions"]), m["directions"])
+    with store.transaction():
+        store.upsert("model_fit", row)
+        store.conn.execute("DELETE FROM model_static_error")
+        for i, f in enumerate(m["files"]):
+            store.upsert(
+                "model_static_error",
+                {
+                    "recording": f,
+                    "model": name,
+                    "valid": int(bool(mm.valid[i])),
+                    "reason": mm.reasons[i] or None,
+                    "predicted_mm": float(pred[i]) if mm.valid[i] else None,
+                    "inputs_hash": ihash,
+                },
+            )
+    for i, f in enumerate(m["files"]):
+        if not mm.valid[i]:
+            problems.append(
+                f"recording {f}: point {m['points'][i].tolist()} outside the model: {mm.reasons[i]}"
+            )
+    return problems

@@ -1,0 +1,196 @@
+"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report."""
+
+from __future__ import annotations
+
+import time
+from enum import StrEnum
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from ..errors import InputError
+from .common import EXIT_PARTIAL, err, fmt, out, print_json, warn
+
+
+class MethodName(StrEnum):
+    compliance = "compliance"
+    paper = "paper"
+    spd = "spd"
+
+
+def init(
+    directory: Path = typer.Argument(..., help="Campaign directory to create (or an empty existing one)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing campaign.toml."),
+) -> None:
+    """Write a commented example campaign.toml to start a campaign from.
+
+    Edit it (boards, fixed2base, positions, loads, image names), put camera.json and the
+    images beside it, then run: stiffmap run DIRECTORY.
+    """
+    from ..campaign.spec import EXAMPLE_TOML, SPEC_NAME
+    from ..io import atomic_write_text
+
+    path = directory / SPEC_NAME
+    if path.exists() and not force:
+        raise InputError(f"{path} already exists; use --force to overwrite it")
+    atomic_write_text(path, EXAMPLE_TOML)
+    out.print(f"wrote {path}")
+    out.print("next: edit it, add camera.json and the images, then: stiffmap run " + str(directory))
+
+
+def _progress():
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        ProgressColumn,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    class Rate(ProgressColumn):
+        def render(self, task) -> Text:
+            measured = task.fields.get("measured", 0)
+            elapsed = task.elapsed or 0.0
+            if not measured or elapsed <= 0:
+                return Text("-- images/s")
+            return Text(f"{measured / elapsed:.1f} images/s")
+
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        Rate(),
+        TimeRemainingColumn(),
+        console=err,
+        transient=False,
+    )
+
+
+def _summary_table(store) -> Table:
+    from ..campaign.store import from_json
+
+    t = Table(title="stiffness per position (N/mm)", show_lines=False)
+    for col in ("#", "x, y, z (mm)", "K (rows)", "det K", "min principal", "flags"):
+        t.add_column(col)
+    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+        xyz = f"{r['x']:g}, {r['y']:g}, {r['z']:g}"
+        if r["status"] != "ok":
+            t.add_row(str(r["position"]), xyz, "[red]failed[/]", "", "", r["error"] or "")
+            continue
+        K = from_json(r["K"])
+        rows = "\n".join("  ".join(f"{v:8.3f}" for v in row) for row in K)
+        flags = from_json(r["flags"], array=False) or []
+        t.add_row(
+            str(r["position"]),
+            xyz,
+            rows,
+            fmt(r["det"], 4),
+            fmt(r["min_principal"], 4),
+            "[yellow]" + "\n".join(flags) + "[/]" if flags else "none",
+        )
+    return t
+
+
+def _sensor_table(spec, store) -> Table:
+    from ..campaign.sensor_runner import measured_static_errors
+    from ..campaign.store import from_json
+
+    m = measured_static_errors(spec, store)
+    pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
+    fit = store.rows("SELECT * FROM model_fit WHERE name='static_error'")
+    title = f"static error at {fmt(m['reference_load_n'], 4)} N (um)"
+    if fit and fit[0]["status"] == "ok":
+        est, std = from_json(fit[0]["params"], array=False), from_json(fit[0]["std"], array=False)
+        title += "; model fit: " + ", ".join(f"{k} = {fmt(v, 5)} ± {fmt(std[k], 2)}" for k, v in est.items())
+    t = Table(title=title)
+    for col in ("recording", "point (mm)", "direction", "measured", "± std", "model"):
+        t.add_column(col)
+    for i, f in enumerate(m["files"]):
+        p = pred.get(f)
+        t.add_row(
+            f,
+            ", ".join(f"{x:g}" for x in m["points"][i]),
+            ", ".join(f"{x:g}" for x in m["directions"][i]),
+            fmt(1e3 * m["value_mm"][i], 5) if m["valid"][i] else "[red]failed[/]",
+            fmt(1e3 * m["std_mm"][i], 2) if m["valid"][i] else "",
+            fmt(1e3 * p, 5) if p is not None else "",
+        )
+    return t
+
+
+def run(
+    campaign: Path = typer.Argument(..., help="Campaign directory (holding campaign.toml)."),
+    workers: int = typer.Option(
+        0, "--workers", "-w", min=0, help="Worker processes for image work (0: all CPUs)."
+    ),
+    method: MethodName = typer.Option(
+        MethodName.compliance, "--method", help="Stiffness identification method."
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print the JSON summary instead of tables."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bars."),
+) -> None:
+    """Measure, identify, fit and export a campaign (resumable: a re-run does only what changed).
+
+    Vision campaigns: every image's boards and poses, the compliant displacement of each load
+    case and repeat, K per position with standard errors and flags, the model fit.
+    Sensor campaigns: every recording's steps, fit and static error, the model fit.
+    Results go to CAMPAIGN/stiffmap.db, tables to CAMPAIGN/exports/ (CSV, Parquet, summary.json).
+
+    Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
+    """
+    from ..campaign.export import export_tables, summary_dict
+    from ..campaign.runner import default_workers, run_campaign
+    from ..campaign.sensor_runner import run_sensor_campaign
+    from ..campaign.spec import load_spec
+    from ..campaign.store import DB_NAME, Store
+
+    spec = load_spec(campaign)
+    root = campaign.resolve()
+    n_workers = workers or default_workers()
+    t0 = time.perf_counter()
+    if spec.kind == "vision":
+        if quiet:
+            summary = run_campaign(root, workers=n_workers, method=method.value)
+        else:
+            with _progress() as prog:
+                task = prog.add_task("measuring images", total=None, measured=0)
+
+                def hook(done: int, total: int, measured: int) -> None:
+                    prog.update(task, completed=done, total=total, measured=measured)
+
+                summary = run_campaign(root, workers=n_workers, method=method.value, progress=hook)
+        failures = summary.failures
+    else:
+        with Store(root / DB_NAME) as store:
+            res = run_sensor_campaign(root, spec, store)
+        failures = res.failures or []
+    with Store(root / DB_NAME) as store:
+        export_tables(store, root / "exports", spec.name, failures)
+        if as_json:
+            print_json(summary_dict(store, spec.name, failures))
+        elif spec.kind == "vision":
+            out.print(_summary_table(store))
+        else:
+            out.print(_sensor_table(spec, store))
+    if not as_json:
+        if spec.kind == "vision":
+            rate = summary.images / summary.wall_seconds if summary.wall_seconds > 0 and summary.images else 0
+            out.print(
+                f"{summary.positions} positions: {summary.measured} measured ({summary.images} images, "
+                f"{rate:.1f} images/s), {summary.reused} unchanged since the last run"
+            )
+        else:
+            out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")
+        out.print(f"results: {root / DB_NAME}; tables: {root / 'exports'} ({time.perf_counter() - t0:.1f} s)")
+    if failures:
+        for f in failures:
+            warn(f)
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("init")(init)
+    app.command("run")(run)

@@ -1,0 +1,319 @@
+"""``stiffmap model`` (a model's stiffness and static error per point) and ``stiffmap fit``."""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from enum import StrEnum
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from ..errors import InputError
+from .common import EXIT_PARTIAL, fmt, fmt_pm, out, parse_key_values, print_json, warn
+
+
+class MechanismName(StrEnum):
+    delta = "delta"
+    prr3 = "3prr"
+
+
+#: Default load of each mechanism when --load-n/--direction are not given: the reference
+#: studies' largest loads (0.5 kg and 50 kgf, with the studies' g = 9.81 m/s^2).
+DEFAULT_LOAD = {"delta": (4.905, "-z"), "3prr": (490.5, "y")}
+#: Parameter fitted when --param-to-fit is not given.
+DEFAULT_FIT = {"delta": ("k_theta",), "3prr": ("kj",)}
+
+
+def _build_model(name: str, param_items: list[str]):
+    """The mechanism with ``--param NAME=VALUE`` overrides (InputError on bad names or values)."""
+    from ..models import MECHANISMS
+
+    cls = MECHANISMS[name]
+    given = parse_key_values(param_items, "--param")
+    valid = cls.param_names()
+    bad = sorted(set(given) - set(valid))
+    if bad:
+        raise InputError(
+            f"--param: unknown {name} parameter{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
+            f"valid: {', '.join(valid)}"
+        )
+    values = {}
+    for k, v in given.items():
+        try:
+            values[k] = float(v)
+        except ValueError:
+            raise InputError(f"--param {k}={v}: {v!r} is not a number") from None
+    try:
+        return cls(**values)
+    except ValueError as e:
+        raise InputError(f"--param: {e}") from None
+
+
+def _direction(text: str, dim: int):
+    import numpy as np
+
+    axes = "xyz"[:dim]
+    t = text.strip().lower()
+    sign = 1.0
+    if t[:1] in "+-" and t[1:] in tuple(axes):
+        sign = -1.0 if t[0] == "-" else 1.0
+        t = t[1:]
+    if t in tuple(axes):
+        u = np.zeros(dim)
+        u[axes.index(t)] = sign
+        return u
+    try:
+        u = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        u = np.zeros(0)
+    if u.shape != (dim,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
+        names = ", ".join([*axes, *("-" + a for a in axes)])
+        raise InputError(f"--direction {text!r}: expected one of {names} or {dim} comma-separated components")
+    return u / np.linalg.norm(u)
+
+
+def _grid(spec: str, dim: int, mech: str):
+    import numpy as np
+
+    from ..models.presets import POSITION_PRESETS
+
+    key = spec.strip().lower()
+    if key in POSITION_PRESETS:
+        owner, fn = POSITION_PRESETS[key]
+        if owner != mech:
+            raise InputError(f"--grid {spec}: that preset is for the {owner} model, not {mech}")
+        return fn()
+    parts = spec.split(",")
+    hint = (
+        f"expected a preset ({', '.join(k for k, v in POSITION_PRESETS.items() if v[0] == mech)}) or "
+        f"{dim} comma-separated axes, each START:STOP:N or a single value in mm "
+        f"(e.g. {'-200:200:5,-200:200:5,-310' if dim == 3 else '200:600:9,20:420:9'})"
+    )
+    if len(parts) != dim:
+        raise InputError(f"--grid {spec!r}: {hint}")
+    axes = []
+    for p in parts:
+        f = p.split(":")
+        try:
+            if len(f) == 1:
+                axes.append(np.array([float(f[0])]))
+            elif len(f) == 3:
+                n = int(f[2])
+                if n < 1 or n > 1_000_000:
+                    raise ValueError
+                axes.append(np.linspace(float(f[0]), float(f[1]), n))
+            else:
+                raise ValueError
+        except ValueError:
+            raise InputError(f"--grid {spec!r}: bad axis {p!r}; {hint}") from None
+        if not np.all(np.isfinite(axes[-1])):
+            raise InputError(f"--grid {spec!r}: axis {p!r} is not finite")
+    mesh = np.meshgrid(*axes[::-1], indexing="ij")
+    pts = np.stack([m.ravel() for m in mesh[::-1]], axis=1)
+    if pts.shape[0] > 1_000_000:
+        raise InputError(f"--grid {spec!r}: {pts.shape[0]} points; at most 1 000 000")
+    return pts
+
+
+def model(
+    mechanism: MechanismName = typer.Argument(..., help="delta or 3prr."),
+    grid: str = typer.Option(
+        None,
+        "--grid",
+        help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
+        "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
+    ),
+    points: Path = typer.Option(
+        None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
+    ),
+    load_n: float = typer.Option(
+        None, "--load-n", help="Force magnitude, N (default 490.5 for 3prr: 50 kgf; 4.905 for delta: 0.5 kg)."
+    ),
+    direction: str = typer.Option(
+        None,
+        "--direction",
+        help="Force direction: x, y, z, -x, ... or comma-separated components (default y for 3prr, "
+        "-z for delta).",
+    ),
+    param: list[str] = typer.Option(
+        None, "--param", help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names)."
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
+    as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
+    output: Path = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead."),
+) -> None:
+    """A model's stiffness K (N/mm) and static error u = K^-1 F (mm) at each position.
+
+    Points that cannot be evaluated (outside the workspace, or at a singularity) are
+    named with the reason, the others are printed; the exit status is then 1.
+    """
+    import numpy as np
+
+    from ..io import atomic_write_text, dumps_json
+    from ..models.io import map_csv, map_records, read_points
+    from ..models.presets import POSITION_PRESETS
+
+    mech = mechanism.value
+    if as_json and as_csv:
+        raise InputError("--json and --csv are exclusive")
+    if grid is not None and points is not None:
+        raise InputError("--grid and --points are exclusive")
+    m = _build_model(mech, param or [])
+    if points is not None:
+        P = read_points(points, m.dim)
+    elif grid is not None:
+        P = _grid(grid, m.dim, mech)
+    else:
+        P = next(fn() for owner, fn in POSITION_PRESETS.values() if owner == mech)
+    mag, dname = DEFAULT_LOAD[mech]
+    if load_n is not None:
+        if not np.isfinite(load_n):
+            raise InputError(f"--load-n must be a finite number of N, got {load_n}")
+        mag = load_n
+    u = _direction(direction if direction is not None else dname, m.dim)
+    F = mag * u
+    mp = m.evaluate(P)
+    nbad = len(mp) - mp.n_valid
+    if as_json or as_csv:
+        text = dumps_json(map_records(mp, F)) + "\n" if as_json else map_csv(mp, F)
+        if output is not None:
+            atomic_write_text(output, text)
+        elif as_json:
+            print_json(map_records(mp, F))
+        else:
+            sys.stdout.write(text)
+            sys.stdout.flush()
+    else:
+        if output is not None:
+            raise InputError("--output needs --json or --csv")
+        _print_map(m, mp, F)
+    if nbad:
+        warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error')")
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_map(m, mp, F) -> None:
+    import numpy as np
+
+    dim = m.dim
+    ax = "xyz"[:dim]
+    out.print(m.describe())
+    out.print(
+        f"force F = ({', '.join(fmt(v, 5) for v in F)}) N; static error u = K^-1 F (mm); "
+        "det K in (N/mm)^" + str(dim) + "; k_min: smallest principal stiffness"
+    )
+    t = Table()
+    t.add_column("#", justify="right")
+    for a in ax:
+        t.add_column(f"{a} (mm)", justify="right")
+    for a in ax:
+        t.add_column(f"u{a} (mm)", justify="right")
+    t.add_column("det K", justify="right")
+    t.add_column("k_min (N/mm)", justify="right")
+    t.add_column("status")
+    uu = mp.static_error(F)
+    for i in range(len(mp)):
+        pos = [fmt(v, 6) for v in mp.points[i]]
+        if mp.valid[i]:
+            t.add_row(
+                str(i + 1),
+                *pos,
+                *(f"{v + 0.0:.4f}" if abs(v) >= 5e-5 else "0.0000" for v in uu[i]),
+                fmt(mp.det[i], 4),
+                fmt(mp.min_principal[i], 4),
+                "ok",
+            )
+        else:
+            t.add_row(str(i + 1), *pos, *([""] * (dim + 2)), mp.reasons[i])
+    out.print(t)
+    if mp.n_valid:
+        v = mp.valid
+        out.print(
+            f"{mp.n_valid} point(s): |u| {fmt(np.min(np.linalg.norm(uu[v], axis=1)), 4)} to "
+            f"{fmt(np.max(np.linalg.norm(uu[v], axis=1)), 4)} mm; det K {fmt(np.min(mp.det[v]), 4)} to "
+            f"{fmt(np.max(mp.det[v]), 4)}"
+        )
+
+
+def fit(
+    mechanism: MechanismName = typer.Argument(..., help="delta or 3prr."),
+    measurements: Path = typer.Argument(
+        ...,
+        help="CSV of static errors (x,y[,z], fx,fy[,fz], [nx,ny[,nz],] value_mm[, std_mm]) or of "
+        "stiffness matrices (x,y[,z], k11..kdd[, k11_std..]); see docs/models.md.",
+    ),
+    param_to_fit: list[str] = typer.Option(
+        None,
+        "--param-to-fit",
+        help="Parameter to estimate (repeatable; default kj for 3prr, k_theta for delta).",
+    ),
+    param: list[str] = typer.Option(
+        None, "--param", help="Fixed model parameter or starting value NAME=VALUE (repeatable)."
+    ),
+    absolute_sigma: bool = typer.Option(
+        False,
+        "--absolute-sigma",
+        help="Take the files' standard errors as exact (default: scale by the reduced chi-square).",
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+) -> None:
+    """Fit model parameters to measured static errors or stiffness matrices (least squares).
+
+    Prints each estimate with its standard error, the fit's condition, chi-square and the
+    residual RMS per pose. Refuses parameters the data cannot determine.
+    """
+    from ..models.io import fit_measurements_file
+
+    mech = mechanism.value
+    m = _build_model(mech, param or [])
+    names = []
+    for item in param_to_fit or list(DEFAULT_FIT[mech]):
+        names.extend(s.strip() for s in item.split(",") if s.strip())
+    valid = m.param_names()
+    bad = [n for n in names if n not in valid]
+    if bad:
+        raise InputError(
+            f"--param-to-fit: unknown {mech} parameter(s) {', '.join(bad)}; valid: {', '.join(valid)}"
+        )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        f, _ = fit_measurements_file(m, measurements, names, absolute_sigma=absolute_sigma)
+    for w in caught:
+        warn(str(w.message))
+    if as_json:
+        d = f.to_dict()
+        d["file"] = str(measurements)
+        print_json(d)
+        return
+    unit = "mm" if f.kind == "static_error" else "N/mm"
+    what = "static-error readings" if f.kind == "static_error" else "stiffness entries"
+    out.print(f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}")
+    t = Table("parameter", "initial", "estimate ± standard error", "relative")
+    for k, e, s, i in zip(f.names, f.estimate, f.std, f.initial, strict=True):
+        t.add_row(k, fmt(i), fmt_pm(e, s), f"{100 * s / e:.2g} %" if e else "")
+    out.print(t)
+    s = Table(show_header=False, box=None)
+    s.add_row("dof", str(f.dof))
+    s.add_row("chi2 / dof", fmt(f.reduced_chi2, 4) + ("" if f.absolute_sigma else " (std scaled by it)"))
+    s.add_row("condition", fmt(f.condition, 3))
+    if len(f.names) > 1:
+        for a in range(len(f.names)):
+            for b in range(a + 1, len(f.names)):
+                s.add_row(f"corr({f.names[a]}, {f.names[b]})", fmt(f.correlation[a, b], 3))
+    out.print(s)
+    r = Table(title=f"residual RMS per pose ({unit})")
+    for a in "xyz"[: m.dim]:
+        r.add_column(f"{a} (mm)", justify="right")
+    r.add_column("RMS", justify="right")
+    for p, v in zip(f.poses, f.residual_rms_per_pose, strict=True):
+        r.add_row(*(fmt(x, 6) for x in p), fmt(v, 3))
+    out.print(r)
+    for note in f.notes:
+        warn(note)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("model")(model)
+    app.command("fit")(fit)

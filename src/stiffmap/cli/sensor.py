@@ -1,0 +1,268 @@
+"""``stiffmap sensor``: displacement-sensor recordings of stepped loads to stiffness and static error."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from ..errors import InputError
+from .common import EXIT_INPUT, EXIT_PARTIAL, fail, fmt, out, print_json, warn
+
+
+class LoadUnit(StrEnum):
+    kgf = "kgf"
+    N = "N"
+    V = "V"
+
+
+def _floats(text: str, what: str) -> tuple[float, ...]:
+    vals = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        try:
+            vals.append(float(part))
+        except ValueError:
+            raise InputError(f"{what}: {part!r} is not a number") from None
+    if len(vals) < 2:
+        raise InputError(f"{what}: give at least two loads, e.g. 0,50,40,30,20,10,0")
+    return tuple(vals)
+
+
+def _step_times(text: str) -> tuple[tuple[float, float], ...]:
+    out_ = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        if ":" in part:
+            a, b = part.split(":", 1)
+        elif "-" in part[1:]:
+            j = part.index("-", 1)
+            a, b = part[:j], part[j + 1 :]
+        else:
+            raise InputError(f"--step-times: {part!r} should look like START-END (s), e.g. 0.5-4.2")
+        try:
+            out_.append((float(a), float(b)))
+        except ValueError:
+            raise InputError(f"--step-times: {part!r} should look like START-END (s)") from None
+    return tuple(out_)
+
+
+def _print_result(r) -> None:
+    f = r.fit
+    t = Table(
+        title=f"{r.source}: {len(r.plateaus)} plateaus, {fmt(r.sample_rate_hz, 4)} Hz, "
+        f"noise {fmt(1e3 * r.noise_mm, 2)} um",
+        title_justify="left",
+    )
+    for col in ("#", "time (s)", "load (N)", "displacement (um)", "std (um)", "n", "branch"):
+        t.add_column(col, justify="right" if col not in ("branch",) else "left")
+    for i, p in enumerate(r.plateaus):
+        t.add_row(
+            str(i + 1),
+            f"{p.t_start_s:.2f}-{p.t_end_s:.2f}",
+            fmt(p.load_n, 5),
+            fmt(1e3 * p.displacement_mm, 5),
+            fmt(1e3 * p.std_mm, 2),
+            str(p.n),
+            p.branch,
+        )
+    out.print(t)
+    s = Table(show_header=False, box=None)
+    lo, hi = f.stiffness_ci_n_per_mm
+    s.add_row(
+        "stiffness",
+        f"{fmt(f.stiffness_n_per_mm)} ± {fmt(f.stiffness_std_n_per_mm, 2)} N/mm "
+        f"({100 * f.level:g} % CI {fmt(lo)} to {fmt(hi)})",
+    )
+    s.add_row(
+        "compliance",
+        f"{fmt(1e3 * f.compliance_mm_per_n)} ± {fmt(1e3 * f.compliance_std_mm_per_n, 2)} um/N, "
+        f"intercept {fmt(1e3 * f.intercept_mm, 4)} um, R^2 {f.r2:.6f}",
+    )
+    s.add_row(
+        f"static error at {fmt(r.reference_load_n)} N",
+        f"{fmt(1e3 * r.static_error_mm)} ± {fmt(1e3 * r.static_error_std_mm, 2)} um",
+    )
+    h = r.hysteresis
+    s.add_row(
+        "hysteresis",
+        "n/a (needs loading and unloading plateaus)"
+        if h is None
+        else f"{fmt(1e3 * h.max_mm, 3)} um at {fmt(h.at_load_n, 4)} N ({fmt(100 * h.ratio, 2)} % of span)",
+    )
+    s.add_row("drift removed", "n/a" if r.drift_mm != r.drift_mm else f"{fmt(1e3 * r.drift_mm, 3)} um")
+    s.add_row("flags", "none" if not r.flags else r.flags[0])
+    for fl in r.flags[1:]:
+        s.add_row("", fl)
+    out.print(s)
+
+
+def sensor(
+    recordings: list[Path] = typer.Argument(
+        None,
+        help="Recordings (.csv, .tdms, .mat) of a displacement sensor (V) and a load channel, during a "
+        "stepped load. Default CSV columns: time_s, displacement_v, load_kgf.",
+        show_default=False,
+    ),
+    scale_um_per_v: float = typer.Option(
+        640.0, "--scale-um-per-v", help="Displacement sensor scale, um/V (the milling study's LDV: 640)."
+    ),
+    channel_map: str = typer.Option(
+        None,
+        "--channel-map",
+        help="Which column is what: displacement=COL,load=COL,time=COL[,rate=HZ][,group=NAME]. "
+        "load=none: no load channel; time=none with rate=HZ: no time column.",
+    ),
+    load_unit: LoadUnit = typer.Option(
+        None,
+        "--load-unit",
+        help="Unit of the load channel (default: from its name, load_kgf / force_n; else kgf).",
+    ),
+    load_n_per_v: float = typer.Option(
+        None, "--load-n-per-v", help="Load-cell scale when the load is in V, N/V."
+    ),
+    steps_kgf: str = typer.Option(
+        None, "--steps-kgf", help="Table of the applied loads in time order, kgf (e.g. 0,50,40,30,20,10,0)."
+    ),
+    steps_n: str = typer.Option(None, "--steps-n", help="Table of the applied loads in time order, N."),
+    step_times: str = typer.Option(
+        None, "--step-times", help="Plateaus by hand, START-END in s, comma-separated (e.g. 0.5-4,6-9.5)."
+    ),
+    axis_sign: int = typer.Option(1, "--axis-sign", help="-1 when a mirror flips the beam."),
+    range_v: float = typer.Option(8.0, "--range-v", help="Sensor analog output range, +-V (saturation)."),
+    g: float = typer.Option(9.81, "--g", help="Gravity for kgf, m/s^2 (9.81 as the milling study)."),
+    reference_load_n: float = typer.Option(
+        490.5, "--reference-load-n", help="Load of the static error, N (50 kgf = 490.5 N)."
+    ),
+    exclude_bad_samples: bool = typer.Option(
+        False,
+        "--exclude-bad-samples",
+        help="Leave missing samples (dropouts) out of the plateaus instead of refusing the recording; "
+        "saturated plateaus are still refused.",
+    ),
+    no_drift: bool = typer.Option(
+        False, "--no-drift-removal", help="Do not remove drift via zero-load plateaus."
+    ),
+    window_s: float = typer.Option(0.25, "--window-s", help="Window of the step detector, s."),
+    min_plateau_s: float = typer.Option(0.5, "--min-plateau-s", help="Shortest plateau kept, s."),
+    threshold_sigma: float = typer.Option(
+        5.0, "--threshold-sigma", help="Step detector threshold, in sigma."
+    ),
+    index: Path = typer.Option(
+        None,
+        "--index",
+        help="A campaign index CSV (x, y[, z], direction or ux, uy[, uz], file[, axis_sign]): print the "
+        "static error per point and direction.",
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per recording."),
+) -> None:
+    """Plateaus, load-displacement fit, stiffness and static error of stepped-load recordings.
+
+    For each recording: the static plateaus (mean, std, n; found automatically, robust to noise and
+    slow drift, or given with --step-times), the drift removed through the zero-load plateaus, the
+    least-squares line (stiffness N/mm, compliance, intercept, R^2, confidence interval), the
+    hysteresis between loading and unloading, and the static error at the reference load.
+
+    A recording that saturates, has a dropout or has fewer plateaus than the table of steps is
+    reported (file and time span) and the others go on. Exit status: 0 all recordings analysed,
+    1 some failed, 2 none could be analysed (or a bad option).
+    """
+    from ..sensors.analysis import SensorConfig
+    from ..sensors.batch import analyse_files, read_measurement_index, static_errors_from_files
+    from ..sensors.recording import parse_channel_map
+
+    try:
+        if steps_kgf and steps_n:
+            raise InputError("give either --steps-kgf or --steps-n, not both")
+        steps, unit = (None, "kgf")
+        if steps_kgf:
+            steps, unit = _floats(steps_kgf, "--steps-kgf"), "kgf"
+        elif steps_n:
+            steps, unit = _floats(steps_n, "--steps-n"), "N"
+        cmap = parse_channel_map(channel_map)
+        try:
+            cfg = SensorConfig(
+                scale_um_per_v=scale_um_per_v,
+                range_v=range_v,
+                axis_sign=axis_sign,
+                load_unit=None if load_unit is None else load_unit.value,
+                load_n_per_v=load_n_per_v,
+                steps=steps,
+                steps_unit=unit,
+                g=g,
+                reference_load_n=reference_load_n,
+                step_times_s=_step_times(step_times) if step_times else None,
+                window_s=window_s,
+                min_plateau_s=min_plateau_s,
+                threshold_sigma=threshold_sigma,
+                remove_drift=not no_drift,
+                exclude_bad_samples=exclude_bad_samples,
+            )
+        except ValueError as e:
+            raise InputError(str(e)) from None
+        if not recordings and index is None:
+            raise InputError("give one or more recordings, or --index FILE")
+        entries = read_measurement_index(index) if index is not None else []
+    except InputError as e:
+        raise fail(str(e), EXIT_INPUT) from None
+
+    n_ok = n_bad = 0
+    if recordings:
+        results = analyse_files(recordings, cmap, cfg)
+        objs = []
+        for f, r in zip(recordings, results, strict=True):
+            if isinstance(r, InputError):
+                n_bad += 1
+                objs.append({"file": str(f), "error": str(r)})
+                if not as_json:
+                    warn(f"{r} (skipped)")
+            else:
+                n_ok += 1
+                objs.append(r.to_dict())
+                if not as_json:
+                    _print_result(r)
+        if as_json and index is None:
+            print_json(objs)
+    if index is not None:
+        ses = static_errors_from_files(entries, cmap, cfg)
+        n_ok += int(ses.valid.sum())
+        n_bad += int((~ses.valid).sum())
+        if as_json:
+            print_json(ses.to_rows() if not recordings else {"recordings": objs, "points": ses.to_rows()})
+        else:
+            d = ses.points.shape[1]
+            t = Table(
+                title=f"static error at {fmt(ses.reference_load_n)} N along the load", title_justify="left"
+            )
+            for c in ("x", "y", "z")[:d]:
+                t.add_column(f"{c} (mm)", justify="right")
+            t.add_column("direction")
+            t.add_column("static error (um)", justify="right")
+            t.add_column("stiffness (N/mm)", justify="right")
+            t.add_column("file / error")
+            for i, row in enumerate(ses.to_rows()):
+                u = ses.directions[i]
+                t.add_row(
+                    *(fmt(ses.points[i, j], 5) for j in range(d)),
+                    "(" + ", ".join(fmt(x, 3) for x in u) + ")",
+                    f"{fmt(row['static_error_um'])} ± {fmt(row['static_error_std_um'], 2)}"
+                    if ses.valid[i]
+                    else "-",
+                    fmt(row["stiffness_n_per_mm"]) if ses.valid[i] else "-",
+                    Path(row["file"]).name if ses.valid[i] else ses.reasons[i],
+                )
+            out.print(t)
+    if n_ok == 0:
+        raise typer.Exit(EXIT_INPUT)
+    if n_bad:
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("sensor")(sensor)

@@ -1,0 +1,340 @@
+"""The mechanism protocol and the result objects every model shares.
+
+A *mechanism* turns tool positions into joint coordinates and into the
+translational stiffness K (N/mm) of the tool point in the base frame, for many
+positions at once. Anything that implements :class:`Mechanism` can be mapped,
+fitted to measurements (:mod:`stiffmap.models.fit`) and driven by the virtual
+test-bed, without touching the rest of stiffmap.
+
+Conventions (``docs/conventions.md``): lengths mm, forces N, stiffness N/mm,
+angles rad. ``F = K u``: a force F (N) on the tool moves it by the static
+error ``u = K^-1 F`` (mm).
+
+Validity: a pose outside the workspace (*unreachable*) or at a singularity
+(*singular*) has no meaningful stiffness. Vectorised maps
+(:meth:`Mechanism.evaluate`) flag such points one by one (``valid`` False and a
+reason) and hold NaN only there; calls meant for poses the caller expects to
+be good (:meth:`Mechanism.stiffness`, :meth:`Mechanism.static_error`) raise
+:class:`PoseError` naming the first bad pose.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "Mechanism",
+    "IKSolution",
+    "ModelMap",
+    "PoseError",
+    "SINGULAR_TOL",
+    "as_points",
+    "as_forces",
+    "check_positive",
+    "model_map",
+    "format_pose",
+    "raise_first_invalid",
+]
+
+#: Default threshold of the dimensionless singularity measures (a sine or an inverse
+#: condition number, 1 far from singularities, 0 at one) below which a pose is
+#: flagged as singular.
+SINGULAR_TOL = 1e-3
+
+
+class PoseError(InputError):
+    """A pose that cannot be evaluated: outside the workspace or at a singularity.
+
+    A subclass of :class:`~stiffmap.errors.InputError` (hence of ``ValueError``);
+    ``pose`` holds the offending position (mm), ``index`` its row in the input and
+    ``reason`` why it cannot be evaluated (``"unreachable: ..."``, ``"singular: ..."``).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        pose=None,
+        index: int | None = None,
+        reason: str = "",
+        source: str | None = None,
+    ):
+        super().__init__(message, source=source)
+        self.pose = None if pose is None else tuple(float(v) for v in np.ravel(pose))
+        self.index = index
+        self.reason = reason
+
+
+@runtime_checkable
+class Mechanism(Protocol):
+    """What stiffmap needs of a robot model.
+
+    Attributes
+    ----------
+    name : str
+        Short name (``"delta"``, ``"3prr"``).
+    dim : int
+        Number of translational degrees of freedom of the tool: 3 (spatial,
+        points are (x, y, z) mm) or 2 (planar, (x, y) mm).
+
+    Methods
+    -------
+    All take ``points`` of shape ``(N, dim)`` (or ``(dim,)`` for one pose), mm,
+    in the mechanism's base frame.
+
+    ``inverse_kinematics(points) -> IKSolution``
+        Joint coordinates and a reachable mask (arrays of N rows; N = 1 for one
+        pose); never raises for a bad pose.
+    ``stiffness(points) -> ndarray, shape (N, dim, dim)``
+        K (N/mm) at the tool point in the base frame; ``(dim, dim)`` for one
+        pose. Raises :class:`PoseError` naming the first unreachable or singular pose.
+    ``static_error(points, force) -> ndarray, shape (N, dim)``
+        ``K^-1 F`` (mm) for a force F (N) of shape ``(dim,)`` or ``(N, dim)``.
+    ``evaluate(points) -> ModelMap``
+        The map: K (NaN only where flagged), validity and reasons per point, indices.
+    ``with_params(**params) -> same type``
+        A copy with some parameters changed (models are immutable); unknown names
+        and non-positive stiffnesses or lengths raise ``ValueError``.
+    ``params() -> dict[str, float]``
+        The scalar parameters (the names ``with_params`` and the fitting accept).
+    """
+
+    name: str
+    dim: int
+
+    def inverse_kinematics(self, points) -> IKSolution: ...
+
+    def stiffness(self, points) -> np.ndarray: ...
+
+    def static_error(self, points, force) -> np.ndarray: ...
+
+    def evaluate(self, points) -> ModelMap: ...
+
+    def with_params(self, **params) -> Mechanism: ...
+
+    def params(self) -> dict[str, float]: ...
+
+
+@dataclass(frozen=True)
+class IKSolution:
+    """Inverse kinematics of many poses.
+
+    Attributes
+    ----------
+    q : ndarray, shape (N, n_joints)
+        Actuated joint coordinates (rad for revolute, mm for prismatic joints);
+        NaN where ``reachable`` is False.
+    reachable : ndarray of bool, shape (N,)
+    reasons : tuple of str, length N
+        Why a pose is unreachable (``""`` when reachable).
+    """
+
+    q: np.ndarray
+    reachable: np.ndarray
+    reasons: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ModelMap:
+    """A model evaluated over many poses.
+
+    Attributes
+    ----------
+    mechanism : str
+        The mechanism's name.
+    params : dict of str to float
+        The parameters it was evaluated with.
+    points : ndarray, shape (N, dim), mm
+    K : ndarray, shape (N, dim, dim), N/mm
+        Stiffness at the tool point, base frame; NaN exactly where ``valid`` is False.
+    valid : ndarray of bool, shape (N,)
+        Reachable and not singular.
+    reasons : tuple of str, length N
+        ``""`` for a valid point, else why not (``"unreachable: ..."``,
+        ``"singular: ..."``).
+    q : ndarray, shape (N, n_joints)
+        Actuated joint coordinates (rad or mm); NaN where unreachable.
+    conditioning : ndarray, shape (N,)
+        Kinematic conditioning of the pose, in [0, 1]: the smaller of the
+        model's singularity measures (1 far from singularities, 0 at one);
+        NaN where unreachable.
+    det : ndarray, shape (N,)
+        det K, (N/mm)^dim (the reference vision study's map value).
+    eigenvalues : ndarray, shape (N, dim), N/mm
+        Principal stiffnesses (eigenvalues of the symmetric part of K), ascending.
+    min_principal : ndarray, shape (N,), N/mm
+        Smallest principal stiffness (the softest direction).
+    condition : ndarray, shape (N,)
+        Condition number of K (largest over smallest principal stiffness).
+    """
+
+    mechanism: str
+    params: dict[str, float]
+    points: np.ndarray
+    K: np.ndarray
+    valid: np.ndarray
+    reasons: tuple[str, ...]
+    q: np.ndarray
+    conditioning: np.ndarray
+    det: np.ndarray
+    eigenvalues: np.ndarray
+    min_principal: np.ndarray
+    condition: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def dim(self) -> int:
+        return int(self.points.shape[1])
+
+    @property
+    def n_valid(self) -> int:
+        return int(np.count_nonzero(self.valid))
+
+    def static_error(self, force) -> np.ndarray:
+        """Static error ``K^-1 F`` (mm) at every point, NaN exactly where ``valid`` is False.
+
+        Parameters
+        ----------
+        force : array_like, shape (dim,) or (N, dim), N
+        """
+        F = as_forces(force, len(self), self.dim)
+        u = np.full((len(self), self.dim), np.nan)
+        v = self.valid
+        if np.any(v):
+            u[v] = np.linalg.solve(self.K[v], F[v][..., None])[..., 0]
+        return u
+
+
+def format_pose(p) -> str:
+    """``(x, y[, z]) mm`` with up to 6 significant digits."""
+    return "(" + ", ".join(f"{float(v):.6g}" for v in np.ravel(p)) + ") mm"
+
+
+def as_points(points, dim: int, name: str = "points") -> tuple[np.ndarray, bool]:
+    """Check tool positions.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, dim) or (dim,), mm
+    dim : int
+
+    Returns
+    -------
+    P : ndarray, shape (N, dim), float64
+    single : bool
+        True when one pose of shape ``(dim,)`` was given.
+    """
+    P = np.asarray(points, dtype=np.float64)
+    single = P.ndim == 1
+    if single:
+        P = P[None, :]
+    if P.ndim != 2 or P.shape[1] != dim:
+        raise ValueError(
+            f"{name} must have shape (N, {dim}) or ({dim},) (positions in mm), got {np.shape(points)}"
+        )
+    if not np.all(np.isfinite(P)):
+        i = int(np.argwhere(~np.all(np.isfinite(P), axis=1))[0, 0])
+        raise ValueError(f"{name}: row {i} is not finite: {P[i].tolist()}")
+    return P, single
+
+
+def as_forces(force, n: int, dim: int) -> np.ndarray:
+    """A force (N) broadcast to shape (n, dim), checked finite."""
+    F = np.asarray(force, dtype=np.float64)
+    if F.shape == (dim,):
+        F = np.broadcast_to(F, (n, dim))
+    if F.shape != (n, dim):
+        raise ValueError(f"force must have shape ({dim},) or ({n}, {dim}) in N, got {np.shape(force)}")
+    if not np.all(np.isfinite(F)):
+        raise ValueError("force contains NaN or infinite values")
+    return F
+
+
+def check_positive(name: str, value, unit: str, *, allow_inf: bool = False) -> float:
+    """A strictly positive finite float (``inf`` too when ``allow_inf``), else ValueError."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number of {unit}, got {value!r}") from None
+    if math.isnan(v) or v <= 0 or (math.isinf(v) and not allow_inf):
+        what = "a positive number" + (" (or inf for rigid)" if allow_inf else "")
+        raise ValueError(f"{name} must be {what} of {unit}, got {value!r}")
+    return v
+
+
+def model_map(
+    mechanism: str,
+    params: dict[str, float],
+    points: np.ndarray,
+    K: np.ndarray,
+    valid: np.ndarray,
+    reasons: Sequence[str],
+    q: np.ndarray,
+    conditioning: np.ndarray,
+) -> ModelMap:
+    """Assemble a :class:`ModelMap`: blank K where invalid and compute the indices.
+
+    The helper for a new mechanism's ``evaluate``: give the stiffness at every
+    point, the validity mask and the reasons; it computes det, principal
+    stiffnesses and condition numbers and makes the arrays read-only.
+
+    Parameters
+    ----------
+    K : ndarray, shape (N, dim, dim), N/mm
+        Values where ``valid`` is False are ignored (set to NaN).
+    """
+    n, dim = points.shape
+    K = np.array(K, dtype=np.float64, copy=True)
+    valid = np.asarray(valid, dtype=bool)
+    K[~valid] = np.nan
+    det = np.full(n, np.nan)
+    eig = np.full((n, dim), np.nan)
+    cond = np.full(n, np.nan)
+    if np.any(valid):
+        Kv = K[valid]
+        det[valid] = np.linalg.det(Kv)
+        w = np.linalg.eigvalsh(0.5 * (Kv + np.swapaxes(Kv, 1, 2)))
+        eig[valid] = w
+        with np.errstate(divide="ignore"):
+            cond[valid] = np.where(w[:, 0] > 0, w[:, -1] / np.where(w[:, 0] > 0, w[:, 0], 1.0), np.inf)
+    for a in (points, K, valid, q, conditioning, det, eig, cond):
+        a.setflags(write=False)
+    return ModelMap(
+        mechanism=mechanism,
+        params=dict(params),
+        points=points,
+        K=K,
+        valid=valid,
+        reasons=tuple(reasons),
+        q=q,
+        conditioning=conditioning,
+        det=det,
+        eigenvalues=eig,
+        min_principal=eig[:, 0].copy(),
+        condition=cond,
+    )
+
+
+def raise_first_invalid(m: ModelMap, single: bool) -> None:
+    """Raise :class:`PoseError` for the first invalid point of a map (used by ``stiffness``)."""
+    if np.all(m.valid):
+        return
+    i = int(np.flatnonzero(~m.valid)[0])
+    where = "" if single else f"point {i}: "
+    nbad = len(m) - m.n_valid
+    more = "" if single or nbad == 1 else f" ({nbad - 1} more invalid point(s); use evaluate() for a map)"
+    raise PoseError(
+        f"{m.mechanism}: {where}pose {format_pose(m.points[i])} {m.reasons[i]}{more}",
+        pose=m.points[i],
+        index=i,
+        reason=m.reasons[i],
+    )

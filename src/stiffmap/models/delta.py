@@ -1,0 +1,466 @@
+"""Delta-type translational parallel robot (Clavel's Delta, three rotary actuators).
+
+Geometry (base frame at the centre of the fixed platform, z up, the tool below
+the base at z < 0, as in the reference vision study):
+
+- leg i (i = 1, 2, 3) lies in the vertical half-plane at angle ``phi_i`` about
+  z, with radial unit vector ``e_i = (cos phi_i, sin phi_i, 0)``;
+- its actuator axis is horizontal, tangent to the base circle, through
+  ``A_i = R e_i`` (R = ``base_radius``);
+- the arm of length ``a`` turns by the actuator angle ``theta_i`` (0 horizontal,
+  pointing outwards; positive downwards): elbow ``B_i = A_i + a (cos theta_i e_i
+  - sin theta_i z)``;
+- the forearm (a parallelogram, a two-force member) of length ``b`` joins the
+  elbow to ``C_i = P + r e_i`` on the moving platform (r = ``platform_radius``),
+  whose orientation is fixed, so the tool point P has three translations.
+
+Constraint of leg i: ``|C_i - B_i| = b``. Inverse kinematics (closed form, the
+elbow-out branch everywhere): with ``D = P - (R - r) e_i``, ``rho = D.e_i``,
+``zeta = D.z``, ``M = (|D|^2 + a^2 - b^2) / (2 a)``, ``G = sqrt(rho^2 + zeta^2)``,
+``beta = atan2(zeta, rho)``: ``theta_i = -beta - acos(M / G)``; reachable iff
+``|M| <= G``.
+
+Jacobian: differentiating the constraint, ``dtheta_i = n_i . dP / (n_i . t_i)``
+with ``n_i = (C_i - B_i) / b`` the forearm direction and ``t_i = dB_i/dtheta_i``;
+``J = dtheta/dP`` has rows ``n_i^T / (n_i . t_i)`` (rad/mm).
+
+Stiffness (Gosselin 1990, the reference study's ref. 3): ``K = J^T K_theta J`` with
+``K_theta = k_theta I`` (N*mm/rad). With optional compliances of the arm (transverse
+stiffness ``k_arm`` at the elbow, N/mm, in the leg's plane) and of the forearm
+(axial stiffness ``k_forearm``, N/mm), each leg is a spring along its forearm,
+in series:
+
+    1 / k_leg,i = (n_i . t_i)^2 / k_theta + (n_i . t_i / a)^2 / k_arm + 1 / k_forearm
+    K = sum_i k_leg,i n_i n_i^T                                   (N/mm)
+
+which reduces to ``J^T K_theta J`` for rigid links. Singularities: *serial*
+(the workspace boundary) where the forearm is aligned with the arm, measured
+by ``s_i = |n_i . t_i| / a`` (a sine, 0 there; K is unbounded); *parallel*
+where the three forearms are coplanar, measured by the inverse condition
+number of the matrix N of rows ``n_i`` (0 there; K loses a direction).
+
+Default geometry and k_theta: the reference study's Parallax LKF-2040 dimensions
+are not published. The default (R = 150, r = 40, a = 300, b = 425 mm, legs at
+90, 210, 330 degrees: motor 1 on +y, as the study's fixed target on the motor-1
+support at y = 188.1 mm suggests) was chosen, among round values, to maximise
+the smaller singularity measure over the box x, y in [-200, 200] mm,
+z in [-400, -200] mm that holds the reference grid: both measures are >= 0.42
+everywhere in it (``docs/models.md``). ``k_theta`` = 2.77e5 N*mm/rad (277 N*m/rad:
+a servo under position control through a planetary gear) makes det K = 873
+(N/mm)^3 at (-66.7, 66.7, -200) mm, the study's largest measured determinant
+(873.27 at the centre of its upper plane, its Section 5), which is also the
+largest over the model's grid; the principal stiffnesses over the grid then span
+1.4 to 20 N/mm, the range of the study's Table III.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from .base import (
+    SINGULAR_TOL,
+    IKSolution,
+    ModelMap,
+    as_forces,
+    as_points,
+    check_positive,
+    model_map,
+    raise_first_invalid,
+)
+
+__all__ = ["DeltaRobot", "DeltaLegs"]
+
+_DEG = math.pi / 180.0
+
+
+@dataclass(frozen=True)
+class DeltaLegs:
+    """Per-leg vectors of a Delta at many poses (all in the base frame).
+
+    Attributes
+    ----------
+    theta : ndarray, shape (N, 3), rad
+        Actuator angles (NaN where unreachable).
+    reachable : ndarray of bool, shape (N,)
+    A, B, C : ndarray, shape (N, 3, 3), mm
+        Actuator joints, elbows and platform joints, ``[point, leg, xyz]``.
+    n : ndarray, shape (N, 3, 3)
+        Unit forearm directions (elbow to platform).
+    t : ndarray, shape (N, 3, 3), mm/rad
+        Elbow velocity per unit actuator rate, ``dB_i / dtheta_i``.
+    """
+
+    theta: np.ndarray
+    reachable: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    n: np.ndarray
+    t: np.ndarray
+
+
+@dataclass(frozen=True)
+class DeltaRobot:
+    """Delta-type translational robot with three rotary actuators.
+
+    Parameters
+    ----------
+    base_radius : float, mm
+        R: distance from the base centre to each actuator axis.
+    platform_radius : float, mm
+        r: distance from the tool point to each forearm's platform joint.
+    arm_length : float, mm
+        a: actuator axis to elbow.
+    forearm_length : float, mm
+        b: elbow to platform joint.
+    k_theta : float, N*mm/rad
+        Stiffness of each actuator (motor, gear and position loop) about its axis.
+    k_arm : float, N/mm
+        Transverse stiffness of each arm at its elbow, in the leg's plane
+        (``inf``: rigid, the default).
+    k_forearm : float, N/mm
+        Axial stiffness of each forearm (``inf``: rigid, the default).
+    leg_angles : tuple of 3 floats, rad
+        Angles ``phi_i`` of the legs about z (default 90, 210, 330 degrees).
+    singular_tol : float
+        Poses whose serial or parallel singularity measure (module docstring) is
+        below this are flagged singular.
+
+    See the module docstring for the equations and the default values.
+    """
+
+    base_radius: float = 150.0
+    platform_radius: float = 40.0
+    arm_length: float = 300.0
+    forearm_length: float = 425.0
+    k_theta: float = 2.77e5
+    k_arm: float = math.inf
+    k_forearm: float = math.inf
+    leg_angles: tuple[float, float, float] = (90.0 * _DEG, 210.0 * _DEG, 330.0 * _DEG)
+    singular_tol: float = SINGULAR_TOL
+
+    name = "delta"
+    dim = 3
+
+    _LENGTHS = ("base_radius", "platform_radius", "arm_length", "forearm_length")
+    _UNITS = {
+        "base_radius": "mm",
+        "platform_radius": "mm",
+        "arm_length": "mm",
+        "forearm_length": "mm",
+        "k_theta": "N*mm/rad",
+        "k_arm": "N/mm",
+        "k_forearm": "N/mm",
+    }
+
+    def __post_init__(self) -> None:
+        for f in self._LENGTHS + ("k_theta",):
+            object.__setattr__(self, f, check_positive(f, getattr(self, f), self._UNITS[f]))
+        for f in ("k_arm", "k_forearm"):
+            object.__setattr__(self, f, check_positive(f, getattr(self, f), self._UNITS[f], allow_inf=True))
+        try:
+            ang = tuple(float(v) for v in self.leg_angles)
+        except (TypeError, ValueError):
+            raise ValueError(f"leg_angles must be three angles in rad, got {self.leg_angles!r}") from None
+        if len(ang) != 3 or not all(math.isfinite(v) for v in ang):
+            raise ValueError(f"leg_angles must be three finite angles in rad, got {self.leg_angles!r}")
+        e = np.array([[math.cos(v), math.sin(v)] for v in ang])
+        if min(np.linalg.norm(e[i] - e[j]) for i, j in ((0, 1), (1, 2), (0, 2))) < 1e-6:
+            raise ValueError(f"leg_angles must be three different directions, got {self.leg_angles!r}")
+        object.__setattr__(self, "leg_angles", ang)
+        tol = float(self.singular_tol)
+        if not (0 <= tol < 1):
+            raise ValueError(f"singular_tol must be in [0, 1), got {self.singular_tol!r}")
+        object.__setattr__(self, "singular_tol", tol)
+
+    # ------------------------------------------------------------------ parameters
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        """Names of the scalar parameters (``with_params``, fitting, ``--param``)."""
+        return cls._LENGTHS + ("k_theta", "k_arm", "k_forearm")
+
+    def params(self) -> dict[str, float]:
+        """The scalar parameters and their values (mm, N*mm/rad, N/mm)."""
+        return {k: getattr(self, k) for k in self.param_names()}
+
+    def with_params(self, **params) -> DeltaRobot:
+        """A copy with some parameters changed (any field; unknown names raise ValueError)."""
+        valid = {f.name for f in fields(self)}
+        bad = sorted(set(params) - valid)
+        if bad:
+            raise ValueError(
+                f"unknown Delta parameter(s) {', '.join(bad)}; valid: "
+                f"{', '.join(self.param_names() + ('leg_angles', 'singular_tol'))}"
+            )
+        return replace(self, **params)
+
+    # ------------------------------------------------------------------ kinematics
+
+    def _frames(self) -> tuple[np.ndarray, np.ndarray]:
+        phi = np.asarray(self.leg_angles)
+        e = np.stack([np.cos(phi), np.sin(phi), np.zeros(3)], axis=1)  # (3 legs, xyz)
+        w = np.stack([-np.sin(phi), np.cos(phi), np.zeros(3)], axis=1)  # actuator axes
+        return e, w
+
+    def legs(self, points) -> DeltaLegs:
+        """Inverse kinematics with every per-leg vector, for many poses.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3) or (3,), mm
+
+        Returns
+        -------
+        DeltaLegs
+        """
+        P, _ = as_points(points, 3)
+        R, r, a, b = self.base_radius, self.platform_radius, self.arm_length, self.forearm_length
+        e, _ = self._frames()
+        z = np.array([0.0, 0.0, 1.0])
+        D = P[:, None, :] - (R - r) * e[None, :, :]  # (N, 3, 3)
+        rho = np.einsum("nij,ij->ni", D, e)
+        zeta = D[..., 2]
+        M = (np.einsum("nij,nij->ni", D, D) + a * a - b * b) / (2.0 * a)
+        G = np.hypot(rho, zeta)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            c = M / G
+        ok_leg = np.abs(c) <= 1.0
+        theta = np.where(ok_leg, -np.arctan2(zeta, rho) - np.arccos(np.clip(c, -1.0, 1.0)), np.nan)
+        theta = np.where(ok_leg, (theta + np.pi) % (2 * np.pi) - np.pi, np.nan)
+        ct, st = np.cos(theta), np.sin(theta)
+        A = np.broadcast_to(R * e, D.shape)
+        arm = ct[..., None] * e[None] - st[..., None] * z  # unit arm direction
+        B = A + a * arm
+        C = P[:, None, :] + r * e[None]
+        n = (C - B) / b
+        t = a * (-st[..., None] * e[None] - ct[..., None] * z)
+        return DeltaLegs(theta=theta, reachable=np.all(ok_leg, axis=1), A=A, B=B, C=C, n=n, t=t)
+
+    def inverse_kinematics(self, points) -> IKSolution:
+        """Actuator angles (rad) of many poses, elbow-out branch.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3) or (3,), mm
+
+        Returns
+        -------
+        IKSolution
+            ``q`` of shape (N, 3) rad, NaN where unreachable; ``reasons`` names the
+            legs that cannot reach.
+        """
+        L = self.legs(points)
+        P, _ = as_points(points, 3)
+        return IKSolution(L.theta, L.reachable, tuple(self._unreachable_reasons(P, L)))
+
+    def _unreachable_reasons(self, P: np.ndarray, L: DeltaLegs) -> list[str]:
+        reasons = [""] * P.shape[0]
+        bad = np.flatnonzero(~L.reachable)
+        if bad.size == 0:
+            return reasons
+        e, _ = self._frames()
+        a, b = self.arm_length, self.forearm_length
+        for i in bad:
+            # Distance from each actuator axis's point A_i to the platform joint C_i.
+            dist = np.linalg.norm(P[i][None, :] + self.platform_radius * e - self.base_radius * e, axis=1)
+            parts = []
+            for k in range(3):
+                if np.isfinite(L.theta[i, k]):
+                    continue
+                D = P[i] - (self.base_radius - self.platform_radius) * e[k]
+                far = (D @ D + a * a - b * b) / (2 * a) > 0
+                parts.append(
+                    f"leg {k + 1} "
+                    + ("too far" if far else "too close")
+                    + f" ({dist[k]:.4g} mm from its actuator; arm {a:g} mm, forearm {b:g} mm)"
+                )
+            reasons[i] = "unreachable: " + "; ".join(parts)
+        return reasons
+
+    def forward_kinematics(self, theta) -> np.ndarray:
+        """Tool positions (mm) from actuator angles: intersection of three spheres.
+
+        Parameters
+        ----------
+        theta : array_like, shape (N, 3) or (3,), rad
+
+        Returns
+        -------
+        ndarray, shape (N, 3) or (3,), mm
+            The assembly below the elbows (the one ``inverse_kinematics`` inverts);
+            NaN where the forearms cannot close (with a ValueError for one pose).
+        """
+        T, single = as_points(theta, 3, "theta")
+        R, r, a, b = self.base_radius, self.platform_radius, self.arm_length, self.forearm_length
+        e, _ = self._frames()
+        z = np.array([0.0, 0.0, 1.0])
+        ct, st = np.cos(T), np.sin(T)
+        # Sphere centres: elbow shifted by -r e_i; radius b.
+        S = (R - r + a * ct)[..., None] * e[None] - (a * st)[..., None] * z
+        s1, s2, s3 = S[:, 0], S[:, 1], S[:, 2]
+        u2, u3 = s2 - s1, s3 - s1
+        nrm = np.cross(u2, u3)
+        nn = np.einsum("ij,ij->i", nrm, nrm)
+        # Circumcentre of the three centres: the foot of the intersection line.
+        w = (
+            np.einsum("ij,ij->i", u2, u2)[:, None] * np.cross(u3, nrm)
+            + np.einsum("ij,ij->i", u3, u3)[:, None] * np.cross(nrm, u2)
+        ) / (2.0 * nn[:, None])
+        h2 = b * b - np.einsum("ij,ij->i", w, w)
+        with np.errstate(invalid="ignore"):
+            h = np.sqrt(h2)
+        k = nrm / np.sqrt(nn)[:, None]
+        k = np.where(k[:, 2:3] > 0, -k, k)  # the solution below
+        Pout = s1 + w + h[:, None] * k
+        if single:
+            if not np.all(np.isfinite(Pout[0])):
+                raise ValueError(
+                    f"forward kinematics: the forearms cannot close for theta = {T[0].tolist()} rad"
+                )
+            return Pout[0]
+        return Pout
+
+    def jacobian(self, points) -> np.ndarray:
+        """Inverse-kinematic Jacobian ``J = dtheta/dP`` (rad/mm).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3) or (3,), mm
+
+        Returns
+        -------
+        ndarray, shape (N, 3, 3) or (3, 3)
+            Row i is ``n_i^T / (n_i . t_i)``. Raises :class:`PoseError` on an
+            unreachable or singular pose.
+        """
+        _, single = as_points(points, 3)
+        L = self.legs(points)
+        m = self._map_from_legs(points, L)
+        raise_first_invalid(m, single)
+        J = L.n / np.einsum("nij,nij->ni", L.n, L.t)[..., None]
+        return J[0] if single else J
+
+    def singularity_measures(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Serial and parallel singularity measures, both in [0, 1] (0 at a singularity).
+
+        Returns
+        -------
+        serial : ndarray, shape (N,)
+            ``min_i |n_i . t_i| / a``: the sine of the smallest angle between an arm
+            and its forearm (0: a leg is stretched or folded, the workspace boundary).
+        parallel : ndarray, shape (N,)
+            Inverse condition number of the matrix of forearm directions (0: the
+            three forearms are coplanar and the platform can move without the actuators).
+        Both NaN where unreachable.
+        """
+        L = self.legs(points)
+        return self._measures(L)
+
+    def _measures(self, L: DeltaLegs) -> tuple[np.ndarray, np.ndarray]:
+        serial = np.min(np.abs(np.einsum("nij,nij->ni", L.n, L.t)), axis=1) / self.arm_length
+        parallel = np.full(serial.shape, np.nan)
+        ok = L.reachable
+        if np.any(ok):
+            s = np.linalg.svd(L.n[ok], compute_uv=False)
+            parallel[ok] = s[:, -1] / s[:, 0]
+        return serial, parallel
+
+    # ------------------------------------------------------------------ stiffness
+
+    def _leg_stiffness(self, L: DeltaLegs) -> np.ndarray:
+        nt = np.einsum("nij,nij->ni", L.n, L.t)  # mm/rad
+        with np.errstate(divide="ignore"):
+            comp = nt * nt / self.k_theta + (nt / self.arm_length) ** 2 / self.k_arm + 1.0 / self.k_forearm
+            return 1.0 / comp  # N/mm
+
+    def _map_from_legs(self, points, L: DeltaLegs) -> ModelMap:
+        P, _ = as_points(points, 3)
+        reasons = self._unreachable_reasons(P, L)
+        serial, parallel = self._measures(L)
+        tol = self.singular_tol
+        valid = L.reachable.copy()
+        for i in np.flatnonzero(L.reachable & ((serial < tol) | (parallel < tol))):
+            parts = []
+            if serial[i] < tol:
+                nt = np.abs(np.einsum("ij,ij->i", L.n[i], L.t[i])) / self.arm_length
+                k = int(np.argmin(nt))
+                parts.append(
+                    f"arm and forearm of leg {k + 1} aligned (serial singularity, workspace boundary; "
+                    f"sine {serial[i]:.2g} < {tol:g})"
+                )
+            if parallel[i] < tol:
+                parts.append(
+                    f"forearms nearly coplanar (parallel singularity; inverse condition {parallel[i]:.2g} "
+                    f"< {tol:g})"
+                )
+            reasons[i] = "singular: " + "; ".join(parts)
+            valid[i] = False
+        kleg = self._leg_stiffness(L)
+        with np.errstate(invalid="ignore"):
+            K = np.einsum("ni,nij,nik->njk", np.where(valid[:, None], kleg, 0.0), L.n, L.n)
+        K = 0.5 * (K + np.swapaxes(K, 1, 2))  # exactly symmetric (roundoff of the sum)
+        return model_map(self.name, self.params(), P, K, valid, reasons, L.theta, np.fmin(serial, parallel))
+
+    def evaluate(self, points) -> ModelMap:
+        """Stiffness map over many poses, flagging unreachable and singular ones.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3) or (3,), mm
+
+        Returns
+        -------
+        ModelMap
+            K (N/mm) at the tool point in the base frame; ``q`` the actuator angles (rad).
+        """
+        return self._map_from_legs(points, self.legs(points))
+
+    def stiffness(self, points) -> np.ndarray:
+        """K (N/mm) at the tool point, base frame: ``J^T K_theta J`` with link compliances.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3) or (3,), mm
+
+        Returns
+        -------
+        ndarray, shape (N, 3, 3) or (3, 3), N/mm
+
+        Raises
+        ------
+        PoseError
+            Naming the first unreachable or singular pose.
+        """
+        _, single = as_points(points, 3)
+        m = self.evaluate(points)
+        raise_first_invalid(m, single)
+        return m.K[0].copy() if single else m.K.copy()
+
+    def static_error(self, points, force) -> np.ndarray:
+        """Static error ``u = K^-1 F`` (mm) of the tool under a force F (N).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, 3) or (3,), mm
+        force : array_like, shape (3,) or (N, 3), N
+
+        Returns
+        -------
+        ndarray, shape (N, 3) or (3,), mm
+        """
+        P, single = as_points(points, 3)
+        F = as_forces(force, P.shape[0], 3)
+        K = self.stiffness(P)
+        u = np.linalg.solve(K, F[..., None])[..., 0]
+        return u[0] if single else u
+
+    def describe(self) -> str:
+        """One line with the geometry."""
+        return (
+            f"Delta R={self.base_radius:g} r={self.platform_radius:g} a={self.arm_length:g} "
+            f"b={self.forearm_length:g} mm, k_theta={self.k_theta:g} N*mm/rad"
+        )

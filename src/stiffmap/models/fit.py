@@ -1,0 +1,544 @@
+"""Fit a mechanism's parameters to measurements by nonlinear least squares.
+
+Two kinds of measurements:
+
+- **stiffness matrices** at poses (the vision path): K_meas (N/mm), each entry
+  an observation with an optional standard error (:func:`fit_stiffness`);
+- **static errors** (the sensor path, which reads one displacement component
+  per recording): at a pose, a force F (N) is applied and the displacement
+  along a unit direction n is measured, ``value = n . K^-1 F`` (mm), with an
+  optional standard error (:func:`fit_static_errors`).
+
+The chosen parameters (any of the model's scalar parameters: ``kj``, ``kb`` of
+the 3PRR, ``k_theta`` of the Delta, or geometric ones) are estimated by
+``scipy.optimize.least_squares`` on the weighted residuals
+``(observed - predicted) / std``, over the parameters' logarithms (so they stay
+positive and the problem is scaled). The covariance is
+``(J^T J)^-1`` in log parameters (J the Jacobian of the weighted residuals at the
+solution), multiplied by the reduced chi-square ``chi2 / dof`` unless
+``absolute_sigma`` is True (the given standard errors are then taken as exact),
+and carried to the parameters by ``dp = p dlog p``.
+
+Refusals (:class:`~stiffmap.errors.DesignError`, a ``ValueError``):
+
+- a parameter the data do not feel: a relative change of it changes the
+  predictions by less than ``MIN_RELATIVE_SENSITIVITY`` times as much;
+- parameters the data cannot tell apart: the Jacobian, its columns scaled to
+  unit length, has an inverse condition number below ``MIN_INVERSE_CONDITION``
+  (for example ``E`` and ``area`` of the 3PRR, which only enter as ``E * area``);
+- fewer observations than parameters; unknown parameter names; non-positive
+  starting values (refused by the model itself).
+
+A design that can determine the parameters, but badly, passes with an
+:class:`~stiffmap.errors.IllConditionedWarning` (condition above ``CONDITION_WARN``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize
+
+from ..errors import DesignError, IllConditionedWarning
+from .base import Mechanism, PoseError, as_points, format_pose
+
+__all__ = [
+    "ModelFit",
+    "fit_stiffness",
+    "fit_static_errors",
+    "static_error_predictions",
+    "MIN_RELATIVE_SENSITIVITY",
+    "MIN_INVERSE_CONDITION",
+    "CONDITION_WARN",
+]
+
+#: Below this relative sensitivity (relative change of the predictions per relative
+#: change of a parameter) a parameter is refused as not determined by the data.
+MIN_RELATIVE_SENSITIVITY = 1e-6
+#: Below this inverse condition number of the column-normalised Jacobian the
+#: parameters are refused as not separable.
+MIN_INVERSE_CONDITION = 1e-6
+#: Above this condition number of the column-normalised Jacobian a warning is issued.
+CONDITION_WARN = 1e3
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """Result of a model fit.
+
+    Attributes
+    ----------
+    kind : str
+        ``"stiffness"`` or ``"static_error"``.
+    names : tuple of str
+        The fitted parameters.
+    estimate : ndarray, shape (p,)
+        Their estimates (the model's units: N/mm, N*mm/rad, mm, ...).
+    std : ndarray, shape (p,)
+        Standard errors (NaN when they cannot be known: no residual degree of
+        freedom and ``absolute_sigma`` False).
+    covariance : ndarray, shape (p, p)
+    correlation : ndarray, shape (p, p)
+    initial : ndarray, shape (p,)
+        Starting values (the model's values before the fit).
+    model : Mechanism
+        The fitted model (``model.with_params(**values)``).
+    poses : ndarray, shape (n_poses, dim), mm
+        The distinct poses of the observations.
+    pose_index : ndarray of int, shape (n_obs,)
+        The pose of each observation.
+    observed, predicted : ndarray, shape (n_obs,)
+        Per observation (mm for static errors; N/mm for stiffness entries, row-major
+        K of each pose in turn).
+    sigma : ndarray, shape (n_obs,)
+        Standard errors used as weights (1 where none were given).
+    residuals : ndarray, shape (n_obs,)
+        ``observed - predicted`` (mm or N/mm).
+    residual_rms_per_pose : ndarray, shape (n_poses,)
+        RMS of the residuals of each pose (mm or N/mm).
+    chi2 : float
+        Sum of squared weighted residuals.
+    dof : int
+        Observations minus parameters.
+    reduced_chi2 : float
+        ``chi2 / dof`` (NaN when dof = 0); about 1 when the given standard errors are right.
+    condition : float
+        Condition number of the Jacobian of the weighted residuals with respect to
+        the parameters' logarithms, columns scaled to unit length (1 for one
+        parameter; large when parameters are hard to tell apart).
+    sensitivity : ndarray, shape (p,)
+        Relative sensitivity of the predictions to each parameter (see module docstring).
+    absolute_sigma : bool
+    converged : bool
+    nfev : int
+    message : str
+    notes : tuple of str
+    """
+
+    kind: str
+    names: tuple[str, ...]
+    estimate: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    initial: np.ndarray
+    model: Mechanism
+    poses: np.ndarray
+    pose_index: np.ndarray
+    observed: np.ndarray
+    predicted: np.ndarray
+    sigma: np.ndarray
+    residuals: np.ndarray
+    residual_rms_per_pose: np.ndarray
+    chi2: float
+    dof: int
+    reduced_chi2: float
+    condition: float
+    sensitivity: np.ndarray
+    absolute_sigma: bool
+    converged: bool
+    nfev: int
+    message: str
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Estimates by name."""
+        return {k: float(v) for k, v in zip(self.names, self.estimate, strict=True)}
+
+    @property
+    def std_values(self) -> dict[str, float]:
+        """Standard errors by name."""
+        return {k: float(v) for k, v in zip(self.names, self.std, strict=True)}
+
+    def to_dict(self) -> dict:
+        """Plain JSON-able summary (``stiffmap fit --json``)."""
+        return {
+            "kind": self.kind,
+            "mechanism": self.model.name,
+            "parameters": {
+                k: {"estimate": float(e), "std": float(s), "initial": float(i)}
+                for k, e, s, i in zip(self.names, self.estimate, self.std, self.initial, strict=True)
+            },
+            "correlation": self.correlation,
+            "model_parameters": self.model.params(),
+            "n_observations": int(self.observed.size),
+            "n_poses": int(self.poses.shape[0]),
+            "dof": self.dof,
+            "chi2": self.chi2,
+            "reduced_chi2": self.reduced_chi2,
+            "condition": self.condition,
+            "sensitivity": dict(zip(self.names, self.sensitivity.tolist(), strict=True)),
+            "absolute_sigma": self.absolute_sigma,
+            "converged": self.converged,
+            "residual_rms": float(np.sqrt(np.mean(self.residuals**2))),
+            "poses": [
+                {"pose": p, "residual_rms": r}
+                for p, r in zip(self.poses.tolist(), self.residual_rms_per_pose.tolist(), strict=True)
+            ],
+            "notes": list(self.notes),
+        }
+
+
+def _check_names(model: Mechanism, params: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:
+    if isinstance(params, str):
+        params = (params,)
+    names = tuple(str(p) for p in params)
+    if not names:
+        raise ValueError("no parameter to fit: give at least one name")
+    valid = model.params()
+    bad = [n for n in names if n not in valid]
+    if bad:
+        raise ValueError(
+            f"unknown parameter(s) to fit for {model.name}: {', '.join(bad)}; valid: {', '.join(valid)}"
+        )
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"parameter(s) given more than once: {', '.join(dup)}")
+    p0 = np.array([float(valid[n]) for n in names])
+    if not np.all(np.isfinite(p0) & (p0 > 0)):
+        k = int(np.flatnonzero(~(np.isfinite(p0) & (p0 > 0)))[0])
+        raise ValueError(
+            f"cannot fit {names[k]}: its starting value {p0[k]!r} is not a positive finite number"
+        )
+    return names, p0
+
+
+def _check_sigma(sigma, shape: tuple[int, ...], name: str) -> np.ndarray | None:
+    if sigma is None:
+        return None
+    s = np.asarray(sigma, dtype=np.float64)
+    if s.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {s.shape}")
+    if not np.all(np.isfinite(s) & (s > 0)):
+        i = np.unravel_index(int(np.flatnonzero(~(np.isfinite(s) & (s > 0)))[0]), shape)
+        where = tuple(int(v) for v in i)
+        raise ValueError(f"{name} must be positive and finite; entry {where} is {float(s[i])!r}")
+    return s
+
+
+def _group_poses(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    uniq, inv = np.unique(P, axis=0, return_inverse=True)
+    # Keep the poses in order of first appearance.
+    first = np.array([np.flatnonzero(inv == k)[0] for k in range(uniq.shape[0])])
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return uniq[order], rank[np.ravel(inv)]
+
+
+def _jac_log(fun, x: np.ndarray, step: float = 1e-5) -> np.ndarray:
+    """Central-difference Jacobian of ``fun`` with respect to x (log parameters)."""
+    cols = []
+    for k in range(x.size):
+        e = np.zeros_like(x)
+        e[k] = step
+        cols.append((fun(x + e) - fun(x - e)) / (2 * step))
+    return np.stack(cols, axis=1)
+
+
+def _check_design(names, J: np.ndarray, scale: float) -> tuple[float, np.ndarray]:
+    """Refuse parameters the data cannot determine; return (condition, relative sensitivities)."""
+    norms = np.linalg.norm(J, axis=0)
+    sens = norms / scale if scale > 0 else np.zeros_like(norms)
+    dead = [n for n, s in zip(names, sens, strict=True) if not s >= MIN_RELATIVE_SENSITIVITY]
+    if dead:
+        detail = ", ".join(f"{n} ({s:.2g})" for n, s in zip(names, sens, strict=True) if n in dead)
+        raise DesignError(
+            f"the data cannot determine {', '.join(dead)}: the predictions do not change with "
+            f"{'it' if len(dead) == 1 else 'them'} (relative sensitivity {detail} < "
+            f"{MIN_RELATIVE_SENSITIVITY:g}); fix {'it' if len(dead) == 1 else 'them'} instead of fitting"
+        )
+    Jn = J / norms
+    _, s, Vt = np.linalg.svd(Jn, full_matrices=False)
+    inv_cond = s[-1] / s[0]
+    if inv_cond < MIN_INVERSE_CONDITION:
+        v = Vt[-1]
+        involved = [n for n, c in zip(names, v, strict=True) if abs(c) > 0.1]
+        raise DesignError(
+            f"the data cannot tell {', '.join(involved)} apart: their effects on the predictions are "
+            f"proportional (inverse condition {inv_cond:.2g} < {MIN_INVERSE_CONDITION:g}); fit one of them "
+            "and fix the others"
+        )
+    return float(1.0 / inv_cond), sens
+
+
+def _fit(
+    kind: str,
+    model: Mechanism,
+    params: Sequence[str],
+    predict,
+    y: np.ndarray,
+    sigma: np.ndarray | None,
+    poses: np.ndarray,
+    pose_index: np.ndarray,
+    absolute_sigma: bool,
+) -> ModelFit:
+    names, p0 = _check_names(model, params)
+    n, p = y.size, len(names)
+    if n < p:
+        raise DesignError(f"{n} observation(s) cannot determine {p} parameters ({', '.join(names)})")
+    w = np.ones(n) if sigma is None else sigma
+    notes: list[str] = []
+    if sigma is None and absolute_sigma:
+        raise ValueError("absolute_sigma=True needs the standard errors of the observations")
+
+    def model_at(x: np.ndarray) -> Mechanism:
+        return model.with_params(**dict(zip(names, np.exp(x).tolist(), strict=True)))
+
+    def resid(x: np.ndarray) -> np.ndarray:
+        yhat = predict(model_at(x))
+        if not np.all(np.isfinite(yhat)):
+            now = ", ".join(f"{k} = {v:.6g}" for k, v in zip(names, np.exp(x), strict=True))
+            raise DesignError(
+                f"during the fit, {now} made a pose unreachable or singular; "
+                "fix the geometry or start closer to the solution"
+            )
+        return (y - yhat) / w
+
+    x0 = np.log(p0)
+    yhat0 = predict(model)
+    scale = float(np.linalg.norm(yhat0 / w))
+    _check_design(names, _jac_log(resid, x0), scale)
+    res = optimize.least_squares(resid, x0, method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    x = res.x
+    fitted = model_at(x)
+    r_w = resid(x)
+    J = _jac_log(resid, x)
+    scale = float(np.linalg.norm(predict(fitted) / w))
+    condition, sens = _check_design(names, J, scale)
+    if condition > CONDITION_WARN:
+        warnings.warn(
+            f"model fit of {', '.join(names)}: condition number {condition:.3g} > {CONDITION_WARN:g}; "
+            "the estimates are strongly correlated and sensitive to noise",
+            IllConditionedWarning,
+            stacklevel=3,
+        )
+    chi2 = float(r_w @ r_w)
+    dof = n - p
+    red = chi2 / dof if dof > 0 else float("nan")
+    cov_log = np.linalg.inv(J.T @ J)
+    if absolute_sigma:
+        pass
+    elif dof > 0:
+        cov_log = cov_log * red
+    else:
+        cov_log = np.full((p, p), np.nan)
+        notes.append("no residual degree of freedom: standard errors unknown (give std and absolute_sigma)")
+    est = np.exp(x)
+    cov = cov_log * np.outer(est, est)
+    std = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(std, std)
+    yhat = predict(fitted)
+    resid_raw = y - yhat
+    n_poses = poses.shape[0]
+    rms = np.sqrt(np.bincount(pose_index, resid_raw**2, n_poses) / np.bincount(pose_index, minlength=n_poses))
+    if not res.success:
+        notes.append(f"least squares did not converge: {res.message}")
+    for a in (est, std, cov, corr, p0, poses, pose_index, y, yhat, w, resid_raw, rms, sens):
+        a.setflags(write=False)
+    return ModelFit(
+        kind=kind,
+        names=names,
+        estimate=est,
+        std=std,
+        covariance=cov,
+        correlation=corr,
+        initial=p0,
+        model=fitted,
+        poses=poses,
+        pose_index=pose_index,
+        observed=y,
+        predicted=yhat,
+        sigma=w,
+        residuals=resid_raw,
+        residual_rms_per_pose=rms,
+        chi2=chi2,
+        dof=dof,
+        reduced_chi2=red,
+        condition=condition,
+        sensitivity=sens,
+        absolute_sigma=bool(absolute_sigma),
+        converged=bool(res.success),
+        nfev=int(res.nfev),
+        message=str(res.message),
+        notes=tuple(notes),
+    )
+
+
+def _check_valid_poses(model: Mechanism, P: np.ndarray, what: str) -> None:
+    m = model.evaluate(P)
+    if not np.all(m.valid):
+        i = int(np.flatnonzero(~m.valid)[0])
+        raise PoseError(
+            f"{what} {i}: pose {format_pose(P[i])} {m.reasons[i]}; the model cannot be evaluated there",
+            pose=P[i],
+            index=i,
+            reason=m.reasons[i],
+        )
+
+
+def fit_stiffness(
+    model: Mechanism,
+    points,
+    K,
+    *,
+    params: Sequence[str] = ("k_theta",),
+    K_std=None,
+    absolute_sigma: bool = False,
+) -> ModelFit:
+    """Fit parameters to measured stiffness matrices.
+
+    Parameters
+    ----------
+    model : Mechanism
+        Starting values of the fitted parameters and values of the others.
+    points : array_like, shape (n, dim), mm
+        Poses of the measurements (base frame).
+    K : array_like, shape (n, dim, dim), N/mm
+        Measured stiffness at each pose (all entries are observations).
+    params : sequence of str
+        Parameters to fit (names of ``model.params()``).
+    K_std : array_like, shape (n, dim, dim), N/mm, optional
+        Standard errors of the entries (unit weights when omitted).
+    absolute_sigma : bool
+        Take ``K_std`` as exact (do not rescale the covariance by the reduced chi-square).
+
+    Returns
+    -------
+    ModelFit
+        With ``kind = "stiffness"``; observations are the entries of each K, row-major.
+
+    Raises
+    ------
+    PoseError
+        A pose the model cannot evaluate (named).
+    DesignError
+        The data cannot determine the parameters (see module docstring).
+    """
+    dim = model.dim
+    P, _ = as_points(points, dim)
+    Km = np.asarray(K, dtype=np.float64)
+    if Km.shape != (P.shape[0], dim, dim):
+        raise ValueError(
+            f"K must have shape ({P.shape[0]}, {dim}, {dim}) (one matrix per pose), got {Km.shape}"
+        )
+    if not np.all(np.isfinite(Km)):
+        i = int(np.flatnonzero(~np.all(np.isfinite(Km), axis=(1, 2)))[0])
+        raise ValueError(f"K of pose {i} contains NaN or infinite values")
+    S = _check_sigma(K_std, Km.shape, "K_std")
+    _check_valid_poses(model, P, "pose")
+
+    def predict(m: Mechanism) -> np.ndarray:
+        return m.evaluate(P).K.reshape(-1)
+
+    idx = np.repeat(np.arange(P.shape[0]), dim * dim)
+    return _fit(
+        "stiffness",
+        model,
+        params,
+        predict,
+        Km.reshape(-1),
+        None if S is None else S.reshape(-1),
+        P,
+        idx,
+        absolute_sigma,
+    )
+
+
+def static_error_predictions(model: Mechanism, points, forces, directions) -> np.ndarray:
+    """Predicted measured values ``n . K^-1 F`` (mm) of static-error observations.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, dim), mm
+    forces : array_like, shape (n, dim), N
+    directions : array_like, shape (n, dim)
+        Unit measurement directions.
+
+    Returns
+    -------
+    ndarray, shape (n,), mm
+        NaN where the model cannot be evaluated.
+    """
+    P, _ = as_points(points, model.dim)
+    m = model.evaluate(P)
+    u = m.static_error(forces)
+    return np.einsum("ij,ij->i", u, np.asarray(directions, dtype=np.float64))
+
+
+def fit_static_errors(
+    model: Mechanism,
+    points,
+    forces,
+    directions,
+    values,
+    *,
+    params: Sequence[str] = ("kj",),
+    std=None,
+    absolute_sigma: bool = False,
+) -> ModelFit:
+    """Fit parameters to measured static errors, one displacement component per observation.
+
+    Observation i: at pose ``points[i]`` the force ``forces[i]`` (N) moves the tool by
+    ``K^-1 F`` and a sensor reads its component along the unit vector
+    ``directions[i]``: ``values[i]`` (mm).
+
+    Parameters
+    ----------
+    model : Mechanism
+    points : array_like, shape (n, dim), mm
+    forces : array_like, shape (n, dim), N
+    directions : array_like, shape (n, dim)
+        Measurement directions (unit vectors; refused when not of unit length within 1e-6).
+    values : array_like, shape (n,), mm
+    params : sequence of str
+        Parameters to fit (names of ``model.params()``), e.g. ``("kj",)`` or ``("kj", "kb")``.
+    std : array_like, shape (n,), mm, optional
+        Standard errors of the values (unit weights when omitted).
+    absolute_sigma : bool
+        Take ``std`` as exact.
+
+    Returns
+    -------
+    ModelFit
+        With ``kind = "static_error"``; observations at the same pose share a pose index.
+
+    Raises
+    ------
+    PoseError
+        A pose the model cannot evaluate (named).
+    DesignError
+        The data cannot determine the parameters.
+    """
+    dim = model.dim
+    P, _ = as_points(points, dim)
+    n = P.shape[0]
+    F = np.asarray(forces, dtype=np.float64)
+    U = np.asarray(directions, dtype=np.float64)
+    y = np.asarray(values, dtype=np.float64)
+    for a, name in ((F, "forces"), (U, "directions")):
+        if a.shape != (n, dim):
+            raise ValueError(f"{name} must have shape ({n}, {dim}), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} contains NaN or infinite values")
+    if y.shape != (n,) or not np.all(np.isfinite(y)):
+        raise ValueError(f"values must be {n} finite numbers (mm), got shape {y.shape}")
+    nrm = np.linalg.norm(U, axis=1)
+    if np.any(np.abs(nrm - 1) > 1e-6):
+        i = int(np.flatnonzero(np.abs(nrm - 1) > 1e-6)[0])
+        raise ValueError(f"directions[{i}] = {U[i].tolist()} is not a unit vector (norm {nrm[i]:.6g})")
+    if np.all(np.linalg.norm(F, axis=1) == 0):
+        raise DesignError("every force is zero: static errors without load cannot determine stiffness")
+    s = _check_sigma(std, (n,), "std")
+    _check_valid_poses(model, P, "observation")
+    poses, idx = _group_poses(P)
+
+    def predict(m: Mechanism) -> np.ndarray:
+        return static_error_predictions(m, P, F, U)
+
+    return _fit("static_error", model, params, predict, y, s, poses, idx, absolute_sigma)

@@ -1,0 +1,331 @@
+"""Files of the model commands: points to evaluate, measurements to fit, map tables.
+
+Formats (CSV with a header; column names case-insensitive; ``#`` lines are comments):
+
+**Points** (``stiffmap model --points``): columns ``x, y`` (3PRR) or ``x, y, z``
+(Delta), mm, in the mechanism's base frame.
+
+**Static-error measurements** (``stiffmap fit``; the sensor path): one row per
+reading of one displacement component:
+
+- ``x, y[, z]``: pose, mm;
+- ``fx, fy[, fz]``: applied force, N;
+- ``nx, ny[, nz]`` (optional): unit direction the sensor measures along; when
+  absent, the force's direction (the displacement is read along the load);
+- ``value_mm``: the measured displacement component, mm;
+- ``std_mm`` (optional): its standard error, mm.
+
+**Stiffness measurements** (``stiffmap fit``; the vision path): one row per pose:
+
+- ``x, y[, z]``: pose, mm;
+- ``k11, k12, ..., kdd`` (d = 2 or 3): the measured K, N/mm, row-major (the
+  reference paper's eq. 9 numbering);
+- ``k11_std, ...`` (optional, all or none): standard errors, N/mm.
+
+A file holding ``value_mm`` is read as static errors, one holding ``k11`` as
+stiffness matrices.
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..io import read_csv_columns
+from .base import Mechanism, ModelMap, PoseError, format_pose
+from .fit import ModelFit, fit_static_errors, fit_stiffness
+
+__all__ = [
+    "read_points",
+    "StaticErrorMeasurements",
+    "StiffnessMeasurements",
+    "read_measurements",
+    "fit_measurements_file",
+    "map_records",
+    "map_csv",
+    "AXIS_NAMES",
+]
+
+AXIS_NAMES = ("x", "y", "z")
+
+
+def read_points(path: str | os.PathLike, dim: int) -> np.ndarray:
+    """Positions (mm) from a CSV with columns ``x, y`` (dim 2) or ``x, y, z`` (dim 3).
+
+    Returns
+    -------
+    ndarray, shape (N, dim), mm
+
+    Raises
+    ------
+    InputError
+        Naming the file, line and column of a bad cell.
+    """
+    t = read_csv_columns(path, AXIS_NAMES[:dim])
+    return t.stack(AXIS_NAMES[:dim]).T.copy()
+
+
+@dataclass(frozen=True)
+class StaticErrorMeasurements:
+    """Static-error observations read from a file (see module docstring).
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, dim), mm
+    forces : ndarray, shape (n, dim), N
+    directions : ndarray, shape (n, dim), unit
+    values : ndarray, shape (n,), mm
+    std : ndarray, shape (n,), mm, or None
+    lines : ndarray of int, shape (n,)
+        Line of each row in the file.
+    source : str
+    """
+
+    points: np.ndarray
+    forces: np.ndarray
+    directions: np.ndarray
+    values: np.ndarray
+    std: np.ndarray | None
+    lines: np.ndarray
+    source: str
+
+
+@dataclass(frozen=True)
+class StiffnessMeasurements:
+    """Stiffness matrices read from a file (see module docstring).
+
+    Attributes
+    ----------
+    points : ndarray, shape (n, dim), mm
+    K : ndarray, shape (n, dim, dim), N/mm
+    K_std : ndarray, shape (n, dim, dim), N/mm, or None
+    lines : ndarray of int, shape (n,)
+    source : str
+    """
+
+    points: np.ndarray
+    K: np.ndarray
+    K_std: np.ndarray | None
+    lines: np.ndarray
+    source: str
+
+
+def _header(path: str | os.PathLike) -> list[str]:
+    # read_csv_columns reports missing files and bad encodings; here only the header is needed.
+    t = read_csv_columns(path, ())
+    del t
+    with open(path, encoding="utf-8-sig") as f:
+        for row in csv.reader(f):
+            if row and not row[0].lstrip().startswith("#"):
+                return [h.strip().lower() for h in row]
+    return []
+
+
+def read_measurements(path: str | os.PathLike, dim: int) -> StaticErrorMeasurements | StiffnessMeasurements:
+    """Read a measurements file for ``stiffmap fit`` (format chosen by its columns).
+
+    Parameters
+    ----------
+    path : path-like
+    dim : int
+        The mechanism's dimension (2 for the 3PRR, 3 for the Delta).
+
+    Raises
+    ------
+    InputError
+        Naming the file, line and column of the first problem.
+    """
+    src = str(path)
+    header = _header(path)
+    ax = AXIS_NAMES[:dim]
+    if "value_mm" in header:
+        fcols = [f"f{a}" for a in ax]
+        ncols = [f"n{a}" for a in ax]
+        has_n = any(c in header for c in ncols)
+        t = read_csv_columns(path, [*ax, *fcols, "value_mm"] + (ncols if has_n else []), ["std_mm"])
+        F = t.stack(fcols).T.copy()
+        fn = np.linalg.norm(F, axis=1)
+        if has_n:
+            U = t.stack(ncols).T.copy()
+            un = np.linalg.norm(U, axis=1)
+            bad = np.flatnonzero(un == 0)
+            if bad.size:
+                raise InputError(
+                    f"line {t.lines[bad[0]]}: the direction ({', '.join(ncols)}) is zero", source=src
+                )
+            far = np.flatnonzero(np.abs(un - 1) > 0.01)
+            if far.size:
+                i = far[0]
+                raise InputError(
+                    f"line {t.lines[i]}: the direction ({', '.join(ncols)}) has length {un[i]:.4g}; "
+                    "expected a unit vector",
+                    source=src,
+                )
+            U = U / un[:, None]
+        else:
+            bad = np.flatnonzero(fn == 0)
+            if bad.size:
+                raise InputError(
+                    f"line {t.lines[bad[0]]}: zero force and no nx, ny columns: the measured direction "
+                    "is unknown",
+                    source=src,
+                )
+            U = F / fn[:, None]
+        std = t.columns.get("std_mm")
+        if std is not None:
+            bad = np.flatnonzero(~(std > 0))
+            if bad.size:
+                raise InputError(
+                    f"line {t.lines[bad[0]]}, column 'std_mm': {std[bad[0]]:g} is not a positive number",
+                    source=src,
+                )
+        return StaticErrorMeasurements(
+            points=t.stack(ax).T.copy(),
+            forces=F,
+            directions=U,
+            values=t.columns["value_mm"].copy(),
+            std=None if std is None else std.copy(),
+            lines=t.lines,
+            source=src,
+        )
+    if "k11" in header:
+        kcols = [f"k{i + 1}{j + 1}" for i in range(dim) for j in range(dim)]
+        scols = [f"{c}_std" for c in kcols]
+        has_s = any(c in header for c in scols)
+        t = read_csv_columns(path, [*ax, *kcols] + (scols if has_s else []))
+        n = len(t)
+        K = t.stack(kcols).T.reshape(n, dim, dim).copy()
+        S = None
+        if has_s:
+            S = t.stack(scols).T.reshape(n, dim, dim).copy()
+            bad = np.argwhere(~(S > 0))
+            if bad.size:
+                i, a, b = bad[0]
+                raise InputError(
+                    f"line {t.lines[i]}, column 'k{a + 1}{b + 1}_std': {S[i, a, b]:g} "
+                    "is not a positive number",
+                    source=src,
+                )
+        return StiffnessMeasurements(t.stack(ax).T.copy(), K, S, t.lines, src)
+    raise InputError(
+        "cannot tell the kind of measurements: expected a 'value_mm' column (static errors: "
+        f"{', '.join(ax)}, {', '.join('f' + a for a in ax)}, value_mm[, std_mm]) or 'k11' "
+        f"(stiffness matrices: {', '.join(ax)}, k11..k{dim}{dim}); header has "
+        f"{', '.join(repr(h) for h in header)}",
+        source=src,
+    )
+
+
+def fit_measurements_file(
+    model: Mechanism,
+    path: str | os.PathLike,
+    params,
+    *,
+    absolute_sigma: bool = False,
+) -> tuple[ModelFit, StaticErrorMeasurements | StiffnessMeasurements]:
+    """Read a measurements file and fit ``params`` of ``model`` to it.
+
+    Returns
+    -------
+    fit : ModelFit
+    data : StaticErrorMeasurements or StiffnessMeasurements
+
+    Raises
+    ------
+    InputError
+        Bad file, or a pose the model cannot evaluate (named with its line), or data
+        that cannot determine the parameters (:class:`~stiffmap.errors.DesignError`).
+    """
+    data = read_measurements(path, model.dim)
+    try:
+        if isinstance(data, StaticErrorMeasurements):
+            fit = fit_static_errors(
+                model,
+                data.points,
+                data.forces,
+                data.directions,
+                data.values,
+                params=params,
+                std=data.std,
+                absolute_sigma=absolute_sigma,
+            )
+        else:
+            fit = fit_stiffness(
+                model, data.points, data.K, params=params, K_std=data.K_std, absolute_sigma=absolute_sigma
+            )
+    except PoseError as e:
+        i = e.index if e.index is not None else 0
+        raise PoseError(
+            f"line {data.lines[i]}: pose {format_pose(data.points[i])} cannot be evaluated by the "
+            f"{model.name} model: {e.reason}",
+            pose=data.points[i],
+            index=i,
+            reason=e.reason,
+            source=data.source,
+        ) from None
+    except InputError as e:
+        raise e.with_source(data.source) from None
+    except ValueError as e:
+        raise InputError(str(e), source=data.source) from None
+    return fit, data
+
+
+def map_records(m: ModelMap, force) -> list[dict]:
+    """One JSON-able dict per point of a map: position, static error under ``force``, K, indices.
+
+    Parameters
+    ----------
+    m : ModelMap
+    force : array_like, shape (dim,), N
+
+    Returns
+    -------
+    list of dict
+        Keys ``x, y[, z]`` (mm), ``ux, uy[, uz]`` (static error, mm), ``K`` (N/mm,
+        nested lists), ``det``, ``min_principal`` (N/mm), ``condition``; or ``x, y[, z]``
+        and ``error`` (the reason) for a point that cannot be evaluated.
+    """
+    dim = m.dim
+    u = m.static_error(force)
+    out = []
+    for i in range(len(m)):
+        rec: dict = {AXIS_NAMES[k]: float(m.points[i, k]) for k in range(dim)}
+        if m.valid[i]:
+            for k in range(dim):
+                rec["u" + AXIS_NAMES[k]] = float(u[i, k])
+            rec["K"] = m.K[i].tolist()
+            rec["det"] = float(m.det[i])
+            rec["min_principal"] = float(m.min_principal[i])
+            rec["condition"] = float(m.condition[i])
+        else:
+            rec["error"] = m.reasons[i]
+        out.append(rec)
+    return out
+
+
+def map_csv(m: ModelMap, force) -> str:
+    """CSV text of a map: ``x, y[, z], ux, uy[, uz], k11..kdd, det, min_principal, condition, error``.
+
+    Invalid points have empty numeric cells and the reason in ``error``.
+    """
+    dim = m.dim
+    ax = AXIS_NAMES[:dim]
+    kcols = [f"k{i + 1}{j + 1}" for i in range(dim) for j in range(dim)]
+    cols = [*ax, *("u" + a for a in ax), *kcols, "det", "min_principal", "condition", "error"]
+    buf = _io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    u = m.static_error(force)
+    for i in range(len(m)):
+        pos = [f"{v:.6g}" for v in m.points[i]]
+        if m.valid[i]:
+            nums = [*u[i], *m.K[i].ravel(), m.det[i], m.min_principal[i], m.condition[i]]
+            w.writerow(pos + [f"{v:.9g}" for v in nums] + [""])
+        else:
+            w.writerow(pos + [""] * (len(cols) - dim - 1) + [m.reasons[i]])
+    return buf.getvalue()

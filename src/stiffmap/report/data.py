@@ -1,0 +1,823 @@
+"""The report's data contract: what a campaign hands to :func:`stiffmap.report.write_report`.
+
+Everything the report draws is in one :class:`ReportData`, built from frozen
+dataclasses of numpy arrays. Units follow ``docs/conventions.md`` (N, mm,
+N/mm) except where a field name says otherwise (``_um``, ``_px``, ``_n``).
+Index conventions: ``n`` positions of a vision campaign, ``L`` load cases,
+``R`` repeats, ``g`` points of a dense model map, ``m`` measured points of a
+sensor campaign, ``N`` calibration corners.
+
+A field holding NaN means "no value" and is always shown as such (a failed
+position, a missing repeat); it never reaches a plot as a number. A position
+whose ``status`` is ``"ok"`` must have a finite K.
+
+JSON round trip: :meth:`ReportData.to_dict` gives plain JSON values (NaN as
+``null``); :meth:`ReportData.from_dict` checks every key and raises
+:class:`~stiffmap.errors.InputError` naming the key path (``measured.K``) and
+what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import MISSING, dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError
+from ..io import to_jsonable
+
+__all__ = [
+    "SCHEMA",
+    "KINDS",
+    "CampaignInfo",
+    "Parameter",
+    "MeasuredStiffness",
+    "LoadData",
+    "ModelMap",
+    "ModelStiffness",
+    "TruthStiffness",
+    "CalibrationData",
+    "SensorMap",
+    "SensorResults",
+    "Failure",
+    "Residuals",
+    "ReportData",
+]
+
+#: Identifies the JSON dump of a :class:`ReportData`.
+SCHEMA = "stiffmap.report/1"
+#: Campaign kinds.
+KINDS = ("vision", "sensor")
+STATUSES = ("ok", "failed")
+
+
+# --------------------------------------------------------------------------- helpers
+def _array(obj, name: str, value, shape: tuple, dims: dict[str, int], *, finite: bool = False) -> None:
+    """Convert ``obj.name`` to a read-only float64 array of ``shape`` (ints or symbols)."""
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected numbers, got {type(value).__name__}") from None
+    want = "(" + ", ".join(str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
+    if a.ndim != len(shape):
+        raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
+    for s, k in zip(shape, a.shape, strict=True):
+        if isinstance(s, int):
+            if k != s:
+                raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
+        elif s in dims and dims[s] != k:
+            raise ValueError(f"{name}: expected shape {want} with {s} = {dims[s]}, got {a.shape}")
+        else:
+            dims[s] = k
+    if np.any(np.isinf(a)):
+        raise ValueError(f"{name}: infinite values")
+    if finite and np.any(np.isnan(a)):
+        raise ValueError(f"{name}: NaN values where numbers are required")
+    a.setflags(write=False)
+    object.__setattr__(obj, name, a)
+
+
+def _opt_array(obj, name: str, value, shape: tuple, dims: dict[str, int], **kw) -> None:
+    if value is None:
+        object.__setattr__(obj, name, None)
+    else:
+        _array(obj, name, value, shape, dims, **kw)
+
+
+def _strs(obj, name: str, value, n: int | None, *, default: Sequence[str] | None = None) -> None:
+    if value is None:
+        value = default
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise ValueError(f"{name}: expected a list of strings, got {type(value).__name__}")
+    t = tuple(value)
+    if not all(isinstance(s, str) for s in t):
+        raise ValueError(f"{name}: expected a list of strings")
+    if n is not None and len(t) != n:
+        raise ValueError(f"{name}: expected {n} entries, got {len(t)}")
+    object.__setattr__(obj, name, t)
+
+
+def _float(obj, name: str, value, *, positive: bool = False, allow_nan: bool = False) -> None:
+    if value is None and allow_nan:
+        value = math.nan
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ValueError(f"{name}: expected a number, got {value!r}")
+    v = float(value)
+    if math.isinf(v) or (math.isnan(v) and not allow_nan):
+        raise ValueError(f"{name}: expected a finite number, got {value!r}")
+    if positive and not v > 0:
+        raise ValueError(f"{name}: expected a positive number, got {value!r}")
+    object.__setattr__(obj, name, v)
+
+
+def _indices(K: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """det, smallest principal stiffness and eigenvalues of the symmetric part (NaN where not ok)."""
+    from ..identify import stiffness_indices
+
+    n = K.shape[0]
+    det = np.full(n, np.nan)
+    mp = np.full(n, np.nan)
+    ev = np.full((n, 3), np.nan)
+    for i in np.flatnonzero(ok):
+        idx = stiffness_indices(K[i])
+        det[i], mp[i], ev[i] = idx.det, idx.min_principal, idx.eigenvalues
+    return det, mp, ev
+
+
+# --------------------------------------------------------------------------- records
+@dataclass(frozen=True)
+class CampaignInfo:
+    """What the campaign is (the report's header).
+
+    Attributes
+    ----------
+    name : str
+    kind : {"vision", "sensor"}
+    version : str
+        stiffmap version that produced the results.
+    date : str
+        ISO 8601 date (and time) of the run.
+    campaign_dir : str
+    notes : str
+        Free text shown under the header (escaped, never interpreted as HTML).
+    """
+
+    name: str
+    kind: str
+    version: str = __version__
+    date: str = ""
+    campaign_dir: str = ""
+    notes: str = ""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if not isinstance(getattr(self, f.name), str):
+                raise ValueError(f"{f.name}: expected a string, got {getattr(self, f.name)!r}")
+        if self.kind not in KINDS:
+            raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {self.kind!r}")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A fitted (or fixed) model parameter.
+
+    Attributes
+    ----------
+    name : str
+    value : float
+    std : float
+        Standard error (1 sigma), NaN when the parameter was fixed.
+    unit : str
+    """
+
+    name: str
+    value: float
+    std: float = math.nan
+    unit: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"name: expected a non-empty string, got {self.name!r}")
+        if not isinstance(self.unit, str):
+            raise ValueError(f"unit: expected a string, got {self.unit!r}")
+        _float(self, "value", self.value)
+        _float(self, "std", self.std, allow_nan=True)
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Something that failed (a file, a position, a point) and why."""
+
+    item: str
+    message: str
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.item, str) or not isinstance(self.message, str):
+            raise ValueError("item and message: expected strings")
+
+
+@dataclass(frozen=True)
+class MeasuredStiffness:
+    """Measured stiffness per position of a vision campaign.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (n, 3), mm
+        Positions of the point of interest in the base frame.
+    status : tuple of str, (n,)
+        ``"ok"`` or ``"failed"`` per position.
+    messages : tuple of str, (n,)
+        Why a position failed (empty when ok; required when failed).
+    K : ndarray, shape (n, 3, 3), N/mm
+        Identified stiffness, base frame; NaN for failed positions.
+    K_std : ndarray, shape (n, 3, 3), N/mm
+        Standard error of each entry (NaN when unknown).
+    det : ndarray, shape (n,), (N/mm)^3
+        det K (the reference study's map value).
+    min_principal : ndarray, shape (n,), N/mm
+        Smallest principal stiffness (eigenvalue of the symmetric part).
+    eigenvalues : ndarray, shape (n, 3), N/mm
+        Principal stiffnesses, ascending.
+    flags : tuple of tuple of str, (n,)
+        Physical and design flags per position (see ``identify.physical_flags``).
+
+    Use :meth:`from_K` to compute ``det``, ``min_principal`` and ``eigenvalues``.
+    """
+
+    positions: np.ndarray
+    status: tuple[str, ...]
+    messages: tuple[str, ...]
+    K: np.ndarray
+    K_std: np.ndarray
+    det: np.ndarray
+    min_principal: np.ndarray
+    eigenvalues: np.ndarray
+    flags: tuple[tuple[str, ...], ...]
+
+    def __post_init__(self) -> None:
+        d: dict[str, int] = {}
+        _array(self, "positions", self.positions, ("n", 3), d, finite=True)
+        n = d["n"]
+        _strs(self, "status", self.status, n)
+        bad = [s for s in self.status if s not in STATUSES]
+        if bad:
+            raise ValueError(f"status: expected 'ok' or 'failed', got {bad[0]!r}")
+        _strs(self, "messages", self.messages, n, default=[""] * n)
+        _array(self, "K", self.K, ("n", 3, 3), d)
+        _array(self, "K_std", self.K_std, ("n", 3, 3), d)
+        _array(self, "det", self.det, ("n",), d)
+        _array(self, "min_principal", self.min_principal, ("n",), d)
+        _array(self, "eigenvalues", self.eigenvalues, ("n", 3), d)
+        fl = self.flags if self.flags is not None else [()] * n
+        if len(fl) != n:
+            raise ValueError(f"flags: expected {n} lists, got {len(fl)}")
+        flags = []
+        for i, f in enumerate(fl):
+            if isinstance(f, str) or not all(isinstance(s, str) for s in f):
+                raise ValueError(f"flags[{i}]: expected a list of strings, got {f!r}")
+            flags.append(tuple(f))
+        object.__setattr__(self, "flags", tuple(flags))
+        ok = self.ok
+        for i in np.flatnonzero(ok):
+            if not np.all(np.isfinite(self.K[i])):
+                raise ValueError(f"K[{i}]: position {i} has status 'ok' but K holds NaN")
+            if not (np.isfinite(self.det[i]) and np.isfinite(self.min_principal[i])):
+                raise ValueError(f"det/min_principal[{i}]: position {i} has status 'ok' but NaN indices")
+        for i in np.flatnonzero(~ok):
+            if not self.messages[i].strip():
+                raise ValueError(f"messages[{i}]: position {i} failed; say why")
+
+    @property
+    def n(self) -> int:
+        """Number of positions."""
+        return int(self.positions.shape[0])
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Boolean mask of the positions with a stiffness, shape (n,)."""
+        return np.array([s == "ok" for s in self.status], dtype=bool)
+
+    @classmethod
+    def from_K(
+        cls,
+        positions,
+        K,
+        K_std=None,
+        *,
+        status: Sequence[str] | None = None,
+        messages: Sequence[str] | None = None,
+        flags: Sequence[Sequence[str]] | None = None,
+    ) -> MeasuredStiffness:
+        """Build from stiffness matrices, computing det, eigenvalues and smallest principal.
+
+        Parameters
+        ----------
+        positions : array_like, shape (n, 3), mm
+        K : array_like, shape (n, 3, 3), N/mm
+            NaN for failed positions.
+        K_std : array_like, shape (n, 3, 3), N/mm, optional
+            NaN when not given.
+        status : sequence of str, optional
+            Default: ``"failed"`` where K holds NaN, ``"ok"`` elsewhere.
+        messages, flags : optional
+            Default: empty (a position failed by NaN gets "no stiffness").
+        """
+        K = np.asarray(K, dtype=np.float64)
+        if K.ndim != 3 or K.shape[1:] != (3, 3):
+            raise ValueError(f"K: expected shape (n, 3, 3), got {K.shape}")
+        n = K.shape[0]
+        finite = np.all(np.isfinite(K), axis=(1, 2))
+        if status is None:
+            status = ["ok" if f else "failed" for f in finite]
+        ok = np.array([s == "ok" for s in status], dtype=bool)
+        if messages is None:
+            messages = ["" if o else "no stiffness" for o in ok]
+        K_std = np.full((n, 3, 3), np.nan) if K_std is None else K_std
+        det, mp, ev = _indices(K, ok & finite)
+        return cls(
+            positions=positions,
+            status=tuple(status),
+            messages=tuple(messages),
+            K=K,
+            K_std=K_std,
+            det=det,
+            min_principal=mp,
+            eigenvalues=ev,
+            flags=tuple(tuple(f) for f in flags) if flags is not None else ((),) * n,
+        )
+
+
+@dataclass(frozen=True)
+class LoadData:
+    """Load cases and the displacement norm measured for each (the reference's Figs. 9-10).
+
+    Attributes
+    ----------
+    labels : tuple of str, (L,)
+        Load-case names, e.g. ``"0.5 kg +y"``.
+    forces : ndarray, shape (L, 3), N
+        Applied force of each load case, base frame.
+    norms : ndarray, shape (n, L, R), mm
+        Norm of the compliant displacement per position, load case and repeat;
+        NaN where a repeat is missing.
+    """
+
+    labels: tuple[str, ...]
+    forces: np.ndarray
+    norms: np.ndarray
+
+    def __post_init__(self) -> None:
+        d: dict[str, int] = {}
+        _array(self, "forces", self.forces, ("L", 3), d, finite=True)
+        _strs(self, "labels", self.labels, d["L"])
+        _array(self, "norms", self.norms, ("n", "L", "R"), d)
+        if np.any(self.norms < 0):
+            raise ValueError("norms: a displacement norm is negative")
+
+    def summary(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Mean and standard deviation (n - 1) over the repeats, and the count.
+
+        Returns
+        -------
+        mean, std : ndarray, shape (n, L), mm
+            NaN where no repeat (mean) or fewer than two repeats (std) exist.
+        count : ndarray of int, shape (n, L)
+        """
+        x = self.norms
+        cnt = np.sum(np.isfinite(x), axis=2)
+        s = np.where(np.isfinite(x), x, 0.0).sum(axis=2)
+        mean = np.full(cnt.shape, np.nan)
+        np.divide(s, cnt, out=mean, where=cnt > 0)
+        dev = np.where(np.isfinite(x), x - mean[..., None], 0.0)
+        std = np.full(cnt.shape, np.nan)
+        np.divide(np.sqrt((dev**2).sum(axis=2)), np.sqrt(np.maximum(cnt - 1, 1)), out=std, where=cnt > 1)
+        return mean, std, cnt
+
+
+@dataclass(frozen=True)
+class ModelMap:
+    """A model evaluated densely over the workspace (for instance on the measured planes).
+
+    Attributes
+    ----------
+    points : ndarray, shape (g, 3), mm
+        Base frame. Points sharing a z value form one plane panel.
+    det : ndarray, shape (g,), (N/mm)^3
+        NaN where the model cannot be evaluated (outside the workspace).
+    min_principal : ndarray, shape (g,), N/mm
+    """
+
+    points: np.ndarray
+    det: np.ndarray
+    min_principal: np.ndarray
+
+    def __post_init__(self) -> None:
+        d: dict[str, int] = {}
+        _array(self, "points", self.points, ("g", 3), d, finite=True)
+        _array(self, "det", self.det, ("g",), d)
+        _array(self, "min_principal", self.min_principal, ("g",), d)
+
+
+@dataclass(frozen=True)
+class ModelStiffness:
+    """A mechanism model fitted to (or compared with) the measurements.
+
+    Attributes
+    ----------
+    name : str
+    parameters : tuple of Parameter
+        With standard errors for the fitted ones.
+    K : ndarray, shape (n, 3, 3), N/mm
+        Model stiffness at the measured positions (NaN where not evaluable).
+    det : ndarray, shape (n,), (N/mm)^3
+    min_principal : ndarray, shape (n,), N/mm
+    map : ModelMap or None
+        Dense model map over the workspace planes.
+    """
+
+    name: str
+    parameters: tuple[Parameter, ...]
+    K: np.ndarray
+    det: np.ndarray
+    min_principal: np.ndarray
+    map: ModelMap | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise ValueError(f"name: expected a string, got {self.name!r}")
+        if not all(isinstance(p, Parameter) for p in self.parameters):
+            raise ValueError("parameters: expected Parameter objects")
+        object.__setattr__(self, "parameters", tuple(self.parameters))
+        d: dict[str, int] = {}
+        _array(self, "K", self.K, ("n", 3, 3), d)
+        _array(self, "det", self.det, ("n",), d)
+        _array(self, "min_principal", self.min_principal, ("n",), d)
+        if self.map is not None and not isinstance(self.map, ModelMap):
+            raise ValueError("map: expected a ModelMap")
+
+    @classmethod
+    def from_K(cls, name: str, parameters: Sequence[Parameter], K, map: ModelMap | None = None):
+        """Build from model stiffness matrices (det and smallest principal computed)."""
+        K = np.asarray(K, dtype=np.float64)
+        if K.ndim != 3 or K.shape[1:] != (3, 3):
+            raise ValueError(f"K: expected shape (n, 3, 3), got {K.shape}")
+        det, mp, _ = _indices(K, np.all(np.isfinite(K), axis=(1, 2)))
+        return cls(name, tuple(parameters), K, det, mp, map)
+
+
+@dataclass(frozen=True)
+class TruthStiffness:
+    """Ground truth of a virtual test-bed campaign.
+
+    Attributes
+    ----------
+    K : ndarray, shape (n, 3, 3), N/mm
+        True stiffness at the measured positions.
+    """
+
+    K: np.ndarray
+
+    def __post_init__(self) -> None:
+        _array(self, "K", self.K, ("n", 3, 3), {}, finite=True)
+
+
+@dataclass(frozen=True)
+class CalibrationData:
+    """Camera calibration results.
+
+    Attributes
+    ----------
+    camera : dict
+        The ``camera.json`` object (``fx, fy, cx, cy, dist``, optionally ``std``,
+        ``rms_px``, ``residual_std_px``, ``views`` with a per-view ``rms_px``).
+    corner_residuals_px : ndarray, shape (N, 2), px, or None
+        Reprojection residual (observed - projected) of every corner used.
+    """
+
+    camera: dict
+    corner_residuals_px: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        from ..camera import CameraModel
+
+        if not isinstance(self.camera, Mapping):
+            raise ValueError(f"camera: expected an object, got {type(self.camera).__name__}")
+        try:
+            CameraModel.from_dict(dict(self.camera), source="camera")
+        except InputError as e:
+            raise ValueError(e.detail) from None
+        object.__setattr__(self, "camera", dict(self.camera))
+        _opt_array(self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True)
+
+
+@dataclass(frozen=True)
+class SensorMap:
+    """A dense model map of the static error for one load direction.
+
+    Attributes
+    ----------
+    direction : str
+        Load (and measurement) direction, e.g. ``"x"`` or ``"y"``.
+    points : ndarray, shape (g, 2), mm
+        Tool positions in the mechanism's plane.
+    error_um : ndarray, shape (g,), um
+        Static error at the reference load; NaN where not reachable.
+    """
+
+    direction: str
+    points: np.ndarray
+    error_um: np.ndarray
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.direction, str) or not self.direction:
+            raise ValueError(f"direction: expected a non-empty string, got {self.direction!r}")
+        d: dict[str, int] = {}
+        _array(self, "points", self.points, ("g", 2), d, finite=True)
+        _array(self, "error_um", self.error_um, ("g",), d)
+
+
+@dataclass(frozen=True)
+class SensorResults:
+    """Static-error results of a sensor campaign (the milling study's Figs. 11-14).
+
+    One row per measured (point, direction) pair.
+
+    Attributes
+    ----------
+    points : ndarray, shape (m, 2), mm
+        Tool position of each measurement, in the mechanism's plane.
+    direction : tuple of str, (m,)
+        Load and measurement direction of each row (``"x"``, ``"y"``).
+    error_um : ndarray, shape (m,), um
+        Measured static error (displacement along ``direction``) at the reference
+        load; NaN where the measurement failed.
+    error_std_um : ndarray, shape (m,), um
+        Its standard deviation (NaN when unknown).
+    labels : tuple of str, (m,)
+        Point names (e.g. the study's numbering "2", "5", ...); default "1".. "m".
+    model_error_um : ndarray, shape (m,), um, or None
+        Model static error at the same points and directions.
+    middle_line : ndarray of bool, shape (m,), or None
+        Rows on the workspace's vertical middle line, compared point by point
+        (the study's Figs. 11-12). None: every measured row is compared.
+    reference_load_n : float
+        Load at which the static error is given, N (default 50 kgf = 490.5 N).
+    model_name : str
+    parameters : tuple of Parameter
+        Fitted model parameters (e.g. ``kj`` in N/mm with its standard error).
+    maps : tuple of SensorMap
+        Dense model maps, one per direction.
+    """
+
+    points: np.ndarray
+    direction: tuple[str, ...]
+    error_um: np.ndarray
+    error_std_um: np.ndarray
+    labels: tuple[str, ...] | None = None
+    model_error_um: np.ndarray | None = None
+    middle_line: np.ndarray | None = None
+    reference_load_n: float = 490.5
+    model_name: str = ""
+    parameters: tuple[Parameter, ...] = ()
+    maps: tuple[SensorMap, ...] = ()
+
+    def __post_init__(self) -> None:
+        d: dict[str, int] = {}
+        _array(self, "points", self.points, ("m", 2), d, finite=True)
+        m = d["m"]
+        _strs(self, "direction", self.direction, m)
+        if not all(self.direction):
+            raise ValueError("direction: empty direction name")
+        _array(self, "error_um", self.error_um, ("m",), d)
+        _array(self, "error_std_um", self.error_std_um, ("m",), d)
+        _strs(self, "labels", self.labels, m, default=[str(i + 1) for i in range(m)])
+        _opt_array(self, "model_error_um", self.model_error_um, ("m",), d)
+        if self.middle_line is not None:
+            ml = np.asarray(self.middle_line)
+            if ml.shape != (m,) or ml.dtype != bool:
+                raise ValueError(f"middle_line: expected {m} booleans, got {ml.dtype} {ml.shape}")
+            ml = ml.copy()
+            ml.setflags(write=False)
+            object.__setattr__(self, "middle_line", ml)
+        _float(self, "reference_load_n", self.reference_load_n, positive=True)
+        if not isinstance(self.model_name, str):
+            raise ValueError("model_name: expected a string")
+        if not all(isinstance(p, Parameter) for p in self.parameters):
+            raise ValueError("parameters: expected Parameter objects")
+        object.__setattr__(self, "parameters", tuple(self.parameters))
+        if not all(isinstance(s, SensorMap) for s in self.maps):
+            raise ValueError("maps: expected SensorMap objects")
+        object.__setattr__(self, "maps", tuple(self.maps))
+
+    @property
+    def m(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def directions(self) -> tuple[str, ...]:
+        """The distinct directions, in order of first appearance."""
+        return tuple(dict.fromkeys(self.direction))
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Measured minus modelled, at the measured positions (NaN where either is missing).
+
+    Attributes
+    ----------
+    K : ndarray, shape (n, 3, 3), N/mm
+    det : ndarray, shape (n,), (N/mm)^3
+    min_principal : ndarray, shape (n,), N/mm
+    """
+
+    K: np.ndarray
+    det: np.ndarray
+    min_principal: np.ndarray
+
+
+# --------------------------------------------------------------------------- report data
+@dataclass(frozen=True)
+class ReportData:
+    """Everything a report shows.
+
+    Attributes
+    ----------
+    campaign : CampaignInfo
+    measured : MeasuredStiffness or None
+        Required for a vision campaign.
+    loads : LoadData or None
+        Load cases and displacement norms per position (same n as ``measured``).
+    model : ModelStiffness or None
+    truth : TruthStiffness or None
+        Virtual test-bed ground truth.
+    calibration : CalibrationData or None
+    sensor : SensorResults or None
+        Required for a sensor campaign.
+    failures : tuple of Failure
+        Every item that failed, listed in the report.
+    """
+
+    campaign: CampaignInfo
+    measured: MeasuredStiffness | None = None
+    loads: LoadData | None = None
+    model: ModelStiffness | None = None
+    truth: TruthStiffness | None = None
+    calibration: CalibrationData | None = None
+    sensor: SensorResults | None = None
+    failures: tuple[Failure, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.campaign, CampaignInfo):
+            raise ValueError("campaign: expected a CampaignInfo")
+        if self.campaign.kind == "vision" and self.measured is None:
+            raise ValueError("measured: a vision campaign needs the measured stiffness")
+        if self.campaign.kind == "sensor" and self.sensor is None:
+            raise ValueError("sensor: a sensor campaign needs the sensor results")
+        n = self.measured.n if self.measured is not None else None
+        for name, part, attr in (
+            ("loads", self.loads, "norms"),
+            ("model", self.model, "K"),
+            ("truth", self.truth, "K"),
+        ):
+            if part is None:
+                continue
+            if n is None:
+                raise ValueError(f"{name}: given without the measured stiffness")
+            k = getattr(part, attr).shape[0]
+            if k != n:
+                raise ValueError(f"{name}.{attr}: {k} positions, but measured has {n}")
+        if not all(isinstance(f, Failure) for f in self.failures):
+            raise ValueError("failures: expected Failure objects")
+        object.__setattr__(self, "failures", tuple(self.failures))
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def residuals(self) -> Residuals | None:
+        """Measured minus modelled (None without a model)."""
+        if self.model is None or self.measured is None:
+            return None
+        ok = self.measured.ok
+        dK = np.where(ok[:, None, None], self.measured.K - self.model.K, np.nan)
+        return Residuals(
+            dK,
+            np.where(ok, self.measured.det - self.model.det, np.nan),
+            np.where(ok, self.measured.min_principal - self.model.min_principal, np.nan),
+        )
+
+    @property
+    def truth_error(self) -> np.ndarray | None:
+        """Relative Frobenius error |K - K_true|_F / |K_true|_F per position, shape (n,).
+
+        NaN for failed positions; None without truth.
+        """
+        if self.truth is None or self.measured is None:
+            return None
+        num = np.linalg.norm(self.measured.K - self.truth.K, axis=(1, 2))
+        den = np.linalg.norm(self.truth.K, axis=(1, 2))
+        return np.where(self.measured.ok, num / den, np.nan)
+
+    # ------------------------------------------------------------------ JSON
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON values (NaN as ``null``), with ``"schema": SCHEMA``."""
+        return {"schema": SCHEMA, **to_jsonable(_dump(self))}
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str | None = None) -> ReportData:
+        """Rebuild from :meth:`to_dict` output (``null`` read back as NaN).
+
+        Raises
+        ------
+        InputError
+            Naming ``source``, the key path and what was expected.
+        """
+        if not isinstance(data, Mapping):
+            raise InputError(f"expected a JSON object, got {type(data).__name__}", source=source)
+        schema = data.get("schema")
+        if schema != SCHEMA:
+            raise InputError(f"key 'schema': expected {SCHEMA!r}, got {schema!r}", source=source)
+        body = {k: v for k, v in data.items() if k != "schema"}
+        return _load(cls, body, "", source)
+
+
+# --------------------------------------------------------------------------- (de)serialisation
+#: Nested record types of each field that holds records.
+_NESTED: dict[tuple[type, str], type] = {
+    (ReportData, "campaign"): CampaignInfo,
+    (ReportData, "measured"): MeasuredStiffness,
+    (ReportData, "loads"): LoadData,
+    (ReportData, "model"): ModelStiffness,
+    (ReportData, "truth"): TruthStiffness,
+    (ReportData, "calibration"): CalibrationData,
+    (ReportData, "sensor"): SensorResults,
+    (ModelStiffness, "map"): ModelMap,
+}
+_NESTED_LISTS: dict[tuple[type, str], type] = {
+    (ReportData, "failures"): Failure,
+    (ModelStiffness, "parameters"): Parameter,
+    (SensorResults, "parameters"): Parameter,
+    (SensorResults, "maps"): SensorMap,
+}
+
+
+def _dump(obj) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if hasattr(v, "__dataclass_fields__"):
+            v = _dump(v)
+        elif isinstance(v, tuple) and v and hasattr(v[0], "__dataclass_fields__"):
+            v = [_dump(x) for x in v]
+        out[f.name] = v
+    return out
+
+
+def _nan_from_null(v):
+    """JSON ``null`` (as written for NaN) back to NaN, recursively in lists."""
+    if v is None:
+        return math.nan
+    if isinstance(v, list):
+        return [_nan_from_null(x) for x in v]
+    return v
+
+
+#: Fields whose JSON values are arrays of numbers (``null`` means NaN).
+_ARRAY_FIELDS = {
+    "positions",
+    "K",
+    "K_std",
+    "det",
+    "min_principal",
+    "eigenvalues",
+    "forces",
+    "norms",
+    "points",
+    "corner_residuals_px",
+    "error_um",
+    "error_std_um",
+    "model_error_um",
+}
+
+
+def _load(cls: type, data: Any, path: str, source: str | None):
+    where = path or "top level"
+    if not isinstance(data, Mapping):
+        raise InputError(f"key {where!r}: expected an object, got {type(data).__name__}", source=source)
+    names = {f.name: f for f in fields(cls)}
+    unknown = sorted(set(data) - set(names))
+    if unknown:
+        raise InputError(
+            f"key {(path + '.' if path else '') + unknown[0]!r}: unknown key "
+            f"(expected one of {', '.join(names)})",
+            source=source,
+        )
+    kwargs: dict[str, Any] = {}
+    for name, f in names.items():
+        key = f"{path}.{name}" if path else name
+        if name not in data:
+            if f.default is MISSING and f.default_factory is MISSING:
+                raise InputError(f"key {key!r} is missing", source=source)
+            continue
+        v = data[name]
+        if (cls, name) in _NESTED:
+            v = None if v is None else _load(_NESTED[(cls, name)], v, key, source)
+        elif (cls, name) in _NESTED_LISTS:
+            if not isinstance(v, list):
+                raise InputError(f"key {key!r}: expected a list, got {type(v).__name__}", source=source)
+            v = tuple(_load(_NESTED_LISTS[(cls, name)], x, f"{key}[{i}]", source) for i, x in enumerate(v))
+        elif name in _ARRAY_FIELDS and v is not None:
+            v = _nan_from_null(v)
+        elif name in ("std", "value", "reference_load_n") and v is None:
+            v = math.nan
+        kwargs[name] = v
+    try:
+        return cls(**kwargs)
+    except InputError:
+        raise
+    except (ValueError, TypeError) as e:
+        msg = str(e)
+        # The record's own message starts with the field name; prefix the path.
+        raise InputError(f"key {(path + '.' if path else '')}{msg}", source=source) from None

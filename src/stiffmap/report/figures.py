@@ -1,0 +1,427 @@
+"""Static figures for papers (matplotlib, PNG), one function per figure.
+
+Each function returns a ``matplotlib.figure.Figure`` (or None when its data are
+absent). No pyplot: figures are built on the object interface and rendered by
+:func:`png_bytes`, so nothing global changes and no display is needed.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+from ._common import (
+    QUANTITIES,
+    as_grid,
+    det_diameters,
+    finite_range,
+    middle_line_order,
+    on_plane,
+    plane_values,
+    position_labels,
+    sensor_rows,
+    symmetric_range,
+)
+from .data import ReportData
+
+__all__ = [
+    "png_bytes",
+    "stiffness_map_3d",
+    "plane_maps",
+    "loads_small_multiples",
+    "model_scatter",
+    "truth_figure",
+    "calibration_figure",
+    "sensor_maps",
+    "sensor_line",
+    "ALL_FIGURES",
+]
+
+SEQ = "viridis"
+DIV = "RdBu_r"
+BAD = "#d62728"
+FAILED = "#9a9a9a"
+DPI = 150
+
+
+def png_bytes(fig: Figure, dpi: int = DPI) -> bytes:
+    """PNG of a figure."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight", metadata={"Software": None})
+    return buf.getvalue()
+
+
+def stiffness_map_3d(data: ReportData) -> Figure | None:
+    """Markers at the positions, diameter proportional to det K (the reference study's Fig. 12)."""
+    m = data.measured
+    if m is None:
+        return None
+    fig = Figure(figsize=(7.5, 6.5))
+    ax = fig.add_subplot(projection="3d")
+    p = m.positions
+    diam = det_diameters(np.where(m.ok, m.det, np.nan))
+    good = m.ok & np.isfinite(diam)
+    bad = m.ok & ~good
+    lo, hi = finite_range(m.det[good]) if good.any() else (0.0, 1.0)
+    sc = ax.scatter(
+        p[good, 0], p[good, 1], p[good, 2], s=diam[good] ** 2, c=m.det[good], cmap=SEQ, vmin=lo, vmax=hi,
+        alpha=0.85, edgecolors="k", linewidths=0.3, label="det K > 0 (diameter ∝ det K)",
+    )  # fmt: skip
+    if bad.any():
+        ax.scatter(p[bad, 0], p[bad, 1], p[bad, 2], s=40, marker="x", c=BAD, label="det K ≤ 0 (flagged)")
+    if (~m.ok).any():
+        f = ~m.ok
+        ax.scatter(
+            p[f, 0], p[f, 1], p[f, 2], s=20, marker="D", facecolors="none", edgecolors=FAILED, label="failed"
+        )
+    fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.1, label="det K (N/mm)³")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_zlabel("z (mm)")
+    ax.set_title("Stiffness map: marker diameter ∝ det K")
+    leg = ax.legend(loc="upper left", fontsize=8)
+    leg.legend_handles[0].set_sizes([60.0])  # the legend's marker, not the largest det
+    ax.view_init(elev=22, azim=-60)
+    return fig
+
+
+def plane_maps(data: ReportData, quantity: str) -> Figure | None:
+    """One panel per z plane: measured [, model and residual] of ``quantity``."""
+    m = data.measured
+    if m is None:
+        return None
+    title, unit = QUANTITIES[quantity]
+    vals = np.where(m.ok, getattr(m, quantity), np.nan)
+    planes = plane_values(m.positions[:, 2])
+    model = data.model
+    rows = 3 if model is not None else 1
+    mv = getattr(model, quantity) if model is not None else None
+    mapv = getattr(model.map, quantity) if model is not None and model.map is not None else None
+    flagged_all = np.array([bool(f) for f in m.flags])
+    # Flagged positions keep their red outline and are clipped to the colour scale's end.
+    lo, hi = finite_range(np.where(flagged_all, np.nan, vals), mv, mapv)
+    norm = Normalize(lo, hi)
+    res = getattr(data.residuals, quantity) if model is not None else None
+    rr = symmetric_range(np.where(flagged_all, np.nan, res)) if res is not None else 1.0
+    fig = Figure(figsize=(4.0 * len(planes) + 1.2, 3.9 * rows), layout="constrained")
+    axes = np.atleast_2d(fig.subplots(rows, len(planes), sharex=True, sharey=True, squeeze=False))
+    flagged = flagged_all & m.ok
+    im = imr = None
+    for c, z in enumerate(planes):
+        sel = on_plane(m.positions[:, 2], z)
+        ok = sel & m.ok
+        ax = axes[0, c]
+        im = ax.scatter(
+            m.positions[ok, 0], m.positions[ok, 1], c=vals[ok], cmap=SEQ, norm=norm, marker="s", s=420,
+            edgecolors=np.where(flagged[ok], BAD, "white"), linewidths=np.where(flagged[ok], 2.5, 0.5),
+        )  # fmt: skip
+        for x, y, v in zip(m.positions[ok, 0], m.positions[ok, 1], vals[ok], strict=True):
+            ax.annotate(f"{v:.3g}", (x, y), ha="center", va="center", fontsize=6.5, color="white")
+        f = sel & ~m.ok
+        if f.any():
+            ax.scatter(m.positions[f, 0], m.positions[f, 1], marker="x", s=120, c=FAILED, linewidths=2)
+        ax.set_title(f"measured, z = {z:g} mm", fontsize=10)
+        if model is None:
+            continue
+        ax = axes[1, c]
+        grid = None
+        if model.map is not None:
+            on = on_plane(model.map.points[:, 2], z)
+            if on.sum() >= 4:
+                grid = as_grid(model.map.points[on, :2], mapv[on])
+        if grid is not None:
+            ax.pcolormesh(grid[0], grid[1], grid[2], cmap=SEQ, norm=norm, shading="nearest")
+            ax.plot(m.positions[sel, 0], m.positions[sel, 1], "k.", ms=3)
+        else:
+            ax.scatter(
+                m.positions[sel, 0], m.positions[sel, 1], c=mv[sel], cmap=SEQ, norm=norm, marker="s", s=420
+            )
+        ax.set_title(f"model, z = {z:g} mm", fontsize=10)
+        ax = axes[2, c]
+        imr = ax.scatter(
+            m.positions[ok, 0], m.positions[ok, 1], c=res[ok], cmap=DIV, vmin=-rr, vmax=rr, marker="s", s=420
+        )
+        ax.set_title(f"measured − model, z = {z:g} mm", fontsize=10)
+    for ax in axes.ravel():
+        ax.set_aspect("equal")
+        ax.margins(0.12)
+    for ax in axes[-1]:
+        ax.set_xlabel("x (mm)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y (mm)")
+    fig.colorbar(im, ax=axes[: 2 if model is not None else 1].ravel().tolist(), label=f"{title} ({unit})")
+    if imr is not None:
+        fig.colorbar(imr, ax=axes[2].ravel().tolist(), label=f"residual ({unit})")
+    fig.suptitle(f"{title} per plane")
+    return fig
+
+
+def loads_small_multiples(data: ReportData, ncols: int = 8) -> Figure | None:
+    """Displacement norm per load case for every position (mean ± std bars, repeats as dots)."""
+    if data.loads is None:
+        return None
+    ld = data.loads
+    mean, std, _ = ld.summary()
+    n, L, R = ld.norms.shape
+    ncols = min(ncols, n)
+    nrows = -(-n // ncols)
+    h = 1.75 * nrows + 0.9
+    fig = Figure(figsize=(2.1 * ncols, h))
+    # Fixed margins: a layout engine costs seconds with dozens of panels.
+    grid = dict(left=0.05, right=0.99, bottom=0.55 / h, top=1 - 0.75 / h, wspace=0.35, hspace=0.5)
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, squeeze=False, gridspec_kw=grid).ravel())
+    labels = position_labels(data)
+    x = np.arange(L)
+    off = np.linspace(-0.28, 0.28, R) if R > 1 else np.zeros(1)
+    for i in range(n):
+        ax = axes[i]
+        ax.bar(
+            x,
+            np.nan_to_num(mean[i]),
+            yerr=np.nan_to_num(std[i]),
+            color="#9ecae1",
+            ecolor="#2b5d8a",
+            capsize=1.5,
+            width=0.8,
+        )
+        xr = (x[:, None] + off[None, :]).ravel()
+        yr = ld.norms[i].ravel()
+        ax.plot(xr, yr, ".", ms=1.5, color="#08306b")
+        ok = data.measured.status[i] == "ok"
+        ax.set_title(labels[i] + ("" if ok else " FAILED"), fontsize=6.5, color="k" if ok else BAD)
+        ax.tick_params(labelsize=6)
+        ax.set_ylim(bottom=0)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    for ax in axes[(nrows - 1) * ncols : n]:
+        ax.set_xticks(x, [str(k + 1) for k in x])
+        ax.set_xlabel("load case", fontsize=7)
+    for r in range(nrows):
+        axes[r * ncols].set_ylabel("norm (mm)", fontsize=7)
+    legend = ", ".join(f"{k + 1}: {lab}" for k, lab in enumerate(ld.labels))
+    fig.suptitle(
+        f"Displacement norm per load case, mean ± std over {R} repeats (dots)\nload cases {legend}",
+        fontsize=9,
+    )
+    return fig
+
+
+def model_scatter(data: ReportData) -> Figure | None:
+    """Measured against modelled det K and smallest principal stiffness."""
+    if data.model is None:
+        return None
+    m, mod = data.measured, data.model
+    fig = Figure(figsize=(10, 4.4), layout="constrained")
+    axes = fig.subplots(1, 2)
+    for ax, q in zip(axes, ("det", "min_principal"), strict=True):
+        title, unit = QUANTITIES[q]
+        a, b = getattr(mod, q), np.where(m.ok, getattr(m, q), np.nan)
+        ok = np.isfinite(a) & np.isfinite(b)
+        lo, hi = finite_range(a[ok], b[ok])
+        ax.plot([lo, hi], [lo, hi], "--", color="#888", label="measured = model")
+        sc = ax.scatter(a[ok], b[ok], c=m.positions[ok, 2], cmap="cividis", s=22)
+        ax.set_xlabel(f"model {title} ({unit})")
+        ax.set_ylabel(f"measured {title} ({unit})")
+        ax.legend(loc="upper left", fontsize=8)
+    fig.colorbar(sc, ax=axes.tolist(), label="z (mm)")
+    fig.suptitle(f"Measured vs model: {mod.name}")
+    return fig
+
+
+def truth_figure(data: ReportData) -> Figure | None:
+    """Recovered vs true K entries, and the relative Frobenius error per position."""
+    if data.truth is None:
+        return None
+    m, t = data.measured, data.truth
+    err = data.truth_error
+    fig = Figure(figsize=(12, 4.4), layout="constrained")
+    a1, a2 = fig.subplots(1, 2, width_ratios=[0.4, 0.6])
+    ok = m.ok
+    tv, rv, sv = t.K[ok].reshape(-1), m.K[ok].reshape(-1), m.K_std[ok].reshape(-1)
+    diag = np.tile(np.eye(3, dtype=bool).ravel(), ok.sum())
+    lo, hi = finite_range(tv, rv)
+    a1.plot([lo, hi], [lo, hi], "--", color="#888", label="recovered = true")
+    for mask, name, col in ((diag, "diagonal", "#1f77b4"), (~diag, "off-diagonal", "#ff7f0e")):
+        a1.errorbar(
+            tv[mask],
+            rv[mask],
+            yerr=np.nan_to_num(sv[mask]),
+            fmt=".",
+            ms=4,
+            color=col,
+            elinewidth=0.6,
+            label=name,
+        )
+    a1.set_xlabel("true K entry (N/mm)")
+    a1.set_ylabel("recovered K entry (N/mm)")
+    a1.legend(fontsize=8)
+    colors = np.where([bool(f) for f in m.flags], BAD, "#2ca02c")
+    a2.bar(np.arange(1, m.n + 1), 100 * np.nan_to_num(err, nan=0.0), color=colors)
+    a2.set_yscale("log")
+    a2.set_xlabel("position")
+    a2.set_ylabel("|K − K_true|_F / |K_true|_F (%)")
+    if np.isfinite(err).any():
+        w = int(np.nanargmax(err))
+        a2.set_title(f"worst {100 * err[w]:.3g} % at P{w + 1}", fontsize=10)
+    for i in np.flatnonzero(~ok):
+        a2.annotate(
+            "failed",
+            (i + 1, a2.get_ylim()[0]),
+            rotation=90,
+            fontsize=6,
+            color=FAILED,
+            ha="center",
+            va="bottom",
+        )
+    fig.suptitle("Recovered vs true stiffness")
+    return fig
+
+
+def calibration_figure(data: ReportData) -> Figure | None:
+    """Per-view RMS reprojection error and corner residuals (px)."""
+    c = data.calibration
+    if c is None:
+        return None
+    views = c.camera.get("views") or []
+    r = c.corner_residuals_px
+    if not views and r is None:
+        return None
+    cols = int(bool(views)) + int(r is not None)
+    fig = Figure(figsize=(5.5 * cols, 4.2), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, cols))
+    k = 0
+    if views:
+        ax = axes[k]
+        rms = np.array(
+            [v.get("rms_px") if isinstance(v.get("rms_px"), (int, float)) else np.nan for v in views],
+            dtype=float,
+        )
+        used = np.array([bool(v.get("used", True)) for v in views])
+        x = np.arange(len(views))
+        ax.bar(x[used], rms[used], color="#1f77b4", label="used")
+        if (~used).any():
+            ax.plot(x[~used], np.zeros((~used).sum()), "x", color=BAD, ms=8, label="not used")
+        ax.set_xticks(
+            x, [str(v.get("image", i + 1)) for i, v in enumerate(views)], rotation=60, ha="right", fontsize=6
+        )
+        ax.set_ylabel("RMS reprojection error (px)")
+        ax.legend(fontsize=8)
+        k += 1
+    if r is not None:
+        ax = axes[k]
+        ax.plot(r[:, 0], r[:, 1], ".", ms=2, alpha=0.5, color="#444")
+        a = symmetric_range(r) * 1.05
+        ax.set_xlim(-a, a)
+        ax.set_ylim(-a, a)
+        ax.set_aspect("equal")
+        ax.set_xlabel("Δu (px)")
+        ax.set_ylabel("Δv (px)")
+        ax.set_title("corner residuals, observed − projected", fontsize=10)
+    fig.suptitle("Camera calibration residuals")
+    return fig
+
+
+def sensor_maps(data: ReportData) -> Figure | None:
+    """Static-error maps, measured beside modelled, one row per direction (milling study, Figs. 13-14)."""
+    s = data.sensor
+    if s is None:
+        return None
+    dirs = s.directions
+    has_model = s.model_error_um is not None or bool(s.maps)
+    cols = 2 if has_model else 1
+    fig = Figure(figsize=(5.2 * cols + 1, 4.4 * len(dirs)), layout="constrained")
+    axes = np.atleast_2d(fig.subplots(len(dirs), cols, sharex=True, sharey=True, squeeze=False))
+    for r, d in enumerate(dirs):
+        idx = sensor_rows(data, d)
+        p, e = s.points[idx], s.error_um[idx]
+        model = s.model_error_um[idx] if s.model_error_um is not None else None
+        dense = next((mp for mp in s.maps if mp.direction == d), None)
+        lo, hi = finite_range(e, model, dense.error_um if dense is not None else None)
+        norm = Normalize(lo, hi)
+        ok = np.isfinite(e)
+        ax = axes[r, 0]
+        if ok.sum() >= 3:
+            ax.tricontourf(p[ok, 0], p[ok, 1], e[ok], levels=14, cmap=SEQ, norm=norm)
+        sc = ax.scatter(
+            p[ok, 0], p[ok, 1], c=e[ok], cmap=SEQ, norm=norm, s=45, edgecolors="k", linewidths=0.6
+        )
+        for i in idx[ok]:
+            ax.annotate(
+                s.labels[i], s.points[i], xytext=(0, 5), textcoords="offset points", ha="center", fontsize=7
+            )
+        if (~ok).any():
+            ax.scatter(p[~ok, 0], p[~ok, 1], marker="x", c=BAD, s=60, label="no measurement")
+            ax.legend(fontsize=7, loc="lower right")
+        ax.set_title(f"measured, load along {d}", fontsize=10)
+        if has_model:
+            ax = axes[r, 1]
+            g = as_grid(dense.points, dense.error_um) if dense is not None else None
+            if g is not None:
+                ax.pcolormesh(g[0], g[1], g[2], cmap=SEQ, norm=norm, shading="nearest")
+            elif model is not None and np.isfinite(model).sum() >= 3:
+                mk = np.isfinite(model)
+                ax.tricontourf(p[mk, 0], p[mk, 1], model[mk], levels=14, cmap=SEQ, norm=norm)
+            if model is not None:
+                ax.scatter(
+                    p[:, 0], p[:, 1], c=model, cmap=SEQ, norm=norm, s=30, edgecolors="k", linewidths=0.6
+                )
+            ax.set_title(f"model, load along {d}", fontsize=10)
+        fig.colorbar(sc, ax=axes[r].tolist(), label=f"static error (µm), {d}")
+    for ax in axes.ravel():
+        ax.set_aspect("equal")
+    for ax in axes[-1]:
+        ax.set_xlabel("x (mm)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y (mm)")
+    fig.suptitle(f"Static error at {s.reference_load_n:g} N")
+    return fig
+
+
+def sensor_line(data: ReportData) -> Figure | None:
+    """Measured (± std) and modelled static error along the middle line (Figs. 11-12 of the milling study)."""
+    s = data.sensor
+    if s is None:
+        return None
+    dirs = s.directions
+    fig = Figure(figsize=(5.5 * len(dirs), 4.0), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(dirs)))
+    for ax, d in zip(axes, dirs, strict=True):
+        rows = middle_line_order(data, d)
+        x = np.arange(len(rows))
+        ax.errorbar(
+            x,
+            s.error_um[rows],
+            yerr=np.nan_to_num(s.error_std_um[rows]),
+            fmt="o",
+            color="#1f77b4",
+            capsize=3,
+            label="measured ± std",
+        )
+        if s.model_error_um is not None:
+            ax.plot(x, s.model_error_um[rows], "D-", color="#ff7f0e", ms=5, label="model")
+        ax.set_xticks(x, [s.labels[i] for i in rows])
+        ax.set_xlabel("point (ordered by y)")
+        ax.set_ylabel("static error (µm)")
+        ax.set_ylim(bottom=0)
+        where = "middle line" if s.middle_line is not None else "all points"
+        ax.set_title(f"load along {d}, {where}", fontsize=10)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"Static error at {s.reference_load_n:g} N, measured vs model")
+    return fig
+
+
+#: (file name, builder) of every PNG the report writes when its data are present.
+ALL_FIGURES = (
+    ("stiffness_map_3d.png", stiffness_map_3d),
+    ("planes_min_principal.png", lambda d: plane_maps(d, "min_principal")),
+    ("planes_det.png", lambda d: plane_maps(d, "det")),
+    ("loads_per_position.png", loads_small_multiples),
+    ("model_vs_measured.png", model_scatter),
+    ("recovered_vs_true.png", truth_figure),
+    ("calibration.png", calibration_figure),
+    ("static_error_maps.png", sensor_maps),
+    ("static_error_middle_line.png", sensor_line),
+)

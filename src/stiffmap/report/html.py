@@ -1,0 +1,348 @@
+"""The self-contained HTML page: one inline plotly.js, figures as JSON, tables, no network.
+
+Every text that comes from the data (campaign name, notes, flags, messages,
+file names) is escaped. Figures are embedded as strict JSON in
+``<script type="application/json">`` blocks and drawn by a small script that
+sets ``window.stiffmapReady = true`` once every figure is rendered (the
+browser test waits for it). The page requests nothing: no CDN, no fonts, no
+images (the PNGs beside it are linked, not loaded).
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..io import to_jsonable
+from . import plots
+from ._assets import CSS, JS
+from ._common import fmt, fmt_pm, position_labels
+from .data import ReportData
+
+__all__ = ["build_html", "figure_json"]
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"non-standard JSON constant {name} in a figure")
+
+
+def figure_json(fig) -> str:
+    """Strict JSON of a plotly figure, safe inside a ``<script>`` element."""
+    import plotly.io as pio
+
+    text = pio.to_json(fig, validate=False, pretty=False, remove_uids=True)
+    json.loads(text, parse_constant=_reject_constant)  # NaN/Infinity would break JSON.parse
+    return text.replace("<", "\\u003c")
+
+
+def _json_block(obj) -> str:
+    return json.dumps(to_jsonable(obj), allow_nan=False, separators=(",", ":")).replace("<", "\\u003c")
+
+
+def _e(s) -> str:
+    return html.escape(str(s), quote=True)
+
+
+def _matrix(K: np.ndarray, S: np.ndarray) -> str:
+    rows = []
+    for i in range(3):
+        cells = []
+        for j in range(3):
+            v = f"{K[i, j]:+.4g}"
+            if np.isfinite(S[i, j]):
+                v += f" ±{S[i, j]:.2g}"
+            cells.append(f"{v:>17}")
+        rows.append(" ".join(cells))
+    return "\n".join(rows)
+
+
+def _k_table(data: ReportData) -> str:
+    m = data.measured
+    err = data.truth_error
+    labels = position_labels(data)
+    head = (
+        "<tr><th>#</th><th class=l>position x, y, z (mm)</th><th class=l>status</th>"
+        "<th class=l>K (N/mm), ± 1 standard error</th><th>det K<br>(N/mm)³</th>"
+        "<th>principal stiffnesses<br>(N/mm)</th>"
+        + ("<th>model det K<br>(N/mm)³</th>" if data.model is not None else "")
+        + ("<th>error vs true<br>(%)</th>" if err is not None else "")
+        + "<th class='l flags'>flags</th></tr>"
+    )
+    body = []
+    for i in range(m.n):
+        x, y, z = m.positions[i]
+        pos = f"{x:.5g}, {y:.5g}, {z:.5g}"
+        if m.status[i] != "ok":
+            ncols = 4 + (data.model is not None) + (err is not None)
+            body.append(
+                f"<tr class=failed><td>{i + 1}</td><td class=l>{_e(pos)}</td><td class=l>failed</td>"
+                f"<td class=l colspan={ncols}>{_e(m.messages[i])}</td></tr>"
+            )
+            continue
+        cls = " class=flagged" if m.flags[i] else ""
+        ev = ", ".join(fmt(v) for v in m.eigenvalues[i])
+        cells = [
+            f"<td>{i + 1}</td>",
+            f"<td class=l title='{_e(labels[i])}'>{_e(pos)}</td>",
+            "<td class=l>ok</td>",
+            f"<td class='l m'>{_e(_matrix(m.K[i], m.K_std[i]))}</td>",
+            f"<td>{fmt(m.det[i])}</td>",
+            f"<td>{ev}</td>",
+        ]
+        if data.model is not None:
+            cells.append(f"<td>{fmt(data.model.det[i])}</td>")
+        if err is not None:
+            cells.append(f"<td>{fmt(100 * err[i], 3)}</td>")
+        flags = "<br>".join(_e(f) for f in m.flags[i]) or "—"
+        cells.append(f"<td class='l flags'>{flags}</td>")
+        body.append(f"<tr{cls}>{''.join(cells)}</tr>")
+    return f"<table class=k><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def _params_table(params) -> str:
+    rows = "".join(
+        f"<tr><td class=l>{_e(p.name)}</td><td>{_e(fmt_pm(p.value, p.std, 5))}</td>"
+        f"<td class=l>{_e(p.unit)}</td>"
+        f"<td class=l>{'fitted' if np.isfinite(p.std) else 'fixed'}</td></tr>"
+        for p in params
+    )
+    return (
+        "<table><thead><tr><th class=l>parameter</th><th>value ± 1 standard error</th><th class=l>unit</th>"
+        f"<th class=l></th></tr></thead><tbody>{rows}</tbody></table>"
+    )
+
+
+def _camera_table(cam: dict) -> str:
+    std = cam.get("std") or {}
+    rows = []
+    for k in ("fx", "fy", "cx", "cy"):
+        s = std.get(k) if isinstance(std, dict) else None
+        rows.append((k + " (px)", fmt_pm(cam[k], s if isinstance(s, (int, float)) else np.nan, 6)))
+    dist = cam.get("dist", [])
+    sd = std.get("dist") if isinstance(std, dict) else None
+    names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
+    for j, v in enumerate(dist):
+        s = sd[j] if isinstance(sd, list) and j < len(sd) and isinstance(sd[j], (int, float)) else np.nan
+        rows.append((names[j], fmt_pm(v, s, 4)))
+    if "image_size" in cam:
+        rows.append(("image size (px)", " × ".join(str(v) for v in cam["image_size"])))
+    if cam.get("rms_px") is not None:
+        rows.append(("RMS reprojection error (px)", fmt(cam["rms_px"], 3)))
+    if cam.get("residual_std_px") is not None:
+        rows.append(("residual std x, y (px)", ", ".join(fmt(v, 3) for v in cam["residual_std_px"])))
+    views = cam.get("views") or []
+    if views:
+        used = sum(1 for v in views if v.get("used", True))
+        rows.append(("views used", f"{used} of {len(views)}"))
+    return (
+        "<table class=kv>"
+        + "".join(f"<tr><td>{_e(a)}</td><td>{_e(b)}</td></tr>" for a, b in rows)
+        + "</table>"
+    )
+
+
+def _sensor_table(data: ReportData) -> str:
+    s = data.sensor
+    has_model = s.model_error_um is not None
+    head = (
+        "<tr><th class=l>point</th><th>x (mm)</th><th>y (mm)</th><th class=l>direction</th>"
+        "<th>measured (µm)</th>"
+        + ("<th>model (µm)</th><th>measured − model (µm)</th>" if has_model else "")
+        + "</tr>"
+    )
+    body = []
+    for i in range(s.m):
+        failed = not np.isfinite(s.error_um[i])
+        cells = [
+            f"<td class=l>{_e(s.labels[i])}</td><td>{s.points[i, 0]:g}</td><td>{s.points[i, 1]:g}</td>",
+            f"<td class=l>{_e(s.direction[i])}</td>",
+            f"<td>{'no measurement' if failed else _e(fmt_pm(s.error_um[i], s.error_std_um[i]))}</td>",
+        ]
+        if has_model:
+            cells.append(
+                f"<td>{fmt(s.model_error_um[i])}</td><td>{fmt(s.error_um[i] - s.model_error_um[i], 3)}</td>"
+            )
+        body.append(f"<tr{' class=failed' if failed else ''}>{''.join(cells)}</tr>")
+    return f"<table><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def _summary(data: ReportData) -> str:
+    pills = []
+    m = data.measured
+    if m is not None:
+        ok = m.ok
+        nflag = sum(1 for i in range(m.n) if ok[i] and m.flags[i])
+        pills.append(f"<span class=pill>{int(ok.sum())} of {m.n} positions with a stiffness</span>")
+        if (~ok).any():
+            pills.append(f"<span class='pill bad'>{int((~ok).sum())} failed</span>")
+        if nflag:
+            pills.append(f"<span class='pill warn'>{nflag} flagged</span>")
+        if ok.any():
+            pills.append(
+                f"<span class=pill>det K {fmt(np.nanmin(m.det[ok]))} … "
+                f"{fmt(np.nanmax(m.det[ok]))} (N/mm)³</span>"
+                f"<span class=pill>smallest principal {fmt(np.nanmin(m.min_principal[ok]))} … "
+                f"{fmt(np.nanmax(m.min_principal[ok]))} N/mm</span>"
+            )
+        if data.loads is not None:
+            L, R = data.loads.norms.shape[1:]
+            pills.append(f"<span class=pill>{L} load cases × {R} repeats</span>")
+    err = data.truth_error
+    if err is not None and np.isfinite(err).any():
+        pills.append(f"<span class=pill>worst relative K error vs true: {100 * np.nanmax(err):.3g} %</span>")
+    s = data.sensor
+    if s is not None:
+        ok = np.isfinite(s.error_um)
+        pills.append(f"<span class=pill>{int(ok.sum())} of {s.m} point-direction measurements</span>")
+        if (~ok).any():
+            pills.append(f"<span class='pill bad'>{int((~ok).sum())} failed</span>")
+        for p in s.parameters:
+            pills.append(
+                f"<span class=pill>{_e(p.name)} = {_e(fmt_pm(p.value, p.std, 4))} {_e(p.unit)}</span>"
+            )
+    if data.failures:
+        pills.append(f"<span class='pill bad'>{len(data.failures)} failure(s) listed below</span>")
+    return "".join(pills)
+
+
+def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
+    """The report page.
+
+    Parameters
+    ----------
+    data : ReportData
+    png_names : sequence of str
+        PNG files written beside the page (linked in its last section).
+    """
+    from plotly.offline import get_plotlyjs
+
+    c = data.campaign
+    sections: list[tuple[str, str, str]] = []  # (id, title, html)
+    figures: list[tuple[str, str]] = []  # (div id, json)
+
+    def fig_div(fid: str, fig, note: str = "") -> str:
+        if fig is None:
+            return ""
+        figures.append((fid, figure_json(fig)))
+        return f"<div class=fig id='{fid}'></div>" + (f"<p class=note>{note}</p>" if note else "")
+
+    sections.append(("summary", "Summary", f"<p>{_summary(data)}</p>"))
+    m = data.measured
+    if m is not None:
+        body = fig_div(
+            "fig-map3d",
+            plots.stiffness_map_3d(data),
+            "Marker diameter proportional to det K, as in the reference study's stiffness map (Fig. 12), "
+            "floored at 3 px so that soft positions stay visible; colour also shows det K. "
+            "Red crosses: det K ≤ 0 (flagged); grey diamonds: failed positions. Drag to rotate.",
+        )
+        body += fig_div("fig-planes-minp", plots.plane_maps(data, "min_principal"))
+        body += fig_div(
+            "fig-planes-det",
+            plots.plane_maps(data, "det"),
+            "One panel per z plane; squares are measured positions "
+            "(red outline: flagged; grey cross: failed)."
+            + (
+                " With a model: its map (dense where given, black dots are the measured positions) "
+                "and the residual measured − model on a diverging scale."
+                if data.model is not None
+                else ""
+            ),
+        )
+        sections.append(("map", "Stiffness map", body))
+    if data.loads is not None:
+        body = fig_div("fig-loads-overview", plots.loads_overview(data))
+        body += (
+            "<p><label class=ctl>position <select id=pos-select></select></label>"
+            "<label class=ctl>load case <select id=load-select></select></label></p>"
+            "<div class=fig id=fig-load-detail></div>"
+            "<p class=note>Left: displacement norm of each load case, mean ± std (n − 1) over the repeats, "
+            "with every repeat as a dot (the reference's Fig. 10). "
+            "Right: the repeats of the chosen load case "
+            "with their mean (red line) ± std (band) (its Fig. 9).</p>"
+            f"<script type='application/json' id=loads-data>{_json_block(plots.loads_payload(data))}</script>"
+        )
+        sections.append(("loads", "Load cases per position", body))
+    if data.model is not None:
+        mod = data.model
+        body = f"<p><b>{_e(mod.name)}</b></p>" + _params_table(mod.parameters)
+        body += fig_div(
+            "fig-model",
+            plots.model_scatter(data),
+            "Per-plane maps of the model and residuals are under Stiffness map.",
+        )
+        sections.append(("model", "Measured and modelled", body))
+    if data.truth is not None:
+        body = fig_div(
+            "fig-truth",
+            plots.truth_figure(data),
+            "Virtual test-bed: the identified K against the ground truth. Red bars: flagged positions.",
+        )
+        sections.append(("truth", "Recovered vs true", body))
+    if data.calibration is not None:
+        body = _camera_table(data.calibration.camera)
+        body += fig_div("fig-calibration", plots.calibration_figure(data))
+        sections.append(("calibration", "Camera calibration", body))
+    if m is not None:
+        body = (
+            "<p><label class=ctl><input type=checkbox id=only-flagged> "
+            "show only flagged or failed positions</label></p>"
+            f"<div class=tablewrap>{_k_table(data)}</div>"
+            "<p class=note>K in the base frame, N/mm; ± is one standard error of each entry. "
+            "Principal stiffnesses are the eigenvalues of the symmetric part (K + Kᵀ)/2, ascending. "
+            "Flagged rows are highlighted.</p>"
+        )
+        sections.append(("table", "Every K", body))
+    if data.sensor is not None:
+        s = data.sensor
+        body = ""
+        if s.parameters:
+            body += f"<p><b>{_e(s.model_name or 'model')}</b></p>" + _params_table(s.parameters)
+        body += fig_div(
+            "fig-sensor-maps",
+            plots.sensor_maps(data),
+            "Left: measured static error, linearly interpolated between the measured points (circles, "
+            "labelled) inside their convex hull — no extrapolation. "
+            "Right: the model (dense map where given). "
+            "Same colour scale in a row. After the milling study's Figs. 13-14.",
+        )
+        body += fig_div("fig-sensor-line", plots.sensor_line(data), "After the milling study's Figs. 11-12.")
+        body += f"<div class=tablewrap>{_sensor_table(data)}</div>"
+        sections.append(("sensor", "Static error", body))
+    if data.failures:
+        items = "".join(f"<li><b>{_e(f.item)}</b>: {_e(f.message)}</li>" for f in data.failures)
+        sections.append(("failures", "Failures", f"<ul class=fail>{items}</ul>"))
+    if png_names:
+        items = "".join(f"<li><a href='{_e(n)}'>{_e(n)}</a></li>" for n in png_names)
+        sections.append(
+            (
+                "figures",
+                "Figures for papers",
+                f"<p class=note>PNG files beside this page:</p><ul>{items}</ul>",
+            )
+        )
+
+    nav = "".join(f"<a href='#{sid}'>{_e(t)}</a>" for sid, t, _ in sections)
+    main = "".join(f"<section id='{sid}'><h2>{_e(t)}</h2>{b}</section>" for sid, t, b in sections)
+    figs = "".join(f"<script type='application/json' data-figure='{fid}'>{j}</script>" for fid, j in figures)
+    meta = [f"{c.kind} campaign", f"stiffmap {c.version}"]
+    if c.date:
+        meta.append(c.date)
+    if c.campaign_dir:
+        meta.append(c.campaign_dir)
+    units = (
+        "Units: positions and displacements mm, forces N, stiffness N/mm, det K (N/mm)³, "
+        "static error µm, image residuals px; positions and K in the robot base frame."
+    )
+    notes = f"<p>{_e(c.notes)}</p>" if c.notes else ""
+    return (
+        "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
+        "<meta name=viewport content='width=device-width, initial-scale=1'>"
+        f"<title>{_e(c.name)} — stiffmap report</title><style>{CSS}</style></head><body>"
+        f"<header><h1>{_e(c.name)}</h1><p>{_e(' · '.join(meta))}</p><p>{_e(units)}</p>{notes}</header>"
+        f"<nav>{nav}</nav><main>{main}</main>"
+        f"<script>{get_plotlyjs()}</script>{figs}<script>{JS}</script></body></html>\n"
+    )

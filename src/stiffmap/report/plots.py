@@ -1,0 +1,752 @@
+"""Interactive figures of the HTML report (plotly), one function per figure.
+
+Each function takes a :class:`~stiffmap.report.data.ReportData` and returns a
+``plotly.graph_objects.Figure`` (or None when the data it draws are absent).
+NaN values (failed positions, missing repeats, unreachable model points) are
+drawn as gaps or with their own symbol, never as numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import plotly.graph_objects as go
+from plotly.subplots import make_subplots
+
+from ._common import (
+    QUANTITIES,
+    as_grid,
+    det_diameters,
+    finite_range,
+    fmt,
+    interpolate_measured,
+    middle_line_order,
+    on_plane,
+    plane_values,
+    position_labels,
+    sensor_rows,
+    symmetric_range,
+)
+from .data import ReportData
+
+TEMPLATE = "plotly_white"
+SEQ = "Viridis"
+DIV = "RdBu_r"
+FAILED = "#9a9a9a"
+BAD = "#d62728"
+
+
+def _hover_positions(data: ReportData) -> list[str]:
+    m = data.measured
+    labels = position_labels(data)
+    out = []
+    for i, lab in enumerate(labels):
+        if m.status[i] != "ok":
+            out.append(f"{lab}<br>failed: {m.messages[i]}")
+            continue
+        s = f"{lab}<br>det K = {fmt(m.det[i])} (N/mm)³<br>smallest principal = {fmt(m.min_principal[i])} N/mm"
+        if m.flags[i]:
+            s += "<br>flags: " + "; ".join(m.flags[i])
+        out.append(s)
+    return out
+
+
+# --------------------------------------------------------------------------- stiffness map
+def stiffness_map_3d(data: ReportData) -> go.Figure | None:
+    """3D markers at the positions, diameter proportional to det K (the reference's Fig. 12)."""
+    m = data.measured
+    if m is None:
+        return None
+    p, ok, det = m.positions, m.ok, m.det
+    hover = np.array(_hover_positions(data))
+    diam = det_diameters(np.where(ok, det, np.nan))
+    good = ok & np.isfinite(diam)
+    bad = ok & ~good
+    fig = go.Figure()
+    lo, hi = finite_range(det[good]) if good.any() else (0.0, 1.0)
+    fig.add_trace(
+        go.Scatter3d(
+            x=p[good, 0],
+            y=p[good, 1],
+            z=p[good, 2],
+            mode="markers",
+            name="det K > 0 (diameter ∝ det K)",
+            marker=dict(
+                size=diam[good],
+                sizemode="diameter",
+                color=det[good],
+                colorscale=SEQ,
+                cmin=lo,
+                cmax=hi,
+                opacity=0.9,
+                line=dict(width=0),
+                colorbar=dict(title=dict(text="det K<br>(N/mm)³"), len=0.75),
+            ),
+            text=hover[good],
+            hovertemplate="%{text}<extra></extra>",
+        )
+    )
+    if bad.any():
+        fig.add_trace(
+            go.Scatter3d(
+                x=p[bad, 0],
+                y=p[bad, 1],
+                z=p[bad, 2],
+                mode="markers",
+                name="det K ≤ 0 (flagged)",
+                marker=dict(size=7, symbol="x", color=BAD),
+                text=hover[bad],
+                hovertemplate="%{text}<extra></extra>",
+            )
+        )
+    if (~ok).any():
+        fig.add_trace(
+            go.Scatter3d(
+                x=p[~ok, 0],
+                y=p[~ok, 1],
+                z=p[~ok, 2],
+                mode="markers",
+                name="failed",
+                marker=dict(size=5, symbol="diamond-open", color=FAILED),
+                text=hover[~ok],
+                hovertemplate="%{text}<extra></extra>",
+            )
+        )
+    fig.update_layout(
+        template=TEMPLATE,
+        height=560,
+        margin=dict(l=0, r=0, t=30, b=0),
+        title=dict(text="Stiffness map: marker diameter ∝ det K", x=0.01),
+        legend=dict(x=0.01, y=0.95),
+        scene=dict(
+            xaxis_title="x (mm)",
+            yaxis_title="y (mm)",
+            zaxis_title="z (mm)",
+            aspectmode="data",
+            camera=dict(eye=dict(x=1.5, y=-1.6, z=0.9)),
+        ),
+    )
+    return fig
+
+
+def _colorbar(row: int, rows: int, span: int, title: str) -> dict:
+    """A colour bar beside ``span`` rows starting at ``row`` (0-based, from the top)."""
+    h = 1.0 / rows
+    return dict(title=dict(text=title), y=1 - (row + span / 2) * h, len=span * h * 0.9, yanchor="middle")
+
+
+def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
+    """One panel per z plane of ``quantity`` ("min_principal" or "det").
+
+    Rows: measured; with a model, the model (its dense map when given) and the
+    residual measured - modelled.
+    """
+    m = data.measured
+    if m is None:
+        return None
+    title, unit = QUANTITIES[quantity]
+    vals = np.where(m.ok, getattr(m, quantity), np.nan)
+    planes = plane_values(m.positions[:, 2])
+    model = data.model
+    rows = 3 if model is not None else 1
+    names = ["measured"] + (["model", "measured − model"] if model is not None else [])
+    titles = [f"{r}, z = {z:g} mm" for r in names for z in planes]
+    fig = make_subplots(
+        rows=rows,
+        cols=len(planes),
+        subplot_titles=titles,
+        shared_xaxes=True,
+        shared_yaxes=True,
+        horizontal_spacing=0.03,
+        vertical_spacing=0.09 if rows > 1 else 0.0,
+    )
+    hover = np.array(_hover_positions(data))
+    mv = getattr(model, quantity) if model is not None else None
+    mapv = None
+    if model is not None and model.map is not None:
+        mapv = getattr(model.map, quantity)
+    flagged_all = np.array([bool(f) for f in m.flags])
+    # Flagged positions (a non-positive-definite K, say) would stretch the scale: they keep
+    # their red outline and hover value, and are clipped to the scale's end.
+    lo, hi = finite_range(np.where(flagged_all, np.nan, vals), mv, mapv)
+    res = getattr(data.residuals, quantity) if model is not None else None
+    for c, z in enumerate(planes, start=1):
+        sel = on_plane(m.positions[:, 2], z)
+        ok = sel & m.ok
+        flagged = flagged_all & ok
+        fig.add_trace(
+            go.Scatter(
+                x=m.positions[ok, 0],
+                y=m.positions[ok, 1],
+                mode="markers",
+                marker=dict(
+                    symbol="square",
+                    size=24,
+                    color=vals[ok],
+                    coloraxis="coloraxis",
+                    line=dict(color=np.where(flagged[ok], BAD, "white"), width=np.where(flagged[ok], 3, 1)),
+                ),
+                text=hover[ok],
+                hovertemplate="%{text}<extra></extra>",
+                showlegend=False,
+            ),
+            row=1,
+            col=c,
+        )
+        if (sel & ~m.ok).any():
+            f = sel & ~m.ok
+            fig.add_trace(
+                go.Scatter(
+                    x=m.positions[f, 0],
+                    y=m.positions[f, 1],
+                    mode="markers",
+                    marker=dict(symbol="x-thin", size=16, line=dict(color=FAILED, width=2)),
+                    text=hover[f],
+                    hovertemplate="%{text}<extra></extra>",
+                    showlegend=False,
+                ),
+                row=1,
+                col=c,
+            )
+        if model is None:
+            continue
+        grid = None
+        if model.map is not None:
+            on = on_plane(model.map.points[:, 2], z)
+            if on.sum() >= 4:
+                grid = as_grid(model.map.points[on, :2], mapv[on])
+        if grid is not None:
+            xs, ys, Z = grid
+            fig.add_trace(
+                go.Heatmap(
+                    x=xs,
+                    y=ys,
+                    z=Z,
+                    coloraxis="coloraxis",
+                    hovertemplate=(
+                        f"x %{{x}} mm, y %{{y}} mm<br>{title} %{{z:.4g}} {unit}<extra>model</extra>"
+                    ),
+                ),
+                row=2,
+                col=c,
+            )
+            fig.add_trace(
+                go.Scatter(
+                    x=m.positions[sel, 0],
+                    y=m.positions[sel, 1],
+                    mode="markers",
+                    marker=dict(size=4, color="black"),
+                    hoverinfo="skip",
+                    showlegend=False,
+                ),
+                row=2,
+                col=c,
+            )
+        else:
+            fig.add_trace(
+                go.Scatter(
+                    x=m.positions[sel, 0],
+                    y=m.positions[sel, 1],
+                    mode="markers",
+                    marker=dict(symbol="square", size=24, color=mv[sel], coloraxis="coloraxis"),
+                    customdata=mv[sel],
+                    hovertemplate=f"model {title} %{{customdata:.4g}} {unit}<extra></extra>",
+                    showlegend=False,
+                ),
+                row=2,
+                col=c,
+            )
+        fig.add_trace(
+            go.Scatter(
+                x=m.positions[ok, 0],
+                y=m.positions[ok, 1],
+                mode="markers",
+                marker=dict(symbol="square", size=24, color=res[ok], coloraxis="coloraxis2"),
+                customdata=res[ok],
+                text=hover[ok],
+                hovertemplate=f"%{{text}}<br>measured − model = %{{customdata:.4g}} {unit}<extra></extra>",
+                showlegend=False,
+            ),
+            row=3,
+            col=c,
+        )
+    span = 2 if model is not None else 1
+    layout = dict(
+        template=TEMPLATE,
+        height=330 * rows + 40,
+        margin=dict(l=60, r=20, t=60, b=50),
+        title=dict(text=f"{title} ({unit}) per plane", x=0.01),
+        coloraxis=dict(colorscale=SEQ, cmin=lo, cmax=hi, colorbar=_colorbar(0, rows, span, unit)),
+    )
+    if model is not None:
+        r = symmetric_range(np.where(flagged_all, np.nan, res))
+        layout["coloraxis2"] = dict(colorscale=DIV, cmin=-r, cmax=r, colorbar=_colorbar(2, rows, 1, unit))
+    fig.update_layout(**layout)
+    fig.update_xaxes(title_text="x (mm)", row=rows)
+    fig.update_yaxes(title_text="y (mm)", col=1)
+    fig.update_yaxes(scaleanchor="x", scaleratio=1)
+    return fig
+
+
+# --------------------------------------------------------------------------- loads
+def loads_overview(data: ReportData) -> go.Figure | None:
+    """Mean displacement norm (mm) per position (columns) and load case (rows); click to inspect."""
+    if data.loads is None:
+        return None
+    mean, std, cnt = data.loads.summary()
+    labels = position_labels(data)
+    n, L = mean.shape
+    custom = np.dstack([std.T, cnt.T])
+    fig = go.Figure(
+        go.Heatmap(
+            x=np.arange(1, n + 1),
+            y=list(data.loads.labels),
+            z=mean.T,
+            customdata=custom,
+            text=np.tile(np.array(labels), (L, 1)),
+            colorscale=SEQ,
+            colorbar=dict(title=dict(text="mm")),
+            hovertemplate=(
+                "%{text}<br>load %{y}<br>mean %{z:.4g} mm ± %{customdata[0]:.2g} "
+                "(n = %{customdata[1]})<extra></extra>"
+            ),
+            xgap=1,
+            ygap=1,
+        )
+    )
+    fig.update_layout(
+        template=TEMPLATE,
+        height=120 + 26 * L,
+        margin=dict(l=110, r=20, t=40, b=50),
+        title=dict(text="Mean displacement norm (mm) per position and load case — click a cell", x=0.01),
+        xaxis=dict(title="position", dtick=1 if n <= 60 else None, tickfont=dict(size=9)),
+        yaxis=dict(autorange="reversed"),
+    )
+    return fig
+
+
+def loads_payload(data: ReportData) -> dict | None:
+    """The per-position data the page's selector draws from (Figs. 9-10 of the reference)."""
+    if data.loads is None:
+        return None
+    ld = data.loads
+    mean, std, cnt = ld.summary()
+    return {
+        "labels": list(ld.labels),
+        "forces": ld.forces,
+        "positions": position_labels(data),
+        "status": list(data.measured.status),
+        "messages": list(data.measured.messages),
+        "norms": ld.norms,
+        "mean": mean,
+        "std": std,
+        "count": cnt,
+    }
+
+
+# --------------------------------------------------------------------------- model / truth
+def model_scatter(data: ReportData) -> go.Figure | None:
+    """Measured against modelled det K and smallest principal stiffness, with the identity line."""
+    if data.model is None:
+        return None
+    m, mod = data.measured, data.model
+    fig = make_subplots(
+        rows=1,
+        cols=2,
+        subplot_titles=["det K ((N/mm)³)", "smallest principal stiffness (N/mm)"],
+        horizontal_spacing=0.1,
+    )
+    labels = np.array(position_labels(data))
+    for c, q in enumerate(("det", "min_principal"), start=1):
+        a, b = getattr(mod, q), np.where(m.ok, getattr(m, q), np.nan)
+        ok = np.isfinite(a) & np.isfinite(b)
+        lo, hi = finite_range(a[ok], b[ok])
+        fig.add_trace(
+            go.Scatter(
+                x=[lo, hi],
+                y=[lo, hi],
+                mode="lines",
+                line=dict(color="#888", dash="dash"),
+                name="measured = model",
+                showlegend=c == 1,
+                hoverinfo="skip",
+            ),
+            row=1,
+            col=c,
+        )
+        fig.add_trace(
+            go.Scatter(
+                x=a[ok],
+                y=b[ok],
+                mode="markers",
+                marker=dict(
+                    size=8,
+                    color=m.positions[ok, 2],
+                    colorscale="Cividis",
+                    showscale=c == 2,
+                    colorbar=dict(title=dict(text="z (mm)")),
+                ),
+                text=labels[ok],
+                hovertemplate="%{text}<br>model %{x:.4g}<br>measured %{y:.4g}<extra></extra>",
+                name="positions",
+                showlegend=False,
+            ),
+            row=1,
+            col=c,
+        )
+        fig.update_xaxes(title_text="model", row=1, col=c)
+        fig.update_yaxes(title_text="measured", row=1, col=c)
+    fig.update_layout(
+        template=TEMPLATE, height=420, margin=dict(l=60, r=20, t=50, b=50), legend=dict(x=0.01, y=1.0)
+    )
+    return fig
+
+
+def truth_figure(data: ReportData) -> go.Figure | None:
+    """Recovered against true K entries, and the relative Frobenius error per position."""
+    if data.truth is None:
+        return None
+    m, t = data.measured, data.truth
+    err = data.truth_error
+    fig = make_subplots(
+        rows=1,
+        cols=2,
+        column_widths=[0.4, 0.6],
+        subplot_titles=[
+            "K entries: recovered vs true (N/mm), ± 1 standard error",
+            "relative Frobenius error |K − K_true| / |K_true| (%)",
+        ],
+        horizontal_spacing=0.08,
+    )
+    ok = m.ok
+    tv = t.K[ok].reshape(-1)
+    rv = m.K[ok].reshape(-1)
+    sv = m.K_std[ok].reshape(-1)
+    diag = np.tile(np.eye(3, dtype=bool).ravel(), ok.sum())
+    lo, hi = finite_range(tv, rv)
+    fig.add_trace(
+        go.Scatter(
+            x=[lo, hi],
+            y=[lo, hi],
+            mode="lines",
+            line=dict(color="#888", dash="dash"),
+            name="recovered = true",
+            hoverinfo="skip",
+        ),
+        row=1,
+        col=1,
+    )
+    for mask, name, color in ((diag, "diagonal", "#1f77b4"), (~diag, "off-diagonal", "#ff7f0e")):
+        fig.add_trace(
+            go.Scatter(
+                x=tv[mask],
+                y=rv[mask],
+                error_y=dict(type="data", array=np.nan_to_num(sv[mask]), visible=True, thickness=1, width=0),
+                mode="markers",
+                marker=dict(size=5, color=color),
+                name=name,
+                hovertemplate="true %{x:.4g}<br>recovered %{y:.4g}<extra>" + name + "</extra>",
+            ),
+            row=1,
+            col=1,
+        )
+    labels = np.array(position_labels(data))
+    fig.add_trace(
+        go.Bar(
+            x=np.arange(1, m.n + 1),
+            y=100 * err,
+            marker=dict(color=np.where([bool(f) for f in m.flags], BAD, "#2ca02c")),
+            hovertext=labels,
+            hovertemplate="%{hovertext}<br>%{y:.3g} %<extra></extra>",
+            name="relative error",
+            showlegend=False,
+        ),
+        row=1,
+        col=2,
+    )
+    if np.isfinite(err).any():
+        w = int(np.nanargmax(err))
+        # On a log axis an annotation's y is log10 of the value.
+        fig.add_annotation(
+            x=w + 1,
+            y=float(np.log10(100 * err[w])),
+            text=f"worst {100 * err[w]:.3g} % (P{w + 1})",
+            showarrow=True,
+            row=1,
+            col=2,
+        )
+    fig.update_xaxes(title_text="true (N/mm)", row=1, col=1)
+    fig.update_yaxes(title_text="recovered (N/mm)", row=1, col=1)
+    fig.update_xaxes(title_text="position", row=1, col=2)
+    fig.update_yaxes(title_text="%", type="log", row=1, col=2)
+    fig.update_layout(
+        template=TEMPLATE, height=440, margin=dict(l=60, r=20, t=50, b=50), legend=dict(x=0.01, y=1.0)
+    )
+    return fig
+
+
+# --------------------------------------------------------------------------- calibration
+def calibration_figure(data: ReportData) -> go.Figure | None:
+    """Per-view RMS reprojection error and, when given, every corner's residual (px)."""
+    c = data.calibration
+    if c is None:
+        return None
+    views = c.camera.get("views") or []
+    has_res = c.corner_residuals_px is not None
+    if not views and not has_res:
+        return None
+    cols = int(bool(views)) + int(has_res)
+    titles = (["RMS reprojection error per view (px)"] if views else []) + (
+        ["corner residuals, observed − projected (px)"] if has_res else []
+    )
+    fig = make_subplots(
+        rows=1, cols=cols, subplot_titles=titles, column_widths=[0.6, 0.4][:cols] if cols == 2 else None
+    )
+    col = 1
+    if views:
+        names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
+        rms = np.array(
+            [v.get("rms_px") if isinstance(v.get("rms_px"), (int, float)) else np.nan for v in views],
+            dtype=float,
+        )
+        used = np.array([bool(v.get("used", True)) for v in views])
+        reason = [str(v.get("reason", "")) for v in views]
+        fig.add_trace(
+            go.Bar(
+                x=names,
+                y=np.where(used, rms, np.nan),
+                marker_color="#1f77b4",
+                name="used",
+                hovertemplate="%{x}<br>%{y:.3g} px<extra></extra>",
+            ),
+            row=1,
+            col=col,
+        )
+        if (~used).any():
+            fig.add_trace(
+                go.Scatter(
+                    x=[n for n, u in zip(names, used, strict=True) if not u],
+                    y=[0] * int((~used).sum()),
+                    mode="markers",
+                    marker=dict(symbol="x", size=10, color=BAD),
+                    text=[r for r, u in zip(reason, used, strict=True) if not u],
+                    hovertemplate="%{x}: not used, %{text}<extra></extra>",
+                    name="not used",
+                ),
+                row=1,
+                col=col,
+            )
+        fig.update_yaxes(title_text="px", row=1, col=col)
+        col += 1
+    if has_res:
+        r = c.corner_residuals_px
+        fig.add_trace(
+            go.Scattergl(
+                x=r[:, 0],
+                y=r[:, 1],
+                mode="markers",
+                marker=dict(size=3, color="#444", opacity=0.5),
+                name="corners",
+                hovertemplate="(%{x:.3f}, %{y:.3f}) px<extra></extra>",
+            )
+            if len(r) > 5000
+            else go.Scatter(
+                x=r[:, 0],
+                y=r[:, 1],
+                mode="markers",
+                marker=dict(size=3, color="#444", opacity=0.5),
+                name="corners",
+                hovertemplate="(%{x:.3f}, %{y:.3f}) px<extra></extra>",
+            ),
+            row=1,
+            col=col,
+        )
+        a = symmetric_range(r)
+        fig.update_xaxes(title_text="Δu (px)", range=[-a * 1.05, a * 1.05], row=1, col=col)
+        fig.update_yaxes(title_text="Δv (px)", range=[-a * 1.05, a * 1.05], row=1, col=col)
+    fig.update_layout(template=TEMPLATE, height=380, margin=dict(l=60, r=20, t=50, b=80), showlegend=False)
+    return fig
+
+
+# --------------------------------------------------------------------------- sensor
+def sensor_maps(data: ReportData) -> go.Figure | None:
+    """Static-error maps measured beside modelled, one row per direction (the milling study's Figs. 13-14)."""
+    s = data.sensor
+    if s is None:
+        return None
+    dirs = s.directions
+    rows = len(dirs)
+    has_model = s.model_error_um is not None or bool(s.maps)
+    cols = 2 if has_model else 1
+    titles = []
+    for d in dirs:
+        titles.append(f"measured, load along {d} (linear between points)")
+        if has_model:
+            titles.append(f"model, load along {d}")
+    fig = make_subplots(
+        rows=rows,
+        cols=cols,
+        subplot_titles=titles,
+        shared_xaxes=True,
+        shared_yaxes=True,
+        horizontal_spacing=0.06,
+        vertical_spacing=0.1,
+    )
+    layout: dict = {}
+    for r, d in enumerate(dirs, start=1):
+        idx = sensor_rows(data, d)
+        p, e = s.points[idx], s.error_um[idx]
+        ax = "coloraxis" if r == 1 else f"coloraxis{r}"
+        dense = next((mp for mp in s.maps if mp.direction == d), None)
+        model = s.model_error_um[idx] if s.model_error_um is not None else None
+        lo, hi = finite_range(e, model, dense.error_um if dense is not None else None)
+        layout[ax] = dict(colorscale=SEQ, cmin=lo, cmax=hi, colorbar=_colorbar(r - 1, rows, 1, f"µm ({d})"))
+        grid = interpolate_measured(p, e)
+        if grid is not None:
+            fig.add_trace(
+                go.Heatmap(
+                    x=grid.xs,
+                    y=grid.ys,
+                    z=grid.Z,
+                    coloraxis=ax,
+                    hovertemplate="x %{x:.0f} mm, y %{y:.0f} mm<br>%{z:.4g} µm (interpolated)<extra></extra>",
+                ),
+                row=r,
+                col=1,
+            )
+        ok = np.isfinite(e)
+        hover = [
+            f"point {s.labels[i]} ({s.points[i, 0]:g}, {s.points[i, 1]:g}) mm<br>"
+            f"{fmt(s.error_um[i])} ± {fmt(s.error_std_um[i], 2)} µm"
+            for i in idx
+        ]
+        fig.add_trace(
+            go.Scatter(
+                x=p[ok, 0],
+                y=p[ok, 1],
+                mode="markers+text",
+                text=[s.labels[i] for i in idx[ok]],
+                textposition="top center",
+                textfont=dict(size=9),
+                marker=dict(size=11, color=e[ok], coloraxis=ax, line=dict(color="black", width=1)),
+                hovertext=np.array(hover)[ok],
+                hovertemplate="%{hovertext}<extra>measured</extra>",
+                showlegend=False,
+            ),
+            row=r,
+            col=1,
+        )
+        if (~ok).any():
+            fig.add_trace(
+                go.Scatter(
+                    x=p[~ok, 0],
+                    y=p[~ok, 1],
+                    mode="markers",
+                    marker=dict(symbol="x-thin", size=14, line=dict(color=BAD, width=2)),
+                    hovertext=[f"point {s.labels[i]}: no measurement" for i in idx[~ok]],
+                    hovertemplate="%{hovertext}<extra></extra>",
+                    showlegend=False,
+                ),
+                row=r,
+                col=1,
+            )
+        if not has_model:
+            continue
+        g = as_grid(dense.points, dense.error_um) if dense is not None else None
+        if g is not None:
+            fig.add_trace(
+                go.Heatmap(
+                    x=g[0],
+                    y=g[1],
+                    z=g[2],
+                    coloraxis=ax,
+                    hovertemplate="x %{x:.0f} mm, y %{y:.0f} mm<br>%{z:.4g} µm<extra>model</extra>",
+                ),
+                row=r,
+                col=2,
+            )
+        elif model is not None:
+            mg = interpolate_measured(p, model)
+            if mg is not None:
+                fig.add_trace(
+                    go.Heatmap(x=mg.xs, y=mg.ys, z=mg.Z, coloraxis=ax, hoverinfo="skip"), row=r, col=2
+                )
+        if model is not None:
+            fig.add_trace(
+                go.Scatter(
+                    x=p[:, 0],
+                    y=p[:, 1],
+                    mode="markers",
+                    marker=dict(size=8, color=model, coloraxis=ax, line=dict(color="black", width=1)),
+                    hovertext=[
+                        f"point {s.labels[i]}: model {fmt(v)} µm" for i, v in zip(idx, model, strict=True)
+                    ],
+                    hovertemplate="%{hovertext}<extra></extra>",
+                    showlegend=False,
+                ),
+                row=r,
+                col=2,
+            )
+    fig.update_layout(
+        template=TEMPLATE,
+        height=380 * rows + 40,
+        margin=dict(l=60, r=20, t=60, b=50),
+        title=dict(text=f"Static error (µm) at {s.reference_load_n:g} N", x=0.01),
+        **layout,
+    )
+    fig.update_xaxes(title_text="x (mm)", row=rows)
+    fig.update_yaxes(title_text="y (mm)", col=1)
+    fig.update_yaxes(scaleanchor="x", scaleratio=1)
+    return fig
+
+
+def sensor_line(data: ReportData) -> go.Figure | None:
+    """Measured (± std) and modelled static error point by point along the middle line (Figs. 11-12)."""
+    s = data.sensor
+    if s is None:
+        return None
+    dirs = s.directions
+    where = "along the middle line" if s.middle_line is not None else "at every point"
+    fig = make_subplots(
+        rows=1,
+        cols=len(dirs),
+        subplot_titles=[f"load along {d}, {where}" for d in dirs],
+        horizontal_spacing=0.08,
+    )
+    for c, d in enumerate(dirs, start=1):
+        rows = middle_line_order(data, d)
+        x = [f"{s.labels[i]} (y {s.points[i, 1]:g})" for i in rows]
+        fig.add_trace(
+            go.Scatter(
+                x=x,
+                y=s.error_um[rows],
+                error_y=dict(type="data", array=np.nan_to_num(s.error_std_um[rows]), visible=True),
+                mode="markers",
+                marker=dict(size=9, color="#1f77b4"),
+                name="measured ± std",
+                showlegend=c == 1,
+                hovertemplate="point %{x}<br>%{y:.4g} µm<extra>measured</extra>",
+            ),
+            row=1,
+            col=c,
+        )
+        if s.model_error_um is not None:
+            fig.add_trace(
+                go.Scatter(
+                    x=x,
+                    y=s.model_error_um[rows],
+                    mode="lines+markers",
+                    line=dict(color="#ff7f0e"),
+                    marker=dict(symbol="diamond", size=8),
+                    name="model",
+                    showlegend=c == 1,
+                    hovertemplate="point %{x}<br>%{y:.4g} µm<extra>model</extra>",
+                ),
+                row=1,
+                col=c,
+            )
+        fig.update_xaxes(title_text="point (ordered by y, mm)", type="category", row=1, col=c)
+        fig.update_yaxes(title_text="static error (µm)", rangemode="tozero", row=1, col=c)
+    fig.update_layout(
+        template=TEMPLATE, height=420, margin=dict(l=60, r=20, t=50, b=90), legend=dict(x=0.01, y=1.0)
+    )
+    return fig

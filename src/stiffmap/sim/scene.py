@@ -1,0 +1,267 @@
+"""Placing targets in front of a camera, and the virtual test-bed's default scene.
+
+The default scene (:func:`default_scene`) is the reference study's set-up seen
+from the front: the robot base frame has z up and the platform below it
+(positions z = -200 ... -400 mm); the fixed board is the study's motor-support
+board (``fixed2base`` of its section 3.1: a vertical board, x along the base x,
+y pointing down, facing -y); the mobile board hangs 50 mm in front of the
+platform, facing the same way; the camera stands 1.28 m in front of the robot
+(y = -1280 mm), turned 8 degrees about the vertical and looking 10.4 degrees down,
+so that both boards are fully visible, 85 px from the image border or more, at
+every position of the ``paper48`` grid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..camera import CameraModel, reference_camera
+from ..geometry import as_transform, concat, invert_transform, transform_from
+from ..targets import Chessboard
+from .render import Target
+
+__all__ = ["board_pose_at_pixel", "spread_poses", "Scene", "default_scene", "FIXED2BASE_REFERENCE"]
+
+#: The reference study's motor-support board in the robot base frame (its section 3.1), mm.
+FIXED2BASE_REFERENCE = np.array(
+    [[1.0, 0.0, 0.0, -75.63], [0.0, 0.0, 1.0, 188.10], [0.0, -1.0, 0.0, 31.00], [0.0, 0.0, 0.0, 1.0]]
+)
+FIXED2BASE_REFERENCE.setflags(write=False)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Camera and boards of a virtual vision test-bed.
+
+    Attributes
+    ----------
+    camera : CameraModel
+    cam2base : ndarray, shape (4, 4)
+        Camera pose in the robot base frame, mm.
+    fixed_board, mobile_board : Chessboard
+    fixed2base : ndarray, shape (4, 4)
+        Fixed board in the base frame, mm.
+    mobile2tcp : ndarray, shape (4, 4)
+        Mobile board on the platform (tcp frame), mm.
+    margin_mm : float
+        White border printed around each board's squares, mm.
+    """
+
+    camera: CameraModel
+    cam2base: np.ndarray
+    fixed_board: Chessboard
+    fixed2base: np.ndarray
+    mobile_board: Chessboard
+    mobile2tcp: np.ndarray
+    margin_mm: float = 10.0
+
+    def __post_init__(self) -> None:
+        for k in ("cam2base", "fixed2base", "mobile2tcp"):
+            T = as_transform(getattr(self, k), k).copy()
+            T.setflags(write=False)
+            object.__setattr__(self, k, T)
+        if self.fixed_board.size == self.mobile_board.size:
+            raise ValueError(
+                f"the fixed and mobile boards are both {self.fixed_board.size}: "
+                "a campaign tells them apart by their size"
+            )
+
+    @property
+    def point_mm(self) -> np.ndarray:
+        """The tool point (tcp origin) in the mobile board frame, mm, shape (3,)."""
+        return invert_transform(self.mobile2tcp)[:3, 3]
+
+    def targets(self, tcp2base) -> list[Target]:
+        """The fixed and the mobile board as render targets, for the platform at ``tcp2base``."""
+        base2cam = invert_transform(self.cam2base)
+        fixed2cam = concat(self.fixed2base, base2cam)
+        mobile2cam = concat(concat(self.mobile2tcp, as_transform(tcp2base, "tcp2base")), base2cam)
+        return [
+            Target(self.fixed_board, fixed2cam, name="fixed", margin_mm=self.margin_mm),
+            Target(self.mobile_board, mobile2cam, name="mobile", margin_mm=self.margin_mm),
+        ]
+
+    def outline_pixels(self, tcp2base) -> dict[str, np.ndarray]:
+        """Pixels of each board's printed outline (corners of the margin), shape (4, 2) each."""
+        out = {}
+        for tg in self.targets(tcp2base):
+            x0, y0, x1, y1 = tg.texture().extent
+            q = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
+            P = q @ tg.board2cam[:3, :3].T + tg.board2cam[:3, 3]
+            if np.any(P[:, 2] <= 0):
+                out[tg.name] = np.full((4, 2), np.nan)
+            else:
+                out[tg.name] = self.camera.project(P)
+        return out
+
+    def check_visible(self, positions, *, border_px: float = 20.0, slack_mm: float = 0.0) -> None:
+        """Raise ValueError naming the first position at which a board leaves the image.
+
+        Parameters
+        ----------
+        positions : array_like, shape (n, 3)
+            Platform positions (tcp origin in the base frame), mm.
+        border_px : float
+            Required distance of each board's outline from the image border, px.
+        slack_mm : float
+            Extra displacement of the platform, in every direction, that must keep it visible.
+        """
+        P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        w, h = self.camera.image_size
+        shifts = [np.zeros(3)]
+        if slack_mm > 0:
+            shifts += [slack_mm * s for s in np.vstack([np.eye(3), -np.eye(3)])]
+        for i, p in enumerate(P):
+            for d in shifts:
+                for name, uv in self.outline_pixels(transform_from(np.eye(3), p + d)).items():
+                    bad = (
+                        not np.all(np.isfinite(uv))
+                        or uv[:, 0].min() < border_px
+                        or uv[:, 1].min() < border_px
+                        or uv[:, 0].max() > w - 1 - border_px
+                        or uv[:, 1].max() > h - 1 - border_px
+                    )
+                    if bad:
+                        raise ValueError(
+                            f"position {i + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the {name} board "
+                            f"leaves the image (or comes within {border_px:g} px of its border)"
+                        )
+
+
+def default_scene(camera: CameraModel | None = None) -> Scene:
+    """The reference set-up seen from the front (see the module docstring).
+
+    Fixed board 9x6 inner corners, mobile board 6x5 (both 10 mm squares, 10 mm
+    white margin; 6x5 rather than a square board so that its colours fix its
+    orientation). The tool point is 50 mm behind the mobile board, 15 mm above
+    its first row of corners, centred.
+    """
+    cam = reference_camera() if camera is None else camera
+    R0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # cam x, y, z in base
+    R = (
+        Rotation.from_euler("z", 8.0, degrees=True).as_matrix()
+        @ R0
+        @ Rotation.from_euler("x", -10.4, degrees=True).as_matrix()
+    )
+    cam2base = transform_from(R, [300.0, -1280.0, 0.0])
+    mobile2tcp = transform_from(FIXED2BASE_REFERENCE[:3, :3], [-25.0, -50.0, -15.0])
+    return Scene(
+        camera=cam,
+        cam2base=cam2base,
+        fixed_board=Chessboard(9, 6, 10.0),
+        fixed2base=FIXED2BASE_REFERENCE,
+        mobile_board=Chessboard(6, 5, 10.0),
+        mobile2tcp=mobile2tcp,
+        margin_mm=10.0,
+    )
+
+
+def board_pose_at_pixel(
+    camera: CameraModel,
+    pixel,
+    distance_mm: float,
+    board_point_mm,
+    *,
+    tilt_deg: float = 0.0,
+    tilt_axis_deg: float = 0.0,
+    spin_deg: float = 0.0,
+) -> np.ndarray:
+    """``board2cam`` that puts a board point on the ray of a pixel, tilted and spun.
+
+    The board, facing the camera (its z axis along the optical axis), is spun
+    about its z axis by ``spin_deg``, then tilted by ``tilt_deg`` about an axis
+    in the image plane at ``tilt_axis_deg`` from the camera's x axis; then the
+    board point ``board_point_mm`` is moved onto the ray of ``pixel`` at depth
+    ``distance_mm``.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    pixel : array_like, shape (2,)
+        (u, v), px.
+    distance_mm : float
+        Depth (camera z) of the board point, mm.
+    board_point_mm : array_like, shape (2,)
+        (x, y) in the board frame, mm (e.g. the board's centre).
+
+    Returns
+    -------
+    board2cam : ndarray, shape (4, 4)
+    """
+    uv = np.asarray(pixel, dtype=np.float64)
+    p = np.asarray(board_point_mm, dtype=np.float64)
+    if uv.shape != (2,) or p.shape != (2,) or not (np.all(np.isfinite(uv)) and np.all(np.isfinite(p))):
+        raise ValueError(
+            f"pixel and board_point_mm must be finite (2,) vectors, got {pixel!r}, {board_point_mm!r}"
+        )
+    if not (np.isfinite(distance_mm) and distance_mm > 0):
+        raise ValueError(f"distance_mm must be a positive number of mm, got {distance_mm!r}")
+    ray = camera.rays_from_pixels(uv)
+    a = np.radians(tilt_axis_deg)
+    R = (
+        Rotation.from_rotvec(np.radians(tilt_deg) * np.array([np.cos(a), np.sin(a), 0.0]))
+        * Rotation.from_rotvec([0.0, 0.0, np.radians(spin_deg)])
+    ).as_matrix()
+    t = np.array([ray[0], ray[1], 1.0]) * float(distance_mm) - R @ np.array([p[0], p[1], 0.0])
+    return transform_from(R, t)
+
+
+def spread_poses(
+    camera: CameraModel,
+    board,
+    *,
+    grid: tuple[int, int] = (3, 3),
+    distance_mm: float = 700.0,
+    max_tilt_deg: float = 45.0,
+    margin: float = 0.16,
+) -> list[np.ndarray]:
+    """Board poses spread over the whole image, tilted up to ``max_tilt_deg`` (deterministic).
+
+    The board's centre is put on the rays of a ``grid`` = (columns, rows) of
+    image points between ``margin`` and ``1 - margin`` of the width and height.
+    Tilts cycle through max, max, 2/3 max, max, 0, max, 1/3 max, ... about
+    axes turning by 40 degrees from pose to pose; spins turn by 23 degrees.
+    Suited to calibration sets and to the renderer's truth test.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    board : Chessboard or CharucoBoard
+    grid : (int, int)
+    distance_mm : float
+        Depth of the board centres, mm.
+    max_tilt_deg : float
+    margin : float
+        Fraction of the image left at each border for the board's centre.
+
+    Returns
+    -------
+    list of ndarray, shape (4, 4)
+        ``board2cam`` of each pose, row by row.
+    """
+    chess = getattr(board, "chessboard", board)
+    x0, y0, x1, y1 = chess.extent_mm()
+    centre = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+    w, h = camera.image_size
+    fr = (1.0, 1.0, 2.0 / 3.0, 1.0, 0.0, 1.0, 1.0 / 3.0, 1.0, 2.0 / 3.0)
+    out = []
+    k = 0
+    for fv in np.linspace(margin, 1 - margin, grid[1]):
+        for fu in np.linspace(margin, 1 - margin, grid[0]):
+            pix = (fu * (w - 1), fv * (h - 1))
+            out.append(
+                board_pose_at_pixel(
+                    camera,
+                    pix,
+                    distance_mm,
+                    centre,
+                    tilt_deg=max_tilt_deg * fr[k % len(fr)],
+                    tilt_axis_deg=40.0 * k,
+                    spin_deg=23.0 * k - 30.0,
+                )
+            )
+            k += 1
+    return out

@@ -1,0 +1,34 @@
+"""Run the real ``stiffmap`` command as a user would (a subprocess)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+
+def stiffmap(
+    *args: str | Path, cwd: str | Path | None = None, timeout: float = 300
+) -> subprocess.CompletedProcess:
+    """Run ``python -m stiffmap ARGS`` and return the completed process (text mode)."""
+    env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONWARNINGS="error")
+    return subprocess.run(
+        [sys.executable, "-m", "stiffmap", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+        timeout=timeout,
+    )
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> str:
+    """A user error: non-zero exit, no traceback, one stderr line holding every needle."""
+    assert proc.returncode != 0, proc.stdout
+    assert "Traceback" not in proc.stderr, proc.stderr
+    lines = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1, proc.stderr
+    for n in needles:
+        assert n in lines[0], f"{n!r} not in {lines[0]!r}"
+    return lines[0]

@@ -1,0 +1,29 @@
+"""Shared helpers of the model tests: random reachable poses away from singularities."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def random_reachable(model, rng: np.random.Generator, n: int, lo, hi, margin: float = 0.05) -> np.ndarray:
+    """``n`` uniformly drawn poses in the box [lo, hi] (mm) that the model evaluates, with both
+    singularity measures above ``margin`` (so finite differences stay meaningful)."""
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    out = []
+    while sum(len(o) for o in out) < n:
+        P = rng.uniform(lo, hi, size=(4 * n, lo.size))
+        s, p = model.singularity_measures(P)
+        ok = model.evaluate(P).valid & (s > margin) & (p > margin)
+        out.append(P[ok])
+    return np.concatenate(out)[:n]
+
+
+def central_jacobian(f, x: np.ndarray, h: float) -> np.ndarray:
+    """Central-difference Jacobian of a vectorised f: (N, d) -> (N, m), shape (N, m, d)."""
+    cols = []
+    for k in range(x.shape[1]):
+        e = np.zeros(x.shape[1])
+        e[k] = h
+        cols.append((f(x + e) - f(x - e)) / (2 * h))
+    return np.stack(cols, axis=2)

@@ -1,0 +1,90 @@
+"""A sensor campaign end to end: simulated LDV traces of the 3PRR -> static errors -> K_j fit."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from _cli import stiffmap
+
+from stiffmap.models.presets import PRR3_MIDDLE_LINE, prr3_points22
+from stiffmap.models.prr3 import PRR3
+from stiffmap.sim.traces import simulate_point_traces
+
+
+def _campaign(tmp_path, kj_true=600.0, seed=3):
+    model = PRR3(kj=kj_true)
+    pts = prr3_points22()[np.asarray(PRR3_MIDDLE_LINE) - 1]
+    points = np.repeat(pts, 2, axis=0)
+    dirs = np.tile([[1.0, 0.0], [0.0, 1.0]], (len(pts), 1))
+    signs = np.tile([-1, 1], len(pts))  # horizontal loads through a mirror, as the milling study
+    truths = simulate_point_traces(tmp_path / "rec", points, dirs, model, axis_signs=signs, seed=seed)
+    recs = "\n".join(
+        f'  {{point = [{p[0]:.6f}, {p[1]:.6f}], direction = "{"x" if d[0] else "y"}", '
+        f'file = "rec/trace_{i:03d}.csv", sign = {s}}},'
+        for i, (p, d, s) in enumerate(zip(points, dirs, signs, strict=True))
+    )
+    (tmp_path / "campaign.toml").write_text(
+        f"""name = "3PRR static error"
+kind = "sensor"
+g = 9.81
+
+[robot]
+model = "3prr"
+
+[sensor]
+scale_um_per_v = 640.0
+reference_load_n = 490.5
+recordings = [
+{recs}
+]
+"""
+    )
+    return truths, model
+
+
+def test_sensor_campaign_recovers_kj_and_static_errors(tmp_path):
+    truths, model = _campaign(tmp_path)
+    proc = stiffmap("run", tmp_path, "--json")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)
+    fit = next(f for f in summary["model_fits"] if f["name"] == "static_error")
+    assert fit["status"] == "ok"
+    # The traces carry noise, drift and 16-bit quantisation; 16 recordings fix K_j well.
+    assert fit["params"]["kj"] == pytest.approx(600.0, rel=0.01)
+    rows = {r["file"]: r for r in _csv(tmp_path / "exports" / "sensor_results.csv")}
+    for i, t in enumerate(truths):
+        measured_um = float(rows[f"rec/trace_{i:03d}.csv"]["static_error_um"])
+        true_um = 1e3 * t.static_error_mm
+        assert abs(measured_um - true_um) <= 1.0 + 0.01 * abs(true_um)
+    # A second run reuses every recording.
+    again = stiffmap("run", tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "16 recordings: 0 analysed, 16 unchanged" in again.stdout
+
+
+def test_a_bad_recording_is_named_and_the_others_go_on(tmp_path):
+    _campaign(tmp_path)
+    bad = tmp_path / "rec" / "trace_003.csv"
+    lines = bad.read_text().splitlines()
+    head, rows = lines[0], lines[1:]
+    cols = head.split(",")
+    j = cols.index("displacement_v")
+    for k in range(len(rows) // 3, len(rows) // 3 + 200):  # saturate a span
+        cells = rows[k].split(",")
+        cells[j] = "8.0"
+        rows[k] = ",".join(cells)
+    bad.write_text("\n".join([head, *rows]) + "\n")
+    proc = stiffmap("run", tmp_path)
+    assert proc.returncode == 1
+    assert "rec/trace_003.csv" in proc.stderr and "satur" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert "model fit" not in proc.stderr  # the fit went on with the 15 others
+
+
+def _csv(path):
+    import csv
+
+    with open(path) as f:
+        return list(csv.DictReader(f))

@@ -1,0 +1,110 @@
+"""campaign.toml: the example parses, dumps round-trip, and every mistake names key and line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stiffmap.campaign.spec import EXAMPLE_TOML, dump_spec, load_spec, parse_spec
+from stiffmap.errors import InputError
+
+
+def test_example_parses_and_round_trips():
+    spec = parse_spec(EXAMPLE_TOML)
+    assert spec.kind == "vision" and spec.repeats == 10
+    assert spec.targets.fixed.board == "9x6" and spec.targets.mobile.square_mm == 10.0
+    assert spec.images.path("loaded", 3, 2, 10) == "images/p03/l02_r10_loaded.png"
+    again = parse_spec(dump_spec(spec))
+    assert again == spec
+
+
+def test_loads_resolve_with_friction():
+    spec = parse_spec(EXAMPLE_TOML)
+    loads = spec.loads.resolve(9.81)
+    assert len(loads) == 9
+    # +y 0.5 kg through a pulley: 0.5 - 0.028 kg; -z loads hang directly: no friction.
+    np.testing.assert_allclose(loads[0].force, [0, (0.5 - 0.028) * 9.81, 0], rtol=1e-12)
+    np.testing.assert_allclose(loads[2].force, [0, 0, -0.5 * 9.81], rtol=1e-12)
+    assert loads[0].cov[1, 1] == pytest.approx((0.008 * 9.81) ** 2)
+
+
+def test_explicit_positions_and_grid():
+    text = EXAMPLE_TOML.replace('preset = "paper48"', "list = [[0, 0, -300], [10, 20, -310]]")
+    np.testing.assert_allclose(parse_spec(text).positions.resolve(), [[0, 0, -300], [10, 20, -310]])
+    text = EXAMPLE_TOML.replace('preset = "paper48"', "grid = {x = [-100, 100], y = [0], z = [-200, -400]}")
+    assert parse_spec(text).positions.resolve().shape == (4, 3)
+
+
+def _line_of(text: str, needle: str) -> int:
+    return next(i for i, ln in enumerate(text.splitlines(), 1) if needle in ln)
+
+
+@pytest.mark.parametrize(
+    "old, new, key, message",
+    [
+        (
+            "square_mm = 10.0\n# its pose",
+            "square_mm = -10.0\n# its pose",
+            "targets.fixed.square_mm",
+            "greater than 0",
+        ),
+        (
+            'preset = "paper9"          #',
+            'preest = "paper9"          #',
+            "loads.preest",
+            "did you mean 'preset'",
+        ),
+        ("repeats = 10 ", 'repeats = "ten" ', "repeats", "valid integer"),
+        ('board = "5x4"', 'board = "5by4"', "targets.mobile.board", "COLSxROWS"),
+        ('model = "delta"', 'model = "scara"', "robot.model", "'delta', '3prr' or 'none'"),
+        ("[0.0, -1.0, 0.0, 31.00]", "[0.0, -1.0, 0.5, 31.00]", "targets.fixed.fixed2base", "rotation"),
+    ],
+)
+def test_mistakes_name_key_and_line(old, new, key, message):
+    assert old in EXAMPLE_TOML
+    text = EXAMPLE_TOML.replace(old, new, 1)
+    with pytest.raises(InputError) as info:
+        parse_spec(text, source="c/campaign.toml")
+    msg = str(info.value)
+    assert msg.startswith("c/campaign.toml: ")
+    assert f"key {key!r}" in msg and message in msg
+    line = (
+        _line_of(text, new.split("\n")[0].strip())
+        if key != "targets.fixed.fixed2base"
+        else _line_of(text, "fixed2base =")
+    )
+    assert f"line {line}," in msg
+
+
+def test_missing_section_and_key():
+    text = EXAMPLE_TOML.split("[targets.fixed]")[0]
+    with pytest.raises(InputError, match=r"needs the section\(s\) \[targets\], \[positions\], \[loads\]"):
+        parse_spec(text)
+    text = EXAMPLE_TOML.replace("square_mm = 10.0\npoint_mm", "point_mm")
+    with pytest.raises(InputError, match=r"key 'targets.mobile.square_mm': missing key"):
+        parse_spec(text)
+
+
+def test_toml_syntax_error_and_missing_file(tmp_path):
+    with pytest.raises(InputError, match="not valid TOML"):
+        parse_spec("name = ")
+    with pytest.raises(InputError, match="no campaign.toml found"):
+        load_spec(tmp_path)
+
+
+def test_pattern_placeholders_are_checked():
+    text = EXAMPLE_TOML.replace(
+        'loaded = "images/p{position:02d}/l{load:02d}', 'loaded = "images/p{pos:02d}/l{load:02d}'
+    )
+    with pytest.raises(InputError, match=r"unknown placeholder"):
+        parse_spec(text)
+
+
+def test_position_presets_resolve():
+    spec = parse_spec(EXAMPLE_TOML)
+    pts = spec.positions.resolve()
+    assert pts.shape == (48, 3)
+    assert sorted(set(pts[:, 2])) == [-400.0, -310.0, -200.0]
+    text = EXAMPLE_TOML.replace('preset = "paper48"', 'preset = "paper50"')
+    with pytest.raises(ValueError, match="unknown position preset"):
+        parse_spec(text).positions.resolve()

@@ -1,0 +1,116 @@
+"""``stiffmap identify`` as a user runs it: outputs, JSON, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from _cli import assert_one_line_error, stiffmap
+from conftest import random_spd
+
+from stiffmap.loads import forces_matrix, paper9
+
+F9 = forces_matrix(paper9())
+
+
+def _write(path, header, rows):
+    path.write_text(",".join(header) + "\n" + "\n".join(",".join(str(x) for x in r) for r in rows) + "\n")
+    return path
+
+
+@pytest.fixture
+def design(tmp_path):
+    rng = np.random.default_rng(7)
+    K = random_spd(rng, 3, 1.0, 10.0)
+    repeats = 4
+    D = np.concatenate(
+        [np.linalg.solve(K, F9) + rng.normal(scale=2e-3, size=F9.shape) for _ in range(repeats)], axis=1
+    )
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F9.T)
+    rows = [[*D[:, i], i // 9 + 1] for i in range(D.shape[1])]
+    disp = _write(tmp_path / "displacements.csv", ["dx", "dy", "dz", "repeat"], rows)
+    return K, forces, disp
+
+
+def test_identify_json_recovers_k_with_repeats(design):
+    K, forces, disp = design
+    proc = stiffmap("identify", forces, disp, "--json")
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    for key in ("K", "K_std", "det", "eigenvalues", "flags", "method", "rank", "condition"):
+        assert key in out
+    Kest = np.array(out["K"])
+    assert np.linalg.norm(Kest - K) / np.linalg.norm(K) < 0.02
+    assert out["method"] == "compliance" and out["rank"] == 3 and out["repeats"] == 4
+    assert out["det"] == pytest.approx(np.linalg.det(Kest), rel=1e-9)
+    # The true K lies within 4 standard errors entry by entry.
+    assert np.all(np.abs(Kest - K) < 4 * np.array(out["K_std"]))
+
+
+def test_identify_table_output(design):
+    _, forces, disp = design
+    proc = stiffmap("identify", forces, disp, "--method", "spd")
+    assert proc.returncode == 0, proc.stderr
+    assert "method spd" in proc.stdout and "det(K)" in proc.stdout and "±" in proc.stdout
+
+
+def test_rank_deficient_loads(tmp_path):
+    F = F9.copy()
+    F[2] = 0
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F.T)
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
+    assert_one_line_error(
+        stiffmap("identify", forces, disp), "forces.csv", "rank 2", "3 linearly independent"
+    )
+
+
+def test_mismatched_row_counts(tmp_path):
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F9.T)
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((8, 3)))
+    assert_one_line_error(stiffmap("identify", forces, disp), "disp.csv", "8 data rows", "9 load cases")
+
+
+def test_repeat_with_missing_row(tmp_path):
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F9.T)
+    rows = [[1, 1, 1, 1]] * 9 + [[1, 1, 1, 2]] * 8
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz", "repeat"], rows)
+    assert_one_line_error(stiffmap("identify", forces, disp), "disp.csv", "repeat '2' has 8 rows")
+
+
+def test_nan_cell(tmp_path):
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F9.T)
+    rows = np.ones((9, 3)).astype(object)
+    rows[4, 1] = "nan"
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], rows)
+    assert_one_line_error(stiffmap("identify", forces, disp), "disp.csv", "line 6", "'dy'")
+
+
+def test_non_numeric_cell(tmp_path):
+    rows = F9.T.astype(object)
+    rows[2, 2] = "abc"
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], rows)
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
+    assert_one_line_error(
+        stiffmap("identify", forces, disp), "forces.csv", "line 4", "'fz'", "'abc' is not a number"
+    )
+
+
+def test_missing_column(tmp_path):
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy"], F9.T[:, :2])
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
+    assert_one_line_error(stiffmap("identify", forces, disp), "forces.csv", "missing column 'fz'")
+
+
+def test_missing_file(tmp_path):
+    disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
+    assert_one_line_error(stiffmap("identify", tmp_path / "nope.csv", disp), "nope.csv", "file not found")
+
+
+def test_version_and_help():
+    from stiffmap import __version__
+
+    proc = stiffmap("--version")
+    assert proc.returncode == 0 and proc.stdout.strip() == f"stiffmap {__version__}"
+    proc = stiffmap("identify", "--help")
+    assert proc.returncode == 0 and "--method" in proc.stdout and "compliance" in proc.stdout

@@ -1,0 +1,175 @@
+"""Readers and writers of recordings: CSV, TDMS, MAT; the channel map; file errors."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import scipy.io
+from _sensors_helpers import quick_trace
+from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+
+from stiffmap.errors import InputError
+from stiffmap.io import dumps_json
+from stiffmap.sensors import (
+    ChannelMap,
+    Recording,
+    SensorConfig,
+    analyse_recording,
+    parse_channel_map,
+    read_recording,
+    write_recording,
+)
+
+
+@pytest.mark.parametrize("load_channel", [True, False])
+def test_same_recording_as_csv_tdms_mat_gives_identical_results(tmp_path, load_channel):
+    """The issue's must-show: one recording stored in the three formats analyses identically."""
+    from stiffmap.sim.traces import LoadSteps
+
+    tr = quick_trace(
+        0.8, seed=11, protocol=LoadSteps(plateau_s=2.0, transition_s=0.8, load_channel=load_channel)
+    )
+    cfg = SensorConfig(steps=None if load_channel else tr.truth.steps)
+    dicts = {}
+    for fmt in ("csv", "tdms", "mat"):
+        p = write_recording(tr.recording, tmp_path / f"rec.{fmt}")
+        rec = read_recording(p)
+        # Bit-for-bit the same samples as simulated.
+        np.testing.assert_array_equal(rec.time_s, tr.recording.time_s)
+        np.testing.assert_array_equal(rec.displacement_v, tr.recording.displacement_v)
+        if load_channel:
+            np.testing.assert_array_equal(rec.load, tr.recording.load)
+            assert rec.load_unit == "kgf"
+        else:
+            assert rec.load is None
+        d = analyse_recording(rec, cfg).to_dict()
+        d.pop("file")
+        dicts[fmt] = dumps_json(d)  # NaN (a table's load std) as null, so equal means equal
+    assert dicts["csv"] == dicts["tdms"] == dicts["mat"]
+    # ... and the numbers are right (truth of the simulation), so they are not identically wrong.
+    est = json.loads(dicts["csv"])["static_error_um"]
+    assert abs(est - 1e3 * tr.truth.static_error_mm) <= 1 + 0.01 * 800
+
+
+def test_tdms_waveform_without_time_channel_and_with_gap(tmp_path):
+    tr = quick_trace(0.3, seed=2)
+    p = write_recording(tr.recording, tmp_path / "w.tdms")
+    from nptdms import TdmsFile
+
+    f = TdmsFile.read(p)
+    names = [c.name for c in f["daq"].channels()]
+    assert "time_s" not in names  # uniform sampling: written as a waveform (wf_increment)
+    assert f["daq"]["displacement_v"].properties["wf_increment"] == pytest.approx(1 / 500.0, rel=1e-15)
+    # A recording with missing samples cannot be a waveform: a time channel is written.
+    gap = quick_trace(0.3, seed=2, dropouts=[(3.0, 3.2)], dropout_kind="gap")
+    p2 = write_recording(gap.recording, tmp_path / "g.tdms")
+    rec = read_recording(p2)
+    assert "time_s" in [c.name for c in TdmsFile.read(p2)["daq"].channels()]
+    np.testing.assert_array_equal(rec.time_s, gap.recording.time_s)
+    assert np.diff(rec.time_s).max() == pytest.approx(0.202, abs=0.0021)
+
+
+def test_channel_map_custom_names_in_each_format(tmp_path):
+    rng = np.random.default_rng(3)
+    n = 200
+    t = np.arange(n) / 100.0
+    v = rng.normal(size=n)
+    f = rng.uniform(0, 50, size=n)
+    cmap = parse_channel_map("displacement=LDV,load=force_n,time=t")
+    assert cmap == ChannelMap("LDV", "force_n", "t", load_required=True, time_required=True)
+    # CSV with other columns around.
+    (tmp_path / "a.csv").write_text(
+        "# recorded by hand\nt,other,LDV,force_n\n"
+        + "".join(f"{a:.17g},1,{b:.17g},{c:.17g}\n" for a, b, c in zip(t, v, f, strict=True))
+    )
+    # TDMS in a group of its own, MAT as fields of a struct.
+    with TdmsWriter(tmp_path / "a.tdms") as w:
+        w.write_segment(
+            [
+                RootObject(),
+                GroupObject("run1"),
+                ChannelObject("run1", "t", t),
+                ChannelObject("run1", "LDV", v),
+                ChannelObject("run1", "force_n", f),
+            ]
+        )
+    scipy.io.savemat(tmp_path / "a.mat", {"rec": {"t": t, "LDV": v, "force_n": f}})
+    for name, cm in (("a.csv", cmap), ("a.tdms", cmap), ("a.mat", dataclasses.replace(cmap, group="rec"))):
+        rec = read_recording(tmp_path / name, cm)
+        np.testing.assert_array_equal(rec.time_s, t)
+        np.testing.assert_array_equal(rec.displacement_v, v)
+        np.testing.assert_array_equal(rec.load, f)
+        assert rec.load_unit == "N", name  # from the column's suffix
+
+
+def test_no_time_column_uses_the_rate(tmp_path):
+    (tmp_path / "r.csv").write_text("displacement_v\n" + "\n".join(["0.5"] * 50) + "\n")
+    rec = read_recording(tmp_path / "r.csv", parse_channel_map("time=none,rate=250,load=none"))
+    np.testing.assert_allclose(rec.time_s, np.arange(50) / 250.0, rtol=0, atol=1e-15)
+    with pytest.raises(InputError, match=r"r\.csv: no time channel .*rate=HZ"):
+        read_recording(tmp_path / "r.csv")
+    scipy.io.savemat(tmp_path / "r.mat", {"displacement_v": np.zeros(40), "sample_rate_hz": 2000.0})
+    rec = read_recording(tmp_path / "r.mat")
+    assert rec.sample_rate_hz == pytest.approx(2000.0, rel=1e-12)
+
+
+def test_reader_errors_name_the_file_and_the_channel(tmp_path):
+    with pytest.raises(InputError, match=r"nope\.csv: file not found"):
+        read_recording(tmp_path / "nope.csv")
+    (tmp_path / "x.xlsx").write_text("")
+    with pytest.raises(InputError, match=r"unknown recording format '\.xlsx'"):
+        read_recording(tmp_path / "x.xlsx")
+    (tmp_path / "c.csv").write_text("time_s,volts\n0,1\n0.1,2\n")
+    with pytest.raises(InputError, match=r"c\.csv: missing column 'displacement_v'"):
+        read_recording(tmp_path / "c.csv")
+    (tmp_path / "d.csv").write_text("time_s,displacement_v\n0,1\n0.1,abc\n")
+    with pytest.raises(InputError, match=r"d\.csv: line 3, column 'displacement_v': 'abc' is not a number"):
+        read_recording(tmp_path / "d.csv")
+    (tmp_path / "e.csv").write_text("time_s,displacement_v\n0,1\n0.2,2\n0.1,3\n")
+    with pytest.raises(InputError, match=r"e\.csv: time must increase: sample 2 at 0\.1 s follows 0\.2 s"):
+        read_recording(tmp_path / "e.csv")
+    (tmp_path / "f.csv").write_text("time_s,displacement_v\n0,1\n0.1,2\n")
+    with pytest.raises(InputError, match=r"f\.csv: missing column 'load_n'"):
+        read_recording(tmp_path / "f.csv", parse_channel_map("load=load_n"))
+    (tmp_path / "bad.tdms").write_bytes(b"this is not a TDMS file at all" * 4)
+    with pytest.raises(InputError, match=r"bad\.tdms: not a readable TDMS file"):
+        read_recording(tmp_path / "bad.tdms")
+    (tmp_path / "bad.mat").write_bytes(b"\x00\x01garbage" * 20)
+    with pytest.raises(InputError, match=r"bad\.mat: not a readable MATLAB \.mat file"):
+        read_recording(tmp_path / "bad.mat")
+    scipy.io.savemat(tmp_path / "m.mat", {"time_s": np.arange(5.0), "displacement_v": np.zeros(4)})
+    with pytest.raises(InputError, match=r"m\.mat: variable 'time_s' has 5 samples, 'displacement_v' has 4"):
+        read_recording(tmp_path / "m.mat")
+    with pytest.raises(InputError, match=r"unknown key 'volts'"):
+        parse_channel_map("volts=a")
+
+
+def test_recording_checks_its_arrays():
+    with pytest.raises(InputError, match="time has 3 samples but the displacement has 2"):
+        Recording("r", [0, 1, 2], [0, 1])
+    with pytest.raises(InputError, match="time of sample 1 is not a finite number"):
+        Recording("r", [0, np.nan, 2], [0, 1, 2])
+
+
+def test_tdms_channel_in_two_groups_asks_for_the_group(tmp_path):
+    t = np.arange(100) / 100.0
+    with TdmsWriter(tmp_path / "two.tdms") as w:
+        w.write_segment(
+            [
+                RootObject(),
+                GroupObject("a"),
+                GroupObject("b"),
+                ChannelObject("a", "displacement_v", t),
+                ChannelObject("b", "displacement_v", -t),
+                ChannelObject("a", "time_s", t),
+            ]
+        )
+    with pytest.raises(InputError, match=r"channel 'displacement_v' is in several groups \('a', 'b'\)"):
+        read_recording(tmp_path / "two.tdms")
+    rec = read_recording(tmp_path / "two.tdms", parse_channel_map("group=b,time=none,rate=100"))
+    np.testing.assert_array_equal(rec.displacement_v, -t)
+    with pytest.raises(InputError, match=r"no TDMS group 'c' \(groups: 'a', 'b'\)"):
+        read_recording(tmp_path / "two.tdms", parse_channel_map("group=c"))

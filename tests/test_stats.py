@@ -1,0 +1,106 @@
+"""ISO 5725-2 repeat statistics: critical values and the precision analysis."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stiffmap.stats import (
+    cochran_critical,
+    describe,
+    grubbs_critical,
+    mandel_h_critical,
+    mandel_k_critical,
+    precision,
+)
+
+# ISO 5725-2:1994 Tables 4-6 (and the issue's list) for p = 8 laboratories, n = 2 repeats,
+# 5 % (stragglers) and 1 % (outliers). Printed to 3 decimals: compare to half a unit.
+PUBLISHED = {
+    "h": (1.749, 2.065),
+    "k": (1.885, 2.256),
+    "C": (0.680, 0.794),
+    "G": (2.127, 2.274),
+}
+TOL = 6e-4
+
+
+@pytest.mark.parametrize("i, alpha", [(0, 0.05), (1, 0.01)])
+def test_critical_values_match_iso_5725_2_tables(i, alpha):
+    assert mandel_h_critical(8, alpha) == pytest.approx(PUBLISHED["h"][i], abs=TOL)
+    assert mandel_k_critical(8, 2, alpha) == pytest.approx(PUBLISHED["k"][i], abs=TOL)
+    assert cochran_critical(8, 2, alpha) == pytest.approx(PUBLISHED["C"][i], abs=TOL)
+    assert grubbs_critical(8, alpha) == pytest.approx(PUBLISHED["G"][i], abs=TOL)
+
+
+def test_grubbs_critical_stays_below_the_largest_possible_statistic():
+    # No sample of p values has G above (p - 1)/sqrt(p); for p = 3 the critical values
+    # crowd against that bound (1.1547).
+    for p in (3, 4, 8, 20):
+        bound = (p - 1) / np.sqrt(p)
+        for alpha in (0.05, 0.01):
+            assert grubbs_critical(p, alpha) < bound
+    assert grubbs_critical(3, 0.05) > 1.154
+
+
+def test_critical_values_grow_with_confidence():
+    for p in (3, 5, 10, 30):
+        assert mandel_h_critical(p, 0.01) > mandel_h_critical(p, 0.05)
+        assert grubbs_critical(p, 0.01) > grubbs_critical(p, 0.05)
+        assert cochran_critical(p, 4, 0.01) > cochran_critical(p, 4, 0.05)
+        assert mandel_k_critical(p, 4, 0.01) > mandel_k_critical(p, 4, 0.05)
+
+
+def test_precision_recovers_known_repeatability_and_between_spread():
+    rng = np.random.default_rng(5725)
+    s_r, s_L = 0.02, 0.05  # mm
+    groups = [rng.normal(10 + rng.normal(scale=s_L), s_r, size=5) for _ in range(400)]
+    res = precision(groups)
+    assert res.s_r == pytest.approx(s_r, rel=0.05)
+    assert res.s_L == pytest.approx(s_L, rel=0.1)
+    assert res.r == pytest.approx(2.8 * res.s_r)
+    assert res.R == pytest.approx(2.8 * np.hypot(res.s_L, res.s_r))
+    assert res.grand_mean == pytest.approx(10.0, abs=0.01)
+
+
+def test_precision_flags_an_outlying_mean_and_a_noisy_condition():
+    rng = np.random.default_rng(1)
+    groups = [list(rng.normal(5.0, 0.01, size=4)) for _ in range(8)]
+    groups[3] = [x + 0.2 for x in groups[3]]  # a shifted condition: 20 sigma
+    groups[6] = list(rng.normal(5.0, 0.2, size=4))  # a noisy condition
+    res = precision(groups, labels=[f"position {i + 1}" for i in range(8)])
+    text = " | ".join(res.outliers + res.stragglers)
+    assert "position 4: Grubbs" in text or "position 4: Mandel h" in text
+    assert "position 7: Cochran" in text or "position 7: Mandel k" in text
+    assert res.cochran_C > res.critical["C"][1]
+
+
+def test_mandel_h_sums_to_zero_and_k_mean_square_is_one():
+    rng = np.random.default_rng(2)
+    groups = [rng.normal(size=3) for _ in range(6)]
+    res = precision(groups)
+    assert res.h.sum() == pytest.approx(0.0, abs=1e-12)
+    assert np.mean(res.k**2) == pytest.approx(1.0, rel=1e-12)
+
+
+def test_unequal_repeats_use_the_iso_nbar():
+    groups = [[1.0, 1.1, 0.9], [2.0, 2.2], [1.5, 1.4, 1.6, 1.5]]
+    res = precision(groups)
+    n = np.array([3, 2, 4])
+    means = np.array([np.mean(g) for g in groups])
+    s2 = np.array([np.var(g, ddof=1) for g in groups])
+    s_r2 = ((n - 1) * s2).sum() / (n - 1).sum()
+    grand = (n * means).sum() / n.sum()
+    s_d2 = (n * (means - grand) ** 2).sum() / 2
+    nbar = (n.sum() - (n**2).sum() / n.sum()) / 2
+    assert res.s_r == pytest.approx(np.sqrt(s_r2), rel=1e-12)
+    assert res.s_L == pytest.approx(np.sqrt((s_d2 - s_r2) / nbar), rel=1e-12)
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(ValueError, match="at least 2 repeats"):
+        precision([[1.0, 2.0], [3.0]], labels=["a", "b"])
+    with pytest.raises(ValueError, match="NaN"):
+        describe([1.0, float("nan")])
+    with pytest.raises(ValueError, match="p"):
+        mandel_h_critical(2, 0.05)
