@@ -11,8 +11,8 @@ Per image, in one run over the same files:
 
 - decode: ``cv2.imread`` alone (the floor: no method can be faster than reading the image);
 - plain OpenCV, one target: ``cv2.imread`` + ``findChessboardCornersSB`` (default flags,
-  full image) + ``solvePnP``, for the fixed 12x7 board (SB does not find the 8x6 board
-  while the larger board is in the image, see the success column);
+  full image) + ``solvePnP``, timed for each board alone (the mobile 8x6, the fixed 12x7);
+  the speed-up is against the faster of the two;
 - stiffmap, both targets: ``PoseTracker.measure`` (read, size check, detection or
   tracking of both boards, both poses with covariance, mobile2base).
 
@@ -93,11 +93,12 @@ def run(paths, poses, F, repeats):
     n = len(paths)
     t_dec = np.zeros((repeats, n))
     t_base = np.zeros((repeats, n))
+    t_base_m = np.zeros((repeats, n))
     t_ours = np.zeros((repeats, n))
     tracked = np.zeros(n, bool)
     base_ok = 0
     base_mobile_ok = 0
-    acc_base, acc_ours_f, acc_ours_m = [], [], []
+    acc_base, acc_base_m, acc_ours_f, acc_ours_m = [], [], [], []
     for r in range(repeats):
         tr = PoseTracker(cam, MOBILE, FIXED, fixed2base)
         for k, p in enumerate(paths):
@@ -107,6 +108,9 @@ def run(paths, poses, F, repeats):
             t0 = time.perf_counter()
             c = baseline(p, FIXED, cam)
             t_base[r, k] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            cm = baseline(p, MOBILE, cam)
+            t_base_m[r, k] = time.perf_counter() - t0
             t0 = time.perf_counter()
             m = tr.measure(p)
             t_ours[r, k] = time.perf_counter() - t0
@@ -119,19 +123,22 @@ def run(paths, poses, F, repeats):
                 if c is not None:
                     base_ok += 1
                     acc_base.append(rms_to_truth(c, gt_f))
+                if cm is not None:
+                    base_mobile_ok += 1
+                    acc_base_m.append(rms_to_truth(cm, gt_m))
                 acc_ours_f.append(rms_to_truth(m.fixed_detection.corners, gt_f[m.fixed_detection.ids]))
                 acc_ours_m.append(rms_to_truth(m.mobile_detection.corners, gt_m[m.mobile_detection.ids]))
-                img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
-                base_mobile_ok += bool(cv2.findChessboardCornersSB(img, MOBILE.pattern_size)[0])
     med = lambda a: np.median(a, axis=0)  # noqa: E731
     return {
         "decode": med(t_dec),
         "base": med(t_base),
+        "base_m": med(t_base_m),
         "ours": med(t_ours),
         "tracked": tracked,
         "base_ok": base_ok,
         "base_mobile_ok": base_mobile_ok,
         "acc_base": float(np.mean(acc_base)) if acc_base else float("nan"),
+        "acc_base_m": float(np.mean(acc_base_m)) if acc_base_m else float("nan"),
         "acc_ours_f": float(np.mean(acc_ours_f)),
         "acc_ours_m": float(np.mean(acc_ours_m)),
     }
@@ -173,11 +180,12 @@ def main() -> None:
             dec = r["decode"]
             tr = r["tracked"]
             ours = r["ours"]
-            base = r["base"]
+            base = r["base"] if r["base"].mean() < r["base_m"].mean() else r["base_m"]
             size_mb = np.mean([p.stat().st_size for p in paths]) / 1e6
             rows = [
                 ("decode alone (cv2.imread), mean", 1e3 * dec.mean()),
-                ("plain OpenCV, one target (fixed 12x7), mean", 1e3 * base.mean()),
+                ("plain OpenCV, one target (mobile 8x6), mean", 1e3 * r["base_m"].mean()),
+                ("plain OpenCV, one target (fixed 12x7), mean", 1e3 * r["base"].mean()),
                 ("stiffmap, both targets, first image (full detection)", 1e3 * ours[0]),
                 (
                     f"stiffmap, both targets, tracked images (mean of {tr.sum()})",
@@ -196,26 +204,27 @@ def main() -> None:
                 "",
                 "| result | value |",
                 "|---|---:|",
-                "| speed-up of stiffmap (2 targets) over plain OpenCV (1 target), sequence mean "
+                "| speed-up of stiffmap (2 targets) over plain OpenCV (1 target, the faster), sequence mean "
                 f"| {speedup:.1f} x |",
                 f"| tracked image time / decode time (same images) | {track_ratio:.2f} |",
                 f"| images tracked (no full detection) | {tr.sum()} of {n} |",
                 f"| plain OpenCV found the fixed 12x7 board | {r['base_ok']} of {n} |",
-                "| plain OpenCV found the mobile 8x6 board (other board in view) "
-                f"| {r['base_mobile_ok']} of {n} |",
+                f"| plain OpenCV found the mobile 8x6 board | {r['base_mobile_ok']} of {n} |",
+                f"| corner RMS error, plain OpenCV (SB), mobile board (px) | {r['acc_base_m']:.4f} |",
                 f"| corner RMS error, plain OpenCV (SB), fixed board (px) | {r['acc_base']:.4f} |",
                 f"| corner RMS error, stiffmap, fixed board (px) | {r['acc_ours_f']:.4f} |",
                 f"| corner RMS error, stiffmap, mobile board (px) | {r['acc_ours_m']:.4f} |",
                 "",
             ]
-            print("\n".join(lines[-(len(rows) + 16) :]), flush=True)
+            print("\n".join(lines[-(len(rows) + 17) :]), flush=True)
             if fmt == "png":
+                better = r["acc_ours_f"] <= r["acc_base"] and r["acc_ours_m"] <= r["acc_base_m"]
                 verdict = (
                     f"Claim (PNG): >= 5x faster: {'yes' if speedup >= 5 else 'NO'} ({speedup:.1f}x); "
                     f"tracked images within 1.5x of decode: {'yes' if track_ratio <= 1.5 else 'NO'} "
                     f"({track_ratio:.2f}); "
                     f"corner accuracy equal or better: "
-                    f"{'yes' if r['acc_ours_f'] <= r['acc_base'] else 'NO'}."
+                    f"{'yes' if better else 'NO'}."
                 )
     lines += [
         verdict,

@@ -1,7 +1,9 @@
 """Test fixtures for the vision tests: a small chessboard renderer with known ground truth.
 
-This is a stand-in for the virtual test-bed's renderer (``stiffmap.sim.render``):
-it draws chessboards at known poses through a :class:`~stiffmap.camera.CameraModel`
+:func:`render` is a light stand-in for the virtual test-bed's renderer
+(``stiffmap.sim.render``, used by :func:`render_scene`, the benchmarks and the
+end-to-end tests), kept because it is quick on small images and takes an
+occluding rectangle: it draws chessboards at known poses through a :class:`~stiffmap.camera.CameraModel`
 (lens distortion included) by inverse mapping of supersampled pixel positions
 onto the board plane, then applies a Gaussian optical blur, a shot + read noise
 model and 8-bit quantisation. Corners' ground truth is the exact projection of
@@ -234,10 +236,30 @@ def small_camera() -> CameraModel:
     return CameraModel((640, 480), 900.0, 905.0, 322.5, 236.0, (-0.12, 0.08, 0.0005, -0.0003, 0.0))
 
 
-#: Which renderer the benchmarks use (switch here when ``stiffmap.sim.render`` lands on main).
-RENDERER = "tests/_vision_helpers.render (fixture: exact box-filtered edges, blur 0.7 px, shot + read noise)"
+#: Which renderer the benchmarks and end-to-end tests use: the virtual test-bed's.
+RENDERER = (
+    "stiffmap.sim.render (virtual test-bed: exact area coverage, default Photometry: "
+    "gain 0.8, read noise 0.8 DN, shot 0.04 DN/e, blur 0.8 px, vignetting 0.3)"
+)
 
 
-def render_scene(camera: CameraModel, scene, rng: np.random.Generator, photometry: Photometry | None = None):
-    """Render a scene for the benchmarks (one place to switch renderers)."""
-    return render(camera, scene, photometry=photometry, rng=rng)
+def render_scene(camera: CameraModel, scene, rng: np.random.Generator, photometry=None) -> np.ndarray:
+    """Render [(board, board2cam), ...] with ``stiffmap.sim.render`` (default realistic photometry).
+
+    Parameters
+    ----------
+    camera : CameraModel
+    scene : sequence of (Chessboard or CharucoBoard, ndarray (4, 4))
+    rng : numpy Generator
+        Noise source.
+    photometry : stiffmap.sim.render.Photometry, optional
+
+    Returns
+    -------
+    ndarray, shape (h, w), uint8
+    """
+    from stiffmap.sim.render import Target
+    from stiffmap.sim.render import render as sim_render
+
+    targets = [Target(b, T) for b, T in scene]
+    return sim_render(camera, targets, photometry=photometry, seed=rng).image
