@@ -106,7 +106,7 @@ def refine_corners(
     rh, rw = roi.shape
     q = pts - [x0, y0]
     # Gradient products on a patch of half-size P around each corner's starting pixel;
-    # the Gaussian weights (separable, truncated at |offset| <= w) follow the estimate
+    # the Gaussian weights (separable, cut at |offset| = w) follow the estimate
     # inside it, and a corner that wanders further gets a new patch.
     margin = 3
     P = w + margin
@@ -142,8 +142,10 @@ def refine_corners(
         qa = q[idx]
         dx = (centre[idx, 0, None] + off[None, :]) - qa[:, 0, None]  # (k, 2P+1), along x
         dy = (centre[idx, 1, None] + off[None, :]) - qa[:, 1, None]
-        wx = np.exp(-(dx * dx) / sigma2) * (np.abs(dx) <= w)
-        wy = np.exp(-(dy * dy) / sigma2) * (np.abs(dy) <= w)
+        # Gaussian weights cut at |offset| = w with a 1-px linear taper, so that they are
+        # continuous in the estimate (a hard cut makes the iteration cycle).
+        wx = np.exp(-(dx * dx) / sigma2) * np.clip(w + 0.5 - np.abs(dx), 0.0, 1.0)
+        wy = np.exp(-(dy * dy) / sigma2) * np.clip(w + 0.5 - np.abs(dy), 0.0, 1.0)
         # All weighted sums at once: S[k, g, r, s] = sum_ij V_r[i] G_g[ij] U_s[j] with
         # U = (wx, wx dx) along x and V = (wy, wy dy) along y.
         U = np.stack([wx, wx * dx], axis=2)  # (k, n, 2)
