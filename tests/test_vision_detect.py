@@ -170,3 +170,19 @@ def test_large_image_is_searched_reduced_and_refined_at_full_resolution():
     gt = true_corners(cam, SYM, T)
     np.testing.assert_allclose(d.corners, gt, atol=0.06)  # px
     assert np.sqrt(np.mean(np.sum((d.corners - gt) ** 2, axis=1))) < 0.03  # px
+
+
+def test_one_board_tracked_the_other_searched_again():
+    # The platform moves by half a square (tracking refused) while the base board stays:
+    # the tracked board is hidden from the new search, which must find the platform's.
+    fixed = Chessboard(9, 4, 10.0)
+    F = look_at_pose(340, fixed, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
+    M0 = look_at_pose(300, ODD, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M1 = M0.copy()
+    M1[:3, 3] += [6.0, -4.0, 0.0]
+    d0 = detect_boards(_img([(fixed, F), (ODD, M0)]), [ODD, fixed], camera=CAM)
+    img1 = _img([(fixed, F), (ODD, M1)], seed=4)
+    d1 = detect_boards(img1, [ODD, fixed], previous=d0, camera=CAM)
+    assert not d1[0].tracked and d1[1].tracked
+    np.testing.assert_allclose(d1[0].corners, true_corners(CAM, ODD, M1), atol=0.08)
+    np.testing.assert_allclose(d1[1].corners, true_corners(CAM, fixed, F), atol=0.08)

@@ -412,13 +412,16 @@ def _reject(
 
 
 def _search_chessboards(
-    image: np.ndarray, boards: Sequence[Chessboard], scale: int | None
+    image: np.ndarray, boards: Sequence[Chessboard], scale: int | None, masks: list[np.ndarray]
 ) -> dict[int, tuple[np.ndarray, int]]:
-    """Coarse grids (rows, cols, 2) in full-resolution px for the boards found, keyed by index."""
+    """Coarse grids (rows, cols, 2) in full-resolution px for the boards found, keyed by index.
+
+    ``masks`` (polygons, px) hide boards already known in this image (tracked ones);
+    the polygons of the boards found are appended to it.
+    """
     order = sorted(range(len(boards)), key=lambda k: -boards[k].n_corners)
     remaining = list(order)
     found: dict[int, tuple[np.ndarray, int]] = {}
-    masks: list[np.ndarray] = []
     for s in _auto_scales(image.shape, scale):
         small = _reduce(image, s)
         fill = int(np.median(small))
@@ -448,6 +451,18 @@ def _search_chessboards(
             if not remaining:
                 return found
     return found
+
+
+def _detection_mask(det: BoardDetection, margin_sq: float = 1.6) -> np.ndarray:
+    """Quadrilateral around a detected board (all of it, also the unseen part), px."""
+    cb = _grid_of(det.board)
+    obj = cb.object_points()[det.ids, :2] / cb.square_mm
+    H = _homography(obj, det.corners)
+    m = margin_sq
+    quad = np.array(
+        [[-m, -m], [cb.cols - 1 + m, -m], [cb.cols - 1 + m, cb.rows - 1 + m], [-m, cb.rows - 1 + m]]
+    )
+    return _apply_h(H, quad)
 
 
 def _mask_polygon(grid: np.ndarray, margin_sq: float = 1.6) -> np.ndarray:
@@ -778,7 +793,9 @@ def detect_boards(
                 )
         if todo_chess:
             t_search = time.perf_counter()
-            found = _search_chessboards(img, [boards[k] for k in todo_chess], scale)
+            # Boards already found in this image (tracked, ChArUco) are hidden from the search.
+            masks = [_detection_mask(d) for d in out if d is not None and d.n_corners >= 4]
+            found = _search_chessboards(img, [boards[k] for k in todo_chess], scale, masks)
             # The search time is shared by the boards it found.
             t_share = (time.perf_counter() - t_search) / max(len(found), 1)
             for j, k in enumerate(todo_chess):
@@ -790,7 +807,6 @@ def detect_boards(
             missing = [k for k in todo_chess if out[k] is None]
             if missing:
                 # Boards already found in this image are masked for the diagnosis.
-                masks = [_mask_polygon(found[j][0]) for j in found]
                 errs = [_diagnose(img, boards[k], masks, scale) for k in missing]
                 if len(errs) == 1:
                     raise errs[0]
