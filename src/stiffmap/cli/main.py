@@ -41,7 +41,16 @@ def _main(
 
 
 #: Command modules; each defines ``register(app)``.
-_COMMAND_MODULES = ("identify", "model", "sensor", "campaign", "report", "demo", "simulate")
+_COMMAND_MODULES = (
+    "identify",
+    "vision",
+    "model",
+    "sensor",
+    "simulate",
+    "campaign",
+    "report",
+    "demo",
+)
 
 for _name in _COMMAND_MODULES:
     importlib.import_module(f"{__package__}.{_name}").register(app)

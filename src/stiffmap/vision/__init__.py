@@ -1,4 +1,59 @@
 """Vision measurement: board detection, camera calibration, target poses, compliant displacements.
 
-OpenCV is imported only here and in ``stiffmap.sim``.
+OpenCV is imported only here and in ``stiffmap.sim``. See ``docs/vision.md``.
+
+Main entry points:
+
+- :func:`read_image` (file -> uint8 grey), :func:`check_image_size`
+- :func:`detect_board`, :func:`detect_boards`, :func:`track_board` -> :class:`BoardDetection`
+- :func:`calibrate_camera` -> :class:`CalibrationResult`
+- :func:`estimate_pose` -> :class:`BoardPose`
+- :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement`
+- :func:`compliant_displacement` -> :class:`Displacement`
+- :func:`validate_stage` -> :class:`StageValidation`
 """
+
+from .calibrate import DIST_MODELS, CalibrationResult, ViewResult, calibrate_camera
+from .corners import refine_corners
+from .detect import BoardDetection, DetectionError, board_label, detect_board, detect_boards, track_board
+from .displacement import Displacement, compliant_displacement, mean_pose
+from .files import calibrate_files, measure_files, read_stage_manifest, read_transform
+from .images import ImageError, check_image_size, read_image
+from .pose import BoardPose, estimate_pose, projection_jacobian
+from .sequence import ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
+from .validate import StageStep, StageValidation, stage_plot_svg, validate_stage
+
+__all__ = [
+    "BoardDetection",
+    "BoardPose",
+    "CalibrationResult",
+    "DIST_MODELS",
+    "DetectionError",
+    "Displacement",
+    "ImageError",
+    "ImageMeasurement",
+    "PoseTracker",
+    "StageStep",
+    "StageValidation",
+    "ViewResult",
+    "board_label",
+    "calibrate_camera",
+    "calibrate_files",
+    "check_image_size",
+    "compliant_displacement",
+    "detect_board",
+    "detect_boards",
+    "estimate_pose",
+    "mean_pose",
+    "measure_files",
+    "measure_sequence",
+    "mobile2base_from_poses",
+    "projection_jacobian",
+    "read_image",
+    "read_stage_manifest",
+    "read_transform",
+    "refine_corners",
+    "stage_plot_svg",
+    "track_board",
+    "validate_stage",
+]

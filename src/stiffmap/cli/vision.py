@@ -1,0 +1,415 @@
+"""Vision commands: ``calibrate``, ``pose``, ``displacement``, ``validate`` (see docs/vision.md).
+
+Heavy libraries (OpenCV) are imported inside the commands so that ``stiffmap
+--help`` stays fast.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from ..errors import InputError
+from .common import EXIT_INPUT, EXIT_PARTIAL, fail, fmt, out, print_json, warn
+
+_BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
+_CHARUCO_HELP = (
+    "The board is a ChArUco board with this ArUco dictionary (e.g. DICT_5X5_100); "
+    "--board still counts inner corners (squares - 1)."
+)
+
+
+def _board(
+    size: str, square_mm: float, charuco: str | None = None, marker_mm: float | None = None, what="--board"
+):
+    from ..targets import CharucoBoard, Chessboard, parse_board_size
+
+    try:
+        cols, rows = parse_board_size(size)
+        if charuco:
+            if marker_mm is None:
+                raise InputError("--charuco needs --marker-mm (side of the ArUco markers, mm)")
+            return CharucoBoard(cols + 1, rows + 1, square_mm, marker_mm, charuco)
+        return Chessboard(cols, rows, square_mm)
+    except InputError:
+        raise
+    except ValueError as e:
+        raise InputError(f"{what}: {e}") from None
+
+
+def _point(text: str | None):
+    if text is None:
+        return None
+    import numpy as np
+
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 3 or not np.all(np.isfinite(v)):
+        raise InputError(f"--point must be three numbers x,y,z in mm (target frame), got {text!r}")
+    return np.array(v)
+
+
+def _camera(path: Path):
+    from ..camera import load_camera
+
+    return load_camera(path)
+
+
+def _exit_for(n_ok: int, n_total: int) -> None:
+    if n_ok == 0:
+        raise typer.Exit(EXIT_INPUT)
+    if n_ok < n_total:
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+# ----------------------------------------------------------------------------- calibrate
+def calibrate(
+    images: list[Path] = typer.Argument(..., help="Images of the board (at least 3 views)."),
+    board: str = typer.Option(..., "--board", help=_BOARD_HELP),
+    square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
+    out_path: Path = typer.Option(Path("camera.json"), "--out", help="Where to write camera.json."),
+    fix_k3: bool = typer.Option(False, "--fix-k3", help="Fix k3 = 0 (the Matlab toolbox's default)."),
+    rational: bool = typer.Option(False, "--rational", help="Also estimate k4, k5, k6 (rational model)."),
+    thin_prism: bool = typer.Option(False, "--thin-prism", help="Rational model plus thin-prism s1..s4."),
+    outlier_factor: float = typer.Option(
+        3.0, "--outlier-factor", min=1.0, help="Leave out views whose RMS exceeds this times the median."
+    ),
+    charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
+    marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    as_json: bool = typer.Option(False, "--json", help="Print the camera.json object instead of tables."),
+) -> None:
+    """Calibrate a camera from images of a board (Zhang's method): intrinsics, distortion, 1-sigma.
+
+    Views where the board is not found, or whose RMS is an outlier, are left out with the
+    reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
+    """
+    from ..camera import save_camera
+    from ..vision.files import calibrate_files
+
+    try:
+        b = _board(board, square_mm, charuco, marker_mm)
+        if sum([fix_k3, rational, thin_prism]) > 1:
+            raise InputError("choose at most one of --fix-k3, --rational, --thin-prism")
+        model = "fix-k3" if fix_k3 else "rational" if rational else "thin-prism" if thin_prism else "k3"
+        res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor)
+        save_camera(res.camera, out_path)
+    except InputError as e:
+        raise fail(str(e)) from None
+    for v in res.views:
+        if not v.used:
+            warn(f"{v.image}: not used: {v.reason}")
+    if as_json:
+        print_json(res.to_dict())
+        return
+    c = res.camera
+    s = c.std
+    t = Table(title=f"camera ({c.image_size[0]}x{c.image_size[1]} px, model {res.model}), +/- 1 sigma")
+    t.add_column("parameter")
+    t.add_column("value")
+    t.add_column("1 sigma")
+    for k in ("fx", "fy", "cx", "cy"):
+        t.add_row(f"{k} (px)", f"{getattr(c, k):.4f}", f"{s[k]:.4f}")
+    names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
+    for name, v, sd in zip(names, c.dist, s["dist"], strict=False):
+        t.add_row(name, f"{v:.6f}", f"{sd:.6f}")
+    out.print(t)
+    out.print(
+        f"reprojection RMS {c.rms_px:.4f} px; residual std per axis "
+        f"[{c.residual_std_px[0]:.4f}, {c.residual_std_px[1]:.4f}] px; "
+        f"{res.n_used} of {len(res.views)} views used"
+    )
+    v = Table(title="views")
+    v.add_column("image", overflow="fold")
+    for col in ("used", "corners", "RMS (px)"):
+        v.add_column(col)
+    v.add_column("reason", overflow="fold")
+    for vr in res.views:
+        v.add_row(vr.image, "yes" if vr.used else "no", str(vr.n_corners), fmt(vr.rms_px, 3), vr.reason)
+    out.print(v)
+    out.print("\nAs the Camera Calibration Toolbox for Matlab prints it:\n")
+    out.print(res.matlab_text(), markup=False)
+    out.print(f"\nwrote {out_path}")
+
+
+# ---------------------------------------------------------------------------------- pose
+def pose(
+    images: list[Path] = typer.Argument(..., help="Images of the board."),
+    camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
+    board: str = typer.Option(..., "--board", help=_BOARD_HELP),
+    square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
+    charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
+    marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead of a table."),
+) -> None:
+    """Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS.
+
+    An image that fails gives an entry with its error; the others go on. Exit status 1 when
+    some images failed, 2 when all did.
+    """
+    import numpy as np
+
+    from ..geometry import rotvec_from_matrix
+    from ..vision.files import measure_files
+
+    try:
+        b = _board(board, square_mm, charuco, marker_mm)
+        cam = _camera(camera)
+    except InputError as e:
+        raise fail(str(e)) from None
+    ms = measure_files(images, cam, b, camera_source=str(camera))
+    n_ok = sum(m.ok for m in ms)
+    if as_json:
+        rows = []
+        for m in ms:
+            if m.ok:
+                rows.append(
+                    {
+                        "image": m.image,
+                        "board2cam": m.mobile.board2cam,
+                        "cov": m.mobile.cov,
+                        "rms_px": m.mobile.rms_px,
+                        "n_corners": m.mobile.n_corners,
+                    }
+                )
+            else:
+                rows.append({"image": m.image, "error": m.error})
+        print_json(rows)
+    else:
+        t = Table(title=f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
+        t.add_column("image", overflow="fold")
+        for col in ("t (mm)", "1 sigma t (mm)", "rotation vector (rad)", "RMS (px)", "corners", "ms"):
+            t.add_column(col)
+        for m in ms:
+            if not m.ok:
+                t.add_row(m.image, "[red]failed[/]", "", "", "", "", "")
+                continue
+            p = m.mobile
+            t.add_row(
+                m.image,
+                ", ".join(f"{x:.4f}" for x in p.board2cam[:3, 3]),
+                ", ".join(f"{x:.4f}" for x in p.t_std_mm),
+                ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2cam[:3, :3])),
+                f"{p.rms_px:.3f}",
+                str(p.n_corners),
+                f"{1000 * m.timings.get('total', np.nan):.0f}",
+            )
+        out.print(t)
+    for m in ms:
+        if not m.ok:
+            warn(m.error)
+    _exit_for(n_ok, len(ms))
+
+
+# -------------------------------------------------------------------------- displacement
+def displacement(
+    images: list[Path] = typer.Argument(..., help="Images after the load (or any moved state)."),
+    camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
+    board: str = typer.Option(..., "--board", help="Mobile target size COLSxROWS (inner corners)."),
+    square_mm: float = typer.Option(..., "--square-mm", help="Mobile target square side, mm."),
+    reference: list[Path] = typer.Option(
+        ..., "--reference", help="Reference (unloaded) image; repeat the option for several (averaged)."
+    ),
+    fixed_board: str = typer.Option(None, "--fixed-board", help="Fixed target size COLSxROWS (on the base)."),
+    fixed_square_mm: float = typer.Option(None, "--fixed-square-mm", help="Fixed target square side, mm."),
+    fixed2base: Path = typer.Option(
+        None, "--fixed2base", help="JSON file with the fixed target's pose on the robot base (4x4, mm)."
+    ),
+    point: str = typer.Option(None, "--point", help="x,y,z (mm, target frame): displacement of this point."),
+    charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
+    marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead of tables."),
+) -> None:
+    """Displacement of the target in each image relative to the reference image(s).
+
+    d = [dx, dy, dz] (mm) and r = rotation vector (rad), in the camera frame, or in the robot
+    base frame with --fixed-board/--fixed-square-mm/--fixed2base. The mean, standard deviation
+    and n over the images are printed at the end. Exit status 1 when some images failed.
+    """
+    import numpy as np
+
+    from ..vision.displacement import compliant_displacement
+    from ..vision.files import measure_files, read_transform
+
+    try:
+        b = _board(board, square_mm, charuco, marker_mm)
+        cam = _camera(camera)
+        fb = None
+        if fixed_board is not None or fixed_square_mm is not None or fixed2base is not None:
+            if fixed_board is None or fixed_square_mm is None:
+                raise InputError("--fixed-board and --fixed-square-mm go together (and with --fixed2base)")
+            fb = _board(fixed_board, fixed_square_mm, what="--fixed-board")
+        T_fb = read_transform(fixed2base) if fixed2base is not None else None
+        q = _point(point)
+    except InputError as e:
+        raise fail(str(e)) from None
+    ms = measure_files(list(reference) + list(images), cam, b, fb, T_fb, camera_source=str(camera))
+    refs, moved = ms[: len(reference)], ms[len(reference) :]
+    for m in ms:
+        if not m.ok:
+            warn(m.error)
+    if not any(m.ok for m in refs):
+        raise fail("no reference image could be measured; nothing to compare with")
+    rows = []
+    per = []
+    for m in moved:
+        if not m.ok:
+            rows.append({"image": m.image, "error": m.error})
+            continue
+        dsp = compliant_displacement(refs, [m], q, pairing="mean-reference")
+        per.append((m, dsp))
+        rows.append(
+            {
+                "image": m.image,
+                "frame": dsp.frame,
+                "d": dsp.d,
+                "r": dsp.r,
+                "d_std": dsp.d_sigma,
+                "r_std": dsp.r_sigma,
+            }
+        )
+    summary = None
+    if per:
+        summary = compliant_displacement(refs, [m for m, _ in per], q, pairing="mean-reference")
+        rows.append(
+            {
+                "image": None,
+                "summary": "mean over images",
+                "frame": summary.frame,
+                "n": summary.n,
+                "d": summary.d,
+                "r": summary.r,
+                "d_std": summary.d_std,
+                "r_std": summary.r_std,
+            }
+        )
+        for f in summary.flags:
+            warn(f)
+    if as_json:
+        print_json(rows)
+    else:
+        frame = summary.frame if summary else "cam"
+        t = Table(
+            title=f"displacement relative to {len(refs)} reference image(s), {frame} frame (+/- 1 sigma)"
+        )
+        t.add_column("image", overflow="fold")
+        for col in ("dx, dy, dz (mm)", "1 sigma (mm)", "rx, ry, rz (rad)", "|d| (mm)"):
+            t.add_column(col)
+        for m, dsp in per:
+            t.add_row(
+                m.image,
+                ", ".join(f"{x:.4f}" for x in dsp.d),
+                ", ".join(f"{x:.4f}" for x in dsp.d_sigma),
+                ", ".join(f"{x:.2e}" for x in dsp.r),
+                f"{np.linalg.norm(dsp.d):.4f}",
+            )
+        if summary is not None:
+            t.add_row(
+                f"mean of {summary.n}",
+                ", ".join(f"{x:.4f}" for x in summary.d),
+                "std " + ", ".join(fmt(x, 3) for x in summary.d_std),
+                ", ".join(f"{x:.2e}" for x in summary.r),
+                f"{np.linalg.norm(summary.d):.4f}",
+            )
+        out.print(t)
+    _exit_for(len(per), len(moved))
+
+
+# ------------------------------------------------------------------------------ validate
+def validate(
+    manifest: Path = typer.Argument(
+        ..., help="CSV with columns image,nominal_mm (stage displacement; 0 = start position)."
+    ),
+    camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
+    board: str = typer.Option(..., "--board", help=_BOARD_HELP),
+    square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
+    plot: Path = typer.Option(
+        None, "--plot", help="Write an SVG plot (measured vs nominal, error per step)."
+    ),
+    charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
+    marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of tables."),
+) -> None:
+    """Validate against known stage displacements: measured vs nominal, mean +/- std per step.
+
+    After the reference study's X-table test (its Table I, shown beside when the steps match).
+    """
+    from ..io import atomic_write_text
+    from ..vision.files import measure_files, read_stage_manifest
+    from ..vision.validate import REFERENCE_TABLE_I, stage_plot_svg, validate_stage
+
+    try:
+        b = _board(board, square_mm, charuco, marker_mm)
+        cam = _camera(camera)
+        rows = read_stage_manifest(manifest)
+    except InputError as e:
+        raise fail(str(e)) from None
+    ms = measure_files([p for p, _ in rows], cam, b, camera_source=str(camera))
+    refs = [m for m, (_, n) in zip(ms, rows, strict=True) if n == 0]
+    moved = [(n, m) for m, (_, n) in zip(ms, rows, strict=True) if n != 0]
+    for m in ms:
+        if not m.ok:
+            warn(m.error)
+    try:
+        res = validate_stage(refs, moved)
+    except InputError as e:
+        raise fail(str(e)) from None
+    if plot is not None:
+        atomic_write_text(plot, stage_plot_svg(res, title=f"Stage validation: {manifest.name}"))
+    if as_json:
+        print_json(
+            {
+                "steps": [
+                    {
+                        "nominal_mm": s.nominal_mm,
+                        "mean_mm": s.mean_mm,
+                        "std_mm": s.std_mm,
+                        "n": s.n,
+                        "error_mm": s.error_mm,
+                        "along_mean_mm": s.along_mean_mm,
+                        "along_std_mm": s.along_std_mm,
+                    }
+                    for s in res.steps
+                ],
+                "axis": res.axis,
+                "n_reference": res.n_reference,
+                "rms_error_mm": res.rms_error_mm,
+                "failed": [{"image": a, "error": e} for a, e in res.failed],
+            }
+        )
+    else:
+        t = Table(title=f"stage validation ({res.n_reference} reference image(s)); norm of the displacement")
+        for col in (
+            "nominal (mm)",
+            "measured mean ± std (mm)",
+            "n",
+            "error (mm)",
+            "along axis (mm)",
+            "reference study",
+        ):
+            t.add_column(col)
+        for s in res.steps:
+            ref = REFERENCE_TABLE_I.get(s.nominal_mm)
+            t.add_row(
+                f"{s.nominal_mm:g}",
+                f"{s.mean_mm:.4f} ± {fmt(s.std_mm, 2)}",
+                str(s.n),
+                f"{s.error_mm:+.4f}",
+                f"{s.along_mean_mm:.4f} ± {fmt(s.along_std_mm, 2)}",
+                f"{ref[0]} ± {ref[1]}" if ref else "",
+            )
+        out.print(t)
+        out.print(f"RMS error over all images: {res.rms_error_mm:.4f} mm")
+        if plot is not None:
+            out.print(f"wrote {plot}")
+    _exit_for(len(ms) - len(res.failed), len(ms))
+
+
+def register(app: typer.Typer) -> None:
+    app.command("calibrate")(calibrate)
+    app.command("pose")(pose)
+    app.command("displacement")(displacement)
+    app.command("validate")(validate)

@@ -1,0 +1,279 @@
+"""Compliant displacement of the mobile target between unloaded and loaded images.
+
+:func:`compliant_displacement` turns the :class:`~stiffmap.vision.sequence.ImageMeasurement`
+of unloaded and loaded images of one robot position into the displacement
+(d, r) of the mobile target (or of a point of the platform): d the translation
+in mm, r the rotation vector of R_loaded R_unloaded^T in rad
+(``docs/conventions.md``).
+
+Samples: when there are as many unloaded as loaded images (n > 1) they are
+taken as repeats, paired in order (unloaded i with loaded i: a drift between
+repeats cancels); otherwise every loaded image is compared with the mean pose
+of the unloaded images. The result is the mean of the samples, their standard
+deviation and n, and the covariance of the mean propagated from the pose
+covariances.
+
+Frame: the displacement is computed in the camera frame from the mobile
+target's poses only, and rotated into the robot base frame with ``cam2base``
+averaged over every image where the fixed target was seen (reference paper,
+eq. 1). Using each image's own ``cam2base`` instead would add the fixed
+target's pose noise, magnified by the lever arm between the two targets, to
+every displacement. The fixed target's apparent motion between the unloaded
+and loaded images is reported (``fixed_shift``) and flagged when it exceeds
+5 sigma: the camera or the base moved.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import displacement_from_poses
+from .pose import _skew
+from .sequence import ImageMeasurement
+
+__all__ = ["Displacement", "compliant_displacement", "mean_pose"]
+
+
+@dataclass(frozen=True)
+class Displacement:
+    """Compliant displacement of the mobile target (or a point of the platform).
+
+    Attributes
+    ----------
+    d : ndarray, shape (3,), mm
+        Mean translation (loaded minus unloaded).
+    r : ndarray, shape (3,), rad
+        Mean rotation vector of R_loaded R_unloaded^T.
+    cov : ndarray, shape (6, 6)
+        Covariance of (d, r), propagated from the pose covariances.
+    d_std, r_std : ndarray, shape (3,)
+        Standard deviation of the samples (NaN when n = 1).
+    n : int
+        Number of samples.
+    samples : ndarray, shape (n, 6)
+        (d, r) of each sample.
+    frame : str
+        ``"base"`` or ``"cam"``.
+    point : ndarray, shape (3,), mm
+        The point of the mobile target (its frame) whose displacement this is.
+    pairing : str
+        ``"pairs"`` (repeat i: unloaded i, loaded i) or ``"mean-reference"``.
+    n_unloaded, n_loaded : int
+        Images used (failed ones left out).
+    fixed_shift : ndarray, shape (6,) or None
+        Apparent displacement of the fixed target between the mean unloaded and
+        the mean loaded images, camera frame (should be zero).
+    flags : tuple of str
+        Warnings (fixed target moved, images left out).
+    """
+
+    d: np.ndarray
+    r: np.ndarray
+    cov: np.ndarray
+    d_std: np.ndarray
+    r_std: np.ndarray
+    n: int
+    samples: np.ndarray
+    frame: str
+    point: np.ndarray
+    pairing: str
+    n_unloaded: int
+    n_loaded: int
+    fixed_shift: np.ndarray | None = None
+    flags: tuple[str, ...] = ()
+
+    @property
+    def vector(self) -> np.ndarray:
+        """(dx, dy, dz, rx, ry, rz), mm and rad."""
+        return np.concatenate([self.d, self.r])
+
+    @property
+    def d_sigma(self) -> np.ndarray:
+        """Propagated 1-sigma of d, shape (3,), mm."""
+        return np.sqrt(np.diag(self.cov)[:3])
+
+    @property
+    def r_sigma(self) -> np.ndarray:
+        """Propagated 1-sigma of r, shape (3,), rad."""
+        return np.sqrt(np.diag(self.cov)[3:])
+
+
+def mean_pose(poses) -> np.ndarray:
+    """Mean of rigid transforms: mean translation, rotation projected from the mean matrix.
+
+    Parameters
+    ----------
+    poses : array_like, shape (n, 4, 4)
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+    """
+    T = np.asarray(poses, dtype=np.float64)
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0:
+        raise ValueError(f"poses must have shape (n, 4, 4) with n >= 1, got {T.shape}")
+    U, _, Vt = np.linalg.svd(T[:, :3, :3].mean(axis=0))
+    R = U @ Vt
+    if np.linalg.det(R) < 0:  # pragma: no cover - only for wildly scattered rotations
+        U[:, -1] *= -1
+        R = U @ Vt
+    out = np.eye(4)
+    out[:3, :3] = R
+    out[:3, 3] = T[:, :3, 3].mean(axis=0)
+    return out
+
+
+def _point_jacobian(T: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """d(p, r)/d(t, r) for the point p = R q + t of a pose with (t, r) left perturbations."""
+    A = np.eye(6)
+    A[:3, 3:] = -_skew(T[:3, :3] @ point)
+    return A
+
+
+def _usable(ms: Sequence[ImageMeasurement], what: str) -> list[ImageMeasurement]:
+    good = [m for m in ms if m.ok and m.mobile is not None]
+    if not good:
+        names = ", ".join(m.image for m in ms[:3]) + (" ..." if len(ms) > 3 else "")
+        raise InputError(f"no usable {what} image (mobile target not measured in {names or 'any image'})")
+    return good
+
+
+def compliant_displacement(
+    unloaded: Sequence[ImageMeasurement],
+    loaded: Sequence[ImageMeasurement],
+    point=None,
+    *,
+    pairing: str = "auto",
+    frame: str = "auto",
+) -> Displacement:
+    """Displacement of the mobile target between unloaded and loaded images.
+
+    Parameters
+    ----------
+    unloaded, loaded : sequence of ImageMeasurement
+        Measurements of one robot position without and with the load (failed
+        images are left out and flagged).
+    point : array_like, shape (3,), optional
+        A point of the platform in the mobile target's frame (mm), e.g. the
+        tool point; default the target's origin.
+    pairing : {"auto", "pairs", "mean-reference"}
+        ``"auto"``: pairs when both lists have the same length n > 1 (and no image
+        failed), else mean-reference.
+    frame : {"auto", "base", "cam"}
+        ``"auto"``: the base frame when ``mobile2base`` is known in some image,
+        else the camera frame.
+
+    Returns
+    -------
+    Displacement
+
+    Raises
+    ------
+    InputError
+        When no unloaded or no loaded image is usable, or the base frame is
+        asked without a fixed target.
+    """
+    q = np.zeros(3) if point is None else np.asarray(point, dtype=np.float64).reshape(-1)
+    if q.shape != (3,) or not np.all(np.isfinite(q)):
+        raise ValueError(f"point must be 3 finite numbers (mm, target frame), got {point!r}")
+    if pairing not in ("auto", "pairs", "mean-reference"):
+        raise ValueError(f"pairing must be 'auto', 'pairs' or 'mean-reference', got {pairing!r}")
+    if frame not in ("auto", "base", "cam"):
+        raise ValueError(f"frame must be 'auto', 'base' or 'cam', got {frame!r}")
+    flags = []
+    u_all, l_all = list(unloaded), list(loaded)
+    u = _usable(u_all, "unloaded")
+    lo = _usable(l_all, "loaded")
+    for group, good, name in ((u_all, u, "unloaded"), (l_all, lo, "loaded")):
+        if len(good) < len(group):
+            bad = [m.image for m in group if m not in good]
+            flags.append(f"{len(bad)} {name} image(s) left out: {', '.join(bad)}")
+    if pairing == "auto":
+        pairing = (
+            "pairs" if len(u) == len(lo) == len(u_all) == len(l_all) and len(u) > 1 else "mean-reference"
+        )
+    if pairing == "pairs" and len(u) != len(lo):
+        raise InputError(f"pairs need as many unloaded as loaded images, got {len(u)} and {len(lo)}")
+
+    samples = []
+    cov_sum = np.zeros((6, 6))
+    if pairing == "pairs":
+        for a, b in zip(u, lo, strict=True):
+            samples.append(displacement_from_poses(a.mobile2cam, b.mobile2cam, q))
+            A0 = _point_jacobian(a.mobile2cam, q)
+            A1 = _point_jacobian(b.mobile2cam, q)
+            cov_sum += A0 @ a.mobile2cam_cov @ A0.T + A1 @ b.mobile2cam_cov @ A1.T
+        cov = cov_sum / len(u) ** 2
+    else:
+        ref = mean_pose([m.mobile2cam for m in u])
+        cov_ref = np.zeros((6, 6))
+        for a in u:
+            A0 = _point_jacobian(a.mobile2cam, q)
+            cov_ref += A0 @ a.mobile2cam_cov @ A0.T
+        cov_ref /= len(u) ** 2
+        for b in lo:
+            samples.append(displacement_from_poses(ref, b.mobile2cam, q))
+            A1 = _point_jacobian(b.mobile2cam, q)
+            cov_sum += A1 @ b.mobile2cam_cov @ A1.T
+        cov = cov_ref + cov_sum / len(lo) ** 2
+    S = np.array(samples)
+
+    # Apparent motion of the fixed target (camera frame), when it was seen in both groups.
+    fixed_shift = None
+    fu = [m for m in u if m.fixed is not None]
+    fl = [m for m in lo if m.fixed is not None]
+    if fu and fl:
+        F0 = mean_pose([m.fixed2cam for m in fu])
+        F1 = mean_pose([m.fixed2cam for m in fl])
+        fixed_shift = displacement_from_poses(F0, F1)
+        cf = sum(m.fixed2cam_cov for m in fu) / len(fu) ** 2 + sum(m.fixed2cam_cov for m in fl) / len(fl) ** 2
+        z = fixed_shift / np.sqrt(np.maximum(np.diag(cf), 1e-30))
+        if np.max(np.abs(z)) > 5:
+            flags.append(
+                f"the fixed target moved by {np.linalg.norm(fixed_shift[:3]):.4f} mm / "
+                f"{np.linalg.norm(fixed_shift[3:]):.2e} rad between the unloaded and loaded images "
+                f"({np.max(np.abs(z)):.0f} sigma): did the camera or the robot base move?"
+            )
+
+    with_base = [m for m in u + lo if m.mobile2base is not None and m.fixed is not None]
+    if frame == "base" and not with_base:
+        raise InputError("the base frame needs a fixed target and fixed2base in the measurements")
+    use_base = frame == "base" or (frame == "auto" and bool(with_base))
+    if use_base:
+        G = mean_pose([m.cam2base for m in with_base])
+        RG = G[:3, :3]
+        Bm = np.zeros((6, 6))
+        Bm[:3, :3] = RG
+        Bm[3:, 3:] = RG
+        S = S @ Bm.T
+        mean = S.mean(axis=0)
+        # Uncertainty of the mean cam2base rotation (d r_G = -R_G d r_fixed), averaged.
+        Crf = sum(m.fixed2cam_cov[3:, 3:] for m in with_base) / len(with_base) ** 2
+        CG = RG @ Crf @ RG.T
+        C = np.vstack([-_skew(mean[:3]), -_skew(mean[3:])])
+        cov = Bm @ cov @ Bm.T + C @ CG @ C.T
+        frame_name = "base"
+    else:
+        mean = S.mean(axis=0)
+        frame_name = "cam"
+    std = S.std(axis=0, ddof=1) if len(S) > 1 else np.full(6, np.nan)
+    return Displacement(
+        d=mean[:3],
+        r=mean[3:],
+        cov=0.5 * (cov + cov.T),
+        d_std=std[:3],
+        r_std=std[3:],
+        n=len(S),
+        samples=S,
+        frame=frame_name,
+        point=q,
+        pairing=pairing,
+        n_unloaded=len(u),
+        n_loaded=len(lo),
+        fixed_shift=fixed_shift,
+        flags=tuple(flags),
+    )

@@ -1,0 +1,159 @@
+"""File-level entry points of the vision path (the CLI and the campaign runner call these).
+
+The numerical modules take arrays; this module reads files: the transform of
+the fixed target on the base (a 4x4 in JSON), the stage-validation manifest (a
+CSV), and it runs calibration and pose measurement over lists of image files,
+turning each bad file into a recorded error while the others go on.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import CameraModel
+from ..errors import InputError
+from ..geometry import as_transform
+from ..io import read_csv_columns
+from .calibrate import CalibrationResult, calibrate_camera
+from .detect import Board, BoardDetection, detect_board
+from .images import read_image
+from .sequence import ImageMeasurement, measure_sequence
+
+__all__ = ["read_transform", "read_stage_manifest", "calibrate_files", "measure_files"]
+
+
+def read_transform(path: str | os.PathLike, key: str = "fixed2base") -> np.ndarray:
+    """Read a rigid transform (4x4, mm) from a JSON file.
+
+    The file holds either the matrix itself (a list of 4 rows of 4 numbers) or
+    an object with the matrix under ``key`` (or ``"matrix"``).
+
+    Raises
+    ------
+    InputError
+        Naming the file and what is wrong (missing, not JSON, not 4x4, not rigid).
+    """
+    p = Path(path)
+    src = str(path)
+    if not p.is_file():
+        raise InputError("transform file not found", source=src)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise InputError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})", source=src) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read: {e}", source=src) from None
+    if isinstance(data, dict):
+        for k in (key, "matrix"):
+            if k in data:
+                data = data[k]
+                break
+        else:
+            raise InputError(f"expected a 4x4 matrix or an object with key {key!r}", source=src)
+    try:
+        T = np.array(data, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"expected a 4x4 matrix of numbers (mm), got {data!r:.80}", source=src) from None
+    if T.shape != (4, 4):
+        raise InputError(f"expected a 4x4 matrix (4 rows of 4 numbers, mm), got shape {T.shape}", source=src)
+    try:
+        return as_transform(T, key, atol=1e-4)
+    except ValueError as e:
+        raise InputError(f"not a rigid transform: {e}", source=src) from None
+
+
+def read_stage_manifest(path: str | os.PathLike) -> list[tuple[str, float]]:
+    """Read a stage-validation manifest: CSV columns ``image`` and ``nominal_mm``.
+
+    Image paths are relative to the manifest's directory; rows with
+    ``nominal_mm = 0`` are the reference (start) position.
+
+    Returns
+    -------
+    list of (image path, nominal displacement in mm)
+    """
+    t = read_csv_columns(path, ["image", "nominal_mm"], text_columns=["image"])
+    base = Path(path).parent
+    out = []
+    for name, nom, line in zip(t.text["image"], t.columns["nominal_mm"], t.lines, strict=True):
+        if not name:
+            raise InputError(f"line {line}, column 'image': empty image name", source=str(path))
+        out.append((str(base / name) if not Path(name).is_absolute() else name, float(nom)))
+    if not any(n == 0 for _, n in out):
+        raise InputError(
+            "no reference image: at least one row needs nominal_mm = 0 (the stage's start position)",
+            source=str(path),
+        )
+    return out
+
+
+def calibrate_files(
+    paths: Sequence[str | os.PathLike],
+    board: Board,
+    *,
+    model: str = "k3",
+    outlier_factor: float = 3.0,
+    scale: int | None = None,
+) -> CalibrationResult:
+    """Calibrate a camera from image files of a board.
+
+    Every image is read and searched; an unreadable image, one of another size
+    or one without the board becomes a view with ``used = False`` and the
+    reason, and calibration goes on with the others.
+
+    Raises
+    ------
+    InputError
+        When fewer than 3 views are usable (the message lists why).
+    """
+    if not paths:
+        raise InputError("no calibration images given")
+    dets: list[BoardDetection | str] = []
+    size: tuple[int, int] | None = None
+    size_from = ""
+    for p in paths:
+        src = str(p)
+        try:
+            img = read_image(p)
+        except InputError as e:
+            dets.append(e.detail)
+            continue
+        h, w = img.shape
+        if size is None:
+            size, size_from = (w, h), src
+        elif (w, h) != size:
+            dets.append(f"image is {w}x{h} px, but {size_from} is {size[0]}x{size[1]} px")
+            continue
+        try:
+            dets.append(detect_board(img, board, scale=scale, source=src))
+        except InputError as e:
+            dets.append(e.detail)
+    if size is None:
+        raise InputError(
+            f"none of the {len(paths)} images could be read: "
+            + "; ".join(f"{p}: {d}" for p, d in zip(paths, dets, strict=True))
+        )
+    return calibrate_camera(
+        dets, board, size, names=[str(p) for p in paths], model=model, outlier_factor=outlier_factor
+    )
+
+
+def measure_files(
+    paths: Sequence[str | os.PathLike],
+    camera: CameraModel,
+    board: Board,
+    fixed_board: Board | None = None,
+    fixed2base=None,
+    *,
+    scale: int | None = None,
+    camera_source: str = "camera.json",
+) -> list[ImageMeasurement]:
+    """Poses in each image file (tracking along the list); bad files give ``error`` entries."""
+    return measure_sequence(
+        list(paths), camera, board, fixed_board, fixed2base, scale=scale, camera_source=camera_source
+    )

@@ -1,0 +1,250 @@
+"""Pose of a board from its detected corners, with the covariance of the pose.
+
+:func:`estimate_pose` starts from OpenCV's IPPE solution for planar targets and
+refines ``board2cam`` by Gauss-Newton on the reprojection error, with the
+analytic Jacobian of :func:`projection_jacobian`.
+
+Covariance (``docs/conventions.md``, "Pose uncertainty"): over (t, r), t the
+translation of ``board2cam`` (mm, camera frame) and r a small rotation vector
+applied on the left, R = Exp(r) R_hat, also in the camera frame. A board point
+q then moves by dX = dt - [R q]x dr in the camera frame, and its pixel by
+J_i = diag(fx, fy) D(x) P(X) [I, -[R q]x], with P the Jacobian of the
+perspective division and D that of the lens distortion at the point. With the
+stacked J (2m x 6) and the residual variance s^2 = sum e^2 / (2m - 6) (corner
+noise, assumed independent and equal on both axes), cov = s^2 (J^T J)^-1.
+The camera's own calibration uncertainty is not included: it biases poses
+taken with the same camera alike and largely cancels in displacements.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..camera import CameraModel, _dist12, _distort
+from .detect import Board, BoardDetection, DetectionError, _grid_of, board_label
+
+__all__ = ["BoardPose", "estimate_pose", "projection_jacobian", "MIN_POSE_CORNERS"]
+
+#: Fewest corners accepted for a pose (6 unknowns; 2 equations per corner).
+MIN_POSE_CORNERS = 4
+
+
+@dataclass(frozen=True)
+class BoardPose:
+    """Pose of a board in the camera frame.
+
+    Attributes
+    ----------
+    board2cam : ndarray, shape (4, 4), mm
+    cov : ndarray, shape (6, 6)
+        Covariance over (t (mm), r (rad)), see the module docstring.
+    rms_px : float
+        Reprojection RMS over the corners, px (sqrt of the mean of ex^2 + ey^2).
+    n_corners : int
+    residuals_px : ndarray, shape (n_corners, 2)
+        Observed minus projected corner positions, px.
+    sigma_px : float
+        Estimated corner noise per axis, sqrt(sum e^2 / (2 n - 6)), px.
+    condition : float
+        Condition number of J^T J with t in mm and r in rad scaled by the
+        distance (large: a poorly determined pose, e.g. a tiny board).
+    iterations : int
+        Gauss-Newton iterations.
+    """
+
+    board2cam: np.ndarray
+    cov: np.ndarray
+    rms_px: float
+    n_corners: int
+    residuals_px: np.ndarray
+    sigma_px: float
+    condition: float
+    iterations: int
+
+    @property
+    def t_std_mm(self) -> np.ndarray:
+        """1-sigma of the translation, shape (3,), mm."""
+        return np.sqrt(np.diag(self.cov)[:3])
+
+    @property
+    def r_std_rad(self) -> np.ndarray:
+        """1-sigma of the rotation vector, shape (3,), rad."""
+        return np.sqrt(np.diag(self.cov)[3:])
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices of vectors (..., 3) -> (..., 3, 3)."""
+    S = np.zeros((*v.shape[:-1], 3, 3))
+    S[..., 0, 1] = -v[..., 2]
+    S[..., 0, 2] = v[..., 1]
+    S[..., 1, 0] = v[..., 2]
+    S[..., 1, 2] = -v[..., 0]
+    S[..., 2, 0] = -v[..., 1]
+    S[..., 2, 1] = v[..., 0]
+    return S
+
+
+def projection_jacobian(board2cam, object_points, camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Projected pixels of board points and their Jacobian with respect to the pose.
+
+    Parameters
+    ----------
+    board2cam : array_like, shape (4, 4), mm
+    object_points : array_like, shape (m, 3), mm
+        Points in the board frame.
+    camera : CameraModel
+
+    Returns
+    -------
+    uv : ndarray, shape (m, 2), px
+    J : ndarray, shape (m, 2, 6)
+        d(u, v) / d(t, r) with the perturbation t <- t + dt, R <- Exp(dr) R
+        (camera frame; ``docs/conventions.md``).
+    """
+    T = np.asarray(board2cam, dtype=np.float64)
+    q = np.asarray(object_points, dtype=np.float64)
+    if T.shape != (4, 4) or q.ndim != 2 or q.shape[1] != 3:
+        raise ValueError(f"expected board2cam (4, 4) and object_points (m, 3), got {T.shape}, {q.shape}")
+    Rq = q @ T[:3, :3].T
+    X = Rq + T[:3, 3]
+    Z = X[:, 2]
+    if np.any(Z <= 0):
+        raise ValueError("board points behind the camera")
+    xy = X[:, :2] / Z[:, None]
+    xd, Jd = _distort(xy, _dist12(camera.dist_array), jacobian=True)
+    f = np.array([camera.fx, camera.fy])
+    uv = xd * f + [camera.cx, camera.cy]
+    P = np.zeros((len(q), 2, 3))
+    P[:, 0, 0] = 1 / Z
+    P[:, 1, 1] = 1 / Z
+    P[:, 0, 2] = -X[:, 0] / Z**2
+    P[:, 1, 2] = -X[:, 1] / Z**2
+    dX = np.concatenate([np.broadcast_to(np.eye(3), (len(q), 3, 3)), -_skew(Rq)], axis=2)  # (m, 3, 6)
+    J = f[None, :, None] * (Jd @ P @ dX)
+    return uv, J
+
+
+def _exp(r: np.ndarray) -> np.ndarray:
+    R, _ = cv2.Rodrigues(np.asarray(r, dtype=np.float64).reshape(3, 1))
+    return R
+
+
+def estimate_pose(
+    detection: BoardDetection,
+    board: Board,
+    camera: CameraModel,
+    *,
+    initial: np.ndarray | None = None,
+    max_iter: int = 20,
+    source: str | None = None,
+) -> BoardPose:
+    """Pose of a detected board in the camera frame, with its covariance.
+
+    Parameters
+    ----------
+    detection : BoardDetection
+    board : Chessboard or CharucoBoard
+        The board the detection is of (checked against ``detection.board``).
+    camera : CameraModel
+    initial : ndarray, shape (4, 4), optional
+        Starting pose (e.g. the previous image's); default OpenCV's IPPE.
+    max_iter : int
+        Largest number of Gauss-Newton iterations.
+    source : str, optional
+        Image name for error messages.
+
+    Returns
+    -------
+    BoardPose
+
+    Raises
+    ------
+    DetectionError
+        Fewer than 4 corners, or a degenerate layout.
+    """
+    if _grid_of(detection.board) != _grid_of(board):
+        raise ValueError(
+            f"detection is of a {board_label(detection.board)}, "
+            f"but the pose was asked for a {board_label(board)}"
+        )
+    m = detection.n_corners
+    if m < MIN_POSE_CORNERS:
+        raise DetectionError(
+            f"{board_label(board)}: {m} corners are too few for a pose (at least {MIN_POSE_CORNERS})",
+            source=source,
+            reason="partial",
+        )
+    obj = detection.object_points()
+    uv_obs = np.asarray(detection.corners, dtype=np.float64)
+    if initial is None:
+        ok, rvec, tvec = cv2.solvePnP(obj, uv_obs, camera.matrix, camera.dist_array, flags=cv2.SOLVEPNP_IPPE)
+        if not ok:
+            raise DetectionError(
+                f"{board_label(board)}: no pose fits the corners", source=source, reason="partial"
+            )
+        T = np.eye(4)
+        T[:3, :3] = _exp(rvec.ravel())
+        T[:3, 3] = tvec.ravel()
+    else:
+        T = np.array(initial, dtype=np.float64)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(f"initial must be a finite (4, 4) transform, got shape {T.shape}")
+    uv, J = projection_jacobian(T, obj, camera)
+    e = (uv - uv_obs).reshape(-1)
+    cost = float(e @ e)
+    it = 0
+    while it < max_iter:
+        it += 1
+        Jf = J.reshape(-1, 6)
+        try:
+            delta = -np.linalg.solve(Jf.T @ Jf, Jf.T @ e)
+        except np.linalg.LinAlgError:
+            raise DetectionError(
+                f"{board_label(board)}: the pose is undetermined (degenerate corner layout)",
+                source=source,
+                reason="partial",
+            ) from None
+        T_new = T.copy()
+        T_new[:3, 3] = T[:3, 3] + delta[:3]
+        T_new[:3, :3] = _exp(delta[3:]) @ T[:3, :3]
+        # Safeguard: stop when a step would put points behind the camera or raise the error.
+        if np.any((obj @ T_new[:3, :3].T + T_new[:3, 3])[:, 2] <= 0):
+            break
+        uv_new, J_new = projection_jacobian(T_new, obj, camera)
+        e_new = (uv_new - uv_obs).reshape(-1)
+        cost_new = float(e_new @ e_new)
+        if cost_new > cost * (1 + 1e-12) + 1e-18:
+            break
+        T, uv, J, e, cost = T_new, uv_new, J_new, e_new, cost_new
+        if np.abs(delta[:3]).max() < 1e-9 * max(1.0, abs(T[2, 3])) and np.abs(delta[3:]).max() < 1e-12:
+            break
+    res = uv_obs - uv
+    Jf = J.reshape(-1, 6)
+    JtJ = Jf.T @ Jf
+    dof = 2 * m - 6
+    s2 = float(np.sum(res**2) / dof) if dof > 0 else float("nan")
+    try:
+        cov = s2 * np.linalg.inv(JtJ)
+    except np.linalg.LinAlgError:  # pragma: no cover - caught in the iterations
+        raise DetectionError(f"{board_label(board)}: the pose is undetermined", source=source) from None
+    cov = 0.5 * (cov + cov.T)
+    # Condition with rotations expressed as lateral motions at the board's distance.
+    D = np.diag([1.0, 1.0, 1.0] + [max(abs(T[2, 3]), 1.0)] * 3)
+    Ds = np.linalg.inv(D)
+    condition = float(np.linalg.cond(Ds @ JtJ @ Ds))
+    # Re-orthonormalise the rotation (numerical drift from repeated products).
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    T[:3, :3] = U @ Vt
+    return BoardPose(
+        board2cam=T,
+        cov=cov,
+        rms_px=float(np.sqrt(np.mean(np.sum(res**2, axis=1)))),
+        n_corners=m,
+        residuals_px=res,
+        sigma_px=float(np.sqrt(s2)) if np.isfinite(s2) else float("nan"),
+        condition=condition,
+        iterations=it,
+    )

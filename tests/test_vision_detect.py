@@ -1,0 +1,188 @@
+"""Board detection: canonical order, several boards, tracking, ChArUco, and the failure messages."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from _vision_helpers import look_at_pose, render, small_camera, true_corners
+
+from stiffmap.errors import InputError
+from stiffmap.targets import CharucoBoard, Chessboard
+from stiffmap.vision import DetectionError, detect_board, detect_boards, track_board
+
+CAM = small_camera()
+ODD = Chessboard(7, 6, 10.0)  # cols + rows odd: colours fix the origin
+SYM = Chessboard(8, 6, 10.0)  # cols + rows even: looks the same turned by 180 degrees
+
+
+def _img(scene, seed=0, **kw):
+    return render(CAM, scene, rng=np.random.default_rng(seed), **kw)
+
+
+@pytest.mark.parametrize("roll", [0, 90, 180, 270, 135])
+def test_colours_fix_the_frame_whatever_the_roll(roll):
+    T = look_at_pose(250, ODD, tilt_deg=(10, -10, roll))
+    d = detect_board(_img([(ODD, T)]), ODD, camera=CAM)
+    gt = true_corners(CAM, ODD, T)
+    assert d.orientation == "colour"
+    assert d.complete
+    np.testing.assert_array_equal(d.ids, np.arange(ODD.n_corners))
+    np.testing.assert_allclose(d.corners, gt, atol=0.08)  # px: canonical order, sub-pixel
+
+
+def test_symmetric_board_follows_continuity_with_a_reference():
+    T0 = look_at_pose(250, SYM, tilt_deg=(10, -10, 178))
+    T1 = look_at_pose(250, SYM, tilt_deg=(10, -10, 184))
+    d0 = detect_board(_img([(SYM, T0)]), SYM, camera=CAM)
+    gt0 = true_corners(CAM, SYM, T0)
+    # Without a reference the x axis points to the image's right: here the board's is turned.
+    assert d0.orientation == "default"
+    np.testing.assert_allclose(d0.corners, gt0[::-1], atol=0.08)
+    # With a reference in the true frame, continuity keeps it through the next image.
+    ref = type(d0)(**{**d0.__dict__, "corners": gt0.copy()})
+    d1 = detect_board(_img([(SYM, T1)], seed=1), SYM, camera=CAM, reference=ref)
+    assert d1.orientation == "continuity"
+    np.testing.assert_allclose(d1.corners, true_corners(CAM, SYM, T1), atol=0.08)
+
+
+def test_two_boards_are_told_apart_by_size():
+    big = Chessboard(9, 6, 8.0)
+    small = Chessboard(5, 4, 8.0)
+    Tb = look_at_pose(330, big, tilt_deg=(5, 10, 2), offset_mm=(-45, 0))
+    Ts = look_at_pose(300, small, tilt_deg=(-8, -5, -3), offset_mm=(55, 10))
+    img = _img([(big, Tb), (small, Ts)])
+    for order in ([small, big], [big, small]):
+        dets = detect_boards(img, order, camera=CAM)
+        for d, b in zip(dets, order, strict=True):
+            T = Tb if b is big else Ts
+            assert d.board is b
+            np.testing.assert_allclose(d.corners, true_corners(CAM, b, T)[d.ids], atol=0.08)
+
+
+def test_boards_of_the_same_size_are_refused():
+    with pytest.raises(DetectionError, match="same size") as e:
+        detect_boards(np.zeros((100, 100), np.uint8), [SYM, Chessboard(6, 8, 20.0)])
+    assert e.value.reason == "ambiguous"
+
+
+def test_tracking_refines_small_motions_and_hands_over_large_ones():
+    T0 = look_at_pose(250, ODD, tilt_deg=(10, -10, 3))
+    d0 = detect_board(_img([(ODD, T0)]), ODD, camera=CAM)
+    T1 = T0.copy()
+    T1[:3, 3] += [0.4, -0.3, 0.5]  # mm: a few px
+    img1 = _img([(ODD, T1)], seed=2)
+    d1 = track_board(img1, d0, camera=CAM)
+    assert d1 is not None and d1.tracked
+    np.testing.assert_allclose(d1.corners, true_corners(CAM, ODD, T1), atol=0.08)
+    # Half a square of motion: refinement could lock on a neighbour, so it is refused...
+    T2 = T0.copy()
+    T2[:3, 3] += [5.0, 0.0, 0.0]
+    img2 = _img([(ODD, T2)], seed=3)
+    assert track_board(img2, d0, camera=CAM) is None
+    # ...and detect_board falls back to the full detection.
+    d2 = detect_board(img2, ODD, previous=d0, camera=CAM)
+    assert not d2.tracked
+    np.testing.assert_allclose(d2.corners, true_corners(CAM, ODD, T2), atol=0.08)
+
+
+def test_wrong_board_size_is_reported():
+    T = look_at_pose(250, SYM, tilt_deg=(10, -10, 5))
+    img = _img([(SYM, T)])
+    with pytest.raises(DetectionError, match=r"more inner corners than 7x5|at least 8x6") as e:
+        detect_board(img, Chessboard(7, 5, 10.0), source="shot.png")
+    assert e.value.reason == "wrong_size"
+    assert str(e.value).startswith("shot.png:")
+    with pytest.raises(DetectionError, match=r"9x6") as e:
+        detect_board(img, Chessboard(9, 6, 10.0))
+    assert e.value.reason in ("wrong_size", "partial")
+
+
+def test_partly_hidden_and_missing_boards():
+    T = look_at_pose(250, SYM, tilt_deg=(10, -10, 5))
+    with pytest.raises(DetectionError, match="no complete 8x6") as e:
+        detect_board(_img([(SYM, T)], occluder=(330, 0, 640, 480)), SYM, source="hidden.png")
+    assert e.value.reason == "partial" and "hidden.png" in str(e.value)
+    with pytest.raises(DetectionError, match="no 8x6 chessboard found") as e:
+        detect_board(_img([]), SYM, source="empty.png")
+    assert e.value.reason == "not_found"
+    assert isinstance(e.value, InputError)
+
+
+def test_a_corner_off_the_board_plane_is_rejected():
+    T = look_at_pose(250, ODD, tilt_deg=(10, -10, 5))
+    img = _img([(ODD, T)])
+    gt = true_corners(CAM, ODD, T)
+    d = detect_board(img, ODD, camera=CAM)
+    assert d.rejected.size == 0
+    assert d.residual_px.max() < 0.1  # px
+    # Paint a fake X-corner 3 px beside corner 17: the refinement follows it, the
+    # homography test must drop it.
+    img2 = img.copy()
+    x, y = np.round(gt[17]).astype(int)
+    patch = img[y - 12 : y + 13, x - 12 : x + 13].copy()
+    img2[y - 12 : y + 13, x - 9 : x + 16] = patch
+    d2 = detect_board(img2, ODD, camera=CAM)
+    assert 17 in d2.rejected
+    assert 17 not in d2.ids and d2.n_corners >= ODD.n_corners - 3
+
+
+def _charuco_image(hide_right: bool):
+    board = CharucoBoard(7, 5, 20.0, 14.0, "DICT_5X5_100")
+    dic = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_100)
+    ocv = cv2.aruco.CharucoBoard((7, 5), 20.0, 14.0, dic)
+    px = 10  # texture px per mm
+    tex = ocv.generateImage((7 * 20 * px, 5 * 20 * px), marginSize=0)
+    tex = cv2.copyMakeBorder(tex, 200, 200, 200, 200, cv2.BORDER_CONSTANT, value=255)
+    # Texture pixel of board point (x, y) mm (our frame: origin at the first inner corner).
+    A = np.array([[px, 0, 200 + 20 * px - 0.5], [0, px, 200 + 20 * px - 0.5], [0, 0, 1.0]])
+    H = np.array([[3.0, 0.4, 140], [-0.3, 2.8, 110], [5e-4, 2e-4, 1.0]])  # board mm -> image px
+    img = cv2.warpPerspective(tex, H @ np.linalg.inv(A), (640, 480), flags=cv2.INTER_AREA, borderValue=90)
+    img = cv2.GaussianBlur(img, (0, 0), 0.7)
+    if hide_right:
+        img[:, 330:] = 90
+    obj = board.object_points()[:, :2]
+    gt = np.c_[obj, np.ones(len(obj))] @ H.T
+    return img, board, gt[:, :2] / gt[:, 2:]
+
+
+def test_charuco_corners_get_their_canonical_ids_even_when_partly_hidden():
+    img, board, gt = _charuco_image(hide_right=False)
+    d = detect_board(img, board)
+    assert d.orientation == "markers" and d.complete
+    np.testing.assert_allclose(d.corners, gt[d.ids], atol=0.35)  # px (texture resampling)
+    img, board, gt = _charuco_image(hide_right=True)
+    d = detect_board(img, board)
+    assert 6 <= d.n_corners < 24 and not d.complete
+    np.testing.assert_allclose(d.corners, gt[d.ids], atol=0.35)
+    with pytest.raises(DetectionError, match="no DICT_5X5_100 markers"):
+        detect_board(np.full((200, 300), 128, np.uint8), board)
+
+
+def test_large_image_is_searched_reduced_and_refined_at_full_resolution():
+    from stiffmap.camera import reference_camera
+
+    cam = reference_camera()
+    T = look_at_pose(700, SYM, tilt_deg=(8, -12, 4), offset_mm=(15, 10))
+    img = render(cam, [(SYM, T)], rng=np.random.default_rng(4))
+    d = detect_board(img, SYM, camera=cam)
+    assert d.scale == 3  # 2592 px -> 864 px for the search
+    gt = true_corners(cam, SYM, T)
+    np.testing.assert_allclose(d.corners, gt, atol=0.06)  # px
+    assert np.sqrt(np.mean(np.sum((d.corners - gt) ** 2, axis=1))) < 0.03  # px
+
+
+def test_one_board_tracked_the_other_searched_again():
+    # The platform moves by half a square (tracking refused) while the base board stays:
+    # the tracked board is hidden from the new search, which must find the platform's.
+    fixed = Chessboard(9, 4, 10.0)
+    F = look_at_pose(340, fixed, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
+    M0 = look_at_pose(300, ODD, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M1 = M0.copy()
+    M1[:3, 3] += [6.0, -4.0, 0.0]
+    d0 = detect_boards(_img([(fixed, F), (ODD, M0)]), [ODD, fixed], camera=CAM)
+    img1 = _img([(fixed, F), (ODD, M1)], seed=4)
+    d1 = detect_boards(img1, [ODD, fixed], previous=d0, camera=CAM)
+    assert not d1[0].tracked and d1[1].tracked
+    np.testing.assert_allclose(d1[0].corners, true_corners(CAM, ODD, M1), atol=0.08)
+    np.testing.assert_allclose(d1[1].corners, true_corners(CAM, fixed, F), atol=0.08)
