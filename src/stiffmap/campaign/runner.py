@@ -228,6 +228,18 @@ def derive_position(
     B = np.zeros((6, 6))
     B[:3, :3] = R
     B[3:, 3:] = R
+    mean_ref = spec.images.pairing == "mean-reference"
+    if mean_ref:
+        refs = [
+            rows[rel]
+            for rel in dict.fromkeys(pr.unloaded for pr in task.pairs)
+            if rel in rows and rows[rel].ok
+        ]
+        if not refs:
+            res.problems.append(f"position {task.index}: no usable unloaded image")
+        else:
+            ref_pose = _mean_pose([r.mobile2cam for r in refs])
+            ref_cov = sum(r.mobile_cov for r in refs) / len(refs) ** 2
     F_cols, D_cols = [], []
     per_load: dict[int, list[np.ndarray]] = {}
     for pr in task.pairs:
@@ -236,26 +248,31 @@ def derive_position(
             "position": task.index,
             "load": pr.load,
             "repeat": pr.repeat,
-            "unloaded": pr.unloaded,
+            "unloaded": "(mean of the position's unloaded images)" if mean_ref else pr.unloaded,
             "loaded": pr.loaded,
             "frame": frame,
             "params_hash": phash,
             "version": __version__,
         }
         bad = []
-        for rel, r in ((pr.unloaded, u), (pr.loaded, lo)):
+        for rel, r in ((pr.loaded, lo),) if mean_ref else ((pr.unloaded, u), (pr.loaded, lo)):
             if rel in task.missing:
                 bad.append(f"missing image {rel}")
             elif r is None or not r.ok:
                 bad.append(f"{rel}: {r.error if r is not None else 'not measured'}")
+        if mean_ref and not refs:
+            bad.append("no usable unloaded image")
         if bad or (frame == "base" and targets.fixed is not None and not fixed_ok):
             row.update(status="failed", error="; ".join(bad) or "no fixed target")
             res.displacements.append(row)
             continue
-        T0 = cam2base @ u.mobile2cam
-        T1 = cam2base @ lo.mobile2cam
-        d = displacement_from_poses(T0, T1, point)
-        cov = B @ (u.mobile_cov + lo.mobile_cov) @ B.T
+        M0, cov0 = (ref_pose, ref_cov) if mean_ref else (u.mobile2cam, u.mobile_cov)
+        d = displacement_from_poses(cam2base @ M0, cam2base @ lo.mobile2cam, point)
+        # (t, left r) pose noise moves the point R p + t by dt + dr x (R p).
+        v = M0[:3, :3] @ point
+        J = np.eye(6)
+        J[:3, 3:] = -np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+        cov = B @ J @ (cov0 + lo.mobile_cov) @ J.T @ B.T
         row.update(status="ok", error=None, d=to_json(d), cov=to_json(cov))
         res.displacements.append(row)
         F_cols.append(loads[pr.load - 1].force)
@@ -559,6 +576,7 @@ def run_campaign(
                 "measure": mphash,
                 "method": method,
                 "point": list(spec.targets.mobile.point_mm),
+                "pairing": spec.images.pairing,
                 "fixed2base": ctx.fixed2base,
                 "forces": forces_matrix(loads),
                 "force_cov": force_covariances(loads),

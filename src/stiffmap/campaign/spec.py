@@ -283,6 +283,11 @@ class ImagesSpec(_Spec):
 
     unloaded: str = DEFAULT_UNLOADED
     loaded: str = DEFAULT_LOADED
+    #: "pairs": each loaded image against its own unloaded image (the robot may move
+    #: between measurements); "mean-reference": against the mean of all unloaded images
+    #: of the position (the robot stays at the position during all its loads and
+    #: repeats), which halves the reference's share of the noise.
+    pairing: Literal["pairs", "mean-reference"] = "pairs"
 
     @field_validator("unloaded")
     @classmethod
@@ -584,4 +589,5 @@ friction = {mass_kg = 0.028, std_kg = 0.008, directions = ["x", "y"]}   # pulley
 [images]                   # 1-based {position}, {load}, {repeat}
 unloaded = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_unloaded.png"
 loaded = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png"
+pairing = "pairs"          # or "mean-reference" when the robot stays at each position for all its loads
 """

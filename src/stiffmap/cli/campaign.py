@@ -74,14 +74,14 @@ def _summary_table(store) -> Table:
 
     t = Table(title="stiffness per position (N/mm)", show_lines=False)
     for col in ("#", "x, y, z (mm)", "K (rows)", "det K", "min principal", "flags"):
-        t.add_column(col)
+        t.add_column(col, no_wrap=col != "flags")
     for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
-        xyz = f"{r['x']:g}, {r['y']:g}, {r['z']:g}"
+        xyz = f"{r['x']:.0f}, {r['y']:.0f}, {r['z']:.0f}"
         if r["status"] != "ok":
             t.add_row(str(r["position"]), xyz, "[red]failed[/]", "", "", r["error"] or "")
             continue
         K = from_json(r["K"])
-        rows = "\n".join("  ".join(f"{v:8.3f}" for v in row) for row in K)
+        rows = "\n".join(" ".join(f"{v:7.3f}" for v in row) for row in K)
         flags = from_json(r["flags"], array=False) or []
         t.add_row(
             str(r["position"]),
@@ -179,7 +179,7 @@ def run(
         if as_json:
             print_json(summary_dict(store, spec.name, failures))
         elif spec.kind == "vision":
-            out.print(_summary_table(store))
+            out.print(_summary_table(store), width=max(out.width, 110))
         else:
             out.print(_sensor_table(spec, store))
     if not as_json:

@@ -1,55 +1,110 @@
-"""``stiffmap demo``: what ``make demo`` runs.
-
-Until the virtual test-bed and campaigns land, the demo identifies a known
-stiffness from the reference study's nine load cases with simulated
-displacement noise, and prints the three estimators beside the truth.
-"""
+"""``stiffmap demo``: the reference experiment on the virtual test-bed, end to end (``make demo``)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import typer
 from rich.table import Table
 
-from .common import fmt, out
+from .common import EXIT_PARTIAL, err, out, warn
 
 
 def demo(
-    seed: int = typer.Option(1, "--seed", help="Seed of the simulated noise."),
-    repeats: int = typer.Option(10, "--repeats", min=1, help="Repeated measurements per load case."),
-    noise_mm: float = typer.Option(0.005, "--noise-mm", min=0.0, help="Displacement noise, 1 sigma, mm."),
+    out_dir: Path = typer.Argument(
+        Path("demo-out"), help="Directory of the demo campaign (reused if it holds it)."
+    ),
+    quick: bool = typer.Option(
+        False, "--quick", help="6 positions and 2 repeats instead of 48 and 3 (a minute)."
+    ),
+    repeats: int = typer.Option(
+        0, "--repeats", min=0, help="Repeats per load case (0: 3, or 2 with --quick)."
+    ),
+    seed: int = typer.Option(1, "--seed", min=0, help="Seed of the simulation."),
+    workers: int = typer.Option(0, "--workers", "-w", min=0, help="Processes (0: all CPUs)."),
+    fresh: bool = typer.Option(False, "--fresh", help="Simulate again even if OUT_DIR holds this demo."),
+    report: bool = typer.Option(True, "--report/--no-report", help="Write OUT_DIR/report/."),
 ) -> None:
-    """Identify a known stiffness from simulated measurements of the reference load design."""
+    """Simulate the reference experiment and measure it with the whole chain.
+
+    The virtual test-bed renders the camera images of a Delta-type robot with a known
+    stiffness at the reference study's 48 positions under its nine load cases, with
+    repeats; stiffmap then runs the campaign as it would a real one (board detection,
+    poses, displacements, stiffness identification, model fit, exports, report) and
+    prints the recovered stiffness against the truth at every position, ending with
+    the worst relative error (Frobenius norm) over all positions.
+    """
     import numpy as np
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..identify import METHODS, identify_stiffness
-    from ..loads import forces_matrix, paper9
+    from ..campaign.demo import run_demo
+    from ..campaign.runner import default_workers
 
-    rng = np.random.default_rng(seed)
-    # An anisotropic, symmetric, positive-definite stiffness of the order the
-    # reference study measured (a few N/mm), in the base frame.
-    A = rng.normal(size=(3, 3))
-    Q, _ = np.linalg.qr(A)
-    K_true = Q @ np.diag([1.5, 4.0, 9.0]) @ Q.T
-    F1 = forces_matrix(paper9())
-    F = np.tile(F1, repeats)
-    D = np.linalg.solve(K_true, F) + rng.normal(scale=noise_mm, size=F.shape)
-    out.print(f"true K (N/mm), nine load cases x {repeats} repeats, noise {noise_mm} mm (1 sigma):")
-    t = Table("method", "K (rows)", "|K - K_true| / |K_true| (Frobenius)", "flags")
-    t.add_row("truth", " | ".join(", ".join(fmt(x, 4) for x in row) for row in K_true), "", "")
-    worst = 0.0
-    for meth in METHODS:
-        fit = identify_stiffness(F, D, method=meth)
-        err = float(np.linalg.norm(fit.K - K_true) / np.linalg.norm(K_true))
-        if meth == "compliance":
-            worst = err
-        t.add_row(
-            meth,
-            " | ".join(", ".join(fmt(x, 4) for x in row) for row in fit.K),
-            f"{100 * err:.3f} %",
-            "; ".join(fit.flags) or "none",
+    n_workers = workers or default_workers()
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeRemainingColumn(),
+        console=err,
+    ) as prog:
+        sim = prog.add_task("rendering images", total=None, rate="")
+        meas = prog.add_task("measuring images", total=None, rate="", visible=False)
+
+        def sim_hook(done: int, total: int) -> None:
+            t = prog.tasks[sim]
+            rate = f"{done / t.elapsed:.1f} images/s" if t.elapsed else ""
+            prog.update(sim, completed=done, total=total, rate=rate)
+
+        def run_hook(done: int, total: int, measured: int) -> None:
+            t = prog.tasks[meas]
+            rate = f"{measured / t.elapsed:.1f} images/s" if t.elapsed and measured else ""
+            prog.update(meas, completed=done, total=total, rate=rate, visible=True)
+
+        res = run_demo(
+            out_dir,
+            quick=quick,
+            repeats=repeats or None,
+            seed=seed,
+            workers=n_workers,
+            report=report,
+            fresh=fresh,
+            sim_progress=sim_hook,
+            run_progress=run_hook,
         )
-    out.print(t)
-    out.print(f"worst relative K error: {100 * worst:.3f} %")
+    if not res.simulated:
+        err.print(f"reused the simulation already in {out_dir} (--fresh to simulate again)")
+    t = Table(title="recovered against true stiffness (N/mm), base frame")
+    for col in ("#", "position (mm)", "true K (rows)", "recovered K (rows)", "error"):
+        t.add_column(col, no_wrap=True)
+    for i, p in enumerate(res.positions):
+        true = "\n".join(" ".join(f"{v:6.2f}" for v in row) for row in res.K_true[i])
+        got = (
+            "\n".join(" ".join(f"{v:6.2f}" for v in row) for row in res.K_measured[i])
+            if np.all(np.isfinite(res.K_measured[i]))
+            else "[red]failed[/]"
+        )
+        e = res.rel_error[i]
+        t.add_row(
+            str(i + 1),
+            ", ".join(f"{v:.0f}" for v in p),
+            true,
+            got,
+            f"{100 * e:.2f} %" if np.isfinite(e) else "n/a",
+        )
+    out.print(t, width=max(out.width, 100))
+    out.print(
+        f"{len(res.positions)} positions, {res.images} images measured; "
+        f"simulate {res.seconds_simulate:.0f} s, measure + identify + report {res.seconds_run:.0f} s"
+    )
+    if res.report is not None:
+        out.print(f"report: {res.report}")
+    for f in res.failures:
+        warn(f)
+    out.print(f"worst relative K error: {res.worst_percent:.2f} %")
+    if res.failures or not np.isfinite(res.worst_percent):
+        raise typer.Exit(EXIT_PARTIAL)
 
 
 def register(app: typer.Typer) -> None:

@@ -31,6 +31,11 @@ DEFAULT_PATTERNS = (
     "images/p{position:02d}/l{load:02d}_r{repeat:02d}_unloaded.png",
     "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png",
 )
+#: When the robot stays at a position: one unloaded image per repeat, then each load's image.
+STAYING_PATTERNS = (
+    "images/p{position:02d}/r{repeat:02d}_unloaded.png",
+    "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png",
+)
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,13 @@ class SimConfig:
         Gravity written to campaign.toml (m/s^2).
     border_px : float
         Every board must stay this far inside the image in every image.
+    robot_stays : bool
+        False: the robot reaches the position anew for every measurement (its
+        repeatability moves each unloaded/loaded pair), and each load case of each
+        repeat has its own unloaded image. True: it reaches each position once and
+        stays during all its loads and repeats (only the per-image jitter remains);
+        each repeat takes one unloaded image, then one image per load, and the
+        campaign is written with ``pairing = "mean-reference"``.
     """
 
     scene: Scene
@@ -81,6 +93,7 @@ class SimConfig:
     name: str = "virtual test-bed"
     g: float = G_REFERENCE_PAPER
     border_px: float = 20.0
+    robot_stays: bool = False
 
     def __post_init__(self) -> None:
         P = np.array(self.positions, dtype=np.float64)
@@ -110,9 +123,10 @@ class SimConfig:
     @property
     def patterns(self) -> tuple[str, str]:
         """(unloaded, loaded) image-name patterns, with the format's extension."""
+        pats = STAYING_PATTERNS if self.robot_stays else DEFAULT_PATTERNS
         if self.image_format == "png":
-            return DEFAULT_PATTERNS
-        return tuple(p[: -len(".png")] + ".jpg" for p in DEFAULT_PATTERNS)
+            return pats
+        return tuple(p[: -len(".png")] + ".jpg" for p in pats)
 
 
 @dataclass(frozen=True)
@@ -199,13 +213,16 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
     jobs: list[ImageJob] = []
     ph = cfg.photometry
     for ip, p in enumerate(P, start=1):
+        stay = cfg.robot.reach(p, _seq(cfg.seed, ip)) if cfg.robot_stays else None
         for il, ld in enumerate(cfg.loads, start=1):
             for ir in range(1, cfg.repeats + 1):
                 rng = _seq(cfg.seed, ip, il, ir)
-                reached = cfg.robot.reach(p, rng)
+                reached = cfg.robot.reach(p, rng) if stay is None else stay
                 T_u = cfg.robot.image_pose(reached, rng)
                 T_l = cfg.robot.image_pose(reached, rng, K[ip - 1], ld.force)
                 for state, T, pat in (("unloaded", T_u, pat_u), ("loaded", T_l, pat_l)):
+                    if state == "unloaded" and cfg.robot_stays and il > 1:
+                        continue  # one unloaded image per repeat, shared by its loads
                     gain = ph.gain * max(1.0 + cfg.gain_jitter * rng.standard_normal(), 0.05)
                     offset = max(ph.offset_dn + cfg.offset_jitter_dn * rng.standard_normal(), 0.0)
                     why = cfg.scene.visibility_problem(T, border_px=cfg.border_px)

@@ -186,7 +186,11 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
                 for i, ld in enumerate(config.loads, start=1)
             ]
         },
-        "images": {"unloaded": pat_u, "loaded": pat_l},
+        "images": {
+            "unloaded": pat_u,
+            "loaded": pat_l,
+            "pairing": "mean-reference" if config.robot_stays else "pairs",
+        },
     }
 
 

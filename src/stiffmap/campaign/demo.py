@@ -1,0 +1,200 @@
+"""The demo: the reference experiment on the virtual test-bed, measured by the whole chain.
+
+:func:`run_demo` simulates the reference vision study — the Delta-type robot at
+the 48 ``paper48`` positions, the nine ``paper9`` load cases, repeats — as
+rendered camera images (:mod:`stiffmap.sim`), runs the campaign exactly as a
+user's (:func:`stiffmap.campaign.runner.run_campaign`: detection, poses,
+displacements, identification, model fit), writes the exports and the report,
+and compares the recovered stiffness with the truth the simulation kept.
+
+The scene is :func:`stiffmap.sim.scene.demo_scene` (a 15x14 board on the
+platform, the study's fixed board, the camera 1.0-1.5 m away); the robot stays
+at each position while its loads are hung (one unloaded image per repeat, then
+one image per load), so each loaded image is compared with the mean unloaded
+pose of its position.
+
+A directory that already holds the same simulation (same settings and seed) is
+reused: the images are not rendered again, and the run only does what is
+missing.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["DemoResult", "run_demo", "demo_config", "QUICK_POSITIONS"]
+
+#: Positions (1-based, in ``paper48``) of the quick demo: a corner and a centre of each plane.
+QUICK_POSITIONS = (1, 6, 22, 27, 43, 48)
+
+
+@dataclass
+class DemoResult:
+    """What the demo measured, against the truth.
+
+    Attributes
+    ----------
+    out_dir : Path
+    positions : ndarray, shape (n, 3), mm
+    K_true, K_measured : ndarray, shape (n, 3, 3), N/mm (NaN where a position failed)
+    rel_error : ndarray, shape (n,)
+        ||K_measured - K_true||_F / ||K_true||_F per position (NaN where failed).
+    simulated : bool
+        False when an earlier identical simulation was reused.
+    images : int
+    seconds_simulate, seconds_run : float
+    failures : list of str
+    report : Path or None
+    """
+
+    out_dir: Path
+    positions: np.ndarray
+    K_true: np.ndarray
+    K_measured: np.ndarray
+    rel_error: np.ndarray
+    simulated: bool
+    images: int
+    seconds_simulate: float
+    seconds_run: float
+    failures: list[str] = field(default_factory=list)
+    report: Path | None = None
+
+    @property
+    def worst_percent(self) -> float:
+        """Worst relative Frobenius error over all positions, % (inf when a position failed)."""
+        e = self.rel_error
+        return float("inf") if np.any(~np.isfinite(e)) else float(100 * e.max())
+
+
+def demo_config(*, quick: bool = False, repeats: int | None = None, seed: int = 1):
+    """The :class:`~stiffmap.sim.testbed.SimConfig` of the demo."""
+    from ..loads import paper9
+    from ..models.presets import paper48
+    from ..sim.robot import delta_robot
+    from ..sim.scene import demo_scene
+    from ..sim.testbed import SimConfig
+
+    pos = paper48()
+    if quick:
+        pos = pos[np.asarray(QUICK_POSITIONS) - 1]
+    r = repeats if repeats is not None else (2 if quick else 3)
+    return SimConfig(
+        scene=demo_scene(),
+        robot=delta_robot(),
+        positions=pos,
+        loads=tuple(paper9()),
+        repeats=r,
+        seed=seed,
+        robot_stays=True,
+        name="demo: the reference experiment on the virtual test-bed" + (" (quick)" if quick else ""),
+    )
+
+
+def _same_simulation(out: Path, command: str) -> bool:
+    t = out / "truth.json"
+    if not t.is_file():
+        return False
+    try:
+        d = json.loads(t.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return d.get("generator", {}).get("command") == command
+
+
+def run_demo(
+    out_dir: str | Path,
+    *,
+    quick: bool = False,
+    repeats: int | None = None,
+    seed: int = 1,
+    workers: int = 1,
+    report: bool = True,
+    fresh: bool = False,
+    sim_progress: Callable[[int, int], None] | None = None,
+    run_progress: Callable[[int, int, int], None] | None = None,
+) -> DemoResult:
+    """Simulate, measure, identify, report, and compare with the truth.
+
+    Parameters
+    ----------
+    out_dir : path
+        The demo campaign's directory (created; a previous demo there is reused or,
+        with ``fresh``, simulated again).
+    quick : bool
+        Six positions and two repeats instead of 48 and three (for tests).
+    repeats : int, optional
+    seed : int
+    workers : int
+        Processes for rendering and for measuring.
+    report : bool
+        Write ``out_dir/report``.
+    fresh : bool
+        Simulate again even when the same simulation is there.
+
+    Raises
+    ------
+    InputError
+        When ``out_dir`` holds something else than a stiffmap simulation.
+    """
+    import time
+
+    from ..sim.writer import load_truth, write_campaign
+    from .export import export_tables
+    from .runner import run_campaign
+    from .spec import load_spec
+    from .store import DB_NAME, Store, from_json
+
+    out = Path(out_dir)
+    config = demo_config(quick=quick, repeats=repeats, seed=seed)
+    command = f"stiffmap demo (quick={quick}, repeats={config.repeats}, seed={seed})"
+    simulated = False
+    t0 = time.perf_counter()
+    if fresh or not _same_simulation(out, command):
+        if out.exists() and any(out.iterdir()) and not (out / "truth.json").is_file():
+            raise InputError("not empty and not a previous demo; choose another directory", source=str(out))
+        db = out / DB_NAME
+        for p in (db, db.with_name(DB_NAME + "-wal"), db.with_name(DB_NAME + "-shm")):
+            if p.exists():
+                p.unlink()  # results of another simulation: never mix them
+        write_campaign(out, config, workers=workers, force=True, progress=sim_progress, command=command)
+        simulated = True
+    t1 = time.perf_counter()
+    summary = run_campaign(out, workers=workers, progress=run_progress)
+    spec = load_spec(out)
+    truth = load_truth(out)
+    with Store(out / DB_NAME) as store:
+        export_tables(store, out / "exports", spec.name, summary.failures)
+        rows = store.rows("SELECT position, status, K FROM stiffness ORDER BY position")
+        page = None
+        if report:
+            from ..report import write_report
+            from .report_data import report_data
+
+            page = write_report(report_data(out.resolve(), spec, store, summary.failures), out / "report")
+    t2 = time.perf_counter()
+    n = len(truth.K)
+    K = np.full((n, 3, 3), np.nan)
+    for r in rows:
+        if r["status"] == "ok" and 1 <= r["position"] <= n:
+            K[r["position"] - 1] = from_json(r["K"])
+    err = np.linalg.norm(K - truth.K, axis=(1, 2)) / np.linalg.norm(truth.K, axis=(1, 2))
+    return DemoResult(
+        out_dir=out,
+        positions=truth.positions,
+        K_true=truth.K,
+        K_measured=K,
+        rel_error=err,
+        simulated=simulated,
+        images=summary.images,
+        seconds_simulate=t1 - t0,
+        seconds_run=t2 - t1,
+        failures=summary.failures,
+        report=page,
+    )
