@@ -1,0 +1,143 @@
+"""``stiffmap run`` on simulated vision campaigns: resume after SIGKILL, bad inputs, the demo."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from _cli import stiffmap
+
+from stiffmap.campaign.store import dump_content
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """Four positions of the demo set-up, nine loads, two repeats (rendered once per module)."""
+    from stiffmap.campaign.demo import demo_config
+    from stiffmap.sim.writer import write_campaign
+
+    cfg = demo_config(quick=True, repeats=2)
+    import dataclasses
+
+    cfg = dataclasses.replace(cfg, positions=cfg.positions[[0, 2, 4, 5]])
+    out = tmp_path_factory.mktemp("campaign") / "c"
+    write_campaign(out, cfg, workers=1)
+    return out
+
+
+def _copy(src, dst):
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _run(path, *args):
+    return stiffmap("run", path, "--quiet", "--no-report", *args)
+
+
+def test_killed_run_resumes_to_the_same_database(campaign, tmp_path):
+    a = _copy(campaign, tmp_path / "a")
+    b = _copy(campaign, tmp_path / "b")
+    full = _run(a, "--workers", "1")
+    assert full.returncode == 0, full.stderr
+    env = dict(os.environ, PYTHONWARNINGS="error")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "stiffmap", "run", str(b), "--quiet", "--no-report", "--workers", "2"],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+    db = b / "stiffmap.db"
+    killed_at = None
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if db.exists():
+            try:
+                con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=0.1)
+                n = con.execute("SELECT COUNT(*) FROM stiffness").fetchone()[0]
+                con.close()
+            except sqlite3.OperationalError:
+                n = 0
+            if n >= 1:
+                os.killpg(proc.pid, signal.SIGKILL)  # the run and its worker processes
+                killed_at = n
+                break
+        time.sleep(0.02)
+    proc.wait(timeout=30)
+    assert killed_at is not None and killed_at < 4, "the run was not caught partway"
+    again = _run(b, "--workers", "2")
+    assert again.returncode == 0, again.stderr
+    assert dump_content(b / "stiffmap.db") == dump_content(a / "stiffmap.db")
+    # A third run changes nothing and measures nothing.
+    third = _run(b)
+    assert "0 measured" in third.stdout and "4 unchanged" in third.stdout
+    assert dump_content(b / "stiffmap.db") == dump_content(a / "stiffmap.db")
+
+
+def test_missing_image_and_wrong_camera_size_are_named_and_the_rest_goes_on(campaign, tmp_path):
+    c = _copy(campaign, tmp_path / "c")
+    gone = sorted((c / "images" / "p02").glob("l03_r01_loaded.png"))[0]
+    gone.unlink()
+    proc = _run(c)
+    assert proc.returncode == 1
+    assert "Traceback" not in proc.stderr
+    assert "images/p02/l03_r01_loaded.png: image not found (position 2)" in proc.stderr
+    summary = json.loads((c / "exports" / "summary.json").read_text())
+    assert all(p["status"] == "ok" for p in summary["positions"])  # 17 of 18 loads are enough
+    assert any("l03_r01_loaded.png" in f for f in summary["failures"])
+
+    cam = json.loads((c / "camera.json").read_text())
+    cam["image_size"] = [1296, 972]
+    (c / "camera.json").write_text(json.dumps(cam))
+    proc = _run(c)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert re.search(r"images/p01/r01_unloaded\.png: .*2592.1944.*1296.972|1296.972.*2592.1944", proc.stderr)
+    summary = json.loads((c / "exports" / "summary.json").read_text())
+    assert all(p["status"] == "failed" for p in summary["positions"])
+
+
+def test_position_outside_the_model_and_bad_spec(campaign, tmp_path):
+    c = _copy(campaign, tmp_path / "c")
+    spec = (c / "campaign.toml").read_text()
+    first = re.search(r"list = \[\n\s*\[([^\]]*)\]", spec) or re.search(r"list = \[\[([^\]]*)\]", spec)
+    assert first, spec
+    spec = spec.replace(f"[{first.group(1)}]", "[0.0, 0.0, -900.0]", 1)
+    (c / "campaign.toml").write_text(spec)
+    proc = _run(c)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert "position 1 (0, 0, -900): outside the model" in proc.stderr
+
+    (c / "campaign.toml").write_text(spec.replace("repeats = 2", 'repeats = "two"'))
+    proc = _run(c)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "campaign.toml" in lines[0] and "line" in lines[0] and "'repeats'" in lines[0]
+
+
+def test_quick_demo_recovers_the_true_stiffness(tmp_path):
+    proc = stiffmap("demo", tmp_path / "demo", "--quick", "--workers", "2")
+    assert proc.returncode == 0, proc.stderr
+    last = proc.stdout.strip().splitlines()[-1]
+    m = re.fullmatch(r"worst relative K error: ([0-9.]+) %", last)
+    assert m, last
+    # Two repeats at six positions (the full demo has three at 48): every K within 5 %.
+    assert float(m.group(1)) < 5.0
+    page = (tmp_path / "demo" / "report" / "index.html").read_text()
+    assert "plotly" in page.lower() and "<script src=" not in page
+    data = json.loads((tmp_path / "demo" / "exports" / "summary.json").read_text())
+    K = np.array([p["K"] for p in data["positions"]])
+    truth = json.loads((tmp_path / "demo" / "truth.json").read_text())
+    Kt = np.array([p["K"] for p in truth["positions"]])
+    rel = np.linalg.norm(K - Kt, axis=(1, 2)) / np.linalg.norm(Kt, axis=(1, 2))
+    assert float(m.group(1)) == pytest.approx(100 * rel.max(), abs=0.006)
