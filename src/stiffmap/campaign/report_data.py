@@ -51,13 +51,7 @@ def _parameters(store: Store, name: str):
 
 
 def _fitted_model(spec: CampaignSpec, store: Store, fit_name: str):
-    from ..models import MECHANISMS
-
-    model = MECHANISMS[spec.robot.model]()
-    if spec.robot.params:
-        model = model.with_params(**spec.robot.params)
-    params = {p.name: p.value for p in _parameters(store, fit_name)}
-    return model.with_params(**params) if params else model
+    return spec.robot.mechanism(**{p.name: p.value for p in _parameters(store, fit_name)})
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:

@@ -373,7 +373,6 @@ def _precision(per_load: dict[int, list[np.ndarray]]) -> dict[str, Any]:
 
 def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
     """Evaluate the campaign's model at every position, fit it to the measured K, store both."""
-    from ..models import MECHANISMS
     from ..models.fit import fit_stiffness
 
     problems: list[str] = []
@@ -384,10 +383,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         problems.append(f"robot model {name!r} has no 3D stiffness for a vision campaign; model step skipped")
         return problems
     try:
-        model = (
-            MECHANISMS[name]().with_params(**spec.robot.params) if spec.robot.params else MECHANISMS[name]()
-        )
-    except (ValueError, TypeError) as e:
+        model = spec.robot.mechanism()
+    except ValueError as e:
         problems.append(f"campaign.toml robot.params: {e}")
         return problems
     rows = store.rows("SELECT position, x, y, z, status, K, K_std FROM stiffness ORDER BY position")
@@ -403,7 +400,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         "inputs_hash": ihash,
         "version": __version__,
     }
-    fit_names = tuple(spec.robot.fit) if spec.robot.fit else ("k_theta",)
+    fit_names = spec.robot.fitted_names()
     if len(ok) >= 1:
         try:
             mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))

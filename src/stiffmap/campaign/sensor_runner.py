@@ -152,7 +152,6 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
 
 
 def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
-    from ..models import MECHANISMS
     from ..models.fit import fit_static_errors
 
     name = spec.robot.model
@@ -161,17 +160,15 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
     problems: list[str] = []
     m = measured_static_errors(spec, store)
     try:
-        model = (
-            MECHANISMS[name]().with_params(**spec.robot.params) if spec.robot.params else MECHANISMS[name]()
-        )
-    except (ValueError, TypeError) as e:
+        model = spec.robot.mechanism()
+    except ValueError as e:
         return [f"campaign.toml robot.params: {e}"]
     if m["points"].shape[1] != model.dim:
         n = m["points"].shape[1]
         return [f"campaign.toml: sensor points have {n} coordinates but the {name} model has {model.dim}"]
     v = m["valid"]
     ref = m["reference_load_n"]
-    fit_names = tuple(spec.robot.fit) if spec.robot.fit else (("kj",) if name == "3prr" else ("k_theta",))
+    fit_names = spec.robot.fitted_names()
     ihash = params_hash(
         {"model": name, "params": spec.robot.params, "fit": fit_names, "values": m["value_mm"]}
     )

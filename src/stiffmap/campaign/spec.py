@@ -75,6 +75,25 @@ class RobotSpec(_Spec):
     #: Parameters fitted to the measurements (default: k_theta for the Delta, kj for the 3PRR).
     fit: list[str] | None = None
 
+    def mechanism(self, **overrides: float):
+        """The model with ``params`` (then ``overrides``) applied; ValueError on a bad parameter."""
+        from ..models import MECHANISMS
+
+        if self.model == "none":
+            raise ValueError("robot.model is 'none': the campaign has no model")
+        model = MECHANISMS[self.model]()
+        params = {**self.params, **overrides}
+        try:
+            return model.with_params(**params) if params else model
+        except TypeError as e:
+            raise ValueError(str(e)) from None
+
+    def fitted_names(self) -> tuple[str, ...]:
+        """The parameters to fit: ``fit``, or the model's default."""
+        if self.fit:
+            return tuple(self.fit)
+        return ("kj",) if self.model == "3prr" else ("k_theta",)
+
 
 class CameraSpec(_Spec):
     """The calibrated camera (``camera.json``, relative to the campaign directory)."""
