@@ -31,6 +31,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from _sim_helpers import pnp_pose, round_trip_from_true_corners  # noqa: E402
+from _table import write  # noqa: E402
 
 from stiffmap.campaign.runner import ImageRow, derive_position, plan  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
@@ -220,9 +221,7 @@ def main() -> None:
             "",
         ]
         print("\n".join(lines[-16:]))
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text("\n".join(lines), encoding="utf-8")
-    print(f"saved {OUT}")
+    write(OUT, "\n".join(lines))
 
 
 if __name__ == "__main__":
