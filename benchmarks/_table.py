@@ -1,4 +1,4 @@
-"""Print a benchmark table and save it as Markdown under benchmarks/results/."""
+"""Print a benchmark table and save it as Markdown under benchmarks/results/ (or write a whole page)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,13 @@ def save(
         else f"# {title}\n\n{table}\n\n_{stamp}_\n"
     )
     print(text)
-    RESULTS.mkdir(exist_ok=True)
-    path = RESULTS / f"{name}.md"
-    path.write_text(text)
+    return write(RESULTS / f"{name}.md", text)
+
+
+def write(path: str | Path, text: str) -> Path:
+    """Write a result page (UTF-8, creating its folder) and say where."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    print(f"saved {path}")
     return path

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
+from _table import RESULTS, write
 
 from stiffmap.models import PRR3, DeltaRobot
 from stiffmap.models.fit import fit_static_errors, fit_stiffness, static_error_predictions
@@ -106,9 +106,7 @@ def main() -> None:
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.quick:
-        out = Path(__file__).parent / "results" / "models_fit.md"
-        out.write_text(text)
-        print(f"saved {out}")
+        write(RESULTS / "models_fit.md", text)
 
 
 if __name__ == "__main__":

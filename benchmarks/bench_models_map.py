@@ -21,9 +21,9 @@ if hasattr(os, "sched_setaffinity"):
 import argparse  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _table import RESULTS, write  # noqa: E402
 
 from stiffmap.models import PRR3, DeltaRobot  # noqa: E402
 
@@ -79,9 +79,7 @@ def main() -> None:
     text = head + body
     print(text)
     if not args.quick:
-        out = Path(__file__).parent / "results" / "models_map.md"
-        out.write_text(text)
-        print(f"saved {out}")
+        write(RESULTS / "models_map.md", text)
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _table import write
 
 from stiffmap.errors import InputError
 from stiffmap.sensors import SensorConfig, analyse_recording
@@ -142,10 +143,7 @@ def main() -> None:
         lines.append(row)
         print(row, flush=True)
     lines += ["", f"Total run time {time.perf_counter() - t_start:.0f} s."]
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text("\n".join(lines) + "\n")
-    print(f"saved {out}")
+    write(args.out, "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

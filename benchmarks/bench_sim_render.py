@@ -24,6 +24,7 @@ from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from _table import write  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
 from stiffmap.geometry import transform_from  # noqa: E402
@@ -135,9 +136,7 @@ def main() -> None:
         f"worst render + PNG: {max(r[3] for r in rows):.3f} s.",
         "",
     ]
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text("\n".join(lines), encoding="utf-8")
-    print(f"saved {OUT}")
+    write(OUT, "\n".join(lines))
 
 
 if __name__ == "__main__":

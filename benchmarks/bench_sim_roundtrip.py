@@ -30,7 +30,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from _sim_helpers import pnp_pose, round_trip_from_true_corners  # noqa: E402
+from _sim_helpers import pnp_image_row, round_trip_from_true_corners  # noqa: E402
+from _table import write  # noqa: E402
 
 from stiffmap.campaign.runner import ImageRow, derive_position, plan  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
@@ -85,14 +86,7 @@ def image_round_trip(root: Path):
             rows[f] = ImageRow(f, False, "not found")
             continue
         errs.append(np.r_[um - c["mobile"]["corners_px"], uf - c["fixed"]["corners_px"]])
-        rows[f] = ImageRow(
-            f,
-            True,
-            mobile2cam=pnp_pose(mb.object_points(), um, cam),
-            mobile_cov=np.zeros((6, 6)),
-            fixed2cam=pnp_pose(fb.object_points(), uf, cam),
-            fixed_cov=np.zeros((6, 6)),
-        )
+        rows[f] = pnp_image_row(f, um, uf, mb, fb, cam)
     loads = spec.loads.resolve(spec.g)
     res = []
     for task in plan(spec, root):
@@ -114,14 +108,7 @@ def disp_noise(root: Path, noise: float) -> np.ndarray:
     for f, c in truth.corners().items():
         um = c["mobile"]["corners_px"] + rng.normal(scale=noise, size=c["mobile"]["corners_px"].shape)
         uf = c["fixed"]["corners_px"] + rng.normal(scale=noise, size=c["fixed"]["corners_px"].shape)
-        rows[f] = ImageRow(
-            f,
-            True,
-            mobile2cam=pnp_pose(mb.object_points(), um, cam),
-            mobile_cov=np.zeros((6, 6)),
-            fixed2cam=pnp_pose(fb.object_points(), uf, cam),
-            fixed_cov=np.zeros((6, 6)),
-        )
+        rows[f] = pnp_image_row(f, um, uf, mb, fb, cam)
     loads = spec.loads.resolve(spec.g)
     dev = []
     for task in plan(spec, root):
@@ -220,9 +207,7 @@ def main() -> None:
             "",
         ]
         print("\n".join(lines[-16:]))
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text("\n".join(lines), encoding="utf-8")
-    print(f"saved {OUT}")
+    write(OUT, "\n".join(lines))
 
 
 if __name__ == "__main__":

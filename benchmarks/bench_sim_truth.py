@@ -24,6 +24,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from _sim_helpers import brute_force_reflectance  # noqa: E402
+from _table import write  # noqa: E402
 
 from stiffmap.camera import CameraModel, reference_camera  # noqa: E402
 from stiffmap.sim.render import Photometry, Target, render, render_reflectance, true_corners  # noqa: E402
@@ -137,9 +138,7 @@ def main() -> None:
         "white-margin border of a 45 deg board (a detection failure, not a sub-pixel error).",
         "",
     ]
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text("\n".join(lines), encoding="utf-8")
-    print(f"saved {OUT}")
+    write(OUT, "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from _table import write  # noqa: E402
 from _vision_helpers import RENDERER, look_at_pose, render_scene  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
@@ -191,10 +192,7 @@ def main() -> None:
     ]
     lines += summary
     print("\n".join(summary))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text("\n".join(lines) + "\n")
-    print(f"saved {out}")
+    write(args.out, "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Shared helpers of the model tests: random reachable poses away from singularities."""
+"""Shared helpers of the model tests: random reachable poses away from singularities, FD Jacobians."""
 
 from __future__ import annotations
 
@@ -27,3 +27,16 @@ def central_jacobian(f, x: np.ndarray, h: float) -> np.ndarray:
         e[k] = h
         cols.append((f(x + e) - f(x - e)) / (2 * h))
     return np.stack(cols, axis=2)
+
+
+def assert_jacobian_fd(model, points: np.ndarray, h: float, atol: float) -> np.ndarray:
+    """Check ``model.jacobian`` (dq/dx) against central differences of its inverse kinematics.
+
+    Each pose's matrices are compared relative to the analytic one's Frobenius norm, to
+    ``atol`` (dimensionless); ``h`` is the step in mm. Returns the analytic J, shape (N, n_joints, dim).
+    """
+    J = model.jacobian(points)
+    Jn = central_jacobian(lambda x: model.inverse_kinematics(x).q, points, h=h)
+    scale = np.linalg.norm(J, axis=(1, 2))[:, None, None]
+    np.testing.assert_allclose(J / scale, Jn / scale, rtol=0, atol=atol)
+    return J

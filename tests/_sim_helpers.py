@@ -60,6 +60,28 @@ def pnp_pose(obj: np.ndarray, uv: np.ndarray, camera: CameraModel) -> np.ndarray
     return transform_from(R, tvec.ravel())
 
 
+def pnp_image_row(name: str, uv_mobile: np.ndarray, uv_fixed: np.ndarray, mobile_board, fixed_board, camera):
+    """The campaign runner's ``ImageRow`` of one image, both board poses by :func:`pnp_pose`.
+
+    Parameters
+    ----------
+    uv_mobile, uv_fixed : ndarray, shape (n, 2), px
+        Corners of the mobile and fixed boards, in the boards' canonical order.
+    mobile_board, fixed_board : Chessboard
+    camera : CameraModel
+    """
+    from stiffmap.campaign.runner import ImageRow
+
+    return ImageRow(
+        name,
+        True,
+        mobile2cam=pnp_pose(mobile_board.object_points(), uv_mobile, camera),
+        mobile_cov=np.zeros((6, 6)),  # not used by the identification
+        fixed2cam=pnp_pose(fixed_board.object_points(), uv_fixed, camera),
+        fixed_cov=np.zeros((6, 6)),
+    )
+
+
 def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     """Measure a simulated campaign from its exported corners and identify K per position.
 
@@ -75,7 +97,7 @@ def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     """
     import dataclasses
 
-    from stiffmap.campaign.runner import ImageRow, derive_position, plan
+    from stiffmap.campaign.runner import derive_position, plan
     from stiffmap.campaign.spec import load_spec
     from stiffmap.campaign.store import from_json
     from stiffmap.sim.writer import load_truth
@@ -91,14 +113,7 @@ def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     for f, c in truth.corners().items():
         uv_m = c["mobile"]["corners_px"] + rng.normal(scale=noise_px, size=c["mobile"]["corners_px"].shape)
         uv_f = c["fixed"]["corners_px"] + rng.normal(scale=noise_px, size=c["fixed"]["corners_px"].shape)
-        rows[f] = ImageRow(
-            f,
-            True,
-            mobile2cam=pnp_pose(mb.object_points(), uv_m, cam),
-            mobile_cov=np.zeros((6, 6)),  # not used by the identification
-            fixed2cam=pnp_pose(fb.object_points(), uv_f, cam),
-            fixed_cov=np.zeros((6, 6)),
-        )
+        rows[f] = pnp_image_row(f, uv_m, uv_f, mb, fb, cam)
     loads = spec.loads.resolve(spec.g)
     out = []
     for task in plan(spec, root):

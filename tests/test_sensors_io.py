@@ -116,33 +116,52 @@ def test_no_time_column_uses_the_rate(tmp_path):
     assert rec.sample_rate_hz == pytest.approx(2000.0, rel=1e-12)
 
 
-def test_reader_errors_name_the_file_and_the_channel(tmp_path):
-    with pytest.raises(InputError, match=r"nope\.csv: file not found"):
-        read_recording(tmp_path / "nope.csv")
-    (tmp_path / "x.xlsx").write_text("")
-    with pytest.raises(InputError, match=r"unknown recording format '\.xlsx'"):
-        read_recording(tmp_path / "x.xlsx")
-    (tmp_path / "c.csv").write_text("time_s,volts\n0,1\n0.1,2\n")
-    with pytest.raises(InputError, match=r"c\.csv: missing column 'displacement_v'"):
-        read_recording(tmp_path / "c.csv")
-    (tmp_path / "d.csv").write_text("time_s,displacement_v\n0,1\n0.1,abc\n")
-    with pytest.raises(InputError, match=r"d\.csv: line 3, column 'displacement_v': 'abc' is not a number"):
-        read_recording(tmp_path / "d.csv")
-    (tmp_path / "e.csv").write_text("time_s,displacement_v\n0,1\n0.2,2\n0.1,3\n")
-    with pytest.raises(InputError, match=r"e\.csv: time must increase: sample 2 at 0\.1 s follows 0\.2 s"):
-        read_recording(tmp_path / "e.csv")
-    (tmp_path / "f.csv").write_text("time_s,displacement_v\n0,1\n0.1,2\n")
-    with pytest.raises(InputError, match=r"f\.csv: missing column 'load_n'"):
-        read_recording(tmp_path / "f.csv", parse_channel_map("load=load_n"))
-    (tmp_path / "bad.tdms").write_bytes(b"this is not a TDMS file at all" * 4)
-    with pytest.raises(InputError, match=r"bad\.tdms: not a readable TDMS file"):
-        read_recording(tmp_path / "bad.tdms")
-    (tmp_path / "bad.mat").write_bytes(b"\x00\x01garbage" * 20)
-    with pytest.raises(InputError, match=r"bad\.mat: not a readable MATLAB \.mat file"):
-        read_recording(tmp_path / "bad.mat")
-    scipy.io.savemat(tmp_path / "m.mat", {"time_s": np.arange(5.0), "displacement_v": np.zeros(4)})
-    with pytest.raises(InputError, match=r"m\.mat: variable 'time_s' has 5 samples, 'displacement_v' has 4"):
-        read_recording(tmp_path / "m.mat")
+#: (file, content: text, bytes, MAT variables or None for no file, --channel-map, expected message)
+_BAD_RECORDINGS = [
+    ("nope.csv", None, None, r"nope\.csv: file not found"),
+    ("x.xlsx", "", None, r"unknown recording format '\.xlsx'"),
+    ("c.csv", "time_s,volts\n0,1\n0.1,2\n", None, r"c\.csv: missing column 'displacement_v'"),
+    (
+        "d.csv",
+        "time_s,displacement_v\n0,1\n0.1,abc\n",
+        None,
+        r"d\.csv: line 3, column 'displacement_v': 'abc' is not a number",
+    ),
+    (
+        "e.csv",
+        "time_s,displacement_v\n0,1\n0.2,2\n0.1,3\n",
+        None,
+        r"e\.csv: time must increase: sample 2 at 0\.1 s follows 0\.2 s",
+    ),
+    ("f.csv", "time_s,displacement_v\n0,1\n0.1,2\n", "load=load_n", r"f\.csv: missing column 'load_n'"),
+    ("bad.tdms", b"this is not a TDMS file at all" * 4, None, r"bad\.tdms: not a readable TDMS file"),
+    ("bad.mat", b"\x00\x01garbage" * 20, None, r"bad\.mat: not a readable MATLAB \.mat file"),
+    (
+        "m.mat",
+        {"time_s": np.arange(5.0), "displacement_v": np.zeros(4)},
+        None,
+        r"m\.mat: variable 'time_s' has 5 samples, 'displacement_v' has 4",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "channel_map", "message"), _BAD_RECORDINGS, ids=[c[0] for c in _BAD_RECORDINGS]
+)
+def test_reader_errors_name_the_file_and_the_channel(tmp_path, name, content, channel_map, message):
+    p = tmp_path / name
+    if isinstance(content, str):
+        p.write_text(content)
+    elif isinstance(content, bytes):
+        p.write_bytes(content)
+    elif isinstance(content, dict):
+        scipy.io.savemat(p, content)
+    args = () if channel_map is None else (parse_channel_map(channel_map),)
+    with pytest.raises(InputError, match=message):
+        read_recording(p, *args)
+
+
+def test_channel_map_names_an_unknown_key():
     with pytest.raises(InputError, match=r"unknown key 'volts'"):
         parse_channel_map("volts=a")
 

@@ -78,6 +78,11 @@ def _invoke(args):
     return runner.invoke(app, [str(a) for a in args])
 
 
+def _measure(command, d, board="7x6", camera="camera.json"):
+    """``COMMAND --camera D/CAMERA --board BOARD --square-mm 10``, as every measuring command starts."""
+    return [command, "--camera", d / camera, "--board", board, "--square-mm", "10"]
+
+
 def test_calibrate_the_real_photographs(tmp_path):
     files = sorted(CALIB_DIR.glob("Image*.tif"))
     out = tmp_path / "camera.json"
@@ -140,19 +145,7 @@ def test_pose_json_and_every_bad_input(data):
         "missing.png",
         "moved0.png",
     ]
-    r = _invoke(
-        [
-            "pose",
-            "--camera",
-            d / "camera.json",
-            "--board",
-            "7x6",
-            "--square-mm",
-            "10",
-            "--json",
-            *[d / f for f in files],
-        ]
-    )
+    r = _invoke([*_measure("pose", d), "--json", *[d / f for f in files]])
     assert r.exit_code == 1  # some images failed, others measured
     rows = json.loads(r.stdout)
     assert [row["image"] for row in rows] == [str(d / f) for f in files]
@@ -177,14 +170,10 @@ def test_pose_json_and_every_bad_input(data):
 
 def test_pose_table_wrong_board_size_and_all_failed(data):
     d, _ = data
-    r = _invoke(
-        ["pose", "--camera", d / "camera.json", "--board", "6x5", "--square-mm", "10", d / "ref0.png"]
-    )
+    r = _invoke([*_measure("pose", d, "6x5"), d / "ref0.png"])
     assert r.exit_code == 2  # nothing could be done
     assert "more inner corners than 6x5" in r.stderr or "at least" in r.stderr
-    r = _invoke(
-        ["pose", "--camera", d / "camera.json", "--board", "7x6", "--square-mm", "10", d / "ref0.png"]
-    )
+    r = _invoke([*_measure("pose", d), d / "ref0.png"])
     assert r.exit_code == 0 and "board2cam of the 7x6 board" in r.stdout and "failed" not in r.stdout
 
 
@@ -194,7 +183,7 @@ def test_pose_table_wrong_board_size_and_all_failed(data):
 )
 def test_malformed_camera_json(data, camera, message):
     d, _ = data
-    r = _invoke(["pose", "--camera", d / camera, "--board", "7x6", "--square-mm", "10", d / "ref0.png"])
+    r = _invoke([*_measure("pose", d, camera=camera), d / "ref0.png"])
     assert r.exit_code == 2
     assert camera in r.stderr and message in r.stderr and r.stderr.count("\n") == 1
 
@@ -202,13 +191,7 @@ def test_malformed_camera_json(data, camera, message):
 def test_displacement_camera_and_base_frames(data):
     d, t = data
     args = [
-        "displacement",
-        "--camera",
-        d / "camera.json",
-        "--board",
-        "7x6",
-        "--square-mm",
-        "10",
+        *_measure("displacement", d),
         "--reference",
         d / "ref0.png",
         "--reference",
@@ -258,18 +241,7 @@ def test_displacement_camera_and_base_frames(data):
 
 def test_displacement_option_errors(data):
     d, _ = data
-    base = [
-        "displacement",
-        "--camera",
-        d / "camera.json",
-        "--board",
-        "7x6",
-        "--square-mm",
-        "10",
-        "--reference",
-        d / "ref0.png",
-        d / "moved0.png",
-    ]
+    base = [*_measure("displacement", d), "--reference", d / "ref0.png", d / "moved0.png"]
     r = _invoke([*base, "--point", "1,2"])
     assert r.exit_code == 2 and "--point" in r.stderr
     r = _invoke([*base, "--fixed-board", "9x4"])
@@ -279,41 +251,14 @@ def test_displacement_option_errors(data):
         [*base, "--fixed-board", "9x4", "--fixed-square-mm", "10", "--fixed2base", d / "notrigid.json"]
     )
     assert r.exit_code == 2 and "notrigid.json" in r.stderr and "rigid" in r.stderr
-    r = _invoke(
-        [
-            "displacement",
-            "--camera",
-            d / "camera.json",
-            "--board",
-            "7x6",
-            "--square-mm",
-            "10",
-            "--reference",
-            d / "blank.png",
-            d / "moved0.png",
-        ]
-    )
+    r = _invoke([*_measure("displacement", d), "--reference", d / "blank.png", d / "moved0.png"])
     assert r.exit_code == 2 and "no reference image" in r.stderr
 
 
 def test_validate_table_json_and_plot(data):
     d, _ = data
     plot = d / "stage.svg"
-    r = _invoke(
-        [
-            "validate",
-            "--camera",
-            d / "camera.json",
-            "--board",
-            "7x6",
-            "--square-mm",
-            "10",
-            d / "stage.csv",
-            "--plot",
-            plot,
-            "--json",
-        ]
-    )
+    r = _invoke([*_measure("validate", d), d / "stage.csv", "--plot", plot, "--json"])
     assert r.exit_code == 0, r.stderr
     res = json.loads(r.stdout)
     assert [s["nominal_mm"] for s in res["steps"]] == [2.0, 5.0]
@@ -326,7 +271,5 @@ def test_validate_table_json_and_plot(data):
 
     root = ET.fromstring(plot.read_text())
     assert root.tag.endswith("svg") and len(root.findall(".//{http://www.w3.org/2000/svg}circle")) == 4
-    r = _invoke(
-        ["validate", "--camera", d / "camera.json", "--board", "7x6", "--square-mm", "10", d / "stage.csv"]
-    )
+    r = _invoke([*_measure("validate", d), d / "stage.csv"])
     assert r.exit_code == 0 and "nominal" in r.stdout and "RMS error" in r.stdout

@@ -30,7 +30,6 @@ Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -343,17 +342,9 @@ def reference_camera() -> CameraModel:
 
 def load_camera(path: str | Path) -> CameraModel:
     """Read and validate a ``camera.json`` file (InputError naming the file and key)."""
-    p = Path(path)
-    src = str(path)
-    if not p.is_file():
-        raise InputError("camera file not found", source=src)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})", source=src) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"cannot read: {e}", source=src) from None
-    return CameraModel.from_dict(data, source=src)
+    from .io import read_json
+
+    return CameraModel.from_dict(read_json(path, "camera file"), source=str(path))
 
 
 def save_camera(camera: CameraModel, path: str | Path) -> None:

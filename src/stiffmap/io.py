@@ -7,6 +7,8 @@
 - :func:`atomic_write_text` / :func:`atomic_write_bytes` write through a
   temporary file in the same directory and ``os.replace``, so a reader never
   sees a half-written result and an interrupted run leaves the old file.
+- :func:`read_json` reads a JSON file, raising :class:`~stiffmap.errors.InputError`
+  naming the file when it is missing, unreadable or not valid JSON.
 - :func:`to_jsonable` turns numpy arrays and floats into JSON values
   (NaN and infinities become ``null``).
 """
@@ -29,6 +31,7 @@ from .errors import InputError
 __all__ = [
     "Table",
     "read_csv_columns",
+    "read_json",
     "atomic_write_text",
     "atomic_write_bytes",
     "to_jsonable",
@@ -155,6 +158,37 @@ def read_csv_columns(
     if not lines:
         raise InputError("no data rows after the header", source=src)
     return Table(src, {c: np.asarray(v, dtype=np.float64) for c, v in data.items()}, np.asarray(lines), text)
+
+
+def read_json(path: str | os.PathLike, what: str = "file"):
+    """Parse a UTF-8 JSON file.
+
+    Parameters
+    ----------
+    path : path-like
+    what : str
+        What the file is, for the message when it is missing (``"camera file"``).
+
+    Returns
+    -------
+    The parsed JSON value (dict, list, str, number, bool or None).
+
+    Raises
+    ------
+    InputError
+        Naming the file: ``"<what> not found"``, ``"cannot read: ..."`` or
+        ``"not valid JSON (line L, column C: ...)"``.
+    """
+    p = Path(path)
+    src = str(path)
+    if not p.is_file():
+        raise InputError(f"{what} not found", source=src)
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise InputError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})", source=src) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read: {e}", source=src) from None
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import typer
 from rich.console import Console
 from rich.markup import escape
+from rich.table import Table
 
 from ..errors import InputError
 from ..io import dumps_json
@@ -73,3 +74,38 @@ def parse_key_values(items: Sequence[str], what: str) -> dict[str, str]:
             k, v = part.split("=", 1)
             outd[k.strip()] = v.strip()
     return outd
+
+
+def float_values(given: dict[str, str], what: str) -> dict[str, float]:
+    """The values of parsed ``NAME=VALUE`` options as numbers (InputError naming one that is not)."""
+    values = {}
+    for k, v in given.items():
+        try:
+            values[k] = float(v)
+        except ValueError:
+            raise InputError(f"{what} {k}={v}: {v!r} is not a number") from None
+    return values
+
+
+def position_preset(option: str, text: str, mech: str):
+    """Points (ndarray, shape (N, dim), mm) of the position preset ``text`` for mechanism ``mech``.
+
+    None when ``text`` names no preset; InputError when the preset is another mechanism's.
+    """
+    from ..models.presets import POSITION_PRESETS
+
+    key = text.strip().lower()
+    if key not in POSITION_PRESETS:
+        return None
+    owner, fn = POSITION_PRESETS[key]
+    if owner != mech:
+        raise InputError(f"{option} {text}: that preset is for the {owner} model, not {mech}")
+    return fn()
+
+
+def print_summary(title: str, rows: Sequence[tuple[str, str]]) -> None:
+    """Print a two-column table (what, value) without header on stdout."""
+    t = Table(title=title, show_header=False)
+    for row in rows:
+        t.add_row(*row)
+    out.print(t)

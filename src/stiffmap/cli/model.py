@@ -11,7 +11,17 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
-from .common import EXIT_PARTIAL, fmt, fmt_pm, out, parse_key_values, print_json, warn
+from .common import (
+    EXIT_PARTIAL,
+    float_values,
+    fmt,
+    fmt_pm,
+    out,
+    parse_key_values,
+    position_preset,
+    print_json,
+    warn,
+)
 
 
 class MechanismName(StrEnum):
@@ -39,12 +49,7 @@ def _build_model(name: str, param_items: list[str]):
             f"--param: unknown {name} parameter{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
             f"valid: {', '.join(valid)}"
         )
-    values = {}
-    for k, v in given.items():
-        try:
-            values[k] = float(v)
-        except ValueError:
-            raise InputError(f"--param {k}={v}: {v!r} is not a number") from None
+    values = float_values(given, "--param")
     try:
         return cls(**values)
     except ValueError as e:
@@ -79,12 +84,9 @@ def _grid(spec: str, dim: int, mech: str):
 
     from ..models.presets import POSITION_PRESETS
 
-    key = spec.strip().lower()
-    if key in POSITION_PRESETS:
-        owner, fn = POSITION_PRESETS[key]
-        if owner != mech:
-            raise InputError(f"--grid {spec}: that preset is for the {owner} model, not {mech}")
-        return fn()
+    preset = position_preset("--grid", spec, mech)
+    if preset is not None:
+        return preset
     parts = spec.split(",")
     hint = (
         f"expected a preset ({', '.join(k for k, v in POSITION_PRESETS.items() if v[0] == mech)}) or "

@@ -11,10 +11,9 @@ from enum import StrEnum
 from pathlib import Path
 
 import typer
-from rich.table import Table
 
 from ..errors import InputError
-from .common import err, fmt, out, parse_key_values, print_json
+from .common import err, float_values, fmt, parse_key_values, position_preset, print_json, print_summary
 
 
 class RobotName(StrEnum):
@@ -38,12 +37,9 @@ def _positions(text: str, select: str | None, mech: str = "delta"):
     from ..models.presets import POSITION_PRESETS
 
     cols = ("x", "y", "z") if mech == "delta" else ("x", "y")
-    key = text.strip().lower()
-    if key in POSITION_PRESETS:
-        owner, fn = POSITION_PRESETS[key]
-        if owner != mech:
-            raise InputError(f"--positions {text}: that preset is for the {owner} model, not {mech}")
-        P = np.asarray(fn(), dtype=np.float64)
+    preset = position_preset("--positions", text, mech)
+    if preset is not None:
+        P = np.asarray(preset, dtype=np.float64)
     elif Path(text).suffix.lower() == ".csv" or Path(text).is_file():
         t = read_csv_columns(text, cols)
         P = t.stack(cols).T
@@ -218,13 +214,7 @@ def simulate(
     P = _positions(positions or "paper48", select)
     load_cases = _loads(loads, G_REFERENCE_PAPER)
     cam = load_camera(camera_file) if camera_file is not None else reference_camera()
-    given = parse_key_values(param, "--param")
-    values = {}
-    for k, v in given.items():
-        try:
-            values[k] = float(v)
-        except ValueError:
-            raise InputError(f"--param {k}={v}: {v!r} is not a number") from None
+    values = float_values(parse_key_values(param, "--param"), "--param")
     try:
         lp = tuple(float(v) for v in load_point.split(","))
     except ValueError:
@@ -354,15 +344,18 @@ def simulate(
     if as_json:
         print_json(info)
         return
-    t = Table(title=f"simulated campaign in {summary.out_dir}", show_header=False)
-    t.add_row("images", f"{summary.n_images} {image_format.value} ({summary.bytes_written / 1e6:.1f} MB)")
-    t.add_row("positions x loads x repeats", f"{summary.n_positions} x {summary.n_loads} x {summary.repeats}")
-    t.add_row("robot", f"{vr.model} ({', '.join(f'{k}={v:g}' for k, v in vr.params.items())})")
-    t.add_row("true principal stiffnesses", f"{fmt(lo, 4)} to {fmt(hi, 4)} N/mm")
-    t.add_row("seed", str(seed))
-    t.add_row("time", f"{summary.seconds:.1f} s")
-    t.add_row("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/")
-    out.print(t)
+    print_summary(
+        f"simulated campaign in {summary.out_dir}",
+        [
+            ("images", f"{summary.n_images} {image_format.value} ({summary.bytes_written / 1e6:.1f} MB)"),
+            ("positions x loads x repeats", f"{summary.n_positions} x {summary.n_loads} x {summary.repeats}"),
+            ("robot", f"{vr.model} ({', '.join(f'{k}={v:g}' for k, v in vr.params.items())})"),
+            ("true principal stiffnesses", f"{fmt(lo, 4)} to {fmt(hi, 4)} N/mm"),
+            ("seed", str(seed)),
+            ("time", f"{summary.seconds:.1f} s"),
+            ("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/"),
+        ],
+    )
 
 
 def _simulate_sensor(
@@ -432,15 +425,18 @@ def _simulate_sensor(
             }
         )
         return
-    t = Table(title=f"simulated sensor campaign in {s.out_dir}", show_header=False)
-    t.add_row("recordings", f"{s.n_recordings} {fmt} ({s.bytes_written / 1e6:.1f} MB)")
-    t.add_row("points x axes x repeats", f"{s.n_points} x {len(s.directions)} x {s.repeats}")
-    t.add_row("robot", f"3prr ({', '.join(f'{k}={v:g}' for k, v in params.items())})")
-    t.add_row("true static errors at 50 kgf", f"{fmt_mm(lo)} to {fmt_mm(hi)} mm")
-    t.add_row("seed", str(seed))
-    t.add_row("time", f"{s.seconds:.1f} s")
-    t.add_row("files", "campaign.toml, truth.json, recordings/ (+ index.csv); run: stiffmap run DIR")
-    out.print(t)
+    print_summary(
+        f"simulated sensor campaign in {s.out_dir}",
+        [
+            ("recordings", f"{s.n_recordings} {fmt} ({s.bytes_written / 1e6:.1f} MB)"),
+            ("points x axes x repeats", f"{s.n_points} x {len(s.directions)} x {s.repeats}"),
+            ("robot", f"3prr ({', '.join(f'{k}={v:g}' for k, v in params.items())})"),
+            ("true static errors at 50 kgf", f"{fmt_mm(lo)} to {fmt_mm(hi)} mm"),
+            ("seed", str(seed)),
+            ("time", f"{s.seconds:.1f} s"),
+            ("files", "campaign.toml, truth.json, recordings/ (+ index.csv); run: stiffmap run DIR"),
+        ],
+    )
 
 
 def fmt_mm(x: float) -> str:

@@ -21,9 +21,9 @@ be good (:meth:`Mechanism.stiffness`, :meth:`Mechanism.static_error`) raise
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields, replace
+from typing import Any, ClassVar, Protocol, Self, runtime_checkable
 
 import numpy as np
 
@@ -31,6 +31,7 @@ from ..errors import InputError
 
 __all__ = [
     "Mechanism",
+    "LegMechanism",
     "IKSolution",
     "ModelMap",
     "PoseError",
@@ -41,6 +42,9 @@ __all__ = [
     "model_map",
     "format_pose",
     "raise_first_invalid",
+    "flag_singular",
+    "inverse_condition",
+    "sum_of_leg_springs",
 ]
 
 #: Default threshold of the dimensionless singularity measures (a sine or an inverse
@@ -338,3 +342,213 @@ def raise_first_invalid(m: ModelMap, single: bool) -> None:
         index=i,
         reason=m.reasons[i],
     )
+
+
+def flag_singular(
+    reachable: np.ndarray,
+    serial: np.ndarray,
+    parallel: np.ndarray,
+    tol: float,
+    reasons: list[str],
+    serial_reason: Callable[[int], str],
+    parallel_reason: Callable[[int], str],
+) -> np.ndarray:
+    """Flag reachable poses whose singularity measures are below ``tol``.
+
+    Parameters
+    ----------
+    reachable : ndarray of bool, shape (N,)
+    serial, parallel : ndarray, shape (N,)
+        The model's singularity measures in [0, 1] (0 at a singularity).
+    tol : float
+        Threshold below which a measure flags the pose.
+    reasons : list of str, length N
+        Filled in place with ``"singular: ..."`` for every flagged pose.
+    serial_reason, parallel_reason : callable, int -> str
+        The text naming the serial or parallel singularity of pose i.
+
+    Returns
+    -------
+    valid : ndarray of bool, shape (N,)
+        Reachable and not singular.
+    """
+    valid = reachable.copy()
+    for i in np.flatnonzero(reachable & ((serial < tol) | (parallel < tol))):
+        parts = []
+        if serial[i] < tol:
+            parts.append(serial_reason(i))
+        if parallel[i] < tol:
+            parts.append(parallel_reason(i))
+        reasons[i] = "singular: " + "; ".join(parts)
+        valid[i] = False
+    return valid
+
+
+def inverse_condition(n: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Inverse condition number of each pose's matrix of leg directions (a parallel-singularity measure).
+
+    Parameters
+    ----------
+    n : ndarray, shape (N, legs, dim)
+        Unit leg directions, rows of one matrix per pose.
+    ok : ndarray of bool, shape (N,)
+        Poses to evaluate (their ``n`` finite).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Smallest over largest singular value, in [0, 1] (0: the legs lose a direction);
+        NaN where ``ok`` is False.
+    """
+    out = np.full(ok.shape, np.nan)
+    if np.any(ok):
+        s = np.linalg.svd(n[ok], compute_uv=False)
+        out[ok] = s[:, -1] / s[:, 0]
+    return out
+
+
+def sum_of_leg_springs(k_leg: np.ndarray, n: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``K = sum_i k_leg,i n_i n_i^T`` at every pose: legs acting as springs along ``n_i``.
+
+    Parameters
+    ----------
+    k_leg : ndarray, shape (N, legs), N/mm
+        Stiffness of each leg along its direction.
+    n : ndarray, shape (N, legs, dim)
+        Unit leg directions (NaN allowed where ``valid`` is False).
+    valid : ndarray of bool, shape (N,)
+
+    Returns
+    -------
+    K : ndarray, shape (N, dim, dim), N/mm
+        Exactly symmetric; zero where ``valid`` is False.
+    """
+    with np.errstate(invalid="ignore"):
+        kl = np.where(valid[:, None], k_leg, 0.0)
+        K = np.einsum("ni,nij,nik->njk", kl, np.nan_to_num(n), np.nan_to_num(n))
+    return 0.5 * (K + np.swapaxes(K, 1, 2))  # exactly symmetric (roundoff of the sum)
+
+
+class LegMechanism:
+    """The :class:`Mechanism` methods shared by stiffmap's leg models (Delta, 3PRR).
+
+    A frozen dataclass inherits them. It has a ``singular_tol`` field and provides
+    ``name``, ``dim``, ``_LABEL`` (its name in messages), the classmethod
+    ``param_names()``, ``legs(points)`` (per-leg vectors with a ``reachable``
+    mask), ``_measures(legs)`` (serial and parallel singularity measures) and
+    ``_map_from_legs(points, legs)`` (the :class:`ModelMap`).
+
+    A third-party robot need not inherit this: :class:`Mechanism` is a protocol,
+    and implementing its methods is all stiffmap asks.
+    """
+
+    name: ClassVar[str]
+    dim: ClassVar[int]
+    _LABEL: ClassVar[str]
+    singular_tol: float
+
+    def _check_singular_tol(self) -> None:
+        """Store ``singular_tol`` as a float in [0, 1) (for ``__post_init__``)."""
+        tol = float(self.singular_tol)
+        if not (0 <= tol < 1):
+            raise ValueError(f"singular_tol must be in [0, 1), got {self.singular_tol!r}")
+        object.__setattr__(self, "singular_tol", tol)
+
+    def params(self) -> dict[str, float]:
+        """The scalar parameters and their values (units as the fields)."""
+        return {k: getattr(self, k) for k in self.param_names()}
+
+    def with_params(self, **params) -> Self:
+        """A copy with some parameters changed (any field; unknown names raise ValueError)."""
+        names = self.param_names()
+        valid = [f.name for f in fields(self)]
+        bad = sorted(set(params) - set(valid))
+        if bad:
+            others = tuple(v for v in valid if v not in names)
+            raise ValueError(
+                f"unknown {self._LABEL} parameter(s) {', '.join(bad)}; valid: {', '.join(names + others)}"
+            )
+        return replace(self, **params)
+
+    def _valid_legs(self, points) -> tuple[Any, bool]:
+        """The legs of poses that must all be valid (PoseError naming the first that is not).
+
+        Returns
+        -------
+        legs
+            As :meth:`legs`.
+        single : bool
+            True when one pose of shape ``(dim,)`` was given.
+        """
+        _, single = as_points(points, self.dim)
+        legs = self.legs(points)
+        raise_first_invalid(self._map_from_legs(points, legs), single)
+        return legs, single
+
+    def singularity_measures(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Serial and parallel singularity measures, both in [0, 1] (0 at a singularity).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, dim) or (dim,), mm
+
+        Returns
+        -------
+        serial, parallel : ndarray, shape (N,)
+            What each measures is in the model's docstring.
+        """
+        return self._measures(self.legs(points))
+
+    def evaluate(self, points) -> ModelMap:
+        """Stiffness map over many poses, flagging unreachable and singular ones.
+
+        Parameters
+        ----------
+        points : array_like, shape (N, dim) or (dim,), mm
+
+        Returns
+        -------
+        ModelMap
+            K (N/mm) at the tool point in the base frame; ``q`` the actuated joint
+            coordinates (rad or mm).
+        """
+        return self._map_from_legs(points, self.legs(points))
+
+    def stiffness(self, points) -> np.ndarray:
+        """K (N/mm) at the tool point, base frame (the model's equations in its docstring).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, dim) or (dim,), mm
+
+        Returns
+        -------
+        ndarray, shape (N, dim, dim) or (dim, dim), N/mm
+
+        Raises
+        ------
+        PoseError
+            Naming the first unreachable or singular pose.
+        """
+        _, single = as_points(points, self.dim)
+        m = self.evaluate(points)
+        raise_first_invalid(m, single)
+        return m.K[0].copy() if single else m.K.copy()
+
+    def static_error(self, points, force) -> np.ndarray:
+        """Static error ``u = K^-1 F`` (mm) of the tool under a force F (N).
+
+        Parameters
+        ----------
+        points : array_like, shape (N, dim) or (dim,), mm
+        force : array_like, shape (dim,) or (N, dim), N
+
+        Returns
+        -------
+        ndarray, shape (N, dim) or (dim,), mm
+        """
+        P, single = as_points(points, self.dim)
+        F = as_forces(force, P.shape[0], self.dim)
+        K = self.stiffness(P)
+        u = np.linalg.solve(K, F[..., None])[..., 0]
+        return u[0] if single else u

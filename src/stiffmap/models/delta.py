@@ -56,19 +56,21 @@ largest over the model's grid; the principal stiffnesses over the grid then span
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from .base import (
     SINGULAR_TOL,
     IKSolution,
+    LegMechanism,
     ModelMap,
-    as_forces,
     as_points,
     check_positive,
+    flag_singular,
+    inverse_condition,
     model_map,
-    raise_first_invalid,
+    sum_of_leg_springs,
 )
 
 __all__ = ["DeltaRobot", "DeltaLegs"]
@@ -103,7 +105,7 @@ class DeltaLegs:
 
 
 @dataclass(frozen=True)
-class DeltaRobot:
+class DeltaRobot(LegMechanism):
     """Delta-type translational robot with three rotary actuators.
 
     Parameters
@@ -129,7 +131,11 @@ class DeltaRobot:
         Poses whose serial or parallel singularity measure (module docstring) is
         below this are flagged singular.
 
-    See the module docstring for the equations and the default values.
+    See the module docstring for the equations and the default values. The
+    :class:`~stiffmap.models.base.Mechanism` methods (``evaluate``, ``stiffness``:
+    ``J^T K_theta J`` with the link compliances, ``static_error``, ``with_params``,
+    ``params``) come from :class:`~stiffmap.models.base.LegMechanism`; ``q`` of a
+    map holds the actuator angles (rad).
     """
 
     base_radius: float = 150.0
@@ -144,6 +150,7 @@ class DeltaRobot:
 
     name = "delta"
     dim = 3
+    _LABEL = "Delta"
 
     _LENGTHS = ("base_radius", "platform_radius", "arm_length", "forearm_length")
     _UNITS = {
@@ -171,10 +178,7 @@ class DeltaRobot:
         if min(np.linalg.norm(e[i] - e[j]) for i, j in ((0, 1), (1, 2), (0, 2))) < 1e-6:
             raise ValueError(f"leg_angles must be three different directions, got {self.leg_angles!r}")
         object.__setattr__(self, "leg_angles", ang)
-        tol = float(self.singular_tol)
-        if not (0 <= tol < 1):
-            raise ValueError(f"singular_tol must be in [0, 1), got {self.singular_tol!r}")
-        object.__setattr__(self, "singular_tol", tol)
+        self._check_singular_tol()
 
     # ------------------------------------------------------------------ parameters
 
@@ -182,21 +186,6 @@ class DeltaRobot:
     def param_names(cls) -> tuple[str, ...]:
         """Names of the scalar parameters (``with_params``, fitting, ``--param``)."""
         return cls._LENGTHS + ("k_theta", "k_arm", "k_forearm")
-
-    def params(self) -> dict[str, float]:
-        """The scalar parameters and their values (mm, N*mm/rad, N/mm)."""
-        return {k: getattr(self, k) for k in self.param_names()}
-
-    def with_params(self, **params) -> DeltaRobot:
-        """A copy with some parameters changed (any field; unknown names raise ValueError)."""
-        valid = {f.name for f in fields(self)}
-        bad = sorted(set(params) - valid)
-        if bad:
-            raise ValueError(
-                f"unknown Delta parameter(s) {', '.join(bad)}; valid: "
-                f"{', '.join(self.param_names() + ('leg_angles', 'singular_tol'))}"
-            )
-        return replace(self, **params)
 
     # ------------------------------------------------------------------ kinematics
 
@@ -337,37 +326,20 @@ class DeltaRobot:
             Row i is ``n_i^T / (n_i . t_i)``. Raises :class:`PoseError` on an
             unreachable or singular pose.
         """
-        _, single = as_points(points, 3)
-        L = self.legs(points)
-        m = self._map_from_legs(points, L)
-        raise_first_invalid(m, single)
+        L, single = self._valid_legs(points)
         J = L.n / np.einsum("nij,nij->ni", L.n, L.t)[..., None]
         return J[0] if single else J
 
-    def singularity_measures(self, points) -> tuple[np.ndarray, np.ndarray]:
-        """Serial and parallel singularity measures, both in [0, 1] (0 at a singularity).
-
-        Returns
-        -------
-        serial : ndarray, shape (N,)
-            ``min_i |n_i . t_i| / a``: the sine of the smallest angle between an arm
-            and its forearm (0: a leg is stretched or folded, the workspace boundary).
-        parallel : ndarray, shape (N,)
-            Inverse condition number of the matrix of forearm directions (0: the
-            three forearms are coplanar and the platform can move without the actuators).
-        Both NaN where unreachable.
-        """
-        L = self.legs(points)
-        return self._measures(L)
-
     def _measures(self, L: DeltaLegs) -> tuple[np.ndarray, np.ndarray]:
+        """Singularity measures (``singularity_measures``), both NaN where unreachable.
+
+        serial: ``min_i |n_i . t_i| / a``, the sine of the smallest angle between an arm
+        and its forearm (0: a leg is stretched or folded, the workspace boundary).
+        parallel: inverse condition number of the matrix of forearm directions (0: the
+        three forearms are coplanar and the platform can move without the actuators).
+        """
         serial = np.min(np.abs(np.einsum("nij,nij->ni", L.n, L.t)), axis=1) / self.arm_length
-        parallel = np.full(serial.shape, np.nan)
-        ok = L.reachable
-        if np.any(ok):
-            s = np.linalg.svd(L.n[ok], compute_uv=False)
-            parallel[ok] = s[:, -1] / s[:, 0]
-        return serial, parallel
+        return serial, inverse_condition(L.n, L.reachable)
 
     # ------------------------------------------------------------------ stiffness
 
@@ -382,81 +354,23 @@ class DeltaRobot:
         reasons = self._unreachable_reasons(P, L)
         serial, parallel = self._measures(L)
         tol = self.singular_tol
-        valid = L.reachable.copy()
-        for i in np.flatnonzero(L.reachable & ((serial < tol) | (parallel < tol))):
-            parts = []
-            if serial[i] < tol:
-                nt = np.abs(np.einsum("ij,ij->i", L.n[i], L.t[i])) / self.arm_length
-                k = int(np.argmin(nt))
-                parts.append(
-                    f"arm and forearm of leg {k + 1} aligned (serial singularity, workspace boundary; "
-                    f"sine {serial[i]:.2g} < {tol:g})"
-                )
-            if parallel[i] < tol:
-                parts.append(
-                    f"forearms nearly coplanar (parallel singularity; inverse condition {parallel[i]:.2g} "
-                    f"< {tol:g})"
-                )
-            reasons[i] = "singular: " + "; ".join(parts)
-            valid[i] = False
-        kleg = self._leg_stiffness(L)
-        with np.errstate(invalid="ignore"):
-            K = np.einsum("ni,nij,nik->njk", np.where(valid[:, None], kleg, 0.0), L.n, L.n)
-        K = 0.5 * (K + np.swapaxes(K, 1, 2))  # exactly symmetric (roundoff of the sum)
+
+        def serial_reason(i: int) -> str:
+            k = int(np.argmin(np.abs(np.einsum("ij,ij->i", L.n[i], L.t[i])) / self.arm_length))
+            return (
+                f"arm and forearm of leg {k + 1} aligned (serial singularity, workspace boundary; "
+                f"sine {serial[i]:.2g} < {tol:g})"
+            )
+
+        def parallel_reason(i: int) -> str:
+            return (
+                f"forearms nearly coplanar (parallel singularity; inverse condition {parallel[i]:.2g} "
+                f"< {tol:g})"
+            )
+
+        valid = flag_singular(L.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
+        K = sum_of_leg_springs(self._leg_stiffness(L), L.n, valid)
         return model_map(self.name, self.params(), P, K, valid, reasons, L.theta, np.fmin(serial, parallel))
-
-    def evaluate(self, points) -> ModelMap:
-        """Stiffness map over many poses, flagging unreachable and singular ones.
-
-        Parameters
-        ----------
-        points : array_like, shape (N, 3) or (3,), mm
-
-        Returns
-        -------
-        ModelMap
-            K (N/mm) at the tool point in the base frame; ``q`` the actuator angles (rad).
-        """
-        return self._map_from_legs(points, self.legs(points))
-
-    def stiffness(self, points) -> np.ndarray:
-        """K (N/mm) at the tool point, base frame: ``J^T K_theta J`` with link compliances.
-
-        Parameters
-        ----------
-        points : array_like, shape (N, 3) or (3,), mm
-
-        Returns
-        -------
-        ndarray, shape (N, 3, 3) or (3, 3), N/mm
-
-        Raises
-        ------
-        PoseError
-            Naming the first unreachable or singular pose.
-        """
-        _, single = as_points(points, 3)
-        m = self.evaluate(points)
-        raise_first_invalid(m, single)
-        return m.K[0].copy() if single else m.K.copy()
-
-    def static_error(self, points, force) -> np.ndarray:
-        """Static error ``u = K^-1 F`` (mm) of the tool under a force F (N).
-
-        Parameters
-        ----------
-        points : array_like, shape (N, 3) or (3,), mm
-        force : array_like, shape (3,) or (N, 3), N
-
-        Returns
-        -------
-        ndarray, shape (N, 3) or (3,), mm
-        """
-        P, single = as_points(points, 3)
-        F = as_forces(force, P.shape[0], 3)
-        K = self.stiffness(P)
-        u = np.linalg.solve(K, F[..., None])[..., 0]
-        return u[0] if single else u
 
     def describe(self) -> str:
         """One line with the geometry."""

@@ -46,19 +46,22 @@ L = 250 mm, aluminium rods (E = 70 000 MPa) of 200 mm^2 section (a 25 x 25 x
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from .base import (
     SINGULAR_TOL,
     IKSolution,
+    LegMechanism,
     ModelMap,
     as_forces,
     as_points,
     check_positive,
+    flag_singular,
+    inverse_condition,
     model_map,
-    raise_first_invalid,
+    sum_of_leg_springs,
 )
 
 __all__ = ["PRR3", "PRR3Legs", "K_B_PUBLISHED", "K_J_PUBLISHED"]
@@ -96,7 +99,7 @@ class PRR3Legs:
 
 
 @dataclass(frozen=True)
-class PRR3:
+class PRR3(LegMechanism):
     """Redundant planar 3PRR with flexible prismatic joints and elastic rods.
 
     Parameters
@@ -116,7 +119,11 @@ class PRR3:
     singular_tol : float
         Poses whose serial or parallel singularity measure is below this are flagged.
 
-    See the module docstring for the equations and the default geometry.
+    See the module docstring for the equations and the default geometry. The
+    :class:`~stiffmap.models.base.Mechanism` methods (``evaluate``, ``stiffness``:
+    the truss condensed to the tool node, ``static_error``, ``with_params``,
+    ``params``) come from :class:`~stiffmap.models.base.LegMechanism`; K is 2x2
+    and ``q`` of a map holds the slider positions (mm).
     """
 
     h: float = 800.0
@@ -129,16 +136,14 @@ class PRR3:
 
     name = "3prr"
     dim = 2
+    _LABEL = "3PRR"
 
     _UNITS = {"h": "mm", "L": "mm", "area": "mm^2", "E": "MPa", "kj": "N/mm", "kb": "N/mm"}
 
     def __post_init__(self) -> None:
         for f, unit in self._UNITS.items():
             object.__setattr__(self, f, check_positive(f, getattr(self, f), unit))
-        tol = float(self.singular_tol)
-        if not (0 <= tol < 1):
-            raise ValueError(f"singular_tol must be in [0, 1), got {self.singular_tol!r}")
-        object.__setattr__(self, "singular_tol", tol)
+        self._check_singular_tol()
 
     # ------------------------------------------------------------------ parameters
 
@@ -146,21 +151,6 @@ class PRR3:
     def param_names(cls) -> tuple[str, ...]:
         """Names of the scalar parameters (``with_params``, fitting, ``--param``)."""
         return tuple(cls._UNITS)
-
-    def params(self) -> dict[str, float]:
-        """The scalar parameters and their values (mm, mm^2, MPa, N/mm)."""
-        return {k: getattr(self, k) for k in self.param_names()}
-
-    def with_params(self, **params) -> PRR3:
-        """A copy with some parameters changed (unknown names raise ValueError)."""
-        valid = {f.name for f in fields(self)}
-        bad = sorted(set(params) - valid)
-        if bad:
-            raise ValueError(
-                f"unknown 3PRR parameter(s) {', '.join(bad)}; valid: "
-                f"{', '.join(self.param_names() + ('singular_tol',))}"
-            )
-        return replace(self, **params)
 
     # ------------------------------------------------------------------ geometry
 
@@ -301,34 +291,20 @@ class PRR3:
         ndarray, shape (N, 3, 2) or (3, 2)
             Raises :class:`PoseError` on an unreachable or singular pose.
         """
-        _, single = as_points(points, 2)
-        lg = self.legs(points)
-        raise_first_invalid(self._map_from_legs(points, lg), single)
+        lg, single = self._valid_legs(points)
         J = lg.n / np.einsum("nij,ij->ni", lg.n, lg.u)[..., None]
         return J[0] if single else J
 
     def _measures(self, lg: PRR3Legs) -> tuple[np.ndarray, np.ndarray]:
-        serial = np.min(np.einsum("nij,ij->ni", lg.n, lg.u), axis=1)
-        parallel = np.full(serial.shape, np.nan)
-        ok = np.all(np.isfinite(lg.l), axis=1)
-        if np.any(ok):
-            sv = np.linalg.svd(lg.n[ok], compute_uv=False)
-            parallel[ok] = sv[:, -1] / sv[:, 0]
-        return serial, parallel
+        """Singularity measures (``singularity_measures``), parallel NaN where a rod cannot reach.
 
-    def singularity_measures(self, points) -> tuple[np.ndarray, np.ndarray]:
-        """Serial and parallel singularity measures in [0, 1] (0 at a singularity).
-
-        Returns
-        -------
-        serial : ndarray, shape (N,)
-            ``min_i n_i . u_i``: the sine of the smallest angle between a rod and the
-            normal to its rail (0: the rod is perpendicular to its rail).
-        parallel : ndarray, shape (N,)
-            Inverse condition number of the 3x2 matrix of rod directions (0: all
-            rods parallel).
+        serial: ``min_i n_i . u_i``, the sine of the smallest angle between a rod and the
+        normal to its rail (0: the rod is perpendicular to its rail).
+        parallel: inverse condition number of the 3x2 matrix of rod directions (0: all
+        rods parallel).
         """
-        return self._measures(self.legs(points))
+        serial = np.min(np.einsum("nij,ij->ni", lg.n, lg.u), axis=1)
+        return serial, inverse_condition(lg.n, np.all(np.isfinite(lg.l), axis=1))
 
     # ------------------------------------------------------------------ stiffness
 
@@ -344,82 +320,26 @@ class PRR3:
         reasons = self._unreachable_reasons(T, lg)
         serial, parallel = self._measures(lg)
         tol = self.singular_tol
-        valid = lg.reachable.copy()
-        for i in np.flatnonzero(lg.reachable & ((serial < tol) | (parallel < tol))):
-            parts = []
-            if serial[i] < tol:
-                k = int(np.argmin(np.einsum("ij,ij->i", lg.n[i], lg.u)))
-                parts.append(
-                    f"rod {k + 1} perpendicular to its rail (serial singularity, workspace boundary; "
-                    f"sine {serial[i]:.2g} < {tol:g})"
-                )
-            if parallel[i] < tol:
-                parts.append(
-                    "rods nearly parallel (parallel singularity; "
-                    f"inverse condition {parallel[i]:.2g} < {tol:g})"
-                )
-            reasons[i] = "singular: " + "; ".join(parts)
-            valid[i] = False
+
+        def serial_reason(i: int) -> str:
+            k = int(np.argmin(np.einsum("ij,ij->i", lg.n[i], lg.u)))
+            return (
+                f"rod {k + 1} perpendicular to its rail (serial singularity, workspace boundary; "
+                f"sine {serial[i]:.2g} < {tol:g})"
+            )
+
+        def parallel_reason(i: int) -> str:
+            return (
+                f"rods nearly parallel (parallel singularity; inverse condition {parallel[i]:.2g} < {tol:g})"
+            )
+
+        valid = flag_singular(lg.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
         with np.errstate(invalid="ignore"):
-            kl = np.where(valid[:, None], self._leg_stiffness(lg), 0.0)
-            K = np.einsum("ni,nij,nik->njk", kl, np.nan_to_num(lg.n), np.nan_to_num(lg.n))
-        K = 0.5 * (K + np.swapaxes(K, 1, 2))  # exactly symmetric (roundoff of the sum)
+            k_leg = self._leg_stiffness(lg)
+        K = sum_of_leg_springs(k_leg, lg.n, valid)
         q = np.where(lg.reachable[:, None], lg.l, np.nan)
         cond = np.where(lg.reachable, np.fmin(serial, parallel), np.nan)
         return model_map(self.name, self.params(), T, K, valid, reasons, q, cond)
-
-    def evaluate(self, points) -> ModelMap:
-        """Stiffness map over many poses, flagging unreachable and singular ones.
-
-        Parameters
-        ----------
-        points : array_like, shape (N, 2) or (2,), mm
-
-        Returns
-        -------
-        ModelMap
-            K (2x2, N/mm) at the tool; ``q`` the slider positions (mm).
-        """
-        return self._map_from_legs(points, self.legs(points))
-
-    def stiffness(self, points) -> np.ndarray:
-        """Tool stiffness K (N/mm), the truss condensed to the tool node.
-
-        Parameters
-        ----------
-        points : array_like, shape (N, 2) or (2,), mm
-
-        Returns
-        -------
-        ndarray, shape (N, 2, 2) or (2, 2), N/mm
-
-        Raises
-        ------
-        PoseError
-            Naming the first unreachable or singular pose.
-        """
-        _, single = as_points(points, 2)
-        m = self.evaluate(points)
-        raise_first_invalid(m, single)
-        return m.K[0].copy() if single else m.K.copy()
-
-    def static_error(self, points, force) -> np.ndarray:
-        """Static error of the tool ``u = K^-1 F`` (mm) under a force F (N).
-
-        Parameters
-        ----------
-        points : array_like, shape (N, 2) or (2,), mm
-        force : array_like, shape (2,) or (N, 2), N
-
-        Returns
-        -------
-        ndarray, shape (N, 2) or (2,), mm
-        """
-        T, single = as_points(points, 2)
-        F = as_forces(force, T.shape[0], 2)
-        K = self.stiffness(T)
-        u = np.linalg.solve(K, F[..., None])[..., 0]
-        return u[0] if single else u
 
     def truss_displacements(self, point, force) -> np.ndarray:
         """Nodal displacements of the full truss (the study's eqs. 4-6) at one pose.
@@ -443,8 +363,7 @@ class PRR3:
         if not single:
             raise ValueError(f"point must be one position of shape (2,), got {np.shape(point)}")
         F = as_forces(force, 1, 2)[0]
-        lg = self.legs(T)
-        raise_first_invalid(self._map_from_legs(T, lg), True)
+        lg, _ = self._valid_legs(T)
         Kg = np.zeros((8, 8))
         ka = self.E * self.area / self.L
         u = lg.u

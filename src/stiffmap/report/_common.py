@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data import ReportData
+from .data import ModelStiffness, ReportData, SensorMap
 
 #: Units shown with each mapped quantity.
 QUANTITIES = {
@@ -157,3 +157,130 @@ def middle_line_order(data: ReportData, direction: str) -> np.ndarray:
         rows = rows[s.middle_line[rows]]
     order = np.lexsort((s.points[rows, 0], s.points[rows, 1]))
     return rows[order]
+
+
+@dataclass(frozen=True)
+class PlaneMapValues:
+    """What a per-plane map of one quantity draws, for both figure back-ends.
+
+    Attributes
+    ----------
+    title, unit : str
+        The quantity's name and unit (:data:`QUANTITIES`).
+    values : ndarray, shape (n,)
+        Measured values, NaN at failed positions.
+    planes : ndarray, shape (p,), mm
+        Distinct z of the positions, upper plane first.
+    model : ModelStiffness or None
+    model_values : ndarray, shape (n,) or None
+        The model at the positions.
+    map_values : ndarray, shape (g,) or None
+        The model's dense map, when given.
+    flagged : ndarray of bool, shape (n,)
+        Positions with flags (clipped to the colour scale, outlined in red).
+    lo, hi : float
+        Colour scale of measured and model values (flagged positions left out).
+    residuals : ndarray, shape (n,) or None
+        Measured minus model.
+    residual_range : float
+        Half-width of the residuals' diverging scale (1 without a model).
+    """
+
+    title: str
+    unit: str
+    values: np.ndarray
+    planes: np.ndarray
+    model: ModelStiffness | None
+    model_values: np.ndarray | None
+    map_values: np.ndarray | None
+    flagged: np.ndarray
+    lo: float
+    hi: float
+    residuals: np.ndarray | None
+    residual_range: float
+
+
+def plane_map_values(data: ReportData, quantity: str) -> PlaneMapValues | None:
+    """The values, planes and colour scales of ``quantity`` per plane; None without measurements."""
+    m = data.measured
+    if m is None:
+        return None
+    title, unit = QUANTITIES[quantity]
+    vals = np.where(m.ok, getattr(m, quantity), np.nan)
+    model = data.model
+    mv = getattr(model, quantity) if model is not None else None
+    mapv = getattr(model.map, quantity) if model is not None and model.map is not None else None
+    flagged = np.array([bool(f) for f in m.flags])
+    # Flagged positions (a non-positive-definite K, say) would stretch the scale: they keep
+    # their red outline and hover value, and are clipped to the scale's end.
+    lo, hi = finite_range(np.where(flagged, np.nan, vals), mv, mapv)
+    res = getattr(data.residuals, quantity) if model is not None else None
+    rr = symmetric_range(np.where(flagged, np.nan, res)) if res is not None else 1.0
+    return PlaneMapValues(
+        title, unit, vals, plane_values(m.positions[:, 2]), model, mv, mapv, flagged, lo, hi, res, rr
+    )
+
+
+def model_plane_grid(
+    model: ModelStiffness, map_values: np.ndarray, z: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The model's dense map on plane ``z`` as a grid ``(xs, ys, Z)`` (:func:`as_grid`).
+
+    None when there is no dense map, fewer than 4 of its points lie on the plane,
+    or they do not fill a grid.
+    """
+    if model.map is None:
+        return None
+    on = on_plane(model.map.points[:, 2], z)
+    if on.sum() < 4:
+        return None
+    return as_grid(model.map.points[on, :2], map_values[on])
+
+
+@dataclass(frozen=True)
+class SensorDirection:
+    """The sensor rows of one load direction, for both figure back-ends.
+
+    Attributes
+    ----------
+    rows : ndarray of int, shape (k,)
+        Indices of the direction's rows in ``data.sensor``.
+    points : ndarray, shape (k, 2), mm
+    error_um : ndarray, shape (k,), µm
+        Measured static error, NaN where the recording failed.
+    model_um : ndarray, shape (k,), µm, or None
+        The model at the points.
+    dense : SensorMap or None
+        The model's dense map of this direction.
+    lo, hi : float
+        Colour scale over measured, model and dense values.
+    """
+
+    rows: np.ndarray
+    points: np.ndarray
+    error_um: np.ndarray
+    model_um: np.ndarray | None
+    dense: SensorMap | None
+    lo: float
+    hi: float
+
+
+def sensor_direction(data: ReportData, direction: str) -> SensorDirection:
+    """Rows, values and colour scale of one load direction of ``data.sensor``."""
+    s = data.sensor
+    idx = sensor_rows(data, direction)
+    e = s.error_um[idx]
+    model = s.model_error_um[idx] if s.model_error_um is not None else None
+    dense = next((mp for mp in s.maps if mp.direction == direction), None)
+    lo, hi = finite_range(e, model, dense.error_um if dense is not None else None)
+    return SensorDirection(idx, s.points[idx], e, model, dense, lo, hi)
+
+
+def view_rms(views: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-view RMS reprojection error (px, NaN when absent) and the used mask of ``camera.json`` views."""
+    rms = np.array(
+        [v.get("rms_px") if isinstance(v.get("rms_px"), (int, float)) else np.nan for v in views],
+        dtype=float,
+    )
+    used = np.array([bool(v.get("used", True)) for v in views])
+    return rms, used

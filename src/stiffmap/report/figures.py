@@ -19,12 +19,14 @@ from ._common import (
     det_diameters,
     finite_range,
     middle_line_order,
+    model_plane_grid,
     on_plane,
-    plane_values,
+    plane_map_values,
     position_labels,
-    sensor_rows,
+    sensor_direction,
     spans_plane,
     symmetric_range,
+    view_rms,
 )
 from .data import ReportData
 
@@ -91,25 +93,17 @@ def stiffness_map_3d(data: ReportData) -> Figure | None:
 
 def plane_maps(data: ReportData, quantity: str) -> Figure | None:
     """One panel per z plane: measured [, model and residual] of ``quantity``."""
-    m = data.measured
-    if m is None:
+    pv = plane_map_values(data, quantity)
+    if pv is None:
         return None
-    title, unit = QUANTITIES[quantity]
-    vals = np.where(m.ok, getattr(m, quantity), np.nan)
-    planes = plane_values(m.positions[:, 2])
-    model = data.model
+    m = data.measured
+    title, unit, vals, planes, model = pv.title, pv.unit, pv.values, pv.planes, pv.model
     rows = 3 if model is not None else 1
-    mv = getattr(model, quantity) if model is not None else None
-    mapv = getattr(model.map, quantity) if model is not None and model.map is not None else None
-    flagged_all = np.array([bool(f) for f in m.flags])
-    # Flagged positions keep their red outline and are clipped to the colour scale's end.
-    lo, hi = finite_range(np.where(flagged_all, np.nan, vals), mv, mapv)
-    norm = Normalize(lo, hi)
-    res = getattr(data.residuals, quantity) if model is not None else None
-    rr = symmetric_range(np.where(flagged_all, np.nan, res)) if res is not None else 1.0
+    mv, res, rr = pv.model_values, pv.residuals, pv.residual_range
+    norm = Normalize(pv.lo, pv.hi)
     fig = Figure(figsize=(4.0 * len(planes) + 1.2, 3.9 * rows), layout="constrained")
     axes = np.atleast_2d(fig.subplots(rows, len(planes), sharex=True, sharey=True, squeeze=False))
-    flagged = flagged_all & m.ok
+    flagged = pv.flagged & m.ok
     im = imr = None
     for c, z in enumerate(planes):
         sel = on_plane(m.positions[:, 2], z)
@@ -128,11 +122,7 @@ def plane_maps(data: ReportData, quantity: str) -> Figure | None:
         if model is None:
             continue
         ax = axes[1, c]
-        grid = None
-        if model.map is not None:
-            on = on_plane(model.map.points[:, 2], z)
-            if on.sum() >= 4:
-                grid = as_grid(model.map.points[on, :2], mapv[on])
+        grid = model_plane_grid(model, pv.map_values, z)
         if grid is not None:
             ax.pcolormesh(grid[0], grid[1], grid[2], cmap=SEQ, norm=norm, shading="nearest")
             ax.plot(m.positions[sel, 0], m.positions[sel, 1], "k.", ms=3)
@@ -296,11 +286,7 @@ def calibration_figure(data: ReportData) -> Figure | None:
     k = 0
     if views:
         ax = axes[k]
-        rms = np.array(
-            [v.get("rms_px") if isinstance(v.get("rms_px"), (int, float)) else np.nan for v in views],
-            dtype=float,
-        )
-        used = np.array([bool(v.get("used", True)) for v in views])
+        rms, used = view_rms(views)
         x = np.arange(len(views))
         ax.bar(x[used], rms[used], color="#1f77b4", label="used")
         if (~used).any():
@@ -336,12 +322,9 @@ def sensor_maps(data: ReportData) -> Figure | None:
     fig = Figure(figsize=(5.2 * cols + 1, 4.4 * len(dirs)), layout="constrained")
     axes = np.atleast_2d(fig.subplots(len(dirs), cols, sharex=True, sharey=True, squeeze=False))
     for r, d in enumerate(dirs):
-        idx = sensor_rows(data, d)
-        p, e = s.points[idx], s.error_um[idx]
-        model = s.model_error_um[idx] if s.model_error_um is not None else None
-        dense = next((mp for mp in s.maps if mp.direction == d), None)
-        lo, hi = finite_range(e, model, dense.error_um if dense is not None else None)
-        norm = Normalize(lo, hi)
+        sd = sensor_direction(data, d)
+        idx, p, e, model, dense = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense
+        norm = Normalize(sd.lo, sd.hi)
         ok = np.isfinite(e)
         ax = axes[r, 0]
         if spans_plane(p[ok]):

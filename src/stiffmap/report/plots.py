@@ -13,18 +13,19 @@ import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
 from ._common import (
-    QUANTITIES,
     as_grid,
     det_diameters,
     finite_range,
     fmt,
     interpolate_measured,
     middle_line_order,
+    model_plane_grid,
     on_plane,
-    plane_values,
+    plane_map_values,
     position_labels,
-    sensor_rows,
+    sensor_direction,
     symmetric_range,
+    view_rms,
 )
 from .data import ReportData
 
@@ -128,6 +129,26 @@ def stiffness_map_3d(data: ReportData) -> go.Figure | None:
     return fig
 
 
+def _xy_axes(fig: go.Figure, rows: int) -> None:
+    """Label the x axes of the bottom row and the y axes of the first column; equal scales."""
+    fig.update_xaxes(title_text="x (mm)", row=rows)
+    fig.update_yaxes(title_text="y (mm)", col=1)
+    fig.update_yaxes(scaleanchor="x", scaleratio=1)
+
+
+def _identity_line(lo: float, hi: float, name: str, **kw) -> go.Scatter:
+    """The dashed line y = x from ``lo`` to ``hi`` (measured against modelled or true)."""
+    return go.Scatter(
+        x=[lo, hi],
+        y=[lo, hi],
+        mode="lines",
+        line=dict(color="#888", dash="dash"),
+        name=name,
+        hoverinfo="skip",
+        **kw,
+    )
+
+
 def _colorbar(row: int, rows: int, span: int, title: str) -> dict:
     """A colour bar beside ``span`` rows starting at ``row`` (0-based, from the top)."""
     h = 1.0 / rows
@@ -140,13 +161,11 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
     Rows: measured; with a model, the model (its dense map when given) and the
     residual measured - modelled.
     """
-    m = data.measured
-    if m is None:
+    pv = plane_map_values(data, quantity)
+    if pv is None:
         return None
-    title, unit = QUANTITIES[quantity]
-    vals = np.where(m.ok, getattr(m, quantity), np.nan)
-    planes = plane_values(m.positions[:, 2])
-    model = data.model
+    m = data.measured
+    title, unit, vals, planes, model = pv.title, pv.unit, pv.values, pv.planes, pv.model
     rows = 3 if model is not None else 1
     names = ["measured"] + (["model", "measured − model"] if model is not None else [])
     titles = [f"{r}, z = {z:g} mm" for r in names for z in planes]
@@ -160,19 +179,11 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
         vertical_spacing=0.09 if rows > 1 else 0.0,
     )
     hover = np.array(_hover_positions(data))
-    mv = getattr(model, quantity) if model is not None else None
-    mapv = None
-    if model is not None and model.map is not None:
-        mapv = getattr(model.map, quantity)
-    flagged_all = np.array([bool(f) for f in m.flags])
-    # Flagged positions (a non-positive-definite K, say) would stretch the scale: they keep
-    # their red outline and hover value, and are clipped to the scale's end.
-    lo, hi = finite_range(np.where(flagged_all, np.nan, vals), mv, mapv)
-    res = getattr(data.residuals, quantity) if model is not None else None
+    mv, res = pv.model_values, pv.residuals
     for c, z in enumerate(planes, start=1):
         sel = on_plane(m.positions[:, 2], z)
         ok = sel & m.ok
-        flagged = flagged_all & ok
+        flagged = pv.flagged & ok
         fig.add_trace(
             go.Scatter(
                 x=m.positions[ok, 0],
@@ -209,11 +220,7 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
             )
         if model is None:
             continue
-        grid = None
-        if model.map is not None:
-            on = on_plane(model.map.points[:, 2], z)
-            if on.sum() >= 4:
-                grid = as_grid(model.map.points[on, :2], mapv[on])
+        grid = model_plane_grid(model, pv.map_values, z)
         if grid is not None:
             xs, ys, Z = grid
             fig.add_trace(
@@ -275,15 +282,13 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
         height=330 * rows + 40,
         margin=dict(l=60, r=20, t=60, b=50),
         title=dict(text=f"{title} ({unit}) per plane", x=0.01),
-        coloraxis=dict(colorscale=SEQ, cmin=lo, cmax=hi, colorbar=_colorbar(0, rows, span, unit)),
+        coloraxis=dict(colorscale=SEQ, cmin=pv.lo, cmax=pv.hi, colorbar=_colorbar(0, rows, span, unit)),
     )
     if model is not None:
-        r = symmetric_range(np.where(flagged_all, np.nan, res))
+        r = pv.residual_range
         layout["coloraxis2"] = dict(colorscale=DIV, cmin=-r, cmax=r, colorbar=_colorbar(2, rows, 1, unit))
     fig.update_layout(**layout)
-    fig.update_xaxes(title_text="x (mm)", row=rows)
-    fig.update_yaxes(title_text="y (mm)", col=1)
-    fig.update_yaxes(scaleanchor="x", scaleratio=1)
+    _xy_axes(fig, rows)
     return fig
 
 
@@ -360,19 +365,7 @@ def model_scatter(data: ReportData) -> go.Figure | None:
         a, b = getattr(mod, q), np.where(m.ok, getattr(m, q), np.nan)
         ok = np.isfinite(a) & np.isfinite(b)
         lo, hi = finite_range(a[ok], b[ok])
-        fig.add_trace(
-            go.Scatter(
-                x=[lo, hi],
-                y=[lo, hi],
-                mode="lines",
-                line=dict(color="#888", dash="dash"),
-                name="measured = model",
-                showlegend=c == 1,
-                hoverinfo="skip",
-            ),
-            row=1,
-            col=c,
-        )
+        fig.add_trace(_identity_line(lo, hi, "measured = model", showlegend=c == 1), row=1, col=c)
         fig.add_trace(
             go.Scatter(
                 x=a[ok],
@@ -423,18 +416,7 @@ def truth_figure(data: ReportData) -> go.Figure | None:
     sv = m.K_std[ok].reshape(-1)
     diag = np.tile(np.eye(3, dtype=bool).ravel(), ok.sum())
     lo, hi = finite_range(tv, rv)
-    fig.add_trace(
-        go.Scatter(
-            x=[lo, hi],
-            y=[lo, hi],
-            mode="lines",
-            line=dict(color="#888", dash="dash"),
-            name="recovered = true",
-            hoverinfo="skip",
-        ),
-        row=1,
-        col=1,
-    )
+    fig.add_trace(_identity_line(lo, hi, "recovered = true"), row=1, col=1)
     for mask, name, color in ((diag, "diagonal", "#1f77b4"), (~diag, "off-diagonal", "#ff7f0e")):
         fig.add_trace(
             go.Scatter(
@@ -504,11 +486,7 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
     col = 1
     if views:
         names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
-        rms = np.array(
-            [v.get("rms_px") if isinstance(v.get("rms_px"), (int, float)) else np.nan for v in views],
-            dtype=float,
-        )
-        used = np.array([bool(v.get("used", True)) for v in views])
+        rms, used = view_rms(views)
         reason = [str(v.get("reason", "")) for v in views]
         fig.add_trace(
             go.Bar(
@@ -539,17 +517,9 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
         col += 1
     if has_res:
         r = c.corner_residuals_px
+        scatter = go.Scattergl if len(r) > 5000 else go.Scatter  # WebGL for many corners
         fig.add_trace(
-            go.Scattergl(
-                x=r[:, 0],
-                y=r[:, 1],
-                mode="markers",
-                marker=dict(size=3, color="#444", opacity=0.5),
-                name="corners",
-                hovertemplate="(%{x:.3f}, %{y:.3f}) px<extra></extra>",
-            )
-            if len(r) > 5000
-            else go.Scatter(
+            scatter(
                 x=r[:, 0],
                 y=r[:, 1],
                 mode="markers",
@@ -593,13 +563,12 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
     )
     layout: dict = {}
     for r, d in enumerate(dirs, start=1):
-        idx = sensor_rows(data, d)
-        p, e = s.points[idx], s.error_um[idx]
+        sd = sensor_direction(data, d)
+        idx, p, e, model, dense = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense
         ax = "coloraxis" if r == 1 else f"coloraxis{r}"
-        dense = next((mp for mp in s.maps if mp.direction == d), None)
-        model = s.model_error_um[idx] if s.model_error_um is not None else None
-        lo, hi = finite_range(e, model, dense.error_um if dense is not None else None)
-        layout[ax] = dict(colorscale=SEQ, cmin=lo, cmax=hi, colorbar=_colorbar(r - 1, rows, 1, f"µm ({d})"))
+        layout[ax] = dict(
+            colorscale=SEQ, cmin=sd.lo, cmax=sd.hi, colorbar=_colorbar(r - 1, rows, 1, f"µm ({d})")
+        )
         grid = interpolate_measured(p, e)
         if grid is not None:
             fig.add_trace(
@@ -693,9 +662,7 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
         title=dict(text=f"Static error (µm) at {s.reference_load_n:g} N", x=0.01),
         **layout,
     )
-    fig.update_xaxes(title_text="x (mm)", row=rows)
-    fig.update_yaxes(title_text="y (mm)", col=1)
-    fig.update_yaxes(scaleanchor="x", scaleratio=1)
+    _xy_axes(fig, rows)
     return fig
 
 

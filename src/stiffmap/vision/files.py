@@ -8,7 +8,6 @@ turning each bad file into a recorded error while the others go on.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -18,7 +17,7 @@ import numpy as np
 from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform
-from ..io import read_csv_columns
+from ..io import read_csv_columns, read_json
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, detect_board
 from .images import read_image
@@ -38,16 +37,8 @@ def read_transform(path: str | os.PathLike, key: str = "fixed2base") -> np.ndarr
     InputError
         Naming the file and what is wrong (missing, not JSON, not 4x4, not rigid).
     """
-    p = Path(path)
     src = str(path)
-    if not p.is_file():
-        raise InputError("transform file not found", source=src)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})", source=src) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"cannot read: {e}", source=src) from None
+    data = read_json(path, "transform file")
     if isinstance(data, dict):
         for k in (key, "matrix"):
             if k in data:
