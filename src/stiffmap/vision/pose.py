@@ -19,6 +19,7 @@ taken with the same camera alike and largely cancels in displacements.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -53,6 +54,17 @@ class BoardPose:
         distance (large: a poorly determined pose, e.g. a tiny board).
     iterations : int
         Gauss-Newton iterations.
+    method : str
+        ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
+        (:func:`~stiffmap.vision.photometric.refine_pose_photometric`: a model of the
+        blurred board fitted to its pixels; ``cov`` and ``condition`` are then the
+        photometric fit's, ``rms_px``, ``residuals_px`` and ``sigma_px`` the corners'
+        reprojection errors at that pose).
+    photometric : PhotometricFit or None
+        Quality of the photometric fit (residual RMS in DN, pixels used, blur...).
+    fallback : str or None
+        Why a photometric refinement that was asked for was not used (the pose is
+        then the corner-based one).
     """
 
     board2cam: np.ndarray
@@ -63,6 +75,9 @@ class BoardPose:
     sigma_px: float
     condition: float
     iterations: int
+    method: str = "corners"
+    photometric: Any = None
+    fallback: str | None = None
 
     @property
     def t_std_mm(self) -> np.ndarray:

@@ -1,0 +1,932 @@
+"""Direct (photometric) refinement of a chessboard's pose: a model of the blurred board fitted to its pixels.
+
+Corner-based poses use small windows around the corners; the depth of a
+planar board then comes from its apparent scale, measured by a few hundred
+corners of ~0.02 px noise. This module fits a model of the whole blurred
+chessboard to every pixel near the board's edges (``docs/vision.md``,
+"Photometric pose refinement").
+
+Model. Each pixel centre p has a ray (x/z, y/z) (the lens distortion inverted,
+cached per camera: it does not depend on the pose). With the board plane's
+homography H = [r1, r2, t] (``board2cam`` = [R | t]), the ray meets the board
+at w = H^-1 (x/z, y/z, 1), (X, Y) = (w0 / w2, w1 / w2) mm. The printed
+pattern is, with the square waves Sx = (-1)^floor(X / s) and Sy likewise and
+the indicators Ix, Iy of the checkered area [-s, cols s] x [-s, rows s]
+(square (i, j) black when i + j is even, ``docs/conventions.md``; white
+margin around),
+
+    white(X, Y) = 1 - (Ix Iy + (Ix Sx)(Iy Sy)) / 2.
+
+The image sees it blurred by the optics and integrated over the pixel: an
+isotropic Gaussian of ``sigma`` px (the fitted effective blur, which includes
+the pixel's box: sigma_eff^2 = sigma_psf^2 + 1/12). Near a grid line
+X = k s, at the signed distance dX = (X - k s) / |grad_p X| px from it (the
+local mm -> px scale of the map), the blurred Ix and Ix Sx are
+A + (B - A) Phi(dX / sigma), with A and B their values on either side and Phi
+the normal distribution function; likewise along Y, and the model is the
+separable product
+
+    c = 1 - (Fx Fy + Gx Gy) / 2,     I_model = a(p) + b(p) c,
+
+with a (black level) and b (contrast) polynomials of degree ``shading_degree``
+in the pixel coordinates (lighting, vignetting). The product is exact where
+the blur along one axis has saturated; pixels within 3 sigma of both an X and
+a Y line (the corners, where the image's blur is not separable in board
+coordinates when the board is seen obliquely) are left out. So are pixels
+farther than ``band_px`` from every line (no information on the pose), outside
+the checkered area grown by ``band_px`` (the margin and background are not
+modelled), saturated pixels, and pixels inside ``exclude`` polygons (another
+board).
+
+Fit. Gauss-Newton (Levenberg-Marquardt damped) with the analytic Jacobian of
+:func:`model_and_jacobian` over the pose (perturbation t <- t + dt,
+R <- Exp(dr) R in the camera frame, ``docs/conventions.md``), sigma, and the
+shading coefficients; Huber weights (``huber`` noise sigmas) against a partly
+bad region; heteroscedastic weights from a noise model var = alpha + beta I
+(read noise + photon shot noise) fitted to the residuals of a first pass on a
+quarter of the pixels. Started from the corner-based pose.
+
+Covariance: cov = s^2 (J^T W J)^-1, pose block (t, r), s^2 = sum w r^2 / (N - p)
+with r the residuals in units of the modelled noise sigma. Pixels' noise is
+taken as independent (true of sensor noise, not of JPEG artefacts or a model
+error correlated along an edge, which make the covariance optimistic).
+
+The discrete chessboard layout must be known; ChArUco boards (markers in the
+white squares) are not modelled.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.interpolate import RectBivariateSpline
+from scipy.special import ndtr
+
+from ..camera import CameraModel
+from ..errors import InputError
+from ..targets import CharucoBoard, Chessboard
+
+__all__ = [
+    "PhotometricFit",
+    "PhotometricError",
+    "PhotometricSetup",
+    "prepare_pixels",
+    "model_and_jacobian",
+    "refine_pose_photometric",
+]
+
+_SQRT_2PI = np.sqrt(2.0 * np.pi)
+#: Corner zones: pixels within this many blur sigmas of both an X and a Y line are left out.
+CORNER_SIGMAS = 3.0
+#: Fewest pixels for a fit.
+MIN_PIXELS = 200
+
+
+class PhotometricError(InputError):
+    """The photometric fit could not be done or did not converge (the corner pose stays usable)."""
+
+
+@dataclass(frozen=True)
+class PhotometricFit:
+    """Quality and nuisance parameters of a photometric pose fit.
+
+    Attributes
+    ----------
+    rms_dn : float
+        RMS of the residuals (image minus model) over the pixels used, digital numbers (DN).
+    noise_rms_dn : float
+        RMS of the modelled noise sigma over the pixels used, DN (rms_dn / noise_rms_dn near 1:
+        the model explains the image down to its noise).
+    scale : float
+        s = sqrt(sum w r^2 / (N - p)), residuals in units of the modelled noise (1: as expected).
+    n_pixels : int
+        Pixels used.
+    outlier_fraction : float
+        Fraction of the pixels down-weighted by the Huber weights.
+    blur_px : float
+        Fitted effective Gaussian blur sigma (optics and pixel integration), px.
+    noise_model : (float, float)
+        (alpha DN^2, beta DN): noise variance alpha + beta * I.
+    shading_a, shading_b : ndarray
+        Coefficients of the black level and of the contrast polynomials (DN), in the
+        monomials of (u - u0) / L, (v - v0) / L (see :class:`PhotometricSetup`).
+    iterations : int
+        Gauss-Newton iterations (all passes).
+    converged : bool
+    seconds : float
+    """
+
+    rms_dn: float
+    noise_rms_dn: float
+    scale: float
+    n_pixels: int
+    outlier_fraction: float
+    blur_px: float
+    noise_model: tuple[float, float]
+    shading_a: np.ndarray
+    shading_b: np.ndarray
+    iterations: int
+    converged: bool
+    seconds: float
+
+
+# ------------------------------------------------------------------ ray cache
+
+_RAY_STEP_PX = 16
+_RAY_PAD_PX = 64
+_RAYS: OrderedDict = OrderedDict()
+
+
+class _RayMap:
+    """Undistorted rays (x/z, y/z) of every pixel centre of a camera.
+
+    Stored as the pinhole rays ((u - cx) / fx, (v - cy) / fy) plus a float32
+    correction map (the inverted lens distortion, a few percent of the ray, so
+    float32 keeps it to ~1e-9), built once from bicubic splines of the exact rays
+    on a 16-px grid (interpolation error ~1e-8 px).
+    """
+
+    def __init__(self, camera: CameraModel) -> None:
+        w, h = camera.image_size
+        us = np.arange(-_RAY_PAD_PX, w + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
+        vs = np.arange(-_RAY_PAD_PX, h + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
+        U, V = np.meshgrid(us, vs)
+        rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
+        self.px = (np.arange(w, dtype=np.float64) - camera.cx) / camera.fx
+        self.py = (np.arange(h, dtype=np.float64) - camera.cy) / camera.fy
+        self.px32 = self.px.astype(np.float32)
+        self.py32 = self.py.astype(np.float32)
+        corr_x = rays[..., 0] - (U - camera.cx) / camera.fx
+        corr_y = rays[..., 1] - (V - camera.cy) / camera.fy
+        sx = RectBivariateSpline(vs, us, corr_x, kx=3, ky=3, s=0)
+        sy = RectBivariateSpline(vs, us, corr_y, kx=3, ky=3, s=0)
+        cols = np.arange(w, dtype=np.float64)
+        self.cx = np.empty((h, w), dtype=np.float32)
+        self.cy = np.empty((h, w), dtype=np.float32)
+        for r in range(0, h, 256):
+            rows = np.arange(r, min(r + 256, h), dtype=np.float64)
+            self.cx[r : r + rows.size] = sx(rows, cols)
+            self.cy[r : r + rows.size] = sy(rows, cols)
+
+
+def _raymap(camera: CameraModel) -> _RayMap:
+    key = (camera.image_size, camera.fx, camera.fy, camera.cx, camera.cy, camera.dist)
+    rm = _RAYS.get(key)
+    if rm is None:
+        rm = _RayMap(camera)
+        _RAYS[key] = rm
+        while len(_RAYS) > 2:
+            _RAYS.popitem(last=False)
+    else:
+        _RAYS.move_to_end(key)
+    return rm
+
+
+# ------------------------------------------------------------------ pixel set
+
+
+@dataclass(frozen=True)
+class PhotometricSetup:
+    """The pixels of one board used by the fit and what does not change during it.
+
+    Per-pixel arrays all have shape (N,) (contiguous, for speed).
+
+    Attributes
+    ----------
+    board : Chessboard
+    rx, ry : ndarray
+        Undistorted rays (x/z, y/z) of the pixel centres.
+    u, v : ndarray
+        Pixel centres, px.
+    values : ndarray
+        Image values, DN.
+    line_x, line_y : ndarray
+        Position k s (mm) of the nearest X and Y grid line, k in -1..cols (rows).
+    isx, isy : ndarray
+        1 / |grad_p X| and 1 / |grad_p Y| at the starting pose, px/mm (the local
+        mm -> px scale, fixed during the fit: it sets the blur's width, not the
+        edges' positions).
+    fx0, fx1, gx0, gx1, fy0, fy1, gy0, gy1 : ndarray
+        Across the nearest line of each axis: the value A on the low side and the jump
+        B - A of the indicator I (f) and of I S (g), so that the blurred factors are
+        A + (B - A) Phi(d / sigma).
+    basis : ndarray, shape (n_basis, N)
+        Shading monomials of (u - u0) / L, (v - v0) / L.
+    centre : (float, float)
+    length : float
+    """
+
+    board: Chessboard
+    rx: np.ndarray
+    ry: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    values: np.ndarray
+    line_x: np.ndarray
+    line_y: np.ndarray
+    isx: np.ndarray
+    isy: np.ndarray
+    fx0: np.ndarray
+    fx1: np.ndarray
+    gx0: np.ndarray
+    gx1: np.ndarray
+    fy0: np.ndarray
+    fy1: np.ndarray
+    gy0: np.ndarray
+    gy1: np.ndarray
+    basis: np.ndarray
+    centre: tuple[float, float]
+    length: float
+
+    @property
+    def n_pixels(self) -> int:
+        return int(self.values.size)
+
+    def subset(self, idx: np.ndarray) -> PhotometricSetup:
+        """The same set-up restricted to pixels ``idx``."""
+        kw = {}
+        for f in self.__dataclass_fields__:
+            val = getattr(self, f)
+            if f == "basis":
+                kw[f] = np.ascontiguousarray(val[:, idx])
+            elif isinstance(val, np.ndarray):
+                kw[f] = np.ascontiguousarray(val[idx])
+            else:
+                kw[f] = val
+        return PhotometricSetup(**kw)
+
+
+def _monomials(un: np.ndarray, vn: np.ndarray, degree: int) -> np.ndarray:
+    rows = [np.ones_like(un)]
+    for d in range(1, degree + 1):
+        for i in range(d + 1):
+            rows.append(un ** (d - i) * vn**i)
+    return np.ascontiguousarray(np.stack(rows, axis=0))
+
+
+def _jumps(k: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
+    """(A_F, B_F - A_F, A_G, B_G - A_G) across line k of the indicator F = I and of G = I S.
+
+    Lines k = -1..n at k s; square i spans [i s, (i + 1) s] for i = -1..n-1 with S = (-1)^i
+    (square (i, j) black when i + j is even: black = (1 + Sx Sy) / 2 on the checkered area).
+    """
+    sgn_right = np.where(k % 2 == 0, 1.0, -1.0)  # (-1)^k, the square right of line k
+    AF = np.where(k == -1, 0.0, 1.0)
+    BF = np.where(k == n, 0.0, 1.0)
+    AG = np.where(k == -1, 0.0, -sgn_right)
+    BG = np.where(k == n, 0.0, sgn_right)
+    return AF, BF - AF, AG, BG - AG
+
+
+def _check_image(image) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if img.ndim != 2 or img.dtype not in (np.uint8, np.uint16) or img.size == 0:
+        raise ValueError(f"image must be a grey uint8 (or uint16) array (h, w), got {img.dtype} {img.shape}")
+    return img
+
+
+def _check_pose(board2cam) -> np.ndarray:
+    T = np.array(board2cam, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise ValueError(f"board2cam must be a finite (4, 4) transform, got shape {T.shape}")
+    R = T[:3, :3]
+    if np.abs(R @ R.T - np.eye(3)).max() > 1e-6:
+        raise ValueError("board2cam's rotation part is not orthonormal")
+    if float(R[:, 2] @ T[:3, 3]) <= 0:
+        raise ValueError("board2cam: the board is seen from behind (its z axis points towards the camera)")
+    return T
+
+
+def _homography_inverse(T: np.ndarray) -> np.ndarray:
+    """H^-1 for H = [r1, r2, t]: (X, Y, 1) ~ H^-1 (x/z, y/z, 1) on the board plane."""
+    return np.linalg.inv(np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]))
+
+
+def prepare_pixels(
+    image,
+    board: Chessboard,
+    camera: CameraModel,
+    board2cam,
+    *,
+    band_px: float | None = None,
+    blur_px: float = 1.0,
+    shading_degree: int = 1,
+    outer_edges: bool = True,
+    exclude=(),
+    saturation: int | None = None,
+) -> PhotometricSetup:
+    """Select the pixels of a board for the photometric fit at a starting pose.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w), uint8 or uint16
+    board : Chessboard
+    camera : CameraModel
+    board2cam : array_like, shape (4, 4), mm
+        Starting pose (e.g. the corner-based one).
+    band_px : float, optional
+        Pixels farther than this from every grid line are left out, px (default
+        2.5 ``blur_px``, at least 2 px: beyond it an edge's gradient is below 5 % of its
+        peak and the pixels hold under 0.5 % of the information on its position).
+    blur_px : float
+        Expected effective blur sigma, px (sets the default band and the corner
+        zones left out: 3 sigma around every corner).
+    shading_degree : int
+        Degree (0, 1 or 2) of the black-level and contrast polynomials.
+    outer_edges : bool
+        Also use the outer edges of the checkered area against the white margin (the
+        margin must then be white over at least ``band_px``).
+    exclude : sequence of array_like, shape (k, 2)
+        Polygons (px) whose pixels are not used (another board, a known obstruction).
+    saturation : int, optional
+        Pixels at or above this value are left out (default the dtype's maximum), and so
+        are pixels at 0.
+
+    Returns
+    -------
+    PhotometricSetup
+
+    Raises
+    ------
+    PhotometricError
+        The board is (mostly) outside the image or too few pixels are usable.
+    """
+    img = _check_image(image)
+    T = _check_pose(board2cam)
+    if not isinstance(board, Chessboard):
+        raise ValueError(f"the photometric model is for chessboards, got {type(board).__name__}")
+    if int(shading_degree) not in (0, 1, 2):
+        raise ValueError(f"shading_degree must be 0, 1 or 2, got {shading_degree}")
+    if not (np.isfinite(blur_px) and blur_px > 0):
+        raise ValueError(f"blur_px must be positive, got {blur_px}")
+    band = max(2.5 * blur_px, 2.0) if band_px is None else float(band_px)
+    if not (np.isfinite(band) and band > 0):
+        raise ValueError(f"band_px must be positive, got {band_px}")
+    h, w = img.shape
+    if camera.image_size != (w, h):
+        raise ValueError(
+            f"image is {w}x{h} px but the camera is {camera.image_size[0]}x{camera.image_size[1]} px"
+        )
+    s = board.square_mm
+    cols, rows = board.cols, board.rows
+    # Bounding box of the checkered area grown by 0.6 square (outline sampled along its sides).
+    grow = 0.6 * s
+    x0, y0, x1, y1 = -s - grow, -s - grow, cols * s + grow, rows * s + grow
+    k = np.linspace(0.0, 1.0, 33)
+    outline = np.concatenate(
+        [
+            np.c_[x0 + (x1 - x0) * k, np.full_like(k, y0)],
+            np.c_[np.full_like(k, x1), y0 + (y1 - y0) * k],
+            np.c_[x0 + (x1 - x0) * k, np.full_like(k, y1)],
+            np.c_[np.full_like(k, x0), y0 + (y1 - y0) * k],
+        ]
+    )
+    P = outline @ T[:3, :2].T + T[:3, 3]
+    if np.any(P[:, 2] <= 1e-6):
+        raise PhotometricError("the board reaches behind the camera")
+    uv = camera.project(P)
+    # One pixel of halo on each side for the scale's central differences.
+    c0 = max(int(np.floor(uv[:, 0].min())), 1) - 1
+    c1 = min(int(np.ceil(uv[:, 0].max())) + 1, w - 1) + 1
+    r0 = max(int(np.floor(uv[:, 1].min())), 1) - 1
+    r1 = min(int(np.ceil(uv[:, 1].max())) + 1, h - 1) + 1
+    if c1 - c0 < 10 or r1 - r0 < 10:
+        raise PhotometricError("the board is outside the image")
+    # The selection runs in float32 over the block (1e-4 px is plenty to choose pixels);
+    # the kept pixels get float64 rays.
+    rm = _raymap(camera)
+    rxb = rm.px32[None, c0:c1] + rm.cx[r0:r1, c0:c1]
+    ryb = rm.py32[r0:r1, None] + rm.cy[r0:r1, c0:c1]
+    Hi = _homography_inverse(T)
+    h = Hi.astype(np.float32)
+    iw2 = h[2, 0] * rxb + h[2, 1] * ryb + h[2, 2]
+    front = iw2[1:-1, 1:-1] > 0
+    np.reciprocal(iw2, out=iw2)
+    X = (h[0, 0] * rxb + h[0, 1] * ryb + h[0, 2]) * iw2
+    Y = (h[1, 0] * rxb + h[1, 1] * ryb + h[1, 2]) * iw2
+    # Local scale |grad_p X|, |grad_p Y| (mm/px): for the selection, from central differences on
+    # a 4-px subgrid (it varies slowly); for the pixels kept, from their own neighbours.
+    hb, wb = X.shape
+    gx = np.gradient(X[::4, ::4])
+    gy = np.gradient(Y[::4, ::4])
+    isXc = np.float32(4.0) / np.sqrt(gx[0] ** 2 + gx[1] ** 2)
+    isYc = np.float32(4.0) / np.sqrt(gy[0] ** 2 + gy[1] ** 2)
+    isX = np.repeat(np.repeat(isXc, 4, axis=0), 4, axis=1)[1 : hb - 1, 1 : wb - 1]
+    isY = np.repeat(np.repeat(isYc, 4, axis=0), 4, axis=1)[1 : hb - 1, 1 : wb - 1]
+    Xh, Yh = X, Y
+    X, Y = X[1:-1, 1:-1], Y[1:-1, 1:-1]
+    r0, r1, c0, c1 = r0 + 1, r1 - 1, c0 + 1, c1 - 1
+    sf = np.float32(s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kx = np.clip(np.rint(X / sf), -1, cols)
+        ky = np.clip(np.rint(Y / sf), -1, rows)
+        dX = np.abs(X - kx * sf) * isX
+        dY = np.abs(Y - ky * sf) * isY
+    cz = CORNER_SIGMAS * blur_px
+    # In the checkered area grown by the band, along each axis (in px from its outer lines).
+    with np.errstate(invalid="ignore"):
+        inx = (np.maximum(-sf - X, X - cols * sf) * isX) <= band
+        iny = (np.maximum(-sf - Y, Y - rows * sf) * isY) <= band
+        near_x = (dX < band) & iny
+        near_y = (dY < band) & inx
+        if not outer_edges:
+            inside_x = (np.maximum(-sf - X, X - cols * sf) * isX) < -band
+            inside_y = (np.maximum(-sf - Y, Y - rows * sf) * isY) < -band
+            near_x &= (kx > -1) & (kx < cols) & inside_y
+            near_y &= (ky > -1) & (ky < rows) & inside_x
+        sel = (near_x | near_y) & ~((dX < cz) & (dY < cz)) & front
+    block = img[r0:r1, c0:c1]
+    sat = np.iinfo(img.dtype).max if saturation is None else int(saturation)
+    sel &= (block < sat) & (block > 0)
+    polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in exclude]
+    if polys:
+        m = np.zeros(block.shape, dtype=np.uint8)
+        for p in polys:
+            if p.shape[0] >= 3 and np.all(np.isfinite(p)):
+                q = np.rint((p - [c0, r0]) * 16).astype(np.int32)
+                cv2.fillPoly(m, [q], 1, lineType=cv2.LINE_8, shift=4)
+        sel &= m == 0
+    idx = np.flatnonzero(sel)
+    n = idx.size
+    if n < MIN_PIXELS:
+        raise PhotometricError(f"only {n} usable pixels near the board's edges (at least {MIN_PIXELS})")
+    bw = c1 - c0
+    ii, jj = idx // bw, idx % bw
+    u = (jj + c0).astype(np.float64)
+    v = (ii + r0).astype(np.float64)
+    # Local scale of the pixels kept (central differences in the haloed block).
+    hi = (ii + 1) * wb + (jj + 1)
+    Xf, Yf = Xh.ravel(), Yh.ravel()
+    sXk = 0.5 * np.hypot(Xf[hi + 1] - Xf[hi - 1], Xf[hi + wb] - Xf[hi - wb]).astype(np.float64)
+    sYk = 0.5 * np.hypot(Yf[hi + 1] - Yf[hi - 1], Yf[hi + wb] - Yf[hi - wb]).astype(np.float64)
+    ui, vi = jj + c0, ii + r0
+    kxs = kx.ravel()[idx].astype(np.int64)
+    kys = ky.ravel()[idx].astype(np.int64)
+    fx0, fx1, gx0, gx1 = _jumps(kxs, cols)
+    fy0, fy1, gy0, gy1 = _jumps(kys, rows)
+    u0, v0 = 0.5 * (c0 + c1 - 1), 0.5 * (r0 + r1 - 1)
+    L = 0.5 * max(c1 - c0, r1 - r0, 2)
+    return PhotometricSetup(
+        board=board,
+        rx=rm.px[ui] + rm.cx[vi, ui],
+        ry=rm.py[vi] + rm.cy[vi, ui],
+        u=u,
+        v=v,
+        values=block.ravel()[idx].astype(np.float64),
+        line_x=kxs * s,
+        line_y=kys * s,
+        isx=1.0 / sXk,
+        isy=1.0 / sYk,
+        fx0=fx0,
+        fx1=fx1,
+        gx0=gx0,
+        gx1=gx1,
+        fy0=fy0,
+        fy1=fy1,
+        gy0=gy0,
+        gy1=gy1,
+        basis=_monomials((u - u0) / L, (v - v0) / L, int(shading_degree)),
+        centre=(u0, v0),
+        length=L,
+    )
+
+
+# ---------------------------------------------------------------------- model
+
+
+def model_and_jacobian(
+    setup: PhotometricSetup,
+    board2cam: np.ndarray,
+    blur_px: float,
+    shading_a: np.ndarray,
+    shading_b: np.ndarray,
+    *,
+    jacobian: bool = True,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Model image values of the selected pixels and their Jacobian.
+
+    Parameters
+    ----------
+    setup : PhotometricSetup
+    board2cam : ndarray, shape (4, 4), mm
+    blur_px : float
+        Effective Gaussian blur sigma, px.
+    shading_a, shading_b : ndarray, shape (n_basis,)
+        Black-level and contrast coefficients, DN.
+    jacobian : bool
+
+    Returns
+    -------
+    model : ndarray, shape (N,), DN
+    J : ndarray, shape (7 + 2 n_basis, N) or None
+        Rows: d model / d (t (3, mm), r (3, rad)) for t <- t + dt, R <- Exp(dr) R (camera
+        frame), then d / d blur_px, then d / d shading_a, then d / d shading_b.
+    """
+    T = np.asarray(board2cam, dtype=np.float64)
+    Hi = _homography_inverse(T)
+    S = setup
+    rx, ry = S.rx, S.ry
+    iw2 = 1.0 / (Hi[2, 0] * rx + Hi[2, 1] * ry + Hi[2, 2])
+    X = (Hi[0, 0] * rx + Hi[0, 1] * ry + Hi[0, 2]) * iw2
+    Y = (Hi[1, 0] * rx + Hi[1, 1] * ry + Hi[1, 2]) * iw2
+    sig = float(blur_px)
+    zx = (X - S.line_x) * S.isx
+    zx /= sig
+    zy = (Y - S.line_y) * S.isy
+    zy /= sig
+    Px, Py = ndtr(zx), ndtr(zy)
+    Fx = S.fx0 + S.fx1 * Px
+    Gx = S.gx0 + S.gx1 * Px
+    Fy = S.fy0 + S.fy1 * Py
+    Gy = S.gy0 + S.gy1 * Py
+    c = 1.0 - 0.5 * (Fx * Fy + Gx * Gy)
+    a = shading_a @ S.basis
+    b = shading_b @ S.basis
+    model = a + b * c
+    if not jacobian:
+        return model, None
+    # d c / d z along each axis (phi the normal density).
+    cz_x = (S.fx1 * Fy + S.gx1 * Gy) * np.exp(-0.5 * zx * zx)
+    cz_x *= -0.5 / _SQRT_2PI
+    cz_y = (S.fy1 * Fx + S.gy1 * Gx) * np.exp(-0.5 * zy * zy)
+    cz_y *= -0.5 / _SQRT_2PI
+    cX = cz_x * S.isx  # d c / d X * sigma, 1/mm
+    cY = cz_y * S.isy
+    nb = S.basis.shape[0]
+    J = np.empty((7 + 2 * nb, X.size))
+    # d X / d(t, r) = (-gX, gX x a), gX = Hi[0] - X Hi[2], a = R q (the board point, camera frame);
+    # v = (dc/dX gX + dc/dY gY) b, so d model / d(t, r) = (-v, v x a).
+    bs = b / sig
+    cX *= bs
+    cY *= bs
+    vx = cX * Hi[0, 0] + cY * Hi[1, 0] - (cX * X + cY * Y) * Hi[2, 0]
+    vy = cX * Hi[0, 1] + cY * Hi[1, 1] - (cX * X + cY * Y) * Hi[2, 1]
+    vz = cX * Hi[0, 2] + cY * Hi[1, 2] - (cX * X + cY * Y) * Hi[2, 2]
+    ax = T[0, 0] * X + T[0, 1] * Y
+    ay = T[1, 0] * X + T[1, 1] * Y
+    az = T[2, 0] * X + T[2, 1] * Y
+    np.negative(vx, out=J[0])
+    np.negative(vy, out=J[1])
+    np.negative(vz, out=J[2])
+    J[3] = vy * az - vz * ay
+    J[4] = vz * ax - vx * az
+    J[5] = vx * ay - vy * ax
+    J[6] = -(cz_x * zx + cz_y * zy) * bs
+    J[7 : 7 + nb] = S.basis
+    J[7 + nb :] = S.basis * c
+    return model, J
+
+
+# ------------------------------------------------------------------------ fit
+
+
+def _apply(T: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    Tn = T.copy()
+    Tn[:3, 3] = T[:3, 3] + delta[:3]
+    R, _ = cv2.Rodrigues(np.asarray(delta[3:6], dtype=np.float64).reshape(3, 1))
+    Tn[:3, :3] = R @ T[:3, :3]
+    return Tn
+
+
+#: Largest rows x columns of a block of the weighted Gram products: small blocks keep
+#: OpenBLAS's matrix-vector and matrix-matrix products on one thread (its threads only
+#: contend with the elementwise work, badly on a loaded machine) and in cache.
+_GRAM_BLOCK_ELEMENTS = 9000
+
+
+def _weighted_gram(M: np.ndarray, w: np.ndarray, e: np.ndarray | None = None):
+    """M diag(w) M^T for M of shape (p, N), summed over blocks of columns; with e, also M diag(w) e."""
+    G = np.zeros((M.shape[0], M.shape[0]))
+    g = np.zeros(M.shape[0])
+    nk = max(64, _GRAM_BLOCK_ELEMENTS // M.shape[0])
+    for k in range(0, M.shape[1], nk):
+        Mk = M[:, k : k + nk]
+        Mw = Mk * w[k : k + nk]
+        G += Mw @ Mk.T
+        if e is not None:
+            g += Mw @ e[k : k + nk]
+    return G if e is None else (G, g)
+
+
+def _linear_shading(setup: PhotometricSetup, T, sig) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares black level and contrast at a fixed pose and blur (the model is linear in them)."""
+    nb = setup.basis.shape[0]
+    ones = np.zeros(nb)
+    ones[0] = 1.0
+    _, J = model_and_jacobian(setup, T, sig, np.zeros(nb), ones)
+    G, g = _weighted_gram(J[7:], np.ones(setup.n_pixels), setup.values)
+    try:
+        coef = np.linalg.solve(G, g)
+    except np.linalg.LinAlgError:
+        raise PhotometricError("the black level and contrast are undetermined") from None
+    return coef[:nb], coef[nb:]
+
+
+def _huber(r: np.ndarray, k: float) -> np.ndarray:
+    a = np.abs(r)
+    return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
+
+
+@dataclass
+class _State:
+    T: np.ndarray
+    sig: float
+    a: np.ndarray
+    b: np.ndarray
+
+
+@dataclass
+class _Solution:
+    state: _State
+    iterations: int
+    converged: bool
+    e: np.ndarray  # residuals at the solution, DN
+    var: np.ndarray  # modelled noise variance, DN^2
+    hw: np.ndarray  # Huber weights
+    A: np.ndarray  # J^T W J at the last linearisation (p, p)
+
+
+def _gauss_newton(
+    setup: PhotometricSetup, st: _State, noise_var, huber: float, max_iter: int, tol: float = 0.1
+) -> _Solution:
+    """Damped Gauss-Newton (IRLS) from ``st``; ``noise_var(model)`` -> variance per pixel (DN^2).
+
+    Converged when a step is below ``tol`` standard deviations of the parameters (its
+    length in the metric of the normal matrix, sqrt(d^T A d)): the step is taken and the
+    next one would be smaller still by the (linear) rate of convergence. The normal
+    matrix returned is that of the last linearisation (less than ``tol`` sigma away).
+    """
+    nb = setup.basis.shape[0]
+    y = setup.values
+
+    def evaluate(state: _State, jacobian: bool = True):
+        m, J = model_and_jacobian(setup, state.T, state.sig, state.a, state.b, jacobian=jacobian)
+        e = y - m
+        var = noise_var(m)
+        hw = _huber(e / np.sqrt(var), huber)
+        return e, J, var, hw
+
+    e, J, var, hw = evaluate(st)
+    lam = 1e-6
+    it = 0
+    converged = False
+    A = np.eye(J.shape[0])
+    while it < max_iter:
+        it += 1
+        w = hw / var
+        A, g = _weighted_gram(J, w, e)
+        cost = float(np.dot(w * e, e))
+        d = np.sqrt(np.diag(A))
+        d[d == 0] = 1.0
+        An = A / np.outer(d, d)
+        gn = g / d
+        accepted = last = False
+        for _ in range(10):
+            try:
+                step = np.linalg.solve(An + lam * np.eye(An.shape[0]), gn) / d
+            except np.linalg.LinAlgError:
+                lam = max(lam * 10, 1e-6)
+                continue
+            sig_new = st.sig + step[6]
+            if not np.isfinite(step).all() or sig_new <= 0.05:
+                lam = max(lam * 10, 1e-6)
+                continue
+            last = float(step @ A @ step) < tol * tol
+            new = _State(_apply(st.T, step), sig_new, st.a + step[7 : 7 + nb], st.b + step[7 + nb :])
+            e2, J2, var2, hw2 = evaluate(new, jacobian=not last)
+            # Cost at the same weights (IRLS): accept when it does not increase.
+            if float(np.dot(w * e2, e2)) <= cost * (1 + 1e-12):
+                accepted = True
+                break
+            lam = max(lam * 10, 1e-6)
+        if not accepted:
+            converged = True  # no step lowers the cost: at the minimum to rounding
+            break
+        st, e, J, var, hw = new, e2, J2, var2, hw2
+        lam = max(lam / 10, 1e-9)
+        if last:
+            converged = True
+            break
+    if J is None:  # pragma: no cover - max_iter reached right after a final step
+        converged = True
+    return _Solution(st, it, converged, e, var, hw, A)
+
+
+def _fit_noise_model(m: np.ndarray, e: np.ndarray) -> tuple[float, float]:
+    """var = alpha + beta m from squared residuals (outliers beyond 4 robust sigma left out)."""
+    mad = 1.4826 * np.median(np.abs(e - np.median(e)))
+    keep = np.abs(e) < 4.0 * max(mad, 1e-6)
+    A = np.stack([np.ones(keep.sum()), m[keep]], axis=1)
+    coef, *_ = np.linalg.lstsq(A, e[keep] ** 2, rcond=None)
+    alpha, beta = float(coef[0]), float(coef[1])
+    floor = max(0.05 * float(np.mean(e[keep] ** 2)), 1.0 / 12.0)
+    beta = max(beta, 0.0)
+    if alpha < floor:
+        alpha = floor
+    return alpha, beta
+
+
+def refine_pose_photometric(
+    image,
+    board: Chessboard,
+    camera: CameraModel,
+    board2cam_init,
+    *,
+    detection=None,
+    blur_init_px: float = 1.0,
+    band_px: float | None = None,
+    shading_degree: int = 1,
+    outer_edges: bool = True,
+    exclude=(),
+    huber: float = 3.0,
+    max_iter: int = 30,
+    max_outlier_fraction: float = 0.3,
+    source: str | None = None,
+):
+    """Refine a chessboard's pose by fitting a model of the blurred board to its pixels.
+
+    See the module docstring for the model and the fit.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w), uint8 or uint16 (or BGR uint8, converted to grey)
+    board : Chessboard
+    camera : CameraModel
+    board2cam_init : array_like, shape (4, 4), mm
+        Starting pose, within a small fraction of a square of the truth (e.g. the
+        corner-based pose of :func:`~stiffmap.vision.pose.estimate_pose`).
+    detection : BoardDetection, optional
+        The board's detected corners: then ``rms_px``, ``residuals_px`` and
+        ``sigma_px`` of the result are the corners' reprojection errors at the
+        photometric pose; without it they are NaN / empty and ``n_corners`` is 0.
+    blur_init_px : float
+        Starting effective blur sigma, px.
+    band_px : float, optional
+        Half-width of the band of pixels used along every grid line, px (default
+        2.5 blur sigmas, at least 2 px).
+    shading_degree : int
+        Degree (0, 1, 2) of the black-level and contrast polynomials over the image.
+    outer_edges : bool
+        Use the outer edges of the checkered area against the white margin.
+    exclude : sequence of array_like, shape (k, 2)
+        Polygons (px) left out (the other board, known obstructions).
+    huber : float
+        Huber threshold, in noise sigmas.
+    max_iter : int
+        Largest number of Gauss-Newton iterations per pass.
+    max_outlier_fraction : float
+        Refuse the fit when more than this fraction of the pixels are down-weighted as
+        outliers (an obstructed board).
+    source : str, optional
+        Image name for error messages.
+
+    Returns
+    -------
+    BoardPose
+        ``method == "photometric"``; ``cov`` (6, 6) over (t mm, r rad) as in
+        ``docs/conventions.md``; ``photometric`` holds the fit's quality and
+        nuisance parameters (:class:`PhotometricFit`, residual RMS in DN).
+
+    Raises
+    ------
+    PhotometricError
+        Too few usable pixels, a singular or diverging fit, an implausible blur or
+        contrast, or too many pixels rejected as outliers.
+    ValueError
+        Inputs of the wrong type or shape.
+    """
+    from .pose import BoardPose, projection_jacobian
+
+    t_start = time.perf_counter()
+    if isinstance(board, CharucoBoard):
+        raise ValueError("the photometric model does not describe ChArUco boards (markers); use corners")
+    if not isinstance(board, Chessboard):
+        raise ValueError(f"board must be a Chessboard, got {type(board).__name__}")
+    if not isinstance(camera, CameraModel):
+        raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
+    if not (np.isfinite(blur_init_px) and blur_init_px > 0):
+        raise ValueError(f"blur_init_px must be positive, got {blur_init_px}")
+    T0 = _check_pose(board2cam_init)
+    img = _check_image(image)
+
+    def fail(msg: str) -> PhotometricError:
+        return PhotometricError(f"{board.size} chessboard: photometric fit: {msg}", source=source)
+
+    def select(T, sig) -> PhotometricSetup:
+        try:
+            return prepare_pixels(
+                img,
+                board,
+                camera,
+                T,
+                band_px=band_px,
+                blur_px=sig,
+                shading_degree=shading_degree,
+                outer_edges=outer_edges,
+                exclude=exclude,
+            )
+        except PhotometricError as e:
+            raise fail(e.detail) from None
+
+    setup = select(T0, float(blur_init_px))
+    # Pass 1, on an eighth of the pixels, equal weights: near the optimum, and residuals for
+    # the noise model.
+    n = setup.n_pixels
+    sub = setup.subset(np.arange(0, n, 8)) if n >= 8 * MIN_PIXELS else setup
+    st = _State(T0, float(blur_init_px), *_linear_shading(sub, T0, float(blur_init_px)))
+    m0, _ = model_and_jacobian(sub, st.T, st.sig, st.a, st.b, jacobian=False)
+    e0 = sub.values - m0
+    var0 = max(1.4826 * float(np.median(np.abs(e0 - np.median(e0)))), 0.3) ** 2
+    sol = _gauss_newton(sub, st, lambda m: np.full_like(m, var0), huber, max_iter)
+    iters = sol.iterations
+    st = sol.state
+    m1 = sub.values - sol.e
+    alpha, beta = _fit_noise_model(m1, sol.e)
+
+    def noise_var(m):
+        return alpha + beta * np.maximum(m, 0.0)
+
+    if not 0.2 <= st.sig <= 10.0:
+        raise fail(f"implausible blur sigma {st.sig:.2f} px (expected 0.2-10 px)")
+    # The blur is now known: select again when the bands and corner zones were set for another.
+    if st.sig > 1.15 * blur_init_px or st.sig < 0.7 * blur_init_px:
+        setup = select(st.T, st.sig)
+        st = _State(st.T, st.sig, *_linear_shading(setup, st.T, st.sig))
+    # Pass 2, every pixel, weights from the noise model.
+    sol = _gauss_newton(setup, st, noise_var, huber, max_iter)
+    iters += sol.iterations
+    st = sol.state
+    if not sol.converged:
+        raise fail(f"did not converge in {max_iter} iterations")
+    e, var, hw, A = sol.e, sol.var, sol.hw, sol.A
+    w = hw / var
+    outliers = float(np.mean(hw < 1.0))
+    p, N = A.shape[0], e.size
+    s2 = float(np.dot(w * e, e) / max(N - p, 1))
+    try:
+        cov_all = s2 * np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        raise fail("the pose is undetermined (singular normal matrix)") from None
+    cov = 0.5 * (cov_all[:6, :6] + cov_all[:6, :6].T)
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0):
+        raise fail("the pose is undetermined (singular normal matrix)")
+    contrast = float(np.median(st.b @ setup.basis))
+    if contrast <= 0:
+        raise fail(f"the fitted contrast is not positive ({contrast:.1f} DN): inverted or wrong board")
+    if not 0.2 <= st.sig <= 10.0:
+        raise fail(f"implausible blur sigma {st.sig:.2f} px (expected 0.2-10 px)")
+    if outliers > max_outlier_fraction:
+        raise fail(
+            f"{100 * outliers:.0f} % of the pixels do not fit the model (more than "
+            f"{100 * max_outlier_fraction:.0f} %: obstructed board or another pattern)"
+        )
+    # Condition with rotations expressed as lateral motions at the board's distance (as pose.py).
+    info = np.linalg.inv(cov_all[:6, :6] / s2)
+    Ds = np.diag([1.0, 1.0, 1.0] + [1.0 / max(abs(st.T[2, 3]), 1.0)] * 3)
+    condition = float(np.linalg.cond(Ds @ info @ Ds))
+    T = st.T.copy()
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    T[:3, :3] = U @ Vt
+    if detection is not None and detection.n_corners > 0:
+        obj = detection.object_points()
+        uv, _ = projection_jacobian(T, obj, camera)
+        res = np.asarray(detection.corners, dtype=np.float64) - uv
+        mc = len(obj)
+        rms_px = float(np.sqrt(np.mean(np.sum(res**2, axis=1))))
+        sigma_px = float(np.sqrt(np.sum(res**2) / max(2 * mc - 6, 1)))
+    else:
+        res = np.zeros((0, 2))
+        mc = 0
+        rms_px = sigma_px = float("nan")
+    fit = PhotometricFit(
+        rms_dn=float(np.sqrt(np.mean(e * e))),
+        noise_rms_dn=float(np.sqrt(np.mean(var))),
+        scale=float(np.sqrt(s2)),
+        n_pixels=int(N),
+        outlier_fraction=outliers,
+        blur_px=float(st.sig),
+        noise_model=(alpha, beta),
+        shading_a=st.a.copy(),
+        shading_b=st.b.copy(),
+        iterations=iters,
+        converged=sol.converged,
+        seconds=time.perf_counter() - t_start,
+    )
+    return BoardPose(
+        board2cam=T,
+        cov=cov,
+        rms_px=rms_px,
+        n_corners=mc,
+        residuals_px=res,
+        sigma_px=sigma_px,
+        condition=condition,
+        iterations=iters,
+        method="photometric",
+        photometric=fit,
+    )
