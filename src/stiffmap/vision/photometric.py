@@ -84,6 +84,8 @@ _SQRT_2PI = np.sqrt(2.0 * np.pi)
 CORNER_SIGMAS = 3.0
 #: Fewest pixels for a fit.
 MIN_PIXELS = 200
+#: Parameters before the shading coefficients: pose (6), blur (3), dilation (3).
+_NP = 12
 
 
 class PhotometricError(InputError):
@@ -108,7 +110,16 @@ class PhotometricFit:
     outlier_fraction : float
         Fraction of the pixels down-weighted by the Huber weights.
     blur_px : float
-        Fitted effective Gaussian blur sigma (optics and pixel integration), px.
+        Fitted effective Gaussian blur sigma (optics and pixel integration), px, mean over
+        the edges' directions.
+    blur_anisotropy_px : (float, float)
+        Its variation with the direction theta of an edge's normal: sigma(theta) =
+        blur_px + b1 cos 2 theta + b2 sin 2 theta.
+    dilation_px : float
+        Fitted growth of the black squares, px (ink spread, a non-linear camera response,
+        sharpening: each black/white edge moved towards its white side).
+    dilation_anisotropy_px : (float, float)
+        Its variation with the edge's direction, as for the blur.
     noise_model : (float, float)
         (alpha DN^2, beta DN): noise variance alpha + beta * I.
     shading_a, shading_b : ndarray
@@ -126,6 +137,9 @@ class PhotometricFit:
     n_pixels: int
     outlier_fraction: float
     blur_px: float
+    blur_anisotropy_px: tuple[float, float]
+    dilation_px: float
+    dilation_anisotropy_px: tuple[float, float]
     noise_model: tuple[float, float]
     shading_a: np.ndarray
     shading_b: np.ndarray
@@ -210,6 +224,14 @@ class PhotometricSetup:
         1 / |grad_p X| and 1 / |grad_p Y| at the starting pose, px/mm (the local
         mm -> px scale, fixed during the fit: it sets the blur's width, not the
         edges' positions).
+    bsx, bsy : ndarray
+        For a pixel near an X line (Y line): +1 when the black square is on its low side,
+        -1 when it is on its high side, 0 when there is no edge (white on both sides) or the
+        pixel belongs to the other axis. The black squares grow by ``dilation_px``: the
+        edge moves towards the white side.
+    c2, s2 : ndarray
+        cos 2 theta and sin 2 theta of the direction theta of the edge's normal in the
+        image (for the blur and the dilation that depend on it).
     fx0, fx1, gx0, gx1, fy0, fy1, gy0, gy1 : ndarray
         Across the nearest line of each axis: the value A on the low side and the jump
         B - A of the indicator I (f) and of I S (g), so that the blurred factors are
@@ -230,6 +252,10 @@ class PhotometricSetup:
     line_y: np.ndarray
     isx: np.ndarray
     isy: np.ndarray
+    bsx: np.ndarray
+    bsy: np.ndarray
+    c2: np.ndarray
+    s2: np.ndarray
     fx0: np.ndarray
     fx1: np.ndarray
     gx0: np.ndarray
@@ -245,6 +271,19 @@ class PhotometricSetup:
     @property
     def n_pixels(self) -> int:
         return int(self.values.size)
+
+    def slice(self, start: int, stop: int) -> PhotometricSetup:
+        """Pixels start..stop-1 (views, no copy)."""
+        kw = {}
+        for f in self.__dataclass_fields__:
+            val = getattr(self, f)
+            if f == "basis":
+                kw[f] = val[:, start:stop]
+            elif isinstance(val, np.ndarray):
+                kw[f] = val[start:stop]
+            else:
+                kw[f] = val
+        return PhotometricSetup(**kw)
 
     def subset(self, idx: np.ndarray) -> PhotometricSetup:
         """The same set-up restricted to pixels ``idx``."""
@@ -282,6 +321,18 @@ def _jumps(k: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
     return AF, BF - AF, AG, BG - AG
 
 
+def _black_side(k: np.ndarray, j: np.ndarray, n: int, m: int) -> np.ndarray:
+    """+1 when square (k - 1, j) is black, -1 when square (k, j) is, 0 when neither.
+
+    Squares (i, j) with i in -1..n-1 and j in -1..m-1 are printed, black when i + j is
+    even; anything else is the white margin.
+    """
+    inside_j = (j >= -1) & (j <= m - 1)
+    left = inside_j & (k - 1 >= -1) & (k - 1 <= n - 1) & ((k - 1 + j) % 2 == 0)
+    right = inside_j & (k >= -1) & (k <= n - 1) & ((k + j) % 2 == 0)
+    return left.astype(np.float64) - right.astype(np.float64)
+
+
 def _check_image(image) -> np.ndarray:
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8:
@@ -316,7 +367,7 @@ def prepare_pixels(
     *,
     band_px: float | None = None,
     blur_px: float = 1.0,
-    shading_degree: int = 1,
+    shading_degree: int = 2,
     outer_edges: bool = True,
     exclude=(),
     saturation: int | None = None,
@@ -428,7 +479,8 @@ def prepare_pixels(
         ky = np.clip(np.rint(Y / sf), -1, rows)
         dX = np.abs(X - kx * sf) * isX
         dY = np.abs(Y - ky * sf) * isY
-    cz = CORNER_SIGMAS * blur_px
+    # Corner zones at least as wide as the band: every pixel kept is near one line only.
+    cz = max(CORNER_SIGMAS * blur_px, band)
     # In the checkered area grown by the band, along each axis (in px from its outer lines).
     with np.errstate(invalid="ignore"):
         inx = (np.maximum(-sf - X, X - cols * sf) * isX) <= band
@@ -463,13 +515,29 @@ def prepare_pixels(
     # Local scale of the pixels kept (central differences in the haloed block).
     hi = (ii + 1) * wb + (jj + 1)
     Xf, Yf = Xh.ravel(), Yh.ravel()
-    sXk = 0.5 * np.hypot(Xf[hi + 1] - Xf[hi - 1], Xf[hi + wb] - Xf[hi - wb]).astype(np.float64)
-    sYk = 0.5 * np.hypot(Yf[hi + 1] - Yf[hi - 1], Yf[hi + wb] - Yf[hi - wb]).astype(np.float64)
+    gXu = (Xf[hi + 1] - Xf[hi - 1]).astype(np.float64)
+    gXv = (Xf[hi + wb] - Xf[hi - wb]).astype(np.float64)
+    gYu = (Yf[hi + 1] - Yf[hi - 1]).astype(np.float64)
+    gYv = (Yf[hi + wb] - Yf[hi - wb]).astype(np.float64)
+    sXk = 0.5 * np.hypot(gXu, gXv)
+    sYk = 0.5 * np.hypot(gYu, gYv)
     ui, vi = jj + c0, ii + r0
     kxs = kx.ravel()[idx].astype(np.int64)
     kys = ky.ravel()[idx].astype(np.int64)
     fx0, fx1, gx0, gx1 = _jumps(kxs, cols)
     fy0, fy1, gy0, gy1 = _jumps(kys, rows)
+    # Which side of its line is black (the squares either side: (k - 1, j) and (k, j)).
+    on_x = dX.ravel()[idx] <= dY.ravel()[idx]
+    jx = np.floor(Y.ravel()[idx] / sf).astype(np.int64)  # square row of an X-edge pixel
+    iy = np.floor(X.ravel()[idx] / sf).astype(np.int64)  # square column of a Y-edge pixel
+    bsx = np.where(on_x, _black_side(kxs, jx, cols, rows), 0.0)
+    bsy = np.where(on_x, 0.0, _black_side(kys, iy, rows, cols))
+    # Direction of the edge's normal in the image (the gradient of X or Y).
+    nu = np.where(on_x, gXu, gYu)
+    nv = np.where(on_x, gXv, gYv)
+    n2 = nu * nu + nv * nv
+    c2 = (nu * nu - nv * nv) / n2
+    s2 = 2.0 * nu * nv / n2
     u0, v0 = 0.5 * (c0 + c1 - 1), 0.5 * (r0 + r1 - 1)
     L = 0.5 * max(c1 - c0, r1 - r0, 2)
     return PhotometricSetup(
@@ -483,6 +551,10 @@ def prepare_pixels(
         line_y=kys * s,
         isx=1.0 / sXk,
         isy=1.0 / sYk,
+        bsx=bsx,
+        bsy=bsy,
+        c2=c2,
+        s2=s2,
         fx0=fx0,
         fx1=fx1,
         gx0=gx0,
@@ -500,14 +572,29 @@ def prepare_pixels(
 # ---------------------------------------------------------------------- model
 
 
+def _poly(coef: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """coef @ basis as a sum of scaled rows (a BLAS matrix-vector product would be threaded)."""
+    out = coef[0] * basis[0]
+    for k in range(1, basis.shape[0]):
+        out += coef[k] * basis[k]
+    return out
+
+
+def _wsum(w: np.ndarray, e: np.ndarray) -> float:
+    """sum w e^2 (elementwise: BLAS's dot product is threaded on long vectors)."""
+    return float(np.sum(w * e * e))
+
+
 def model_and_jacobian(
     setup: PhotometricSetup,
     board2cam: np.ndarray,
-    blur_px: float,
+    blur_px,
+    dilation_px,
     shading_a: np.ndarray,
     shading_b: np.ndarray,
     *,
     jacobian: bool = True,
+    out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Model image values of the selected pixels and their Jacobian.
 
@@ -515,18 +602,27 @@ def model_and_jacobian(
     ----------
     setup : PhotometricSetup
     board2cam : ndarray, shape (4, 4), mm
-    blur_px : float
-        Effective Gaussian blur sigma, px.
+    blur_px : array_like, shape (3,), px
+        Effective Gaussian blur sigma across an edge whose normal makes the angle theta
+        with the image's x axis: sigma = b0 + b1 cos 2 theta + b2 sin 2 theta (an
+        elongated blur: astigmatism, a camera's horizontal processing).
+    dilation_px : array_like, shape (3,), px
+        Growth of the black squares, d0 + d1 cos 2 theta + d2 sin 2 theta (each
+        black/white edge moved towards its white side: ink spread, a non-linear
+        response, sharpening).
     shading_a, shading_b : ndarray, shape (n_basis,)
         Black-level and contrast coefficients, DN.
     jacobian : bool
+    out : ndarray, shape (12 + 2 n_basis, N), optional
+        Where to write the Jacobian (returned).
 
     Returns
     -------
     model : ndarray, shape (N,), DN
-    J : ndarray, shape (7 + 2 n_basis, N) or None
+    J : ndarray, shape (12 + 2 n_basis, N) or None
         Rows: d model / d (t (3, mm), r (3, rad)) for t <- t + dt, R <- Exp(dr) R (camera
-        frame), then d / d blur_px, then d / d shading_a, then d / d shading_b.
+        frame), then d / d blur_px (3), d / d dilation_px (3), d / d shading_a,
+        d / d shading_b.
     """
     T = np.asarray(board2cam, dtype=np.float64)
     Hi = _homography_inverse(T)
@@ -535,10 +631,13 @@ def model_and_jacobian(
     iw2 = 1.0 / (Hi[2, 0] * rx + Hi[2, 1] * ry + Hi[2, 2])
     X = (Hi[0, 0] * rx + Hi[0, 1] * ry + Hi[0, 2]) * iw2
     Y = (Hi[1, 0] * rx + Hi[1, 1] * ry + Hi[1, 2]) * iw2
-    sig = float(blur_px)
-    zx = (X - S.line_x) * S.isx
+    bl = np.asarray(blur_px, dtype=np.float64)
+    dl = np.asarray(dilation_px, dtype=np.float64)
+    sig = bl[0] + bl[1] * S.c2 + bl[2] * S.s2
+    dil = dl[0] + dl[1] * S.c2 + dl[2] * S.s2
+    zx = (X - S.line_x) * S.isx - dil * S.bsx
     zx /= sig
-    zy = (Y - S.line_y) * S.isy
+    zy = (Y - S.line_y) * S.isy - dil * S.bsy
     zy /= sig
     Px, Py = ndtr(zx), ndtr(zy)
     Fx = S.fx0 + S.fx1 * Px
@@ -546,8 +645,8 @@ def model_and_jacobian(
     Fy = S.fy0 + S.fy1 * Py
     Gy = S.gy0 + S.gy1 * Py
     c = 1.0 - 0.5 * (Fx * Fy + Gx * Gy)
-    a = shading_a @ S.basis
-    b = shading_b @ S.basis
+    a = _poly(shading_a, S.basis)
+    b = _poly(shading_b, S.basis)
     model = a + b * c
     if not jacobian:
         return model, None
@@ -559,7 +658,7 @@ def model_and_jacobian(
     cX = cz_x * S.isx  # d c / d X * sigma, 1/mm
     cY = cz_y * S.isy
     nb = S.basis.shape[0]
-    J = np.empty((7 + 2 * nb, X.size))
+    J = np.empty((_NP + 2 * nb, X.size)) if out is None else out
     # d X / d(t, r) = (-gX, gX x a), gX = Hi[0] - X Hi[2], a = R q (the board point, camera frame);
     # v = (dc/dX gX + dc/dY gY) b, so d model / d(t, r) = (-v, v x a).
     bs = b / sig
@@ -578,8 +677,13 @@ def model_and_jacobian(
     J[4] = vz * ax - vx * az
     J[5] = vx * ay - vy * ax
     J[6] = -(cz_x * zx + cz_y * zy) * bs
-    J[7 : 7 + nb] = S.basis
-    J[7 + nb :] = S.basis * c
+    J[7] = J[6] * S.c2
+    J[8] = J[6] * S.s2
+    J[9] = -(cz_x * S.bsx + cz_y * S.bsy) * bs
+    J[10] = J[9] * S.c2
+    J[11] = J[9] * S.s2
+    J[_NP : _NP + nb] = S.basis
+    J[_NP + nb :] = S.basis * c
     return model, J
 
 
@@ -594,17 +698,20 @@ def _apply(T: np.ndarray, delta: np.ndarray) -> np.ndarray:
     return Tn
 
 
-#: Largest rows x columns of a block of the weighted Gram products: small blocks keep
-#: OpenBLAS's matrix-vector and matrix-matrix products on one thread (its threads only
-#: contend with the elementwise work, badly on a loaded machine) and in cache.
-_GRAM_BLOCK_ELEMENTS = 9000
+#: Products below these sizes keep OpenBLAS on one thread: its matrix products are
+#: threaded above m n k = 262144 (GEMM) and m n = 9216 (GEMV), and its threads only contend
+#: with the elementwise work (badly on a loaded machine).
+_GEMM_SINGLE_THREAD = 262144
+_GEMV_SINGLE_THREAD = 9216
+#: Pixels per chunk of the fused model / Jacobian / normal-matrix evaluation (kept in cache).
+_CHUNK = 4096
 
 
 def _weighted_gram(M: np.ndarray, w: np.ndarray, e: np.ndarray | None = None):
     """M diag(w) M^T for M of shape (p, N), summed over blocks of columns; with e, also M diag(w) e."""
     G = np.zeros((M.shape[0], M.shape[0]))
     g = np.zeros(M.shape[0])
-    nk = max(64, _GRAM_BLOCK_ELEMENTS // M.shape[0])
+    nk = max(64, min(_GEMM_SINGLE_THREAD // M.shape[0] ** 2, _GEMV_SINGLE_THREAD // M.shape[0]))
     for k in range(0, M.shape[1], nk):
         Mk = M[:, k : k + nk]
         Mw = Mk * w[k : k + nk]
@@ -614,13 +721,13 @@ def _weighted_gram(M: np.ndarray, w: np.ndarray, e: np.ndarray | None = None):
     return G if e is None else (G, g)
 
 
-def _linear_shading(setup: PhotometricSetup, T, sig) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares black level and contrast at a fixed pose and blur (the model is linear in them)."""
+def _linear_shading(setup: PhotometricSetup, T, sig, dil) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares black level and contrast at a fixed pose, blur and dilation (linear in them)."""
     nb = setup.basis.shape[0]
     ones = np.zeros(nb)
     ones[0] = 1.0
-    _, J = model_and_jacobian(setup, T, sig, np.zeros(nb), ones)
-    G, g = _weighted_gram(J[7:], np.ones(setup.n_pixels), setup.values)
+    _, J = model_and_jacobian(setup, T, sig, dil, np.zeros(nb), ones)
+    G, g = _weighted_gram(J[_NP:], np.ones(setup.n_pixels), setup.values)
     try:
         coef = np.linalg.solve(G, g)
     except np.linalg.LinAlgError:
@@ -636,7 +743,8 @@ def _huber(r: np.ndarray, k: float) -> np.ndarray:
 @dataclass
 class _State:
     T: np.ndarray
-    sig: float
+    sig: np.ndarray  # blur (3,), px
+    dil: np.ndarray  # dilation (3,), px
     a: np.ndarray
     b: np.ndarray
 
@@ -652,6 +760,50 @@ class _Solution:
     A: np.ndarray  # J^T W J at the last linearisation (p, p)
 
 
+class _Evaluator:
+    """Residuals, noise, Huber weights and the normal equations of a state, chunk by chunk.
+
+    The Jacobian of a chunk is written into one reused buffer, with the residuals as its
+    last row, and its weighted Gram matrix [J; e] W [J; e]^T is accumulated at once:
+    the full (p, N) Jacobian is never held in memory.
+    """
+
+    def __init__(self, setup: PhotometricSetup, noise_var, huber: float) -> None:
+        self.setup = setup
+        self.noise_var = noise_var
+        self.huber = huber
+        n = setup.n_pixels
+        self.chunks = [setup.slice(k, min(k + _CHUNK, n)) for k in range(0, n, _CHUNK)]
+        self.p = _NP + 2 * setup.basis.shape[0]
+        self.buf = np.empty((self.p + 1, min(_CHUNK, n)))
+        self.nk = max(64, _GEMM_SINGLE_THREAD // (self.p + 1) ** 2)
+
+    def __call__(self, st: _State, jacobian: bool = True):
+        p = self.p
+        es, vs, hs = [], [], []
+        G = np.zeros((p + 1, p + 1)) if jacobian else None
+        for ch in self.chunks:
+            n = ch.n_pixels
+            M = self.buf[:, :n]
+            m, _ = model_and_jacobian(ch, st.T, st.sig, st.dil, st.a, st.b, jacobian=jacobian, out=M[:p])
+            e = ch.values - m
+            var = self.noise_var(m)
+            hw = _huber(e / np.sqrt(var), self.huber)
+            if jacobian:
+                M[p] = e
+                w = hw / var
+                for k in range(0, n, self.nk):
+                    Mk = M[:, k : k + self.nk]
+                    G += (Mk * w[k : k + self.nk]) @ Mk.T
+            es.append(e)
+            vs.append(var)
+            hs.append(hw)
+        e, var, hw = (np.concatenate(x) for x in (es, vs, hs))
+        if not jacobian:
+            return e, var, hw, None, None
+        return e, var, hw, G[:p, :p], G[:p, p]
+
+
 def _gauss_newton(
     setup: PhotometricSetup, st: _State, noise_var, huber: float, max_iter: int, tol: float = 0.1
 ) -> _Solution:
@@ -663,25 +815,15 @@ def _gauss_newton(
     matrix returned is that of the last linearisation (less than ``tol`` sigma away).
     """
     nb = setup.basis.shape[0]
-    y = setup.values
-
-    def evaluate(state: _State, jacobian: bool = True):
-        m, J = model_and_jacobian(setup, state.T, state.sig, state.a, state.b, jacobian=jacobian)
-        e = y - m
-        var = noise_var(m)
-        hw = _huber(e / np.sqrt(var), huber)
-        return e, J, var, hw
-
-    e, J, var, hw = evaluate(st)
+    evaluate = _Evaluator(setup, noise_var, huber)
+    e, var, hw, A, g = evaluate(st)
     lam = 1e-6
     it = 0
     converged = False
-    A = np.eye(J.shape[0])
     while it < max_iter:
         it += 1
         w = hw / var
-        A, g = _weighted_gram(J, w, e)
-        cost = float(np.dot(w * e, e))
+        cost = _wsum(w, e)
         d = np.sqrt(np.diag(A))
         d[d == 0] = 1.0
         An = A / np.outer(d, d)
@@ -693,28 +835,33 @@ def _gauss_newton(
             except np.linalg.LinAlgError:
                 lam = max(lam * 10, 1e-6)
                 continue
-            sig_new = st.sig + step[6]
-            if not np.isfinite(step).all() or sig_new <= 0.05:
+            sig_new = st.sig + step[6:9]
+            if not np.isfinite(step).all() or sig_new[0] - np.hypot(sig_new[1], sig_new[2]) <= 0.05:
                 lam = max(lam * 10, 1e-6)
                 continue
             last = float(step @ A @ step) < tol * tol
-            new = _State(_apply(st.T, step), sig_new, st.a + step[7 : 7 + nb], st.b + step[7 + nb :])
-            e2, J2, var2, hw2 = evaluate(new, jacobian=not last)
+            new = _State(
+                _apply(st.T, step),
+                sig_new,
+                st.dil + step[9:12],
+                st.a + step[_NP : _NP + nb],
+                st.b + step[_NP + nb :],
+            )
+            e2, var2, hw2, A2, g2 = evaluate(new, jacobian=not last)
             # Cost at the same weights (IRLS): accept when it does not increase.
-            if float(np.dot(w * e2, e2)) <= cost * (1 + 1e-12):
+            if _wsum(w, e2) <= cost * (1 + 1e-12):
                 accepted = True
                 break
             lam = max(lam * 10, 1e-6)
         if not accepted:
             converged = True  # no step lowers the cost: at the minimum to rounding
             break
-        st, e, J, var, hw = new, e2, J2, var2, hw2
+        st, e, var, hw = new, e2, var2, hw2
         lam = max(lam / 10, 1e-9)
         if last:
             converged = True
             break
-    if J is None:  # pragma: no cover - max_iter reached right after a final step
-        converged = True
+        A, g = A2, g2
     return _Solution(st, it, converged, e, var, hw, A)
 
 
@@ -722,9 +869,12 @@ def _fit_noise_model(m: np.ndarray, e: np.ndarray) -> tuple[float, float]:
     """var = alpha + beta m from squared residuals (outliers beyond 4 robust sigma left out)."""
     mad = 1.4826 * np.median(np.abs(e - np.median(e)))
     keep = np.abs(e) < 4.0 * max(mad, 1e-6)
-    A = np.stack([np.ones(keep.sum()), m[keep]], axis=1)
-    coef, *_ = np.linalg.lstsq(A, e[keep] ** 2, rcond=None)
-    alpha, beta = float(coef[0]), float(coef[1])
+    mk, e2 = m[keep], e[keep] ** 2
+    # Straight-line fit of e^2 against m (normal equations, elementwise sums).
+    mm, ee = float(mk.mean()), float(e2.mean())
+    sxx = float(np.sum((mk - mm) ** 2))
+    beta = float(np.sum((mk - mm) * (e2 - ee))) / sxx if sxx > 0 else 0.0
+    alpha = ee - beta * mm
     floor = max(0.05 * float(np.mean(e[keep] ** 2)), 1.0 / 12.0)
     beta = max(beta, 0.0)
     if alpha < floor:
@@ -741,7 +891,7 @@ def refine_pose_photometric(
     detection=None,
     blur_init_px: float = 1.0,
     band_px: float | None = None,
-    shading_degree: int = 1,
+    shading_degree: int = 2,
     outer_edges: bool = True,
     exclude=(),
     huber: float = 3.0,
@@ -839,8 +989,9 @@ def refine_pose_photometric(
     # the noise model.
     n = setup.n_pixels
     sub = setup.subset(np.arange(0, n, 8)) if n >= 8 * MIN_PIXELS else setup
-    st = _State(T0, float(blur_init_px), *_linear_shading(sub, T0, float(blur_init_px)))
-    m0, _ = model_and_jacobian(sub, st.T, st.sig, st.a, st.b, jacobian=False)
+    sig0 = np.array([float(blur_init_px), 0.0, 0.0])
+    st = _State(T0, sig0, np.zeros(3), *_linear_shading(sub, T0, sig0, np.zeros(3)))
+    m0, _ = model_and_jacobian(sub, st.T, st.sig, st.dil, st.a, st.b, jacobian=False)
     e0 = sub.values - m0
     var0 = max(1.4826 * float(np.median(np.abs(e0 - np.median(e0)))), 0.3) ** 2
     sol = _gauss_newton(sub, st, lambda m: np.full_like(m, var0), huber, max_iter)
@@ -852,12 +1003,13 @@ def refine_pose_photometric(
     def noise_var(m):
         return alpha + beta * np.maximum(m, 0.0)
 
-    if not 0.2 <= st.sig <= 10.0:
-        raise fail(f"implausible blur sigma {st.sig:.2f} px (expected 0.2-10 px)")
+    if not 0.2 <= st.sig[0] <= 10.0:
+        raise fail(f"implausible blur sigma {st.sig[0]:.2f} px (expected 0.2-10 px)")
     # The blur is now known: select again when the bands and corner zones were set for another.
-    if st.sig > 1.15 * blur_init_px or st.sig < 0.7 * blur_init_px:
-        setup = select(st.T, st.sig)
-        st = _State(st.T, st.sig, *_linear_shading(setup, st.T, st.sig))
+    sig_max = st.sig[0] + np.hypot(st.sig[1], st.sig[2])
+    if sig_max > 1.15 * blur_init_px or sig_max < 0.7 * blur_init_px:
+        setup = select(st.T, sig_max)
+        st = _State(st.T, st.sig, st.dil, *_linear_shading(setup, st.T, st.sig, st.dil))
     # Pass 2, every pixel, weights from the noise model.
     sol = _gauss_newton(setup, st, noise_var, huber, max_iter)
     iters += sol.iterations
@@ -868,7 +1020,7 @@ def refine_pose_photometric(
     w = hw / var
     outliers = float(np.mean(hw < 1.0))
     p, N = A.shape[0], e.size
-    s2 = float(np.dot(w * e, e) / max(N - p, 1))
+    s2 = _wsum(w, e) / max(N - p, 1)
     try:
         cov_all = s2 * np.linalg.inv(A)
     except np.linalg.LinAlgError:
@@ -876,11 +1028,11 @@ def refine_pose_photometric(
     cov = 0.5 * (cov_all[:6, :6] + cov_all[:6, :6].T)
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0):
         raise fail("the pose is undetermined (singular normal matrix)")
-    contrast = float(np.median(st.b @ setup.basis))
+    contrast = float(np.median(_poly(st.b, setup.basis)))
     if contrast <= 0:
         raise fail(f"the fitted contrast is not positive ({contrast:.1f} DN): inverted or wrong board")
-    if not 0.2 <= st.sig <= 10.0:
-        raise fail(f"implausible blur sigma {st.sig:.2f} px (expected 0.2-10 px)")
+    if not 0.2 <= st.sig[0] <= 10.0:
+        raise fail(f"implausible blur sigma {st.sig[0]:.2f} px (expected 0.2-10 px)")
     if outliers > max_outlier_fraction:
         raise fail(
             f"{100 * outliers:.0f} % of the pixels do not fit the model (more than "
@@ -910,7 +1062,10 @@ def refine_pose_photometric(
         scale=float(np.sqrt(s2)),
         n_pixels=int(N),
         outlier_fraction=outliers,
-        blur_px=float(st.sig),
+        blur_px=float(st.sig[0]),
+        blur_anisotropy_px=(float(st.sig[1]), float(st.sig[2])),
+        dilation_px=float(st.dil[0]),
+        dilation_anisotropy_px=(float(st.dil[1]), float(st.dil[2])),
         noise_model=(alpha, beta),
         shading_a=st.a.copy(),
         shading_b=st.b.copy(),
