@@ -84,6 +84,9 @@ _SQRT_2PI = np.sqrt(2.0 * np.pi)
 CORNER_SIGMAS = 3.0
 #: Fewest pixels for a fit.
 MIN_PIXELS = 200
+#: Least contrast (1st percentile over the pixels) relative to its median: below, part of the
+#: board is hidden (the contrast polynomial fades out there) or lit far too unevenly.
+MIN_CONTRAST_RATIO = 0.3
 #: Gauss-Newton stops after a step shorter than this many standard deviations (in the metric
 #: of the normal matrix): the model is so nearly linear over the start's distance (a few
 #: sigma) that the remaining error is below 0.01 sigma (checked against 0.01).
@@ -1060,15 +1063,22 @@ def refine_pose_photometric(
     cov = 0.5 * (cov_all[:6, :6] + cov_all[:6, :6].T)
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0):
         raise fail("the pose is undetermined (singular normal matrix)")
-    contrast = float(np.median(_poly(st.b, setup.basis)))
-    if contrast <= 0:
-        raise fail(f"the fitted contrast is not positive ({contrast:.1f} DN): inverted or wrong board")
     if not 0.2 <= st.sig[0] <= 10.0:
         raise fail(f"implausible blur sigma {st.sig[0]:.2f} px (expected 0.2-10 px)")
     if outliers > max_outlier_fraction:
         raise fail(
             f"{100 * outliers:.0f} % of the pixels do not fit the model (more than "
             f"{100 * max_outlier_fraction:.0f} %: obstructed board or another pattern)"
+        )
+    bvals = _poly(st.b, setup.basis)
+    contrast = float(np.median(bvals))
+    if contrast <= 0:
+        raise fail(f"the fitted contrast is not positive ({contrast:.1f} DN): inverted or wrong board")
+    low = float(np.percentile(bvals, 1))
+    if low < MIN_CONTRAST_RATIO * contrast:
+        raise fail(
+            f"the fitted contrast falls to {100 * low / contrast:.0f} % of its median over part of the "
+            "board (obstructed or very unevenly lit board?)"
         )
     # Condition with rotations expressed as lateral motions at the board's distance (as pose.py).
     info = np.linalg.inv(cov_all[:6, :6] / s2)

@@ -230,8 +230,13 @@ class PoseTracker:
             poses = []
             for k, (d, b) in enumerate(zip(dets, self.boards, strict=True)):
                 init = self._poses[k] if d.tracked else None
-                # The other boards' areas are left out of a photometric fit.
-                others = [_detection_mask(o) for j, o in enumerate(dets) if j != k and o.n_corners >= 4]
+                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
+                # left out of a photometric fit.
+                others = [
+                    _detection_mask(o, margin_sq=2.2)
+                    for j, o in enumerate(dets)
+                    if j != k and o.n_corners >= 4
+                ]
                 poses.append(
                     estimate_pose(
                         d,
