@@ -53,6 +53,37 @@ def _point(text: str | None):
     return np.array(v)
 
 
+_REFINE_HELP = (
+    "Pose refinement: photometric (a model of the blurred board fitted to its pixels; several "
+    "times more precise along the line of sight; the corner pose is kept when it fails its "
+    "checks), corners (reprojection of the corners), or auto (photometric for chessboards, "
+    "corners for ChArUco boards)."
+)
+
+
+def _refine(value: str) -> str:
+    if value not in ("auto", "photometric", "corners"):
+        raise InputError(f"--refine must be auto, photometric or corners, got {value!r}")
+    return value
+
+
+def _pose_json(p) -> dict:
+    """JSON fields of a BoardPose beyond board2cam and cov."""
+    d = {"rms_px": p.rms_px, "n_corners": p.n_corners, "method": p.method}
+    if p.photometric is not None:
+        f = p.photometric
+        d["photometric"] = {
+            "rms_dn": f.rms_dn,
+            "noise_rms_dn": f.noise_rms_dn,
+            "n_pixels": f.n_pixels,
+            "blur_px": f.blur_px,
+            "outlier_fraction": f.outlier_fraction,
+        }
+    if p.fallback:
+        d["fallback"] = p.fallback
+    return d
+
+
 def _camera(path: Path):
     from ..camera import load_camera
 
@@ -143,6 +174,7 @@ def pose(
     square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
     charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
     marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    refine: str = typer.Option("auto", "--refine", help=_REFINE_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead of a table."),
 ) -> None:
     """Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS.
@@ -158,9 +190,10 @@ def pose(
     try:
         b = _board(board, square_mm, charuco, marker_mm)
         cam = _camera(camera)
+        refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
-    ms = measure_files(images, cam, b, camera_source=str(camera))
+    ms = measure_files(images, cam, b, camera_source=str(camera), refine=refine)
     n_ok = sum(m.ok for m in ms)
     if as_json:
         rows = []
@@ -171,8 +204,7 @@ def pose(
                         "image": m.image,
                         "board2cam": m.mobile.board2cam,
                         "cov": m.mobile.cov,
-                        "rms_px": m.mobile.rms_px,
-                        "n_corners": m.mobile.n_corners,
+                        **_pose_json(m.mobile),
                     }
                 )
             else:
@@ -181,13 +213,24 @@ def pose(
     else:
         t = Table(title=f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
         t.add_column("image", overflow="fold")
-        for col in ("t (mm)", "1 sigma t (mm)", "rotation vector (rad)", "RMS (px)", "corners", "ms"):
+        for col in (
+            "t (mm)",
+            "1 sigma t (mm)",
+            "rotation vector (rad)",
+            "RMS (px)",
+            "corners",
+            "method",
+            "ms",
+        ):
             t.add_column(col)
         for m in ms:
             if not m.ok:
-                t.add_row(m.image, "[red]failed[/]", "", "", "", "", "")
+                t.add_row(m.image, "[red]failed[/]", "", "", "", "", "", "")
                 continue
             p = m.mobile
+            method = p.method
+            if p.photometric is not None:
+                method += f" ({p.photometric.rms_dn:.2f} DN RMS)"
             t.add_row(
                 m.image,
                 ", ".join(f"{x:.4f}" for x in p.board2cam[:3, 3]),
@@ -195,12 +238,15 @@ def pose(
                 ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2cam[:3, :3])),
                 f"{p.rms_px:.3f}",
                 str(p.n_corners),
+                method,
                 f"{1000 * m.timings.get('total', np.nan):.0f}",
             )
         out.print(t)
     for m in ms:
         if not m.ok:
             warn(m.error)
+        elif m.mobile.fallback:
+            warn(f"{m.image}: {m.mobile.fallback}")
     _exit_for(n_ok, len(ms))
 
 
@@ -221,6 +267,7 @@ def displacement(
     point: str = typer.Option(None, "--point", help="x,y,z (mm, target frame): displacement of this point."),
     charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
     marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    refine: str = typer.Option("auto", "--refine", help=_REFINE_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead of tables."),
 ) -> None:
     """Displacement of the target in each image relative to the reference image(s).
@@ -244,13 +291,20 @@ def displacement(
             fb = _board(fixed_board, fixed_square_mm, what="--fixed-board")
         T_fb = read_transform(fixed2base) if fixed2base is not None else None
         q = _point(point)
+        refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
-    ms = measure_files(list(reference) + list(images), cam, b, fb, T_fb, camera_source=str(camera))
+    ms = measure_files(
+        list(reference) + list(images), cam, b, fb, T_fb, camera_source=str(camera), refine=refine
+    )
     refs, moved = ms[: len(reference)], ms[len(reference) :]
     for m in ms:
         if not m.ok:
             warn(m.error)
+        else:
+            for p in (m.mobile, m.fixed):
+                if p is not None and p.fallback:
+                    warn(f"{m.image}: {p.fallback}")
     if not any(m.ok for m in refs):
         raise fail("no reference image could be measured; nothing to compare with")
     rows = []
@@ -331,6 +385,7 @@ def validate(
     ),
     charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
     marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    refine: str = typer.Option("auto", "--refine", help=_REFINE_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of tables."),
 ) -> None:
     """Validate against known stage displacements: measured vs nominal, mean +/- std per step.
@@ -345,9 +400,10 @@ def validate(
         b = _board(board, square_mm, charuco, marker_mm)
         cam = _camera(camera)
         rows = read_stage_manifest(manifest)
+        refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
-    ms = measure_files([p for p, _ in rows], cam, b, camera_source=str(camera))
+    ms = measure_files([p for p, _ in rows], cam, b, camera_source=str(camera), refine=refine)
     refs = [m for m, (_, n) in zip(ms, rows, strict=True) if n == 0]
     moved = [(n, m) for m, (_, n) in zip(ms, rows, strict=True) if n != 0]
     for m in ms:

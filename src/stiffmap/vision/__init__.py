@@ -7,7 +7,8 @@ Main entry points:
 - :func:`read_image` (file -> uint8 grey), :func:`check_image_size`
 - :func:`detect_board`, :func:`detect_boards`, :func:`track_board` -> :class:`BoardDetection`
 - :func:`calibrate_camera` -> :class:`CalibrationResult`
-- :func:`estimate_pose` -> :class:`BoardPose`
+- :func:`estimate_pose` -> :class:`BoardPose` (corner-based, or refined by
+  :func:`refine_pose_photometric`: a model of the blurred board fitted to its pixels)
 - :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement`
 - :func:`compliant_displacement` -> :class:`Displacement`
 - :func:`validate_stage` -> :class:`StageValidation`
@@ -19,7 +20,8 @@ from .detect import BoardDetection, DetectionError, board_label, detect_board, d
 from .displacement import Displacement, compliant_displacement, mean_pose
 from .files import calibrate_files, measure_files, read_stage_manifest, read_transform
 from .images import ImageError, check_image_size, read_image
-from .pose import BoardPose, estimate_pose, projection_jacobian
+from .photometric import PhotometricError, PhotometricFit, refine_pose_photometric
+from .pose import BoardPose, estimate_pose, pose_shift_sigma, projection_jacobian
 from .sequence import ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
 from .validate import StageStep, StageValidation, stage_plot_svg, validate_stage
 
@@ -32,6 +34,8 @@ __all__ = [
     "Displacement",
     "ImageError",
     "ImageMeasurement",
+    "PhotometricError",
+    "PhotometricFit",
     "PoseTracker",
     "StageStep",
     "StageValidation",
@@ -48,11 +52,13 @@ __all__ = [
     "measure_files",
     "measure_sequence",
     "mobile2base_from_poses",
+    "pose_shift_sigma",
     "projection_jacobian",
     "read_image",
     "read_stage_manifest",
     "read_transform",
     "refine_corners",
+    "refine_pose_photometric",
     "stage_plot_svg",
     "track_board",
     "validate_stage",

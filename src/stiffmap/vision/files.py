@@ -143,8 +143,19 @@ def measure_files(
     *,
     scale: int | None = None,
     camera_source: str = "camera.json",
+    refine: str = "auto",
 ) -> list[ImageMeasurement]:
-    """Poses in each image file (tracking along the list); bad files give ``error`` entries."""
+    """Poses in each image file (tracking along the list); bad files give ``error`` entries.
+
+    ``refine`` as in :class:`~stiffmap.vision.sequence.PoseTracker`.
+    """
     return measure_sequence(
-        list(paths), camera, board, fixed_board, fixed2base, scale=scale, camera_source=camera_source
+        list(paths),
+        camera,
+        board,
+        fixed_board,
+        fixed2base,
+        scale=scale,
+        camera_source=camera_source,
+        refine=refine,
     )

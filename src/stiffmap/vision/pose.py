@@ -14,19 +14,34 @@ stacked J (2m x 6) and the residual variance s^2 = sum e^2 / (2m - 6) (corner
 noise, assumed independent and equal on both axes), cov = s^2 (J^T J)^-1.
 The camera's own calibration uncertainty is not included: it biases poses
 taken with the same camera alike and largely cancels in displacements.
+
+With ``refine="photometric"`` (or ``"auto"`` and the image given) the corner
+pose is the starting point of :func:`~stiffmap.vision.photometric.refine_pose_photometric`,
+which fits a model of the blurred board to the pixels near its edges (several
+times more precise along the line of sight); the corner pose is kept, with the
+reason in ``BoardPose.fallback``, when that fit fails or disagrees with it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import cv2
 import numpy as np
 
 from ..camera import CameraModel, _dist12, _distort
+from ..targets import Chessboard
 from .detect import Board, BoardDetection, DetectionError, _grid_of, board_label
 
-__all__ = ["BoardPose", "estimate_pose", "projection_jacobian", "MIN_POSE_CORNERS"]
+__all__ = [
+    "BoardPose",
+    "estimate_pose",
+    "projection_jacobian",
+    "pose_shift_sigma",
+    "MIN_POSE_CORNERS",
+    "REFINE_METHODS",
+]
 
 #: Fewest corners accepted for a pose (6 unknowns; 2 equations per corner).
 MIN_POSE_CORNERS = 4
@@ -53,6 +68,17 @@ class BoardPose:
         distance (large: a poorly determined pose, e.g. a tiny board).
     iterations : int
         Gauss-Newton iterations.
+    method : str
+        ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
+        (:func:`~stiffmap.vision.photometric.refine_pose_photometric`: a model of the
+        blurred board fitted to its pixels; ``cov`` and ``condition`` are then the
+        photometric fit's, ``rms_px``, ``residuals_px`` and ``sigma_px`` the corners'
+        reprojection errors at that pose).
+    photometric : PhotometricFit or None
+        Quality of the photometric fit (residual RMS in DN, pixels used, blur...).
+    fallback : str or None
+        Why a photometric refinement that was asked for was not used (the pose is
+        then the corner-based one).
     """
 
     board2cam: np.ndarray
@@ -63,6 +89,9 @@ class BoardPose:
     sigma_px: float
     condition: float
     iterations: int
+    method: str = "corners"
+    photometric: Any = None
+    fallback: str | None = None
 
     @property
     def t_std_mm(self) -> np.ndarray:
@@ -132,6 +161,38 @@ def _exp(r: np.ndarray) -> np.ndarray:
     return R
 
 
+#: Pose refinements: ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
+#: (a model of the blurred board fitted to its pixels, :mod:`stiffmap.vision.photometric`).
+REFINE_METHODS = ("corners", "photometric")
+#: Largest distance, in combined sigmas (Mahalanobis over the 6 pose parameters), between the
+#: photometric and the corner-based pose before the photometric one is refused.
+MAX_REFINE_SHIFT_SIGMA = 6.0
+
+
+def check_refine(refine: str) -> str:
+    """Validate a ``refine`` option (``"auto"`` or one of :data:`REFINE_METHODS`)."""
+    if refine not in ("auto", *REFINE_METHODS):
+        raise ValueError(f"refine must be 'auto', 'corners' or 'photometric', got {refine!r}")
+    return refine
+
+
+def pose_shift_sigma(a: BoardPose, b: BoardPose) -> float:
+    """Mahalanobis distance between two poses of one board, in combined sigmas.
+
+    d^2 = delta^T (cov_a + cov_b)^-1 delta with delta = (t_b - t_a, rotvec(R_b R_a^T))
+    (``docs/conventions.md``, pose uncertainty).
+    """
+    d = np.empty(6)
+    d[:3] = b.board2cam[:3, 3] - a.board2cam[:3, 3]
+    rv, _ = cv2.Rodrigues(b.board2cam[:3, :3] @ a.board2cam[:3, :3].T)
+    d[3:] = rv.ravel()
+    C = a.cov + b.cov
+    try:
+        return float(np.sqrt(max(d @ np.linalg.solve(C, d), 0.0)))
+    except np.linalg.LinAlgError:
+        return float("inf")
+
+
 def estimate_pose(
     detection: BoardDetection,
     board: Board,
@@ -140,6 +201,10 @@ def estimate_pose(
     initial: np.ndarray | None = None,
     max_iter: int = 20,
     source: str | None = None,
+    image: np.ndarray | None = None,
+    refine: str = "auto",
+    exclude=(),
+    max_shift_sigma: float = MAX_REFINE_SHIFT_SIGMA,
 ) -> BoardPose:
     """Pose of a detected board in the camera frame, with its covariance.
 
@@ -152,19 +217,75 @@ def estimate_pose(
     initial : ndarray, shape (4, 4), optional
         Starting pose (e.g. the previous image's); default OpenCV's IPPE.
     max_iter : int
-        Largest number of Gauss-Newton iterations.
+        Largest number of Gauss-Newton iterations (corner fit).
     source : str, optional
         Image name for error messages.
+    image : ndarray, shape (h, w), uint8, optional
+        The image the corners were detected in (needed by the photometric refinement).
+    refine : {"auto", "corners", "photometric"}
+        ``"corners"``: the reprojection fit of the corners. ``"photometric"``: that pose
+        refined by :func:`~stiffmap.vision.photometric.refine_pose_photometric`; when the
+        photometric fit fails or lands more than ``max_shift_sigma`` combined sigmas from
+        the corner pose, the corner pose is returned with ``fallback`` saying why (also
+        for ChArUco boards, which the photometric model does not describe, and when no
+        ``image`` is given). ``"auto"`` (default): photometric for a chessboard when
+        ``image`` is given, corners otherwise.
+    exclude : sequence of array_like, shape (k, 2)
+        Polygons (px) the photometric fit leaves out (another board).
+    max_shift_sigma : float
+        Consistency check of the photometric pose against the corner pose (Mahalanobis
+        distance over the six pose parameters with both covariances).
 
     Returns
     -------
     BoardPose
+        ``method`` says which refinement gave it.
 
     Raises
     ------
     DetectionError
         Fewer than 4 corners, or a degenerate layout.
     """
+    check_refine(refine)
+    corner_pose = _corner_pose(detection, board, camera, initial=initial, max_iter=max_iter, source=source)
+    if refine == "corners" or (refine == "auto" and (image is None or not isinstance(board, Chessboard))):
+        return corner_pose
+    if image is None:
+        return replace(corner_pose, fallback="photometric refinement needs the image; corner pose kept")
+    if not isinstance(board, Chessboard):
+        return replace(
+            corner_pose, fallback="ChArUco boards are not modelled photometrically; corner pose kept"
+        )
+    from .photometric import PhotometricError, refine_pose_photometric
+
+    try:
+        photo = refine_pose_photometric(
+            image, board, camera, corner_pose.board2cam, detection=detection, exclude=exclude, source=source
+        )
+    except PhotometricError as e:
+        return replace(corner_pose, fallback=f"{e.detail}; corner pose kept")
+    shift = pose_shift_sigma(corner_pose, photo)
+    if not shift <= max_shift_sigma:
+        return replace(
+            corner_pose,
+            fallback=(
+                f"photometric pose {shift:.1f} sigma from the corner pose (more than "
+                f"{max_shift_sigma:g}); corner pose kept"
+            ),
+        )
+    return photo
+
+
+def _corner_pose(
+    detection: BoardDetection,
+    board: Board,
+    camera: CameraModel,
+    *,
+    initial: np.ndarray | None,
+    max_iter: int,
+    source: str | None,
+) -> BoardPose:
+    """The corner-based pose (reprojection fit), see :func:`estimate_pose`."""
     if _grid_of(detection.board) != _grid_of(board):
         raise ValueError(
             f"detection is of a {board_label(detection.board)}, "

@@ -21,9 +21,9 @@ import numpy as np
 from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform, invert_transform
-from .detect import Board, BoardDetection, detect_boards
+from .detect import Board, BoardDetection, _detection_mask, detect_boards
 from .images import check_image_size, read_image
-from .pose import BoardPose, _skew, estimate_pose
+from .pose import BoardPose, _skew, check_refine, estimate_pose
 
 __all__ = ["ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
 
@@ -155,6 +155,12 @@ class PoseTracker:
         Refine the previous image's corners before any full detection (default True).
     camera_source : str
         Name of the camera file, for the image-size message.
+    refine : {"auto", "photometric", "corners"}
+        Pose refinement (:func:`~stiffmap.vision.pose.estimate_pose`): ``"auto"``
+        (default) is ``"photometric"`` for chessboards (a model of the blurred board
+        fitted to its pixels, with the other board's area left out; the corner pose is
+        kept when that fit fails its checks, ``BoardPose.fallback``) and ``"corners"``
+        for ChArUco boards.
     """
 
     def __init__(
@@ -167,7 +173,9 @@ class PoseTracker:
         scale: int | None = None,
         track: bool = True,
         camera_source: str = "camera.json",
+        refine: str = "auto",
     ) -> None:
+        check_refine(refine)
         if fixed2base is not None and fixed_board is None:
             raise ValueError("fixed2base needs fixed_board (the target whose pose on the base it gives)")
         self.camera = camera
@@ -176,6 +184,7 @@ class PoseTracker:
         self.scale = scale
         self.track = track
         self.camera_source = camera_source
+        self.refine = refine
         self._prev: list[BoardDetection | None] = [None] * len(self.boards)
         self._ref: list[BoardDetection | None] = [None] * len(self.boards)
         self._poses: list[np.ndarray | None] = [None] * len(self.boards)
@@ -221,7 +230,25 @@ class PoseTracker:
             poses = []
             for k, (d, b) in enumerate(zip(dets, self.boards, strict=True)):
                 init = self._poses[k] if d.tracked else None
-                poses.append(estimate_pose(d, b, self.camera, initial=init, source=label))
+                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
+                # left out of a photometric fit.
+                others = [
+                    _detection_mask(o, margin_sq=2.2)
+                    for j, o in enumerate(dets)
+                    if j != k and o.n_corners >= 4
+                ]
+                poses.append(
+                    estimate_pose(
+                        d,
+                        b,
+                        self.camera,
+                        initial=init,
+                        source=label,
+                        image=img,
+                        refine=self.refine,
+                        exclude=others,
+                    )
+                )
             t3 = time.perf_counter()
         except InputError as e:
             self.reset()
@@ -261,6 +288,7 @@ def measure_sequence(
     scale: int | None = None,
     track: bool = True,
     camera_source: str = "camera.json",
+    refine: str = "auto",
 ) -> list[ImageMeasurement]:
     """Measure a sequence of images of one robot position (see :class:`PoseTracker`).
 
@@ -276,6 +304,8 @@ def measure_sequence(
     track : bool
     camera_source : str
         Name of the camera file, for the image-size message.
+    refine : {"auto", "photometric", "corners"}
+        Pose refinement (see :class:`PoseTracker`).
 
     Returns
     -------
@@ -283,7 +313,14 @@ def measure_sequence(
         One per image, in order; failed images have ``error`` set.
     """
     tracker = PoseTracker(
-        camera, mobile_board, fixed_board, fixed2base, scale=scale, track=track, camera_source=camera_source
+        camera,
+        mobile_board,
+        fixed_board,
+        fixed2base,
+        scale=scale,
+        track=track,
+        camera_source=camera_source,
+        refine=refine,
     )
     out = []
     for k, im in enumerate(images):
