@@ -103,6 +103,7 @@ class MeasureContext:
     mobile: tuple[int, int, float]
     fixed: tuple[int, int, float] | None
     fixed2base: list | None
+    refine: str = "auto"
 
 
 @dataclass
@@ -138,6 +139,7 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
             fixed,
             None,
             names=present,
+            refine=ctx.refine,
         )
     rows = []
     for rel, m in zip(present, ms, strict=True):
@@ -487,6 +489,7 @@ def _ctx(spec: CampaignSpec, root: Path, camera: CameraModel) -> MeasureContext:
         mobile=(mob.cols, mob.rows, mob.square_mm),
         fixed=None if fix is None else (fix.cols, fix.rows, fix.square_mm),
         fixed2base=t.fixed.fixed2base if t.fixed is not None else None,
+        refine=spec.measurement.refine,
     )
 
 
@@ -565,6 +568,7 @@ def run_campaign(
                 "camera": store.sha256(camera_path),
                 "mobile": ctx.mobile,
                 "fixed": ctx.fixed,
+                "refine": ctx.refine,
                 "what": "measure",
             }
         )
