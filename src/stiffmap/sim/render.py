@@ -50,6 +50,7 @@ __all__ = [
     "render",
     "render_reflectance",
     "apply_photometry",
+    "blurred_reflectance",
     "true_corners",
     "encode_image",
     "half_plane_area",
@@ -658,11 +659,97 @@ def clutter_background(shape: tuple[int, int], rng: np.random.Generator, level: 
     return np.clip(img, 0.0, 1.0)
 
 
+#: Supersampling of the targets' regions for the optics blur (see :func:`blurred_reflectance`).
+BLUR_SUPERSAMPLE = 2
+
+
+def _supersampled_camera(camera: CameraModel, ss: int) -> CameraModel:
+    """The same camera with ``ss`` x ``ss`` pixels per pixel: pixel u spans sub-pixels ss*u .. ss*u+ss-1."""
+    w, h = camera.image_size
+    return CameraModel(
+        (w * ss, h * ss),
+        camera.fx * ss,
+        camera.fy * ss,
+        camera.cx * ss + (ss - 1) / 2,
+        camera.cy * ss + (ss - 1) / 2,
+        camera.dist,
+    )
+
+
+def blurred_reflectance(
+    camera: CameraModel,
+    targets,
+    *,
+    background=0.35,
+    blur_px: float,
+    supersample: int = BLUR_SUPERSAMPLE,
+) -> np.ndarray:
+    """Scene reflectance through the optics: a Gaussian PSF, then integration over each pixel.
+
+    What a pixel records is the scene convolved with the lens's point-spread
+    function and integrated over the pixel's area (box). Blurring the exact
+    box-filtered image with a Gaussian kernel sampled at whole pixels is not the
+    same near sharp edges: the error depends on where an edge falls within its
+    pixel, and with board edges nearly parallel to the pixel grid it moved
+    estimated board depths by tens of micrometres from image to image. Here the
+    targets' regions are rendered at ``supersample`` x ``supersample`` sub-pixels
+    (exact area coverage), blurred there (the kernel is then well sampled), and
+    averaged back to pixels; the smooth background keeps the one-pixel blur.
+    At 2x the board depths are within about 2 um of a 4x rendering.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    targets : sequence of Target
+    background : float or ndarray, shape (h, w)
+    blur_px : float
+        PSF sigma, px (0: no blur, the box-filtered image).
+    supersample : int
+        Sub-pixels per pixel and axis in the targets' regions (1: sampled kernel only).
+
+    Returns
+    -------
+    ndarray, shape (h, w), float32
+    """
+    targets = list(targets)
+    refl = render_reflectance(camera, targets, background=background)
+    if blur_px <= 0:
+        return refl.astype(np.float32)
+    out = cv2.GaussianBlur(refl.astype(np.float32), (0, 0), blur_px, borderType=cv2.BORDER_REPLICATE)
+    ss = int(supersample)
+    if ss <= 1:
+        return out
+    w, h = camera.image_size
+    cam_s = _supersampled_camera(camera, ss)
+    m = int(np.ceil(4 * blur_px)) + 2  # beyond 4 sigma the PSF is negligible
+    for tg in targets:
+        bb = _target_bbox(camera, tg.texture(), tg.board2cam, (0, 0, w, h))
+        if bb is None:
+            continue
+        r0, r1, c0, c1 = bb
+        R0, R1, C0, C1 = max(r0 - 2 * m, 0), min(r1 + 2 * m, h), max(c0 - 2 * m, 0), min(c1 + 2 * m, w)
+        if np.isscalar(background):
+            bg = float(background)
+        else:
+            bg = np.repeat(np.repeat(np.asarray(background)[R0:R1, C0:C1], ss, axis=0), ss, axis=1)
+        fine = render_reflectance(cam_s, targets, background=bg, roi=(C0 * ss, R0 * ss, C1 * ss, R1 * ss))
+        fine = cv2.GaussianBlur(
+            fine.astype(np.float32), (0, 0), blur_px * ss, borderType=cv2.BORDER_REPLICATE
+        )
+        coarse = fine.reshape(R1 - R0, ss, C1 - C0, ss).mean(axis=(1, 3))
+        # Keep the part at least m pixels inside the rendered area (the blur there saw no border).
+        i0, i1, j0, j1 = max(r0 - m, 0), min(r1 + m, h), max(c0 - m, 0), min(c1 + m, w)
+        out[i0:i1, j0:j1] = coarse[i0 - R0 : i1 - R0, j0 - C0 : j1 - C0]
+    return out
+
+
 def apply_photometry(
     reflectance: np.ndarray,
     camera: CameraModel,
     photometry: Photometry,
     rng: np.random.Generator | None = None,
+    *,
+    blurred: bool = False,
 ) -> np.ndarray:
     """8-bit image from a full-frame reflectance image (see :class:`Photometry`).
 
@@ -674,6 +761,10 @@ def apply_photometry(
     photometry : Photometry
     rng : numpy Generator, optional
         The noise source (seeded by the caller); needed when the photometry has noise.
+    blurred : bool
+        The reflectance already went through the optics (:func:`blurred_reflectance`);
+        otherwise it is blurred here with a sampled Gaussian kernel, which is exact
+        only for smooth images.
 
     Returns
     -------
@@ -684,7 +775,7 @@ def apply_photometry(
     if img.shape != (h, w):
         raise ValueError(f"reflectance must have shape ({h}, {w}), got {img.shape}")
     ph = photometry
-    if ph.blur_px > 0:
+    if ph.blur_px > 0 and not blurred:
         img = cv2.GaussianBlur(img, (0, 0), ph.blur_px, borderType=cv2.BORDER_REPLICATE)
     sig = img * np.float32(255.0 * ph.gain)
     if ph.vignetting > 0:
@@ -737,8 +828,8 @@ def render(
     targets = list(targets)
     w, h = camera.image_size
     bg = clutter_background((h, w), rng, ph.background) if ph.clutter else ph.background
-    refl = render_reflectance(camera, targets, background=bg)
-    image = apply_photometry(refl, camera, ph, rng)
+    refl = blurred_reflectance(camera, targets, background=bg, blur_px=ph.blur_px)
+    image = apply_photometry(refl, camera, ph, rng, blurred=True)
     truths = []
     for tg in targets:
         uv = true_corners(camera, tg.board, tg.board2cam)
