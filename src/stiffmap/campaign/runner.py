@@ -140,6 +140,9 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
             None,
             names=present,
             refine=ctx.refine,
+            # The fixed target only orients the displacements, through its mean pose over the
+            # position's images: corner poses are precise enough there.
+            refine_fixed="corners",
         )
     rows = []
     for rel, m in zip(present, ms, strict=True):

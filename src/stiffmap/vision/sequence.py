@@ -161,6 +161,10 @@ class PoseTracker:
         fitted to its pixels, with the other board's area left out; the corner pose is
         kept when that fit fails its checks, ``BoardPose.fallback``) and ``"corners"``
         for ChArUco boards.
+    refine_fixed : {"auto", "photometric", "corners"}, optional
+        Refinement of the fixed target's pose (default: as ``refine``). A campaign
+        averages the fixed target over a position's images and uses it only to orient
+        the displacements, so corner poses are precise enough there and faster.
     """
 
     def __init__(
@@ -174,8 +178,11 @@ class PoseTracker:
         track: bool = True,
         camera_source: str = "camera.json",
         refine: str = "auto",
+        refine_fixed: str | None = None,
     ) -> None:
         check_refine(refine)
+        if refine_fixed is not None:
+            check_refine(refine_fixed)
         if fixed2base is not None and fixed_board is None:
             raise ValueError("fixed2base needs fixed_board (the target whose pose on the base it gives)")
         self.camera = camera
@@ -185,6 +192,7 @@ class PoseTracker:
         self.track = track
         self.camera_source = camera_source
         self.refine = refine
+        self.refine_fixed = refine if refine_fixed is None else refine_fixed
         self._prev: list[BoardDetection | None] = [None] * len(self.boards)
         self._ref: list[BoardDetection | None] = [None] * len(self.boards)
         self._poses: list[np.ndarray | None] = [None] * len(self.boards)
@@ -245,7 +253,7 @@ class PoseTracker:
                         initial=init,
                         source=label,
                         image=img,
-                        refine=self.refine,
+                        refine=self.refine if k == 0 else self.refine_fixed,
                         exclude=others,
                     )
                 )
@@ -289,6 +297,7 @@ def measure_sequence(
     track: bool = True,
     camera_source: str = "camera.json",
     refine: str = "auto",
+    refine_fixed: str | None = None,
 ) -> list[ImageMeasurement]:
     """Measure a sequence of images of one robot position (see :class:`PoseTracker`).
 
@@ -304,8 +313,8 @@ def measure_sequence(
     track : bool
     camera_source : str
         Name of the camera file, for the image-size message.
-    refine : {"auto", "photometric", "corners"}
-        Pose refinement (see :class:`PoseTracker`).
+    refine, refine_fixed : {"auto", "photometric", "corners"}
+        Pose refinement of the mobile and of the fixed target (see :class:`PoseTracker`).
 
     Returns
     -------
@@ -321,6 +330,7 @@ def measure_sequence(
         track=track,
         camera_source=camera_source,
         refine=refine,
+        refine_fixed=refine_fixed,
     )
     out = []
     for k, im in enumerate(images):
