@@ -712,14 +712,20 @@ def blurred_reflectance(
     ndarray, shape (h, w), float32
     """
     targets = list(targets)
-    refl = render_reflectance(camera, targets, background=background)
-    if blur_px <= 0:
-        return refl.astype(np.float32)
-    out = cv2.GaussianBlur(refl.astype(np.float32), (0, 0), blur_px, borderType=cv2.BORDER_REPLICATE)
     ss = int(supersample)
-    if ss <= 1:
-        return out
+    if blur_px <= 0 or ss <= 1:
+        refl = render_reflectance(camera, targets, background=background).astype(np.float32)
+        if blur_px <= 0:
+            return refl
+        return cv2.GaussianBlur(refl, (0, 0), blur_px, borderType=cv2.BORDER_REPLICATE)
+    # The targets are drawn only at the fine resolution below; the background alone at 1x.
     w, h = camera.image_size
+    if np.isscalar(background):
+        out = np.full((h, w), float(background), dtype=np.float32)
+    else:
+        out = cv2.GaussianBlur(
+            np.asarray(background, dtype=np.float32), (0, 0), blur_px, borderType=cv2.BORDER_REPLICATE
+        )
     cam_s = _supersampled_camera(camera, ss)
     m = int(np.ceil(4 * blur_px)) + 2  # beyond 4 sigma the PSF is negligible
     for tg in targets:
