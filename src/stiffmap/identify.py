@@ -249,11 +249,11 @@ class StiffnessFit:
     condition : float
         Condition number of the load design (F with rows scaled to unit norm).
     residuals : ndarray, shape (m, n)
-        d_i - C f_i for every load case (mm; rad for rotations).
+        d_i - C f_i (- b) for every load case (mm; rad for rotations).
     residual_rms : ndarray, shape (m,)
         RMS residual per displacement component.
     dof : int
-        Residual degrees of freedom per displacement component, n - m.
+        Residual degrees of freedom per displacement component, n - m (n - m - 1 with an offset).
     sigma : ndarray, shape (m, m)
         Displacement error covariance used for the uncertainty: estimated from
         the residuals or the mean of the given covariances.
@@ -265,6 +265,8 @@ class StiffnessFit:
         displacement covariances were given (about 1 when they are right).
     flags : tuple of str
         Design and physical warnings (see :func:`physical_flags`).
+    offset : ndarray, shape (m,), or None
+        The estimated common displacement offset b (mm; rad), when asked for.
     """
 
     K: np.ndarray
@@ -281,6 +283,7 @@ class StiffnessFit:
     dof_effective: np.ndarray
     chi2_reduced: float | None
     flags: tuple[str, ...] = field(default_factory=tuple)
+    offset: np.ndarray | None = None
 
     @property
     def indices(self) -> StiffnessIndices:
@@ -367,10 +370,11 @@ def _gls_compliance(F: np.ndarray, D: np.ndarray, W: np.ndarray) -> tuple[np.nda
 
     Returns C and the covariance of C.ravel() (row-major) = N^-1.
     """
-    m, n = F.shape
-    # Row-major vec: C.ravel() = c, C f = (I kron f^T) c.
-    N = np.zeros((m * m, m * m))
-    b = np.zeros(m * m)
+    q, n = F.shape
+    m = D.shape[0]
+    # Row-major vec: C.ravel() = c, C f = (I kron f^T) c; C is m x q (q = m, or m + 1 with an offset).
+    N = np.zeros((m * q, m * q))
+    b = np.zeros(m * q)
     eye = np.eye(m)
     for i in range(n):
         A = np.kron(eye, F[:, i][None, :])  # (m, m*m)
@@ -378,7 +382,7 @@ def _gls_compliance(F: np.ndarray, D: np.ndarray, W: np.ndarray) -> tuple[np.nda
         b += A.T @ W[i] @ D[:, i]
     Ninv = np.linalg.inv(N)
     c = Ninv @ b
-    return c.reshape(m, m), Ninv
+    return c.reshape(m, q), Ninv
 
 
 def _inverse_jacobian(K: np.ndarray) -> np.ndarray:
@@ -476,6 +480,7 @@ def identify_stiffness(
     method: Method = "compliance",
     disp_cov=None,
     force_cov=None,
+    offset: bool = False,
     names: tuple[str, str] = ("forces", "displacements"),
 ) -> StiffnessFit:
     """Identify a stiffness matrix from load cases.
@@ -501,6 +506,13 @@ def identify_stiffness(
         correction. Used with ``disp_cov``: a force error e_f moves the
         prediction by C e_f, so the effective displacement covariance is
         Sigma_d + C Sigma_f C^T (iterated with the estimate of C).
+    offset : bool
+        Also estimate a displacement offset b common to all load cases,
+        D = C F + b 1^T. Use it when every displacement was measured against the
+        same reference (for instance the mean unloaded pose of a robot position):
+        that reference's error is then common to all of them, and without the
+        offset it would leak into C as a non-symmetric error that the residuals do
+        not show. Costs one residual degree of freedom per component.
     names : (str, str)
         What to call F and D in error messages (file names from the CLI).
 
@@ -538,33 +550,47 @@ def identify_stiffness(
         msg = f"badly conditioned load design (condition number {cond:.3g}): K is sensitive to noise"
         warnings.warn(msg, IllConditionedWarning, stacklevel=2)
         flags.append(msg)
+    Fa = np.vstack([F, np.ones((1, n))]) if offset else F
+    q = Fa.shape[0]
+    if offset and np.linalg.matrix_rank(Fa / np.linalg.norm(Fa, axis=1, keepdims=True)) < q:
+        raise DesignError(
+            "with an offset the loads must not all lie on one plane that misses the origin "
+            "(the offset and the stiffness cannot be told apart); add load cases of other magnitudes",
+            source=names[0] if names[0] != "forces" else None,
+        )
     Sd = _check_cov(disp_cov, m, n, "disp_cov")
     Sf = _check_cov(force_cov, m, n, "force_cov", semidefinite=True)
-    dof = n - m
+    dof = n - q
     given = Sd is not None
 
     # Compliance estimate and its weights (the weighted fit when covariances are given).
     if given:
         S_eff = Sd.copy()
         W = np.linalg.inv(S_eff)
-        C, covC = _gls_compliance(F, D, W)
+        Ca, covCa = _gls_compliance(Fa, D, W)
         if Sf is not None:
             for _ in range(3):
-                S_eff = Sd + np.einsum("ij,njk,lk->nil", C, Sf, C)
+                S_eff = Sd + np.einsum("ij,njk,lk->nil", Ca[:, :m], Sf, Ca[:, :m])
                 W = np.linalg.inv(S_eff)
-                C, covC = _gls_compliance(F, D, W)
+                Ca, covCa = _gls_compliance(Fa, D, W)
+        keep = np.array([i * q + j for i in range(m) for j in range(m)])
+        covC = covCa[np.ix_(keep, keep)]
     else:
         S_eff = None
         W = np.broadcast_to(np.eye(m), (n, m, m))
-        C = D @ F.T @ np.linalg.inv(F @ F.T)
+        Ca = D @ Fa.T @ np.linalg.inv(Fa @ Fa.T)
+    C = Ca[:, :m]
+    b_off = Ca[:, m] if offset else None
+    # The paper's and the symmetric estimators work on the offset-corrected displacements.
+    Dm = D - b_off[:, None] if offset else D
 
     spd_active = False
     if method == "compliance":
         K = np.linalg.inv(C)
     elif method == "paper":
-        K = F @ D.T @ np.linalg.inv(D @ D.T)  # reference paper, eq. 10
+        K = F @ Dm.T @ np.linalg.inv(Dm @ Dm.T)  # reference paper, eq. 10
     else:
-        Cs, covC_spd, spd_active = _spd_compliance(F, D, W, S_eff)
+        Cs, covC_spd, spd_active = _spd_compliance(F, Dm, W, S_eff)
         K = np.linalg.inv(Cs)
         K = 0.5 * (K + K.T)
         if spd_active:
@@ -574,7 +600,7 @@ def identify_stiffness(
             )
 
     Cm = np.linalg.inv(K)
-    R = D - Cm @ F
+    R = Dm - Cm @ F
     rms = np.sqrt(np.mean(R**2, axis=1))
     chi2_red: float | None = None
     J = _inverse_jacobian(K)
@@ -598,9 +624,9 @@ def identify_stiffness(
         dof_eff = np.full((m, m), np.inf)
     elif dof > 0:
         sigma = R @ R.T / dof
-        P = np.linalg.inv(F @ F.T)
+        P = np.linalg.inv(Fa @ Fa.T)[:m, :m]
         if method == "spd":
-            _, covC, _ = _spd_compliance(F, D, W, np.broadcast_to(sigma, (n, m, m)))
+            _, covC, _ = _spd_compliance(F, Dm, W, np.broadcast_to(sigma, (n, m, m)))
             dof_eff = np.full((m, m), float(dof))  # conservative: Satterthwaite >= dof
         else:
             covC = np.kron(sigma, P)  # row-major vec: Cov(C[i, :], C[j, :]) = sigma_ij P
@@ -611,7 +637,7 @@ def identify_stiffness(
         K_cov = np.full((m * m, m * m), np.nan)
         dof_eff = np.full((m, m), np.nan)
         flags.append(
-            f"no residual degrees of freedom ({n} load cases for {m} components): "
+            f"no residual degrees of freedom ({n} load cases for {q} unknowns per component): "
             "the uncertainty of K is unknown; add load cases or give displacement uncertainties"
         )
     K_std = np.sqrt(np.clip(np.diag(K_cov), 0, None)).reshape(m, m)
@@ -631,4 +657,5 @@ def identify_stiffness(
         dof_effective=dof_eff,
         chi2_reduced=chi2_red,
         flags=tuple(flags),
+        offset=b_off,
     )
