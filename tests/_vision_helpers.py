@@ -15,30 +15,62 @@ flat background, so a 2592x1944 frame renders in about a second.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pytest
 from scipy.ndimage import gaussian_filter
 
 from stiffmap.camera import CameraModel, _dist12, _distort
 from stiffmap.targets import Chessboard
 
 
-def _find_calib_example() -> Path:
-    """The real calibration photographs (../shared/data/calib_example), also from a git worktree."""
+def _find_calib_example() -> Path | None:
+    """The real calibration photographs (../shared/data/calib_example), also from a git worktree.
+
+    ``$STIFFMAP_SHARED_DATA`` may point at the shared data folder instead.
+    """
     from conftest import SHARED_DATA
 
     here = Path(__file__).resolve().parents[1]
-    for cand in (SHARED_DATA / "calib_example", here.parents[1] / "shared" / "data" / "calib_example"):
+    cands = [SHARED_DATA / "calib_example", here.parents[1] / "shared" / "data" / "calib_example"]
+    if os.environ.get("STIFFMAP_SHARED_DATA"):
+        cands.insert(0, Path(os.environ["STIFFMAP_SHARED_DATA"]) / "calib_example")
+    for cand in cands:
         if (cand / "Image1.tif").is_file():
             return cand
-    raise FileNotFoundError(f"calib_example data not found next to the repository ({SHARED_DATA})")
+    return None
+
+
+class _SharedData:
+    """Where the real photographs are; a test that uses them is skipped, with the reason, when absent."""
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+
+    def _get(self) -> Path:
+        if self.path is None:
+            pytest.skip(
+                "the real photographs ../shared/data/calib_example were not found next to the repository "
+                "(set STIFFMAP_SHARED_DATA to the shared data folder)"
+            )
+        return self.path
+
+    def __truediv__(self, other) -> Path:
+        return self._get() / other
+
+    def glob(self, pattern: str):
+        return self._get().glob(pattern)
+
+    def __fspath__(self) -> str:
+        return str(self._get())
 
 
 #: Bouguet's calibration example: 20 real 640x480 photographs of a 13x12 board, 30 mm squares.
-CALIB_DIR = _find_calib_example()
+CALIB_DIR = _SharedData(_find_calib_example())
 
 
 @dataclass(frozen=True)
