@@ -37,7 +37,7 @@ from ..loads import LoadCase, force_covariances, forces_matrix
 from ..stats import describe, precision
 from ..targets import Chessboard
 from .spec import CampaignSpec, load_spec
-from .store import DB_NAME, Store, from_json, params_hash, to_json
+from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
 __all__ = ["PositionTask", "RunSummary", "plan", "run_campaign", "measure_position"]
 
@@ -428,16 +428,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
                 K_std=np.array([from_json(r["K_std"]) for r in good]),
             )
             fitted = fit.model
-            fit_row.update(
-                status="ok",
-                error=None,
-                params=to_json(dict(zip(fit.names, fit.estimate, strict=True))),
-                std=to_json(dict(zip(fit.names, fit.std, strict=True))),
-                cov=to_json(fit.covariance),
-                residuals=to_json(fit.residual_rms_per_pose),
-                condition=float(fit.condition),
-                dof=int(fit.dof),
-            )
+            fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
         except (InputError, ValueError) as e:
             fit_row.update(status="failed", error=str(e))
             problems.append(f"model fit: {e}")

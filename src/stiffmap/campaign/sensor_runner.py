@@ -21,7 +21,7 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from .spec import CampaignSpec
-from .store import Store, from_json, params_hash, to_json
+from .store import Store, from_json, model_fit_columns, params_hash, to_json
 
 __all__ = ["run_sensor_campaign", "sensor_config", "SensorCampaignResult"]
 
@@ -193,16 +193,7 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
             std=std if np.all(np.isfinite(std)) else None,
         )
         fitted = fit.model
-        row.update(
-            status="ok",
-            error=None,
-            params=to_json(dict(zip(fit.names, fit.estimate, strict=True))),
-            std=to_json(dict(zip(fit.names, fit.std, strict=True))),
-            cov=to_json(fit.covariance),
-            residuals=to_json(fit.residuals),
-            condition=float(fit.condition),
-            dof=int(fit.dof),
-        )
+        row.update(model_fit_columns(fit, fit.residuals))
     except (InputError, ValueError) as e:
         row.update(status="failed", error=str(e))
         problems.append(f"model fit: {e}")

@@ -28,7 +28,15 @@ import numpy as np
 from .. import __version__
 from ..io import to_jsonable
 
-__all__ = ["Store", "DB_NAME", "file_sha256", "params_hash", "dump_content", "SCHEMA_VERSION"]
+__all__ = [
+    "Store",
+    "DB_NAME",
+    "file_sha256",
+    "params_hash",
+    "dump_content",
+    "model_fit_columns",
+    "SCHEMA_VERSION",
+]
 
 DB_NAME = "stiffmap.db"
 SCHEMA_VERSION = 1
@@ -110,6 +118,20 @@ def from_json(text: str | None, array: bool = True):
     if array:
         return np.array(v, dtype=float) if v is not None else None
     return v
+
+
+def model_fit_columns(fit, residuals) -> dict[str, Any]:
+    """The ``model_fit`` columns of a successful :class:`stiffmap.models.fit.ModelFit`."""
+    return {
+        "status": "ok",
+        "error": None,
+        "params": to_json(dict(zip(fit.names, fit.estimate, strict=True))),
+        "std": to_json(dict(zip(fit.names, fit.std, strict=True))),
+        "cov": to_json(fit.covariance),
+        "residuals": to_json(residuals),
+        "condition": float(fit.condition),
+        "dof": int(fit.dof),
+    }
 
 
 class Store:
