@@ -121,3 +121,21 @@ def test_stiffness_in_frame_preserves_physics(rng):
 def test_as_transform_rejects_bad_input(bad, msg):
     with pytest.raises(ValueError, match=msg):
         g.as_transform(bad)
+
+
+def test_mean_transform_of_small_scatter(rng):
+    T0 = _random_transform(rng)
+    Ts = []
+    for _ in range(200):
+        T = T0.copy()
+        T[:3, :3] = g.matrix_from_rotvec(rng.normal(scale=1e-3, size=3)) @ T0[:3, :3]
+        T[:3, 3] += rng.normal(scale=0.01, size=3)
+        Ts.append(T)
+    M = g.mean_transform(Ts)
+    g.as_transform(M)  # a proper rigid transform
+    # Scatter 1e-3 rad and 0.01 mm over 200 draws: the mean is within ~4 standard errors.
+    assert np.linalg.norm(g.rotvec_from_matrix(M[:3, :3] @ T0[:3, :3].T)) < 4 * 1e-3 * np.sqrt(3 / 200)
+    np.testing.assert_allclose(M[:3, 3], np.mean([T[:3, 3] for T in Ts], axis=0), atol=1e-12)
+    np.testing.assert_allclose(g.mean_transform([T0]), T0, atol=1e-12)
+    with pytest.raises(ValueError, match="shape"):
+        g.mean_transform(np.eye(4))

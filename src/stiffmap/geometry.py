@@ -34,6 +34,7 @@ __all__ = [
     "displacement_from_poses",
     "displacement_at_point",
     "stiffness_in_frame",
+    "mean_transform",
 ]
 
 
@@ -348,3 +349,27 @@ def stiffness_in_frame(K, a2b) -> np.ndarray:
         B[3:, 3:] = R
         return B @ K @ B.T
     raise ValueError(f"K must be 3x3 or 6x6, got shape {K.shape}")
+
+
+def mean_transform(transforms) -> np.ndarray:
+    """Mean of rigid transforms: mean translation, rotation projected from the mean matrix.
+
+    The chordal mean: the rotation closest (Frobenius) to the average of the
+    rotation matrices. For the small scatter of repeated measurements of one pose
+    it equals the mean of the rotation vectors to second order.
+
+    Parameters
+    ----------
+    transforms : array_like, shape (n, 4, 4)
+        Poses ``a2b`` of the same frames, mm.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+    """
+    T = np.asarray(transforms, dtype=np.float64)
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0:
+        raise ValueError(f"transforms must have shape (n, 4, 4) with n >= 1, got {T.shape}")
+    U, _, Vt = np.linalg.svd(T[:, :3, :3].mean(axis=0))
+    R = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    return transform_from(R, T[:, :3, 3].mean(axis=0))

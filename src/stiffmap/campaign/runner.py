@@ -31,7 +31,7 @@ import numpy as np
 from .. import __version__
 from ..camera import CameraModel, load_camera
 from ..errors import InputError, StiffmapWarning
-from ..geometry import displacement_from_poses, invert_transform
+from ..geometry import displacement_from_poses, invert_transform, mean_transform
 from ..identify import identify_stiffness
 from ..loads import LoadCase, force_covariances, forces_matrix
 from ..stats import describe, precision
@@ -190,18 +190,6 @@ def _measure_worker(ctx: MeasureContext, task: PositionTask) -> tuple[int, list[
 # ----------------------------------------------------------------- derivation
 
 
-def _mean_pose(Ts: list[np.ndarray]) -> np.ndarray:
-    """Mean of rigid transforms (mean translation, rotation projected from the mean matrix)."""
-    T = np.asarray(Ts)
-    R = T[:, :3, :3].mean(axis=0)
-    U, _, Vt = np.linalg.svd(R)
-    Rm = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
-    out = np.eye(4)
-    out[:3, :3] = Rm
-    out[:3, 3] = T[:, :3, 3].mean(axis=0)
-    return out
-
-
 @dataclass
 class PositionResult:
     """Derived rows of one position, ready to be written."""
@@ -233,7 +221,7 @@ def derive_position(
             res.problems.append(f"position {task.index}: the fixed target was not found in any image")
         else:
             fixed2base = np.asarray(targets.fixed.fixed2base, dtype=float)
-            cam2base = fixed2base @ invert_transform(_mean_pose([r.fixed2cam for r in fixed_ok]))
+            cam2base = fixed2base @ invert_transform(mean_transform([r.fixed2cam for r in fixed_ok]))
             frame = "base"
     R = cam2base[:3, :3]
     B = np.zeros((6, 6))
@@ -249,7 +237,7 @@ def derive_position(
         if not refs:
             res.problems.append(f"position {task.index}: no usable unloaded image")
         else:
-            ref_pose = _mean_pose([r.mobile2cam for r in refs])
+            ref_pose = mean_transform([r.mobile2cam for r in refs])
             ref_cov = sum(r.mobile_cov for r in refs) / len(refs) ** 2
     F_cols, D_cols = [], []
     per_load: dict[int, list[np.ndarray]] = {}
@@ -273,8 +261,9 @@ def derive_position(
                 bad.append(f"{rel}: {r.error if r is not None else 'not measured'}")
         if mean_ref and not refs:
             bad.append("no usable unloaded image")
-        if bad or (frame == "base" and targets.fixed is not None and not fixed_ok):
-            row.update(status="failed", error="; ".join(bad) or "no fixed target")
+        if bad or (targets.fixed is not None and not fixed_ok):
+            # Without the fixed target the displacement cannot be put in the base frame.
+            row.update(status="failed", error="; ".join(bad) or "the fixed target was not found in any image")
             res.displacements.append(row)
             continue
         M0, cov0 = (ref_pose, ref_cov) if mean_ref else (u.mobile2cam, u.mobile_cov)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import displacement_from_poses
+from ..geometry import displacement_from_poses, mean_transform
 from .pose import _skew
 from .sequence import ImageMeasurement
 
@@ -103,7 +103,7 @@ class Displacement:
 
 
 def mean_pose(poses) -> np.ndarray:
-    """Mean of rigid transforms: mean translation, rotation projected from the mean matrix.
+    """Mean of rigid transforms (:func:`stiffmap.geometry.mean_transform`).
 
     Parameters
     ----------
@@ -113,18 +113,7 @@ def mean_pose(poses) -> np.ndarray:
     -------
     ndarray, shape (4, 4)
     """
-    T = np.asarray(poses, dtype=np.float64)
-    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0:
-        raise ValueError(f"poses must have shape (n, 4, 4) with n >= 1, got {T.shape}")
-    U, _, Vt = np.linalg.svd(T[:, :3, :3].mean(axis=0))
-    R = U @ Vt
-    if np.linalg.det(R) < 0:  # pragma: no cover - only for wildly scattered rotations
-        U[:, -1] *= -1
-        R = U @ Vt
-    out = np.eye(4)
-    out[:3, :3] = R
-    out[:3, 3] = T[:, :3, 3].mean(axis=0)
-    return out
+    return mean_transform(poses)
 
 
 def _point_jacobian(T: np.ndarray, point: np.ndarray) -> np.ndarray:
