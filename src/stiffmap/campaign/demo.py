@@ -13,9 +13,9 @@ at each position while its loads are hung (one unloaded image per repeat, then
 one image per load), so each loaded image is compared with the mean unloaded
 pose of its position.
 
-A directory that already holds the same simulation (same settings and seed) is
-reused: the images are not rendered again, and the run only does what is
-missing.
+The report is written by the caller (``stiffmap demo`` does it). A directory
+that already holds the same simulation (same settings and seed) is reused: the
+images are not rendered again, and the run only does what is missing.
 """
 
 from __future__ import annotations
@@ -51,7 +51,6 @@ class DemoResult:
     images : int
     seconds_simulate, seconds_run : float
     failures : list of str
-    report : Path or None
     """
 
     out_dir: Path
@@ -64,7 +63,6 @@ class DemoResult:
     seconds_simulate: float
     seconds_run: float
     failures: list[str] = field(default_factory=list)
-    report: Path | None = None
 
     @property
     def worst_percent(self) -> float:
@@ -115,12 +113,14 @@ def run_demo(
     repeats: int | None = None,
     seed: int = 1,
     workers: int = 1,
-    report: bool = True,
     fresh: bool = False,
     sim_progress: Callable[[int, int], None] | None = None,
     run_progress: Callable[[int, int, int], None] | None = None,
 ) -> DemoResult:
-    """Simulate, measure, identify, report, and compare with the truth.
+    """Simulate, measure, identify, export, and compare with the truth.
+
+    The report (``stiffmap.report.campaign.write_campaign_report``) is the
+    caller's to write: the report layer sits above this one.
 
     Parameters
     ----------
@@ -133,8 +133,6 @@ def run_demo(
     seed : int
     workers : int
         Processes for rendering and for measuring.
-    report : bool
-        Write ``out_dir/report``.
     fresh : bool
         Simulate again even when the same simulation is there.
 
@@ -172,12 +170,6 @@ def run_demo(
     with Store(out / DB_NAME) as store:
         export_tables(store, out / "exports", spec.name, summary.failures)
         rows = store.rows("SELECT position, status, K FROM stiffness ORDER BY position")
-        page = None
-        if report:
-            from ..report import write_report
-            from .report_data import report_data
-
-            page = write_report(report_data(out.resolve(), spec, store, summary.failures), out / "report")
     t2 = time.perf_counter()
     n = len(truth.K)
     K = np.full((n, 3, 3), np.nan)
@@ -196,5 +188,4 @@ def run_demo(
         seconds_simulate=t1 - t0,
         seconds_run=t2 - t1,
         failures=summary.failures,
-        report=page,
     )

@@ -171,17 +171,16 @@ def run(
         failures = res.failures or []
     with Store(root / DB_NAME) as store:
         export_tables(store, root / "exports", spec.name, failures)
-        if report:
-            from ..campaign.report_data import report_data
-            from ..report import write_report
-
-            page = write_report(report_data(root, spec, store, failures), root / "report")
         if as_json:
             print_json(summary_dict(store, spec.name, failures))
         elif spec.kind == "vision":
             out.print(_summary_table(store), width=max(out.width, 110))
         else:
             out.print(_sensor_table(spec, store))
+    if report:
+        from ..report.campaign import write_campaign_report
+
+        page = write_campaign_report(root, failures)
     if not as_json:
         if spec.kind == "vision":
             rate = summary.images / summary.wall_seconds if summary.wall_seconds > 0 and summary.images else 0

@@ -68,7 +68,6 @@ def demo(
             repeats=repeats or None,
             seed=seed,
             workers=n_workers,
-            report=report,
             fresh=fresh,
             sim_progress=sim_hook,
             run_progress=run_hook,
@@ -96,10 +95,12 @@ def demo(
     out.print(t, width=max(out.width, 100))
     out.print(
         f"{len(res.positions)} positions, {res.images} images measured; "
-        f"simulate {res.seconds_simulate:.0f} s, measure + identify + report {res.seconds_run:.0f} s"
+        f"simulate {res.seconds_simulate:.0f} s, measure + identify {res.seconds_run:.0f} s"
     )
-    if res.report is not None:
-        out.print(f"report: {res.report}")
+    if report:
+        from ..report.campaign import write_campaign_report
+
+        out.print(f"report: {write_campaign_report(res.out_dir, res.failures)}")
     for f in res.failures:
         warn(f)
     out.print(f"worst relative K error: {res.worst_percent:.2f} %")

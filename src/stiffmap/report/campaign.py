@@ -1,4 +1,9 @@
-"""Fill the report's data contract (:class:`stiffmap.report.data.ReportData`) from a campaign's database."""
+"""A campaign's report: its database mapped onto the report's data contract.
+
+The report sits above the campaign layer (DESIGN.md): it reads the campaign's
+spec and ``stiffmap.db`` and fills :class:`stiffmap.report.data.ReportData`;
+:func:`write_campaign_report` writes ``CAMPAIGN/report/``.
+"""
 
 from __future__ import annotations
 
@@ -9,16 +14,16 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import load_camera
+from ..campaign.spec import CampaignSpec, load_spec
+from ..campaign.store import DB_NAME, Store, from_json
 from ..errors import InputError
-from .spec import CampaignSpec
-from .store import Store, from_json
 
-__all__ = ["report_data", "failures_as_items"]
+__all__ = ["report_data", "failures_as_items", "write_campaign_report"]
 
 
 def failures_as_items(failures: list[str]):
     """``Failure(item, message)`` records from "item: message" strings."""
-    from ..report.data import Failure
+    from .data import Failure
 
     out = []
     for f in failures:
@@ -28,7 +33,7 @@ def failures_as_items(failures: list[str]):
 
 
 def _parameters(store: Store, name: str):
-    from ..report.data import Parameter
+    from .data import Parameter
 
     rows = store.rows("SELECT * FROM model_fit WHERE name=?", (name,))
     if not rows or rows[0]["status"] != "ok":
@@ -55,7 +60,7 @@ def _fitted_model(spec: CampaignSpec, store: Store, fit_name: str):
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
-    from ..report.data import (
+    from .data import (
         CalibrationData,
         LoadData,
         MeasuredStiffness,
@@ -127,8 +132,8 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
 
 
 def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
-    from ..report.data import SensorMap, SensorResults
-    from .sensor_runner import measured_static_errors
+    from ..campaign.sensor_runner import measured_static_errors
+    from .data import SensorMap, SensorResults
 
     m = measured_static_errors(spec, store)
     if m["points"].shape[1] != 2:
@@ -189,8 +194,25 @@ def _unit(axis: str) -> np.ndarray:
 
 def report_data(root: Path, spec: CampaignSpec, store: Store, failures: list[str]):
     """The :class:`~stiffmap.report.data.ReportData` of a campaign, from its database."""
-    from ..report.data import CampaignInfo, ReportData
+    from .data import CampaignInfo, ReportData
 
     info = CampaignInfo(name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root))
     parts = _vision(root, spec, store) if spec.kind == "vision" else _sensor(root, spec, store)
     return ReportData(campaign=info, failures=failures_as_items(failures), **parts)
+
+
+def write_campaign_report(campaign_dir: str | Path, failures: list[str] | None = None) -> Path:
+    """Write ``CAMPAIGN/report/`` (index.html, PNGs, data.json) from the campaign's database.
+
+    Returns
+    -------
+    Path
+        The report's ``index.html``.
+    """
+    from . import write_report
+
+    root = Path(campaign_dir).resolve()
+    spec = load_spec(root)
+    with Store(root / DB_NAME) as store:
+        data = report_data(root, spec, store, list(failures or []))
+    return write_report(data, root / "report")
