@@ -50,6 +50,26 @@ def test_distortion_jacobian_matches_finite_differences(rng):
         np.testing.assert_allclose(J[..., :, k], fd, rtol=1e-6, atol=1e-9)
 
 
+def test_rectangle_outline_bounds_the_rendered_board_under_distortion():
+    """The sampled outline holds the projected corners and bulges past them under barrel distortion."""
+    from stiffmap.geometry import transform_from as make_transform
+
+    cam = CameraModel((2592, 1944), 3733.27, 3722.85, 1466.77, 904.81, (-0.3, 0.1, 0, 0, 0))
+    T = make_transform(np.eye(3), [-150.0, -100.0, 600.0])
+    uv = cam.project_rectangle(T, (0.0, 0.0, 300.0, 200.0), samples=9)
+    corners = cam.project(
+        np.array([[0, 0, 600], [300, 0, 600], [300, 200, 600], [0, 200, 600]]) + [-150, -100, 0]
+    )
+    np.testing.assert_allclose(uv[[0, 8, 17, 18]], corners, atol=1e-9)
+    mid_top = cam.project(np.array([0.0, -100.0, 600.0]))
+    np.testing.assert_allclose(uv[4], mid_top, atol=1e-9)
+    # Barrel distortion bows the top edge outwards (up): a box of the corners alone would cut it.
+    assert mid_top[1] < min(corners[0, 1], corners[1, 1]) - 1.0
+    behind = make_transform(np.eye(3), [0.0, 0.0, -1.0])
+    with pytest.raises(ValueError, match="behind the camera"):
+        cam.project_rectangle(behind, (0.0, 0.0, 10.0, 10.0))
+
+
 def test_camera_json_round_trip(tmp_path):
     cam = CameraModel(
         (640, 480),

@@ -191,6 +191,49 @@ class CameraModel:
         xy = P[..., :2] / P[..., 2:3]
         return self.pixels_from_normalized(self.distort(xy))
 
+    def project_rectangle(self, plane2cam, extent, samples: int = 33) -> np.ndarray:
+        """Pixel outline of a rectangle drawn on a plane (a target's board frame).
+
+        The sides are sampled, not only the corners, because lens distortion
+        bends straight edges: the bounding box of the outline is then the
+        bounding box of the whole rectangle's image.
+
+        Parameters
+        ----------
+        plane2cam : array_like, shape (4, 4)
+            Pose of the plane's frame in the camera frame (mm); the rectangle
+            lies in its z = 0 plane.
+        extent : (x0, y0, x1, y1)
+            The rectangle, mm, in the plane's frame.
+        samples : int
+            Points per side.
+
+        Returns
+        -------
+        ndarray, shape (4 * samples, 2)
+            (u, v) in px, side after side.
+
+        Raises
+        ------
+        ValueError
+            Part of the rectangle lies behind the camera (Z <= 0).
+        """
+        T = np.asarray(plane2cam, dtype=np.float64)
+        x0, y0, x1, y1 = (float(v) for v in extent)
+        k = np.linspace(0.0, 1.0, int(samples))
+        outline = np.concatenate(
+            [
+                np.c_[x0 + (x1 - x0) * k, np.full_like(k, y0)],
+                np.c_[np.full_like(k, x1), y0 + (y1 - y0) * k],
+                np.c_[x0 + (x1 - x0) * k, np.full_like(k, y1)],
+                np.c_[np.full_like(k, x0), y0 + (y1 - y0) * k],
+            ]
+        )
+        P = outline @ T[:3, :2].T + T[:3, 3]
+        if np.any(P[:, 2] <= 1e-6):
+            raise ValueError("the rectangle reaches behind the camera (Z <= 0)")
+        return self.project(P)
+
     def pixels_from_normalized(self, xy_distorted) -> np.ndarray:
         """(u, v) = (fx x' + cx, fy y' + cy) from distorted normalised coordinates."""
         xy = np.asarray(xy_distorted, dtype=np.float64)

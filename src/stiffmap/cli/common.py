@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Sequence
 
@@ -13,8 +14,21 @@ from rich.table import Table
 from ..errors import InputError
 from ..io import dumps_json
 
+
+def _piped_width() -> int | None:
+    """Width for tables written to a pipe or a log file.
+
+    rich falls back to 80 columns when stdout is not a terminal, which folds
+    file paths and matrices over several lines in a saved log; a file has no
+    width, so use a generous one (``COLUMNS`` still wins when set).
+    """
+    if sys.stdout.isatty() or os.environ.get("COLUMNS"):
+        return None
+    return 160
+
+
 #: Results go to stdout (so ``--json`` output can be piped); messages to stderr.
-out = Console(highlight=False, soft_wrap=True)
+out = Console(highlight=False, soft_wrap=True, width=_piped_width())
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 
 #: Exit status for a user mistake (bad file, bad option value).

@@ -375,20 +375,11 @@ def _bounds(lines: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def _target_bbox(camera: CameraModel, tex: BoardTexture, board2cam: np.ndarray, roi) -> tuple | None:
-    x0, y0, x1, y1 = tex.extent
-    k = np.linspace(0.0, 1.0, 65)
-    edge = np.concatenate(
-        [
-            np.c_[x0 + (x1 - x0) * k, np.full_like(k, y0)],
-            np.c_[np.full_like(k, x1), y0 + (y1 - y0) * k],
-            np.c_[x0 + (x1 - x0) * k, np.full_like(k, y1)],
-            np.c_[np.full_like(k, x0), y0 + (y1 - y0) * k],
-        ]
-    )
-    P = edge @ board2cam[:3, :2].T + board2cam[:3, 3]
-    if np.any(P[:, 2] <= 1e-6):
-        raise ValueError("a target reaches behind the camera (Z <= 0); move it in front of the camera")
-    uv = camera.project(P)
+    try:
+        uv = camera.project_rectangle(board2cam, tex.extent, samples=65)
+    except ValueError:
+        msg = "a target reaches behind the camera (Z <= 0); move it in front of the camera"
+        raise ValueError(msg) from None
     c0 = max(int(np.floor(uv[:, 0].min())) - 2, roi[0])
     c1 = min(int(np.ceil(uv[:, 0].max())) + 3, roi[2])
     r0 = max(int(np.floor(uv[:, 1].min())) - 2, roi[1])

@@ -437,22 +437,13 @@ def prepare_pixels(
         )
     s = board.square_mm
     cols, rows = board.cols, board.rows
-    # Bounding box of the checkered area grown by 0.6 square (outline sampled along its sides).
+    # Bounding box of the checkered area grown by 0.6 square.
     grow = 0.6 * s
-    x0, y0, x1, y1 = -s - grow, -s - grow, cols * s + grow, rows * s + grow
-    k = np.linspace(0.0, 1.0, 33)
-    outline = np.concatenate(
-        [
-            np.c_[x0 + (x1 - x0) * k, np.full_like(k, y0)],
-            np.c_[np.full_like(k, x1), y0 + (y1 - y0) * k],
-            np.c_[x0 + (x1 - x0) * k, np.full_like(k, y1)],
-            np.c_[np.full_like(k, x0), y0 + (y1 - y0) * k],
-        ]
-    )
-    P = outline @ T[:3, :2].T + T[:3, 3]
-    if np.any(P[:, 2] <= 1e-6):
-        raise PhotometricError("the board reaches behind the camera")
-    uv = camera.project(P)
+    extent = (-s - grow, -s - grow, cols * s + grow, rows * s + grow)
+    try:
+        uv = camera.project_rectangle(T, extent, samples=33)
+    except ValueError:
+        raise PhotometricError("the board reaches behind the camera") from None
     # Pixels c0..c1-1, r0..r1-1: their neighbours (for the local scale) are in the image.
     c0 = max(int(np.floor(uv[:, 0].min())), 1)
     c1 = min(int(np.ceil(uv[:, 0].max())) + 1, w - 1)
