@@ -54,6 +54,24 @@ def test_same_recording_as_csv_tdms_mat_gives_identical_results(tmp_path, load_c
     assert abs(est - 1e3 * tr.truth.static_error_mm) <= 1 + 0.01 * 800
 
 
+@pytest.mark.parametrize("sep, decimal", [("\t", "."), (";", ","), ("\t", ",")])
+def test_tab_and_semicolon_separated_text_reads_like_the_csv(tmp_path, sep, decimal):
+    """DAQ software writes tab-separated .txt; spreadsheets in many locales write ';' and 1,25."""
+    tr = quick_trace(0.8, seed=5)
+    csv_path = write_recording(tr.recording, tmp_path / "rec.csv")
+    lines = csv_path.read_text().splitlines()
+    converted = [lines[0].replace(",", sep)]
+    for row in lines[1:]:
+        cells = [c.replace(".", decimal) for c in row.split(",")]
+        converted.append(sep.join(cells))
+    txt = tmp_path / "rec.txt"
+    txt.write_text("\n".join(converted) + "\n")
+    a, b = read_recording(csv_path), read_recording(txt)
+    np.testing.assert_array_equal(b.time_s, a.time_s)
+    np.testing.assert_array_equal(b.displacement_v, a.displacement_v)
+    np.testing.assert_array_equal(b.load, a.load)
+
+
 def test_tdms_waveform_without_time_channel_and_with_gap(tmp_path):
     tr = quick_trace(0.3, seed=2)
     p = write_recording(tr.recording, tmp_path / "w.tdms")

@@ -69,6 +69,22 @@ class Table:
         return np.stack([self.columns[c] for c in names])
 
 
+def _sniff_delimiter(lines: Sequence[str]) -> str:
+    """The field separator of a delimited text file: comma, tab or semicolon.
+
+    Judged on the header (the first line that is neither blank nor a ``#``
+    comment): the separator it holds most often, a comma when it holds none
+    (a single column). DAQ software often writes tab-separated ``.txt`` files,
+    and spreadsheets in many locales write ``;`` with decimal commas.
+    """
+    for line in lines:
+        if line.strip() and not line.lstrip().startswith("#"):
+            counts = {d: line.count(d) for d in (",", "\t", ";")}
+            best = max(counts, key=lambda d: counts[d])
+            return best if counts[best] > 0 else ","
+    return ","
+
+
 def read_csv_columns(
     path: str | os.PathLike,
     required: Iterable[str],
@@ -78,6 +94,9 @@ def read_csv_columns(
     allow_nan: bool = False,
 ) -> Table:
     """Read named numeric columns from a CSV file with a header row.
+
+    The separator may be a comma, a tab or a semicolon (found from the header);
+    with a tab or a semicolon, a decimal comma (``1,25``) is read as well.
 
     Parameters
     ----------
@@ -111,7 +130,9 @@ def read_csv_columns(
         raise InputError(f"not a text CSV file ({e.reason} at byte {e.start})", source=src) from None
     except OSError as e:
         raise InputError(f"cannot read: {e.strerror}", source=src) from None
-    rows = list(csv.reader(raw.splitlines()))
+    lines_text = raw.splitlines()
+    delimiter = _sniff_delimiter(lines_text)
+    rows = list(csv.reader(lines_text, delimiter=delimiter))
     # Skip leading blank and comment lines.
     start = 0
     while start < len(rows) and (not rows[start] or rows[start][0].lstrip().startswith("#")):
@@ -147,6 +168,8 @@ def read_csv_columns(
                 continue
             if cell == "" and not allow_nan:
                 raise InputError(f"line {line}, column {c!r}: empty cell, expected a number", source=src)
+            if delimiter != "," and "," in cell and "." not in cell:
+                cell = cell.replace(",", ".")  # decimal comma (files written with ; or tab)
             try:
                 v = float(cell) if cell != "" else math.nan
             except ValueError:
