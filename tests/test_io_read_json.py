@@ -7,7 +7,7 @@ import json
 import pytest
 
 from stiffmap.errors import InputError
-from stiffmap.io import read_json
+from stiffmap.io import read_json, replace_keeping_previous
 
 
 def test_read_json_round_trips_a_value(tmp_path):
@@ -35,3 +35,13 @@ def test_read_json_names_the_file_and_the_problem(tmp_path, name, content, messa
     with pytest.raises(InputError, match=message) as e:
         read_json(p, "transform file")
     assert e.value.source == str(p)
+
+
+def test_replacing_a_result_keeps_the_different_previous_one(tmp_path):
+    p = tmp_path / "camera.json"
+    assert replace_keeping_previous(p, "first\n") is None  # nothing to keep
+    assert replace_keeping_previous(p, "first\n") is None  # same content: nothing lost
+    assert not (tmp_path / "camera.json.bak").exists()
+    bak = replace_keeping_previous(p, "second\n")
+    assert bak == tmp_path / "camera.json.bak"
+    assert bak.read_text() == "first\n" and p.read_text() == "second\n"

@@ -111,6 +111,9 @@ def test_calibrate_the_real_photographs(tmp_path):
     r = _invoke(["calibrate", *files[:5], "--board", "13x12", "--square-mm", "30", "--out", out, "--fix-k3"])
     assert r.exit_code == 0
     assert "Focal Length:          fc = [ 6" in r.stdout and "Pixel error:" in r.stdout
+    # The second calibration replaced camera.json; the first is kept beside it, not lost.
+    assert json.loads((tmp_path / "camera.json.bak").read_text()) == cam
+    assert "previous calibration is kept as" in r.stderr
 
 
 def test_calibrate_with_nothing_usable_fails_cleanly(data, tmp_path):

@@ -390,8 +390,11 @@ def load_camera(path: str | Path) -> CameraModel:
     return CameraModel.from_dict(read_json(path, "camera file"), source=str(path))
 
 
-def save_camera(camera: CameraModel, path: str | Path) -> None:
-    """Write ``camera.json`` atomically."""
-    from .io import atomic_write_text, dumps_json
+def save_camera(camera: CameraModel, path: str | Path) -> Path | None:
+    """Write ``camera.json`` atomically; a different earlier file is kept as ``camera.json.bak``.
 
-    atomic_write_text(path, dumps_json(camera.to_dict()) + "\n")
+    Returns the backup written, or None.
+    """
+    from .io import dumps_json, replace_keeping_previous
+
+    return replace_keeping_previous(path, dumps_json(camera.to_dict()) + "\n")

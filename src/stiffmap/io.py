@@ -242,6 +242,29 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def replace_keeping_previous(path: str | os.PathLike, text: str) -> Path | None:
+    """Write ``text`` to ``path`` atomically; a different earlier file is kept as ``<name>.bak``.
+
+    For results a command writes to a fixed default name (``camera.json``):
+    running it again on other data must not silently destroy the earlier result.
+
+    Returns
+    -------
+    Path or None
+        The backup written, or None (no earlier file, or the same content).
+    """
+    p = Path(path)
+    data = text.encode("utf-8")
+    backup = None
+    if p.is_file():
+        old = p.read_bytes()
+        if old != data:
+            backup = p.with_name(p.name + ".bak")
+            atomic_write_bytes(backup, old)
+    atomic_write_bytes(p, data)
+    return backup
+
+
 def to_jsonable(obj):
     """Convert numpy values (recursively) to plain JSON values; NaN/inf become None."""
     if isinstance(obj, dict):

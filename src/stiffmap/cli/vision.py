@@ -127,9 +127,11 @@ def calibrate(
             raise InputError("choose at most one of --fix-k3, --rational, --thin-prism")
         model = "fix-k3" if fix_k3 else "rational" if rational else "thin-prism" if thin_prism else "k3"
         res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor)
-        save_camera(res.camera, out_path)
+        backup = save_camera(res.camera, out_path)
     except InputError as e:
         raise fail(str(e)) from None
+    if backup is not None:
+        warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
     for v in res.views:
         if not v.used:
             warn(f"{v.image}: not used: {v.reason}")
