@@ -114,3 +114,23 @@ def test_version_and_help():
     assert proc.returncode == 0 and proc.stdout.strip() == f"stiffmap {__version__}"
     proc = stiffmap("identify", "--help")
     assert proc.returncode == 0 and "--method" in proc.stdout and "compliance" in proc.stdout
+    # Optional parts in [brackets] are shown, not eaten as rich markup.
+    assert "[and mx,my,mz (N*mm)]" in proc.stdout and "[and rx,ry,rz (rad)]" in proc.stdout
+    proc = stiffmap("displacement", "--help")
+    assert "d = [dx, dy, dz] (mm)" in proc.stdout
+
+
+def test_output_path_mistakes_are_one_line_errors(tmp_path):
+    """An output path that is a folder, or under a file: one line naming it, no traceback."""
+    (tmp_path / "afile").write_text("keep me\n")
+    (tmp_path / "adir").mkdir()
+    proc = stiffmap("model", "delta", "--json", "-o", tmp_path / "afile" / "x.json")
+    assert_one_line_error(proc, "afile", "a file is in the way")
+    proc = stiffmap("model", "delta", "--csv", "-o", tmp_path / "adir")
+    assert_one_line_error(proc, "adir", "is a directory")
+    proc = stiffmap("init", tmp_path / "afile" / "campaign")
+    assert_one_line_error(proc, "afile")
+    assert (tmp_path / "afile").read_text() == "keep me\n"
+    # Text from the user is printed as written: no :emoji: codes, no [markup].
+    proc = stiffmap("model", "delta", "--grid=0:100:0,0,-300")
+    assert_one_line_error(proc, "'0:100:0,0,-300'")

@@ -215,10 +215,27 @@ def read_json(path: str | os.PathLike, what: str = "file"):
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``)."""
+    """Write ``data`` to ``path`` atomically (temporary file + ``os.replace``).
+
+    Raises
+    ------
+    InputError
+        ``path`` is a directory, or its folder cannot be made (a file of that
+        name is in the way) or written to.
+    """
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    src = str(path)
+    if p.is_dir():
+        raise InputError("is a directory; expected the path of a file to write", source=src)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        msg = "cannot make its folder: a file is in the way of the folder path"
+        raise InputError(msg, source=src) from None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    except OSError as e:
+        raise InputError(f"cannot write in {p.parent}: {e.strerror}", source=src) from None
     try:
         # mkstemp creates the file 0600; give it the permissions a plain open() would.
         umask = os.umask(0)

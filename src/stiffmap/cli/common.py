@@ -28,8 +28,8 @@ def _piped_width() -> int | None:
 
 
 #: Results go to stdout (so ``--json`` output can be piped); messages to stderr.
-out = Console(highlight=False, soft_wrap=True, width=_piped_width())
-err = Console(stderr=True, highlight=False, soft_wrap=True)
+out = Console(highlight=False, soft_wrap=True, emoji=False, width=_piped_width())
+err = Console(stderr=True, highlight=False, soft_wrap=True, emoji=False)
 
 #: Exit status for a user mistake (bad file, bad option value).
 EXIT_INPUT = 2

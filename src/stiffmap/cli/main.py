@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import importlib
+import inspect
 import sys
 
 import typer
+from rich.markup import escape
+from typer.models import ParameterInfo
 
 from .. import __version__
 from ..errors import InputError
@@ -56,12 +59,42 @@ for _name in _COMMAND_MODULES:
     importlib.import_module(f"{__package__}.{_name}").register(app)
 
 
+def _literal_brackets(app: typer.Typer) -> None:
+    """Keep ``[optional parts]`` of help texts visible.
+
+    Help is rendered with rich, which would read ``[and mx,my,mz]`` or
+    ``[dx, dy, dz]`` as markup tags and drop them; the help texts use no markup,
+    so every bracket is escaped to print as written.
+    """
+    for info in app.registered_commands:
+        cb = info.callback
+        if cb is None:
+            continue
+        if info.help:
+            info.help = escape(info.help)
+        if cb.__doc__:
+            cb.__doc__ = escape(cb.__doc__)
+        for prm in inspect.signature(cb).parameters.values():
+            d = prm.default
+            if isinstance(d, ParameterInfo) and isinstance(d.help, str):
+                d.help = escape(d.help)
+
+
+_literal_brackets(app)
+
+
 def run() -> None:
     """Console-script entry point: user errors become one line and a non-zero exit."""
     try:
         app()
     except InputError as e:
         fail(str(e))
+        sys.exit(EXIT_INPUT)
+    except OSError as e:
+        # An output path that is a directory, a file where a folder is needed, no permission,
+        # a full disk: the user's to fix, so one line that names the path, not a traceback.
+        where = f"{e.filename}: " if e.filename else ""
+        fail(f"{where}{e.strerror or e}")
         sys.exit(EXIT_INPUT)
     except KeyboardInterrupt:
         fail("interrupted", 130)

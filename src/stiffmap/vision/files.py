@@ -74,6 +74,12 @@ def read_stage_manifest(path: str | os.PathLike) -> list[tuple[str, float]]:
     for name, nom, line in zip(t.text["image"], t.columns["nominal_mm"], t.lines, strict=True):
         if not name:
             raise InputError(f"line {line}, column 'image': empty image name", source=str(path))
+        if nom < 0:
+            raise InputError(
+                f"line {line}, column 'nominal_mm': {nom:g} is negative; give the distance moved "
+                "from the start position (>= 0 mm)",
+                source=str(path),
+            )
         out.append((str(base / name) if not Path(name).is_absolute() else name, float(nom)))
     if not any(n == 0 for _, n in out):
         raise InputError(
