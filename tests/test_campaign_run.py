@@ -11,6 +11,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+import tomllib
 
 import numpy as np
 import pytest
@@ -123,6 +124,40 @@ def test_position_outside_the_model_and_bad_spec(campaign, tmp_path):
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "campaign.toml" in lines[0] and "line" in lines[0] and "'repeats'" in lines[0]
+
+
+def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
+    """Dropping a position removes its results; moving one re-derives it from the same images."""
+    c = _copy(campaign, tmp_path / "c")
+    assert _run(c).returncode == 0
+    spec = (c / "campaign.toml").read_text()
+    m = re.search(r"list = \[\[.*?\]\]", spec, re.S) or re.search(r"list = \[\n.*?\n\]", spec, re.S)
+    assert m, spec
+    pts = tomllib.loads(spec)["positions"]["list"]
+    two = [pts[0], [pts[1][0] + 10.0, pts[1][1], pts[1][2]]]
+    (c / "campaign.toml").write_text(spec.replace(m.group(0), f"list = {json.dumps(two)}"))
+    proc = _run(c)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 re-derived (images unchanged), 1 unchanged" in proc.stdout
+    con = sqlite3.connect(c / "stiffmap.db")
+    rows = con.execute("SELECT position, x FROM stiffness ORDER BY position").fetchall()
+    assert rows == [(1, pts[0][0]), (2, pts[1][0] + 10.0)]
+    for table in ("measurements", "displacements", "repeat_stats", "model_stiffness"):
+        assert con.execute(f"SELECT MAX(position) FROM {table}").fetchone()[0] == 2, table
+    con.close()
+    summary = json.loads((c / "exports" / "summary.json").read_text())
+    assert [p["position"] for p in summary["positions"]] == [1, 2]
+
+    # A 2-D position in a vision campaign is refused with its key and line.
+    (c / "campaign.toml").write_text(spec.replace(m.group(0), "list = [[0.0, 0.0]]"))
+    proc = _run(c)
+    assert proc.returncode == 2
+    assert "positions.list.0" in proc.stderr and "[x, y, z]" in proc.stderr and "line" in proc.stderr
+    # No image at all (a wrong folder or pattern): one line, nothing done.
+    (c / "campaign.toml").write_text(spec.replace("images/p", "pictures/p"))
+    proc = _run(c)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "no image found" in proc.stderr
 
 
 @pytest.fixture(scope="module")

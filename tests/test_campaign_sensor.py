@@ -83,6 +83,37 @@ def test_a_bad_recording_is_named_and_the_others_go_on(tmp_path):
     assert "model fit" not in proc.stderr  # the fit went on with the 15 others
 
 
+def test_sign_mistakes_and_unreachable_points_are_left_out_of_the_fit_by_name(tmp_path):
+    _campaign(tmp_path)
+    spec = (tmp_path / "campaign.toml").read_text()
+    # A mirror forgotten on one recording, one point moved out of reach, one recording dropped.
+    spec = spec.replace('file = "rec/trace_000.csv", sign = -1', 'file = "rec/trace_000.csv", sign = 1')
+    lines = spec.splitlines()
+    i5 = next(i for i, ln in enumerate(lines) if "trace_005.csv" in ln)
+    lines[i5] = '  {point = [400.0, 900.0], direction = "y", file = "rec/trace_005.csv", sign = 1},'
+    lines = [ln for ln in lines if "trace_007.csv" not in ln]
+    (tmp_path / "campaign.toml").write_text("\n".join(lines) + "\n")
+    proc = stiffmap("run", tmp_path, "--no-report")
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert "rec/trace_000.csv: negative stiffness" in proc.stderr and "sign" in proc.stderr
+    assert "rec/trace_005.csv: point [400.0, 900.0] outside the model" in proc.stderr
+    assert "model fit:" not in proc.stderr  # fitted on the 13 others
+    summary = json.loads((tmp_path / "exports" / "summary.json").read_text())
+    fit = next(f for f in summary["model_fits"] if f["name"] == "static_error")
+    assert fit["status"] == "ok" and fit["params"]["kj"] == pytest.approx(600.0, rel=0.01)
+    files = [r["file"] for r in _csv(tmp_path / "exports" / "sensor_results.csv")]
+    assert "rec/trace_007.csv" not in files and len(files) == 15
+    # Correcting the sign re-analyses that recording only.
+    (tmp_path / "campaign.toml").write_text(
+        (tmp_path / "campaign.toml")
+        .read_text()
+        .replace('trace_000.csv", sign = 1', 'trace_000.csv", sign = -1')
+    )
+    proc = stiffmap("run", tmp_path, "--no-report")
+    assert "15 recordings: 1 analysed, 14 unchanged" in proc.stdout
+    assert "negative stiffness" not in proc.stderr
+
+
 def _csv(path):
     import csv
 

@@ -45,3 +45,13 @@ def test_replacing_a_result_keeps_the_different_previous_one(tmp_path):
     bak = replace_keeping_previous(p, "second\n")
     assert bak == tmp_path / "camera.json.bak"
     assert bak.read_text() == "first\n" and p.read_text() == "second\n"
+
+
+def test_a_result_equal_to_the_last_digits_is_not_backed_up_again(tmp_path):
+    """Threaded solvers differ in the last digits between runs: not a different calibration."""
+    p = tmp_path / "camera.json"
+    replace_keeping_previous(p, json.dumps({"fx": 3733.27, "dist": [-0.09, 0.11]}))
+    replace_keeping_previous(p, json.dumps({"fx": 3733.5, "dist": [-0.09, 0.11]}))  # kept: 3733.27
+    again = {"fx": 3733.5 * (1 + 3e-14), "dist": [-0.09, 0.11]}
+    assert replace_keeping_previous(p, json.dumps(again)) is None
+    assert json.loads((tmp_path / "camera.json.bak").read_text())["fx"] == 3733.27

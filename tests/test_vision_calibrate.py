@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from _vision_helpers import CALIB_DIR, true_corners
@@ -128,8 +129,18 @@ def test_too_few_views_lists_why(rng):
 def test_unreadable_and_missing_images_do_not_stop_calibration(calib_images, tmp_path):
     bad = tmp_path / "broken.tif"
     bad.write_bytes(calib_images[0].read_bytes()[:5000])
-    res = calibrate_files([*calib_images[:6], bad, tmp_path / "missing.tif"], BOARD, model="fix-k3")
+    # A stray image of another camera first on the command line: it is the one left out.
+    stray = tmp_path / "other_camera.png"
+    big = cv2.resize(cv2.imread(str(calib_images[0]), cv2.IMREAD_GRAYSCALE), (1280, 960))
+    cv2.imwrite(str(stray), big)
+    paths = [stray, *calib_images[:6], bad, tmp_path / "missing.tif"]
+    res = calibrate_files(paths, BOARD, model="fix-k3")
     v = {x.image: x for x in res.views}
-    assert res.n_used == 6
+    assert res.n_used == 6 and res.camera.image_size == (640, 480)
+    assert (
+        not v[str(stray)].used
+        and "1280x960" in v[str(stray)].reason
+        and "6 of the views" in v[str(stray)].reason
+    )
     assert not v[str(bad)].used and "cannot decode" in v[str(bad)].reason
     assert "not found" in v[str(tmp_path / "missing.tif")].reason

@@ -259,11 +259,33 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def json_close(a, b, rtol: float = 1e-9) -> bool:
+    """Whether two JSON values are equal, numbers within ``rtol`` (relative)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(json_close(a[k], b[k], rtol) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(json_close(x, y, rtol) for x, y in zip(a, b, strict=True))
+    num = (int, float)
+    if isinstance(a, num) and isinstance(b, num) and not isinstance(a, bool) and not isinstance(b, bool):
+        return math.isclose(a, b, rel_tol=rtol, abs_tol=1e-300)
+    return a == b
+
+
+def _same_result(old: bytes, new: bytes) -> bool:
+    if old == new:
+        return True
+    try:  # JSON results that differ only in the last digits (threaded solvers) are the same
+        return json_close(json.loads(old), json.loads(new))
+    except (ValueError, UnicodeDecodeError):
+        return False
+
+
 def replace_keeping_previous(path: str | os.PathLike, text: str) -> Path | None:
     """Write ``text`` to ``path`` atomically; a different earlier file is kept as ``<name>.bak``.
 
     For results a command writes to a fixed default name (``camera.json``):
     running it again on other data must not silently destroy the earlier result.
+    JSON files whose numbers agree to 1e-9 (relative) count as the same.
 
     Returns
     -------
@@ -275,7 +297,7 @@ def replace_keeping_previous(path: str | os.PathLike, text: str) -> Path | None:
     backup = None
     if p.is_file():
         old = p.read_bytes()
-        if old != data:
+        if not _same_result(old, data):
             backup = p.with_name(p.name + ".bak")
             atomic_write_bytes(backup, old)
     atomic_write_bytes(p, data)

@@ -47,6 +47,9 @@ __all__ = ["PositionTask", "RunSummary", "plan", "run_campaign", "measure_positi
 MEASUREMENT_REVISION = 2
 DERIVATION_REVISION = 2
 
+#: Tables whose rows belong to one position (column ``position``).
+POSITION_TABLES = ("measurements", "displacements", "repeat_stats", "stiffness", "model_stiffness")
+
 
 # ------------------------------------------------------------------------ plan
 
@@ -394,7 +397,9 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         return problems
     pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
     ok = [r for r in rows if r["status"] == "ok"]
-    ihash = params_hash({"model": name, "params": spec.robot.params, "K": [r["K"] for r in ok]})
+    ihash = params_hash(
+        {"model": name, "params": spec.robot.params, "xyz": pts.tolist(), "K": [r["K"] for r in ok]}
+    )
     fitted = model
     fit_row: dict[str, Any] = {
         "name": "stiffness",
@@ -459,6 +464,7 @@ class RunSummary:
     positions: int = 0
     measured: int = 0
     reused: int = 0
+    rederived: int = 0  # images unchanged, results computed again (other parameters)
     images: int = 0
     image_seconds: float = 0.0
     wall_seconds: float = 0.0
@@ -548,6 +554,13 @@ def run_campaign(
     except ValueError as e:
         raise InputError(str(e), source=str(root / "campaign.toml")) from None
     summary = RunSummary(campaign=spec.name, positions=len(tasks), db=str(root / DB_NAME))
+    if tasks and all(len(t.missing) == len(t.images) for t in tasks):
+        raise InputError(
+            f"no image found: none of the {sum(len(t.images) for t in tasks)} files that [images] "
+            f"names exists (e.g. {tasks[0].images[0]!r}, from unloaded = {spec.images.unloaded!r}); "
+            "check the patterns and the image folder",
+            source=str(root / "campaign.toml"),
+        )
     for t in tasks:
         for rel in t.missing:
             summary.failures.append(f"{rel}: image not found (position {t.index})")
@@ -581,9 +594,14 @@ def run_campaign(
         cached: dict[int, dict[str, ImageRow]] = {}
         hashes: dict[int, str] = {}
         with store.transaction():
+            # Positions no longer in campaign.toml leave the results (indices run 1..n).
+            for table in POSITION_TABLES:
+                store.conn.execute(f"DELETE FROM {table} WHERE position > ?", (len(tasks),))
             for t in tasks:
                 shas = {rel: store.sha256(root / rel) for rel in t.images if rel not in t.missing}
-                hashes[t.index] = params_hash({"derive": dphash, "images": shas, "missing": t.missing})
+                hashes[t.index] = params_hash(
+                    {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
+                )
                 prev = {
                     r["image"]: r
                     for r in store.rows("SELECT * FROM measurements WHERE position=?", (t.index,))
@@ -608,6 +626,8 @@ def run_campaign(
             if rows is None and st_row and st_row[0]["inputs_hash"] == hashes[t.index]:
                 summary.reused += 1
             else:
+                if rows is None:
+                    summary.rederived += 1
                 derived = derive_position(t, rowmap, loads, spec, method, hashes[t.index], dphash)
                 with store.transaction():
                     if rows is not None:

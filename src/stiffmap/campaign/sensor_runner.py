@@ -68,14 +68,21 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
     cfg, cmap = sensor_config(spec)
     phash = params_hash({"config": dataclasses.asdict(cfg), "channels": dataclasses.asdict(cmap)})
     out = SensorCampaignResult(campaign=spec.name, recordings=len(spec.sensor.recordings), failures=[])
+    listed = [rec.file for rec in spec.sensor.recordings]
+    with store.transaction():
+        # Recordings no longer in campaign.toml leave the results.
+        for r in store.rows("SELECT recording FROM sensor_results"):
+            if r["recording"] not in listed:
+                store.conn.execute("DELETE FROM sensor_results WHERE recording=?", (r["recording"],))
     for rec in spec.sensor.recordings:
         path = root / rec.file
         key = rec.file
+        rhash = params_hash({"analysis": phash, "sign": rec.sign})
         row: dict[str, Any] = {
             "recording": key,
             "point": to_json(rec.point),
             "direction": rec.direction,
-            "params_hash": phash,
+            "params_hash": rhash,
             "version": __version__,
         }
         if not path.is_file():
@@ -90,8 +97,13 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
         prev = store.rows(
             "SELECT sha256, params_hash, status, error FROM sensor_results WHERE recording=?", (key,)
         )
-        if prev and prev[0]["sha256"] == sha and prev[0]["params_hash"] == phash:
+        if prev and prev[0]["sha256"] == sha and prev[0]["params_hash"] == rhash:
             out.reused += 1
+            with store.transaction():  # where it was measured may have been corrected
+                store.conn.execute(
+                    "UPDATE sensor_results SET point=?, direction=? WHERE recording=?",
+                    (row["point"], row["direction"], key),
+                )
             if prev[0]["status"] != "ok":
                 out.failures.append(prev[0]["error"])
             continue
@@ -133,6 +145,8 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
     dirs = np.stack([direction_from(r.direction, d) for r in recs])
     vals = np.full(len(recs), np.nan)
     stds = np.full(len(recs), np.nan)
+    stiff = np.full(len(recs), np.nan)
+    flags: list[list[str]] = [[] for _ in recs]
     rows = {r["recording"]: r for r in store.rows("SELECT * FROM sensor_results")}
     for i, r in enumerate(recs):
         row = rows.get(r.file)
@@ -140,12 +154,17 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
             res = from_json(row["result"], array=False)
             vals[i] = res["static_error_mm"]
             stds[i] = res["static_error_std_mm"] if res["static_error_std_mm"] is not None else np.nan
+            k = res.get("stiffness_n_per_mm")
+            stiff[i] = k if k is not None else np.nan
+            flags[i] = list(res.get("flags") or [])
     return {
         "points": pts,
         "directions": dirs,
         "value_mm": vals,
         "std_mm": stds,
         "valid": np.isfinite(vals),
+        "stiffness_n_per_mm": stiff,
+        "flags": flags,
         "files": [r.file for r in recs],
         "reference_load_n": spec.sensor.reference_load_n,
     }
@@ -170,7 +189,14 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
     ref = m["reference_load_n"]
     fit_names = spec.robot.fitted_names()
     ihash = params_hash(
-        {"model": name, "params": spec.robot.params, "fit": fit_names, "values": m["value_mm"]}
+        {
+            "model": name,
+            "params": spec.robot.params,
+            "fit": fit_names,
+            "points": m["points"],
+            "directions": m["directions"],
+            "values": m["value_mm"],
+        }
     )
     row: dict[str, Any] = {
         "name": "static_error",
@@ -179,6 +205,14 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
         "version": __version__,
     }
     fitted = model
+    negative = v & (m["stiffness_n_per_mm"] < 0)
+    for i in np.flatnonzero(negative):
+        problems.append(
+            f"recording {m['files'][i]}: negative stiffness (the displacement goes against the load): "
+            "left out of the model fit; check its sign (sign = -1 behind a mirror) and direction"
+        )
+    reach = model.evaluate(m["points"]).valid
+    v = v & ~negative & reach  # unreachable points are named below
     try:
         if v.sum() == 0:
             raise InputError("no usable recording to fit")

@@ -380,6 +380,13 @@ class CampaignSpec(_Spec):
                 raise ValueError(
                     f"a vision campaign needs the section(s) {', '.join('[' + m + ']' for m in missing)}"
                 )
+            pts = self.positions.points or []
+            flat = [i for i, pt in enumerate(pts) if len(pt) != 3]
+            if flat:
+                raise ValueError(
+                    f"positions.list[{flat[0]}] = {pts[flat[0]]} has {len(pts[flat[0]])} coordinates; a "
+                    "vision campaign measures 3-D displacements, so its positions are [x, y, z] (mm)"
+                )
             if self.repeats > 1 and "{repeat" not in self.images.loaded:
                 raise ValueError("with repeats > 1 the images.loaded pattern must contain {repeat}")
         elif self.sensor is None:
@@ -500,10 +507,17 @@ def parse_spec(text: str, source: str = SPEC_NAME) -> CampaignSpec:
             loc = tuple(
                 x for x in loc if not (isinstance(x, str) and ("[" in x or x in ("str", "float", "int")))
             )
+            text_msg = _describe(err)
+            if not loc:
+                # A check across sections names its key at the start of its message.
+                m = re.match(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)(?:\[(\d+)\])? = ", text_msg)
+                if m:
+                    loc = tuple(m.group(1).split(".")) + ((int(m.group(2)),) if m.group(2) else ())
+                    text_msg = text_msg[m.end() :]
             line = _line_of(paths, loc) if loc else None
             key = ".".join(str(x) for x in loc) if loc else "(top level)"
             where = f"line {line}, " if line else ""
-            msgs.append(f"{where}key {key!r}: {_describe(err)}")
+            msgs.append(f"{where}key {key!r}: {text_msg}")
         # One line per campaign: the problems joined.
         uniq = list(dict.fromkeys(msgs))
         raise InputError("; ".join(uniq), source=source) from None

@@ -7,6 +7,7 @@ from enum import StrEnum
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import InputError
@@ -102,21 +103,27 @@ def _sensor_table(spec, store) -> Table:
     pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
     fit = store.rows("SELECT * FROM model_fit WHERE name='static_error'")
     title = f"static error at {fmt(m['reference_load_n'], 4)} N (um)"
+    model_col = "model"
     if fit and fit[0]["status"] == "ok":
         est, std = from_json(fit[0]["params"], array=False), from_json(fit[0]["std"], array=False)
         title += "; model fit: " + ", ".join(f"{k} = {fmt(v, 5)} ± {fmt(std[k], 2)}" for k, v in est.items())
+        model_col = "model (fitted)"
+    elif fit:
+        title += "; model fit failed: the model column uses the parameters of campaign.toml"
+        model_col = "model (not fitted)"
     t = Table(title=title)
-    for col in ("recording", "point (mm)", "direction", "measured", "± std", "model"):
-        t.add_column(col)
+    for col in ("recording", "point (mm)", "direction", "measured", "± std", model_col, "flags"):
+        t.add_column(col, overflow="fold")
     for i, f in enumerate(m["files"]):
         p = pred.get(f)
         t.add_row(
-            f,
+            escape(f),
             ", ".join(f"{x:g}" for x in m["points"][i]),
             ", ".join(f"{x:g}" for x in m["directions"][i]),
             fmt(1e3 * m["value_mm"][i], 5) if m["valid"][i] else "[red]failed[/]",
             fmt(1e3 * m["std_mm"][i], 2) if m["valid"][i] else "",
             fmt(1e3 * p, 5) if p is not None else "",
+            "[yellow]" + escape("; ".join(m["flags"][i])) + "[/]" if m["flags"][i] else "",
         )
     return t
 
@@ -186,7 +193,9 @@ def run(
             rate = summary.images / summary.wall_seconds if summary.wall_seconds > 0 and summary.images else 0
             out.print(
                 f"{summary.positions} positions: {summary.measured} measured ({summary.images} images, "
-                f"{rate:.1f} images/s), {summary.reused} unchanged since the last run"
+                f"{rate:.1f} images/s), "
+                + (f"{summary.rederived} re-derived (images unchanged), " if summary.rederived else "")
+                + f"{summary.reused} unchanged since the last run"
             )
         else:
             out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")

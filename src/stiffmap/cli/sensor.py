@@ -258,6 +258,9 @@ def sensor(
                     Path(row["file"]).name if ses.valid[i] else ses.reasons[i],
                 )
             out.print(t)
+            for row in ses.to_rows():
+                for flag in row["flags"]:
+                    warn(f"{row['file']}: {flag}")
     if n_ok == 0:
         raise typer.Exit(EXIT_INPUT)
     if n_bad:

@@ -200,6 +200,7 @@ class StaticErrorSet:
                     "stiffness_std_n_per_mm": self.stiffness_std_n_per_mm[i],
                     "valid": bool(self.valid[i]),
                     "error": self.reasons[i] or None,
+                    "flags": list(self.results[i].flags) if self.results[i] is not None else [],
                 }
             )
             rows.append(row)

@@ -150,6 +150,16 @@ def _prepare_dir(out: Path, force: bool) -> None:
     for sub in ("images", "recordings"):  # a vision or a sensor simulation
         if (out / sub).is_dir():
             shutil.rmtree(out / sub)
+    # Results of 'stiffmap run' on the previous simulation: they describe images that are
+    # gone, and a run on the new ones must not mix with them.
+    from ..campaign.store import DB_NAME
+
+    for name in (DB_NAME, f"{DB_NAME}-wal", f"{DB_NAME}-shm"):
+        if (out / name).is_file():
+            (out / name).unlink()
+    for sub in ("exports", "report"):
+        if (out / sub).is_dir():
+            shutil.rmtree(out / sub)
 
 
 # ------------------------------------------------------------------ spec/truth

@@ -111,30 +111,38 @@ def calibrate_files(
     if not paths:
         raise InputError("no calibration images given")
     dets: list[BoardDetection | str] = []
-    size: tuple[int, int] | None = None
-    size_from = ""
+    sizes: list[tuple[int, int] | None] = []
     for p in paths:
         src = str(p)
         try:
             img = read_image(p)
         except InputError as e:
             dets.append(e.detail)
+            sizes.append(None)
             continue
         h, w = img.shape
-        if size is None:
-            size, size_from = (w, h), src
-        elif (w, h) != size:
-            dets.append(f"image is {w}x{h} px, but {size_from} is {size[0]}x{size[1]} px")
-            continue
+        sizes.append((w, h))
         try:
             dets.append(detect_board(img, board, scale=scale, source=src))
         except InputError as e:
             dets.append(e.detail)
-    if size is None:
+    if all(sz is None for sz in sizes):
         raise InputError(
             f"none of the {len(paths)} images could be read: "
             + "; ".join(f"{p}: {d}" for p, d in zip(paths, dets, strict=True))
         )
+    # The camera's size: that of most views where the board was found (a stray image of
+    # another camera, wherever it is on the command line, is the one left out).
+    found = [sz for sz, d in zip(sizes, dets, strict=True) if sz is not None and not isinstance(d, str)]
+    pool = found or [sz for sz in sizes if sz is not None]
+    size = max(dict.fromkeys(pool), key=pool.count)
+    n_size = pool.count(size)
+    for i, sz in enumerate(sizes):
+        if sz is not None and sz != size:
+            dets[i] = (
+                f"image is {sz[0]}x{sz[1]} px, but {n_size} of the views are {size[0]}x{size[1]} px "
+                "(an image of another camera?)"
+            )
     return calibrate_camera(
         dets, board, size, names=[str(p) for p in paths], model=model, outlier_factor=outlier_factor
     )
