@@ -174,8 +174,9 @@ def test_pose_json_and_every_bad_input(data):
 def test_pose_table_wrong_board_size_and_all_failed(data):
     d, _ = data
     r = _invoke([*_measure("pose", d, "6x5"), d / "ref0.png"])
-    assert r.exit_code == 2  # nothing could be done
+    assert r.exit_code == 2  # nothing could be done, and one error line says so
     assert "more inner corners than 6x5" in r.stderr or "at least" in r.stderr
+    assert "error: none of the 1 image(s) could be measured" in r.stderr
     r = _invoke([*_measure("pose", d), d / "ref0.png"])
     assert r.exit_code == 0 and "board2cam of the 7x6 board" in r.stdout and "failed" not in r.stdout
 
@@ -206,6 +207,10 @@ def test_displacement_camera_and_base_frames(data):
     ]
     r = _invoke(args)
     assert r.exit_code == 1  # blank.png failed
+    # A reference that cannot be read is a failure too, not a silent exit 0.
+    refs = ["--reference", d / "ref0.png", "--reference", d / "nope.png"]
+    r2 = _invoke([*_measure("displacement", d), *refs, d / "moved0.png"])
+    assert r2.exit_code == 1 and "nope.png" in r2.stderr
     rows = json.loads(r.stdout)
     truth = displacement_from_poses(t["M0"], _moved(t["M0"], t["delta"]))
     for row in rows[:2]:
@@ -249,6 +254,9 @@ def test_displacement_option_errors(data):
     assert r.exit_code == 2 and "--point" in r.stderr
     r = _invoke([*base, "--fixed-board", "9x4"])
     assert r.exit_code == 2 and "--fixed-square-mm" in r.stderr
+    # A fixed board without its pose on the base would silently leave the camera frame in use.
+    r = _invoke([*base, "--fixed-board", "9x4", "--fixed-square-mm", "10"])
+    assert r.exit_code == 2 and "--fixed2base" in r.stderr
     (d / "notrigid.json").write_text(json.dumps((2 * np.eye(4)).tolist()))
     r = _invoke(
         [*base, "--fixed-board", "9x4", "--fixed-square-mm", "10", "--fixed2base", d / "notrigid.json"]

@@ -98,6 +98,20 @@ def test_wrong_board_size_is_reported():
     assert e.value.reason in ("wrong_size", "partial")
 
 
+def test_a_far_board_seen_whole_only_at_finer_scale_is_named_with_its_size():
+    """A 9x6 board 1.5 m away at 50 degrees: the coarse search sees a 5x3 piece only."""
+    from stiffmap.camera import reference_camera
+    from stiffmap.sim.render import Target
+    from stiffmap.sim.render import render as render_scene
+
+    board = Chessboard(9, 6, 10.0)
+    T = look_at_pose(1500, board, tilt_deg=(50, 0, 0), offset_mm=(-150, -250))
+    img = render_scene(reference_camera(), [Target(board, T)], seed=1).image
+    with pytest.raises(DetectionError, match=r"at least 9x6 inner corners \(wrong board size") as e:
+        detect_board(img, Chessboard(8, 5, 10.0))
+    assert e.value.reason == "wrong_size"
+
+
 def test_partly_hidden_and_missing_boards():
     T = look_at_pose(250, SYM, tilt_deg=(10, -10, 5))
     with pytest.raises(DetectionError, match="no complete 8x6") as e:

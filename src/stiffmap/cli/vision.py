@@ -12,7 +12,7 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
-from .common import EXIT_INPUT, EXIT_PARTIAL, fail, fmt, out, print_json, warn
+from .common import EXIT_PARTIAL, fail, fmt, out, print_json, warn
 
 _BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
 _CHARUCO_HELP = (
@@ -91,8 +91,9 @@ def _camera(path: Path):
 
 
 def _exit_for(n_ok: int, n_total: int) -> None:
+    """Exit 2 (with an ``error:`` line) when nothing was measured, 1 when some items failed."""
     if n_ok == 0:
-        raise typer.Exit(EXIT_INPUT)
+        raise fail(f"none of the {n_total} image(s) could be measured (see the warnings above)")
     if n_ok < n_total:
         raise typer.Exit(EXIT_PARTIAL)
 
@@ -117,6 +118,7 @@ def calibrate(
 
     Views where the board is not found, or whose RMS is an outlier, are left out with the
     reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
+    Exit status 1 when some images were left out (each named), 2 when no calibration was possible.
     """
     from ..camera import save_camera
     from ..vision.files import calibrate_files
@@ -137,6 +139,8 @@ def calibrate(
             warn(f"{v.image}: not used: {v.reason}")
     if as_json:
         print_json(res.to_dict())
+        if res.n_used < len(res.views):
+            raise typer.Exit(EXIT_PARTIAL)
         return
     c = res.camera
     s = c.std
@@ -166,6 +170,8 @@ def calibrate(
     out.print("\nAs the Camera Calibration Toolbox for Matlab prints it:\n")
     out.print(res.matlab_text(), markup=False)
     out.print(f"\nwrote {out_path}")
+    if res.n_used < len(res.views):
+        raise typer.Exit(EXIT_PARTIAL)
 
 
 # ---------------------------------------------------------------------------------- pose
@@ -288,8 +294,11 @@ def displacement(
         cam = _camera(camera)
         fb = None
         if fixed_board is not None or fixed_square_mm is not None or fixed2base is not None:
-            if fixed_board is None or fixed_square_mm is None:
-                raise InputError("--fixed-board and --fixed-square-mm go together (and with --fixed2base)")
+            if fixed_board is None or fixed_square_mm is None or fixed2base is None:
+                raise InputError(
+                    "--fixed-board, --fixed-square-mm and --fixed2base go together (for the fixed "
+                    "target's own frame, give a --fixed2base file holding the 4x4 identity)"
+                )
             fb = _board(fixed_board, fixed_square_mm, what="--fixed-board")
         T_fb = read_transform(fixed2base) if fixed2base is not None else None
         q = _point(point)
@@ -371,7 +380,7 @@ def displacement(
                 f"{np.linalg.norm(summary.d):.4f}",
             )
         out.print(t)
-    _exit_for(len(per), len(moved))
+    _exit_for(len(per) + sum(m.ok for m in refs), len(moved) + len(refs))
 
 
 # ------------------------------------------------------------------------------ validate

@@ -478,8 +478,35 @@ def _mask_polygon(grid: np.ndarray, margin_sq: float = 1.6) -> np.ndarray:
 def _diagnose(
     image: np.ndarray, board: Chessboard, masks: list[np.ndarray], scale: int | None
 ) -> DetectionError:
-    """Why a chessboard was not found: no grid at all, a larger board, or a partial one."""
-    s = _auto_scales(image.shape, scale)[0]
+    """Why a chessboard was not found: no grid at all, a larger board, or a partial one.
+
+    Searched at the detection's coarse scale, then at half that reduction (a small
+    board far away may only be seen whole there); this runs only when detection
+    failed, so the finer pass costs a message, not measurements.
+    """
+    want = f"{board.cols}x{board.rows}"
+    best: list[tuple[int, int]] = []
+    s0 = _auto_scales(image.shape, scale)[0]
+    for s in dict.fromkeys((s0, max(1, (s0 + 1) // 2))):
+        verdict, seen = _diagnose_at(image, board, masks, s)
+        if verdict is not None:
+            return verdict
+        if sum(q * r for q, r in seen) > sum(q * r for q, r in best):
+            best = seen
+    if best:
+        names = " and ".join(f"{q}x{r}" for q, r in best)
+        return DetectionError(
+            f"no complete {want} chessboard found; only chessboard grids of {names} inner corners are "
+            "visible (board partly hidden, out of the frame, or a different board size)",
+            reason="partial",
+        )
+    return DetectionError(f"no {want} chessboard found in the image", reason="not_found")
+
+
+def _diagnose_at(
+    image: np.ndarray, board: Chessboard, masks: list[np.ndarray], s: int
+) -> tuple[DetectionError | None, list[tuple[int, int]]]:
+    """One scale of :func:`_diagnose`: a wrong-size verdict, or the grids seen there."""
     small = _reduce(image, s)
     fill = int(np.median(small))
     for poly in masks:
@@ -496,7 +523,7 @@ def _diagnose(
                     f"the chessboard in the image has more inner corners than {want} "
                     "(wrong board size? COLSxROWS counts inner corners)",
                     reason="wrong_size",
-                )
+                ), []
     # What chessboard grids are there at all? (The detector's "larger" mode returns the
     # biggest grid it can follow, possibly only part of a board; found ones are masked.)
     seen: list[tuple[int, int]] = []
@@ -510,22 +537,15 @@ def _diagnose(
             q, r = r, q  # name the grid in the orientation of the size asked for
         seen.append((q, r))
         cv2.fillConvexPoly(small, np.round(_mask_polygon(g, 1.2)).astype(np.int32), fill)
-    if seen:
-        names = " and ".join(f"{q}x{r}" for q, r in seen)
-        larger = [(q, r) for q, r in seen if (q >= board.cols and r >= board.rows)]
-        if larger:
-            return DetectionError(
-                f"no {want} chessboard found; the image holds a chessboard grid of at least "
-                f"{larger[0][0]}x{larger[0][1]} inner corners "
-                "(wrong board size? COLSxROWS counts inner corners)",
-                reason="wrong_size",
-            )
+    larger = [(q, r) for q, r in seen if (q >= board.cols and r >= board.rows)]
+    if larger:
         return DetectionError(
-            f"no complete {want} chessboard found; only chessboard grids of {names} inner corners are "
-            "visible (board partly hidden, out of the frame, or a different board size)",
-            reason="partial",
-        )
-    return DetectionError(f"no {want} chessboard found in the image", reason="not_found")
+            f"no {want} chessboard found; the image holds a chessboard grid of at least "
+            f"{larger[0][0]}x{larger[0][1]} inner corners "
+            "(wrong board size? COLSxROWS counts inner corners)",
+            reason="wrong_size",
+        ), seen
+    return None, seen
 
 
 def _finish_chessboard(
