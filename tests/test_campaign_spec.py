@@ -108,3 +108,29 @@ def test_position_presets_resolve():
     text = EXAMPLE_TOML.replace('preset = "paper48"', 'preset = "paper50"')
     with pytest.raises(ValueError, match="unknown position preset"):
         parse_spec(text).positions.resolve()
+
+
+SENSOR_TOML = """\
+kind = "sensor"
+[sensor]
+load_unit = "V"
+load_n_per_v = 98.1
+window_s = 0.2
+recordings = [
+  {point = [300.0, 420.0], direction = "x", file = "a.csv", sign = -1, step_times = [[0.5, 2.0], [3.0, 4.5]]},
+]
+"""
+
+
+def test_sensor_section_takes_the_step_detector_and_hand_plateaus():
+    from stiffmap.campaign.sensor_runner import sensor_config
+
+    spec = parse_spec(SENSOR_TOML)
+    cfg, _ = sensor_config(spec)
+    assert cfg.load_unit == "V" and cfg.load_n_per_v == 98.1 and cfg.window_s == 0.2
+    assert spec.sensor.recordings[0].step_times == [(0.5, 2.0), (3.0, 4.5)]
+    assert parse_spec(dump_spec(spec)) == spec
+    with pytest.raises(InputError, match=r"key 'sensor'.*load_n_per_v"):
+        parse_spec(SENSOR_TOML.replace("load_n_per_v = 98.1\n", ""))
+    with pytest.raises(InputError, match=r"line 6, key 'sensor.recordings.0.step_times'.*end > start"):
+        parse_spec(SENSOR_TOML.replace("[3.0, 4.5]", "[4.5, 3.0]"))

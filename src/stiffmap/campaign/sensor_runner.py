@@ -33,14 +33,21 @@ def sensor_config(spec: CampaignSpec):
 
     s = spec.sensor
     cmap = parse_channel_map(",".join(f"{k}={v}" for k, v in s.channel_map.items()) or None)
+    steps, unit = (s.steps_n, "N") if s.steps_n is not None else (s.steps_kgf, "kgf")
     cfg = SensorConfig(
         scale_um_per_v=s.scale_um_per_v,
         range_v=s.range_v,
         load_unit=s.load_unit,
-        steps=tuple(s.steps_kgf) if s.steps_kgf is not None else None,
-        steps_unit="kgf",
+        load_n_per_v=s.load_n_per_v,
+        steps=tuple(steps) if steps is not None else None,
+        steps_unit=unit,
         g=spec.g,
         reference_load_n=s.reference_load_n,
+        window_s=s.window_s,
+        min_plateau_s=s.min_plateau_s,
+        threshold_sigma=s.threshold_sigma,
+        remove_drift=s.remove_drift,
+        exclude_bad_samples=s.exclude_bad_samples,
     )
     return cfg, cmap
 
@@ -77,7 +84,7 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
     for rec in spec.sensor.recordings:
         path = root / rec.file
         key = rec.file
-        rhash = params_hash({"analysis": phash, "sign": rec.sign})
+        rhash = params_hash({"analysis": phash, "sign": rec.sign, "step_times": rec.step_times})
         row: dict[str, Any] = {
             "recording": key,
             "point": to_json(rec.point),
@@ -107,7 +114,11 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
             if prev[0]["status"] != "ok":
                 out.failures.append(prev[0]["error"])
             continue
-        c = dataclasses.replace(cfg, axis_sign=rec.sign)
+        c = dataclasses.replace(
+            cfg,
+            axis_sign=rec.sign,
+            step_times_s=tuple(tuple(span) for span in rec.step_times) if rec.step_times else None,
+        )
         try:
             res = analyse_recording(read_recording(path, cmap), c)
             result = res.to_dict()

@@ -342,18 +342,48 @@ class SensorRecordingSpec(_Spec):
     file: str
     sign: Literal[1, -1] = 1
     label: str | None = None  # e.g. the point's number on the workspace drawing
+    #: Plateaus by hand, [[start, end], ...] in s, when the automatic detection fails.
+    step_times: list[tuple[NonNegFloat, NonNegFloat]] | None = None
+
+    @field_validator("step_times")
+    @classmethod
+    def _spans(cls, v):
+        if v is not None:
+            if len(v) < 2:
+                raise ValueError("give at least 2 plateaus [start, end] (s)")
+            for a, b in v:
+                if not b > a:
+                    raise ValueError(f"a plateau [start, end] needs end > start, got [{a}, {b}]")
+        return v
 
 
 class SensorSpec(_Spec):
-    """Sensor campaigns: the conversion and the recordings."""
+    """Sensor campaigns: the conversion, the step detector and the recordings."""
 
     scale_um_per_v: PositiveFloat = 640.0
     range_v: PositiveFloat = 8.0
     channel_map: dict[str, str] = Field(default_factory=dict)
-    load_unit: Literal["kgf", "N"] = "kgf"
+    load_unit: Literal["kgf", "N", "V"] = "kgf"
+    load_n_per_v: PositiveFloat | None = None
     steps_kgf: list[NonNegFloat] | None = None
+    steps_n: list[NonNegFloat] | None = None
     reference_load_n: PositiveFloat = 490.5
+    window_s: PositiveFloat = 0.25
+    min_plateau_s: PositiveFloat = 0.5
+    threshold_sigma: PositiveFloat = 5.0
+    remove_drift: bool = True
+    exclude_bad_samples: bool = False
     recordings: list[SensorRecordingSpec]
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.steps_kgf is not None and self.steps_n is not None:
+            raise ValueError("give steps_kgf or steps_n, not both")
+        if self.load_unit == "V" and self.load_n_per_v is None:
+            raise ValueError("load_unit = 'V' needs load_n_per_v (the load cell's scale, N/V)")
+        if self.load_n_per_v is not None and self.load_unit != "V":
+            raise ValueError("load_n_per_v is the scale of a load channel in volts: set load_unit = 'V'")
+        return self
 
 
 class CampaignSpec(_Spec):

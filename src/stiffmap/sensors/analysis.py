@@ -361,12 +361,13 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
         if cfg.load_unit is not None and hint is not None and hint != cfg.load_unit:
             raise InputError(
                 f"load column {recording.load_name!r} says {hint} by its name but the load unit given is "
-                f"{cfg.load_unit}; rename the column or fix --load-unit",
+                f"{cfg.load_unit}; rename the column or fix --load-unit (load_unit in campaign.toml)",
                 source=src,
             )
         if unit == "V" and cfg.load_n_per_v is None:
             raise InputError(
-                f"load column {recording.load_name!r} is in volts; give the load-cell scale (--load-n-per-v)",
+                f"load column {recording.load_name!r} is in volts; give the load-cell scale "
+                "(--load-n-per-v; load_n_per_v in campaign.toml)",
                 source=src,
             )
         load_n = newton_from_load(recording.load, unit, g=cfg.g, n_per_v=cfg.load_n_per_v)
@@ -397,7 +398,8 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
             )
         raise InputError(
             f"{' and '.join(kinds)} samples: {describe_spans(spans)}{hint}. These samples cannot be used "
-            "(--exclude-bad-samples leaves missing samples out of the plateaus)",
+            "(--exclude-bad-samples, or exclude_bad_samples = true in campaign.toml, leaves missing samples "
+            "out of the plateaus)",
             source=src,
         )
     valid = ~bad
@@ -442,7 +444,10 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
         if k < table.size:
             g0, g1 = _longest_gap(pspans, t) if k else (float(t[0]), float(t[-1]))
             msg += f"; the longest span without a plateau is {g0:.2f}-{g1:.2f} s"
-        msg += ". Give the plateaus by hand (--step-times) or adjust --min-plateau-s / --window-s"
+        msg += (
+            ". Give the plateaus by hand (--step-times; step_times in campaign.toml) or adjust "
+            "--min-plateau-s / --window-s (min_plateau_s / window_s)"
+        )
         raise InputError(msg, source=src)
     if k < 2:
         raise InputError(
@@ -535,7 +540,7 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     if fit.compliance_mm_per_n < 0:
         flags.append(
             "the displacement decreases as the load grows (negative stiffness): check the sensor axis sign "
-            "(--axis-sign -1 behind a mirror) and the load direction"
+            "(--axis-sign -1, or sign = -1 in campaign.toml, behind a mirror) and the load direction"
         )
     if math.isfinite(fit.r2) and fit.r2 < 0.99:
         flags.append(f"R^2 = {fit.r2:.4f}: the plateaus are not on a line (hysteresis, slip, a bad plateau?)")
