@@ -116,6 +116,17 @@ def test_user_errors_are_one_line(tmp_path):
         "no stiffness",
     )
     assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--param", "k_nope=1"), "k_nope")
+    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--select", "1,1"), "more than once")
+    # Options of the other kind of simulation are refused, not silently ignored.
+    assert_one_line_error(
+        stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--colour", "--camera", "c.json"),
+        "--camera, --colour",
+        "not used",
+    )
+    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--trace-format", "mat"), "--trace-format")
+    flat = tmp_path / "flat.csv"
+    flat.write_text("fx,fy,fz\n1,0,0\n2,0,0\n")
+    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--loads", flat), "1 independent direction")
     bad = tmp_path / "loads.csv"
     bad.write_text("fx,fy\n1,2\n")
     assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--loads", bad), str(bad), "'fz'")

@@ -64,6 +64,9 @@ def _positions(text: str, select: str | None, mech: str = "delta"):
             raise InputError(
                 f"--select {select!r}: expected comma-separated position numbers between 1 and {len(P)}"
             )
+        dup = sorted({i for i in idx if idx.count(i) > 1})
+        if dup:
+            raise InputError(f"--select {select!r}: position {dup[0]} is given more than once")
         P = P[[i - 1 for i in idx]]
     return P
 
@@ -89,6 +92,13 @@ def _loads(text: str, g: float):
         if not np.any(f):
             raise InputError(f"line {t.lines[i]}: the force is zero", source=text)
         out_loads.append(LoadCase(f, np.zeros((3, 3)), lab or f"F = ({', '.join(f'{v:g}' for v in f)}) N"))
+    rank = int(np.linalg.matrix_rank(F, tol=1e-9 * float(np.abs(F).max())))
+    if rank < 3:
+        raise InputError(
+            f"the {len(F)} load(s) span {rank} independent direction(s); 3 are needed to identify "
+            "a 3x3 stiffness (add loads along other axes)",
+            source=text,
+        )
     return out_loads
 
 
@@ -99,7 +109,44 @@ def _free_workers() -> int:
         return max(os.cpu_count() or 1, 1)
 
 
+#: Options of one kind of simulation only (parameter name -> option), refused with the other.
+_VISION_ONLY = {
+    "loads": "--loads",
+    "camera_file": "--camera",
+    "image_format": "--format",
+    "jpeg_quality": "--jpeg-quality",
+    "colour": "--colour",
+    "clutter": "--clutter",
+    "noise": "--noise/--no-noise",
+    "blur_px": "--blur-px",
+    "repeatability_mm": "--repeatability-mm",
+    "jitter_mm": "--jitter-mm",
+    "rot_stiffness": "--rot-stiffness-nmm-per-rad",
+    "load_point": "--load-point-mm",
+    "truth_only": "--truth-only",
+    "workers": "--workers",
+}
+_SENSOR_ONLY = {"directions": "--directions", "trace_format": "--trace-format"}
+
+
+def _refuse_options_of_the_other_robot(ctx: typer.Context, robot: RobotName) -> None:
+    """An option given for the other kind of simulation is a mistake, not something to ignore."""
+    other = _VISION_ONLY if robot is RobotName.prr3 else _SENSOR_ONLY
+
+    def on_command_line(name: str) -> bool:  # click's ParameterSource.COMMANDLINE, by name
+        return getattr(ctx.get_parameter_source(name), "name", "") == "COMMANDLINE"
+
+    given = [opt for name, opt in other.items() if on_command_line(name)]
+    if given:
+        what = "the 3PRR's sensor traces" if robot is RobotName.prr3 else "the Delta's camera images"
+        raise InputError(
+            f"{', '.join(given)}: not used when simulating {what} (--robot {robot.value}); "
+            "leave out, or choose the other --robot"
+        )
+
+
 def simulate(
+    ctx: typer.Context,
     out_dir: Path = typer.Argument(
         ..., help="Directory to create (must be new or empty).", show_default=False
     ),
@@ -193,6 +240,7 @@ def simulate(
     from ..sim.writer import check_output_dir, write_campaign
     from ..units import G_REFERENCE_PAPER
 
+    _refuse_options_of_the_other_robot(ctx, robot)
     check_output_dir(out_dir, force)
     command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
     if robot is RobotName.prr3:
