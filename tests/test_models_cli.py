@@ -183,3 +183,13 @@ def test_measurement_file_errors_name_file_and_line(tmp_path):
     f.write_text("x,y,dx\n1,2,3\n")
     with pytest.raises(InputError, match="cannot tell the kind of measurements"):
         read_measurements(f, 2)
+    # A file for the other mechanism: named as such, not as an unreachable pose.
+    f.write_text("x,y,z,fx,fy,fz,value_mm\n0,0,-300,0,0,-10,0.01\n")
+    with pytest.raises(InputError, match=r"m.csv: columns 'z', 'fz' are 3-D, but this model is planar"):
+        read_measurements(f, 2)
+    f.write_text("x,y,k11,k12,k21,k22\n0,0,1,0,0,1\n")
+    with pytest.raises(InputError, match=r"stop at k22 .* needs k11..k33"):
+        read_measurements(f, 3)
+    # Tab-separated, as the sensor recordings may be.
+    f.write_text("x\ty\tfx\tfy\tvalue_mm\n400\t200\t0\t100\t0.2\n")
+    assert read_measurements(f, 2).values.tolist() == [0.2]

@@ -48,6 +48,16 @@ def test_fit_kj_recovers_it_within_1_percent_with_consistent_standard_error():
     assert np.std(est, ddof=1) == pytest.approx(np.mean(se), rel=0.3)
     assert np.mean(np.abs(est - 525.0) < 2 * se) >= 0.85
     assert np.mean(se) / 525.0 < 0.005
+    assert not f.notes  # a right model fits within the errors: no misfit note
+
+
+def test_fitting_with_a_wrong_fixed_parameter_is_called_a_misfit():
+    """Data of a 3PRR with 265 mm rods, fitted (kj) with the default 250 mm: kj alone cannot fit."""
+    truth = PRR3(L=265.0)
+    pts, F, U, y, std = _simulate_static(truth, np.random.default_rng(1))
+    f = fit_static_errors(PRR3(), pts, F, U, y, params=("kj",), std=std)
+    assert f.reduced_chi2 > 5
+    assert any("does not explain the measurements" in n and "p = " in n for n in f.notes)
 
 
 def test_fit_k_theta_of_the_delta_from_noisy_matrices_at_the_reference_grid():

@@ -69,7 +69,7 @@ class Table:
         return np.stack([self.columns[c] for c in names])
 
 
-def _sniff_delimiter(lines: Sequence[str]) -> str:
+def sniff_delimiter(lines: Sequence[str]) -> str:
     """The field separator of a delimited text file: comma, tab or semicolon.
 
     Judged on the header (the first line that is neither blank nor a ``#``
@@ -131,7 +131,7 @@ def read_csv_columns(
     except OSError as e:
         raise InputError(f"cannot read: {e.strerror}", source=src) from None
     lines_text = raw.splitlines()
-    delimiter = _sniff_delimiter(lines_text)
+    delimiter = sniff_delimiter(lines_text)
     rows = list(csv.reader(lines_text, delimiter=delimiter))
     # Skip leading blank and comment lines.
     start = 0

@@ -40,7 +40,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
+from scipy import optimize, stats
 
 from ..errors import DesignError, IllConditionedWarning
 from .base import Mechanism, PoseError, as_points, format_pose
@@ -339,6 +339,7 @@ def _fit(
     rms = np.sqrt(np.bincount(pose_index, resid_raw**2, n_poses) / np.bincount(pose_index, minlength=n_poses))
     if not res.success:
         notes.append(f"least squares did not converge: {res.message}")
+    notes.extend(_misfit_notes(names, chi2, dof, sigma is not None, resid_raw, y))
     for a in (est, std, cov, corr, p0, poses, pose_index, y, yhat, w, resid_raw, rms, sens):
         a.setflags(write=False)
     return ModelFit(
@@ -380,6 +381,35 @@ def _check_valid_poses(model: Mechanism, P: np.ndarray, what: str) -> None:
             index=i,
             reason=m.reasons[i],
         )
+
+
+#: Below this chi-square probability (given standard errors) the fit is called a misfit.
+MISFIT_P = 1e-3
+#: Without standard errors: residual RMS above this fraction of the data RMS is a misfit.
+MISFIT_RELATIVE = 0.1
+
+
+def _misfit_notes(
+    names, chi2: float, dof: int, has_sigma: bool, resid: np.ndarray, y: np.ndarray
+) -> list[str]:
+    """A note when the fitted model does not explain the data (a wrong parameter fitted?)."""
+    fitted = ", ".join(names)
+    hint = (
+        f"the model with {fitted} fitted does not explain the measurements: another parameter may be "
+        "wrong (a fixed one, or the geometry), or a measurement is"
+    )
+    if has_sigma and dof > 0:
+        p = float(stats.chi2.sf(chi2, dof))
+        if p < MISFIT_P:
+            return [
+                f"{hint} (chi2/dof = {chi2 / dof:.3g} over {dof} dof, p = {p:.2g}; "
+                "or the errors are underestimated)"
+            ]
+        return []
+    rel = float(np.sqrt(np.mean(resid**2)) / max(np.sqrt(np.mean(y**2)), 1e-300))
+    if dof > 0 and rel > MISFIT_RELATIVE:
+        return [f"{hint} (residual RMS {100 * rel:.3g} % of the measurements' RMS)"]
+    return []
 
 
 def fit_stiffness(

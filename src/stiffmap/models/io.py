@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..io import read_csv_columns
+from ..io import read_csv_columns, sniff_delimiter
 from .base import Mechanism, ModelMap, PoseError, format_pose
 from .fit import ModelFit, fit_static_errors, fit_stiffness
 
@@ -120,9 +120,10 @@ def _header(path: str | os.PathLike) -> list[str]:
     t = read_csv_columns(path, ())
     del t
     with open(path, encoding="utf-8-sig") as f:
-        for row in csv.reader(f):
-            if row and not row[0].lstrip().startswith("#"):
-                return [h.strip().lower() for h in row]
+        lines = f.read().splitlines()
+    for row in csv.reader(lines, delimiter=sniff_delimiter(lines)):
+        if row and not row[0].lstrip().startswith("#"):
+            return [h.strip().lower() for h in row]
     return []
 
 
@@ -143,6 +144,18 @@ def read_measurements(path: str | os.PathLike, dim: int) -> StaticErrorMeasureme
     src = str(path)
     header = _header(path)
     ax = AXIS_NAMES[:dim]
+    # A file made for a mechanism of the other dimension (z, fz, nz or k13.. columns).
+    extra = [c for c in header if c in ("z", "fz", "nz") or (len(c) == 3 and c[0] == "k" and "3" in c[1:])]
+    if dim == 2 and extra:
+        raise InputError(
+            f"columns {', '.join(repr(c) for c in extra)} are 3-D, but this model is planar (x, y); "
+            "a 3-D file is for the delta model",
+            source=src,
+        )
+    if dim == 3 and "value_mm" not in header and "k11" in header and "k33" not in header:
+        raise InputError(
+            "stiffness columns stop at k22 (a planar 2x2 K); this model needs k11..k33", source=src
+        )
     if "value_mm" in header:
         fcols = [f"f{a}" for a in ax]
         ncols = [f"n{a}" for a in ax]
