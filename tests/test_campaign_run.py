@@ -184,6 +184,27 @@ def test_quick_demo_recovers_the_true_stiffness(quick_demo):
     assert float(m.group(1)) == pytest.approx(100 * rel.max(), abs=0.006)
 
 
+def test_init_from_demo_writes_the_quick_demo_campaign_ready_to_run(quick_demo, tmp_path):
+    """`stiffmap init DIR --from-demo`: the quick demo's campaign, byte for byte, and commented."""
+    _, demo = quick_demo
+    d = tmp_path / "my first campaign"
+    proc = stiffmap("init", d, "--from-demo")
+    assert proc.returncode == 0, proc.stderr
+    assert "next: stiffmap run '" in proc.stdout  # quoted: the path has spaces
+    ours = sorted(p.relative_to(d) for p in (d / "images").rglob("*.png"))
+    assert ours == sorted(p.relative_to(demo) for p in (demo / "images").rglob("*.png"))
+    for rel in ours[:: max(1, len(ours) // 6)]:
+        assert (d / rel).read_bytes() == (demo / rel).read_bytes()
+    assert (
+        json.loads((d / "truth.json").read_text())["positions"]
+        == json.loads((demo / "truth.json").read_text())["positions"]
+    )
+    spec = (d / "campaign.toml").read_text()
+    assert "# list: [x, y, z] in mm, base frame" in spec and "ISO 5725" in spec
+    again = stiffmap("init", d, "--from-demo")
+    assert again.returncode == 2 and "not empty" in again.stderr
+
+
 @pytest.mark.browser
 def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
     from stiffmap.report.browser import check_page, find_chromium

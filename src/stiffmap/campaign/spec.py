@@ -590,33 +590,73 @@ def _toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
-def _toml_table(prefix: str, d: dict, out: list[str]) -> None:
+#: What each key means, written beside it by :func:`dump_spec` (the same words as EXAMPLE_TOML).
+KEY_COMMENTS = {
+    "kind": '"vision" (camera + boards) or "sensor" (LDV/DAQ recordings)',
+    "g": "m/s^2, turns masses into forces once",
+    "repeats": "repeated measurements of each load case (ISO 5725)",
+    "robot.model": '"delta", "3prr", or "none" for measurements only',
+    "robot.params": "model parameters to start from (the model's defaults for the others)",
+    "robot.fit": "parameters fitted to the measurements",
+    "camera.file": "from: stiffmap calibrate IMAGES... --board COLSxROWS --square-mm S --out camera.json",
+    "targets.fixed.board": "the board fixed to the robot base: inner corners COLSxROWS",
+    "targets.fixed.fixed2base": "its pose in the robot base frame (4x4, mm)",
+    "targets.mobile.board": "the board on the moving platform (a different size from the fixed one)",
+    "targets.mobile.point_mm": "the point whose displacement is reported, in the mobile board frame (mm)",
+    "targets.mobile.mobile2tcp": "the mobile board's pose in the tool frame (4x4, mm)",
+    "positions.preset": "paper48: 16 positions on each of z = -200, -310, -400 mm",
+    "positions.list": "[x, y, z] in mm, base frame",
+    "loads.preset": "paper9: 0.5, 0.2, 0.1 kg along +y, -x, -z",
+    "loads.cases": "{mass_kg, direction} or {force_n = [fx, fy, fz]} (N, base frame)",
+    "loads.friction": "pulley friction, subtracted from the loads along these directions",
+    "images.unloaded": "file pattern, 1-based {position}, {load}, {repeat}",
+    "images.loaded": "file pattern, 1-based {position}, {load}, {repeat}",
+    "images.pairing": '"pairs", or "mean-reference" when the robot stays at each position for all its loads',
+    "measurement.refine": '"auto" (photometric poses, corner poses as fallback) or "corners" (faster)',
+    "sensor.scale_um_per_v": "displacement sensor scale, um/V",
+    "sensor.range_v": "analog output range, +-V (saturation)",
+    "sensor.load_unit": '"kgf", "N" or "V" (with load_n_per_v)',
+    "sensor.reference_load_n": "load of the static error, N (50 kgf = 490.5 N)",
+    "sensor.recordings": "sign = -1 behind a mirror; step_times = [[start, end], ...] s: plateaus by hand",
+}
+
+
+def _commented(line: str, comment: str | None) -> list[str]:
+    """The line with its comment beside it, or above it when the line is long."""
+    if not comment:
+        return [line]
+    if len(line) > 50:
+        return [f"# {line.split(' =', 1)[0]}: {comment}", line]
+    return [f"{line:<26} # {comment}" if len(line) < 26 else f"{line}  # {comment}"]
+
+
+def _toml_table(prefix: str, d: dict, out: list[str], comments: dict[str, str] | None = None) -> None:
     scalars = {k: v for k, v in d.items() if not isinstance(v, dict) or k in ("params", "channel_map")}
     tables = {k: v for k, v in d.items() if k not in scalars}
     if prefix and scalars:
         out.append(f"\n[{prefix}]")
     for k, v in scalars.items():
-        if isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
-            out.append(f"{k} = [")
-            out.extend(f"  {_toml_value(x)}," for x in v)
-            out.append("]")
-        elif isinstance(v, list) and v and all(isinstance(x, (list, tuple)) for x in v) and len(v) > 4:
+        note = (comments or {}).get(f"{prefix}.{k}" if prefix else k)
+        long_list = isinstance(v, list) and v and all(isinstance(x, (list, tuple)) for x in v) and len(v) > 4
+        if isinstance(v, list) and v and (all(isinstance(x, dict) for x in v) or long_list):
+            if note:
+                out.append(f"# {k}: {note}")
             out.append(f"{k} = [")
             out.extend(f"  {_toml_value(x)}," for x in v)
             out.append("]")
         else:
-            out.append(f"{k} = {_toml_value(v)}")
+            out.extend(_commented(f"{k} = {_toml_value(v)}", note))
     for k, v in tables.items():
-        _toml_table(f"{prefix}.{k}" if prefix else k, v, out)
+        _toml_table(f"{prefix}.{k}" if prefix else k, v, out, comments)
 
 
-def dump_spec(spec: CampaignSpec, header: str = "") -> str:
-    """TOML text of a spec (round-trips through :func:`parse_spec`)."""
+def dump_spec(spec: CampaignSpec, header: str = "", *, comments: bool = True) -> str:
+    """TOML text of a spec (round-trips through :func:`parse_spec`), keys explained in comments."""
     data = spec.model_dump(exclude_none=True, mode="python", by_alias=True)
     out: list[str] = []
     if header:
         out.extend("# " + ln if ln else "#" for ln in header.strip().splitlines())
-    _toml_table("", data, out)
+    _toml_table("", data, out, KEY_COMMENTS if comments else None)
     text = "\n".join(out) + "\n"
     parse_spec(text)  # never write a spec we could not read back
     return text

@@ -21,23 +21,65 @@ class MethodName(StrEnum):
 
 
 def init(
-    directory: Path = typer.Argument(..., help="Campaign directory to create (or an empty existing one)."),
+    directory: Path = typer.Argument(
+        ..., help="Campaign directory (created if needed; it may already hold the images)."
+    ),
+    from_demo: bool = typer.Option(
+        False,
+        "--from-demo",
+        help="Instead of the template, the demo's campaign, complete: the quick demo set-up (6 of "
+        "the reference positions, nine loads, two repeats) simulated into DIRECTORY with its "
+        "images, camera.json and truth.json, ready for 'stiffmap run'. DIRECTORY must be new or empty.",
+    ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing campaign.toml."),
 ) -> None:
     """Write a commented example campaign.toml to start a campaign from.
 
     Edit it (boards, fixed2base, positions, loads, image names), put camera.json and the
-    images beside it, then run: stiffmap run DIRECTORY.
+    images beside it, then run: stiffmap run DIRECTORY. With --from-demo, a complete
+    simulated campaign to try the whole chain on first.
     """
+    import shlex
+
     from ..campaign.spec import EXAMPLE_TOML, SPEC_NAME
     from ..io import atomic_write_text
 
     path = directory / SPEC_NAME
+    if from_demo:
+        _init_from_demo(directory, force)
+        out.print(f"wrote {path}, camera.json, images/ and truth.json (the true stiffness)")
+        out.print("next: stiffmap run " + shlex.quote(str(directory)))
+        return
     if path.exists() and not force:
         raise InputError(f"{path} already exists; use --force to overwrite it")
     atomic_write_text(path, EXAMPLE_TOML)
     out.print(f"wrote {path}")
-    out.print("next: edit it, add camera.json and the images, then: stiffmap run " + str(directory))
+    out.print(
+        "next: edit it, add camera.json and the images, then: stiffmap run " + shlex.quote(str(directory))
+    )
+
+
+def _init_from_demo(directory: Path, force: bool) -> None:
+    """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
+    from ..campaign.demo import demo_config
+    from ..campaign.runner import default_workers
+    from ..sim.writer import check_output_dir, write_campaign
+
+    check_output_dir(directory, force)
+    with _progress() as prog:
+        task = prog.add_task("rendering images", total=None, measured=0)
+
+        def hook(done: int, total: int) -> None:
+            prog.update(task, completed=done, total=total, measured=done)
+
+        write_campaign(
+            directory,
+            demo_config(quick=True),
+            workers=default_workers(),
+            force=force,
+            progress=hook,
+            command=f"stiffmap init {directory} --from-demo",
+        )
 
 
 def _progress():

@@ -391,7 +391,8 @@ def write_campaign(
     save_camera(config.scene.camera, out / "camera.json")
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
-        f"Simulated by 'stiffmap simulate' (stiffmap {__version__}, seed {config.seed}).\n"
+        f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "
+        f"seed {config.seed}).\n"
         f"The ground truth (true K at every position, every image's poses and corners) is in {TRUTH_NAME}."
     )
     atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
