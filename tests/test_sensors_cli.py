@@ -107,6 +107,34 @@ def test_table_of_steps_custom_columns_and_step_times(tmp_path):
     assert abs(o2["static_error_um"] - 600.0) <= 1 + 6.0
 
 
+def test_load_channel_named_in_newtons_or_volts_is_found_and_scaled(tmp_path):
+    """force_n / load_v columns are found without --channel-map; a load-cell scale means volts."""
+    tr = quick_trace(0.6, seed=33)
+    t, v, kgf = tr.recording.time_s, tr.recording.displacement_v, tr.recording.load
+    rows = zip(t, v, kgf * 9.81, kgf * 9.81 / 50.0, strict=True)  # N, and a 50 N/V load cell
+    body = "".join(f"{a:.17g},{b:.17g},{c:.17g},{d:.17g}\n" for a, b, c, d in rows)
+    (tmp_path / "n.csv").write_text(
+        "time_s,displacement_v,force_n\n"
+        + "".join(",".join(r.split(",")[:3]) + "\n" for r in body.splitlines())
+    )
+    (tmp_path / "v.csv").write_text(
+        "time_s,displacement_v,load_v\n"
+        + "".join(",".join(r.split(",")[:2] + r.split(",")[3:]) + "\n" for r in body.splitlines())
+    )
+    ref = runner.invoke(app, ["sensor", str(write_recording(tr.recording, tmp_path / "kgf.csv")), "--json"])
+    n = runner.invoke(app, ["sensor", str(tmp_path / "n.csv"), "--json"])
+    volts = runner.invoke(app, ["sensor", str(tmp_path / "v.csv"), "--load-n-per-v", "50", "--json"])
+    assert ref.exit_code == n.exit_code == volts.exit_code == 0, (n.output, volts.output)
+    e = [json.loads(r.stdout)[0]["static_error_um"] for r in (ref, n, volts)]
+    assert e[1] == pytest.approx(e[0], rel=1e-9) and e[2] == pytest.approx(e[0], rel=1e-9)
+    bad = runner.invoke(
+        app, ["sensor", str(tmp_path / "v.csv"), "--load-n-per-v", "50", "--load-unit", "kgf"]
+    )
+    assert bad.exit_code == 2 and "--load-n-per-v" in bad.stderr
+    bad = runner.invoke(app, ["sensor", str(tmp_path / "v.csv"), "--window-s", "-1"])
+    assert bad.exit_code == 2 and "--window-s must be" in bad.stderr
+
+
 def test_static_errors_per_point_for_maps_and_fits(tmp_path):
     """simulate_point_traces -> index.csv -> per-point static errors within 1 um + 1 % of the truth."""
     pts = [[0.0, 380.0], [0.0, 420.0], [0.0, 460.0], [0.0, 500.0]]

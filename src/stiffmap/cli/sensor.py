@@ -103,6 +103,31 @@ def _print_result(r) -> None:
     out.print(s)
 
 
+#: SensorConfig fields and the options that set them, for messages about their values.
+_OPTION_OF = {
+    "scale_um_per_v": "--scale-um-per-v",
+    "range_v": "--range-v",
+    "axis_sign": "--axis-sign",
+    "load_n_per_v": "--load-n-per-v",
+    "reference_load_n": "--reference-load-n",
+    "step_times_s": "--step-times",
+    "min_plateau_s": "--min-plateau-s",
+    "window_s": "--window-s",
+    "threshold_sigma": "--threshold-sigma",
+    "load_unit": "--load-unit",
+    "g": "--g",
+}
+
+
+def _option_names(message: str) -> str:
+    """A SensorConfig message in the words of the command line (its options, not its fields)."""
+    import re
+
+    for field, opt in _OPTION_OF.items():
+        message = re.sub(rf"(?<![\w-]){field}(?![\w-])", opt, message)
+    return message
+
+
 def sensor(
     recordings: list[Path] = typer.Argument(
         None,
@@ -186,6 +211,13 @@ def sensor(
         elif steps_n:
             steps, unit = _floats(steps_n, "--steps-n"), "N"
         cmap = parse_channel_map(channel_map)
+        if load_n_per_v is not None:
+            if load_unit is not None and load_unit.value != "V":
+                raise InputError(
+                    f"--load-n-per-v is the scale of a load channel in volts, but --load-unit is "
+                    f"{load_unit.value}; leave one out"
+                )
+            load_unit = LoadUnit("V")  # a load-cell scale says the load channel is in volts
         try:
             cfg = SensorConfig(
                 scale_um_per_v=scale_um_per_v,
@@ -205,7 +237,7 @@ def sensor(
                 exclude_bad_samples=exclude_bad_samples,
             )
         except ValueError as e:
-            raise InputError(str(e)) from None
+            raise InputError(_option_names(str(e))) from None
         if not recordings and index is None:
             raise InputError("give one or more recordings, or --index FILE")
         entries = read_measurement_index(index) if index is not None else []

@@ -464,9 +464,8 @@ class LegMechanism:
         valid = [f.name for f in fields(self)]
         bad = sorted(set(params) - set(valid))
         if bad:
-            others = tuple(v for v in valid if v not in names)
             raise ValueError(
-                f"unknown {self._LABEL} parameter(s) {', '.join(bad)}; valid: {', '.join(names + others)}"
+                f"unknown {self._LABEL} parameter(s) {', '.join(bad)}; valid: {', '.join(names)}"
             )
         return replace(self, **params)
 

@@ -22,6 +22,7 @@ by replacing it whole.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 from pathlib import Path
@@ -85,15 +86,35 @@ def _finish(
     )
 
 
+#: Load channel names looked for, in order, when the channel map keeps the default: the
+#: unit is read from the suffix (load cell in kgf, N, or volts with --load-n-per-v).
+DEFAULT_LOAD_NAMES = ("load_kgf", "load_n", "force_n", "load_v")
+
+
+def _load_names(cmap: ChannelMap) -> tuple[str, ...]:
+    if cmap.load is None:
+        return ()
+    if cmap.load_required or cmap.load != ChannelMap().load:
+        return (cmap.load,)
+    return DEFAULT_LOAD_NAMES
+
+
+def _with_load(cmap: ChannelMap, name: str | None) -> ChannelMap:
+    """The channel map naming the load channel that was found (its suffix gives the unit)."""
+    return dataclasses.replace(cmap, load=name) if name is not None and name != cmap.load else cmap
+
+
 def _read_csv(path: Path, cmap: ChannelMap) -> Recording:
     src = str(path)
     required = [cmap.displacement]
     optional: list[str] = []
-    for name, req in ((cmap.time, cmap.time_required), (cmap.load, cmap.load_required)):
-        if name is not None:
-            (required if req else optional).append(name)
+    if cmap.time is not None:
+        (required if cmap.time_required else optional).append(cmap.time)
+    loads = _load_names(cmap)
+    (required if cmap.load_required else optional).extend(loads)
     tab = read_csv_columns(path, required, optional, allow_nan=True)
     cols = tab.columns
+    cmap = _with_load(cmap, next((n for n in loads if n.strip().lower() in cols), None))
 
     def get(name: str | None) -> np.ndarray | None:
         return None if name is None else cols.get(name.strip().lower())
@@ -146,7 +167,12 @@ def _read_tdms(path: Path, cmap: ChannelMap) -> Recording:
 
     dch = find(cmap.displacement, True)
     tch = find(cmap.time, cmap.time_required)
-    lch = find(cmap.load, cmap.load_required)
+    lch = None
+    for name in _load_names(cmap):
+        lch = find(name, cmap.load_required)
+        if lch is not None:
+            cmap = _with_load(cmap, name)
+            break
     disp = np.asarray(dch[:], dtype=np.float64)
     meta = {"format": "tdms", "properties": {k: str(v) for k, v in dch.properties.items()}}
     t = None
@@ -216,7 +242,12 @@ def _read_mat(path: Path, cmap: ChannelMap) -> Recording:
 
     disp = get(cmap.displacement, True)
     t = get(cmap.time, cmap.time_required)
-    load = get(cmap.load, cmap.load_required)
+    load = None
+    for name in _load_names(cmap):
+        load = get(name, cmap.load_required)
+        if load is not None:
+            cmap = _with_load(cmap, name)
+            break
     fs = None
     for k in ("sample_rate_hz", "fs"):
         if k in space and np.size(space[k]) == 1:

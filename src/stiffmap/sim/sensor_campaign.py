@@ -100,7 +100,7 @@ def write_sensor_campaign(
         raise InputError(f"a planar mechanism needs points (x, y) in mm; got an array of shape {P.shape}")
     dirs = tuple(d.strip().lower() for d in directions)
     if not dirs or any(d not in _AXES for d in dirs) or len(set(dirs)) != len(dirs):
-        raise InputError(f"directions must be x and/or y, got {directions!r}")
+        raise InputError(f"--directions must be x and/or y, got {directions!r}")
     if int(repeats) < 1:
         raise InputError(f"repeats must be >= 1, got {repeats}")
     if fmt not in ("csv", "tdms", "mat"):
