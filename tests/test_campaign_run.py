@@ -130,6 +130,10 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     """Dropping a position removes its results; moving one re-derives it from the same images."""
     c = _copy(campaign, tmp_path / "c")
     assert _run(c).returncode == 0
+    # The report of a run campaign, (re)written from its directory.
+    rep = stiffmap("report", c, "--no-png")
+    assert rep.returncode == 0, rep.stderr
+    assert "stiffness map" in (c / "report" / "index.html").read_text().lower()
     spec = (c / "campaign.toml").read_text()
     m = re.search(r"list = \[\[.*?\]\]", spec, re.S) or re.search(r"list = \[\n.*?\n\]", spec, re.S)
     assert m, spec

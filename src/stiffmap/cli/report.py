@@ -15,11 +15,15 @@ def report(
     data: str = typer.Argument(
         ...,
         metavar="DATA",
-        help="JSON dump of the report data (the data.json written beside every report), "
-        "or with --example the name of a built-in example: vision or sensor.",
+        help="A campaign directory (after 'stiffmap run'), a JSON dump of the report data (the "
+        "data.json written beside every report), or with --example the name of a built-in "
+        "example: vision or sensor.",
     ),
     out_dir: Path = typer.Argument(
-        ..., metavar="OUT_DIR", help="Directory for index.html, the PNGs and data.json."
+        None,
+        metavar="[OUT_DIR]",
+        help="Directory for index.html, the PNGs and data.json (default for a campaign: CAMPAIGN/report).",
+        show_default=False,
     ),
     example: bool = typer.Option(False, "--example", help="DATA names a built-in example (vision, sensor)."),
     png: bool = typer.Option(True, "--png/--no-png", help="Also write the PNG figures for papers."),
@@ -47,17 +51,27 @@ def report(
     """
     from ..report import load_report_data, write_report
 
-    if example:
-        from ..report import example as ex
-
-        if data not in EXAMPLES:
-            raise fail(f"--example: unknown example {data!r}; expected one of {', '.join(EXAMPLES)}")
-        rd = ex.example_vision() if data == "vision" else ex.example_sensor()
-    else:
-        rd = load_report_data(data)
     if screenshot is not None and not check:
         raise fail("--screenshot needs --check (the screenshot is taken by the browser check)")
-    index = write_report(rd, out_dir, png=png)
+    if not example and Path(data).is_dir():
+        from ..campaign.spec import SPEC_NAME
+        from ..report.campaign import write_campaign_report
+
+        if not (Path(data) / SPEC_NAME).is_file():
+            raise fail(f"{data}: a directory without {SPEC_NAME}; expected a campaign or a data.json file")
+        index = write_campaign_report(data, out_dir=out_dir, png=png)
+    else:
+        if out_dir is None:
+            raise fail("give OUT_DIR, the directory to write the report to")
+        if example:
+            from ..report import example as ex
+
+            if data not in EXAMPLES:
+                raise fail(f"--example: unknown example {data!r}; expected one of {', '.join(EXAMPLES)}")
+            rd = ex.example_vision() if data == "vision" else ex.example_sensor()
+        else:
+            rd = load_report_data(data)
+        index = write_report(rd, out_dir, png=png)
     files = sorted(p.name for p in index.parent.iterdir() if p.is_file() and not p.name.startswith("."))
     result: dict = {"index": str(index), "files": files}
     code = 0

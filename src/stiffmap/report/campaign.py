@@ -201,8 +201,16 @@ def report_data(root: Path, spec: CampaignSpec, store: Store, failures: list[str
     return ReportData(campaign=info, failures=failures_as_items(failures), **parts)
 
 
-def write_campaign_report(campaign_dir: str | Path, failures: list[str] | None = None) -> Path:
+def write_campaign_report(
+    campaign_dir: str | Path,
+    failures: list[str] | None = None,
+    out_dir: str | Path | None = None,
+    *,
+    png: bool = True,
+) -> Path:
     """Write ``CAMPAIGN/report/`` (index.html, PNGs, data.json) from the campaign's database.
+
+    ``out_dir`` writes the report elsewhere; ``png=False`` leaves out the PNG figures.
 
     Returns
     -------
@@ -213,6 +221,10 @@ def write_campaign_report(campaign_dir: str | Path, failures: list[str] | None =
 
     root = Path(campaign_dir).resolve()
     spec = load_spec(root)
+    if not (root / DB_NAME).is_file():
+        raise InputError(
+            f"no results yet ({DB_NAME} missing): run 'stiffmap run {campaign_dir}' first", source=str(root)
+        )
     with Store(root / DB_NAME) as store:
         data = report_data(root, spec, store, list(failures or []))
-    return write_report(data, root / "report")
+    return write_report(data, Path(out_dir) if out_dir is not None else root / "report", png=png)
