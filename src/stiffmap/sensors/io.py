@@ -104,6 +104,15 @@ def _with_load(cmap: ChannelMap, name: str | None) -> ChannelMap:
     return dataclasses.replace(cmap, load=name) if name is not None and name != cmap.load else cmap
 
 
+def _find_load(cmap: ChannelMap, lookup):
+    """The load channel found by ``lookup(name, required)``, and the channel map naming it."""
+    for name in _load_names(cmap):
+        found = lookup(name, cmap.load_required)
+        if found is not None:
+            return found, _with_load(cmap, name)
+    return None, cmap
+
+
 def _read_csv(path: Path, cmap: ChannelMap) -> Recording:
     src = str(path)
     required = [cmap.displacement]
@@ -167,12 +176,7 @@ def _read_tdms(path: Path, cmap: ChannelMap) -> Recording:
 
     dch = find(cmap.displacement, True)
     tch = find(cmap.time, cmap.time_required)
-    lch = None
-    for name in _load_names(cmap):
-        lch = find(name, cmap.load_required)
-        if lch is not None:
-            cmap = _with_load(cmap, name)
-            break
+    lch, cmap = _find_load(cmap, find)
     disp = np.asarray(dch[:], dtype=np.float64)
     meta = {"format": "tdms", "properties": {k: str(v) for k, v in dch.properties.items()}}
     t = None
@@ -242,12 +246,7 @@ def _read_mat(path: Path, cmap: ChannelMap) -> Recording:
 
     disp = get(cmap.displacement, True)
     t = get(cmap.time, cmap.time_required)
-    load = None
-    for name in _load_names(cmap):
-        load = get(name, cmap.load_required)
-        if load is not None:
-            cmap = _with_load(cmap, name)
-            break
+    load, cmap = _find_load(cmap, get)
     fs = None
     for k in ("sample_rate_hz", "fs"):
         if k in space and np.size(space[k]) == 1:
