@@ -90,6 +90,7 @@ def test_model_delta_table_and_grid(monkeypatch, capsys):
         (["model", "delta", "--points", "/nonexistent/p.csv"], "/nonexistent/p.csv: file not found"),
         (["fit", "3prr", "/nonexistent/m.csv"], "/nonexistent/m.csv: file not found"),
         (["fit", "3prr", "x.csv", "--param-to-fit", "kjj"], "unknown 3prr parameter(s) kjj; valid: h, L"),
+        (["model", "3prr", "--grid", "4000,9000", "--json"], "none of the 1 point(s) can be evaluated"),
     ],
 )
 def test_bad_input_is_one_line(monkeypatch, capsys, args, message):

@@ -13,6 +13,7 @@ from rich.table import Table
 from ..errors import InputError
 from .common import (
     EXIT_PARTIAL,
+    fail,
     float_values,
     fmt,
     fmt_pm,
@@ -149,7 +150,8 @@ def model(
     """A model's stiffness K (N/mm) and static error u = K^-1 F (mm) at each position.
 
     Points that cannot be evaluated (outside the workspace, or at a singularity) are
-    named with the reason, the others are printed; the exit status is then 1.
+    named with the reason, the others are printed; the exit status is then 1 (2 when no
+    point can be evaluated).
     """
     import numpy as np
 
@@ -191,6 +193,8 @@ def model(
         if output is not None:
             raise InputError("--output needs --json or --csv")
         _print_map(m, mp, F)
+    if nbad == len(mp):
+        raise fail(f"none of the {len(mp)} point(s) can be evaluated by the {mech} model (see 'error')")
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error')")
         raise typer.Exit(EXIT_PARTIAL)
