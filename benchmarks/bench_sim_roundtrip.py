@@ -18,7 +18,6 @@ Saves benchmarks/results/sim_roundtrip.md.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import tempfile
 import time
@@ -30,7 +29,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from _sim_helpers import pnp_image_row, round_trip_from_true_corners  # noqa: E402
+from _sim_helpers import derive_from_true_corners, pnp_image_row, round_trip_from_true_corners  # noqa: E402
 from _table import write  # noqa: E402
 
 from stiffmap.campaign.runner import ImageRow, derive_position, plan  # noqa: E402
@@ -97,23 +96,10 @@ def image_round_trip(root: Path):
 
 
 def disp_noise(root: Path, noise: float) -> np.ndarray:
-    """Std of the displacement error per base axis (mm), from true corners + noise."""
-    spec = load_spec(root)
-    truth = load_truth(root)
-    cam = truth.camera
-    fb = Chessboard.parse(spec.targets.fixed.board, 10.0)
-    mb = Chessboard.parse(spec.targets.mobile.board, 10.0)
-    rng = np.random.default_rng(0)
-    rows = {}
-    for f, c in truth.corners().items():
-        um = c["mobile"]["corners_px"] + rng.normal(scale=noise, size=c["mobile"]["corners_px"].shape)
-        uf = c["fixed"]["corners_px"] + rng.normal(scale=noise, size=c["fixed"]["corners_px"].shape)
-        rows[f] = pnp_image_row(f, um, uf, mb, fb, cam)
-    loads = spec.loads.resolve(spec.g)
+    """Std of the displacement error per base axis (mm), from true corners + noise (px)."""
+    truth, loads, derived = derive_from_true_corners(root, noise, seed=0)
     dev = []
-    for task in plan(spec, root):
-        task = dataclasses.replace(task, missing=())
-        r = derive_position(task, rows, loads, spec, "compliance", "", "")
+    for task, r in derived:
         Kt = truth.K[task.index - 1]
         for d in r.displacements:
             dev.append(np.asarray(from_json(d["d"]))[:3] - np.linalg.solve(Kt, loads[d["load"] - 1].force))

@@ -82,24 +82,25 @@ def pnp_image_row(name: str, uv_mobile: np.ndarray, uv_fixed: np.ndarray, mobile
     )
 
 
-def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
-    """Measure a simulated campaign from its exported corners and identify K per position.
+def derive_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
+    """Measure a simulated campaign from its exported corners: the runner's derivation per position.
 
     Each image's board poses come from solvePnP on the true corners (plus Gaussian
-    noise of ``noise_px``); displacements and K come from the campaign runner's own
+    noise of ``noise_px``, px); displacements and K come from the campaign runner's own
     derivation (``stiffmap.campaign.runner.derive_position``: cam2base from the mean
     fixed-board pose of the position, displacement of ``point_mm`` in the base frame,
     the compliance estimator).
 
     Returns
     -------
-    list of (K, K_std, K_true) per position.
+    truth : the campaign's ``truth.json`` (``stiffmap.sim.writer.load_truth``)
+    loads : list of LoadCase (N, base frame)
+    derived : list of (PositionTask, derivation result) per position
     """
     import dataclasses
 
     from stiffmap.campaign.runner import derive_position, plan
     from stiffmap.campaign.spec import load_spec
-    from stiffmap.campaign.store import from_json
     from stiffmap.sim.writer import load_truth
     from stiffmap.targets import Chessboard
 
@@ -115,10 +116,25 @@ def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
         uv_f = c["fixed"]["corners_px"] + rng.normal(scale=noise_px, size=c["fixed"]["corners_px"].shape)
         rows[f] = pnp_image_row(f, uv_m, uv_f, mb, fb, cam)
     loads = spec.loads.resolve(spec.g)
-    out = []
+    derived = []
     for task in plan(spec, root):
         task = dataclasses.replace(task, missing=())  # the images need not exist for this path
-        res = derive_position(task, rows, loads, spec, "compliance", "", "")
+        derived.append((task, derive_position(task, rows, loads, spec, "compliance", "", "")))
+    return truth, loads, derived
+
+
+def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
+    """K per position from the exported corners (:func:`derive_from_true_corners`).
+
+    Returns
+    -------
+    list of (K, K_std, K_true) per position, N/mm.
+    """
+    from stiffmap.campaign.store import from_json
+
+    truth, _, derived = derive_from_true_corners(root, noise_px, seed)
+    out = []
+    for task, res in derived:
         assert res.stiffness["status"] == "ok", res.problems
         out.append(
             (from_json(res.stiffness["K"]), from_json(res.stiffness["K_std"]), truth.K[task.index - 1])

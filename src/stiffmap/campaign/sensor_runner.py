@@ -102,15 +102,18 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
         with store.transaction():
             sha = store.sha256(path)
         prev = store.rows(
-            "SELECT sha256, params_hash, status, error FROM sensor_results WHERE recording=?", (key,)
+            "SELECT sha256, params_hash, status, error, point, direction FROM sensor_results "
+            "WHERE recording=?",
+            (key,),
         )
         if prev and prev[0]["sha256"] == sha and prev[0]["params_hash"] == rhash:
             out.reused += 1
-            with store.transaction():  # where it was measured may have been corrected
-                store.conn.execute(
-                    "UPDATE sensor_results SET point=?, direction=? WHERE recording=?",
-                    (row["point"], row["direction"], key),
-                )
+            if (prev[0]["point"], prev[0]["direction"]) != (row["point"], row["direction"]):
+                with store.transaction():  # where it was measured has been corrected
+                    store.conn.execute(
+                        "UPDATE sensor_results SET point=?, direction=? WHERE recording=?",
+                        (row["point"], row["direction"], key),
+                    )
             if prev[0]["status"] != "ok":
                 out.failures.append(prev[0]["error"])
             continue

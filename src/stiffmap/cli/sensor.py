@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from enum import StrEnum
 from pathlib import Path
 
@@ -121,8 +122,6 @@ _OPTION_OF = {
 
 def _option_names(message: str) -> str:
     """A SensorConfig message in the words of the command line (its options, not its fields)."""
-    import re
-
     for field, opt in _OPTION_OF.items():
         message = re.sub(rf"(?<![\w-]){field}(?![\w-])", opt, message)
     return message
