@@ -1,4 +1,7 @@
-"""Shared pieces of the command-line interface: consoles, errors, formatting."""
+"""Shared pieces of the command-line interface: consoles, errors, option parsing.
+
+Numbers are formatted by :mod:`stiffmap.textfmt`.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +16,9 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..io import dumps_json
+
+# Re-exported for the commands that import it from here; its home is stiffmap.textfmt.
+from ..textfmt import fmt as fmt
 
 
 def _piped_width() -> int | None:
@@ -57,22 +63,6 @@ def print_json(obj) -> None:
 def input_error(e: InputError) -> typer.Exit:
     """Report a user input error as one line and return the Exit to raise."""
     return fail(str(e))
-
-
-def fmt(x: float, digits: int = 5) -> str:
-    """A number with ``digits`` significant digits, or ``n/a`` when not finite."""
-    try:
-        xf = float(x)
-    except (TypeError, ValueError):
-        return str(x)
-    if xf != xf or xf in (float("inf"), float("-inf")):
-        return "n/a"
-    return f"{xf:.{digits}g}"
-
-
-def fmt_pm(x: float, s: float, digits: int = 5) -> str:
-    """``x ± s``."""
-    return f"{fmt(x, digits)} ± {fmt(s, 2)}"
 
 
 def parse_key_values(items: Sequence[str], what: str) -> dict[str, str]:

@@ -8,7 +8,8 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from .common import fmt, fmt_pm, out, print_json, warn
+from ..textfmt import fmt, fmt_pm
+from .common import out, print_json, warn
 
 
 class MethodName(StrEnum):

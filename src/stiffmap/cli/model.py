@@ -11,18 +11,8 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
-from .common import (
-    EXIT_PARTIAL,
-    fail,
-    float_values,
-    fmt,
-    fmt_pm,
-    out,
-    parse_key_values,
-    position_preset,
-    print_json,
-    warn,
-)
+from ..textfmt import fmt, fmt_pm
+from .common import EXIT_PARTIAL, fail, float_values, out, parse_key_values, position_preset, print_json, warn
 
 
 class MechanismName(StrEnum):

@@ -10,7 +10,8 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
-from .common import EXIT_INPUT, EXIT_PARTIAL, fail, fmt, out, print_json, warn
+from ..textfmt import fmt
+from .common import EXIT_INPUT, EXIT_PARTIAL, fail, out, print_json, warn
 
 
 class LoadUnit(StrEnum):
