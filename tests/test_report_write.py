@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from stiffmap.report import write_report
-from stiffmap.report._common import (
+from stiffmap.report.data import CampaignInfo, ReportData
+from stiffmap.report.example import REFERENCE_PLANES_Z, example_sensor, example_vision
+from stiffmap.report.figure_data import (
     MAX_DIAMETER,
     MIN_DIAMETER,
     as_grid,
@@ -20,8 +22,6 @@ from stiffmap.report._common import (
     middle_line_order,
     plane_values,
 )
-from stiffmap.report.data import CampaignInfo, ReportData
-from stiffmap.report.example import REFERENCE_PLANES_Z, example_sensor, example_vision
 
 #: plotly.js is large; the page holds it once plus figure JSON.
 MAX_PAGE_BYTES = 6_500_000
@@ -113,7 +113,7 @@ def test_header_says_what_and_units(vision_report: Path, vision: ReportData) -> 
 
 
 def test_stiffness_map_marker_diameters_proportional_to_det(vision: ReportData) -> None:
-    from stiffmap.report.plots import stiffness_map_3d
+    from stiffmap.report.interactive_figures import stiffness_map_3d
 
     fig = stiffness_map_3d(vision)
     tr = fig.data[0]
@@ -139,7 +139,7 @@ def test_det_diameters_floor_and_nan() -> None:
 
 
 def test_plane_maps_one_panel_per_plane(vision: ReportData) -> None:
-    from stiffmap.report.plots import plane_maps
+    from stiffmap.report.interactive_figures import plane_maps
 
     fig = plane_maps(vision, "min_principal")
     titles = [a.text for a in fig.layout.annotations]

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from ..camera import CameraModel
 from ..errors import InputError
 from ..io import to_jsonable
 
@@ -116,6 +117,7 @@ def _float(obj, name: str, value, *, positive: bool = False, allow_nan: bool = F
 
 def _indices(K: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """det, smallest principal stiffness and eigenvalues of the symmetric part (NaN where not ok)."""
+    # Lazy: stiffmap.identify imports SciPy, which `import stiffmap.report` must not load.
     from ..identify import stiffness_indices
 
     n = K.shape[0]
@@ -482,8 +484,6 @@ class CalibrationData:
     corner_residuals_px: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        from ..camera import CameraModel
-
         if not isinstance(self.camera, Mapping):
             raise ValueError(f"camera: expected an object, got {type(self.camera).__name__}")
         try:

@@ -30,20 +30,7 @@ import numpy as np
 from .. import __version__
 from ..identify import identify_stiffness
 from ..loads import forces_matrix, paper9
-from .data import (
-    CalibrationData,
-    CampaignInfo,
-    Failure,
-    LoadData,
-    MeasuredStiffness,
-    ModelMap,
-    ModelStiffness,
-    Parameter,
-    ReportData,
-    SensorMap,
-    SensorResults,
-    TruthStiffness,
-)
+from . import data as rd  # the report's data contract
 
 __all__ = ["example_vision", "example_sensor", "example_field", "REFERENCE_PLANES_Z"]
 
@@ -118,7 +105,7 @@ def example_vision(
     noise_mm: float = 0.004,
     planes: Sequence[float] = REFERENCE_PLANES_Z,
     per_side: int = 4,
-) -> ReportData:
+) -> rd.ReportData:
     """A complete vision campaign, see the module docstring.
 
     By default the reference layout: ``per_side`` x ``per_side`` positions with x, y in
@@ -167,7 +154,7 @@ def example_vision(
         status.append("ok")
         messages.append("")
         flags.append(fit.flags)
-    measured = MeasuredStiffness.from_K(pos, K, K_std, status=status, messages=messages, flags=flags)
+    measured = rd.MeasuredStiffness.from_K(pos, K, K_std, status=status, messages=messages, flags=flags)
 
     # An illustrative model: a softer-coupled field with one fitted scale s (least squares on K).
     shape = example_field(pos, soften=0.5, coupling=0.7)
@@ -180,15 +167,15 @@ def example_vision(
     Km = s * example_field(mp, soften=0.5, coupling=0.7)
     det = np.linalg.det(Km)
     minp = np.linalg.eigvalsh(0.5 * (Km + np.swapaxes(Km, 1, 2)))[:, 0]
-    model = ModelStiffness.from_K(
+    model = rd.ModelStiffness.from_K(
         "illustrative field (example)",
-        [Parameter("s", s, s_std, "-"), Parameter("soften", 0.5, unit="-")],
+        [rd.Parameter("s", s, s_std, "-"), rd.Parameter("soften", 0.5, unit="-")],
         s * shape,
-        map=ModelMap(mp, det, minp),
+        map=rd.ModelMap(mp, det, minp),
     )
     cam, res = _camera(rng)
-    return ReportData(
-        campaign=CampaignInfo(
+    return rd.ReportData(
+        campaign=rd.CampaignInfo(
             name="Example vision campaign (synthetic)",
             kind="vision",
             version=__version__,
@@ -201,16 +188,16 @@ def example_vision(
             ),
         ),
         measured=measured,
-        loads=LoadData(tuple(ld.label for ld in loads), F.T, norms),
+        loads=rd.LoadData(tuple(ld.label for ld in loads), F.T, norms),
         model=model,
-        truth=TruthStiffness(Kt),
-        calibration=CalibrationData(cam, res),
-        failures=tuple(Failure(f"position {i + 1}", m) for i, m in failed.items())
-        + (Failure("calib_16.png", "board not found; view not used"),),
+        truth=rd.TruthStiffness(Kt),
+        calibration=rd.CalibrationData(cam, res),
+        failures=tuple(rd.Failure(f"position {i + 1}", m) for i, m in failed.items())
+        + (rd.Failure("calib_16.png", "board not found; view not used"),),
     )
 
 
-def example_sensor(seed: int = 0) -> ReportData:
+def example_sensor(seed: int = 0) -> rd.ReportData:
     """A complete sensor campaign: 22 points, x and y loads of 50 kgf, see the module docstring."""
     rng = np.random.default_rng(seed)
     h = 1000.0
@@ -259,10 +246,10 @@ def example_sensor(seed: int = 0) -> ReportData:
     grid = np.array([(x, y) for y in gy for x in gx])
     reach = np.hypot(*(grid - c).T) < 280.0  # an illustrative reachable region
     maps = tuple(
-        SensorMap(d, grid, np.where(reach, shape_um(grid, d) * 525.0 / kj, np.nan)) for d in ("x", "y")
+        rd.SensorMap(d, grid, np.where(reach, shape_um(grid, d) * 525.0 / kj, np.nan)) for d in ("x", "y")
     )
-    return ReportData(
-        campaign=CampaignInfo(
+    return rd.ReportData(
+        campaign=rd.CampaignInfo(
             name="Example sensor campaign (synthetic)",
             kind="sensor",
             version=__version__,
@@ -270,7 +257,7 @@ def example_sensor(seed: int = 0) -> ReportData:
             campaign_dir="examples/sensor",
             notes="Synthetic static errors at 22 points of a planar workspace, loads of 50 kgf in x and y.",
         ),
-        sensor=SensorResults(
+        sensor=rd.SensorResults(
             points=P,
             direction=tuple(rows_d),
             error_um=err,
@@ -280,8 +267,8 @@ def example_sensor(seed: int = 0) -> ReportData:
             middle_line=np.concatenate(ml),
             reference_load_n=490.5,
             model_name="illustrative 3PRR-like field (example)",
-            parameters=(Parameter("kj", kj, kj_std, "N/mm"), Parameter("kb", 9800.0, unit="N/mm")),
+            parameters=(rd.Parameter("kj", kj, kj_std, "N/mm"), rd.Parameter("kb", 9800.0, unit="N/mm")),
             maps=maps,
         ),
-        failures=(Failure("point 13, x", "rec_13_x.csv: saturated from 12.1 s to 14.3 s"),),
+        failures=(rd.Failure("point 13, x", "rec_13_x.csv: saturated from 12.1 s to 14.3 s"),),
     )

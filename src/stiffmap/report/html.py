@@ -17,10 +17,21 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..io import to_jsonable
-from . import plots
+from ..textfmt import fmt, fmt_pm
 from ._assets import CSS, JS
-from ._common import fmt, fmt_pm, position_labels
 from .data import ReportData
+from .figure_data import position_labels
+from .interactive_figures import (
+    calibration_figure,
+    loads_overview,
+    loads_payload,
+    model_scatter,
+    plane_maps,
+    sensor_line,
+    sensor_maps,
+    stiffness_map_3d,
+    truth_figure,
+)
 
 __all__ = ["build_html", "figure_json"]
 
@@ -83,17 +94,17 @@ def _k_table(data: ReportData) -> str:
             )
             continue
         cls = " class=flagged" if m.flags[i] else ""
-        ev = ", ".join(fmt(v) for v in m.eigenvalues[i])
+        ev = ", ".join(fmt(v, 4) for v in m.eigenvalues[i])
         cells = [
             f"<td>{i + 1}</td>",
             f"<td class=l title='{_e(labels[i])}'>{_e(pos)}</td>",
             "<td class=l>ok</td>",
             f"<td class='l m'>{_e(_matrix(m.K[i], m.K_std[i]))}</td>",
-            f"<td>{fmt(m.det[i])}</td>",
+            f"<td>{fmt(m.det[i], 4)}</td>",
             f"<td>{ev}</td>",
         ]
         if data.model is not None:
-            cells.append(f"<td>{fmt(data.model.det[i])}</td>")
+            cells.append(f"<td>{fmt(data.model.det[i], 4)}</td>")
         if err is not None:
             cells.append(f"<td>{fmt(100 * err[i], 3)}</td>")
         flags = "<br>".join(_e(f) for f in m.flags[i]) or "—"
@@ -104,7 +115,7 @@ def _k_table(data: ReportData) -> str:
 
 def _params_table(params) -> str:
     rows = "".join(
-        f"<tr><td class=l>{_e(p.name)}</td><td>{_e(fmt_pm(p.value, p.std, 5))}</td>"
+        f"<tr><td class=l>{_e(p.name)}</td><td>{_e(fmt_pm(p.value, p.std, 5, omit_unknown_std=True))}</td>"
         f"<td class=l>{_e(p.unit)}</td>"
         f"<td class=l>{'fitted' if np.isfinite(p.std) else 'fixed'}</td></tr>"
         for p in params
@@ -120,13 +131,14 @@ def _camera_table(cam: dict) -> str:
     rows = []
     for k in ("fx", "fy", "cx", "cy"):
         s = std.get(k) if isinstance(std, dict) else None
-        rows.append((k + " (px)", fmt_pm(cam[k], s if isinstance(s, (int, float)) else np.nan, 6)))
+        s = s if isinstance(s, (int, float)) else np.nan
+        rows.append((k + " (px)", fmt_pm(cam[k], s, 6, omit_unknown_std=True)))
     dist = cam.get("dist", [])
     sd = std.get("dist") if isinstance(std, dict) else None
     names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
     for j, v in enumerate(dist):
         s = sd[j] if isinstance(sd, list) and j < len(sd) and isinstance(sd[j], (int, float)) else np.nan
-        rows.append((names[j], fmt_pm(v, s, 4)))
+        rows.append((names[j], fmt_pm(v, s, 4, omit_unknown_std=True)))
     if "image_size" in cam:
         rows.append(("image size (px)", " × ".join(str(v) for v in cam["image_size"])))
     if cam.get("rms_px") is not None:
@@ -156,15 +168,15 @@ def _sensor_table(data: ReportData) -> str:
     body = []
     for i in range(s.m):
         failed = not np.isfinite(s.error_um[i])
+        measured = fmt_pm(s.error_um[i], s.error_std_um[i], 4, omit_unknown_std=True)
         cells = [
             f"<td class=l>{_e(s.labels[i])}</td><td>{s.points[i, 0]:g}</td><td>{s.points[i, 1]:g}</td>",
             f"<td class=l>{_e(s.direction[i])}</td>",
-            f"<td>{'no measurement' if failed else _e(fmt_pm(s.error_um[i], s.error_std_um[i]))}</td>",
+            f"<td>{'no measurement' if failed else _e(measured)}</td>",
         ]
         if has_model:
-            cells.append(
-                f"<td>{fmt(s.model_error_um[i])}</td><td>{fmt(s.error_um[i] - s.model_error_um[i], 3)}</td>"
-            )
+            cells.append(f"<td>{fmt(s.model_error_um[i], 4)}</td>")
+            cells.append(f"<td>{fmt(s.error_um[i] - s.model_error_um[i], 3)}</td>")
         body.append(f"<tr{' class=failed' if failed else ''}>{''.join(cells)}</tr>")
     return f"<table><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
 
@@ -182,10 +194,10 @@ def _summary(data: ReportData) -> str:
             pills.append(f"<span class='pill warn'>{nflag} flagged</span>")
         if ok.any():
             pills.append(
-                f"<span class=pill>det K {fmt(np.nanmin(m.det[ok]))} … "
-                f"{fmt(np.nanmax(m.det[ok]))} (N/mm)³</span>"
-                f"<span class=pill>smallest principal {fmt(np.nanmin(m.min_principal[ok]))} … "
-                f"{fmt(np.nanmax(m.min_principal[ok]))} N/mm</span>"
+                f"<span class=pill>det K {fmt(np.nanmin(m.det[ok]), 4)} … "
+                f"{fmt(np.nanmax(m.det[ok]), 4)} (N/mm)³</span>"
+                f"<span class=pill>smallest principal {fmt(np.nanmin(m.min_principal[ok]), 4)} … "
+                f"{fmt(np.nanmax(m.min_principal[ok]), 4)} N/mm</span>"
             )
         if data.loads is not None:
             L, R = data.loads.norms.shape[1:]
@@ -200,9 +212,8 @@ def _summary(data: ReportData) -> str:
         if (~ok).any():
             pills.append(f"<span class='pill bad'>{int((~ok).sum())} failed</span>")
         for p in s.parameters:
-            pills.append(
-                f"<span class=pill>{_e(p.name)} = {_e(fmt_pm(p.value, p.std, 4))} {_e(p.unit)}</span>"
-            )
+            value = fmt_pm(p.value, p.std, 4, omit_unknown_std=True)
+            pills.append(f"<span class=pill>{_e(p.name)} = {_e(value)} {_e(p.unit)}</span>")
     if data.failures:
         pills.append(f"<span class='pill bad'>{len(data.failures)} failure(s) listed below</span>")
     return "".join(pills)
@@ -234,15 +245,15 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
     if m is not None:
         body = fig_div(
             "fig-map3d",
-            plots.stiffness_map_3d(data),
+            stiffness_map_3d(data),
             "Marker diameter proportional to det K, as in the reference study's stiffness map (Fig. 12), "
             "floored at 3 px so that soft positions stay visible; colour also shows det K. "
             "Red crosses: det K ≤ 0 (flagged); grey diamonds: failed positions. Drag to rotate.",
         )
-        body += fig_div("fig-planes-minp", plots.plane_maps(data, "min_principal"))
+        body += fig_div("fig-planes-minp", plane_maps(data, "min_principal"))
         body += fig_div(
             "fig-planes-det",
-            plots.plane_maps(data, "det"),
+            plane_maps(data, "det"),
             "One panel per z plane; squares are measured positions "
             "(red outline: flagged; grey cross: failed)."
             + (
@@ -254,7 +265,7 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
         )
         sections.append(("map", "Stiffness map", body))
     if data.loads is not None:
-        body = fig_div("fig-loads-overview", plots.loads_overview(data))
+        body = fig_div("fig-loads-overview", loads_overview(data))
         body += (
             "<p><label class=ctl>position <select id=pos-select></select></label>"
             "<label class=ctl>load case <select id=load-select></select></label></p>"
@@ -263,7 +274,7 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             "with every repeat as a dot (the reference's Fig. 10). "
             "Right: the repeats of the chosen load case "
             "with their mean (red line) ± std (band) (its Fig. 9).</p>"
-            f"<script type='application/json' id=loads-data>{_json_block(plots.loads_payload(data))}</script>"
+            f"<script type='application/json' id=loads-data>{_json_block(loads_payload(data))}</script>"
         )
         sections.append(("loads", "Load cases per position", body))
     if data.model is not None:
@@ -271,20 +282,20 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
         body = f"<p><b>{_e(mod.name)}</b></p>" + _params_table(mod.parameters)
         body += fig_div(
             "fig-model",
-            plots.model_scatter(data),
+            model_scatter(data),
             "Per-plane maps of the model and residuals are under Stiffness map.",
         )
         sections.append(("model", "Measured and modelled", body))
     if data.truth is not None:
         body = fig_div(
             "fig-truth",
-            plots.truth_figure(data),
+            truth_figure(data),
             "Virtual test-bed: the identified K against the ground truth. Red bars: flagged positions.",
         )
         sections.append(("truth", "Recovered vs true", body))
     if data.calibration is not None:
         body = _camera_table(data.calibration.camera)
-        body += fig_div("fig-calibration", plots.calibration_figure(data))
+        body += fig_div("fig-calibration", calibration_figure(data))
         sections.append(("calibration", "Camera calibration", body))
     if m is not None:
         body = (
@@ -303,13 +314,13 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             body += f"<p><b>{_e(s.model_name or 'model')}</b></p>" + _params_table(s.parameters)
         body += fig_div(
             "fig-sensor-maps",
-            plots.sensor_maps(data),
+            sensor_maps(data),
             "Left: measured static error, linearly interpolated between the measured points (circles, "
             "labelled) inside their convex hull — no extrapolation. "
             "Right: the model (dense map where given). "
             "Same colour scale in a row. After the milling study's Figs. 13-14.",
         )
-        body += fig_div("fig-sensor-line", plots.sensor_line(data), "After the milling study's Figs. 11-12.")
+        body += fig_div("fig-sensor-line", sensor_line(data), "After the milling study's Figs. 11-12.")
         body += f"<div class=tablewrap>{_sensor_table(data)}</div>"
         sections.append(("sensor", "Static error", body))
     if data.failures:

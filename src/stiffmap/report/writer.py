@@ -1,14 +1,16 @@
-"""Write a report directory: ``index.html`` (self-contained), the PNGs and ``data.json``."""
+"""A report directory: write ``index.html``, the PNGs and ``data.json``; read ``data.json`` back."""
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
+from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_text, dumps_json
 from .data import ReportData
 
-__all__ = ["write_report", "DATA_FILE", "INDEX_FILE"]
+__all__ = ["write_report", "load_report_data", "DATA_FILE", "INDEX_FILE"]
 
 INDEX_FILE = "index.html"
 #: The JSON dump of the data (``stiffmap report DATA.json`` re-renders from it).
@@ -35,23 +37,43 @@ def write_report(data: ReportData, out_dir: str | os.PathLike, *, png: bool = Tr
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written: list[str] = []
-    if png:
-        from .figures import ALL_FIGURES, png_bytes
+    # matplotlib and plotly load only here, when a report is written: `import stiffmap.report` stays light.
+    from .html import build_html
+    from .static_figures import ALL_FIGURES, png_bytes
 
-        for name, build in ALL_FIGURES:
-            fig = build(data)
-            if fig is None:
-                continue
-            atomic_write_bytes(out / name, png_bytes(fig))
-            written.append(name)
-    from .figures import ALL_FIGURES as _names
-
-    for name, _ in _names:
+    for name, build in ALL_FIGURES if png else ():
+        fig = build(data)
+        if fig is None:
+            continue
+        atomic_write_bytes(out / name, png_bytes(fig))
+        written.append(name)
+    for name, _ in ALL_FIGURES:
         if name not in written and (out / name).is_file():
             (out / name).unlink()
     atomic_write_text(out / DATA_FILE, dumps_json(data.to_dict(), indent=None) + "\n")
-    from .html import build_html
-
     index = out / INDEX_FILE
     atomic_write_text(index, build_html(data, written + [DATA_FILE]))
     return index
+
+
+def load_report_data(path: str | os.PathLike) -> ReportData:
+    """Read a JSON dump of :class:`ReportData` (as written beside a report as ``data.json``).
+
+    Raises
+    ------
+    InputError
+        Naming the file and the key that is missing or wrong.
+    """
+    p = Path(path)
+    src = str(path)
+    if not p.is_file():
+        raise InputError("file not found" if not p.exists() else "not a file", source=src)
+    try:
+        obj = json.loads(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError("not a UTF-8 JSON file", source=src) from None
+    except json.JSONDecodeError as e:
+        raise InputError(
+            f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}", source=src
+        ) from None
+    return ReportData.from_dict(obj, source=src)

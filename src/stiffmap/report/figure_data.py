@@ -1,4 +1,11 @@
-"""Helpers shared by the HTML (plotly) and PNG (matplotlib) figures: grouping, grids, sizes, labels."""
+"""What the report's figures draw, computed once for both back-ends.
+
+:mod:`~stiffmap.report.interactive_figures` (plotly, in the HTML page) and
+:mod:`~stiffmap.report.static_figures` (matplotlib, PNGs for papers) draw the
+same figures; everything they compute from :class:`~stiffmap.report.data.ReportData`
+(planes, grids, marker sizes, colour scales, which rows are which) lives here,
+so the two modules only draw.
+"""
 
 from __future__ import annotations
 
@@ -80,16 +87,41 @@ def position_labels(data: ReportData) -> list[str]:
     return [f"P{i + 1} ({x:g}, {y:g}, {z:g})" for i, (x, y, z) in enumerate(np.round(m.positions, 1))]
 
 
-def fmt(x: float, digits: int = 4) -> str:
-    """A number with ``digits`` significant digits; ``n/a`` for NaN."""
-    x = float(x)
-    if not np.isfinite(x):
-        return "n/a"
-    return f"{x:.{digits}g}"
+@dataclass(frozen=True)
+class DetMarkers:
+    """The markers of the 3D stiffness map (the reference study's Fig. 12), for both back-ends.
+
+    Attributes
+    ----------
+    diameters : ndarray, shape (n,)
+        :func:`det_diameters` of det K at the measured positions (NaN elsewhere).
+    good : ndarray of bool, shape (n,)
+        Measured with det K > 0: drawn with their diameter.
+    bad : ndarray of bool, shape (n,)
+        Measured with det K <= 0 (flagged): their own symbol.
+    failed : ndarray of bool, shape (n,)
+    lo, hi : float, (N/mm)³
+        Colour scale of det K over the good positions.
+    """
+
+    diameters: np.ndarray
+    good: np.ndarray
+    bad: np.ndarray
+    failed: np.ndarray
+    lo: float
+    hi: float
 
 
-def fmt_pm(x: float, s: float, digits: int = 4) -> str:
-    return fmt(x, digits) if not np.isfinite(s) else f"{fmt(x, digits)} ± {fmt(s, 2)}"
+def det_markers(data: ReportData) -> DetMarkers | None:
+    """Marker sizes, groups and colour scale of the 3D map; None without measurements."""
+    m = data.measured
+    if m is None:
+        return None
+    diam = det_diameters(np.where(m.ok, m.det, np.nan))
+    good = m.ok & np.isfinite(diam)
+    bad = m.ok & ~good
+    lo, hi = finite_range(m.det[good]) if good.any() else (0.0, 1.0)
+    return DetMarkers(diam, good, bad, ~m.ok, lo, hi)
 
 
 def symmetric_range(*arrays: np.ndarray) -> float:
@@ -238,6 +270,132 @@ def model_plane_grid(
 
 
 @dataclass(frozen=True)
+class ModelVsMeasured:
+    """One quantity measured against modelled, for a scatter about the identity line.
+
+    Attributes
+    ----------
+    model, measured : ndarray, shape (k,)
+        The values at the positions where both are finite.
+    rows : ndarray of bool, shape (n,)
+        Those positions.
+    lo, hi : float
+        Range of both (the identity line's ends).
+    """
+
+    model: np.ndarray
+    measured: np.ndarray
+    rows: np.ndarray
+    lo: float
+    hi: float
+
+
+def model_vs_measured(data: ReportData, quantity: str) -> ModelVsMeasured:
+    """``quantity`` ("det" or "min_principal") of the model and of the measured positions."""
+    m, mod = data.measured, data.model
+    a, b = getattr(mod, quantity), np.where(m.ok, getattr(m, quantity), np.nan)
+    ok = np.isfinite(a) & np.isfinite(b)
+    lo, hi = finite_range(a[ok], b[ok])
+    return ModelVsMeasured(a[ok], b[ok], ok, lo, hi)
+
+
+@dataclass(frozen=True)
+class TruthEntries:
+    """Recovered against true K of the measured positions (virtual test-bed), for both back-ends.
+
+    Attributes
+    ----------
+    true, recovered, std : ndarray, shape (9 k,), N/mm
+        Every entry of the true K, the recovered K and its standard error at the k
+        measured positions.
+    diagonal : ndarray of bool, shape (9 k,)
+        Entries on the diagonal.
+    lo, hi : float, N/mm
+        Range of true and recovered entries (the identity line's ends).
+    error : ndarray, shape (n,)
+        Relative Frobenius error per position (``ReportData.truth_error``).
+    worst : int or None
+        Index of the largest finite error.
+    flagged : ndarray of bool, shape (n,)
+        Positions with flags.
+    """
+
+    true: np.ndarray
+    recovered: np.ndarray
+    std: np.ndarray
+    diagonal: np.ndarray
+    lo: float
+    hi: float
+    error: np.ndarray
+    worst: int | None
+    flagged: np.ndarray
+
+
+def truth_entries(data: ReportData) -> TruthEntries | None:
+    """The K entries and errors of the recovered-vs-true figure; None without a truth."""
+    if data.truth is None:
+        return None
+    m, t = data.measured, data.truth
+    err = data.truth_error
+    ok = m.ok
+    tv = t.K[ok].reshape(-1)
+    rv = m.K[ok].reshape(-1)
+    sv = m.K_std[ok].reshape(-1)
+    diag = np.tile(np.eye(3, dtype=bool).ravel(), ok.sum())
+    lo, hi = finite_range(tv, rv)
+    worst = int(np.nanargmax(err)) if np.isfinite(err).any() else None
+    flagged = np.array([bool(f) for f in m.flags])
+    return TruthEntries(tv, rv, sv, diag, lo, hi, err, worst, flagged)
+
+
+@dataclass(frozen=True)
+class CalibrationPanels:
+    """The calibration figure's data: per-view RMS and corner residuals (px).
+
+    Attributes
+    ----------
+    views : list of dict
+        The ``views`` of ``camera.json`` (may be empty).
+    rms : ndarray, shape (v,), px
+        RMS reprojection error per view, NaN when absent.
+    used : ndarray of bool, shape (v,)
+    residuals : ndarray, shape (c, 2), px, or None
+        Every corner's residual, observed - projected.
+    residual_range : float, px
+        Half-width of the residual panel's axes (before its 5 % margin).
+    panels : int
+        1 or 2.
+    """
+
+    views: list
+    rms: np.ndarray
+    used: np.ndarray
+    residuals: np.ndarray | None
+    residual_range: float
+    panels: int
+
+
+def calibration_panels(data: ReportData) -> CalibrationPanels | None:
+    """What the calibration figure draws; None without views and residuals."""
+    c = data.calibration
+    if c is None:
+        return None
+    views = c.camera.get("views") or []
+    r = c.corner_residuals_px
+    if not views and r is None:
+        return None
+    rms, used = view_rms(views)
+    half = symmetric_range(r) if r is not None else 1.0
+    return CalibrationPanels(views, rms, used, r, half, int(bool(views)) + int(r is not None))
+
+
+def sensor_has_model(data: ReportData) -> bool:
+    """True when the sensor results have a model (at the points or as dense maps): a second column."""
+    s = data.sensor
+    return s.model_error_um is not None or bool(s.maps)
+
+
+@dataclass(frozen=True)
 class SensorDirection:
     """The sensor rows of one load direction, for both figure back-ends.
 
@@ -252,6 +410,8 @@ class SensorDirection:
         The model at the points.
     dense : SensorMap or None
         The model's dense map of this direction.
+    dense_grid : tuple (xs, ys, Z) or None
+        That map as a grid (:func:`as_grid`), when it fills one.
     lo, hi : float
         Colour scale over measured, model and dense values.
     """
@@ -261,6 +421,7 @@ class SensorDirection:
     error_um: np.ndarray
     model_um: np.ndarray | None
     dense: SensorMap | None
+    dense_grid: tuple[np.ndarray, np.ndarray, np.ndarray] | None
     lo: float
     hi: float
 
@@ -273,7 +434,8 @@ def sensor_direction(data: ReportData, direction: str) -> SensorDirection:
     model = s.model_error_um[idx] if s.model_error_um is not None else None
     dense = next((mp for mp in s.maps if mp.direction == direction), None)
     lo, hi = finite_range(e, model, dense.error_um if dense is not None else None)
-    return SensorDirection(idx, s.points[idx], e, model, dense, lo, hi)
+    grid = as_grid(dense.points, dense.error_um) if dense is not None else None
+    return SensorDirection(idx, s.points[idx], e, model, dense, grid, lo, hi)
 
 
 def view_rms(views: list[dict]) -> tuple[np.ndarray, np.ndarray]:

@@ -1,9 +1,12 @@
-"""Interactive figures of the HTML report (plotly), one function per figure.
+"""The report's interactive figures: plotly, embedded in the HTML page.
 
-Each function takes a :class:`~stiffmap.report.data.ReportData` and returns a
-``plotly.graph_objects.Figure`` (or None when the data it draws are absent).
-NaN values (failed positions, missing repeats, unreachable model points) are
-drawn as gaps or with their own symbol, never as numbers.
+One function per figure; each takes a :class:`~stiffmap.report.data.ReportData`
+and returns a ``plotly.graph_objects.Figure`` (or None when the data it draws
+are absent). The same figures, static, are drawn with matplotlib for papers by
+:mod:`~stiffmap.report.static_figures`; what both draw is computed once in
+:mod:`~stiffmap.report.figure_data`. NaN values (failed positions, missing
+repeats, unreachable model points) are drawn as gaps or with their own symbol,
+never as numbers.
 """
 
 from __future__ import annotations
@@ -12,22 +15,22 @@ import numpy as np
 import plotly.graph_objects as go
 from plotly.subplots import make_subplots
 
-from ._common import (
-    as_grid,
-    det_diameters,
-    finite_range,
-    fmt,
+from ..textfmt import fmt
+from .data import ReportData
+from .figure_data import (
+    calibration_panels,
+    det_markers,
     interpolate_measured,
     middle_line_order,
     model_plane_grid,
+    model_vs_measured,
     on_plane,
     plane_map_values,
     position_labels,
     sensor_direction,
-    symmetric_range,
-    view_rms,
+    sensor_has_model,
+    truth_entries,
 )
-from .data import ReportData
 
 TEMPLATE = "plotly_white"
 SEQ = "Viridis"
@@ -44,7 +47,10 @@ def _hover_positions(data: ReportData) -> list[str]:
         if m.status[i] != "ok":
             out.append(f"{lab}<br>failed: {m.messages[i]}")
             continue
-        s = f"{lab}<br>det K = {fmt(m.det[i])} (N/mm)³<br>smallest principal = {fmt(m.min_principal[i])} N/mm"
+        s = (
+            f"{lab}<br>det K = {fmt(m.det[i], 4)} (N/mm)³"
+            f"<br>smallest principal = {fmt(m.min_principal[i], 4)} N/mm"
+        )
         if m.flags[i]:
             s += "<br>flags: " + "; ".join(m.flags[i])
         out.append(s)
@@ -54,64 +60,48 @@ def _hover_positions(data: ReportData) -> list[str]:
 # --------------------------------------------------------------------------- stiffness map
 def stiffness_map_3d(data: ReportData) -> go.Figure | None:
     """3D markers at the positions, diameter proportional to det K (the reference's Fig. 12)."""
-    m = data.measured
-    if m is None:
+    dm = det_markers(data)
+    if dm is None:
         return None
-    p, ok, det = m.positions, m.ok, m.det
+    m = data.measured
+    p, det = m.positions, m.det
     hover = np.array(_hover_positions(data))
-    diam = det_diameters(np.where(ok, det, np.nan))
-    good = ok & np.isfinite(diam)
-    bad = ok & ~good
-    fig = go.Figure()
-    lo, hi = finite_range(det[good]) if good.any() else (0.0, 1.0)
-    fig.add_trace(
-        go.Scatter3d(
-            x=p[good, 0],
-            y=p[good, 1],
-            z=p[good, 2],
+
+    def markers(sel: np.ndarray, name: str, marker: dict) -> go.Scatter3d:
+        return go.Scatter3d(
+            x=p[sel, 0],
+            y=p[sel, 1],
+            z=p[sel, 2],
             mode="markers",
-            name="det K > 0 (diameter ∝ det K)",
-            marker=dict(
-                size=diam[good],
+            name=name,
+            marker=marker,
+            text=hover[sel],
+            hovertemplate="%{text}<extra></extra>",
+        )
+
+    fig = go.Figure()
+    good = dm.good
+    fig.add_trace(
+        markers(
+            good,
+            "det K > 0 (diameter ∝ det K)",
+            dict(
+                size=dm.diameters[good],
                 sizemode="diameter",
                 color=det[good],
                 colorscale=SEQ,
-                cmin=lo,
-                cmax=hi,
+                cmin=dm.lo,
+                cmax=dm.hi,
                 opacity=0.9,
                 line=dict(width=0),
                 colorbar=dict(title=dict(text="det K<br>(N/mm)³"), len=0.75),
             ),
-            text=hover[good],
-            hovertemplate="%{text}<extra></extra>",
         )
     )
-    if bad.any():
-        fig.add_trace(
-            go.Scatter3d(
-                x=p[bad, 0],
-                y=p[bad, 1],
-                z=p[bad, 2],
-                mode="markers",
-                name="det K ≤ 0 (flagged)",
-                marker=dict(size=7, symbol="x", color=BAD),
-                text=hover[bad],
-                hovertemplate="%{text}<extra></extra>",
-            )
-        )
-    if (~ok).any():
-        fig.add_trace(
-            go.Scatter3d(
-                x=p[~ok, 0],
-                y=p[~ok, 1],
-                z=p[~ok, 2],
-                mode="markers",
-                name="failed",
-                marker=dict(size=5, symbol="diamond-open", color=FAILED),
-                text=hover[~ok],
-                hovertemplate="%{text}<extra></extra>",
-            )
-        )
+    if dm.bad.any():
+        fig.add_trace(markers(dm.bad, "det K ≤ 0 (flagged)", dict(size=7, symbol="x", color=BAD)))
+    if dm.failed.any():
+        fig.add_trace(markers(dm.failed, "failed", dict(size=5, symbol="diamond-open", color=FAILED)))
     fig.update_layout(
         template=TEMPLATE,
         height=560,
@@ -353,7 +343,7 @@ def model_scatter(data: ReportData) -> go.Figure | None:
     """Measured against modelled det K and smallest principal stiffness, with the identity line."""
     if data.model is None:
         return None
-    m, mod = data.measured, data.model
+    m = data.measured
     fig = make_subplots(
         rows=1,
         cols=2,
@@ -362,14 +352,13 @@ def model_scatter(data: ReportData) -> go.Figure | None:
     )
     labels = np.array(position_labels(data))
     for c, q in enumerate(("det", "min_principal"), start=1):
-        a, b = getattr(mod, q), np.where(m.ok, getattr(m, q), np.nan)
-        ok = np.isfinite(a) & np.isfinite(b)
-        lo, hi = finite_range(a[ok], b[ok])
-        fig.add_trace(_identity_line(lo, hi, "measured = model", showlegend=c == 1), row=1, col=c)
+        mm = model_vs_measured(data, q)
+        ok = mm.rows
+        fig.add_trace(_identity_line(mm.lo, mm.hi, "measured = model", showlegend=c == 1), row=1, col=c)
         fig.add_trace(
             go.Scatter(
-                x=a[ok],
-                y=b[ok],
+                x=mm.model,
+                y=mm.measured,
                 mode="markers",
                 marker=dict(
                     size=8,
@@ -396,10 +385,10 @@ def model_scatter(data: ReportData) -> go.Figure | None:
 
 def truth_figure(data: ReportData) -> go.Figure | None:
     """Recovered against true K entries, and the relative Frobenius error per position."""
-    if data.truth is None:
+    te = truth_entries(data)
+    if te is None:
         return None
-    m, t = data.measured, data.truth
-    err = data.truth_error
+    m, err = data.measured, te.error
     fig = make_subplots(
         rows=1,
         cols=2,
@@ -410,13 +399,8 @@ def truth_figure(data: ReportData) -> go.Figure | None:
         ],
         horizontal_spacing=0.08,
     )
-    ok = m.ok
-    tv = t.K[ok].reshape(-1)
-    rv = m.K[ok].reshape(-1)
-    sv = m.K_std[ok].reshape(-1)
-    diag = np.tile(np.eye(3, dtype=bool).ravel(), ok.sum())
-    lo, hi = finite_range(tv, rv)
-    fig.add_trace(_identity_line(lo, hi, "recovered = true"), row=1, col=1)
+    tv, rv, sv, diag = te.true, te.recovered, te.std, te.diagonal
+    fig.add_trace(_identity_line(te.lo, te.hi, "recovered = true"), row=1, col=1)
     for mask, name, color in ((diag, "diagonal", "#1f77b4"), (~diag, "off-diagonal", "#ff7f0e")):
         fig.add_trace(
             go.Scatter(
@@ -436,7 +420,7 @@ def truth_figure(data: ReportData) -> go.Figure | None:
         go.Bar(
             x=np.arange(1, m.n + 1),
             y=100 * err,
-            marker=dict(color=np.where([bool(f) for f in m.flags], BAD, "#2ca02c")),
+            marker=dict(color=np.where(te.flagged, BAD, "#2ca02c")),
             hovertext=labels,
             hovertemplate="%{hovertext}<br>%{y:.3g} %<extra></extra>",
             name="relative error",
@@ -445,8 +429,8 @@ def truth_figure(data: ReportData) -> go.Figure | None:
         row=1,
         col=2,
     )
-    if np.isfinite(err).any():
-        w = int(np.nanargmax(err))
+    if te.worst is not None:
+        w = te.worst
         # On a log axis an annotation's y is log10 of the value.
         fig.add_annotation(
             x=w + 1,
@@ -469,14 +453,12 @@ def truth_figure(data: ReportData) -> go.Figure | None:
 # --------------------------------------------------------------------------- calibration
 def calibration_figure(data: ReportData) -> go.Figure | None:
     """Per-view RMS reprojection error and, when given, every corner's residual (px)."""
-    c = data.calibration
-    if c is None:
+    cp = calibration_panels(data)
+    if cp is None:
         return None
-    views = c.camera.get("views") or []
-    has_res = c.corner_residuals_px is not None
-    if not views and not has_res:
-        return None
-    cols = int(bool(views)) + int(has_res)
+    views, rms, used = cp.views, cp.rms, cp.used
+    has_res = cp.residuals is not None
+    cols = cp.panels
     titles = (["RMS reprojection error per view (px)"] if views else []) + (
         ["corner residuals, observed − projected (px)"] if has_res else []
     )
@@ -486,7 +468,6 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
     col = 1
     if views:
         names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
-        rms, used = view_rms(views)
         reason = [str(v.get("reason", "")) for v in views]
         fig.add_trace(
             go.Bar(
@@ -516,7 +497,7 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
         fig.update_yaxes(title_text="px", row=1, col=col)
         col += 1
     if has_res:
-        r = c.corner_residuals_px
+        r = cp.residuals
         scatter = go.Scattergl if len(r) > 5000 else go.Scatter  # WebGL for many corners
         fig.add_trace(
             scatter(
@@ -530,7 +511,7 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
             row=1,
             col=col,
         )
-        a = symmetric_range(r)
+        a = cp.residual_range
         fig.update_xaxes(title_text="Δu (px)", range=[-a * 1.05, a * 1.05], row=1, col=col)
         fig.update_yaxes(title_text="Δv (px)", range=[-a * 1.05, a * 1.05], row=1, col=col)
     fig.update_layout(template=TEMPLATE, height=380, margin=dict(l=60, r=20, t=50, b=80), showlegend=False)
@@ -545,7 +526,7 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
         return None
     dirs = s.directions
     rows = len(dirs)
-    has_model = s.model_error_um is not None or bool(s.maps)
+    has_model = sensor_has_model(data)
     cols = 2 if has_model else 1
     titles = []
     for d in dirs:
@@ -564,7 +545,7 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
     layout: dict = {}
     for r, d in enumerate(dirs, start=1):
         sd = sensor_direction(data, d)
-        idx, p, e, model, dense = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense
+        idx, p, e, model, g = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense_grid
         ax = "coloraxis" if r == 1 else f"coloraxis{r}"
         layout[ax] = dict(
             colorscale=SEQ, cmin=sd.lo, cmax=sd.hi, colorbar=_colorbar(r - 1, rows, 1, f"µm ({d})")
@@ -585,7 +566,7 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
         ok = np.isfinite(e)
         hover = [
             f"point {s.labels[i]} ({s.points[i, 0]:g}, {s.points[i, 1]:g}) mm<br>"
-            f"{fmt(s.error_um[i])} ± {fmt(s.error_std_um[i], 2)} µm"
+            f"{fmt(s.error_um[i], 4)} ± {fmt(s.error_std_um[i], 2)} µm"
             for i in idx
         ]
         fig.add_trace(
@@ -620,7 +601,6 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
             )
         if not has_model:
             continue
-        g = as_grid(dense.points, dense.error_um) if dense is not None else None
         if g is not None:
             fig.add_trace(
                 go.Heatmap(
@@ -647,7 +627,7 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
                     mode="markers",
                     marker=dict(size=8, color=model, coloraxis=ax, line=dict(color="black", width=1)),
                     hovertext=[
-                        f"point {s.labels[i]}: model {fmt(v)} µm" for i, v in zip(idx, model, strict=True)
+                        f"point {s.labels[i]}: model {fmt(v, 4)} µm" for i, v in zip(idx, model, strict=True)
                     ],
                     hovertemplate="%{hovertext}<extra></extra>",
                     showlegend=False,

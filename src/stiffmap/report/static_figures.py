@@ -1,8 +1,11 @@
-"""Static figures for papers (matplotlib, PNG), one function per figure.
+"""The report's static figures for papers: matplotlib, written as PNG files.
 
-Each function returns a ``matplotlib.figure.Figure`` (or None when its data are
-absent). No pyplot: figures are built on the object interface and rendered by
-:func:`png_bytes`, so nothing global changes and no display is needed.
+One function per figure; each returns a ``matplotlib.figure.Figure`` (or None
+when its data are absent). The same figures, interactive, are drawn with plotly
+for the HTML page by :mod:`~stiffmap.report.interactive_figures`; what both draw
+is computed once in :mod:`~stiffmap.report.figure_data`. No pyplot: figures are
+built on the object interface and rendered by :func:`png_bytes`, so nothing
+global changes and no display is needed.
 """
 
 from __future__ import annotations
@@ -13,22 +16,22 @@ import numpy as np
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
-from ._common import (
+from .data import ReportData
+from .figure_data import (
     QUANTITIES,
-    as_grid,
-    det_diameters,
-    finite_range,
+    calibration_panels,
+    det_markers,
     middle_line_order,
     model_plane_grid,
+    model_vs_measured,
     on_plane,
     plane_map_values,
     position_labels,
     sensor_direction,
+    sensor_has_model,
     spans_plane,
-    symmetric_range,
-    view_rms,
+    truth_entries,
 )
-from .data import ReportData
 
 __all__ = [
     "png_bytes",
@@ -59,24 +62,22 @@ def png_bytes(fig: Figure, dpi: int = DPI) -> bytes:
 
 def stiffness_map_3d(data: ReportData) -> Figure | None:
     """Markers at the positions, diameter proportional to det K (the reference study's Fig. 12)."""
-    m = data.measured
-    if m is None:
+    dm = det_markers(data)
+    if dm is None:
         return None
+    m = data.measured
     fig = Figure(figsize=(7.5, 6.5))
     ax = fig.add_subplot(projection="3d")
     p = m.positions
-    diam = det_diameters(np.where(m.ok, m.det, np.nan))
-    good = m.ok & np.isfinite(diam)
-    bad = m.ok & ~good
-    lo, hi = finite_range(m.det[good]) if good.any() else (0.0, 1.0)
+    good, bad, f = dm.good, dm.bad, dm.failed
     sc = ax.scatter(
-        p[good, 0], p[good, 1], p[good, 2], s=diam[good] ** 2, c=m.det[good], cmap=SEQ, vmin=lo, vmax=hi,
-        alpha=0.85, edgecolors="k", linewidths=0.3, label="det K > 0 (diameter ∝ det K)",
+        p[good, 0], p[good, 1], p[good, 2], s=dm.diameters[good] ** 2, c=m.det[good], cmap=SEQ,
+        vmin=dm.lo, vmax=dm.hi, alpha=0.85, edgecolors="k", linewidths=0.3,
+        label="det K > 0 (diameter ∝ det K)",
     )  # fmt: skip
     if bad.any():
         ax.scatter(p[bad, 0], p[bad, 1], p[bad, 2], s=40, marker="x", c=BAD, label="det K ≤ 0 (flagged)")
-    if (~m.ok).any():
-        f = ~m.ok
+    if f.any():
         ax.scatter(
             p[f, 0], p[f, 1], p[f, 2], s=20, marker="D", facecolors="none", edgecolors=FAILED, label="failed"
         )
@@ -209,11 +210,9 @@ def model_scatter(data: ReportData) -> Figure | None:
     axes = fig.subplots(1, 2)
     for ax, q in zip(axes, ("det", "min_principal"), strict=True):
         title, unit = QUANTITIES[q]
-        a, b = getattr(mod, q), np.where(m.ok, getattr(m, q), np.nan)
-        ok = np.isfinite(a) & np.isfinite(b)
-        lo, hi = finite_range(a[ok], b[ok])
-        ax.plot([lo, hi], [lo, hi], "--", color="#888", label="measured = model")
-        sc = ax.scatter(a[ok], b[ok], c=m.positions[ok, 2], cmap="cividis", s=22)
+        mm = model_vs_measured(data, q)
+        ax.plot([mm.lo, mm.hi], [mm.lo, mm.hi], "--", color="#888", label="measured = model")
+        sc = ax.scatter(mm.model, mm.measured, c=m.positions[mm.rows, 2], cmap="cividis", s=22)
         ax.set_xlabel(f"model {title} ({unit})")
         ax.set_ylabel(f"measured {title} ({unit})")
         ax.legend(loc="upper left", fontsize=8)
@@ -224,17 +223,14 @@ def model_scatter(data: ReportData) -> Figure | None:
 
 def truth_figure(data: ReportData) -> Figure | None:
     """Recovered vs true K entries, and the relative Frobenius error per position."""
-    if data.truth is None:
+    te = truth_entries(data)
+    if te is None:
         return None
-    m, t = data.measured, data.truth
-    err = data.truth_error
+    m, err = data.measured, te.error
     fig = Figure(figsize=(12, 4.4), layout="constrained")
     a1, a2 = fig.subplots(1, 2, width_ratios=[0.4, 0.6])
-    ok = m.ok
-    tv, rv, sv = t.K[ok].reshape(-1), m.K[ok].reshape(-1), m.K_std[ok].reshape(-1)
-    diag = np.tile(np.eye(3, dtype=bool).ravel(), ok.sum())
-    lo, hi = finite_range(tv, rv)
-    a1.plot([lo, hi], [lo, hi], "--", color="#888", label="recovered = true")
+    tv, rv, sv, diag = te.true, te.recovered, te.std, te.diagonal
+    a1.plot([te.lo, te.hi], [te.lo, te.hi], "--", color="#888", label="recovered = true")
     for mask, name, col in ((diag, "diagonal", "#1f77b4"), (~diag, "off-diagonal", "#ff7f0e")):
         a1.errorbar(
             tv[mask],
@@ -249,15 +245,15 @@ def truth_figure(data: ReportData) -> Figure | None:
     a1.set_xlabel("true K entry (N/mm)")
     a1.set_ylabel("recovered K entry (N/mm)")
     a1.legend(fontsize=8)
-    colors = np.where([bool(f) for f in m.flags], BAD, "#2ca02c")
+    colors = np.where(te.flagged, BAD, "#2ca02c")
     a2.bar(np.arange(1, m.n + 1), 100 * np.nan_to_num(err, nan=0.0), color=colors)
     a2.set_yscale("log")
     a2.set_xlabel("position")
     a2.set_ylabel("|K − K_true|_F / |K_true|_F (%)")
-    if np.isfinite(err).any():
-        w = int(np.nanargmax(err))
+    if te.worst is not None:
+        w = te.worst
         a2.set_title(f"worst {100 * err[w]:.3g} % at P{w + 1}", fontsize=10)
-    for i in np.flatnonzero(~ok):
+    for i in np.flatnonzero(~m.ok):
         a2.annotate(
             "failed",
             (i + 1, a2.get_ylim()[0]),
@@ -273,20 +269,15 @@ def truth_figure(data: ReportData) -> Figure | None:
 
 def calibration_figure(data: ReportData) -> Figure | None:
     """Per-view RMS reprojection error and corner residuals (px)."""
-    c = data.calibration
-    if c is None:
+    cp = calibration_panels(data)
+    if cp is None:
         return None
-    views = c.camera.get("views") or []
-    r = c.corner_residuals_px
-    if not views and r is None:
-        return None
-    cols = int(bool(views)) + int(r is not None)
-    fig = Figure(figsize=(5.5 * cols, 4.2), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(1, cols))
+    views, r, rms, used = cp.views, cp.residuals, cp.rms, cp.used
+    fig = Figure(figsize=(5.5 * cp.panels, 4.2), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, cp.panels))
     k = 0
     if views:
         ax = axes[k]
-        rms, used = view_rms(views)
         x = np.arange(len(views))
         ax.bar(x[used], rms[used], color="#1f77b4", label="used")
         if (~used).any():
@@ -300,7 +291,7 @@ def calibration_figure(data: ReportData) -> Figure | None:
     if r is not None:
         ax = axes[k]
         ax.plot(r[:, 0], r[:, 1], ".", ms=2, alpha=0.5, color="#444")
-        a = symmetric_range(r) * 1.05
+        a = cp.residual_range * 1.05
         ax.set_xlim(-a, a)
         ax.set_ylim(-a, a)
         ax.set_aspect("equal")
@@ -317,13 +308,13 @@ def sensor_maps(data: ReportData) -> Figure | None:
     if s is None:
         return None
     dirs = s.directions
-    has_model = s.model_error_um is not None or bool(s.maps)
+    has_model = sensor_has_model(data)
     cols = 2 if has_model else 1
     fig = Figure(figsize=(5.2 * cols + 1, 4.4 * len(dirs)), layout="constrained")
     axes = np.atleast_2d(fig.subplots(len(dirs), cols, sharex=True, sharey=True, squeeze=False))
     for r, d in enumerate(dirs):
         sd = sensor_direction(data, d)
-        idx, p, e, model, dense = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense
+        idx, p, e, model, g = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense_grid
         norm = Normalize(sd.lo, sd.hi)
         ok = np.isfinite(e)
         ax = axes[r, 0]
@@ -342,7 +333,6 @@ def sensor_maps(data: ReportData) -> Figure | None:
         ax.set_title(f"measured, load along {d}", fontsize=10)
         if has_model:
             ax = axes[r, 1]
-            g = as_grid(dense.points, dense.error_um) if dense is not None else None
             if g is not None:
                 ax.pcolormesh(g[0], g[1], g[2], cmap=SEQ, norm=norm, shading="nearest")
             elif model is not None and spans_plane(p[np.isfinite(model)]):
