@@ -435,8 +435,13 @@ class LegMechanism:
     A frozen dataclass inherits them. It has a ``singular_tol`` field and provides
     ``name``, ``dim``, ``_LABEL`` (its name in messages), the classmethod
     ``param_names()``, ``legs(points)`` (per-leg vectors with a ``reachable``
-    mask), ``_measures(legs)`` (serial and parallel singularity measures) and
-    ``_map_from_legs(points, legs)`` (the :class:`ModelMap`).
+    mask and unit leg directions ``n``), ``_unreachable_reasons(points, legs)``,
+    ``_measures(legs)`` (serial and parallel singularity measures),
+    ``_leg_stiffness(legs)`` (each leg's stiffness along ``n``, N/mm),
+    ``_joint_coordinates(legs)`` (the map's ``q``), ``_serial_singularity(legs, i)``
+    (what is singular at pose i, in words) and ``_PARALLEL_SINGULARITY`` (the same
+    for a parallel singularity). From these :meth:`_map_from_legs` builds the
+    :class:`ModelMap`.
 
     A third-party robot need not inherit this: :class:`Mechanism` is a protocol,
     and implementing its methods is all stiffmap asks.
@@ -445,6 +450,7 @@ class LegMechanism:
     name: ClassVar[str]
     dim: ClassVar[int]
     _LABEL: ClassVar[str]
+    _PARALLEL_SINGULARITY: ClassVar[str]
     singular_tol: float
 
     def _check_singular_tol(self) -> None:
@@ -468,6 +474,34 @@ class LegMechanism:
                 f"unknown {self._LABEL} parameter(s) {', '.join(bad)}; valid: {', '.join(names)}"
             )
         return replace(self, **params)
+
+    def _map_from_legs(self, points, legs) -> ModelMap:
+        """The :class:`ModelMap` of poses from their legs: reachable, not singular, K = sum of leg springs.
+
+        The conditioning of a pose is the smaller of its two singularity measures
+        (NaN where unreachable).
+        """
+        P, _ = as_points(points, self.dim)
+        reasons = self._unreachable_reasons(P, legs)
+        serial, parallel = self._measures(legs)
+        tol = self.singular_tol
+
+        def serial_reason(i: int) -> str:
+            return (
+                f"{self._serial_singularity(legs, i)} (serial singularity, workspace boundary; "
+                f"sine {serial[i]:.2g} < {tol:g})"
+            )
+
+        def parallel_reason(i: int) -> str:
+            return (
+                f"{self._PARALLEL_SINGULARITY} (parallel singularity; inverse condition "
+                f"{parallel[i]:.2g} < {tol:g})"
+            )
+
+        valid = flag_singular(legs.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
+        K = sum_of_leg_springs(self._leg_stiffness(legs), legs.n, valid)
+        cond = np.where(legs.reachable, np.fmin(serial, parallel), np.nan)
+        return model_map(self.name, self.params(), P, K, valid, reasons, self._joint_coordinates(legs), cond)
 
     def _valid_legs(self, points) -> tuple[Any, bool]:
         """The legs of poses that must all be valid (PoseError naming the first that is not).

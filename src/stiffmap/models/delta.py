@@ -64,13 +64,9 @@ from .base import (
     SINGULAR_TOL,
     IKSolution,
     LegMechanism,
-    ModelMap,
     as_points,
     check_positive,
-    flag_singular,
     inverse_condition,
-    model_map,
-    sum_of_leg_springs,
 )
 
 __all__ = ["DeltaRobot", "DeltaLegs"]
@@ -151,6 +147,7 @@ class DeltaRobot(LegMechanism):
     name = "delta"
     dim = 3
     _LABEL = "Delta"
+    _PARALLEL_SINGULARITY = "forearms nearly coplanar"
 
     _LENGTHS = ("base_radius", "platform_radius", "arm_length", "forearm_length")
     _UNITS = {
@@ -349,28 +346,13 @@ class DeltaRobot(LegMechanism):
             comp = nt * nt / self.k_theta + (nt / self.arm_length) ** 2 / self.k_arm + 1.0 / self.k_forearm
             return 1.0 / comp  # N/mm
 
-    def _map_from_legs(self, points, L: DeltaLegs) -> ModelMap:
-        P, _ = as_points(points, 3)
-        reasons = self._unreachable_reasons(P, L)
-        serial, parallel = self._measures(L)
-        tol = self.singular_tol
+    def _joint_coordinates(self, L: DeltaLegs) -> np.ndarray:
+        """The actuator angles (rad), NaN for a leg that cannot reach."""
+        return L.theta
 
-        def serial_reason(i: int) -> str:
-            k = int(np.argmin(np.abs(np.einsum("ij,ij->i", L.n[i], L.t[i])) / self.arm_length))
-            return (
-                f"arm and forearm of leg {k + 1} aligned (serial singularity, workspace boundary; "
-                f"sine {serial[i]:.2g} < {tol:g})"
-            )
-
-        def parallel_reason(i: int) -> str:
-            return (
-                f"forearms nearly coplanar (parallel singularity; inverse condition {parallel[i]:.2g} "
-                f"< {tol:g})"
-            )
-
-        valid = flag_singular(L.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
-        K = sum_of_leg_springs(self._leg_stiffness(L), L.n, valid)
-        return model_map(self.name, self.params(), P, K, valid, reasons, L.theta, np.fmin(serial, parallel))
+    def _serial_singularity(self, L: DeltaLegs, i: int) -> str:
+        k = int(np.argmin(np.abs(np.einsum("ij,ij->i", L.n[i], L.t[i])) / self.arm_length))
+        return f"arm and forearm of leg {k + 1} aligned"
 
     def describe(self) -> str:
         """One line with the geometry."""

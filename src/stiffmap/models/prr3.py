@@ -54,14 +54,10 @@ from .base import (
     SINGULAR_TOL,
     IKSolution,
     LegMechanism,
-    ModelMap,
     as_forces,
     as_points,
     check_positive,
-    flag_singular,
     inverse_condition,
-    model_map,
-    sum_of_leg_springs,
 )
 
 __all__ = ["PRR3", "PRR3Legs", "K_B_PUBLISHED", "K_J_PUBLISHED"]
@@ -137,6 +133,7 @@ class PRR3(LegMechanism):
     name = "3prr"
     dim = 2
     _LABEL = "3PRR"
+    _PARALLEL_SINGULARITY = "rods nearly parallel"
 
     _UNITS = {"h": "mm", "L": "mm", "area": "mm^2", "E": "MPa", "kj": "N/mm", "kb": "N/mm"}
 
@@ -234,8 +231,7 @@ class PRR3(LegMechanism):
         """
         T, _ = as_points(points, 2)
         lg = self.legs(T)
-        q = np.where(lg.reachable[:, None], lg.l, np.nan)
-        return IKSolution(q, lg.reachable, tuple(self._unreachable_reasons(T, lg)))
+        return IKSolution(self._joint_coordinates(lg), lg.reachable, tuple(self._unreachable_reasons(T, lg)))
 
     def forward_kinematics(self, l) -> np.ndarray:
         """Tool position (mm) from the three slider positions (mm).
@@ -313,33 +309,16 @@ class PRR3(LegMechanism):
         uperp = np.stack([-u[:, 1], u[:, 0]], axis=1)
         a = np.einsum("nij,ij->ni", lg.n, u)
         c = np.einsum("nij,ij->ni", lg.n, uperp)
-        return 1.0 / (a * a / self.kj + c * c / self.kb + self.L / (self.E * self.area))
-
-    def _map_from_legs(self, points, lg: PRR3Legs) -> ModelMap:
-        T, _ = as_points(points, 2)
-        reasons = self._unreachable_reasons(T, lg)
-        serial, parallel = self._measures(lg)
-        tol = self.singular_tol
-
-        def serial_reason(i: int) -> str:
-            k = int(np.argmin(np.einsum("ij,ij->i", lg.n[i], lg.u)))
-            return (
-                f"rod {k + 1} perpendicular to its rail (serial singularity, workspace boundary; "
-                f"sine {serial[i]:.2g} < {tol:g})"
-            )
-
-        def parallel_reason(i: int) -> str:
-            return (
-                f"rods nearly parallel (parallel singularity; inverse condition {parallel[i]:.2g} < {tol:g})"
-            )
-
-        valid = flag_singular(lg.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
         with np.errstate(invalid="ignore"):
-            k_leg = self._leg_stiffness(lg)
-        K = sum_of_leg_springs(k_leg, lg.n, valid)
-        q = np.where(lg.reachable[:, None], lg.l, np.nan)
-        cond = np.where(lg.reachable, np.fmin(serial, parallel), np.nan)
-        return model_map(self.name, self.params(), T, K, valid, reasons, q, cond)
+            return 1.0 / (a * a / self.kj + c * c / self.kb + self.L / (self.E * self.area))
+
+    def _joint_coordinates(self, lg: PRR3Legs) -> np.ndarray:
+        """The slider positions (mm), NaN at unreachable poses."""
+        return np.where(lg.reachable[:, None], lg.l, np.nan)
+
+    def _serial_singularity(self, lg: PRR3Legs, i: int) -> str:
+        k = int(np.argmin(np.einsum("ij,ij->i", lg.n[i], lg.u)))
+        return f"rod {k + 1} perpendicular to its rail"
 
     def truss_displacements(self, point, force) -> np.ndarray:
         """Nodal displacements of the full truss (the study's eqs. 4-6) at one pose.
