@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 from enum import StrEnum
 from pathlib import Path
 
@@ -10,7 +9,7 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
-from ..textfmt import fmt
+from ..textfmt import fmt, fmt_pm
 from .common import EXIT_INPUT, EXIT_PARTIAL, fail, out, print_json, warn
 
 
@@ -18,41 +17,6 @@ class LoadUnit(StrEnum):
     kgf = "kgf"
     N = "N"
     V = "V"
-
-
-def _floats(text: str, what: str) -> tuple[float, ...]:
-    vals = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        try:
-            vals.append(float(part))
-        except ValueError:
-            raise InputError(f"{what}: {part!r} is not a number") from None
-    if len(vals) < 2:
-        raise InputError(f"{what}: give at least two loads, e.g. 0,50,40,30,20,10,0")
-    return tuple(vals)
-
-
-def _step_times(text: str) -> tuple[tuple[float, float], ...]:
-    out_ = []
-    for part in text.split(","):
-        part = part.strip()
-        if not part:
-            continue
-        if ":" in part:
-            a, b = part.split(":", 1)
-        elif "-" in part[1:]:
-            j = part.index("-", 1)
-            a, b = part[:j], part[j + 1 :]
-        else:
-            raise InputError(f"--step-times: {part!r} should look like START-END (s), e.g. 0.5-4.2")
-        try:
-            out_.append((float(a), float(b)))
-        except ValueError:
-            raise InputError(f"--step-times: {part!r} should look like START-END (s)") from None
-    return tuple(out_)
 
 
 def _print_result(r) -> None:
@@ -79,17 +43,17 @@ def _print_result(r) -> None:
     lo, hi = f.stiffness_ci_n_per_mm
     s.add_row(
         "stiffness",
-        f"{fmt(f.stiffness_n_per_mm)} ± {fmt(f.stiffness_std_n_per_mm, 2)} N/mm "
+        f"{fmt_pm(f.stiffness_n_per_mm, f.stiffness_std_n_per_mm)} N/mm "
         f"({100 * f.level:g} % CI {fmt(lo)} to {fmt(hi)})",
     )
     s.add_row(
         "compliance",
-        f"{fmt(1e3 * f.compliance_mm_per_n)} ± {fmt(1e3 * f.compliance_std_mm_per_n, 2)} um/N, "
+        f"{fmt_pm(1e3 * f.compliance_mm_per_n, 1e3 * f.compliance_std_mm_per_n)} um/N, "
         f"intercept {fmt(1e3 * f.intercept_mm, 4)} um, R^2 {f.r2:.6f}",
     )
     s.add_row(
         f"static error at {fmt(r.reference_load_n)} N",
-        f"{fmt(1e3 * r.static_error_mm)} ± {fmt(1e3 * r.static_error_std_mm, 2)} um",
+        f"{fmt_pm(1e3 * r.static_error_mm, 1e3 * r.static_error_std_mm)} um",
     )
     h = r.hysteresis
     s.add_row(
@@ -103,29 +67,6 @@ def _print_result(r) -> None:
     for fl in r.flags[1:]:
         s.add_row("", fl)
     out.print(s)
-
-
-#: SensorConfig fields and the options that set them, for messages about their values.
-_OPTION_OF = {
-    "scale_um_per_v": "--scale-um-per-v",
-    "range_v": "--range-v",
-    "axis_sign": "--axis-sign",
-    "load_n_per_v": "--load-n-per-v",
-    "reference_load_n": "--reference-load-n",
-    "step_times_s": "--step-times",
-    "min_plateau_s": "--min-plateau-s",
-    "window_s": "--window-s",
-    "threshold_sigma": "--threshold-sigma",
-    "load_unit": "--load-unit",
-    "g": "--g",
-}
-
-
-def _option_names(message: str) -> str:
-    """A SensorConfig message in the words of the command line (its options, not its fields)."""
-    for field, opt in _OPTION_OF.items():
-        message = re.sub(rf"(?<![\w-]){field}(?![\w-])", opt, message)
-    return message
 
 
 def sensor(
@@ -198,105 +139,74 @@ def sensor(
     reported (file and time span) and the others go on. Exit status: 0 all recordings analysed,
     1 some failed, 2 none could be analysed (or a bad option).
     """
-    from ..sensors.analysis import SensorConfig
-    from ..sensors.batch import analyse_files, read_measurement_index, static_errors_from_files
-    from ..sensors.recording import parse_channel_map
+    from ..sensors import analyse_batch, config_from_options, read_measurement_index
 
     try:
-        if steps_kgf and steps_n:
-            raise InputError("give either --steps-kgf or --steps-n, not both")
-        steps, unit = (None, "kgf")
-        if steps_kgf:
-            steps, unit = _floats(steps_kgf, "--steps-kgf"), "kgf"
-        elif steps_n:
-            steps, unit = _floats(steps_n, "--steps-n"), "N"
-        cmap = parse_channel_map(channel_map)
-        if load_n_per_v is not None:
-            if load_unit is not None and load_unit.value != "V":
-                raise InputError(
-                    f"--load-n-per-v is the scale of a load channel in volts, but --load-unit is "
-                    f"{load_unit.value}; leave one out"
-                )
-            load_unit = LoadUnit("V")  # a load-cell scale says the load channel is in volts
-        try:
-            cfg = SensorConfig(
-                scale_um_per_v=scale_um_per_v,
-                range_v=range_v,
-                axis_sign=axis_sign,
-                load_unit=None if load_unit is None else load_unit.value,
-                load_n_per_v=load_n_per_v,
-                steps=steps,
-                steps_unit=unit,
-                g=g,
-                reference_load_n=reference_load_n,
-                step_times_s=_step_times(step_times) if step_times else None,
-                window_s=window_s,
-                min_plateau_s=min_plateau_s,
-                threshold_sigma=threshold_sigma,
-                remove_drift=not no_drift,
-                exclude_bad_samples=exclude_bad_samples,
-            )
-        except ValueError as e:
-            raise InputError(_option_names(str(e))) from None
+        cmap, cfg = config_from_options(
+            channel_map,
+            steps_kgf=steps_kgf,
+            steps_n=steps_n,
+            step_times=step_times,
+            load_unit=None if load_unit is None else load_unit.value,
+            load_n_per_v=load_n_per_v,
+            scale_um_per_v=scale_um_per_v,
+            range_v=range_v,
+            axis_sign=axis_sign,
+            g=g,
+            reference_load_n=reference_load_n,
+            window_s=window_s,
+            min_plateau_s=min_plateau_s,
+            threshold_sigma=threshold_sigma,
+            remove_drift=not no_drift,
+            exclude_bad_samples=exclude_bad_samples,
+        )
         if not recordings and index is None:
             raise InputError("give one or more recordings, or --index FILE")
-        entries = read_measurement_index(index) if index is not None else []
+        entries = read_measurement_index(index) if index is not None else None
     except InputError as e:
         raise fail(str(e), EXIT_INPUT) from None
-
-    n_ok = n_bad = 0
-    if recordings:
-        results = analyse_files(recordings, cmap, cfg)
-        objs = []
-        for f, r in zip(recordings, results, strict=True):
-            if isinstance(r, InputError):
-                n_bad += 1
-                objs.append({"file": str(f), "error": str(r)})
-                if not as_json:
-                    warn(f"{r} (skipped)")
-            else:
-                n_ok += 1
-                objs.append(r.to_dict())
-                if not as_json:
-                    _print_result(r)
-        if as_json and index is None:
-            print_json(objs)
-    if index is not None:
-        ses = static_errors_from_files(entries, cmap, cfg)
-        n_ok += int(ses.valid.sum())
-        n_bad += int((~ses.valid).sum())
-        if as_json:
-            print_json(ses.to_rows() if not recordings else {"recordings": objs, "points": ses.to_rows()})
-        else:
-            d = ses.points.shape[1]
-            t = Table(
-                title=f"static error at {fmt(ses.reference_load_n)} N along the load", title_justify="left"
-            )
-            for c in ("x", "y", "z")[:d]:
-                t.add_column(f"{c} (mm)", justify="right")
-            t.add_column("direction")
-            t.add_column("static error (um)", justify="right")
-            t.add_column("stiffness (N/mm)", justify="right")
-            t.add_column("file / error")
-            for i, row in enumerate(ses.to_rows()):
-                u = ses.directions[i]
-                t.add_row(
-                    *(fmt(ses.points[i, j], 5) for j in range(d)),
-                    "(" + ", ".join(fmt(x, 3) for x in u) + ")",
-                    f"{fmt(row['static_error_um'])} ± {fmt(row['static_error_std_um'], 2)}"
-                    if ses.valid[i]
-                    else "-",
-                    fmt(row["stiffness_n_per_mm"]) if ses.valid[i] else "-",
-                    Path(row["file"]).name if ses.valid[i] else ses.reasons[i],
-                )
-            out.print(t)
-            for row in ses.to_rows():
-                for flag in row["flags"]:
-                    warn(f"{row['file']}: {flag}")
-    if n_ok == 0:
+    batch = analyse_batch(recordings or [], entries, cmap, cfg)
+    if as_json:
+        print_json(batch.to_json())
+    else:
+        _print_batch(batch)
+    if batch.n_ok == 0:
         raise typer.Exit(EXIT_INPUT)
-    if n_bad:
+    if batch.n_failed:
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_batch(batch) -> None:
+    """Each recording's tables (or its error as a warning), then the index's static errors."""
+    for r in batch.results:
+        if isinstance(r, InputError):
+            warn(f"{r} (skipped)")
+        else:
+            _print_result(r)
+    ses = batch.static_errors
+    if ses is None:
+        return
+    d = ses.points.shape[1]
+    t = Table(title=f"static error at {fmt(ses.reference_load_n)} N along the load", title_justify="left")
+    for c in ("x", "y", "z")[:d]:
+        t.add_column(f"{c} (mm)", justify="right")
+    t.add_column("direction")
+    t.add_column("static error (um)", justify="right")
+    t.add_column("stiffness (N/mm)", justify="right")
+    t.add_column("file / error")
+    for i, row in enumerate(ses.to_rows()):
+        u = ses.directions[i]
+        t.add_row(
+            *(fmt(ses.points[i, j], 5) for j in range(d)),
+            "(" + ", ".join(fmt(x, 3) for x in u) + ")",
+            fmt_pm(row["static_error_um"], row["static_error_std_um"]) if ses.valid[i] else "-",
+            fmt(row["stiffness_n_per_mm"]) if ses.valid[i] else "-",
+            Path(row["file"]).name if ses.valid[i] else ses.reasons[i],
+        )
+    out.print(t)
+    for row in ses.to_rows():
+        for flag in row["flags"]:
+            warn(f"{row['file']}: {flag}")
 
 
 def register(app: typer.Typer) -> None:

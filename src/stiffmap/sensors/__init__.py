@@ -8,6 +8,9 @@ The sensor path of stiffmap (see ``docs/sensors.md``)::
     [(point, direction, file), ...] --static_errors_from_files--> StaticErrorSet
         (per-point static errors for maps and model fits)
 
+    recordings + index --analyse_batch--> SensorBatch (what ``stiffmap sensor`` prints);
+    its option texts --config_from_options--> (ChannelMap, SensorConfig)
+
 Units inside are N and mm; volts, µm, kgf only at the boundary (``scale_um_per_v``,
 ``load_kgf``, ``static_error_um`` in JSON).
 """
@@ -15,13 +18,16 @@ Units inside are N and mm; volts, µm, kgf only at the boundary (``scale_um_per_
 from .analysis import REFERENCE_LOAD_N, Plateau, SensorConfig, SensorResult, analyse_recording
 from .batch import (
     MeasurementEntry,
+    SensorBatch,
     StaticErrorSet,
+    analyse_batch,
     analyse_files,
     read_measurement_index,
     static_errors_from_files,
 )
 from .fit import Hysteresis, LinearFit, fit_load_displacement
 from .io import read_recording, write_recording
+from .options import config_from_options
 from .plateaus import PlateauDetection, detect_plateaus
 from .recording import ChannelMap, Recording, parse_channel_map
 
@@ -34,11 +40,14 @@ __all__ = [
     "Plateau",
     "PlateauDetection",
     "Recording",
+    "SensorBatch",
     "SensorConfig",
     "SensorResult",
     "StaticErrorSet",
+    "analyse_batch",
     "analyse_files",
     "analyse_recording",
+    "config_from_options",
     "detect_plateaus",
     "fit_load_displacement",
     "parse_channel_map",

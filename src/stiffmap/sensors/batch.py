@@ -12,6 +12,9 @@ and to fit a mechanism model (its :meth:`~StaticErrorSet.observations` are the
 An index CSV lists the entries of a campaign: columns ``x, y[, z]`` (mm), the
 direction as ``direction`` (``x``, ``-y``...) or as ``ux, uy[, uz]``, ``file``
 (relative to the index's folder) and optionally ``axis_sign`` (-1 behind a mirror).
+
+:func:`analyse_batch` does both at once, as ``stiffmap sensor`` does: recordings
+given one by one and the entries of an index.
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ from .recording import ChannelMap
 __all__ = [
     "MeasurementEntry",
     "StaticErrorSet",
+    "SensorBatch",
+    "analyse_batch",
     "analyse_files",
     "static_errors_from_files",
     "read_measurement_index",
@@ -269,6 +274,76 @@ def static_errors_from_files(
         reasons=tuple(reasons),
         results=tuple(results),
     )
+
+
+@dataclass(frozen=True)
+class SensorBatch:
+    """Recordings analysed one by one and, with an index, the static error per point.
+
+    Attributes
+    ----------
+    files : tuple of str
+        The recordings given one by one.
+    results : tuple of SensorResult or InputError
+        The analysis of each; a recording that could not be used gives its error.
+    static_errors : StaticErrorSet or None
+        The index's entries, when an index was given.
+    """
+
+    files: tuple[str, ...]
+    results: tuple[SensorResult | InputError, ...]
+    static_errors: StaticErrorSet | None
+
+    @property
+    def n_ok(self) -> int:
+        """Recordings analysed plus valid index entries."""
+        n = sum(not isinstance(r, InputError) for r in self.results)
+        return n + (int(self.static_errors.valid.sum()) if self.static_errors is not None else 0)
+
+    @property
+    def n_failed(self) -> int:
+        """Recordings that could not be used plus invalid index entries."""
+        n = sum(isinstance(r, InputError) for r in self.results)
+        return n + (int((~self.static_errors.valid).sum()) if self.static_errors is not None else 0)
+
+    def recording_rows(self) -> list[dict]:
+        """One dict per recording: its result (``SensorResult.to_dict``) or its ``file`` and ``error``."""
+        return [
+            {"file": f, "error": str(r)} if isinstance(r, InputError) else r.to_dict()
+            for f, r in zip(self.files, self.results, strict=True)
+        ]
+
+    def to_json(self) -> list[dict] | dict:
+        """The recordings' rows; with an index its rows (``StaticErrorSet.to_rows``), under
+        ``points`` beside ``recordings`` when there are both."""
+        if self.static_errors is None:
+            return self.recording_rows()
+        points = self.static_errors.to_rows()
+        return points if not self.files else {"recordings": self.recording_rows(), "points": points}
+
+
+def analyse_batch(
+    files: Sequence[str | os.PathLike],
+    entries: Iterable | None = None,
+    channel_map: ChannelMap | None = None,
+    config: SensorConfig | None = None,
+) -> SensorBatch:
+    """Analyse recordings one by one (:func:`analyse_files`) and the entries of an index.
+
+    Parameters
+    ----------
+    files : sequence of path-like
+        Recordings analysed one by one (may be empty).
+    entries : iterable of MeasurementEntry, optional
+        An index's entries (:func:`read_measurement_index`): their static errors
+        (:func:`static_errors_from_files`). None: no index.
+    channel_map : ChannelMap, optional
+    config : SensorConfig, optional
+        Shared by all recordings.
+    """
+    results = analyse_files(files, channel_map, config) if files else []
+    ses = static_errors_from_files(entries, channel_map, config) if entries is not None else None
+    return SensorBatch(tuple(str(f) for f in files), tuple(results), ses)
 
 
 def read_measurement_index(path: str | os.PathLike) -> list[MeasurementEntry]:

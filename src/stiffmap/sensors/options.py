@@ -1,0 +1,162 @@
+"""The options of a sensor analysis, as texts, turned into a channel map and a :class:`SensorConfig`.
+
+``stiffmap sensor`` takes the table of applied loads as ``0,50,40,30,20,10,0``
+(kgf or N), plateaus picked by hand as ``0.5-4.2,6-9.5`` (s), the channel map
+as ``displacement=COL,load=COL,...`` and each :class:`SensorConfig` setting on
+its own. :func:`config_from_options` reads them all, in that order, and says
+what is wrong in the words of the command line: errors are
+:class:`~stiffmap.errors.InputError` naming the option (``--step-times``,
+``--window-s``), as :func:`~stiffmap.sensors.recording.parse_channel_map` does.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..errors import InputError
+from .analysis import SensorConfig
+from .recording import ChannelMap, parse_channel_map
+
+__all__ = ["config_from_options", "parse_loads", "parse_step_times", "OPTION_OF"]
+
+#: SensorConfig fields and the options that set them, for messages about their values.
+OPTION_OF = {
+    "scale_um_per_v": "--scale-um-per-v",
+    "range_v": "--range-v",
+    "axis_sign": "--axis-sign",
+    "load_n_per_v": "--load-n-per-v",
+    "reference_load_n": "--reference-load-n",
+    "step_times_s": "--step-times",
+    "min_plateau_s": "--min-plateau-s",
+    "window_s": "--window-s",
+    "threshold_sigma": "--threshold-sigma",
+    "load_unit": "--load-unit",
+    "g": "--g",
+}
+
+
+def _option_names(message: str) -> str:
+    """A SensorConfig message in the words of the command line (its options, not its fields)."""
+    for field, opt in OPTION_OF.items():
+        message = re.sub(rf"(?<![\w-]){field}(?![\w-])", opt, message)
+    return message
+
+
+def parse_loads(text: str, what: str) -> tuple[float, ...]:
+    """A table of loads ``0,50,40,...`` (at least two numbers); ``what`` names the option in errors."""
+    vals = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        try:
+            vals.append(float(part))
+        except ValueError:
+            raise InputError(f"{what}: {part!r} is not a number") from None
+    if len(vals) < 2:
+        raise InputError(f"{what}: give at least two loads, e.g. 0,50,40,30,20,10,0")
+    return tuple(vals)
+
+
+def parse_step_times(text: str) -> tuple[tuple[float, float], ...]:
+    """Plateaus by hand, ``START-END`` (or ``START:END``) in s, comma-separated."""
+    out = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        if ":" in part:
+            a, b = part.split(":", 1)
+        elif "-" in part[1:]:
+            j = part.index("-", 1)
+            a, b = part[:j], part[j + 1 :]
+        else:
+            raise InputError(f"--step-times: {part!r} should look like START-END (s), e.g. 0.5-4.2")
+        try:
+            out.append((float(a), float(b)))
+        except ValueError:
+            raise InputError(f"--step-times: {part!r} should look like START-END (s)") from None
+    return tuple(out)
+
+
+def config_from_options(
+    channel_map: str | None,
+    *,
+    steps_kgf: str | None,
+    steps_n: str | None,
+    step_times: str | None,
+    load_unit: str | None,
+    load_n_per_v: float | None,
+    scale_um_per_v: float,
+    range_v: float,
+    axis_sign: int,
+    g: float,
+    reference_load_n: float,
+    window_s: float,
+    min_plateau_s: float,
+    threshold_sigma: float,
+    remove_drift: bool,
+    exclude_bad_samples: bool,
+) -> tuple[ChannelMap, SensorConfig]:
+    """The channel map and the configuration that ``stiffmap sensor``'s options describe.
+
+    Parameters
+    ----------
+    channel_map : str or None
+        As :func:`~stiffmap.sensors.recording.parse_channel_map`.
+    steps_kgf, steps_n : str or None
+        The table of applied loads (:func:`parse_loads`), in kgf or in N; at most one.
+    step_times : str or None
+        Plateaus by hand (:func:`parse_step_times`).
+    load_unit : {"kgf", "N", "V"} or None
+        With ``load_n_per_v`` (a load-cell scale, N/V) the load channel is in volts:
+        None then means "V", and another unit is an error.
+    scale_um_per_v, range_v, axis_sign, g, reference_load_n : float
+        The :class:`SensorConfig` fields of the same names.
+    window_s, min_plateau_s, threshold_sigma : float
+        The step detector's settings (SensorConfig fields).
+    remove_drift, exclude_bad_samples : bool
+        SensorConfig fields (``remove_drift`` is the opposite of ``--no-drift-removal``).
+
+    Raises
+    ------
+    InputError
+        Naming the option that is wrong (a field named in a SensorConfig message
+        is replaced by its option, see :data:`OPTION_OF`).
+    """
+    if steps_kgf and steps_n:
+        raise InputError("give either --steps-kgf or --steps-n, not both")
+    steps, unit = (None, "kgf")
+    if steps_kgf:
+        steps, unit = parse_loads(steps_kgf, "--steps-kgf"), "kgf"
+    elif steps_n:
+        steps, unit = parse_loads(steps_n, "--steps-n"), "N"
+    cmap = parse_channel_map(channel_map)
+    if load_n_per_v is not None:
+        if load_unit is not None and load_unit != "V":
+            raise InputError(
+                f"--load-n-per-v is the scale of a load channel in volts, but --load-unit is "
+                f"{load_unit}; leave one out"
+            )
+        load_unit = "V"  # a load-cell scale says the load channel is in volts
+    try:
+        cfg = SensorConfig(
+            scale_um_per_v=scale_um_per_v,
+            range_v=range_v,
+            axis_sign=axis_sign,
+            load_unit=load_unit,
+            load_n_per_v=load_n_per_v,
+            steps=steps,
+            steps_unit=unit,
+            g=g,
+            reference_load_n=reference_load_n,
+            step_times_s=parse_step_times(step_times) if step_times else None,
+            window_s=window_s,
+            min_plateau_s=min_plateau_s,
+            threshold_sigma=threshold_sigma,
+            remove_drift=remove_drift,
+            exclude_bad_samples=exclude_bad_samples,
+        )
+    except ValueError as e:
+        raise InputError(_option_names(str(e))) from None
+    return cmap, cfg
