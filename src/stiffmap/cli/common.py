@@ -94,17 +94,15 @@ def float_values(given: dict[str, str], what: str) -> dict[str, float]:
 def position_preset(option: str, text: str, mech: str):
     """Points (ndarray, shape (N, dim), mm) of the position preset ``text`` for mechanism ``mech``.
 
-    None when ``text`` names no preset; InputError when the preset is another mechanism's.
+    None when ``text`` names no preset; InputError when the preset is another mechanism's
+    (see :func:`stiffmap.models.presets.position_preset`).
     """
-    from ..models.presets import POSITION_PRESETS
+    from ..models.presets import position_preset as preset
 
-    key = text.strip().lower()
-    if key not in POSITION_PRESETS:
-        return None
-    owner, fn = POSITION_PRESETS[key]
-    if owner != mech:
-        raise InputError(f"{option} {text}: that preset is for the {owner} model, not {mech}")
-    return fn()
+    try:
+        return preset(text, mech)
+    except ValueError as e:
+        raise InputError(f"{option} {e}") from None
 
 
 def print_summary(title: str, rows: Sequence[tuple[str, str]]) -> None:

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..textfmt import fmt, fmt_pm
-from .common import EXIT_PARTIAL, fail, float_values, out, parse_key_values, position_preset, print_json, warn
+from .common import EXIT_PARTIAL, fail, float_values, out, parse_key_values, print_json, warn
 
 
 class MechanismName(StrEnum):
@@ -20,94 +20,20 @@ class MechanismName(StrEnum):
     prr3 = "3prr"
 
 
-#: Default load of each mechanism when --load-n/--direction are not given: the reference
-#: studies' largest loads (0.5 kg and 50 kgf, with the studies' g = 9.81 m/s^2).
-DEFAULT_LOAD = {"delta": (4.905, "-z"), "3prr": (490.5, "y")}
-#: Parameter fitted when --param-to-fit is not given.
-DEFAULT_FIT = {"delta": ("k_theta",), "3prr": ("kj",)}
+def _from_option(option: str, parse, *args):
+    """``parse(*args)``, with its ValueError as an InputError that starts with ``option``."""
+    try:
+        return parse(*args)
+    except ValueError as e:
+        raise InputError(f"{option} {e}") from None
 
 
 def _build_model(name: str, param_items: list[str]):
     """The mechanism with ``--param NAME=VALUE`` overrides (InputError on bad names or values)."""
-    from ..models import MECHANISMS
+    from ..models.presets import mechanism_from_params
 
-    cls = MECHANISMS[name]
-    given = parse_key_values(param_items, "--param")
-    valid = cls.param_names()
-    bad = sorted(set(given) - set(valid))
-    if bad:
-        raise InputError(
-            f"--param: unknown {name} parameter{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
-            f"valid: {', '.join(valid)}"
-        )
-    values = float_values(given, "--param")
-    try:
-        return cls(**values)
-    except ValueError as e:
-        raise InputError(f"--param: {e}") from None
-
-
-def _direction(text: str, dim: int):
-    import numpy as np
-
-    axes = "xyz"[:dim]
-    t = text.strip().lower()
-    sign = 1.0
-    if t[:1] in "+-" and t[1:] in tuple(axes):
-        sign = -1.0 if t[0] == "-" else 1.0
-        t = t[1:]
-    if t in tuple(axes):
-        u = np.zeros(dim)
-        u[axes.index(t)] = sign
-        return u
-    try:
-        u = np.array([float(v) for v in text.split(",")])
-    except ValueError:
-        u = np.zeros(0)
-    if u.shape != (dim,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
-        names = ", ".join([*axes, *("-" + a for a in axes)])
-        raise InputError(f"--direction {text!r}: expected one of {names} or {dim} comma-separated components")
-    return u / np.linalg.norm(u)
-
-
-def _grid(spec: str, dim: int, mech: str):
-    import numpy as np
-
-    from ..models.presets import POSITION_PRESETS
-
-    preset = position_preset("--grid", spec, mech)
-    if preset is not None:
-        return preset
-    parts = spec.split(",")
-    hint = (
-        f"expected a preset ({', '.join(k for k, v in POSITION_PRESETS.items() if v[0] == mech)}) or "
-        f"{dim} comma-separated axes, each START:STOP:N or a single value in mm "
-        f"(e.g. {'-200:200:5,-200:200:5,-310' if dim == 3 else '200:600:9,20:420:9'})"
-    )
-    if len(parts) != dim:
-        raise InputError(f"--grid {spec!r}: {hint}")
-    axes = []
-    for p in parts:
-        f = p.split(":")
-        try:
-            if len(f) == 1:
-                axes.append(np.array([float(f[0])]))
-            elif len(f) == 3:
-                n = int(f[2])
-                if n < 1 or n > 1_000_000:
-                    raise ValueError
-                axes.append(np.linspace(float(f[0]), float(f[1]), n))
-            else:
-                raise ValueError
-        except ValueError:
-            raise InputError(f"--grid {spec!r}: bad axis {p!r}; {hint}") from None
-        if not np.all(np.isfinite(axes[-1])):
-            raise InputError(f"--grid {spec!r}: axis {p!r} is not finite")
-    mesh = np.meshgrid(*axes[::-1], indexing="ij")
-    pts = np.stack([m.ravel() for m in mesh[::-1]], axis=1)
-    if pts.shape[0] > 1_000_000:
-        raise InputError(f"--grid {spec!r}: {pts.shape[0]} points; at most 1 000 000")
-    return pts
+    values = float_values(parse_key_values(param_items, "--param"), "--param")
+    return _from_option("--param:", mechanism_from_params, name, values)
 
 
 def model(
@@ -147,7 +73,7 @@ def model(
 
     from ..io import atomic_write_text, dumps_json
     from ..models.io import map_csv, map_records, read_points
-    from ..models.presets import POSITION_PRESETS
+    from ..models.presets import DEFAULT_LOAD, default_positions, force_direction, grid_points
 
     mech = mechanism.value
     if as_json and as_csv:
@@ -158,15 +84,15 @@ def model(
     if points is not None:
         P = read_points(points, m.dim)
     elif grid is not None:
-        P = _grid(grid, m.dim, mech)
+        P = _from_option("--grid", grid_points, grid, m.dim, mech)
     else:
-        P = next(fn() for owner, fn in POSITION_PRESETS.values() if owner == mech)
+        P = default_positions(mech)
     mag, dname = DEFAULT_LOAD[mech]
     if load_n is not None:
         if not np.isfinite(load_n):
             raise InputError(f"--load-n must be a finite number of N, got {load_n}")
         mag = load_n
-    u = _direction(direction if direction is not None else dname, m.dim)
+    u = _from_option("--direction", force_direction, direction if direction is not None else dname, m.dim)
     F = mag * u
     mp = m.evaluate(P)
     nbad = len(mp) - mp.n_valid
@@ -261,18 +187,11 @@ def fit(
     residual RMS per pose. Refuses parameters the data cannot determine.
     """
     from ..models.io import fit_measurements_file
+    from ..models.presets import fit_parameter_names
 
     mech = mechanism.value
     m = _build_model(mech, param or [])
-    names = []
-    for item in param_to_fit or list(DEFAULT_FIT[mech]):
-        names.extend(s.strip() for s in item.split(",") if s.strip())
-    valid = m.param_names()
-    bad = [n for n in names if n not in valid]
-    if bad:
-        raise InputError(
-            f"--param-to-fit: unknown {mech} parameter(s) {', '.join(bad)}; valid: {', '.join(valid)}"
-        )
+    names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         f, _ = fit_measurements_file(m, measurements, names, absolute_sigma=absolute_sigma)

@@ -5,7 +5,8 @@
 - :mod:`~stiffmap.models.delta`: :class:`DeltaRobot`, a Delta-type translational robot;
 - :mod:`~stiffmap.models.prr3`: :class:`PRR3`, the redundant planar 3PRR of the
   milling study (truss with flexible prismatic joints);
-- :mod:`~stiffmap.models.presets`: the reference studies' position layouts;
+- :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
+  position layouts, grids and load directions from text;
 - :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors
   (imported on first use: it needs SciPy);
 - :mod:`~stiffmap.models.io`: the files of ``stiffmap model`` and ``stiffmap fit``.
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 from .base import SINGULAR_TOL, IKSolution, Mechanism, ModelMap, PoseError
 from .delta import DeltaRobot
-from .presets import POSITION_PRESETS, paper48, prr3_points22
+from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
 from .prr3 import PRR3
 
 __all__ = [
@@ -37,14 +38,12 @@ __all__ = [
     "fit_static_errors",
 ]
 
-#: Mechanism name (as on the command line) -> class.
-MECHANISMS: dict[str, type] = {"delta": DeltaRobot, "3prr": PRR3}
-
 _LAZY = {"ModelFit", "fit_stiffness", "fit_static_errors"}
 
 
 def __getattr__(name: str):
     if name in _LAZY:
+        # Lazy: models.fit imports SciPy, which `import stiffmap.models` (and `stiffmap model`) do not need.
         from . import fit
 
         return getattr(fit, name)

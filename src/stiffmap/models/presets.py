@@ -1,4 +1,18 @@
-"""Named sets of tool positions: the reference studies' measurement layouts.
+"""The models by name: mechanisms and their defaults, position layouts, grids, load directions.
+
+These turn what a user writes (``stiffmap model 3prr --param kj=600 --grid
+200:600:9,20:420:9 --direction -x``, or the same texts from Python) into the
+library's objects; errors are ``ValueError`` saying what was expected, without
+the option's name (the command line adds it).
+
+- ``MECHANISMS``: mechanism name (``delta``, ``3prr``) -> class;
+  :func:`mechanism_from_params` builds one with parameters checked by name;
+  ``DEFAULT_LOAD`` and ``DEFAULT_FIT`` are each mechanism's default load and
+  fitted parameters (:func:`fit_parameter_names`).
+- :func:`grid_points`: a preset's name or a regular grid ``X0:X1:NX,Y0:Y1:NY[,...]``;
+  :func:`force_direction`: ``x``, ``-z`` or comma-separated components.
+
+Named sets of tool positions, the reference studies' measurement layouts:
 
 - :func:`paper48` (Delta, mm, base frame): the reference vision study's 48
   positions, "three planes at different Z levels -200, -310 and -400; each plane
@@ -29,14 +43,19 @@
 
   Row ``k`` of the array is point number ``k + 1``. Every point is reachable by
   the default geometry, with both singularity measures >= 0.25.
-- ``POSITION_PRESETS``: name -> (mechanism name, function).
+- ``POSITION_PRESETS``: name -> (mechanism name, function); :func:`position_preset`
+  and :func:`default_positions` look them up for a mechanism.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
+
+from .base import Mechanism
+from .delta import DeltaRobot
+from .prr3 import PRR3
 
 __all__ = [
     "paper48",
@@ -44,7 +63,27 @@ __all__ = [
     "PRR3_MIDDLE_LINE",
     "POSITION_PRESETS",
     "preset_points",
+    "position_preset",
+    "default_positions",
+    "grid_points",
+    "MAX_GRID_POINTS",
+    "MECHANISMS",
+    "DEFAULT_LOAD",
+    "DEFAULT_FIT",
+    "mechanism_from_params",
+    "fit_parameter_names",
+    "force_direction",
 ]
+
+#: Mechanism name (as on the command line) -> class.
+MECHANISMS: dict[str, type] = {"delta": DeltaRobot, "3prr": PRR3}
+#: Default load of each mechanism, (magnitude N, direction): the reference studies' largest
+#: loads (0.5 kg and 50 kgf, with the studies' g = 9.81 m/s^2).
+DEFAULT_LOAD: dict[str, tuple[float, str]] = {"delta": (4.905, "-z"), "3prr": (490.5, "y")}
+#: Parameters fitted when none are named.
+DEFAULT_FIT: dict[str, tuple[str, ...]] = {"delta": ("k_theta",), "3prr": ("kj",)}
+#: Most points a grid may hold.
+MAX_GRID_POINTS = 1_000_000
 
 #: Numbers (1-based) of the milling study's points on the workspace's vertical
 #: middle line, in geometric order (top to bottom in the reconstruction): the
@@ -100,3 +139,152 @@ def preset_points(name: str) -> np.ndarray:
     if key not in POSITION_PRESETS:
         raise ValueError(f"unknown position preset {name!r}; valid: {', '.join(POSITION_PRESETS)}")
     return POSITION_PRESETS[key][1]()
+
+
+def position_preset(name: str, mechanism: str) -> np.ndarray | None:
+    """Points of the position preset ``name`` for ``mechanism``; None when ``name`` is no preset.
+
+    Raises
+    ------
+    ValueError
+        When the preset is another mechanism's.
+    """
+    key = name.strip().lower()
+    if key not in POSITION_PRESETS:
+        return None
+    owner, fn = POSITION_PRESETS[key]
+    if owner != mechanism:
+        raise ValueError(f"{name}: that preset is for the {owner} model, not {mechanism}")
+    return fn()
+
+
+def default_positions(mechanism: str) -> np.ndarray:
+    """The first position preset of ``mechanism`` (paper48 for delta, points22 for 3prr)."""
+    return next(fn() for owner, fn in POSITION_PRESETS.values() if owner == mechanism)
+
+
+def grid_points(spec: str, dim: int, mechanism: str) -> np.ndarray:
+    """Positions from a preset's name or a regular grid ``X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]``.
+
+    Parameters
+    ----------
+    spec : str
+        A preset of ``mechanism`` (:data:`POSITION_PRESETS`) or ``dim`` comma-separated
+        axes, each ``START:STOP:N`` (N from 1 to 1 000 000) or a single value, mm.
+    dim : {2, 3}
+    mechanism : str
+
+    Returns
+    -------
+    ndarray, shape (N, dim), mm
+        The grid's points, x varying fastest, then y, then z.
+
+    Raises
+    ------
+    ValueError
+        Naming the spec (as ``'spec': ...``), the bad axis and what is expected, or more
+        than :data:`MAX_GRID_POINTS` points.
+    """
+    preset = position_preset(spec, mechanism)
+    if preset is not None:
+        return preset
+    parts = spec.split(",")
+    hint = (
+        f"expected a preset ({', '.join(k for k, v in POSITION_PRESETS.items() if v[0] == mechanism)}) or "
+        f"{dim} comma-separated axes, each START:STOP:N or a single value in mm "
+        f"(e.g. {'-200:200:5,-200:200:5,-310' if dim == 3 else '200:600:9,20:420:9'})"
+    )
+    if len(parts) != dim:
+        raise ValueError(f"{spec!r}: {hint}")
+    axes = []
+    for p in parts:
+        f = p.split(":")
+        try:
+            if len(f) == 1:
+                axes.append(np.array([float(f[0])]))
+            elif len(f) == 3:
+                n = int(f[2])
+                if n < 1 or n > MAX_GRID_POINTS:
+                    raise ValueError
+                axes.append(np.linspace(float(f[0]), float(f[1]), n))
+            else:
+                raise ValueError
+        except ValueError:
+            raise ValueError(f"{spec!r}: bad axis {p!r}; {hint}") from None
+        if not np.all(np.isfinite(axes[-1])):
+            raise ValueError(f"{spec!r}: axis {p!r} is not finite")
+    mesh = np.meshgrid(*axes[::-1], indexing="ij")
+    pts = np.stack([m.ravel() for m in mesh[::-1]], axis=1)
+    if pts.shape[0] > MAX_GRID_POINTS:
+        raise ValueError(f"{spec!r}: {pts.shape[0]} points; at most 1 000 000")
+    return pts
+
+
+def mechanism_from_params(name: str, params: Mapping[str, float]) -> Mechanism:
+    """The mechanism ``name`` (:data:`MECHANISMS`) with some parameters set.
+
+    Raises
+    ------
+    ValueError
+        Naming unknown parameters and the valid ones, or a bad value.
+    """
+    cls = MECHANISMS[name]
+    valid = cls.param_names()
+    bad = sorted(set(params) - set(valid))
+    if bad:
+        raise ValueError(
+            f"unknown {name} parameter{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
+            f"valid: {', '.join(valid)}"
+        )
+    return cls(**params)
+
+
+def fit_parameter_names(name: str, items: Sequence[str] | None) -> list[str]:
+    """The parameters of mechanism ``name`` to fit: ``items`` (each may be comma-separated), else
+    ``DEFAULT_FIT[name]``.
+
+    Raises
+    ------
+    ValueError
+        Naming unknown parameters and the valid ones.
+    """
+    names: list[str] = []
+    for item in items or list(DEFAULT_FIT[name]):
+        names.extend(s.strip() for s in item.split(",") if s.strip())
+    valid = MECHANISMS[name].param_names()
+    bad = [n for n in names if n not in valid]
+    if bad:
+        raise ValueError(f"unknown {name} parameter(s) {', '.join(bad)}; valid: {', '.join(valid)}")
+    return names
+
+
+def force_direction(text: str, dim: int) -> np.ndarray:
+    """A unit force direction from ``x``, ``-z``... or ``dim`` comma-separated components.
+
+    Returns
+    -------
+    ndarray, shape (dim,)
+
+    Raises
+    ------
+    ValueError
+        As ``'text': expected one of x, y, -x, -y or 2 comma-separated components``.
+    """
+    axes = "xyz"[:dim]
+    t = text.strip().lower()
+    sign = 1.0
+    if t[:1] in "+-" and t[1:] in tuple(axes):
+        sign = -1.0 if t[0] == "-" else 1.0
+        t = t[1:]
+    if t in tuple(axes):
+        u = np.zeros(dim)
+        u[axes.index(t)] = sign
+        return u
+    try:
+        u = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        u = np.zeros(0)
+    if u.shape != (dim,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
+        names = ", ".join([*axes, *("-" + a for a in axes)])
+        raise ValueError(f"{text!r}: expected one of {names} or {dim} comma-separated components")
+    return u / np.linalg.norm(u)
