@@ -116,6 +116,16 @@ def test_external_request_classification() -> None:
     )
     assert r.external_requests == ("https://cdn.example/x.js", "http://h/")
     assert [e.text for e in r.errors] == ["e"]
+    # What `stiffmap report --check` prints and decides from (its JSON "check" object).
+    assert not r.ok
+    assert r.summary() == {
+        "ready": True,
+        "errors": [{"level": "error", "source": "exception", "text": "e"}],
+        "external_requests": ["https://cdn.example/x.js", "http://h/"],
+    }
+    clean = PageCheck("file:///a.html", True, (ConsoleEntry("warning", "w", "console"),), ("file:///a.html",))
+    assert clean.ok and clean.summary() == {"ready": True, "errors": [], "external_requests": []}
+    assert not PageCheck("file:///a.html", False, (), ()).ok
 
 
 def test_page_with_every_position_failed_renders(chromium, tmp_path) -> None:

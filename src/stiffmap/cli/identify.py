@@ -46,7 +46,12 @@ def identify(
     rep = identify_from_files(forces, displacements, method=method.value)
     if as_json:
         print_json(rep.to_dict(str(forces), str(displacements)))
-        return
+    else:
+        _print_identification(rep)
+
+
+def _print_identification(rep) -> None:
+    """K with its standard errors, the indices, the per-load-case table and the flags."""
     f = rep.fit
     idx = f.indices
     m = f.K.shape[0]

@@ -1,4 +1,4 @@
-"""``stiffmap report``: render a report directory from a JSON dump of the report data."""
+"""``stiffmap report``: a report directory from a campaign, a JSON dump of the report data or an example."""
 
 from __future__ import annotations
 
@@ -7,8 +7,6 @@ from pathlib import Path
 import typer
 
 from .common import EXIT_PARTIAL, fail, out, print_json, warn
-
-EXAMPLES = ("vision", "sensor")
 
 
 def report(
@@ -49,69 +47,45 @@ def report(
     residuals, every K with its flags, and static-error maps for sensor
     campaigns. Units: mm, N, N/mm; static error in um; residuals in px.
     """
-    from ..report import load_report_data, write_report
+    from ..report.sources import write_report_from
+    from ..report.writer import report_files
 
     if screenshot is not None and not check:
         raise fail("--screenshot needs --check (the screenshot is taken by the browser check)")
-    if not example and Path(data).is_dir():
-        from ..campaign.spec import SPEC_NAME
-        from ..report.campaign import write_campaign_report
-
-        if not (Path(data) / SPEC_NAME).is_file():
-            raise fail(f"{data}: a directory without {SPEC_NAME}; expected a campaign or a data.json file")
-        index = write_campaign_report(data, out_dir=out_dir, png=png)
-    else:
-        if out_dir is None:
-            raise fail("give OUT_DIR, the directory to write the report to")
-        if example:
-            from ..report import example as ex
-
-            if data not in EXAMPLES:
-                raise fail(f"--example: unknown example {data!r}; expected one of {', '.join(EXAMPLES)}")
-            rd = ex.example_vision() if data == "vision" else ex.example_sensor()
-        else:
-            rd = load_report_data(data)
-        index = write_report(rd, out_dir, png=png)
-    files = sorted(p.name for p in index.parent.iterdir() if p.is_file() and not p.name.startswith("."))
-    result: dict = {"index": str(index), "files": files}
-    code = 0
+    index = write_report_from(data, out_dir, example=example, png=png)
+    result: dict = {"index": str(index), "files": report_files(index)}
+    pc = None
     if check:
-        from ..report.browser import BrowserError, check_page
+        from ..report.browser import BrowserError, check_report
 
         try:
-            pc = check_page(index, screenshot=screenshot is not None, width=width, height=height)
+            pc = check_report(index, screenshot=screenshot, width=width, height=height)
         except BrowserError as e:
             raise fail(f"--check: {e}") from None
-        if screenshot is not None:
-            from ..io import atomic_write_bytes
-
-            atomic_write_bytes(screenshot, pc.screenshot)
-        result["check"] = {
-            "ready": pc.ready,
-            "errors": [{"level": e.level, "source": e.source, "text": e.text} for e in pc.errors],
-            "external_requests": list(pc.external_requests),
-        }
-        if pc.errors or pc.external_requests or not pc.ready:
-            code = EXIT_PARTIAL
+        result["check"] = pc.summary()
     if as_json:
         print_json(result)
     else:
-        out.print(f"report: {index}")
-        out.print(f"files: {', '.join(files)}")
-        if check:
-            c = result["check"]
-            for e in c["errors"]:
-                warn(f"browser {e['source']} {e['level']}: {e['text']}")
-            for u in c["external_requests"]:
-                warn(f"the page requested {u}")
-            if not c["ready"]:
-                warn("the page did not finish rendering its figures")
-            if code == 0:
-                out.print("browser check: rendered, no console error, no network request")
-        if screenshot is not None:
-            out.print(f"screenshot: {screenshot}")
-    if code:
-        raise typer.Exit(code)
+        _print_result(result, screenshot)
+    if pc is not None and not pc.ok:
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_result(result: dict, screenshot: Path | None) -> None:
+    out.print(f"report: {result['index']}")
+    out.print(f"files: {', '.join(result['files'])}")
+    c = result.get("check")
+    if c is not None:
+        for e in c["errors"]:
+            warn(f"browser {e['source']} {e['level']}: {e['text']}")
+        for u in c["external_requests"]:
+            warn(f"the page requested {u}")
+        if not c["ready"]:
+            warn("the page did not finish rendering its figures")
+        if c["ready"] and not c["errors"] and not c["external_requests"]:
+            out.print("browser check: rendered, no console error, no network request")
+    if screenshot is not None:
+        out.print(f"screenshot: {screenshot}")
 
 
 def register(app: typer.Typer) -> None:

@@ -32,7 +32,17 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-__all__ = ["BrowserError", "ConsoleEntry", "PageCheck", "find_chromium", "check_page", "CHROMIUM_FLAGS"]
+from ..io import atomic_write_bytes
+
+__all__ = [
+    "BrowserError",
+    "ConsoleEntry",
+    "PageCheck",
+    "find_chromium",
+    "check_page",
+    "check_report",
+    "CHROMIUM_FLAGS",
+]
 
 #: Flags for a headless run on a machine with no GPU and no network but the loopback.
 CHROMIUM_FLAGS = (
@@ -118,6 +128,19 @@ class PageCheck:
     def external_requests(self) -> tuple[str, ...]:
         """Requests that would leave the machine (anything but file:, data:, blob:, about:)."""
         return tuple(u for u in self.requests if not u.startswith(_LOCAL_SCHEMES))
+
+    @property
+    def ok(self) -> bool:
+        """Rendered, with no console error and no request leaving the machine."""
+        return self.ready and not self.errors and not self.external_requests
+
+    def summary(self) -> dict:
+        """``ready``, the ``errors`` (level, source, text) and the ``external_requests``, as JSON values."""
+        return {
+            "ready": self.ready,
+            "errors": [{"level": e.level, "source": e.source, "text": e.text} for e in self.errors],
+            "external_requests": list(self.external_requests),
+        }
 
 
 def find_chromium() -> str | None:
@@ -448,3 +471,23 @@ def check_page(
             proc.wait(timeout=5)
         log.close()
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def check_report(
+    index: str | os.PathLike,
+    *,
+    screenshot: str | os.PathLike | None = None,
+    width: int = 1280,
+    height: int = 1800,
+) -> PageCheck:
+    """:func:`check_page` of a report's ``index.html``; with ``screenshot``, save the PNG there.
+
+    Raises
+    ------
+    BrowserError
+        As :func:`check_page`.
+    """
+    pc = check_page(index, screenshot=screenshot is not None, width=width, height=height)
+    if screenshot is not None:
+        atomic_write_bytes(screenshot, pc.screenshot)
+    return pc

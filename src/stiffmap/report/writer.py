@@ -10,7 +10,7 @@ from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_text, dumps_json
 from .data import ReportData
 
-__all__ = ["write_report", "load_report_data", "DATA_FILE", "INDEX_FILE"]
+__all__ = ["write_report", "load_report_data", "report_files", "DATA_FILE", "INDEX_FILE"]
 
 INDEX_FILE = "index.html"
 #: The JSON dump of the data (``stiffmap report DATA.json`` re-renders from it).
@@ -77,3 +77,8 @@ def load_report_data(path: str | os.PathLike) -> ReportData:
             f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}", source=src
         ) from None
     return ReportData.from_dict(obj, source=src)
+
+
+def report_files(index: str | os.PathLike) -> list[str]:
+    """Names of the files in the directory of a report's ``index.html`` (hidden ones left out), sorted."""
+    return sorted(p.name for p in Path(index).parent.iterdir() if p.is_file() and not p.name.startswith("."))
