@@ -7,10 +7,20 @@ import warnings
 from enum import StrEnum
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.table import Table
 
 from ..errors import InputError
+from ..io import atomic_write_text, dumps_json
+from ..models.presets import (
+    DEFAULT_LOAD,
+    default_positions,
+    fit_parameter_names,
+    force_direction,
+    grid_points,
+    mechanism_from_params,
+)
 from ..textfmt import fmt, fmt_pm
 from .common import EXIT_PARTIAL, fail, float_values, out, parse_key_values, print_json, warn
 
@@ -30,8 +40,6 @@ def _from_option(option: str, parse, *args):
 
 def _build_model(name: str, param_items: list[str]):
     """The mechanism with ``--param NAME=VALUE`` overrides (InputError on bad names or values)."""
-    from ..models.presets import mechanism_from_params
-
     values = float_values(parse_key_values(param_items, "--param"), "--param")
     return _from_option("--param:", mechanism_from_params, name, values)
 
@@ -69,11 +77,7 @@ def model(
     named with the reason, the others are printed; the exit status is then 1 (2 when no
     point can be evaluated).
     """
-    import numpy as np
-
-    from ..io import atomic_write_text, dumps_json
-    from ..models.io import map_csv, map_records, read_points
-    from ..models.presets import DEFAULT_LOAD, default_positions, force_direction, grid_points
+    from ..models.io import read_points
 
     mech = mechanism.value
     if as_json and as_csv:
@@ -87,28 +91,15 @@ def model(
         P = _from_option("--grid", grid_points, grid, m.dim, mech)
     else:
         P = default_positions(mech)
-    mag, dname = DEFAULT_LOAD[mech]
-    if load_n is not None:
-        if not np.isfinite(load_n):
-            raise InputError(f"--load-n must be a finite number of N, got {load_n}")
-        mag = load_n
-    u = _from_option("--direction", force_direction, direction if direction is not None else dname, m.dim)
-    F = mag * u
+    F = _force(mech, m.dim, load_n, direction)
     mp = m.evaluate(P)
-    nbad = len(mp) - mp.n_valid
     if as_json or as_csv:
-        text = dumps_json(map_records(mp, F)) + "\n" if as_json else map_csv(mp, F)
-        if output is not None:
-            atomic_write_text(output, text)
-        elif as_json:
-            print_json(map_records(mp, F))
-        else:
-            sys.stdout.write(text)
-            sys.stdout.flush()
+        _write_map(mp, F, as_json, output)
+    elif output is not None:
+        raise InputError("--output needs --json or --csv")
     else:
-        if output is not None:
-            raise InputError("--output needs --json or --csv")
         _print_map(m, mp, F)
+    nbad = len(mp) - mp.n_valid
     if nbad == len(mp):
         raise fail(f"none of the {len(mp)} point(s) can be evaluated by the {mech} model (see 'error')")
     if nbad:
@@ -116,9 +107,33 @@ def model(
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _print_map(m, mp, F) -> None:
-    import numpy as np
+def _force(mech: str, dim: int, load_n: float | None, direction: str | None) -> np.ndarray:
+    """The force (N) of ``--load-n`` along ``--direction``, each defaulting to the mechanism's."""
+    mag, dname = DEFAULT_LOAD[mech]
+    if load_n is not None:
+        if not np.isfinite(load_n):
+            raise InputError(f"--load-n must be a finite number of N, got {load_n}")
+        mag = load_n
+    return mag * _from_option(
+        "--direction", force_direction, direction if direction is not None else dname, dim
+    )
 
+
+def _write_map(mp, F: np.ndarray, as_json: bool, output: Path | None) -> None:
+    """The map as JSON or CSV, on stdout or into ``output``."""
+    from ..models.io import map_csv, map_records
+
+    text = dumps_json(map_records(mp, F)) + "\n" if as_json else map_csv(mp, F)
+    if output is not None:
+        atomic_write_text(output, text)
+    elif as_json:
+        print_json(map_records(mp, F))
+    else:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+
+
+def _print_map(m, mp, F) -> None:
     dim = m.dim
     ax = "xyz"[:dim]
     out.print(m.describe())
@@ -187,7 +202,6 @@ def fit(
     residual RMS per pose. Refuses parameters the data cannot determine.
     """
     from ..models.io import fit_measurements_file
-    from ..models.presets import fit_parameter_names
 
     mech = mechanism.value
     m = _build_model(mech, param or [])
@@ -198,10 +212,13 @@ def fit(
     for w in caught:
         warn(str(w.message))
     if as_json:
-        d = f.to_dict()
-        d["file"] = str(measurements)
-        print_json(d)
-        return
+        print_json({**f.to_dict(), "file": str(measurements)})
+    else:
+        _print_fit(f, mech, measurements, m.dim)
+
+
+def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
+    """The estimates, the fit's quality and the residual RMS per pose; its notes as warnings."""
     unit = "mm" if f.kind == "static_error" else "N/mm"
     what = "static-error readings" if f.kind == "static_error" else "stiffness entries"
     out.print(f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}")
@@ -219,7 +236,7 @@ def fit(
                 s.add_row(f"corr({f.names[a]}, {f.names[b]})", fmt(f.correlation[a, b], 3))
     out.print(s)
     r = Table(title=f"residual RMS per pose ({unit})")
-    for a in "xyz"[: m.dim]:
+    for a in "xyz"[:dim]:
         r.add_column(f"{a} (mm)", justify="right")
     r.add_column("RMS", justify="right")
     for p, v in zip(f.poses, f.residual_rms_per_pose, strict=True):
