@@ -1,30 +1,121 @@
-"""Entry point of the ``stiffmap`` command."""
+"""Entry point of the ``stiffmap`` command.
+
+Each command lives in a module of :mod:`stiffmap.cli` that defines ``register(app)``.
+The modules are imported only when their command runs (the one lazy import of the CLI,
+in :meth:`_LazyCommands.resolve_command`): a command module imports the library layers it
+needs at its top (OpenCV, SciPy, matplotlib... about 2 s for all of them), and neither
+``stiffmap --help`` nor one command should pay for every other command's imports. The
+command list below gives each command's module and one-line summary for the help page;
+``tests/test_cli_main.py`` checks that each summary is its command's docstring.
+"""
 
 from __future__ import annotations
 
 import importlib
 import inspect
 import sys
+from typing import NamedTuple
 
+import click
 import typer
 from rich.markup import escape
+from typer.core import TyperGroup
 from typer.models import ParameterInfo
 
 from .. import __version__
 from ..errors import InputError
 from .common import EXIT_INPUT, fail
 
+
+class CommandEntry(NamedTuple):
+    """Where a command is defined and what ``stiffmap --help`` says of it."""
+
+    module: str
+    summary: str
+
+
+#: Every command, in the order of ``stiffmap --help``: its module and summary.
+COMMANDS: dict[str, CommandEntry] = {
+    "identify": CommandEntry(
+        "identify", "Identify the stiffness matrix K (N/mm) from load cases, with standard errors and checks."
+    ),
+    "calibrate": CommandEntry(
+        "vision",
+        "Calibrate a camera from images of a board (Zhang's method): intrinsics, distortion, 1-sigma.",
+    ),
+    "pose": CommandEntry(
+        "vision", "Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS."
+    ),
+    "displacement": CommandEntry(
+        "vision", "Displacement of the target in each image relative to the reference image(s)."
+    ),
+    "validate": CommandEntry(
+        "vision", "Validate against known stage displacements: measured vs nominal, mean +/- std per step."
+    ),
+    "model": CommandEntry(
+        "model", "A model's stiffness K (N/mm) and static error u = K^-1 F (mm) at each position."
+    ),
+    "fit": CommandEntry(
+        "model", "Fit model parameters to measured static errors or stiffness matrices (least squares)."
+    ),
+    "sensor": CommandEntry(
+        "sensor", "Plateaus, load-displacement fit, stiffness and static error of stepped-load recordings."
+    ),
+    "simulate": CommandEntry(
+        "simulate", "Simulate a vision campaign of a robot with known stiffness, seen by a known camera."
+    ),
+    "init": CommandEntry("campaign", "Write a commented example campaign.toml to start a campaign from."),
+    "run": CommandEntry(
+        "campaign",
+        "Measure, identify, fit and export a campaign (resumable: a re-run does only what changed).",
+    ),
+    "report": CommandEntry("report", "Write a self-contained HTML report (works offline) and PNG figures."),
+    "demo": CommandEntry("demo", "Simulate the reference experiment and measure it with the whole chain."),
+}
+
+_TYPER_SETTINGS = dict(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode="rich")
+
+
+class _CommandStub(click.Command):
+    """A command not loaded yet: its name and summary, enough for the help page."""
+
+
+def load_commands(module: str) -> list[click.Command]:
+    """Import ``stiffmap.cli.<module>`` and return its commands as click commands."""
+    sub = typer.Typer(**_TYPER_SETTINGS)
+    importlib.import_module(f"{__package__}.{module}").register(sub)
+    _literal_brackets(sub)
+    return [
+        typer.main.get_command_from_info(info, pretty_exceptions_short=True, rich_markup_mode="rich")
+        for info in sub.registered_commands
+    ]
+
+
+class _LazyCommands(TyperGroup):
+    """The top-level group: every command listed from :data:`COMMANDS`, loaded when run."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        for name, entry in COMMANDS.items():
+            self.commands[name] = _CommandStub(name, help=escape(entry.summary))
+
+    def resolve_command(self, ctx: click.Context, args: list[str]):
+        if args and isinstance(self.commands.get(args[0]), _CommandStub):
+            for cmd in load_commands(COMMANDS[args[0]].module):
+                self.commands[cmd.name] = cmd
+        return super().resolve_command(ctx, args)
+
+
 app = typer.Typer(
     name="stiffmap",
+    cls=_LazyCommands,
     help=(
         "Measure, model and map the stiffness and static positioning error of robots.\n\n"
         "Units inside stiffmap are N, mm, MPa and rad; options that take other units say so "
         "in their name (--square-mm, --scale-um-per-v). See docs/ for the conventions."
     ),
     no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    rich_markup_mode="rich",
+    **_TYPER_SETTINGS,
 )
 
 
@@ -41,22 +132,6 @@ def _main(
     ),
 ) -> None:
     """stiffmap: stiffness and static-error measurement, models and maps."""
-
-
-#: Command modules; each defines ``register(app)``.
-_COMMAND_MODULES = (
-    "identify",
-    "vision",
-    "model",
-    "sensor",
-    "simulate",
-    "campaign",
-    "report",
-    "demo",
-)
-
-for _name in _COMMAND_MODULES:
-    importlib.import_module(f"{__package__}.{_name}").register(app)
 
 
 def _literal_brackets(app: typer.Typer) -> None:
@@ -78,9 +153,6 @@ def _literal_brackets(app: typer.Typer) -> None:
             d = prm.default
             if isinstance(d, ParameterInfo) and isinstance(d.help, str):
                 d.help = escape(d.help)
-
-
-_literal_brackets(app)
 
 
 def run() -> None:

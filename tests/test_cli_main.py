@@ -1,0 +1,48 @@
+"""The command table of ``stiffmap.cli.main``: lazy loading that stays true to the commands."""
+
+from __future__ import annotations
+
+import inspect
+import subprocess
+import sys
+
+import pytest
+
+from stiffmap.cli import main
+
+
+@pytest.mark.parametrize("name", sorted(main.COMMANDS))
+def test_summary_is_the_command_docstring(name):
+    """The help page's summary of each command is the first paragraph of its docstring."""
+    entry = main.COMMANDS[name]
+    commands = {c.name: c for c in main.load_commands(entry.module)}
+    assert name in commands, f"stiffmap.cli.{entry.module} does not define {name!r}"
+    first = inspect.cleandoc(commands[name].help).split("\n\n")[0]
+    assert first.replace("\\[", "[") == entry.summary
+
+
+def test_every_registered_command_is_listed():
+    """No command module registers a command the table does not list."""
+    modules = {e.module for e in main.COMMANDS.values()}
+    names = {c.name for m in modules for c in main.load_commands(m)}
+    assert names == set(main.COMMANDS)
+
+
+def test_help_loads_no_command_module():
+    """``stiffmap --help`` lists every command without importing a command module or a heavy library."""
+    code = (
+        "import sys\n"
+        "from stiffmap.cli.main import app\n"
+        "try:\n"
+        "    app(['--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = [m for m in ('cv2', 'scipy', 'matplotlib', 'plotly', 'stiffmap.cli.vision',\n"
+        "         'stiffmap.cli.campaign') if m in sys.modules]\n"
+        "print('HEAVY', heavy)\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "HEAVY []" in proc.stdout
+    for name in main.COMMANDS:
+        assert name in proc.stdout
