@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
+from ..campaign.identify_files import identify_from_files
 from ..textfmt import fmt, fmt_pm
 from .common import out, print_json, warn
 
@@ -41,8 +42,6 @@ def identify(
     condition numbers and physical flags (asymmetry, not positive definite, det <= 0).
     In --json, "condition" is the condition number of the load design and "K_condition" that of K.
     """
-    from ..campaign.identify_files import identify_from_files
-
     rep = identify_from_files(forces, displacements, method=method.value)
     if as_json:
         print_json(rep.to_dict(str(forces), str(displacements)))

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
+from ..models.io import fit_measurements_file, map_csv, map_records, read_points
 from ..models.presets import (
     DEFAULT_LOAD,
     default_positions,
@@ -77,8 +78,6 @@ def model(
     named with the reason, the others are printed; the exit status is then 1 (2 when no
     point can be evaluated).
     """
-    from ..models.io import read_points
-
     mech = mechanism.value
     if as_json and as_csv:
         raise InputError("--json and --csv are exclusive")
@@ -121,8 +120,6 @@ def _force(mech: str, dim: int, load_n: float | None, direction: str | None) -> 
 
 def _write_map(mp, F: np.ndarray, as_json: bool, output: Path | None) -> None:
     """The map as JSON or CSV, on stdout or into ``output``."""
-    from ..models.io import map_csv, map_records
-
     text = dumps_json(map_records(mp, F)) + "\n" if as_json else map_csv(mp, F)
     if output is not None:
         atomic_write_text(output, text)
@@ -201,8 +198,6 @@ def fit(
     Prints each estimate with its standard error, the fit's condition, chi-square and the
     residual RMS per pose. Refuses parameters the data cannot determine.
     """
-    from ..models.io import fit_measurements_file
-
     mech = mechanism.value
     m = _build_model(mech, param or [])
     names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit)

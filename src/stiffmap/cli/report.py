@@ -6,6 +6,9 @@ from pathlib import Path
 
 import typer
 
+from ..report.browser import BrowserError, check_report
+from ..report.sources import write_report_from
+from ..report.writer import report_files
 from .common import EXIT_PARTIAL, fail, out, print_json, warn
 
 
@@ -47,17 +50,12 @@ def report(
     residuals, every K with its flags, and static-error maps for sensor
     campaigns. Units: mm, N, N/mm; static error in um; residuals in px.
     """
-    from ..report.sources import write_report_from
-    from ..report.writer import report_files
-
     if screenshot is not None and not check:
         raise fail("--screenshot needs --check (the screenshot is taken by the browser check)")
     index = write_report_from(data, out_dir, example=example, png=png)
     result: dict = {"index": str(index), "files": report_files(index)}
     pc = None
     if check:
-        from ..report.browser import BrowserError, check_report
-
         try:
             pc = check_report(index, screenshot=screenshot, width=width, height=height)
         except BrowserError as e:

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
+from ..sensors import analyse_batch, config_from_options, read_measurement_index
 from ..textfmt import fmt, fmt_pm
 from .common import EXIT_INPUT, EXIT_PARTIAL, fail, out, print_json, warn
 
@@ -139,8 +140,6 @@ def sensor(
     reported (file and time span) and the others go on. Exit status: 0 all recordings analysed,
     1 some failed, 2 none could be analysed (or a bad option).
     """
-    from ..sensors import analyse_batch, config_from_options, read_measurement_index
-
     try:
         cmap, cfg = config_from_options(
             channel_map,

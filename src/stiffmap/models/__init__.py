@@ -7,8 +7,7 @@
   milling study (truss with flexible prismatic joints);
 - :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
   position layouts, grids and load directions from text;
-- :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors
-  (imported on first use: it needs SciPy);
+- :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors;
 - :mod:`~stiffmap.models.io`: the files of ``stiffmap model`` and ``stiffmap fit``.
 
 See ``docs/models.md``.
@@ -18,6 +17,7 @@ from __future__ import annotations
 
 from .base import SINGULAR_TOL, IKSolution, Mechanism, ModelMap, PoseError
 from .delta import DeltaRobot
+from .fit import ModelFit, fit_static_errors, fit_stiffness
 from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
 from .prr3 import PRR3
 
@@ -37,14 +37,3 @@ __all__ = [
     "fit_stiffness",
     "fit_static_errors",
 ]
-
-_LAZY = {"ModelFit", "fit_stiffness", "fit_static_errors"}
-
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        # Lazy: models.fit imports SciPy, which `import stiffmap.models` (and `stiffmap model`) do not need.
-        from . import fit
-
-        return getattr(fit, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
