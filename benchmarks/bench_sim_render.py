@@ -26,6 +26,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from _table import write  # noqa: E402
 
+from stiffmap import camera as C  # noqa: E402
 from stiffmap.camera import reference_camera  # noqa: E402
 from stiffmap.geometry import transform_from  # noqa: E402
 from stiffmap.sim import render as R  # noqa: E402
@@ -83,7 +84,7 @@ def main() -> None:
     cam = reference_camera()
 
     # Cold start: the per-camera ray spline is built by the first image.
-    R._RAYMAPS.clear()
+    C._RAY_CACHE.clear()
     R._VIGNETTES.clear()
     first = next(iter(_scenes()))[1]
     t0 = time.perf_counter()

@@ -24,8 +24,8 @@ Photometry (:class:`Photometry`) then turns the reflectance image into an
 defocus, shot and read noise from a seeded generator, rounding.
 
 The undistorted rays of the pixel grid are the same for every image of a
-camera; they are interpolated from a cached bicubic spline of the exact rays
-on a 16-px grid (interpolation error below 1e-7 px for the reference camera).
+camera; they come from the camera's ray cache (:func:`stiffmap.camera.pixel_rays`,
+shared with the photometric pose refinement).
 """
 
 from __future__ import annotations
@@ -35,9 +35,8 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.interpolate import RectBivariateSpline
 
-from ..camera import CameraModel
+from ..camera import CameraModel, pixel_rays
 from ..geometry import as_transform
 from ..targets import CharucoBoard, Chessboard
 from .texture import BoardTexture, texture_from_board
@@ -227,46 +226,6 @@ class Rendering:
 
     image: np.ndarray
     targets: tuple[TargetTruth, ...] = field(default_factory=tuple)
-
-
-# --------------------------------------------------------------- ray cache
-
-_RAY_GRID_PX = 16
-_RAY_PAD_PX = 48
-_RAYMAPS: OrderedDict = OrderedDict()
-
-
-class _RayMap:
-    """Bicubic splines of the undistorted ray (x/z, y/z) over the pixel grid of a camera."""
-
-    def __init__(self, camera: CameraModel) -> None:
-        w, h = camera.image_size
-        g, pad = _RAY_GRID_PX, _RAY_PAD_PX
-        us = np.arange(-pad, w - 1 + pad + g, g, dtype=np.float64)
-        vs = np.arange(-pad, h - 1 + pad + g, g, dtype=np.float64)
-        U, V = np.meshgrid(us, vs)
-        rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
-        self.sx = RectBivariateSpline(vs, us, rays[..., 0], kx=3, ky=3, s=0)
-        self.sy = RectBivariateSpline(vs, us, rays[..., 1], kx=3, ky=3, s=0)
-
-    def block(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rays (x/z, y/z) on the grid rows x cols, each of shape (len(rows), len(cols))."""
-        return self.sx(rows, cols), self.sy(rows, cols)
-
-
-def _camera_key(camera: CameraModel):
-    return (camera.image_size, camera.fx, camera.fy, camera.cx, camera.cy, camera.dist)
-
-
-def _raymap(camera: CameraModel) -> _RayMap:
-    key = _camera_key(camera)
-    rm = _RAYMAPS.get(key)
-    if rm is None:
-        rm = _RayMap(camera)
-        _RAYMAPS[key] = rm
-        while len(_RAYMAPS) > 4:
-            _RAYMAPS.popitem(last=False)
-    return rm
 
 
 # ----------------------------------------------------------- coverage maths
@@ -558,7 +517,7 @@ def render_reflectance(
         img = np.array(background, dtype=np.float64)
         if img.shape != shape:
             raise ValueError(f"background must have shape {shape}, got {img.shape}")
-    rm = _raymap(camera)
+    rm = pixel_rays(camera)
     # Painter's order: the farthest target first.
     order = sorted(targets, key=lambda tg: -float(np.linalg.norm(tg.board2cam[:3, 3])))
     for tg in order:
@@ -602,7 +561,7 @@ _VIGNETTES: OrderedDict = OrderedDict()
 
 
 def _cos4(camera: CameraModel) -> np.ndarray:
-    key = _camera_key(camera)
+    key = camera.key
     v = _VIGNETTES.get(key)
     if v is None:
         w, h = camera.image_size

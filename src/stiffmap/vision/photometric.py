@@ -8,7 +8,7 @@ chessboard to every pixel near the board's edges (``docs/vision.md``,
 sight on the virtual test-bed's realistic renders.
 
 Model. Each pixel centre p has a ray (x/z, y/z) (the lens distortion inverted,
-cached per camera: it does not depend on the pose). With the board plane's
+from the camera's ray cache: it does not depend on the pose). With the board plane's
 homography H = [r1, r2, t] (``board2cam`` = [R | t]), the ray meets the board
 at w = H^-1 (x/z, y/z, 1), (X, Y) = (w0 / w2, w1 / w2) mm. The printed
 pattern is, with the square waves Sx = (-1)^floor(X / s) and Sy likewise and
@@ -62,15 +62,13 @@ ChArUco boards (markers in the white squares) are not modelled.
 from __future__ import annotations
 
 import time
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.interpolate import RectBivariateSpline
 from scipy.special import ndtr
 
-from ..camera import CameraModel
+from ..camera import CameraModel, pixel_rays
 from ..errors import InputError
 from ..targets import CharucoBoard, Chessboard
 
@@ -157,58 +155,6 @@ class PhotometricFit:
     iterations: int
     converged: bool
     seconds: float
-
-
-# ------------------------------------------------------------------ ray cache
-
-_RAY_STEP_PX = 16
-_RAY_PAD_PX = 64
-_RAYS: OrderedDict = OrderedDict()
-
-
-class _RayMap:
-    """Undistorted rays (x/z, y/z) of every pixel centre of a camera.
-
-    Stored as the pinhole rays ((u - cx) / fx, (v - cy) / fy) plus a float32
-    correction map (the inverted lens distortion, a few percent of the ray, so
-    float32 keeps it to ~1e-9), built once from bicubic splines of the exact rays
-    on a 16-px grid (interpolation error ~1e-8 px).
-    """
-
-    def __init__(self, camera: CameraModel) -> None:
-        w, h = camera.image_size
-        us = np.arange(-_RAY_PAD_PX, w + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
-        vs = np.arange(-_RAY_PAD_PX, h + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
-        U, V = np.meshgrid(us, vs)
-        rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
-        self.px = (np.arange(w, dtype=np.float64) - camera.cx) / camera.fx
-        self.py = (np.arange(h, dtype=np.float64) - camera.cy) / camera.fy
-        self.px32 = self.px.astype(np.float32)
-        self.py32 = self.py.astype(np.float32)
-        corr_x = rays[..., 0] - (U - camera.cx) / camera.fx
-        corr_y = rays[..., 1] - (V - camera.cy) / camera.fy
-        sx = RectBivariateSpline(vs, us, corr_x, kx=3, ky=3, s=0)
-        sy = RectBivariateSpline(vs, us, corr_y, kx=3, ky=3, s=0)
-        cols = np.arange(w, dtype=np.float64)
-        self.cx = np.empty((h, w), dtype=np.float32)
-        self.cy = np.empty((h, w), dtype=np.float32)
-        for r in range(0, h, 256):
-            rows = np.arange(r, min(r + 256, h), dtype=np.float64)
-            self.cx[r : r + rows.size] = sx(rows, cols)
-            self.cy[r : r + rows.size] = sy(rows, cols)
-
-
-def _raymap(camera: CameraModel) -> _RayMap:
-    key = (camera.image_size, camera.fx, camera.fy, camera.cx, camera.cy, camera.dist)
-    rm = _RAYS.get(key)
-    if rm is None:
-        rm = _RayMap(camera)
-        _RAYS[key] = rm
-        while len(_RAYS) > 2:
-            _RAYS.popitem(last=False)
-    else:
-        _RAYS.move_to_end(key)
-    return rm
 
 
 # ------------------------------------------------------------------ pixel set
@@ -451,11 +397,12 @@ def prepare_pixels(
     r1 = min(int(np.ceil(uv[:, 1].max())) + 1, h - 1)
     if c1 - c0 < 8 or r1 - r0 < 8:
         raise PhotometricError("the board is outside the image")
-    rm = _raymap(camera)
+    rm = pixel_rays(camera)
+    corr_x, corr_y = rm.correction_maps
     Hi = _homography_inverse(T)
     h32 = Hi.astype(np.float32)
 
-    cxf, cyf = rm.cx.ravel(), rm.cy.ravel()
+    cxf, cyf = corr_x.ravel(), corr_y.ravel()
 
     def plane(u_i, v_i):
         """Board (X, Y) in float32 (1e-4 px is plenty to choose pixels) and w2 of pixels (u, v)."""
@@ -567,8 +514,8 @@ def prepare_pixels(
     L = 0.5 * max(c1 - c0, r1 - r0, 2)
     return PhotometricSetup(
         board=board,
-        rx=rm.px[ui] + rm.cx[vi, ui],
-        ry=rm.py[vi] + rm.cy[vi, ui],
+        rx=rm.px[ui] + corr_x[vi, ui],
+        ry=rm.py[vi] + corr_y[vi, ui],
         u=u,
         v=v,
         values=vals[idx].astype(np.float64),
