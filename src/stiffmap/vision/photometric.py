@@ -71,6 +71,7 @@ from scipy.special import ndtr
 from ..camera import CameraModel, pixel_rays
 from ..errors import InputError
 from ..targets import CharucoBoard, Chessboard
+from .images import check_image
 
 __all__ = [
     "PhotometricFit",
@@ -290,15 +291,6 @@ def _black_side(k: np.ndarray, j: np.ndarray, n: int, m: int) -> np.ndarray:
     return left.astype(np.float64) - right.astype(np.float64)
 
 
-def _check_image(image) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    if img.ndim != 2 or img.dtype not in (np.uint8, np.uint16) or img.size == 0:
-        raise ValueError(f"image must be a grey uint8 (or uint16) array (h, w), got {img.dtype} {img.shape}")
-    return img
-
-
 def _check_pose(board2cam) -> np.ndarray:
     T = np.array(board2cam, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
@@ -365,7 +357,7 @@ def prepare_pixels(
     PhotometricError
         The board is (mostly) outside the image or too few pixels are usable.
     """
-    img = _check_image(image)
+    img = check_image(image, uint16=True)
     T = _check_pose(board2cam)
     if not isinstance(board, Chessboard):
         raise ValueError(f"the photometric model is for chessboards, got {type(board).__name__}")
@@ -940,7 +932,7 @@ def refine_pose_photometric(
     if not (np.isfinite(blur_init_px) and blur_init_px > 0):
         raise ValueError(f"blur_init_px must be positive, got {blur_init_px}")
     T0 = _check_pose(board2cam_init)
-    img = _check_image(image)
+    img = check_image(image, uint16=True)
 
     def fail(msg: str) -> PhotometricError:
         return PhotometricError(f"{board.size} chessboard: photometric fit: {msg}", source=source)

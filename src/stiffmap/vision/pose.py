@@ -32,7 +32,7 @@ import numpy as np
 
 from ..camera import CameraModel, _dist12, _distort
 from ..targets import Chessboard
-from .detect import Board, BoardDetection, DetectionError, _grid_of, board_label
+from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
 
 __all__ = [
     "BoardPose",
@@ -286,7 +286,7 @@ def _corner_pose(
     source: str | None,
 ) -> BoardPose:
     """The corner-based pose (reprojection fit), see :func:`estimate_pose`."""
-    if _grid_of(detection.board) != _grid_of(board):
+    if grid_of(detection.board) != grid_of(board):
         raise ValueError(
             f"detection is of a {board_label(detection.board)}, "
             f"but the pose was asked for a {board_label(board)}"
