@@ -21,6 +21,7 @@ from _vision_helpers import CALIB_DIR, look_at_pose, small_camera
 
 from stiffmap.camera import reference_camera, save_camera
 from stiffmap.geometry import rotvec_from_matrix
+from stiffmap.posemath import perturb_pose
 from stiffmap.sim.render import Photometry, Target, render, true_corners
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import (
@@ -34,7 +35,6 @@ from stiffmap.vision import (
 from stiffmap.vision.board_plane import detection_mask
 from stiffmap.vision.photometric import (
     PhotometricError,
-    _apply,
     model_and_jacobian,
     prepare_pixels,
     refine_pose_photometric,
@@ -87,7 +87,7 @@ def test_jacobian_matches_central_differences(tilt):
     def f(p):
         return model_and_jacobian(
             setup,
-            _apply(T, p[:6]),
+            perturb_pose(T, p[:6]),
             sig + p[6:9],
             dil + p[9:12],
             a + p[12:18],

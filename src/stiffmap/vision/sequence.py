@@ -21,10 +21,11 @@ import numpy as np
 from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform, invert_transform
+from ..posemath import BoardPose, skew
 from .board_plane import detection_mask
 from .detect import Board, BoardDetection, detect_boards
 from .images import check_image_size, read_image
-from .pose import BoardPose, _skew, check_refine, estimate_pose
+from .pose import check_refine, estimate_pose
 
 __all__ = ["ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
 
@@ -132,7 +133,7 @@ def mobile2base_from_poses(mobile2cam, cov_mobile, fixed2cam, cov_fixed, fixed2b
     Jm[3:, 3:] = RG
     Jf = np.zeros((6, 6))
     Jf[:3, :3] = -RG
-    Jf[:3, 3:] = -_skew(b) @ RG
+    Jf[:3, 3:] = -skew(b) @ RG
     Jf[3:, 3:] = -RG
     cov = Jm @ Cm @ Jm.T + Jf @ Cf @ Jf.T
     return G @ M, 0.5 * (cov + cov.T)
