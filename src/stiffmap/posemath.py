@@ -176,7 +176,9 @@ def ray2board_homography(board2cam: np.ndarray) -> np.ndarray:
     return np.linalg.inv(np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]))
 
 
-def projection_jacobian(board2cam, object_points, camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+def projection_jacobian(
+    board2cam, object_points, camera: CameraModel, *, validate: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
     """Projected pixels of board points and their Jacobian with respect to the pose.
 
     A board point q moves by dX = dt - [R q]x dr in the camera frame, and its pixel by
@@ -189,6 +191,9 @@ def projection_jacobian(board2cam, object_points, camera: CameraModel) -> tuple[
     object_points : array_like, shape (m, 3), mm
         Points in the board frame.
     camera : CameraModel
+    validate : bool
+        Check ``board2cam`` (:func:`check_pose`). A fit that builds its poses by
+        :func:`perturb_pose` from a checked one skips it in its iterations.
 
     Returns
     -------
@@ -197,7 +202,7 @@ def projection_jacobian(board2cam, object_points, camera: CameraModel) -> tuple[
         d(u, v) / d(t, r) with the perturbation t <- t + dt, R <- Exp(dr) R
         (camera frame; ``docs/conventions.md``).
     """
-    T = check_pose(board2cam)
+    T = check_pose(board2cam) if validate else np.asarray(board2cam, dtype=np.float64)
     q = np.asarray(object_points, dtype=np.float64)
     if q.ndim != 2 or q.shape[1] != 3:
         raise ValueError(f"expected object_points (m, 3), got {q.shape}")

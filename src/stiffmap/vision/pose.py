@@ -204,7 +204,7 @@ def _corner_pose(
         T[:3, 3] = tvec.ravel()
     else:
         T = check_pose(initial, "initial")
-    uv, J = projection_jacobian(T, obj, camera)
+    uv, J = projection_jacobian(T, obj, camera, validate=False)
     e = (uv - uv_obs).reshape(-1)
     cost = float(e @ e)
     it = 0
@@ -223,7 +223,7 @@ def _corner_pose(
         # Safeguard: stop when a step would put points behind the camera or raise the error.
         if np.any((obj @ T_new[:3, :3].T + T_new[:3, 3])[:, 2] <= 0):
             break
-        uv_new, J_new = projection_jacobian(T_new, obj, camera)
+        uv_new, J_new = projection_jacobian(T_new, obj, camera, validate=False)
         e_new = (uv_new - uv_obs).reshape(-1)
         cost_new = float(e_new @ e_new)
         if cost_new > cost * (1 + 1e-12) + 1e-18:
