@@ -35,8 +35,6 @@ __all__ = [
 
 #: Window half-size of cornerSubPix as a fraction of the local square size.
 WINDOW_FRACTION = 0.25
-
-
 #: Default absolute floor of the corner-rejection threshold, px.
 REJECT_PX = 0.5
 

@@ -51,8 +51,6 @@ __all__ = [
 
 #: Fewest corners accepted for a pose (6 unknowns; 2 equations per corner).
 MIN_POSE_CORNERS = 4
-
-
 #: Pose refinements: ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
 #: (a model of the blurred board fitted to its pixels, :mod:`stiffmap.vision.photometric`).
 REFINE_METHODS = ("corners", "photometric")
