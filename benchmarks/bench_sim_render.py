@@ -26,9 +26,10 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 from _table import write  # noqa: E402
 
+from stiffmap import camera as C  # noqa: E402
 from stiffmap.camera import reference_camera  # noqa: E402
 from stiffmap.geometry import transform_from  # noqa: E402
-from stiffmap.sim import render as R  # noqa: E402
+from stiffmap.sim import photometry as P  # noqa: E402
 from stiffmap.sim.render import Photometry, Target, encode_image, render  # noqa: E402
 from stiffmap.sim.scene import board_pose_at_pixel, default_scene  # noqa: E402
 from stiffmap.targets import CharucoBoard, Chessboard  # noqa: E402
@@ -83,8 +84,8 @@ def main() -> None:
     cam = reference_camera()
 
     # Cold start: the per-camera ray spline is built by the first image.
-    R._RAYMAPS.clear()
-    R._VIGNETTES.clear()
+    C._RAY_CACHE.clear()
+    P._VIGNETTES.clear()
     first = next(iter(_scenes()))[1]
     t0 = time.perf_counter()
     render(cam, first, seed=0)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from stiffmap.camera import CameraModel
+from stiffmap.geometry import matrix_from_rotvec, transform_from
 from stiffmap.sim.scene import board_pose_at_pixel as pose_at_pixel  # noqa: F401
 
 
@@ -48,16 +50,11 @@ def scaled_camera(camera: CameraModel, s: float) -> CameraModel:
 
 def pnp_pose(obj: np.ndarray, uv: np.ndarray, camera: CameraModel) -> np.ndarray:
     """board2cam from corners by OpenCV's solvePnP, refined by Levenberg-Marquardt."""
-    import cv2
-
-    from stiffmap.geometry import transform_from
-
     ok, rvec, tvec = cv2.solvePnP(obj, uv, camera.matrix, camera.dist_array)
     assert ok
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-12)
     rvec, tvec = cv2.solvePnPRefineLM(obj, uv, camera.matrix, camera.dist_array, rvec, tvec, crit)
-    R, _ = cv2.Rodrigues(rvec)
-    return transform_from(R, tvec.ravel())
+    return transform_from(matrix_from_rotvec(rvec.ravel()), tvec.ravel())
 
 
 def pnp_image_row(name: str, uv_mobile: np.ndarray, uv_fixed: np.ndarray, mobile_board, fixed_board, camera):

@@ -24,7 +24,10 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from stiffmap.camera import CameraModel, _dist12, _distort
+from stiffmap.camera import CameraModel
+from stiffmap.geometry import matrix_from_euler
+from stiffmap.sim.render import Target
+from stiffmap.sim.render import render as sim_render
 from stiffmap.targets import Chessboard
 
 
@@ -109,8 +112,6 @@ def look_at_pose(distance_mm: float, board: Chessboard, *, tilt_deg=(0.0, 0.0, 0
     -------
     ndarray, shape (4, 4)
     """
-    from stiffmap.geometry import matrix_from_euler
-
     R = matrix_from_euler(np.radians(np.asarray(tilt_deg, dtype=float)))
     centre = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])
     T = np.eye(4)
@@ -216,7 +217,7 @@ def render(
         # sub-pixel samples to first order with the inverse distortion Jacobian
         # (the second-order term is below 1e-6 px for these lenses).
         rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
-        _, J = _distort(rays, _dist12(camera.dist_array), jacobian=True)
+        _, J = camera.distort_with_jacobian(rays)
         Jinv = np.linalg.inv(J)
         # d(board)/d(pixel): through the inverse distortion and the plane homography.
         dpix = Jinv * np.array([1.0 / camera.fx, 1.0 / camera.fy])[None, None, :]
@@ -290,8 +291,5 @@ def render_scene(camera: CameraModel, scene, rng: np.random.Generator, photometr
     -------
     ndarray, shape (h, w), uint8
     """
-    from stiffmap.sim.render import Target
-    from stiffmap.sim.render import render as sim_render
-
     targets = [Target(b, T) for b, T in scene]
     return sim_render(camera, targets, photometry=photometry, seed=rng).image

@@ -6,8 +6,17 @@ import cv2
 import numpy as np
 import pytest
 
-from stiffmap.camera import CameraModel, load_camera, reference_camera, save_camera
+from stiffmap.camera import (
+    CameraModel,
+    _dist12,
+    _distort,
+    load_camera,
+    pixel_rays,
+    reference_camera,
+    save_camera,
+)
 from stiffmap.errors import InputError
+from stiffmap.geometry import transform_from as make_transform
 
 DISTS = [
     (-0.09, 0.11, 0.0, 0.0, 0.0),  # the reference study's camera
@@ -36,9 +45,26 @@ def test_undistort_inverts_distort_over_the_image(dist):
     np.testing.assert_allclose(back, uv, atol=1e-9)  # px
 
 
-def test_distortion_jacobian_matches_finite_differences(rng):
-    from stiffmap.camera import _dist12, _distort
+def test_the_cached_ray_map_is_the_camera_rays(rng):
+    # One cached map per camera, shared by the renderer (float64 blocks, halo outside the
+    # image included) and the photometric fit (float32 corrections at every pixel).
+    cam = CameraModel((640, 480), 900.0, 905.0, 322.5, 236.0, (-0.12, 0.08, 0.0005, -0.0003, 0.0))
+    rays = pixel_rays(cam)
+    assert pixel_rays(CameraModel(**{**cam.to_dict(), "image_size": (640, 480)})) is rays
+    rows = np.arange(-1.0, 481.0)
+    cols = np.arange(-1.0, 641.0)
+    rx, ry = rays.block(rows, cols)
+    U, V = np.meshgrid(cols, rows)
+    exact = cam.rays_from_pixels(np.stack([U, V], axis=-1))
+    assert np.abs(rx - exact[..., 0]).max() * cam.fx < 2e-6  # px
+    assert np.abs(ry - exact[..., 1]).max() * cam.fy < 2e-6
+    cx, cy = rays.correction_maps
+    assert cx.dtype == np.float32 and cx.shape == (480, 640)
+    np.testing.assert_allclose(rays.px[None, :] + cx, exact[1:-1, 1:-1, 0], rtol=0, atol=2e-9)
+    np.testing.assert_allclose(rays.py[:, None] + cy, exact[1:-1, 1:-1, 1], rtol=0, atol=2e-9)
 
+
+def test_distortion_jacobian_matches_finite_differences(rng):
     d = _dist12(np.asarray(DISTS[3]))
     xy = rng.uniform(-0.4, 0.4, size=(50, 2))
     _, J = _distort(xy, d, jacobian=True)
@@ -52,8 +78,6 @@ def test_distortion_jacobian_matches_finite_differences(rng):
 
 def test_rectangle_outline_bounds_the_rendered_board_under_distortion():
     """The sampled outline holds the projected corners and bulges past them under barrel distortion."""
-    from stiffmap.geometry import transform_from as make_transform
-
     cam = CameraModel((2592, 1944), 3733.27, 3722.85, 1466.77, 904.81, (-0.3, 0.1, 0, 0, 0))
     T = make_transform(np.eye(3), [-150.0, -100.0, 600.0])
     uv = cam.project_rectangle(T, (0.0, 0.0, 300.0, 200.0), samples=9)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from conftest import random_rotation
+from scipy.spatial.transform import Rotation
 
 from stiffmap import geometry as g
 
@@ -54,6 +56,21 @@ def test_euler_gimbal_lock_round_trip():
         back = g.euler_from_matrix(R)
         np.testing.assert_allclose(g.matrix_from_euler(back), R, atol=1e-12)
         assert back[0] == 0.0
+
+
+def test_one_exponential_agrees_with_opencv_and_scipy():
+    # The rotation-vector exponential written once (OpenCV's operations): the same values as
+    # cv2.Rodrigues, which it replaced in vision, and as scipy's, which it replaced in
+    # geometry, to rounding, over angles from 1e-12 rad to a half turn and beyond, and 0.
+    rng = np.random.default_rng(11)
+    r = np.concatenate([rng.normal(scale=s, size=(400, 3)) for s in (1e-12, 1e-8, 1e-5, 1e-2, 0.5, 3.0)])
+    r = np.vstack([r, np.zeros(3)])
+    ours = g.matrix_from_rotvec(r)
+    cv = np.array([cv2.Rodrigues(v.reshape(3, 1))[0] for v in r])
+    np.testing.assert_allclose(ours, cv, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ours, Rotation.from_rotvec(r).as_matrix(), rtol=0, atol=2e-15)
+    np.testing.assert_array_equal(g.matrix_from_rotvec(np.zeros(3)), np.eye(3))
+    assert g.matrix_from_rotvec(r.reshape(7, 343, 3)).shape == (7, 343, 3, 3)
 
 
 def test_rotvec_round_trip_and_small_angle(rng):

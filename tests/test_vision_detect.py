@@ -7,7 +7,10 @@ import numpy as np
 import pytest
 from _vision_helpers import look_at_pose, render, small_camera, true_corners
 
+from stiffmap.camera import reference_camera
 from stiffmap.errors import InputError
+from stiffmap.sim.render import Target
+from stiffmap.sim.render import render as render_scene
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import DetectionError, detect_board, detect_boards, track_board
 
@@ -100,10 +103,6 @@ def test_wrong_board_size_is_reported():
 
 def test_a_far_board_seen_whole_only_at_finer_scale_is_named_with_its_size():
     """A 9x6 board 1.5 m away at 50 degrees: the coarse search sees a 5x3 piece only."""
-    from stiffmap.camera import reference_camera
-    from stiffmap.sim.render import Target
-    from stiffmap.sim.render import render as render_scene
-
     board = Chessboard(9, 6, 10.0)
     T = look_at_pose(1500, board, tilt_deg=(50, 0, 0), offset_mm=(-150, -250))
     img = render_scene(reference_camera(), [Target(board, T)], seed=1).image
@@ -174,8 +173,6 @@ def test_charuco_corners_get_their_canonical_ids_even_when_partly_hidden():
 
 
 def test_large_image_is_searched_reduced_and_refined_at_full_resolution():
-    from stiffmap.camera import reference_camera
-
     cam = reference_camera()
     T = look_at_pose(700, SYM, tilt_deg=(8, -12, 4), offset_mm=(15, 10))
     img = render(cam, [(SYM, T)], rng=np.random.default_rng(4))

@@ -10,7 +10,14 @@ from conftest import random_rotation
 from stiffmap.errors import InputError
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec
 from stiffmap.targets import Chessboard
-from stiffmap.vision import BoardPose, ImageMeasurement, PoseTracker, compliant_displacement, measure_sequence
+from stiffmap.vision import (
+    BoardPose,
+    ImageMeasurement,
+    PoseTracker,
+    compliant_displacement,
+    measure_sequence,
+    mobile2base_from_poses,
+)
 
 MOBILE = Chessboard(7, 6, 10.0)
 FIXED = Chessboard(9, 4, 10.0)
@@ -37,8 +44,6 @@ def _pose(T, cov):
 
 
 def _meas(name, M, cov_m, F=None, cov_f=None, fixed2base=None):
-    from stiffmap.vision import mobile2base_from_poses
-
     m2b = m2b_cov = None
     if F is not None and fixed2base is not None:
         m2b, m2b_cov = mobile2base_from_poses(M, cov_m, F, cov_f, fixed2base)

@@ -9,6 +9,7 @@ from _vision_helpers import CALIB_DIR
 
 from stiffmap.errors import InputError
 from stiffmap.vision import ImageError, check_image_size, read_image
+from stiffmap.vision.images import check_image
 
 CALIB = CALIB_DIR
 
@@ -42,6 +43,21 @@ def test_colour_jpeg_becomes_grey(tmp_path, rng):
     out = read_image(p)
     assert out.shape == (40, 60)
     assert out[:, :25].mean() > 250 and out[:, 35:].mean() < 5  # grey levels
+
+
+def test_one_image_check_for_the_vision_functions():
+    grey = np.zeros((20, 30), np.uint8)
+    assert check_image(grey) is not None and check_image(grey).shape == (20, 30)
+    bgr = np.zeros((20, 30, 3), np.uint8)
+    bgr[..., 2] = 255  # red
+    out = check_image(bgr)
+    assert out.shape == (20, 30) and out.dtype == np.uint8 and out.max() == 76  # grey of red
+    wide = np.zeros((20, 30), np.uint16)
+    assert check_image(wide, uint16=True).dtype == np.uint16
+    assert check_image(grey[:, ::2]).flags.c_contiguous
+    for bad in (wide, grey.astype(np.float32), np.zeros((5, 30), np.uint8), np.zeros((20, 30, 4), np.uint8)):
+        with pytest.raises(ValueError, match="2-D grey"):
+            check_image(bad)
 
 
 def test_16bit_is_scaled_by_its_maximum(tmp_path):

@@ -21,12 +21,20 @@ from _vision_helpers import CALIB_DIR, look_at_pose, small_camera
 
 from stiffmap.camera import reference_camera, save_camera
 from stiffmap.geometry import rotvec_from_matrix
+from stiffmap.posemath import perturb_pose
 from stiffmap.sim.render import Photometry, Target, render, true_corners
 from stiffmap.targets import CharucoBoard, Chessboard
-from stiffmap.vision import BoardDetection, detect_board, estimate_pose, measure_sequence, read_image
+from stiffmap.vision import (
+    BoardDetection,
+    calibrate_files,
+    detect_board,
+    estimate_pose,
+    measure_sequence,
+    read_image,
+)
+from stiffmap.vision.board_plane import detection_mask
 from stiffmap.vision.photometric import (
     PhotometricError,
-    _apply,
     model_and_jacobian,
     prepare_pixels,
     refine_pose_photometric,
@@ -78,7 +86,13 @@ def test_jacobian_matches_central_differences(tilt):
 
     def f(p):
         return model_and_jacobian(
-            setup, _apply(T, p[:6]), sig + p[6:9], dil + p[9:12], a + p[12:18], b + p[18:], jacobian=False
+            setup,
+            perturb_pose(T, p[:6]),
+            sig + p[6:9],
+            dil + p[9:12],
+            a + p[12:18],
+            b + p[18:],
+            jacobian=False,
         )[0]
 
     # Steps: 1e-5 mm, 1e-7 rad, 1e-5 px (blur, dilation), 1e-3 DN (shading).
@@ -164,8 +178,6 @@ def test_covariance_matches_the_scatter_over_noise_seeds():
 
 
 def test_another_board_is_left_out():
-    from stiffmap.vision.detect import _detection_mask
-
     cam = reference_camera()
     mobile, fixed = Chessboard(8, 6, 10.0), Chessboard(9, 5, 10.0)
     # (1) The reference setup: two boards side by side, both tracked with the other masked.
@@ -182,7 +194,7 @@ def test_another_board_is_left_out():
     # area, given as an exclusion polygon, is left out; without it the fit sees it.
     F2 = look_at_pose(650, fixed, tilt_deg=(0, 0, 20), offset_mm=(-60 + 55, 40))
     img2 = render(cam, [Target(mobile, M), Target(fixed, F2)], seed=4).image
-    quad = _detection_mask(_truth_detection(fixed, cam, F2), margin_sq=2.2)  # squares and margin
+    quad = detection_mask(_truth_detection(fixed, cam, F2), margin_sq=2.2)  # squares and margin
     start = estimate_pose(_truth_detection(mobile, cam, M, np.random.default_rng(2), 0.02), mobile, cam)
     masked = refine_pose_photometric(img2, mobile, cam, start.board2cam, exclude=[quad])
     assert masked.photometric.outlier_fraction < 0.01
@@ -346,8 +358,6 @@ def test_real_photographs_fit_and_agree_with_the_corners_up_to_an_affine_image_m
     (an asymmetric point-spread function), which shifts the photometric pose by 0.5-1.8 mm
     in depth; its tight covariance then makes estimate_pose keep the corner pose.
     """
-    from stiffmap.vision import calibrate_files
-
     files = [CALIB_DIR / f"Image{k}.tif" for k in range(1, 21)]
     board = Chessboard(13, 12, 30.0)
     cam = calibrate_files(files, board).camera

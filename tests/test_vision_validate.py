@@ -9,7 +9,8 @@ import pytest
 
 from stiffmap.errors import InputError
 from stiffmap.geometry import matrix_from_rotvec
-from stiffmap.vision import BoardPose, ImageMeasurement, stage_plot_svg, validate_stage
+from stiffmap.report.validation import stage_plot_svg
+from stiffmap.vision import BoardPose, ImageMeasurement, validate_stage
 from stiffmap.vision.validate import REFERENCE_TABLE_I
 
 

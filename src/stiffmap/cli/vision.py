@@ -404,8 +404,9 @@ def validate(
     After the reference study's X-table test (its Table I, shown beside when the steps match).
     """
     from ..io import atomic_write_text
+    from ..report.validation import stage_plot_svg
     from ..vision.files import measure_files, read_stage_manifest
-    from ..vision.validate import REFERENCE_TABLE_I, stage_plot_svg, validate_stage
+    from ..vision.validate import REFERENCE_TABLE_I, validate_stage
 
     try:
         b = _board(board, square_mm, charuco, marker_mm)

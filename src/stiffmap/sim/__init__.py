@@ -1,7 +1,11 @@
 """The virtual test-bed: rendered target images and simulated sensor traces with known truth.
 
 - :mod:`stiffmap.sim.render`: targets rendered through a distorted camera with exact
-  anti-aliasing, photometry, the true corners;
+  anti-aliasing, photometry, the true corners (the entry point), made of
+  :mod:`stiffmap.sim.reflectance` (scene geometry: targets, the reflectance each pixel
+  sees, true corners), :mod:`stiffmap.sim.coverage` (exact area coverage of a pixel on a
+  board print) and :mod:`stiffmap.sim.photometry` (image formation: optics blur,
+  vignetting, noise, 8 bits);
 - :mod:`stiffmap.sim.texture`: chessboard and ChArUco prints as cells of a grid;
 - :mod:`stiffmap.sim.scene`: board poses, the default robot scene;
 - :mod:`stiffmap.sim.robot`: the virtual robot (stiffness field, repeatability);

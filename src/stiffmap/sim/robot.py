@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..geometry import matrix_from_rotvec, transform_from
+from ..models.delta import DeltaRobot
 
 __all__ = [
     "VirtualRobot",
@@ -297,8 +298,6 @@ def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     **kw
         :class:`VirtualRobot` fields (repeatability_mm, jitter_mm, ...).
     """
-    from ..models.delta import DeltaRobot
-
     model = DeltaRobot().with_params(**(params or {}))
     finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
     return VirtualRobot(field=model.stiffness, model="delta", params=finite, **kw)

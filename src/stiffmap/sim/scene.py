@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 from ..camera import CameraModel, reference_camera
 from ..geometry import as_transform, concat, invert_transform, transform_from
 from ..targets import Chessboard
-from .render import Target
+from .reflectance import Target
 
 __all__ = [
     "board_pose_at_pixel",

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..loads import LoadCase
+from ..models.base import PoseError
 from ..units import G_REFERENCE_PAPER
 from .render import Photometry, Rendering, encode_image, render
 from .robot import VirtualRobot, translational_stiffness
@@ -194,8 +195,6 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
         If the stiffness field is bad at a position, or a board leaves the image
         in some image (naming the position, load and repeat).
     """
-    from ..models.base import PoseError
-
     cfg = config
     P = cfg.positions
     try:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from ..targets import CharucoBoard, Chessboard
@@ -167,8 +168,6 @@ def _charuco_markers(board: CharucoBoard) -> list[tuple[float, float, np.ndarray
     (mm, our frame) and its cells including the black border, shape
     (n + 2, n + 2), True for white, rows along y.
     """
-    import cv2
-
     name = board.dictionary
     if not hasattr(cv2.aruco, name):
         raise ValueError(f"unknown ArUco dictionary {name!r} (expected an OpenCV name such as DICT_5X5_100)")

@@ -11,9 +11,15 @@ Main entry points:
   :func:`refine_pose_photometric`: a model of the blurred board fitted to its pixels)
 - :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement`
 - :func:`compliant_displacement` -> :class:`Displacement`
-- :func:`validate_stage` -> :class:`StageValidation`
+- :func:`validate_stage` -> :class:`StageValidation` (drawn by
+  :func:`stiffmap.report.validation.stage_plot_svg`)
+
+The pose maths shared with the test-bed (:class:`BoardPose`, :func:`projection_jacobian`,
+the pose perturbation) live in :mod:`stiffmap.posemath`, the image check in
+:func:`stiffmap.vision.images.check_image`.
 """
 
+from ..posemath import BoardPose, projection_jacobian
 from .calibrate import DIST_MODELS, CalibrationResult, ViewResult, calibrate_camera
 from .corners import refine_corners
 from .detect import BoardDetection, DetectionError, board_label, detect_board, detect_boards, track_board
@@ -21,9 +27,9 @@ from .displacement import Displacement, compliant_displacement, mean_pose
 from .files import calibrate_files, measure_files, read_stage_manifest, read_transform
 from .images import ImageError, check_image_size, read_image
 from .photometric import PhotometricError, PhotometricFit, refine_pose_photometric
-from .pose import BoardPose, estimate_pose, pose_shift_sigma, projection_jacobian
+from .pose import estimate_pose, pose_shift_sigma
 from .sequence import ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
-from .validate import StageStep, StageValidation, stage_plot_svg, validate_stage
+from .validate import StageStep, StageValidation, validate_stage
 
 __all__ = [
     "BoardDetection",
@@ -59,7 +65,6 @@ __all__ = [
     "read_transform",
     "refine_corners",
     "refine_pose_photometric",
-    "stage_plot_svg",
     "track_board",
     "validate_stage",
 ]

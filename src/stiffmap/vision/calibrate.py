@@ -26,7 +26,8 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..errors import InputError
-from .detect import Board, BoardDetection, _grid_of
+from ..geometry import matrix_from_rotvec
+from .detection import Board, BoardDetection, grid_of
 
 __all__ = ["ViewResult", "CalibrationResult", "calibrate_camera", "DIST_MODELS"]
 
@@ -212,12 +213,12 @@ def calibrate_camera(
     if len(names) != n_views:
         raise ValueError(f"names has {len(names)} entries for {n_views} detections")
     w, h = (int(v) for v in image_size)
-    grid = _grid_of(board)
+    grid = grid_of(board)
     reasons = [""] * n_views
     usable = []
     for k, d in enumerate(detections):
         if isinstance(d, BoardDetection):
-            if _grid_of(d.board) != grid:
+            if grid_of(d.board) != grid:
                 reasons[k] = f"detection is of a different board ({d.board})"
             elif d.n_corners < _MIN_VIEW_CORNERS:
                 reasons[k] = f"only {d.n_corners} corners"
@@ -269,7 +270,7 @@ def calibrate_camera(
         proj, _ = cv2.projectPoints(obj_all[d.ids], rv, tv, cam.matrix, cam.dist_array)
         e = d.corners - proj.reshape(-1, 2)
         T = np.eye(4)
-        T[:3, :3] = cv2.Rodrigues(np.asarray(rv, dtype=np.float64))[0]
+        T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
         T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
         rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
         if k in pose_of:

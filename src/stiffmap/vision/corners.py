@@ -25,6 +25,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .images import check_image
+
 __all__ = ["refine_corners", "smoothing_for"]
 
 
@@ -53,8 +55,9 @@ def refine_corners(
 
     Parameters
     ----------
-    image : ndarray, shape (h, w), uint8
-        Grey image.
+    image : ndarray, shape (h, w), uint8 or uint16
+        Grey image (a BGR uint8 image is converted to grey,
+        :func:`~stiffmap.vision.images.check_image`).
     points : array_like, shape (m, 2)
         Starting positions (x, y), px; within about ``window / 2`` of the corners.
     window : int
@@ -76,9 +79,7 @@ def refine_corners(
         singular (a flat or single-edge area) or that did not converge; their
         position is the last iterate.
     """
-    img = np.asarray(image)
-    if img.ndim != 2:
-        raise ValueError(f"image must be 2-D, got shape {img.shape}")
+    img = check_image(image, uint16=True)
     pts = np.array(points, dtype=np.float64).reshape(-1, 2)
     if not np.all(np.isfinite(pts)):
         raise ValueError("points contain NaN or infinite values")

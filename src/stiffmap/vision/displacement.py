@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import displacement_from_poses, mean_transform
-from .pose import _skew
+from ..posemath import skew
 from .sequence import ImageMeasurement
 
 __all__ = ["Displacement", "compliant_displacement", "mean_pose"]
@@ -119,7 +119,7 @@ def mean_pose(poses) -> np.ndarray:
 def _point_jacobian(T: np.ndarray, point: np.ndarray) -> np.ndarray:
     """d(p, r)/d(t, r) for the point p = R q + t of a pose with (t, r) left perturbations."""
     A = np.eye(6)
-    A[:3, 3:] = -_skew(T[:3, :3] @ point)
+    A[:3, 3:] = -skew(T[:3, :3] @ point)
     return A
 
 
@@ -243,7 +243,7 @@ def compliant_displacement(
         # Uncertainty of the mean cam2base rotation (d r_G = -R_G d r_fixed), averaged.
         Crf = sum(m.fixed2cam_cov[3:, 3:] for m in with_base) / len(with_base) ** 2
         CG = RG @ Crf @ RG.T
-        C = np.vstack([-_skew(mean[:3]), -_skew(mean[3:])])
+        C = np.vstack([-skew(mean[:3]), -skew(mean[3:])])
         cov = Bm @ cov @ Bm.T + C @ CG @ C.T
         frame_name = "base"
     else:

@@ -10,6 +10,12 @@ naming the file: missing, a directory, empty, truncated (checked from the
 file's own structure for PNG and JPEG before decoding, and by the decoder for
 the others), not an image or an unsupported format. :func:`check_image_size`
 compares an image with the size in ``camera.json``.
+
+:func:`check_image` is the one check of an image array handed to the vision
+functions (detection, corner refinement, photometric refinement): a grey image
+(h, w) of uint8 (or uint16 where the function reads 16 bits), at least 8x8 px; a
+BGR uint8 image (h, w, 3) is converted to grey. :func:`coarse_scales` and
+:func:`reduce_image` give the reduced images the board detectors search first.
 """
 
 from __future__ import annotations
@@ -22,7 +28,16 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["ImageError", "read_image", "check_image_size", "IMAGE_SUFFIXES"]
+__all__ = [
+    "ImageError",
+    "read_image",
+    "check_image",
+    "check_image_size",
+    "coarse_scales",
+    "reduce_image",
+    "IMAGE_SUFFIXES",
+    "COARSE_TARGET_PX",
+]
 
 #: File name endings read as images.
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".pgm", ".ppm", ".pnm", ".webp")
@@ -138,6 +153,46 @@ def _as_grey8(img: np.ndarray, src: str) -> np.ndarray:
     raise ImageError(f"unsupported pixel type {img.dtype}", source=src)
 
 
+#: Smallest image side the vision functions accept, px.
+MIN_IMAGE_PX = 8
+
+
+def check_image(image, *, uint16: bool = False) -> np.ndarray:
+    """Check an image array handed to a vision function; return it grey and C-contiguous.
+
+    Parameters
+    ----------
+    image : array_like
+        Grey (h, w) of uint8 (or uint16 when ``uint16``), or BGR (h, w, 3) of uint8
+        (converted to grey by OpenCV); at least 8x8 px.
+    uint16 : bool
+        The caller reads 16-bit grey images too (the photometric refinement does;
+        OpenCV's board detectors read 8 bits only).
+
+    Returns
+    -------
+    ndarray, shape (h, w), uint8 or uint16
+
+    Raises
+    ------
+    ValueError
+        Saying what is accepted and what came (dtype and shape).
+    """
+    img = np.asarray(image)
+    depths = (np.uint8, np.uint16) if uint16 else (np.uint8,)
+    bgr = img.ndim == 3 and img.shape[2] == 3 and img.dtype == np.uint8
+    grey_ok = img.ndim == 2 and img.dtype in depths
+    if not (grey_ok or bgr) or min(img.shape[:2]) < MIN_IMAGE_PX:
+        grey = " or ".join(np.dtype(d).name for d in depths)
+        raise ValueError(
+            f"image must be a 2-D grey {grey} array (h, w) or a BGR uint8 array (h, w, 3), "
+            f"at least {MIN_IMAGE_PX}x{MIN_IMAGE_PX} px; got {img.dtype} {img.shape}"
+        )
+    if bgr:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    return np.ascontiguousarray(img)
+
+
 def check_image_size(
     image: np.ndarray,
     image_size: tuple[int, int],
@@ -170,3 +225,31 @@ def check_image_size(
             "(wrong camera file, or a resized/cropped image)",
             source=source,
         )
+
+
+#: Longest side of the reduced image used for the coarse search, px.
+COARSE_TARGET_PX = 900
+
+
+def coarse_scales(shape: tuple[int, int], scale: int | None) -> list[int]:
+    """Reduction factors to search at, coarsest first: ``scale`` (default about
+    :data:`COARSE_TARGET_PX` on the longest side), then finer ones down to 1."""
+    if scale is not None:
+        s = int(scale)
+        if s < 1:
+            raise ValueError(f"scale must be an integer >= 1, got {scale}")
+    else:
+        s = max(1, int(round(max(shape) / COARSE_TARGET_PX)))
+    out = [s]
+    while s > 1:
+        s = max(1, s // 2) if s > 3 else 1
+        out.append(s)
+    return out
+
+
+def reduce_image(image: np.ndarray, s: int) -> np.ndarray:
+    """The image reduced by the integer factor ``s`` (area averaging; a copy for s = 1)."""
+    if s == 1:
+        return image.copy()
+    h, w = image.shape
+    return cv2.resize(image, (w // s, h // s), interpolation=cv2.INTER_AREA)

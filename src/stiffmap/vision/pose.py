@@ -2,12 +2,13 @@
 
 :func:`estimate_pose` starts from OpenCV's IPPE solution for planar targets and
 refines ``board2cam`` by Gauss-Newton on the reprojection error, with the
-analytic Jacobian of :func:`projection_jacobian`.
+analytic Jacobian of :func:`~stiffmap.posemath.projection_jacobian`.
 
 Covariance (``docs/conventions.md``, "Pose uncertainty"): over (t, r), t the
 translation of ``board2cam`` (mm, camera frame) and r a small rotation vector
-applied on the left, R = Exp(r) R_hat, also in the camera frame. A board point
-q then moves by dX = dt - [R q]x dr in the camera frame, and its pixel by
+applied on the left, R = Exp(r) R_hat, also in the camera frame
+(:func:`~stiffmap.posemath.perturb_pose`). A board point q then moves by
+dX = dt - [R q]x dr in the camera frame, and its pixel by
 J_i = diag(fx, fy) D(x) P(X) [I, -[R q]x], with P the Jacobian of the
 perspective division and D that of the lens distortion at the point. With the
 stacked J (2m x 6) and the residual variance s^2 = sum e^2 / (2m - 6) (corner
@@ -20,147 +21,36 @@ pose is the starting point of :func:`~stiffmap.vision.photometric.refine_pose_ph
 which fits a model of the blurred board to the pixels near its edges (several
 times more precise along the line of sight); the corner pose is kept, with the
 reason in ``BoardPose.fallback``, when that fit fails or disagrees with it.
+
+The pose itself (:class:`~stiffmap.posemath.BoardPose`), its perturbation and its
+projection Jacobian live in :mod:`stiffmap.posemath`, shared with the photometric
+refinement and the renderer.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
-from ..camera import CameraModel, _dist12, _distort
+from ..camera import CameraModel
+from ..geometry import matrix_from_rotvec
+from ..posemath import BoardPose, check_pose, perturb_pose, projection_jacobian
 from ..targets import Chessboard
-from .detect import Board, BoardDetection, DetectionError, _grid_of, board_label
+from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
+from .photometric import PhotometricError, refine_pose_photometric
 
 __all__ = [
-    "BoardPose",
     "estimate_pose",
-    "projection_jacobian",
     "pose_shift_sigma",
+    "check_refine",
     "MIN_POSE_CORNERS",
     "REFINE_METHODS",
 ]
 
 #: Fewest corners accepted for a pose (6 unknowns; 2 equations per corner).
 MIN_POSE_CORNERS = 4
-
-
-@dataclass(frozen=True)
-class BoardPose:
-    """Pose of a board in the camera frame.
-
-    Attributes
-    ----------
-    board2cam : ndarray, shape (4, 4), mm
-    cov : ndarray, shape (6, 6)
-        Covariance over (t (mm), r (rad)), see the module docstring.
-    rms_px : float
-        Reprojection RMS over the corners, px (sqrt of the mean of ex^2 + ey^2).
-    n_corners : int
-    residuals_px : ndarray, shape (n_corners, 2)
-        Observed minus projected corner positions, px.
-    sigma_px : float
-        Estimated corner noise per axis, sqrt(sum e^2 / (2 n - 6)), px.
-    condition : float
-        Condition number of J^T J with t in mm and r in rad scaled by the
-        distance (large: a poorly determined pose, e.g. a tiny board).
-    iterations : int
-        Gauss-Newton iterations.
-    method : str
-        ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
-        (:func:`~stiffmap.vision.photometric.refine_pose_photometric`: a model of the
-        blurred board fitted to its pixels; ``cov`` and ``condition`` are then the
-        photometric fit's, ``rms_px``, ``residuals_px`` and ``sigma_px`` the corners'
-        reprojection errors at that pose).
-    photometric : PhotometricFit or None
-        Quality of the photometric fit (residual RMS in DN, pixels used, blur...).
-    fallback : str or None
-        Why a photometric refinement that was asked for was not used (the pose is
-        then the corner-based one).
-    """
-
-    board2cam: np.ndarray
-    cov: np.ndarray
-    rms_px: float
-    n_corners: int
-    residuals_px: np.ndarray
-    sigma_px: float
-    condition: float
-    iterations: int
-    method: str = "corners"
-    photometric: Any = None
-    fallback: str | None = None
-
-    @property
-    def t_std_mm(self) -> np.ndarray:
-        """1-sigma of the translation, shape (3,), mm."""
-        return np.sqrt(np.diag(self.cov)[:3])
-
-    @property
-    def r_std_rad(self) -> np.ndarray:
-        """1-sigma of the rotation vector, shape (3,), rad."""
-        return np.sqrt(np.diag(self.cov)[3:])
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices of vectors (..., 3) -> (..., 3, 3)."""
-    S = np.zeros((*v.shape[:-1], 3, 3))
-    S[..., 0, 1] = -v[..., 2]
-    S[..., 0, 2] = v[..., 1]
-    S[..., 1, 0] = v[..., 2]
-    S[..., 1, 2] = -v[..., 0]
-    S[..., 2, 0] = -v[..., 1]
-    S[..., 2, 1] = v[..., 0]
-    return S
-
-
-def projection_jacobian(board2cam, object_points, camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
-    """Projected pixels of board points and their Jacobian with respect to the pose.
-
-    Parameters
-    ----------
-    board2cam : array_like, shape (4, 4), mm
-    object_points : array_like, shape (m, 3), mm
-        Points in the board frame.
-    camera : CameraModel
-
-    Returns
-    -------
-    uv : ndarray, shape (m, 2), px
-    J : ndarray, shape (m, 2, 6)
-        d(u, v) / d(t, r) with the perturbation t <- t + dt, R <- Exp(dr) R
-        (camera frame; ``docs/conventions.md``).
-    """
-    T = np.asarray(board2cam, dtype=np.float64)
-    q = np.asarray(object_points, dtype=np.float64)
-    if T.shape != (4, 4) or q.ndim != 2 or q.shape[1] != 3:
-        raise ValueError(f"expected board2cam (4, 4) and object_points (m, 3), got {T.shape}, {q.shape}")
-    Rq = q @ T[:3, :3].T
-    X = Rq + T[:3, 3]
-    Z = X[:, 2]
-    if np.any(Z <= 0):
-        raise ValueError("board points behind the camera")
-    xy = X[:, :2] / Z[:, None]
-    xd, Jd = _distort(xy, _dist12(camera.dist_array), jacobian=True)
-    f = np.array([camera.fx, camera.fy])
-    uv = xd * f + [camera.cx, camera.cy]
-    P = np.zeros((len(q), 2, 3))
-    P[:, 0, 0] = 1 / Z
-    P[:, 1, 1] = 1 / Z
-    P[:, 0, 2] = -X[:, 0] / Z**2
-    P[:, 1, 2] = -X[:, 1] / Z**2
-    dX = np.concatenate([np.broadcast_to(np.eye(3), (len(q), 3, 3)), -_skew(Rq)], axis=2)  # (m, 3, 6)
-    J = f[None, :, None] * (Jd @ P @ dX)
-    return uv, J
-
-
-def _exp(r: np.ndarray) -> np.ndarray:
-    R, _ = cv2.Rodrigues(np.asarray(r, dtype=np.float64).reshape(3, 1))
-    return R
-
-
 #: Pose refinements: ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
 #: (a model of the blurred board fitted to its pixels, :mod:`stiffmap.vision.photometric`).
 REFINE_METHODS = ("corners", "photometric")
@@ -184,6 +74,9 @@ def pose_shift_sigma(a: BoardPose, b: BoardPose) -> float:
     """
     d = np.empty(6)
     d[:3] = b.board2cam[:3, 3] - a.board2cam[:3, 3]
+    # OpenCV's logarithm, kept rather than geometry.rotvec_from_matrix: it reads rotations
+    # below 1e-5 rad as zero (and is less precise just above), so the other would move this
+    # check's verdict in edge cases.
     rv, _ = cv2.Rodrigues(b.board2cam[:3, :3] @ a.board2cam[:3, :3].T)
     d[3:] = rv.ravel()
     C = a.cov + b.cov
@@ -256,8 +149,6 @@ def estimate_pose(
         return replace(
             corner_pose, fallback="ChArUco boards are not modelled photometrically; corner pose kept"
         )
-    from .photometric import PhotometricError, refine_pose_photometric
-
     try:
         photo = refine_pose_photometric(
             image, board, camera, corner_pose.board2cam, detection=detection, exclude=exclude, source=source
@@ -286,7 +177,7 @@ def _corner_pose(
     source: str | None,
 ) -> BoardPose:
     """The corner-based pose (reprojection fit), see :func:`estimate_pose`."""
-    if _grid_of(detection.board) != _grid_of(board):
+    if grid_of(detection.board) != grid_of(board):
         raise ValueError(
             f"detection is of a {board_label(detection.board)}, "
             f"but the pose was asked for a {board_label(board)}"
@@ -307,13 +198,11 @@ def _corner_pose(
                 f"{board_label(board)}: no pose fits the corners", source=source, reason="partial"
             )
         T = np.eye(4)
-        T[:3, :3] = _exp(rvec.ravel())
+        T[:3, :3] = matrix_from_rotvec(rvec.ravel())
         T[:3, 3] = tvec.ravel()
     else:
-        T = np.array(initial, dtype=np.float64)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise ValueError(f"initial must be a finite (4, 4) transform, got shape {T.shape}")
-    uv, J = projection_jacobian(T, obj, camera)
+        T = check_pose(initial, "initial")
+    uv, J = projection_jacobian(T, obj, camera, validate=False)
     e = (uv - uv_obs).reshape(-1)
     cost = float(e @ e)
     it = 0
@@ -328,13 +217,11 @@ def _corner_pose(
                 source=source,
                 reason="partial",
             ) from None
-        T_new = T.copy()
-        T_new[:3, 3] = T[:3, 3] + delta[:3]
-        T_new[:3, :3] = _exp(delta[3:]) @ T[:3, :3]
+        T_new = perturb_pose(T, delta)
         # Safeguard: stop when a step would put points behind the camera or raise the error.
         if np.any((obj @ T_new[:3, :3].T + T_new[:3, 3])[:, 2] <= 0):
             break
-        uv_new, J_new = projection_jacobian(T_new, obj, camera)
+        uv_new, J_new = projection_jacobian(T_new, obj, camera, validate=False)
         e_new = (uv_new - uv_obs).reshape(-1)
         cost_new = float(e_new @ e_new)
         if cost_new > cost * (1 + 1e-12) + 1e-18:

@@ -1,7 +1,7 @@
 """Poses of the mobile (and fixed) target along a sequence of images of one robot position.
 
 :class:`PoseTracker` measures image after image: the corners of the previous
-image seed the next and are only refined (:func:`~stiffmap.vision.detect.track_board`);
+image seed the next and are only refined (:func:`~stiffmap.vision.tracking.track_board`);
 the full detection runs for the first image and whenever refinement fails its
 consistency check. With a fixed target and its known pose on the robot base,
 each image also gives ``mobile2base`` (reference paper, eq. 1) with its
@@ -21,9 +21,11 @@ import numpy as np
 from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform, invert_transform
-from .detect import Board, BoardDetection, _detection_mask, detect_boards
+from ..posemath import BoardPose, skew
+from .board_plane import detection_mask
+from .detect import Board, BoardDetection, detect_boards
 from .images import check_image_size, read_image
-from .pose import BoardPose, _skew, check_refine, estimate_pose
+from .pose import check_refine, estimate_pose
 
 __all__ = ["ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
 
@@ -131,7 +133,7 @@ def mobile2base_from_poses(mobile2cam, cov_mobile, fixed2cam, cov_fixed, fixed2b
     Jm[3:, 3:] = RG
     Jf = np.zeros((6, 6))
     Jf[:3, :3] = -RG
-    Jf[:3, 3:] = -_skew(b) @ RG
+    Jf[:3, 3:] = -skew(b) @ RG
     Jf[3:, 3:] = -RG
     cov = Jm @ Cm @ Jm.T + Jf @ Cf @ Jf.T
     return G @ M, 0.5 * (cov + cov.T)
@@ -241,7 +243,7 @@ class PoseTracker:
                 # The other boards' areas (squares and a white margin of up to 1.2 squares) are
                 # left out of a photometric fit.
                 others = [
-                    _detection_mask(o, margin_sq=2.2)
+                    detection_mask(o, margin_sq=2.2)
                     for j, o in enumerate(dets)
                     if j != k and o.n_corners >= 4
                 ]

@@ -1,0 +1,225 @@
+"""Pose maths of a board seen by a camera: the pose, its perturbation, its projection and Jacobian.
+
+Every estimator of a board's pose in ``stiffmap.vision`` (corners, photometric refinement)
+and the renderer of ``stiffmap.sim`` agree on what follows (``docs/conventions.md``, "Pose
+uncertainty"):
+
+- a board's pose is ``board2cam``, a rigid transform (checked by
+  :func:`~stiffmap.geometry.as_transform`, see :func:`check_pose`), seen from the front
+  when its z axis points away from the camera (:func:`faces_camera`);
+- a small change of pose is (dt, dr): t <- t + dt, R <- Exp(dr) R, both in the camera
+  frame (:func:`perturb_pose`, with the one exponential,
+  :func:`~stiffmap.geometry.matrix_from_rotvec`); covariances of poses are over (t, r);
+- the projection of board points and its Jacobian with respect to (dt, dr)
+  (:func:`projection_jacobian`), and the homography from rays to the board plane
+  (:func:`ray2board_homography`);
+- a measured pose with its covariance and quality is a :class:`BoardPose`.
+
+Why a module of its own, in the bottom layer beside ``geometry`` and ``camera``: a
+board's pose is a rigid transform (``geometry``) and its projection goes through the
+lens model (``camera``), so it needs both and belongs to neither; and both ``vision``
+(detection, corner poses, photometric refinement, calibration) and ``sim`` use it, so it
+cannot live in either. It is pure NumPy: OpenCV stays in ``vision`` and ``sim``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .camera import CameraModel
+from .geometry import as_transform, matrix_from_rotvec
+
+__all__ = [
+    "BoardPose",
+    "check_pose",
+    "faces_camera",
+    "perturb_pose",
+    "projection_jacobian",
+    "ray2board_homography",
+    "skew",
+]
+
+
+@dataclass(frozen=True)
+class BoardPose:
+    """Pose of a board in the camera frame.
+
+    Attributes
+    ----------
+    board2cam : ndarray, shape (4, 4), mm
+    cov : ndarray, shape (6, 6)
+        Covariance over (t (mm), r (rad)), the perturbation of :func:`perturb_pose`.
+    rms_px : float
+        Reprojection RMS over the corners, px (sqrt of the mean of ex^2 + ey^2).
+    n_corners : int
+    residuals_px : ndarray, shape (n_corners, 2)
+        Observed minus projected corner positions, px.
+    sigma_px : float
+        Estimated corner noise per axis, sqrt(sum e^2 / (2 n - 6)), px.
+    condition : float
+        Condition number of J^T J with t in mm and r in rad scaled by the
+        distance (large: a poorly determined pose, e.g. a tiny board).
+    iterations : int
+        Gauss-Newton iterations.
+    method : str
+        ``"corners"`` (reprojection of the detected corners) or ``"photometric"``
+        (:func:`~stiffmap.vision.photometric.refine_pose_photometric`: a model of the
+        blurred board fitted to its pixels; ``cov`` and ``condition`` are then the
+        photometric fit's, ``rms_px``, ``residuals_px`` and ``sigma_px`` the corners'
+        reprojection errors at that pose).
+    photometric : PhotometricFit or None
+        Quality of the photometric fit (residual RMS in DN, pixels used, blur...).
+    fallback : str or None
+        Why a photometric refinement that was asked for was not used (the pose is
+        then the corner-based one).
+    """
+
+    board2cam: np.ndarray
+    cov: np.ndarray
+    rms_px: float
+    n_corners: int
+    residuals_px: np.ndarray
+    sigma_px: float
+    condition: float
+    iterations: int
+    method: str = "corners"
+    photometric: Any = None
+    fallback: str | None = None
+
+    @property
+    def t_std_mm(self) -> np.ndarray:
+        """1-sigma of the translation, shape (3,), mm."""
+        return np.sqrt(np.diag(self.cov)[:3])
+
+    @property
+    def r_std_rad(self) -> np.ndarray:
+        """1-sigma of the rotation vector, shape (3,), rad."""
+        return np.sqrt(np.diag(self.cov)[3:])
+
+
+def check_pose(a2b, name: str = "board2cam") -> np.ndarray:
+    """One rigid transform, checked by :func:`~stiffmap.geometry.as_transform`, as a new array.
+
+    Parameters
+    ----------
+    a2b : array_like, shape (4, 4), mm
+    name : str
+        Used in error messages.
+
+    Returns
+    -------
+    ndarray, shape (4, 4), float64 (a copy)
+
+    Raises
+    ------
+    ValueError
+        Not a single (4, 4) rigid transform (shape, finiteness, last row, rotation block).
+    """
+    T = as_transform(a2b, name)
+    if T.shape != (4, 4):
+        raise ValueError(f"{name} must be one (4, 4) transform, got shape {T.shape}")
+    return np.array(T)
+
+
+def faces_camera(board2cam: np.ndarray) -> bool:
+    """True when the camera sees the board's front: its z axis (into the board) points away."""
+    T = np.asarray(board2cam, dtype=np.float64)
+    return float(T[:3, 2] @ T[:3, 3]) > 0
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices [v]x of vectors (..., 3) -> (..., 3, 3): [v]x w = v x w."""
+    S = np.zeros((*v.shape[:-1], 3, 3))
+    S[..., 0, 1] = -v[..., 2]
+    S[..., 0, 2] = v[..., 1]
+    S[..., 1, 0] = v[..., 2]
+    S[..., 1, 2] = -v[..., 0]
+    S[..., 2, 0] = -v[..., 1]
+    S[..., 2, 1] = v[..., 0]
+    return S
+
+
+def perturb_pose(board2cam: np.ndarray, delta) -> np.ndarray:
+    """The pose moved by a small (dt, dr): t <- t + dt, R <- Exp(dr) R (camera frame).
+
+    Parameters
+    ----------
+    board2cam : ndarray, shape (4, 4), mm
+    delta : array_like, shape (>= 6,)
+        (dt (3, mm), dr (3, rad)); further entries (other parameters of a fit) are ignored.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        A new array.
+    """
+    T = board2cam
+    Tn = T.copy()
+    Tn[:3, 3] = T[:3, 3] + delta[:3]
+    Tn[:3, :3] = matrix_from_rotvec(delta[3:6]) @ T[:3, :3]
+    return Tn
+
+
+def ray2board_homography(board2cam: np.ndarray) -> np.ndarray:
+    """H^-1 for the board plane's homography H = [r1, r2, t] of ``board2cam`` = [R | t].
+
+    A ray (x/z, y/z, 1) meets the board plane at (X, Y, 1) ~ H^-1 (x/z, y/z, 1) (mm).
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+    T = board2cam
+    return np.linalg.inv(np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]))
+
+
+def projection_jacobian(
+    board2cam, object_points, camera: CameraModel, *, validate: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """Projected pixels of board points and their Jacobian with respect to the pose.
+
+    A board point q moves by dX = dt - [R q]x dr in the camera frame, and its pixel by
+    J = diag(fx, fy) D(x) P(X) [I, -[R q]x], with P the Jacobian of the perspective
+    division and D that of the lens distortion at the point.
+
+    Parameters
+    ----------
+    board2cam : array_like, shape (4, 4), mm
+    object_points : array_like, shape (m, 3), mm
+        Points in the board frame.
+    camera : CameraModel
+    validate : bool
+        Check ``board2cam`` (:func:`check_pose`). A fit that builds its poses by
+        :func:`perturb_pose` from a checked one skips it in its iterations.
+
+    Returns
+    -------
+    uv : ndarray, shape (m, 2), px
+    J : ndarray, shape (m, 2, 6)
+        d(u, v) / d(t, r) with the perturbation t <- t + dt, R <- Exp(dr) R
+        (camera frame; ``docs/conventions.md``).
+    """
+    T = check_pose(board2cam) if validate else np.asarray(board2cam, dtype=np.float64)
+    q = np.asarray(object_points, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 3:
+        raise ValueError(f"expected object_points (m, 3), got {q.shape}")
+    Rq = q @ T[:3, :3].T
+    X = Rq + T[:3, 3]
+    Z = X[:, 2]
+    if np.any(Z <= 0):
+        raise ValueError("board points behind the camera")
+    xy = X[:, :2] / Z[:, None]
+    xd, Jd = camera.distort_with_jacobian(xy)
+    f = np.array([camera.fx, camera.fy])
+    uv = xd * f + [camera.cx, camera.cy]
+    P = np.zeros((len(q), 2, 3))
+    P[:, 0, 0] = 1 / Z
+    P[:, 1, 1] = 1 / Z
+    P[:, 0, 2] = -X[:, 0] / Z**2
+    P[:, 1, 2] = -X[:, 1] / Z**2
+    dX = np.concatenate([np.broadcast_to(np.eye(3), (len(q), 3, 3)), -skew(Rq)], axis=2)  # (m, 3, 6)
+    J = f[None, :, None] * (Jd @ P @ dX)
+    return uv, J

@@ -1,0 +1,206 @@
+"""The solver of the photometric fit: damped Gauss-Newton (IRLS) and the noise model.
+
+Gauss-Newton (Levenberg-Marquardt damped) with the analytic Jacobian of
+:func:`~stiffmap.vision.photometric.model.model_and_jacobian` over the pose (perturbation t <- t + dt,
+R <- Exp(dr) R in the camera frame, ``docs/conventions.md``), the blur and
+dilation terms and the shading coefficients, started from the corner-based
+pose: a first pass on an eighth of the pixels with equal weights, a noise model
+var = alpha + beta I (read noise + photon shot noise) fitted to its residuals,
+then all pixels with weights 1 / var and Huber weights (``huber`` noise sigmas)
+against a partly bad region.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...posemath import perturb_pose
+from .model import GEMM_SINGLE_THREAD, GEMV_SINGLE_THREAD, N_NONLINEAR, model_and_jacobian
+from .pixels import PhotometricError, PhotometricSetup
+
+__all__ = ["FitState", "Solution", "gauss_newton", "linear_shading", "fit_noise_model", "wsum"]
+
+#: Pixels per chunk of the fused model / Jacobian / normal-matrix evaluation (kept in cache).
+_CHUNK = 8192
+
+
+def wsum(w: np.ndarray, e: np.ndarray) -> float:
+    """sum w e^2 (elementwise: BLAS's dot product is threaded on long vectors)."""
+    return float(np.sum(w * e * e))
+
+
+def _weighted_gram(M: np.ndarray, w: np.ndarray, e: np.ndarray | None = None):
+    """M diag(w) M^T for M of shape (p, N), summed over blocks of columns; with e, also M diag(w) e."""
+    G = np.zeros((M.shape[0], M.shape[0]))
+    g = np.zeros(M.shape[0])
+    nk = max(64, min(GEMM_SINGLE_THREAD // M.shape[0] ** 2, GEMV_SINGLE_THREAD // M.shape[0]))
+    for k in range(0, M.shape[1], nk):
+        Mk = M[:, k : k + nk]
+        Mw = Mk * w[k : k + nk]
+        G += Mw @ Mk.T
+        if e is not None:
+            g += Mw @ e[k : k + nk]
+    return G if e is None else (G, g)
+
+
+def linear_shading(setup: PhotometricSetup, T, sig, dil) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares black level and contrast at a fixed pose, blur and dilation (linear in them)."""
+    nb = setup.basis.shape[0]
+    ones = np.zeros(nb)
+    ones[0] = 1.0
+    _, J = model_and_jacobian(setup, T, sig, dil, np.zeros(nb), ones)
+    G, g = _weighted_gram(J[N_NONLINEAR:], np.ones(setup.n_pixels), setup.values)
+    try:
+        coef = np.linalg.solve(G, g)
+    except np.linalg.LinAlgError:
+        raise PhotometricError("the black level and contrast are undetermined") from None
+    return coef[:nb], coef[nb:]
+
+
+def _huber(r: np.ndarray, k: float) -> np.ndarray:
+    a = np.abs(r)
+    return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
+
+
+@dataclass
+class FitState:
+    T: np.ndarray
+    sig: np.ndarray  # blur (3,), px
+    dil: np.ndarray  # dilation (3,), px
+    a: np.ndarray
+    b: np.ndarray
+
+
+@dataclass
+class Solution:
+    state: FitState
+    iterations: int
+    converged: bool
+    e: np.ndarray  # residuals at the solution, DN
+    var: np.ndarray  # modelled noise variance, DN^2
+    hw: np.ndarray  # Huber weights
+    A: np.ndarray  # J^T W J at the last linearisation (p, p)
+
+
+class _Evaluator:
+    """Residuals, noise, Huber weights and the normal equations of a state, chunk by chunk.
+
+    The Jacobian of a chunk is written into one reused buffer, with the residuals as its
+    last row, and its weighted Gram matrix [J; e] W [J; e]^T is accumulated at once:
+    the full (p, N) Jacobian is never held in memory.
+    """
+
+    def __init__(self, setup: PhotometricSetup, noise_var, huber: float) -> None:
+        self.setup = setup
+        self.noise_var = noise_var
+        self.huber = huber
+        n = setup.n_pixels
+        self.chunks = [setup.slice(k, min(k + _CHUNK, n)) for k in range(0, n, _CHUNK)]
+        self.p = N_NONLINEAR + 2 * setup.basis.shape[0]
+        self.buf = np.empty((self.p + 1, min(_CHUNK, n)))
+        self.nk = max(64, GEMM_SINGLE_THREAD // (self.p + 1) ** 2)
+
+    def __call__(self, st: FitState, jacobian: bool = True):
+        p = self.p
+        es, vs, hs = [], [], []
+        G = np.zeros((p + 1, p + 1)) if jacobian else None
+        for ch in self.chunks:
+            n = ch.n_pixels
+            M = self.buf[:, :n]
+            m, _ = model_and_jacobian(ch, st.T, st.sig, st.dil, st.a, st.b, jacobian=jacobian, out=M[:p])
+            e = ch.values - m
+            var = self.noise_var(m)
+            hw = _huber(e / np.sqrt(var), self.huber)
+            if jacobian:
+                M[p] = e
+                w = hw / var
+                for k in range(0, n, self.nk):
+                    Mk = M[:, k : k + self.nk]
+                    G += (Mk * w[k : k + self.nk]) @ Mk.T
+            es.append(e)
+            vs.append(var)
+            hs.append(hw)
+        e, var, hw = (np.concatenate(x) for x in (es, vs, hs))
+        if not jacobian:
+            return e, var, hw, None, None
+        return e, var, hw, G[:p, :p], G[:p, p]
+
+
+def gauss_newton(
+    setup: PhotometricSetup, st: FitState, noise_var, huber: float, max_iter: int, tol: float = 0.1
+) -> Solution:
+    """Damped Gauss-Newton (IRLS) from ``st``; ``noise_var(model)`` -> variance per pixel (DN^2).
+
+    Converged when a step is below ``tol`` standard deviations of the parameters (its
+    length in the metric of the normal matrix, sqrt(d^T A d)): the step is taken and the
+    next one would be smaller still by the (linear) rate of convergence. The normal
+    matrix returned is that of the last linearisation (less than ``tol`` sigma away).
+    """
+    nb = setup.basis.shape[0]
+    evaluate = _Evaluator(setup, noise_var, huber)
+    e, var, hw, A, g = evaluate(st)
+    lam = 1e-6
+    it = 0
+    converged = False
+    while it < max_iter:
+        it += 1
+        w = hw / var
+        cost = wsum(w, e)
+        d = np.sqrt(np.diag(A))
+        d[d == 0] = 1.0
+        An = A / np.outer(d, d)
+        gn = g / d
+        accepted = last = False
+        for _ in range(10):
+            try:
+                step = np.linalg.solve(An + lam * np.eye(An.shape[0]), gn) / d
+            except np.linalg.LinAlgError:
+                lam = max(lam * 10, 1e-6)
+                continue
+            sig_new = st.sig + step[6:9]
+            if not np.isfinite(step).all() or sig_new[0] - np.hypot(sig_new[1], sig_new[2]) <= 0.05:
+                lam = max(lam * 10, 1e-6)
+                continue
+            last = float(step @ A @ step) < tol * tol
+            new = FitState(
+                perturb_pose(st.T, step),
+                sig_new,
+                st.dil + step[9:12],
+                st.a + step[N_NONLINEAR : N_NONLINEAR + nb],
+                st.b + step[N_NONLINEAR + nb :],
+            )
+            e2, var2, hw2, A2, g2 = evaluate(new, jacobian=not last)
+            # Cost at the same weights (IRLS): accept when it does not increase.
+            if wsum(w, e2) <= cost * (1 + 1e-12):
+                accepted = True
+                break
+            lam = max(lam * 10, 1e-6)
+        if not accepted:
+            converged = True  # no step lowers the cost: at the minimum to rounding
+            break
+        st, e, var, hw = new, e2, var2, hw2
+        lam = max(lam / 10, 1e-9)
+        if last:
+            converged = True
+            break
+        A, g = A2, g2
+    return Solution(st, it, converged, e, var, hw, A)
+
+
+def fit_noise_model(m: np.ndarray, e: np.ndarray) -> tuple[float, float]:
+    """var = alpha + beta m from squared residuals (outliers beyond 4 robust sigma left out)."""
+    mad = 1.4826 * np.median(np.abs(e - np.median(e)))
+    keep = np.abs(e) < 4.0 * max(mad, 1e-6)
+    mk, e2 = m[keep], e[keep] ** 2
+    # Straight-line fit of e^2 against m (normal equations, elementwise sums).
+    mm, ee = float(mk.mean()), float(e2.mean())
+    sxx = float(np.sum((mk - mm) ** 2))
+    beta = float(np.sum((mk - mm) * (e2 - ee))) / sxx if sxx > 0 else 0.0
+    alpha = ee - beta * mm
+    floor = max(0.05 * float(np.mean(e[keep] ** 2)), 1.0 / 12.0)
+    beta = max(beta, 0.0)
+    if alpha < floor:
+        alpha = floor
+    return alpha, beta

@@ -1,0 +1,91 @@
+"""Tracking a board along a sequence: the previous image's corners refined in the next image.
+
+In a sequence the previous image's corners seed the sub-pixel refinement directly; the
+result is accepted only when every corner converged, none moved more than a quarter of a
+square from its seed and every corner fits the homography; otherwise the caller runs the
+full detection (:func:`~stiffmap.vision.detect.detect_boards`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..camera import CameraModel
+from .board_plane import REJECT_PX, apply_homography, fit_homography, fit_residuals
+from .corners import refine_corners
+from .detection import BoardDetection, grid_of
+from .images import check_image
+
+__all__ = ["track_board"]
+
+
+def track_board(
+    image,
+    previous: BoardDetection,
+    *,
+    camera: CameraModel | None = None,
+    reject_px: float = REJECT_PX,
+    max_shift: float = 0.25,
+) -> BoardDetection | None:
+    """Refine the previous image's corners in a new image, or None when that is not safe.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w), uint8
+    previous : BoardDetection
+        The same board in the previous image of the sequence.
+    camera : CameraModel, optional
+        For residuals in undistorted coordinates.
+    reject_px : float
+        Floor of the residual threshold, px.
+    max_shift : float
+        Largest accepted corner motion from its seed, in squares.
+
+    Returns
+    -------
+    BoardDetection or None
+        None when a corner moved more than ``max_shift`` squares, a corner does not
+        fit the homography, or the corners leave the image: the caller then runs
+        the full detection.
+    """
+    t0 = time.perf_counter()
+    img = check_image(image)
+    seeds = previous.corners
+    if seeds.shape[0] < 4:
+        return None
+    h, w = img.shape
+    win = int(previous.window_px) or 5
+    if (
+        seeds[:, 0].min() < win + 1
+        or seeds[:, 1].min() < win + 1
+        or seeds[:, 0].max() > w - win - 2
+        or seeds[:, 1].max() > h - win - 2
+    ):
+        return None
+    new, ok = refine_corners(img, seeds, win)
+    if not ok.all():
+        return None
+    cb = grid_of(previous.board)
+    obj_xy = cb.object_points()[previous.ids, :2]
+    H = fit_homography(obj_xy / cb.square_mm, seeds)
+    step = np.linalg.norm(apply_homography(H, obj_xy / cb.square_mm + [1.0, 0.0]) - seeds, axis=1)
+    if np.any(np.linalg.norm(new - seeds, axis=1) > max_shift * step):
+        return None
+    res, _ = fit_residuals(new, obj_xy, camera)
+    sigma = 1.4826 * np.median(res)
+    if np.any(res > max(reject_px, 5.0 * sigma)):
+        return None
+    return BoardDetection(
+        board=previous.board,
+        corners=new,
+        ids=previous.ids.copy(),
+        residual_px=res,
+        tracked=True,
+        window_px=win,
+        scale=0,
+        orientation="tracked",
+        rejected=np.zeros(0, dtype=int),
+        seconds=time.perf_counter() - t0,
+    )
