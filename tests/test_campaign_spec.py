@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stiffmap.campaign.spec import EXAMPLE_TOML, dump_spec, load_spec, parse_spec
+from stiffmap.campaign.spec import load_spec, parse_spec
+from stiffmap.campaign.spec_writer import EXAMPLE_TOML, dump_spec
 from stiffmap.errors import InputError
 
 

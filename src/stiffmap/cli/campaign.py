@@ -41,7 +41,8 @@ def init(
     """
     import shlex
 
-    from ..campaign.spec import EXAMPLE_TOML, SPEC_NAME
+    from ..campaign.spec import SPEC_NAME
+    from ..campaign.spec_writer import EXAMPLE_TOML
     from ..io import atomic_write_text
 
     path = directory / SPEC_NAME

@@ -90,7 +90,8 @@ def write_sensor_campaign(
     InputError
         Output directory not usable; a point where the model has no stiffness (named).
     """
-    from ..campaign.spec import CampaignSpec, dump_spec
+    from ..campaign.spec import CampaignSpec
+    from ..campaign.spec_writer import dump_spec
     from ..models.base import PoseError
     from .traces import simulate_point_traces
 

@@ -373,7 +373,8 @@ def write_campaign(
         Output directory not usable; a position where the robot model has no
         stiffness or a board leaves the image (naming it).
     """
-    from ..campaign.spec import CampaignSpec, dump_spec
+    from ..campaign.spec import CampaignSpec
+    from ..campaign.spec_writer import dump_spec
 
     t0 = time.perf_counter()
     out = Path(out_dir)
