@@ -147,7 +147,7 @@ def run_demo(
     from .export import export_tables
     from .runner import run_campaign
     from .spec import load_spec
-    from .store import DB_NAME, Store, from_json
+    from .store import DB_NAME, Store, from_json, remove_database
 
     out = Path(out_dir)
     config = demo_config(quick=quick, repeats=repeats, seed=seed)
@@ -157,10 +157,7 @@ def run_demo(
     if fresh or not _same_simulation(out, command):
         if out.exists() and any(out.iterdir()) and not (out / "truth.json").is_file():
             raise InputError("not empty and not a previous demo; choose another directory", source=str(out))
-        db = out / DB_NAME
-        for p in (db, db.with_name(DB_NAME + "-wal"), db.with_name(DB_NAME + "-shm")):
-            if p.exists():
-                p.unlink()  # results of another simulation: never mix them
+        remove_database(out)  # results of another simulation: never mix them
         write_campaign(out, config, workers=workers, force=True, progress=sim_progress, command=command)
         simulated = True
     t1 = time.perf_counter()
@@ -169,7 +166,7 @@ def run_demo(
     truth = load_truth(out)
     with Store(out / DB_NAME) as store:
         export_tables(store, out / "exports", spec.name, summary.failures)
-        rows = store.rows("SELECT position, status, K FROM stiffness ORDER BY position")
+        rows = store.stiffness_rows()
     t2 = time.perf_counter()
     n = len(truth.K)
     K = np.full((n, 3, 3), np.nan)

@@ -47,10 +47,6 @@ __all__ = ["PositionTask", "RunSummary", "plan", "run_campaign", "measure_positi
 MEASUREMENT_REVISION = 2
 DERIVATION_REVISION = 2
 
-#: Tables whose rows belong to one position (column ``position``).
-POSITION_TABLES = ("measurements", "displacements", "repeat_stats", "stiffness", "model_stiffness")
-
-
 # ------------------------------------------------------------------------ plan
 
 
@@ -392,7 +388,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
     except ValueError as e:
         problems.append(f"campaign.toml robot.params: {e}")
         return problems
-    rows = store.rows("SELECT position, x, y, z, status, K, K_std FROM stiffness ORDER BY position")
+    rows = store.stiffness_rows()
     if not rows:
         return problems
     pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
@@ -429,27 +425,26 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
     else:
         fit_row.update(status="failed", error="no measured stiffness to fit")
     mm = fitted.evaluate(pts)
-    with store.transaction():
-        store.upsert("model_fit", fit_row)
-        for r, K, valid, reason, det, lam in zip(
-            rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
-        ):
-            store.upsert(
-                "model_stiffness",
-                {
-                    "position": r["position"],
-                    "model": name,
-                    "valid": int(bool(valid)),
-                    "reason": reason or None,
-                    "K": to_json(K) if valid else None,
-                    "det": float(det) if valid else None,
-                    "min_principal": float(lam) if valid else None,
-                    "inputs_hash": ihash,
-                },
-            )
-            if not valid:
-                where = f"({r['x']:g}, {r['y']:g}, {r['z']:g})"
-                problems.append(f"position {r['position']} {where}: outside the model: {reason}")
+    per_position = []
+    for r, K, valid, reason, det, lam in zip(
+        rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
+    ):
+        per_position.append(
+            {
+                "position": r["position"],
+                "model": name,
+                "valid": int(bool(valid)),
+                "reason": reason or None,
+                "K": to_json(K) if valid else None,
+                "det": float(det) if valid else None,
+                "min_principal": float(lam) if valid else None,
+                "inputs_hash": ihash,
+            }
+        )
+        if not valid:
+            where = f"({r['x']:g}, {r['y']:g}, {r['z']:g})"
+            problems.append(f"position {r['position']} {where}: outside the model: {reason}")
+    store.save_model_stiffness(fit_row, per_position)
     return problems
 
 
@@ -595,17 +590,13 @@ def run_campaign(
         hashes: dict[int, str] = {}
         with store.transaction():
             # Positions no longer in campaign.toml leave the results (indices run 1..n).
-            for table in POSITION_TABLES:
-                store.conn.execute(f"DELETE FROM {table} WHERE position > ?", (len(tasks),))
+            store.delete_positions_after(len(tasks))
             for t in tasks:
                 shas = {rel: store.sha256(root / rel) for rel in t.images if rel not in t.missing}
                 hashes[t.index] = params_hash(
                     {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
                 )
-                prev = {
-                    r["image"]: r
-                    for r in store.rows("SELECT * FROM measurements WHERE position=?", (t.index,))
-                }
+                prev = {r["image"]: r for r in store.measurement_rows(t.index)}
                 complete = all(
                     rel in prev and prev[rel]["sha256"] == sha and prev[rel]["params_hash"] == mphash
                     for rel, sha in shas.items()
@@ -621,48 +612,46 @@ def run_campaign(
 
         def finish(t: PositionTask, rows: list[ImageRow] | None) -> None:
             nonlocal done, measured_images
-            st_row = store.rows("SELECT inputs_hash, status FROM stiffness WHERE position=?", (t.index,))
             rowmap = {r.image: r for r in rows} if rows is not None else cached[t.index]
-            if rows is None and st_row and st_row[0]["inputs_hash"] == hashes[t.index]:
+            if rows is None and store.stiffness_inputs_hash(t.index) == hashes[t.index]:
                 summary.reused += 1
             else:
                 if rows is None:
                     summary.rederived += 1
                 derived = derive_position(t, rowmap, loads, spec, method, hashes[t.index], dphash)
                 with store.transaction():
+                    measurements = None
                     if rows is not None:
-                        store.conn.execute("DELETE FROM measurements WHERE position=?", (t.index,))
-                        for r in rows:
-                            store.upsert(
-                                "measurements",
-                                {
-                                    "image": r.image,
-                                    "position": t.index,
-                                    "board_set": f"{ctx.mobile}|{ctx.fixed}",
-                                    "sha256": store.sha256(root / r.image),
-                                    "params_hash": mphash,
-                                    "version": __version__,
-                                    "status": "ok" if r.ok else "failed",
-                                    "error": r.error,
-                                    "mobile2cam": to_json(r.mobile2cam),
-                                    "mobile_cov": to_json(r.mobile_cov),
-                                    "fixed2cam": to_json(r.fixed2cam),
-                                    "fixed_cov": to_json(r.fixed_cov),
-                                    "mobile2base": None,
-                                    "base_cov": None,
-                                    "rms_px": r.rms_px,
-                                    "n_corners": r.n_corners,
-                                    "tracked": int(r.tracked),
-                                    "seconds": r.seconds,
-                                },
-                            )
-                    for table in ("displacements", "repeat_stats", "stiffness"):
-                        store.conn.execute(f"DELETE FROM {table} WHERE position=?", (t.index,))
-                    for row in derived.displacements:
-                        store.upsert("displacements", row)
-                    for row in derived.repeat_stats:
-                        store.upsert("repeat_stats", row)
-                    store.upsert("stiffness", derived.stiffness)
+                        measurements = [
+                            {
+                                "image": r.image,
+                                "position": t.index,
+                                "board_set": f"{ctx.mobile}|{ctx.fixed}",
+                                "sha256": store.sha256(root / r.image),
+                                "params_hash": mphash,
+                                "version": __version__,
+                                "status": "ok" if r.ok else "failed",
+                                "error": r.error,
+                                "mobile2cam": to_json(r.mobile2cam),
+                                "mobile_cov": to_json(r.mobile_cov),
+                                "fixed2cam": to_json(r.fixed2cam),
+                                "fixed_cov": to_json(r.fixed_cov),
+                                "mobile2base": None,
+                                "base_cov": None,
+                                "rms_px": r.rms_px,
+                                "n_corners": r.n_corners,
+                                "tracked": int(r.tracked),
+                                "seconds": r.seconds,
+                            }
+                            for r in rows
+                        ]
+                    store.save_position(
+                        t.index,
+                        measurements=measurements,
+                        displacements=derived.displacements,
+                        repeat_stats=derived.repeat_stats,
+                        stiffness=derived.stiffness,
+                    )
                 summary.failures.extend(derived.problems)
             if rows is not None:
                 summary.measured += 1

@@ -76,11 +76,8 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
     phash = params_hash({"config": dataclasses.asdict(cfg), "channels": dataclasses.asdict(cmap)})
     out = SensorCampaignResult(campaign=spec.name, recordings=len(spec.sensor.recordings), failures=[])
     listed = [rec.file for rec in spec.sensor.recordings]
-    with store.transaction():
-        # Recordings no longer in campaign.toml leave the results.
-        for r in store.rows("SELECT recording FROM sensor_results"):
-            if r["recording"] not in listed:
-                store.conn.execute("DELETE FROM sensor_results WHERE recording=?", (r["recording"],))
+    # Recordings no longer in campaign.toml leave the results.
+    store.delete_recordings_not_in(listed)
     for rec in spec.sensor.recordings:
         path = root / rec.file
         key = rec.file
@@ -93,29 +90,18 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
             "version": __version__,
         }
         if not path.is_file():
-            with store.transaction():
-                store.upsert(
-                    "sensor_results", {**row, "sha256": None, "status": "failed", "error": "file not found"}
-                )
+            store.save_sensor_result({**row, "sha256": None, "status": "failed", "error": "file not found"})
             out.failures.append(f"{key}: file not found")
             continue
-        with store.transaction():
-            sha = store.sha256(path)
-        prev = store.rows(
-            "SELECT sha256, params_hash, status, error, point, direction FROM sensor_results "
-            "WHERE recording=?",
-            (key,),
-        )
-        if prev and prev[0]["sha256"] == sha and prev[0]["params_hash"] == rhash:
+        sha = store.sha256(path)
+        prev = store.sensor_result(key)
+        if prev is not None and prev["sha256"] == sha and prev["params_hash"] == rhash:
             out.reused += 1
-            if (prev[0]["point"], prev[0]["direction"]) != (row["point"], row["direction"]):
-                with store.transaction():  # where it was measured has been corrected
-                    store.conn.execute(
-                        "UPDATE sensor_results SET point=?, direction=? WHERE recording=?",
-                        (row["point"], row["direction"], key),
-                    )
-            if prev[0]["status"] != "ok":
-                out.failures.append(prev[0]["error"])
+            if (prev["point"], prev["direction"]) != (row["point"], row["direction"]):
+                # Where it was measured has been corrected.
+                store.set_recording_place(key, row["point"], row["direction"])
+            if prev["status"] != "ok":
+                out.failures.append(prev["error"])
             continue
         c = dataclasses.replace(
             cfg,
@@ -131,11 +117,9 @@ def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorC
         except InputError as e:
             result, status, error = None, "failed", str(e.with_source(key))
             out.failures.append(error)
-        with store.transaction():
-            store.upsert(
-                "sensor_results",
-                {**row, "sha256": sha, "status": status, "error": error, "result": to_json(result)},
-            )
+        store.save_sensor_result(
+            {**row, "sha256": sha, "status": status, "error": error, "result": to_json(result)}
+        )
         out.analysed += 1
     out.failures.extend(_fit_model(spec, store))
     out.wall_seconds = time.perf_counter() - t0
@@ -161,7 +145,7 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
     stds = np.full(len(recs), np.nan)
     stiff = np.full(len(recs), np.nan)
     flags: list[list[str]] = [[] for _ in recs]
-    rows = {r["recording"]: r for r in store.rows("SELECT * FROM sensor_results")}
+    rows = {r["recording"]: r for r in store.sensor_result_rows()}
     for i, r in enumerate(recs):
         row = rows.get(r.file)
         if row is not None and row["status"] == "ok":
@@ -248,21 +232,20 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
     # The fitted model's static error along each measured direction, and its reach.
     mm = fitted.evaluate(m["points"])
     pred = np.einsum("ij,ij->i", mm.static_error(ref * m["directions"]), m["directions"])
-    with store.transaction():
-        store.upsert("model_fit", row)
-        store.conn.execute("DELETE FROM model_static_error")
-        for i, f in enumerate(m["files"]):
-            store.upsert(
-                "model_static_error",
-                {
-                    "recording": f,
-                    "model": name,
-                    "valid": int(bool(mm.valid[i])),
-                    "reason": mm.reasons[i] or None,
-                    "predicted_mm": float(pred[i]) if mm.valid[i] else None,
-                    "inputs_hash": ihash,
-                },
-            )
+    store.save_model_static_errors(
+        row,
+        [
+            {
+                "recording": f,
+                "model": name,
+                "valid": int(bool(mm.valid[i])),
+                "reason": mm.reasons[i] or None,
+                "predicted_mm": float(pred[i]) if mm.valid[i] else None,
+                "inputs_hash": ihash,
+            }
+            for i, f in enumerate(m["files"])
+        ],
+    )
     for i, f in enumerate(m["files"]):
         if not mm.valid[i]:
             problems.append(

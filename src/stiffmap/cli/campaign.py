@@ -119,7 +119,7 @@ def _summary_table(store) -> Table:
     t = Table(title="stiffness per position (N/mm)", show_lines=False)
     for col in ("#", "x, y, z (mm)", "K (rows)", "det K", "min principal", "flags"):
         t.add_column(col, no_wrap=col != "flags")
-    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+    for r in store.stiffness_rows():
         xyz = f"{r['x']:.0f}, {r['y']:.0f}, {r['z']:.0f}"
         if r["status"] != "ok":
             t.add_row(str(r["position"]), xyz, "[red]failed[/]", "", "", r["error"] or "")
@@ -143,15 +143,15 @@ def _sensor_table(spec, store) -> Table:
     from ..campaign.store import from_json
 
     m = measured_static_errors(spec, store)
-    pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
-    fit = store.rows("SELECT * FROM model_fit WHERE name='static_error'")
+    pred = store.model_static_errors()
+    fit = store.model_fit("static_error")
     title = f"static error at {fmt(m['reference_load_n'], 4)} N (um)"
     model_col = "model"
-    if fit and fit[0]["status"] == "ok":
-        est, std = from_json(fit[0]["params"], array=False), from_json(fit[0]["std"], array=False)
+    if fit is not None and fit["status"] == "ok":
+        est, std = from_json(fit["params"], array=False), from_json(fit["std"], array=False)
         title += "; model fit: " + ", ".join(f"{k} = {fmt(v, 5)} ± {fmt(std[k], 2)}" for k, v in est.items())
         model_col = "model (fitted)"
-    elif fit:
+    elif fit is not None:
         title += "; model fit failed: the model column uses the parameters of campaign.toml"
         model_col = "model (not fitted)"
     t = Table(title=title)

@@ -35,11 +35,11 @@ def failures_as_items(failures: list[str]):
 def _parameters(store: Store, name: str):
     from .data import Parameter
 
-    rows = store.rows("SELECT * FROM model_fit WHERE name=?", (name,))
-    if not rows or rows[0]["status"] != "ok":
+    fit = store.model_fit(name)
+    if fit is None or fit["status"] != "ok":
         return ()
-    est = from_json(rows[0]["params"], array=False)
-    std = from_json(rows[0]["std"], array=False)
+    est = from_json(fit["params"], array=False)
+    std = from_json(fit["std"], array=False)
     units = {
         "k_theta": "N*mm/rad",
         "kj": "N/mm",
@@ -69,7 +69,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
         TruthStiffness,
     )
 
-    rows = store.rows("SELECT * FROM stiffness ORDER BY position")
+    rows = store.stiffness_rows()
     n = len(rows)
     if n == 0:
         return {}
@@ -92,7 +92,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
     loads = spec.loads.resolve(spec.g)
     norms = np.full((n, len(loads), spec.repeats), np.nan)
     index = {r["position"]: i for i, r in enumerate(rows)}
-    for d in store.rows("SELECT position, load, repeat, d FROM displacements WHERE status='ok'"):
+    for d in store.displacement_rows(only_ok=True):
         i = index.get(d["position"])
         if i is not None and d["load"] <= len(loads) and d["repeat"] <= spec.repeats:
             norms[i, d["load"] - 1, d["repeat"] - 1] = float(np.linalg.norm(from_json(d["d"])[:3]))
@@ -100,7 +100,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
     if spec.robot.model == "delta":
         model = _fitted_model(spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
-        for r in store.rows("SELECT * FROM model_stiffness ORDER BY position"):
+        for r in store.model_stiffness_rows():
             i = index.get(r["position"])
             if i is not None and r["valid"]:
                 Km[i] = from_json(r["K"])
@@ -138,7 +138,7 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
     m = measured_static_errors(spec, store)
     if m["points"].shape[1] != 2:
         return {}
-    pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
+    pred = store.model_static_errors()
     model_um = None
     maps: tuple = ()
     middle = None
