@@ -12,7 +12,7 @@ import pytest
 from _sim_helpers import round_trip_from_true_corners, scaled_camera
 
 from stiffmap.camera import load_camera, reference_camera
-from stiffmap.campaign.runner import plan
+from stiffmap.campaign.positions import plan
 from stiffmap.campaign.spec import load_spec
 from stiffmap.errors import InputError
 from stiffmap.loads import paper9
