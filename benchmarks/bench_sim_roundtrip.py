@@ -35,13 +35,14 @@ from _table import write  # noqa: E402
 from stiffmap.campaign.derive import derive_position  # noqa: E402
 from stiffmap.campaign.measure import ImageRow  # noqa: E402
 from stiffmap.campaign.positions import plan  # noqa: E402
+from stiffmap.campaign.simulated import write_campaign  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
 from stiffmap.campaign.store import from_json  # noqa: E402
+from stiffmap.campaign.truth import load_truth  # noqa: E402
 from stiffmap.loads import paper9  # noqa: E402
 from stiffmap.sim.robot import delta_robot  # noqa: E402
 from stiffmap.sim.scene import default_scene  # noqa: E402
 from stiffmap.sim.testbed import SimConfig  # noqa: E402
-from stiffmap.sim.writer import load_truth, write_campaign  # noqa: E402
 from stiffmap.targets import Chessboard  # noqa: E402
 
 OUT = HERE / "results" / "sim_roundtrip.md"

@@ -93,7 +93,7 @@ def derive_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
 
     Returns
     -------
-    truth : the campaign's ``truth.json`` (``stiffmap.sim.writer.load_truth``)
+    truth : the campaign's ``truth.json`` (``stiffmap.campaign.truth.load_truth``)
     loads : list of LoadCase (N, base frame)
     derived : list of (PositionTask, derivation result) per position
     """
@@ -102,7 +102,7 @@ def derive_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     from stiffmap.campaign.derive import derive_position
     from stiffmap.campaign.positions import plan
     from stiffmap.campaign.spec import load_spec
-    from stiffmap.sim.writer import load_truth
+    from stiffmap.campaign.truth import load_truth
     from stiffmap.targets import Chessboard
 
     spec = load_spec(root)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -17,7 +18,10 @@ import numpy as np
 import pytest
 from _cli import stiffmap
 
+from stiffmap.campaign.demo import demo_config
+from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.store import Store, dump_content
+from stiffmap.report.browser import check_page, find_chromium
 
 pytestmark = pytest.mark.slow
 
@@ -25,12 +29,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
     """Four positions of the demo set-up, nine loads, two repeats (rendered once per module)."""
-    from stiffmap.campaign.demo import demo_config
-    from stiffmap.sim.writer import write_campaign
-
     cfg = demo_config(quick=True, repeats=2)
-    import dataclasses
-
     cfg = dataclasses.replace(cfg, positions=cfg.positions[[0, 2, 4, 5]])
     out = tmp_path_factory.mktemp("campaign") / "c"
     write_campaign(out, cfg, workers=1)
@@ -214,8 +213,6 @@ def test_init_from_demo_writes_the_quick_demo_campaign_ready_to_run(quick_demo, 
 
 @pytest.mark.browser
 def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
-    from stiffmap.report.browser import check_page, find_chromium
-
     if find_chromium() is None:
         pytest.skip("headless Chromium not found: apt-get install chromium (or set STIFFMAP_CHROMIUM)")
     proc, out = quick_demo

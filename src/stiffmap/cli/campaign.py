@@ -64,7 +64,7 @@ def _init_from_demo(directory: Path, force: bool) -> None:
     """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
     from ..campaign.demo import demo_config
     from ..campaign.runner import default_workers
-    from ..sim.writer import check_output_dir, write_campaign
+    from ..campaign.simulated import check_output_dir, write_campaign
 
     check_output_dir(directory, force)
     with _progress() as prog:
