@@ -1,7 +1,12 @@
-"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report."""
+"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report.
+
+The campaign, simulation and report modules are imported inside the commands: they
+load pydantic, OpenCV, SciPy or matplotlib, which ``stiffmap --help`` must not.
+"""
 
 from __future__ import annotations
 
+import shlex
 import time
 from enum import StrEnum
 from pathlib import Path
@@ -10,7 +15,10 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..campaign.export import export_tables, summary_dict
+from ..campaign.store import DB_NAME, Store, from_json
 from ..errors import InputError
+from ..io import atomic_write_text
 from .common import EXIT_PARTIAL, err, fmt, out, print_json, warn
 
 
@@ -39,11 +47,8 @@ def init(
     images beside it, then run: stiffmap run DIRECTORY. With --from-demo, a complete
     simulated campaign to try the whole chain on first.
     """
-    import shlex
-
-    from ..campaign.spec import SPEC_NAME
-    from ..campaign.spec_writer import EXAMPLE_TOML
-    from ..io import atomic_write_text
+    from ..campaign.spec import SPEC_NAME  # lazy: pydantic, SciPy
+    from ..campaign.spec_writer import EXAMPLE_TOML  # lazy: pydantic, SciPy
 
     path = directory / SPEC_NAME
     if from_demo:
@@ -62,9 +67,9 @@ def init(
 
 def _init_from_demo(directory: Path, force: bool) -> None:
     """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
-    from ..campaign.demo import demo_config
-    from ..campaign.runner import default_workers
-    from ..campaign.simulated import check_output_dir, write_campaign
+    from ..campaign.demo import demo_config  # lazy: OpenCV, SciPy
+    from ..campaign.runner import default_workers  # lazy: OpenCV, SciPy
+    from ..campaign.simulated import check_output_dir, write_campaign  # lazy: OpenCV, SciPy
 
     check_output_dir(directory, force)
     with _progress() as prog:
@@ -113,9 +118,7 @@ def _progress():
     )
 
 
-def _summary_table(store) -> Table:
-    from ..campaign.store import from_json
-
+def _summary_table(store: Store) -> Table:
     t = Table(title="stiffness per position (N/mm)", show_lines=False)
     for col in ("#", "x, y, z (mm)", "K (rows)", "det K", "min principal", "flags"):
         t.add_column(col, no_wrap=col != "flags")
@@ -138,9 +141,8 @@ def _summary_table(store) -> Table:
     return t
 
 
-def _sensor_table(spec, store) -> Table:
-    from ..campaign.sensor_runner import measured_static_errors
-    from ..campaign.store import from_json
+def _sensor_table(spec, store: Store) -> Table:
+    from ..campaign.sensor_runner import measured_static_errors  # lazy: SciPy
 
     m = measured_static_errors(spec, store)
     pred = store.model_static_errors()
@@ -193,11 +195,9 @@ def run(
 
     Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
     """
-    from ..campaign.export import export_tables, summary_dict
-    from ..campaign.runner import default_workers, run_campaign
-    from ..campaign.sensor_runner import run_sensor_campaign
-    from ..campaign.spec import load_spec
-    from ..campaign.store import DB_NAME, Store
+    from ..campaign.runner import default_workers, run_campaign  # lazy: OpenCV, SciPy
+    from ..campaign.sensor_runner import run_sensor_campaign  # lazy: SciPy
+    from ..campaign.spec import load_spec  # lazy: pydantic, SciPy
 
     spec = load_spec(campaign)
     root = campaign.resolve()
@@ -228,7 +228,7 @@ def run(
         else:
             out.print(_sensor_table(spec, store))
     if report:
-        from ..report.campaign import write_campaign_report
+        from ..report.campaign import write_campaign_report  # lazy: SciPy, pydantic
 
         page = write_campaign_report(root, failures)
     if not as_json:

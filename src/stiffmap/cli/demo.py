@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.table import Table
 
@@ -34,11 +35,10 @@ def demo(
     prints the recovered stiffness against the truth at every position, ending with
     the worst relative error (Frobenius norm) over all positions.
     """
-    import numpy as np
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ..campaign.demo import run_demo
-    from ..campaign.runner import default_workers
+    from ..campaign.demo import run_demo  # lazy: OpenCV, SciPy
+    from ..campaign.runner import default_workers  # lazy: OpenCV, SciPy
 
     n_workers = workers or default_workers()
     with Progress(
@@ -98,7 +98,7 @@ def demo(
         f"simulate {res.seconds_simulate:.0f} s, measure + identify {res.seconds_run:.0f} s"
     )
     if report:
-        from ..report.campaign import write_campaign_report
+        from ..report.campaign import write_campaign_report  # lazy: SciPy, pydantic
 
         out.print(f"report: {write_campaign_report(res.out_dir, res.failures)}")
     for f in res.failures:
