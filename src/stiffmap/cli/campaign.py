@@ -1,8 +1,4 @@
-"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report.
-
-The campaign, simulation and report modules are imported inside the commands: they
-load pydantic, OpenCV, SciPy or matplotlib, which ``stiffmap --help`` must not.
-"""
+"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report."""
 
 from __future__ import annotations
 
@@ -15,10 +11,17 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..campaign.demo import demo_config
 from ..campaign.export import export_tables, summary_dict
+from ..campaign.runner import default_workers, run_campaign
+from ..campaign.sensor_runner import measured_static_errors, run_sensor_campaign
+from ..campaign.simulated import check_output_dir, write_campaign
+from ..campaign.spec import SPEC_NAME, load_spec
+from ..campaign.spec_writer import EXAMPLE_TOML
 from ..campaign.store import DB_NAME, Store, from_json
 from ..errors import InputError
 from ..io import atomic_write_text
+from ..report.campaign import write_campaign_report
 from .common import EXIT_PARTIAL, err, fmt, out, print_json, warn
 
 
@@ -47,9 +50,6 @@ def init(
     images beside it, then run: stiffmap run DIRECTORY. With --from-demo, a complete
     simulated campaign to try the whole chain on first.
     """
-    from ..campaign.spec import SPEC_NAME  # lazy: pydantic, SciPy
-    from ..campaign.spec_writer import EXAMPLE_TOML  # lazy: pydantic, SciPy
-
     path = directory / SPEC_NAME
     if from_demo:
         _init_from_demo(directory, force)
@@ -67,10 +67,6 @@ def init(
 
 def _init_from_demo(directory: Path, force: bool) -> None:
     """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
-    from ..campaign.demo import demo_config  # lazy: OpenCV, SciPy
-    from ..campaign.runner import default_workers  # lazy: OpenCV, SciPy
-    from ..campaign.simulated import check_output_dir, write_campaign  # lazy: OpenCV, SciPy
-
     check_output_dir(directory, force)
     with _progress() as prog:
         task = prog.add_task("rendering images", total=None, measured=0)
@@ -142,8 +138,6 @@ def _summary_table(store: Store) -> Table:
 
 
 def _sensor_table(spec, store: Store) -> Table:
-    from ..campaign.sensor_runner import measured_static_errors  # lazy: SciPy
-
     m = measured_static_errors(spec, store)
     pred = store.model_static_errors()
     fit = store.model_fit("static_error")
@@ -195,10 +189,6 @@ def run(
 
     Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
     """
-    from ..campaign.runner import default_workers, run_campaign  # lazy: OpenCV, SciPy
-    from ..campaign.sensor_runner import run_sensor_campaign  # lazy: SciPy
-    from ..campaign.spec import load_spec  # lazy: pydantic, SciPy
-
     spec = load_spec(campaign)
     root = campaign.resolve()
     n_workers = workers or default_workers()
@@ -228,8 +218,6 @@ def run(
         else:
             out.print(_sensor_table(spec, store))
     if report:
-        from ..report.campaign import write_campaign_report  # lazy: SciPy, pydantic
-
         page = write_campaign_report(root, failures)
     if not as_json:
         if spec.kind == "vision":

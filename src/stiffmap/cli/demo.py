@@ -8,6 +8,9 @@ import numpy as np
 import typer
 from rich.table import Table
 
+from ..campaign.demo import run_demo
+from ..campaign.runner import default_workers
+from ..report.campaign import write_campaign_report
 from .common import EXIT_PARTIAL, err, out, warn
 
 
@@ -36,9 +39,6 @@ def demo(
     the worst relative error (Frobenius norm) over all positions.
     """
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-    from ..campaign.demo import run_demo  # lazy: OpenCV, SciPy
-    from ..campaign.runner import default_workers  # lazy: OpenCV, SciPy
 
     n_workers = workers or default_workers()
     with Progress(
@@ -98,8 +98,6 @@ def demo(
         f"simulate {res.seconds_simulate:.0f} s, measure + identify {res.seconds_run:.0f} s"
     )
     if report:
-        from ..report.campaign import write_campaign_report  # lazy: SciPy, pydantic
-
         out.print(f"report: {write_campaign_report(res.out_dir, res.failures)}")
     for f in res.failures:
         warn(f)
