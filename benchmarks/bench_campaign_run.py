@@ -38,8 +38,8 @@ def main() -> None:
     args = ap.parse_args()
     from stiffmap.campaign.demo import demo_config
     from stiffmap.campaign.runner import run_campaign
+    from stiffmap.campaign.simulated import write_campaign
     from stiffmap.campaign.store import DB_NAME
-    from stiffmap.sim.writer import write_campaign
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "campaign"

@@ -32,14 +32,17 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 from _sim_helpers import derive_from_true_corners, pnp_image_row, round_trip_from_true_corners  # noqa: E402
 from _table import write  # noqa: E402
 
-from stiffmap.campaign.runner import ImageRow, derive_position, plan  # noqa: E402
+from stiffmap.campaign.derive import derive_position  # noqa: E402
+from stiffmap.campaign.measure import ImageRow  # noqa: E402
+from stiffmap.campaign.positions import plan  # noqa: E402
+from stiffmap.campaign.simulated import write_campaign  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
 from stiffmap.campaign.store import from_json  # noqa: E402
+from stiffmap.campaign.truth import load_truth  # noqa: E402
 from stiffmap.loads import paper9  # noqa: E402
 from stiffmap.sim.robot import delta_robot  # noqa: E402
 from stiffmap.sim.scene import default_scene  # noqa: E402
 from stiffmap.sim.testbed import SimConfig  # noqa: E402
-from stiffmap.sim.writer import load_truth, write_campaign  # noqa: E402
 from stiffmap.targets import Chessboard  # noqa: E402
 
 OUT = HERE / "results" / "sim_roundtrip.md"
@@ -117,7 +120,7 @@ def main() -> None:
         "model, paper9 loads, robot repeatability 0.02 mm (shared by a pair) and 1 um per-image "
         "jitter. Positions: (-66.67, 66.67, -310), (-200, -200, -200), (200, 200, -400), "
         "(200, -200, -200) mm. K error = |K - K_true|_F / |K_true|_F per position. Identification "
-        "and displacements by the campaign runner (stiffmap.campaign.runner.derive_position).",
+        "and displacements by the campaign runner (stiffmap.campaign.derive.derive_position).",
         "",
         "## 1. True corners + Gaussian corner noise (no images)",
         "",

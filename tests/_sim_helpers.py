@@ -67,7 +67,7 @@ def pnp_image_row(name: str, uv_mobile: np.ndarray, uv_fixed: np.ndarray, mobile
     mobile_board, fixed_board : Chessboard
     camera : CameraModel
     """
-    from stiffmap.campaign.runner import ImageRow
+    from stiffmap.campaign.measure import ImageRow
 
     return ImageRow(
         name,
@@ -84,21 +84,22 @@ def derive_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
 
     Each image's board poses come from solvePnP on the true corners (plus Gaussian
     noise of ``noise_px``, px); displacements and K come from the campaign runner's own
-    derivation (``stiffmap.campaign.runner.derive_position``: cam2base from the mean
+    derivation (``stiffmap.campaign.derive.derive_position``: cam2base from the mean
     fixed-board pose of the position, displacement of ``point_mm`` in the base frame,
     the compliance estimator).
 
     Returns
     -------
-    truth : the campaign's ``truth.json`` (``stiffmap.sim.writer.load_truth``)
+    truth : the campaign's ``truth.json`` (``stiffmap.campaign.truth.load_truth``)
     loads : list of LoadCase (N, base frame)
     derived : list of (PositionTask, derivation result) per position
     """
     import dataclasses
 
-    from stiffmap.campaign.runner import derive_position, plan
+    from stiffmap.campaign.derive import derive_position
+    from stiffmap.campaign.positions import plan
     from stiffmap.campaign.spec import load_spec
-    from stiffmap.sim.writer import load_truth
+    from stiffmap.campaign.truth import load_truth
     from stiffmap.targets import Chessboard
 
     spec = load_spec(root)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -17,7 +18,10 @@ import numpy as np
 import pytest
 from _cli import stiffmap
 
-from stiffmap.campaign.store import dump_content
+from stiffmap.campaign.demo import demo_config
+from stiffmap.campaign.simulated import write_campaign
+from stiffmap.campaign.store import Store, dump_content
+from stiffmap.report.browser import check_page, find_chromium
 
 pytestmark = pytest.mark.slow
 
@@ -25,12 +29,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
     """Four positions of the demo set-up, nine loads, two repeats (rendered once per module)."""
-    from stiffmap.campaign.demo import demo_config
-    from stiffmap.sim.writer import write_campaign
-
     cfg = demo_config(quick=True, repeats=2)
-    import dataclasses
-
     cfg = dataclasses.replace(cfg, positions=cfg.positions[[0, 2, 4, 5]])
     out = tmp_path_factory.mktemp("campaign") / "c"
     write_campaign(out, cfg, workers=1)
@@ -65,9 +64,8 @@ def test_killed_run_resumes_to_the_same_database(campaign, tmp_path):
     while time.monotonic() < deadline and proc.poll() is None:
         if db.exists():
             try:
-                con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=0.1)
-                n = con.execute("SELECT COUNT(*) FROM stiffness").fetchone()[0]
-                con.close()
+                with Store(db, read_only=True, timeout=0.1) as st:
+                    n = len(st.stiffness_rows())
             except sqlite3.OperationalError:
                 n = 0
             if n >= 1:
@@ -143,12 +141,16 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     proc = _run(c)
     assert proc.returncode == 0, proc.stderr
     assert "1 re-derived (images unchanged), 1 unchanged" in proc.stdout
-    con = sqlite3.connect(c / "stiffmap.db")
-    rows = con.execute("SELECT position, x FROM stiffness ORDER BY position").fetchall()
-    assert rows == [(1, pts[0][0]), (2, pts[1][0] + 10.0)]
-    for table in ("measurements", "displacements", "repeat_stats", "model_stiffness"):
-        assert con.execute(f"SELECT MAX(position) FROM {table}").fetchone()[0] == 2, table
-    con.close()
+    with Store(c / "stiffmap.db", read_only=True) as st:
+        rows = [(r["position"], r["x"]) for r in st.stiffness_rows()]
+        assert rows == [(1, pts[0][0]), (2, pts[1][0] + 10.0)]
+        for table, kept in (
+            ("measurements", st.measurement_rows()),
+            ("displacements", st.displacement_rows()),
+            ("repeat_stats", st.repeat_stat_rows()),
+            ("model_stiffness", st.model_stiffness_rows()),
+        ):
+            assert max(r["position"] for r in kept) == 2, table
     summary = json.loads((c / "exports" / "summary.json").read_text())
     assert [p["position"] for p in summary["positions"]] == [1, 2]
 
@@ -211,8 +213,6 @@ def test_init_from_demo_writes_the_quick_demo_campaign_ready_to_run(quick_demo, 
 
 @pytest.mark.browser
 def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
-    from stiffmap.report.browser import check_page, find_chromium
-
     if find_chromium() is None:
         pytest.skip("headless Chromium not found: apt-get install chromium (or set STIFFMAP_CHROMIUM)")
     proc, out = quick_demo

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stiffmap.campaign.spec import EXAMPLE_TOML, dump_spec, load_spec, parse_spec
+from stiffmap.campaign.sensor_runner import sensor_config
+from stiffmap.campaign.spec import load_spec, parse_spec
+from stiffmap.campaign.spec_writer import EXAMPLE_TOML, dump_spec
 from stiffmap.errors import InputError
 
 
@@ -123,7 +125,6 @@ recordings = [
 
 
 def test_sensor_section_takes_the_step_detector_and_hand_plateaus():
-    from stiffmap.campaign.sensor_runner import sensor_config
 
     spec = parse_spec(SENSOR_TOML)
     cfg, _ = sensor_config(spec)

@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+import os
 import sqlite3
+import stat
 
 import pytest
 
 from stiffmap.campaign.store import Store, dump_content, file_sha256, params_hash
+from stiffmap.io import atomic_write_text
 
 
 def test_wal_and_schema(tmp_path):
     with Store(tmp_path / "stiffmap.db") as st:
         mode = st.conn.execute("PRAGMA journal_mode").fetchone()[0]
         assert mode == "wal"
-        names = {r[0] for r in st.rows("SELECT name FROM sqlite_master WHERE type='table'")}
+        names = {r[0] for r in st.conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
         assert {"measurements", "displacements", "stiffness", "model_fit", "repeat_stats"} <= names
 
 
@@ -22,19 +25,19 @@ def test_failed_transaction_leaves_nothing(tmp_path):
     with Store(db) as st:
         with pytest.raises(RuntimeError):
             with st.transaction():
-                st.upsert(
+                st._upsert(
                     "repeat_stats",
                     {"position": 1, "load": 1, "quantity": "norm", "mean": 1.0, "std": 0.1, "n": 3},
                 )
                 raise RuntimeError("killed")
-        assert st.rows("SELECT COUNT(*) FROM repeat_stats")[0][0] == 0
+        assert st.repeat_stat_rows() == []
         with st.transaction():
-            st.upsert(
+            st._upsert(
                 "repeat_stats",
                 {"position": 1, "load": 1, "quantity": "norm", "mean": 1.0, "std": 0.1, "n": 3},
             )
             # Replacing a row by its key never duplicates it.
-            st.upsert(
+            st._upsert(
                 "repeat_stats",
                 {"position": 1, "load": 1, "quantity": "norm", "mean": 2.0, "std": 0.1, "n": 3},
             )
@@ -69,11 +72,6 @@ def test_dump_is_read_only(tmp_path):
 
 
 def test_atomic_write_keeps_default_permissions_and_leaves_no_temporary(tmp_path):
-    import os
-    import stat
-
-    from stiffmap.io import atomic_write_text
-
     p = tmp_path / "out" / "a.txt"
     atomic_write_text(p, "one")
     atomic_write_text(p, "two")
@@ -82,3 +80,42 @@ def test_atomic_write_keeps_default_permissions_and_leaves_no_temporary(tmp_path
     os.umask(umask)
     assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~umask
     assert [x.name for x in p.parent.iterdir()] == ["a.txt"]
+
+
+def test_nested_transactions_join_the_outer_one(tmp_path):
+    row = {"position": 1, "load": 1, "quantity": "norm", "mean": 1.0, "std": 0.1, "n": 3}
+    with Store(tmp_path / "stiffmap.db") as st:
+        with pytest.raises(RuntimeError):
+            with st.transaction():
+                st.save_position(1, displacements=[], repeat_stats=[row], stiffness=_stiffness_row(1))
+                raise RuntimeError("killed after the inner transaction")
+        assert st.repeat_stat_rows() == [] and st.stiffness_rows() == []
+        st.save_position(1, displacements=[], repeat_stats=[row], stiffness=_stiffness_row(1))
+        assert [r["position"] for r in st.stiffness_rows()] == [1]
+        assert st.stiffness_inputs_hash(1) == "h1" and st.stiffness_inputs_hash(2) is None
+        st.delete_positions_after(0)
+        assert st.repeat_stat_rows() == [] and st.stiffness_rows() == []
+
+
+def test_read_only_store_reads_and_never_writes(tmp_path):
+    db = tmp_path / "stiffmap.db"
+    with Store(db) as st:
+        st.save_position(1, displacements=[], repeat_stats=[], stiffness=_stiffness_row(1))
+    with Store(db, read_only=True) as st:
+        assert [r["position"] for r in st.stiffness_rows()] == [1]
+        with pytest.raises(sqlite3.OperationalError):
+            st.delete_positions_after(0)
+
+
+def _stiffness_row(position: int) -> dict:
+    return {
+        "position": position,
+        "x": 0.0,
+        "y": 0.0,
+        "z": -300.0,
+        "status": "failed",
+        "error": "test",
+        "inputs_hash": f"h{position}",
+        "params_hash": "p",
+        "version": "0",
+    }

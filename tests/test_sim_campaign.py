@@ -12,15 +12,19 @@ import pytest
 from _sim_helpers import round_trip_from_true_corners, scaled_camera
 
 from stiffmap.camera import load_camera, reference_camera
-from stiffmap.campaign.runner import plan
+from stiffmap.campaign.positions import plan
+from stiffmap.campaign.simulated import write_campaign
+from stiffmap.campaign.simulated_sensor import write_sensor_campaign
 from stiffmap.campaign.spec import load_spec
+from stiffmap.campaign.truth import TRUTH_NAME, load_truth
 from stiffmap.errors import InputError
 from stiffmap.loads import paper9
+from stiffmap.models.presets import paper48
+from stiffmap.models.prr3 import PRR3
 from stiffmap.sim.render import Photometry
 from stiffmap.sim.robot import VirtualRobot, delta_robot, smooth_field, with_rotational_compliance
 from stiffmap.sim.scene import default_scene
 from stiffmap.sim.testbed import SimConfig
-from stiffmap.sim.writer import TRUTH_NAME, load_truth, write_campaign
 
 #: A handful of paper48 positions: the centre, the nearest and farthest corners, both planes' extremes.
 HANDFUL = np.array(
@@ -178,8 +182,6 @@ def test_load_truth_refuses_other_files(tmp_path):
 
 
 def test_default_scene_sees_both_boards_at_every_paper48_position():
-    from stiffmap.models.presets import paper48
-
     sc = default_scene()
     # 40 px from the border with the platform moved 10 mm in any direction (85 px nominal).
     sc.check_visible(paper48(), border_px=40.0, slack_mm=10.0)
@@ -192,9 +194,6 @@ def test_default_scene_sees_both_boards_at_every_paper48_position():
 
 
 def test_sensor_campaign_is_reproducible_and_names_bad_points(tmp_path):
-    from stiffmap.models.prr3 import PRR3
-    from stiffmap.sim.sensor_campaign import write_sensor_campaign
-
     pts = [[400.0, 270.0], [300.0, 320.0]]
     a = write_sensor_campaign(tmp_path / "a", PRR3(kj=600.0), pts, directions=("y",), repeats=2, seed=9)
     write_sensor_campaign(tmp_path / "b", PRR3(kj=600.0), pts, directions=("y",), repeats=2, seed=9)

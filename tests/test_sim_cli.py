@@ -11,9 +11,9 @@ from _sim_helpers import scaled_camera
 
 from stiffmap.camera import reference_camera, save_camera
 from stiffmap.campaign.spec import load_spec
+from stiffmap.campaign.truth import load_truth
 from stiffmap.models.delta import DeltaRobot
 from stiffmap.models.presets import paper48
-from stiffmap.sim.writer import load_truth
 
 
 def test_truth_only_json_summary(tmp_path):

@@ -21,6 +21,7 @@ images are not rendered again, and the run only does what is missing.
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +29,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..loads import paper9
+from ..models.presets import paper48
+from ..sim.robot import delta_robot
+from ..sim.scene import demo_scene
+from ..sim.testbed import SimConfig
+from .export import export_tables
+from .runner import run_campaign
+from .simulated import write_campaign
+from .spec import load_spec
+from .store import DB_NAME, Store, from_json, remove_database
+from .truth import TRUTH_NAME, load_truth
 
 __all__ = ["DemoResult", "run_demo", "demo_config", "QUICK_POSITIONS"]
 
@@ -71,14 +83,8 @@ class DemoResult:
         return float("inf") if np.any(~np.isfinite(e)) else float(100 * e.max())
 
 
-def demo_config(*, quick: bool = False, repeats: int | None = None, seed: int = 1):
+def demo_config(*, quick: bool = False, repeats: int | None = None, seed: int = 1) -> SimConfig:
     """The :class:`~stiffmap.sim.testbed.SimConfig` of the demo."""
-    from ..loads import paper9
-    from ..models.presets import paper48
-    from ..sim.robot import delta_robot
-    from ..sim.scene import demo_scene
-    from ..sim.testbed import SimConfig
-
     pos = paper48()
     if quick:
         pos = pos[np.asarray(QUICK_POSITIONS) - 1]
@@ -96,7 +102,7 @@ def demo_config(*, quick: bool = False, repeats: int | None = None, seed: int = 
 
 
 def _same_simulation(out: Path, command: str) -> bool:
-    t = out / "truth.json"
+    t = out / TRUTH_NAME
     if not t.is_file():
         return False
     try:
@@ -141,26 +147,15 @@ def run_demo(
     InputError
         When ``out_dir`` holds something else than a stiffmap simulation.
     """
-    import time
-
-    from ..sim.writer import load_truth, write_campaign
-    from .export import export_tables
-    from .runner import run_campaign
-    from .spec import load_spec
-    from .store import DB_NAME, Store, from_json
-
     out = Path(out_dir)
     config = demo_config(quick=quick, repeats=repeats, seed=seed)
     command = f"stiffmap demo (quick={quick}, repeats={config.repeats}, seed={seed})"
     simulated = False
     t0 = time.perf_counter()
     if fresh or not _same_simulation(out, command):
-        if out.exists() and any(out.iterdir()) and not (out / "truth.json").is_file():
+        if out.exists() and any(out.iterdir()) and not (out / TRUTH_NAME).is_file():
             raise InputError("not empty and not a previous demo; choose another directory", source=str(out))
-        db = out / DB_NAME
-        for p in (db, db.with_name(DB_NAME + "-wal"), db.with_name(DB_NAME + "-shm")):
-            if p.exists():
-                p.unlink()  # results of another simulation: never mix them
+        remove_database(out)  # results of another simulation: never mix them
         write_campaign(out, config, workers=workers, force=True, progress=sim_progress, command=command)
         simulated = True
     t1 = time.perf_counter()
@@ -169,7 +164,7 @@ def run_demo(
     truth = load_truth(out)
     with Store(out / DB_NAME) as store:
         export_tables(store, out / "exports", spec.name, summary.failures)
-        rows = store.rows("SELECT position, status, K FROM stiffness ORDER BY position")
+        rows = store.stiffness_rows()
     t2 = time.perf_counter()
     n = len(truth.K)
     K = np.full((n, 3, 3), np.nan)

@@ -40,7 +40,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
     """The export tables as lists of flat dicts (numbers, strings, None)."""
     out: dict[str, list[dict[str, Any]]] = {}
     rows = []
-    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+    for r in store.stiffness_rows():
         K = from_json(r["K"])
         S = from_json(r["K_std"])
         eig = from_json(r["eigenvalues"])
@@ -70,7 +70,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
         rows.append(row)
     out["stiffness"] = rows
     rows = []
-    for r in store.rows("SELECT * FROM displacements ORDER BY position, load, repeat"):
+    for r in store.displacement_rows():
         d = from_json(r["d"]) if r["d"] is not None else np.full(6, np.nan)
         cov = from_json(r["cov"]) if r["cov"] is not None else np.full((6, 6), np.nan)
         s = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -82,9 +82,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
         row.update(status=r["status"], error=r["error"], unloaded=r["unloaded"], loaded=r["loaded"])
         rows.append(row)
     out["displacements"] = rows
-    out["repeat_stats"] = [
-        dict(r) for r in store.rows("SELECT * FROM repeat_stats ORDER BY position, load, quantity")
-    ]
+    out["repeat_stats"] = [dict(r) for r in store.repeat_stat_rows()]
     out["measurements"] = [
         {
             "image": r["image"],
@@ -95,10 +93,10 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
             "n_corners": r["n_corners"],
             "tracked": bool(r["tracked"]) if r["tracked"] is not None else None,
         }
-        for r in store.rows("SELECT * FROM measurements ORDER BY position, image")
+        for r in store.measurement_rows()
     ]
     rows = []
-    for r in store.rows("SELECT * FROM model_stiffness ORDER BY position"):
+    for r in store.model_stiffness_rows():
         K = from_json(r["K"])
         row = {
             "position": r["position"],
@@ -111,12 +109,12 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
         row.update(det=r["det"], min_principal_n_per_mm=r["min_principal"])
         rows.append(row)
     out["model_stiffness"] = rows
-    pred = {r["recording"]: r for r in store.rows("SELECT * FROM model_static_error")}
+    pred = store.model_static_errors()
     rows = []
-    for r in store.rows("SELECT * FROM sensor_results ORDER BY rowid"):
+    for r in store.sensor_result_rows():
         res = from_json(r["result"], array=False) or {}
         pt = from_json(r["point"], array=False) or []
-        m = pred.get(r["recording"])
+        predicted = pred.get(r["recording"])
         rows.append(
             {
                 "file": r["recording"],
@@ -128,9 +126,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
                 "static_error_std_um": res.get("static_error_std_um"),
                 "stiffness_n_per_mm": res.get("stiffness_n_per_mm"),
                 "stiffness_std_n_per_mm": res.get("stiffness_std_n_per_mm"),
-                "model_static_error_um": None
-                if m is None or m["predicted_mm"] is None
-                else 1e3 * m["predicted_mm"],
+                "model_static_error_um": None if predicted is None else 1e3 * predicted,
                 "flags": " | ".join(res.get("flags", [])),
             }
         )
@@ -161,7 +157,7 @@ def _parquet_bytes(rows: list[dict[str, Any]]) -> bytes:
 def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]:
     """The JSON summary: per position K, det, smallest principal stiffness, flags; the model fit."""
     positions = []
-    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+    for r in store.stiffness_rows():
         positions.append(
             {
                 "position": r["position"],
@@ -176,7 +172,7 @@ def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]
             }
         )
     fits = []
-    for r in store.rows("SELECT * FROM model_fit"):
+    for r in store.model_fit_rows():
         fits.append(
             {
                 "name": r["name"],

@@ -1,27 +1,34 @@
-"""``stiffmap run``: measure -> identify -> fit -> export (-> report) for a campaign directory.
+"""``stiffmap run``: measure -> identify -> fit for a vision campaign directory.
 
-The unit of work is a robot position: its images are measured in order (the
-platform target is tracked from image to image) by a worker process, and the
-parent writes all of the position's rows in one transaction. A position whose
-images and parameters are unchanged since the last run is not measured again;
-its displacements and stiffness are recomputed only when the load cases or the
-identification settings changed. A run killed at any moment loses at most the
+:func:`run_campaign` follows ``docs/campaigns.md`` ("What ``stiffmap run`` does"):
+
+1. **plan** (:mod:`~stiffmap.campaign.positions`): the positions and their image
+   files; then, against the database, which positions are unchanged since the
+   last run, which only need deriving again and which must be measured;
+2. **measure** (:mod:`~stiffmap.campaign.measure`): the board poses of every
+   image, one robot position per task, in a pool of processes;
+3. **derive** (:mod:`~stiffmap.campaign.derive`): displacements, repeat
+   statistics and K of each position;
+4. **persist**: all of a position's rows in one transaction
+   (:meth:`~stiffmap.campaign.store.Store.save_position`);
+5. **model**: the campaign's model fitted to the measured K and evaluated at
+   every position.
+
+A position whose images and parameters are unchanged since the last run is not
+measured again; its displacements and stiffness are recomputed only when the
+load cases or the identification settings changed. What is unchanged is told by
+hashes: of each image (SHA-256), of the measurement parameters (with
+:data:`MEASUREMENT_REVISION`) and of the derivation parameters (with
+:data:`DERIVATION_REVISION`). A run killed at any moment loses at most the
 positions in flight, and the next run finishes them.
-
-The camera does not move during a campaign, so ``cam2base`` is estimated once
-per position from the fixed target in all of that position's images (mean
-pose). Using each image's own fixed-target pose would add the fixed target's
-noise, magnified by the lever arm between the two targets, to every displacement.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
-import traceback
-import warnings
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,431 +36,23 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..camera import CameraModel, load_camera
-from ..errors import InputError, StiffmapWarning
-from ..geometry import displacement_from_poses, invert_transform, mean_transform
-from ..identify import identify_stiffness
+from ..camera import load_camera
+from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
-from ..stats import describe, precision
-from ..targets import Chessboard
+from ..models.fit import fit_stiffness
+from .derive import derive_position
+from .measure import ImageRow, MeasureContext, measure_positions
+from .positions import PositionTask, plan
 from .spec import CampaignSpec, load_spec
 from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
-__all__ = ["PositionTask", "RunSummary", "plan", "run_campaign", "measure_position"]
+__all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model", "default_workers"]
 
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
 #: recomputes it. MEASUREMENT: image -> board poses; DERIVATION: poses -> K.
 MEASUREMENT_REVISION = 2
 DERIVATION_REVISION = 2
-
-#: Tables whose rows belong to one position (column ``position``).
-POSITION_TABLES = ("measurements", "displacements", "repeat_stats", "stiffness", "model_stiffness")
-
-
-# ------------------------------------------------------------------------ plan
-
-
-@dataclass(frozen=True)
-class Pair:
-    """One measurement of one load case: an unloaded and a loaded image (relative paths)."""
-
-    load: int
-    repeat: int
-    unloaded: str
-    loaded: str
-
-
-@dataclass(frozen=True)
-class PositionTask:
-    """The images of one robot position, in acquisition order (1-based indices)."""
-
-    index: int
-    xyz: tuple[float, float, float]
-    images: tuple[str, ...]
-    pairs: tuple[Pair, ...]
-    missing: tuple[str, ...] = ()
-
-
-def plan(spec: CampaignSpec, root: Path) -> list[PositionTask]:
-    """The positions of a vision campaign with their image files (missing ones listed)."""
-    positions = spec.positions.resolve()
-    n_loads = len(spec.loads.resolve(spec.g))
-    tasks = []
-    for p, xyz in enumerate(positions, start=1):
-        pairs, images, missing = [], [], []
-        for ld in range(1, n_loads + 1):
-            for r in range(1, spec.repeats + 1):
-                u = spec.images.path("unloaded", p, ld, r)
-                lo = spec.images.path("loaded", p, ld, r)
-                pairs.append(Pair(ld, r, u, lo))
-                for rel in (u, lo):
-                    if rel not in images:
-                        images.append(rel)
-                        if not (root / rel).is_file():
-                            missing.append(rel)
-        tasks.append(
-            PositionTask(
-                p, (float(xyz[0]), float(xyz[1]), float(xyz[2])), tuple(images), tuple(pairs), tuple(missing)
-            )
-        )
-    return tasks
-
-
-# ------------------------------------------------------------------ measuring
-
-
-@dataclass(frozen=True)
-class MeasureContext:
-    """What a worker needs to measure images (picklable)."""
-
-    root: str
-    camera: dict
-    mobile: tuple[int, int, float]
-    fixed: tuple[int, int, float] | None
-    fixed2base: list | None
-    refine: str = "auto"
-
-
-@dataclass
-class ImageRow:
-    image: str
-    ok: bool
-    error: str | None = None
-    mobile2cam: np.ndarray | None = None
-    mobile_cov: np.ndarray | None = None
-    fixed2cam: np.ndarray | None = None
-    fixed_cov: np.ndarray | None = None
-    rms_px: float | None = None
-    n_corners: int | None = None
-    tracked: bool = False
-    seconds: float = 0.0
-
-
-def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
-    """Measure every existing image of a position (worker process). Never raises for an image."""
-    from ..vision.sequence import measure_sequence
-
-    camera = CameraModel.from_dict(ctx.camera)
-    mobile = Chessboard(*ctx.mobile)
-    fixed = Chessboard(*ctx.fixed) if ctx.fixed is not None else None
-    root = Path(ctx.root)
-    present = [rel for rel in task.images if rel not in task.missing]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", StiffmapWarning)
-        ms = measure_sequence(
-            [root / rel for rel in present],
-            camera,
-            mobile,
-            fixed,
-            None,
-            names=present,
-            refine=ctx.refine,
-            # The fixed target only orients the displacements, through its mean pose over the
-            # position's images: corner poses are precise enough there.
-            refine_fixed="corners",
-        )
-    rows = []
-    for rel, m in zip(present, ms, strict=True):
-        if m.error is not None or m.mobile is None:
-            rows.append(
-                ImageRow(
-                    rel, False, m.error or "mobile target not measured", seconds=m.timings.get("total", 0)
-                )
-            )
-            continue
-        rms = [p.rms_px for p in (m.mobile, m.fixed) if p is not None]
-        n = sum(p.n_corners for p in (m.mobile, m.fixed) if p is not None)
-        row = ImageRow(
-            rel,
-            True,
-            mobile2cam=m.mobile.board2cam,
-            mobile_cov=m.mobile.cov,
-            fixed2cam=None if m.fixed is None else m.fixed.board2cam,
-            fixed_cov=None if m.fixed is None else m.fixed.cov,
-            rms_px=float(np.sqrt(np.mean(np.square(rms)))),
-            n_corners=int(n),
-            tracked=bool(m.tracked),
-            seconds=float(m.timings.get("total", 0.0)),
-        )
-        if fixed is not None and m.fixed is None:
-            row.ok = False
-            row.error = "fixed target not found"
-        rows.append(row)
-    return rows
-
-
-def _measure_worker(ctx: MeasureContext, task: PositionTask) -> tuple[int, list[ImageRow] | str]:
-    try:
-        return task.index, measure_position(ctx, task)
-    except Exception:  # a bug, not a user error: keep the message, let the run go on
-        return task.index, "internal error while measuring:\n" + traceback.format_exc()
-
-
-# ----------------------------------------------------------------- derivation
-
-
-@dataclass
-class PositionResult:
-    """Derived rows of one position, ready to be written."""
-
-    displacements: list[dict] = field(default_factory=list)
-    repeat_stats: list[dict] = field(default_factory=list)
-    stiffness: dict = field(default_factory=dict)
-    problems: list[str] = field(default_factory=list)
-
-
-def derive_position(
-    task: PositionTask,
-    rows: dict[str, ImageRow],
-    loads: list[LoadCase],
-    spec: CampaignSpec,
-    method: str,
-    inputs_hash: str,
-    phash: str,
-) -> PositionResult:
-    """Displacements (base frame), repeat statistics and K of one position."""
-    res = PositionResult()
-    targets = spec.targets
-    point = np.asarray(targets.mobile.point_mm, dtype=float)
-    frame = "cam"
-    cam2base = np.eye(4)
-    fixed_ok = [r for r in rows.values() if r.ok and r.fixed2cam is not None]
-    if targets.fixed is not None:
-        if not fixed_ok:
-            res.problems.append(f"position {task.index}: the fixed target was not found in any image")
-        else:
-            fixed2base = np.asarray(targets.fixed.fixed2base, dtype=float)
-            cam2base = fixed2base @ invert_transform(mean_transform([r.fixed2cam for r in fixed_ok]))
-            frame = "base"
-    R = cam2base[:3, :3]
-    B = np.zeros((6, 6))
-    B[:3, :3] = R
-    B[3:, 3:] = R
-    mean_ref = spec.images.pairing == "mean-reference"
-    if mean_ref:
-        refs = [
-            rows[rel]
-            for rel in dict.fromkeys(pr.unloaded for pr in task.pairs)
-            if rel in rows and rows[rel].ok
-        ]
-        if not refs:
-            res.problems.append(f"position {task.index}: no usable unloaded image")
-        else:
-            ref_pose = mean_transform([r.mobile2cam for r in refs])
-            ref_cov = sum(r.mobile_cov for r in refs) / len(refs) ** 2
-    F_cols, D_cols = [], []
-    per_load: dict[int, list[np.ndarray]] = {}
-    for pr in task.pairs:
-        u, lo = rows.get(pr.unloaded), rows.get(pr.loaded)
-        row = {
-            "position": task.index,
-            "load": pr.load,
-            "repeat": pr.repeat,
-            "unloaded": "(mean of the position's unloaded images)" if mean_ref else pr.unloaded,
-            "loaded": pr.loaded,
-            "frame": frame,
-            "params_hash": phash,
-            "version": __version__,
-        }
-        bad = []
-        for rel, r in ((pr.loaded, lo),) if mean_ref else ((pr.unloaded, u), (pr.loaded, lo)):
-            if rel in task.missing:
-                bad.append(f"missing image {rel}")
-            elif r is None or not r.ok:
-                bad.append(f"{rel}: {r.error if r is not None else 'not measured'}")
-        if mean_ref and not refs:
-            bad.append("no usable unloaded image")
-        if bad or (targets.fixed is not None and not fixed_ok):
-            # Without the fixed target the displacement cannot be put in the base frame.
-            row.update(status="failed", error="; ".join(bad) or "the fixed target was not found in any image")
-            res.displacements.append(row)
-            continue
-        M0, cov0 = (ref_pose, ref_cov) if mean_ref else (u.mobile2cam, u.mobile_cov)
-        d = displacement_from_poses(cam2base @ M0, cam2base @ lo.mobile2cam, point)
-        # (t, left r) pose noise moves the point R p + t by dt + dr x (R p).
-        v = M0[:3, :3] @ point
-        J = np.eye(6)
-        J[:3, 3:] = -np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-        cov = B @ J @ (cov0 + lo.mobile_cov) @ J.T @ B.T
-        row.update(status="ok", error=None, d=to_json(d), cov=to_json(cov))
-        res.displacements.append(row)
-        F_cols.append(loads[pr.load - 1].force)
-        D_cols.append(d[:3])
-        per_load.setdefault(pr.load, []).append(d)
-    # Repeat statistics per load case: components and norm of the translation.
-    for ld, ds in sorted(per_load.items()):
-        arr = np.asarray(ds)
-        quantities = {
-            "dx": arr[:, 0],
-            "dy": arr[:, 1],
-            "dz": arr[:, 2],
-            "norm": np.linalg.norm(arr[:, :3], axis=1),
-        }
-        quantities.update({"rx": arr[:, 3], "ry": arr[:, 4], "rz": arr[:, 5]})
-        for q, vals in quantities.items():
-            c = describe(vals)
-            res.repeat_stats.append(
-                {"position": task.index, "load": ld, "quantity": q, "mean": c.mean, "std": c.std, "n": c.n}
-            )
-    x, y, z = task.xyz
-    st = {
-        "position": task.index,
-        "x": x,
-        "y": y,
-        "z": z,
-        "method": method,
-        "inputs_hash": inputs_hash,
-        "params_hash": phash,
-        "version": __version__,
-        "n_obs": len(F_cols),
-    }
-    if len(F_cols) < 3:
-        st.update(
-            status="failed", error=f"only {len(F_cols)} usable load measurement(s); at least 3 are needed"
-        )
-        res.stiffness = st
-        res.problems.append(f"position {task.index}: {st['error']}")
-        return res
-    F = np.asarray(F_cols).T
-    D = np.asarray(D_cols).T
-    try:
-        with warnings.catch_warnings(record=True):
-            warnings.simplefilter("always", StiffmapWarning)
-            # Against a mean reference every displacement shares its error: estimate that offset.
-            fit = identify_stiffness(F, D, method=method, offset=mean_ref)
-    except (InputError, ValueError) as e:
-        st.update(status="failed", error=str(e))
-        res.stiffness = st
-        res.problems.append(f"position {task.index}: {e}")
-        return res
-    idx = fit.indices
-    prec = _precision(per_load)
-    st.update(
-        status="ok",
-        error=None,
-        K=to_json(fit.K),
-        K_std=to_json(fit.K_std),
-        K_cov=to_json(fit.K_cov),
-        det=idx.det,
-        eigenvalues=to_json(idx.eigenvalues),
-        min_principal=idx.min_principal,
-        K_condition=idx.condition,
-        design_condition=fit.condition,
-        rank=fit.rank,
-        dof=fit.dof,
-        residual_rms=to_json(fit.residual_rms),
-        flags=to_json(list(fit.flags) + prec.pop("flags")),
-        precision=to_json(prec),
-    )
-    res.stiffness = st
-    return res
-
-
-def _precision(per_load: dict[int, list[np.ndarray]]) -> dict[str, Any]:
-    """Repeatability of the displacement components over the load cases (ISO 5725-2).
-
-    The load cases are the conditions and the repeats the replicates; each
-    component's deviations from its load case's mean are analysed, so s_r is
-    the pooled repeatability. A flag is raised only when Cochran's C finds the
-    largest within-load-case variance an outlier (1 %): that test already
-    accounts for the number of load cases, whereas Mandel's k, tested load case
-    by load case, would raise a false alarm at about one position in four (27
-    tests at 1 % per position); its values are kept as information.
-    """
-    groups = {k: np.asarray(v) for k, v in per_load.items() if len(v) >= 2}
-    out: dict[str, Any] = {"flags": []}
-    if len(groups) < 2:
-        return out
-    labels = [f"load {k}" for k in groups]
-    for j, name in enumerate(("dx", "dy", "dz")):
-        res = precision([g[:, j] - g[:, j].mean() for g in groups.values()], labels)
-        out[name] = {"s_r": res.s_r, "r": res.r, "mandel_k": res.k.tolist(), "cochran_C": res.cochran_C}
-        out["flags"].extend(f"{name} repeatability outlier ({o})" for o in res.outliers if "Cochran" in o)
-    return out
-
-
-# ---------------------------------------------------------------------- model
-
-
-def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
-    """Evaluate the campaign's model at every position, fit it to the measured K, store both."""
-    from ..models.fit import fit_stiffness
-
-    problems: list[str] = []
-    name = spec.robot.model
-    if name == "none" or spec.kind != "vision":
-        return problems
-    if name != "delta":
-        problems.append(f"robot model {name!r} has no 3D stiffness for a vision campaign; model step skipped")
-        return problems
-    try:
-        model = spec.robot.mechanism()
-    except ValueError as e:
-        problems.append(f"campaign.toml robot.params: {e}")
-        return problems
-    rows = store.rows("SELECT position, x, y, z, status, K, K_std FROM stiffness ORDER BY position")
-    if not rows:
-        return problems
-    pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
-    ok = [r for r in rows if r["status"] == "ok"]
-    ihash = params_hash(
-        {"model": name, "params": spec.robot.params, "xyz": pts.tolist(), "K": [r["K"] for r in ok]}
-    )
-    fitted = model
-    fit_row: dict[str, Any] = {
-        "name": "stiffness",
-        "model": name,
-        "inputs_hash": ihash,
-        "version": __version__,
-    }
-    fit_names = spec.robot.fitted_names()
-    if len(ok) >= 1:
-        try:
-            mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))
-            good = [r for r, v in zip(ok, mm.valid, strict=True) if v]
-            if not good:
-                raise InputError("no measured position lies inside the model's workspace")
-            fit = fit_stiffness(
-                model,
-                np.array([[r["x"], r["y"], r["z"]] for r in good]),
-                np.array([from_json(r["K"]) for r in good]),
-                params=fit_names,
-                K_std=np.array([from_json(r["K_std"]) for r in good]),
-            )
-            fitted = fit.model
-            fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
-        except (InputError, ValueError) as e:
-            fit_row.update(status="failed", error=str(e))
-            problems.append(f"model fit: {e}")
-    else:
-        fit_row.update(status="failed", error="no measured stiffness to fit")
-    mm = fitted.evaluate(pts)
-    with store.transaction():
-        store.upsert("model_fit", fit_row)
-        for r, K, valid, reason, det, lam in zip(
-            rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
-        ):
-            store.upsert(
-                "model_stiffness",
-                {
-                    "position": r["position"],
-                    "model": name,
-                    "valid": int(bool(valid)),
-                    "reason": reason or None,
-                    "K": to_json(K) if valid else None,
-                    "det": float(det) if valid else None,
-                    "min_principal": float(lam) if valid else None,
-                    "inputs_hash": ihash,
-                },
-            )
-            if not valid:
-                where = f"({r['x']:g}, {r['y']:g}, {r['z']:g})"
-                problems.append(f"position {r['position']} {where}: outside the model: {reason}")
-    return problems
-
-
-# ------------------------------------------------------------------------ run
 
 
 @dataclass
@@ -474,36 +73,6 @@ class RunSummary:
 
 #: ``progress(images_done, images_total, images_measured)`` after each position.
 ProgressHook = Callable[[int, int, int], None]
-
-
-def _ctx(spec: CampaignSpec, root: Path, camera: CameraModel) -> MeasureContext:
-    t = spec.targets
-    mob = Chessboard.parse(t.mobile.board, t.mobile.square_mm)
-    fix = Chessboard.parse(t.fixed.board, t.fixed.square_mm) if t.fixed is not None else None
-    return MeasureContext(
-        root=str(root),
-        camera=camera.to_dict(),
-        mobile=(mob.cols, mob.rows, mob.square_mm),
-        fixed=None if fix is None else (fix.cols, fix.rows, fix.square_mm),
-        fixed2base=t.fixed.fixed2base if t.fixed is not None else None,
-        refine=spec.measurement.refine,
-    )
-
-
-def _image_row_from_db(r) -> ImageRow:
-    return ImageRow(
-        image=r["image"],
-        ok=r["status"] == "ok",
-        error=r["error"],
-        mobile2cam=from_json(r["mobile2cam"]),
-        mobile_cov=from_json(r["mobile_cov"]),
-        fixed2cam=from_json(r["fixed2cam"]),
-        fixed_cov=from_json(r["fixed_cov"]),
-        rms_px=r["rms_px"],
-        n_corners=r["n_corners"],
-        tracked=bool(r["tracked"]),
-        seconds=r["seconds"] or 0.0,
-    )
 
 
 def run_campaign(
@@ -540,6 +109,56 @@ def run_campaign(
         malformed.
     """
     t_start = time.perf_counter()
+    campaign = _read_campaign(campaign_dir, method)  # plan: the spec's positions and images
+    summary = RunSummary(campaign=campaign.spec.name, positions=len(campaign.tasks), db=str(campaign.db))
+    for t in campaign.tasks:
+        for rel in t.missing:
+            summary.failures.append(f"{rel}: image not found (position {t.index})")
+    with Store(campaign.db) as store:
+        run_id = store.begin_run({"workers": workers, "method": method})
+        work = _plan_work(store, campaign)  # plan: what the database holds, what is left to do
+        tally = _Tally(summary, sum(len(t.images) for t in campaign.tasks), progress)
+        for task in campaign.tasks:  # images unchanged: derive again when the parameters changed
+            if task.index in work.stored:
+                problems = _derive_and_persist(store, campaign, work, task, None)
+                tally.position_done(task, None, problems)
+        measuring = measure_positions(campaign.context, work.to_measure, workers)
+        with contextlib.closing(measuring):
+            for task, rows in measuring:  # measured: derive and persist each position as it comes
+                if isinstance(rows, str):  # the worker failed: a bug, named, and the run goes on
+                    summary.failures.append(f"position {task.index}: {rows.splitlines()[-1]}")
+                    tally.position_lost(task)
+                    continue
+                problems = _derive_and_persist(store, campaign, work, task, rows)
+                tally.position_done(task, rows, problems)
+        summary.failures.extend(fit_and_evaluate_model(store, campaign.spec))
+        summary.wall_seconds = time.perf_counter() - t_start
+        store.end_run(run_id, "done", {"failures": len(summary.failures)})
+    return summary
+
+
+# ------------------------------------------------------------------------ plan
+
+
+@dataclass(frozen=True)
+class _Campaign:
+    """A vision campaign as a run sees it: its directory, spec, camera, loads, positions, method."""
+
+    root: Path
+    spec: CampaignSpec
+    camera_path: Path
+    loads: list[LoadCase]
+    tasks: list[PositionTask]
+    context: MeasureContext
+    method: str
+
+    @property
+    def db(self) -> Path:
+        return self.root / DB_NAME
+
+
+def _read_campaign(campaign_dir: str | Path, method: str) -> _Campaign:
+    """Read the spec and the camera and plan the positions; InputError when nothing can be done."""
     root = Path(campaign_dir).resolve()
     spec = load_spec(root)
     if spec.kind != "vision":
@@ -553,7 +172,6 @@ def run_campaign(
         tasks = plan(spec, root)
     except ValueError as e:
         raise InputError(str(e), source=str(root / "campaign.toml")) from None
-    summary = RunSummary(campaign=spec.name, positions=len(tasks), db=str(root / DB_NAME))
     if tasks and all(len(t.missing) == len(t.images) for t in tasks):
         raise InputError(
             f"no image found: none of the {sum(len(t.images) for t in tasks)} files that [images] "
@@ -561,142 +179,283 @@ def run_campaign(
             "check the patterns and the image folder",
             source=str(root / "campaign.toml"),
         )
-    for t in tasks:
-        for rel in t.missing:
-            summary.failures.append(f"{rel}: image not found (position {t.index})")
-    ctx = _ctx(spec, root, camera)
-    with Store(root / DB_NAME) as store:
-        run_id = store.begin_run({"workers": workers, "method": method})
-        mphash = params_hash(
+    context = MeasureContext.from_spec(spec, root, camera)
+    return _Campaign(root, spec, camera_path, loads, tasks, context, method)
+
+
+@dataclass
+class _Work:
+    """What the database already holds for a run, and what is left to do.
+
+    Attributes
+    ----------
+    measure_hash, derive_hash : str
+        Hashes of the measurement parameters (image -> poses) and of the
+        derivation parameters (poses -> K).
+    inputs_hash : dict of int to str
+        Per position, the hash of everything its results depend on.
+    stored : dict of int to dict of str to ImageRow
+        The stored image rows of the positions not to be measured again.
+    to_measure : list of PositionTask
+    """
+
+    measure_hash: str
+    derive_hash: str
+    inputs_hash: dict[int, str] = field(default_factory=dict)
+    stored: dict[int, dict[str, ImageRow]] = field(default_factory=dict)
+    to_measure: list[PositionTask] = field(default_factory=list)
+
+
+def _plan_work(store: Store, campaign: _Campaign) -> _Work:
+    """Hash the parameters and every image; keep the measurements whose inputs are unchanged."""
+    ctx = campaign.context
+    spec = campaign.spec
+    mphash = params_hash(
+        {
+            "camera": store.sha256(campaign.camera_path),
+            "mobile": ctx.mobile,
+            "fixed": ctx.fixed,
+            "refine": ctx.refine,
+            "what": "measure",
+            "revision": MEASUREMENT_REVISION,
+        }
+    )
+    dphash = params_hash(
+        {
+            "measure": mphash,
+            "method": campaign.method,
+            "point": list(spec.targets.mobile.point_mm),
+            "pairing": spec.images.pairing,
+            "revision": DERIVATION_REVISION,
+            "fixed2base": ctx.fixed2base,
+            "forces": forces_matrix(campaign.loads),
+            "force_cov": force_covariances(campaign.loads),
+        }
+    )
+    work = _Work(mphash, dphash)
+    with store.transaction():
+        # Positions no longer in campaign.toml leave the results (indices run 1..n).
+        store.delete_positions_after(len(campaign.tasks))
+        for t in campaign.tasks:
+            shas = {rel: store.sha256(campaign.root / rel) for rel in t.images if rel not in t.missing}
+            work.inputs_hash[t.index] = params_hash(
+                {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
+            )
+            prev = {r["image"]: r for r in store.measurement_rows(t.index)}
+            complete = all(
+                rel in prev and prev[rel]["sha256"] == sha and prev[rel]["params_hash"] == mphash
+                for rel, sha in shas.items()
+            )
+            if complete:
+                work.stored[t.index] = {rel: _image_row_from_db(prev[rel]) for rel in shas}
+            else:
+                work.to_measure.append(t)
+    return work
+
+
+# ---------------------------------------------------------- derive, persist
+
+
+def _derive_and_persist(
+    store: Store, campaign: _Campaign, work: _Work, task: PositionTask, measured: list[ImageRow] | None
+) -> list[str] | None:
+    """Derive a position's results and write them with its measurements, in one transaction.
+
+    ``measured`` is None for a position not measured again: its stored results
+    are kept when they were derived from the same inputs.
+
+    Returns
+    -------
+    list of str or None
+        The derivation's problems; None when the stored results were kept.
+    """
+    inputs_hash = work.inputs_hash[task.index]
+    if measured is None and store.stiffness_inputs_hash(task.index) == inputs_hash:
+        return None
+    rows = work.stored[task.index] if measured is None else {r.image: r for r in measured}
+    derived = derive_position(
+        task, rows, campaign.loads, campaign.spec, campaign.method, inputs_hash, work.derive_hash
+    )
+    with store.transaction():
+        store.save_position(
+            task.index,
+            measurements=None
+            if measured is None
+            else [_measurement_row(store, campaign, work, task, r) for r in measured],
+            displacements=derived.displacements,
+            repeat_stats=derived.repeat_stats,
+            stiffness=derived.stiffness,
+        )
+    return derived.problems
+
+
+def _measurement_row(
+    store: Store, campaign: _Campaign, work: _Work, task: PositionTask, r: ImageRow
+) -> dict[str, Any]:
+    """The ``measurements`` row of one measured image."""
+    ctx = campaign.context
+    return {
+        "image": r.image,
+        "position": task.index,
+        "board_set": f"{ctx.mobile}|{ctx.fixed}",
+        "sha256": store.sha256(campaign.root / r.image),
+        "params_hash": work.measure_hash,
+        "version": __version__,
+        "status": "ok" if r.ok else "failed",
+        "error": r.error,
+        "mobile2cam": to_json(r.mobile2cam),
+        "mobile_cov": to_json(r.mobile_cov),
+        "fixed2cam": to_json(r.fixed2cam),
+        "fixed_cov": to_json(r.fixed_cov),
+        "mobile2base": None,
+        "base_cov": None,
+        "rms_px": r.rms_px,
+        "n_corners": r.n_corners,
+        "tracked": int(r.tracked),
+        "seconds": r.seconds,
+    }
+
+
+def _image_row_from_db(r) -> ImageRow:
+    """The :class:`ImageRow` of a stored ``measurements`` row."""
+    return ImageRow(
+        image=r["image"],
+        ok=r["status"] == "ok",
+        error=r["error"],
+        mobile2cam=from_json(r["mobile2cam"]),
+        mobile_cov=from_json(r["mobile_cov"]),
+        fixed2cam=from_json(r["fixed2cam"]),
+        fixed_cov=from_json(r["fixed_cov"]),
+        rms_px=r["rms_px"],
+        n_corners=r["n_corners"],
+        tracked=bool(r["tracked"]),
+        seconds=r["seconds"] or 0.0,
+    )
+
+
+class _Tally:
+    """The run's counts and progress, position after position."""
+
+    def __init__(self, summary: RunSummary, total: int, progress: ProgressHook | None) -> None:
+        self.summary = summary
+        self.total = total
+        self.progress = progress
+        self.done = 0
+        self.measured_images = 0
+
+    def position_done(
+        self, task: PositionTask, measured: list[ImageRow] | None, problems: list[str] | None
+    ) -> None:
+        """Count a finished position.
+
+        ``measured``: its images, when measured in this run; ``problems``: those of its
+        derivation, None when its stored results were kept.
+        """
+        s = self.summary
+        if measured is None:
+            if problems is None:
+                s.reused += 1
+            else:
+                s.rederived += 1
+        s.failures.extend(problems or [])
+        if measured is not None:
+            s.measured += 1
+            s.images += len(measured)
+            s.image_seconds += sum(r.seconds for r in measured)
+            s.failures.extend(f"{r.image}: {r.error}" for r in measured if not r.ok)
+            self.measured_images += len(task.images)
+        self.done += len(task.images)
+        if self.progress is not None:
+            self.progress(self.done, self.total, self.measured_images)
+
+    def position_lost(self, task: PositionTask) -> None:
+        """Count a position whose measurement failed as a whole (no progress report)."""
+        self.done += len(task.images)
+
+
+# ---------------------------------------------------------------------- model
+
+
+def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
+    """Evaluate the campaign's model at every position, fit it to the measured K, store both."""
+    problems: list[str] = []
+    name = spec.robot.model
+    if name == "none" or spec.kind != "vision":
+        return problems
+    if name != "delta":
+        problems.append(f"robot model {name!r} has no 3D stiffness for a vision campaign; model step skipped")
+        return problems
+    try:
+        model = spec.robot.mechanism()
+    except ValueError as e:
+        problems.append(f"campaign.toml robot.params: {e}")
+        return problems
+    rows = store.stiffness_rows()
+    if not rows:
+        return problems
+    pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+    ok = [r for r in rows if r["status"] == "ok"]
+    ihash = params_hash(
+        {"model": name, "params": spec.robot.params, "xyz": pts.tolist(), "K": [r["K"] for r in ok]}
+    )
+    fit_row: dict[str, Any] = {
+        "name": "stiffness",
+        "model": name,
+        "inputs_hash": ihash,
+        "version": __version__,
+    }
+    fitted = _fit_to_measured(model, ok, spec.robot.fitted_names(), fit_row, problems)
+    mm = fitted.evaluate(pts)
+    per_position = []
+    for r, K, valid, reason, det, lam in zip(
+        rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
+    ):
+        per_position.append(
             {
-                "camera": store.sha256(camera_path),
-                "mobile": ctx.mobile,
-                "fixed": ctx.fixed,
-                "refine": ctx.refine,
-                "what": "measure",
-                "revision": MEASUREMENT_REVISION,
+                "position": r["position"],
+                "model": name,
+                "valid": int(bool(valid)),
+                "reason": reason or None,
+                "K": to_json(K) if valid else None,
+                "det": float(det) if valid else None,
+                "min_principal": float(lam) if valid else None,
+                "inputs_hash": ihash,
             }
         )
-        dphash = params_hash(
-            {
-                "measure": mphash,
-                "method": method,
-                "point": list(spec.targets.mobile.point_mm),
-                "pairing": spec.images.pairing,
-                "revision": DERIVATION_REVISION,
-                "fixed2base": ctx.fixed2base,
-                "forces": forces_matrix(loads),
-                "force_cov": force_covariances(loads),
-            }
+        if not valid:
+            where = f"({r['x']:g}, {r['y']:g}, {r['z']:g})"
+            problems.append(f"position {r['position']} {where}: outside the model: {reason}")
+    store.save_model_stiffness(fit_row, per_position)
+    return problems
+
+
+def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict, problems: list[str]):
+    """The model fitted to the measured K of the ``ok`` stiffness rows (``model`` when the fit fails).
+
+    The fit's columns (or its failure) go into ``fit_row``, its problem into ``problems``.
+    """
+    if len(ok) < 1:
+        fit_row.update(status="failed", error="no measured stiffness to fit")
+        return model
+    fitted = model
+    try:
+        mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))
+        good = [r for r, v in zip(ok, mm.valid, strict=True) if v]
+        if not good:
+            raise InputError("no measured position lies inside the model's workspace")
+        fit = fit_stiffness(
+            model,
+            np.array([[r["x"], r["y"], r["z"]] for r in good]),
+            np.array([from_json(r["K"]) for r in good]),
+            params=fit_names,
+            K_std=np.array([from_json(r["K_std"]) for r in good]),
         )
-        # Decide per position: reuse, re-derive, or measure.
-        to_measure: list[PositionTask] = []
-        cached: dict[int, dict[str, ImageRow]] = {}
-        hashes: dict[int, str] = {}
-        with store.transaction():
-            # Positions no longer in campaign.toml leave the results (indices run 1..n).
-            for table in POSITION_TABLES:
-                store.conn.execute(f"DELETE FROM {table} WHERE position > ?", (len(tasks),))
-            for t in tasks:
-                shas = {rel: store.sha256(root / rel) for rel in t.images if rel not in t.missing}
-                hashes[t.index] = params_hash(
-                    {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
-                )
-                prev = {
-                    r["image"]: r
-                    for r in store.rows("SELECT * FROM measurements WHERE position=?", (t.index,))
-                }
-                complete = all(
-                    rel in prev and prev[rel]["sha256"] == sha and prev[rel]["params_hash"] == mphash
-                    for rel, sha in shas.items()
-                )
-                if complete:
-                    cached[t.index] = {rel: _image_row_from_db(prev[rel]) for rel in shas}
-                else:
-                    to_measure.append(t)
-        by_index = {t.index: t for t in tasks}
-        done = 0
-        measured_images = 0
-        total = sum(len(t.images) for t in tasks)
-
-        def finish(t: PositionTask, rows: list[ImageRow] | None) -> None:
-            nonlocal done, measured_images
-            st_row = store.rows("SELECT inputs_hash, status FROM stiffness WHERE position=?", (t.index,))
-            rowmap = {r.image: r for r in rows} if rows is not None else cached[t.index]
-            if rows is None and st_row and st_row[0]["inputs_hash"] == hashes[t.index]:
-                summary.reused += 1
-            else:
-                if rows is None:
-                    summary.rederived += 1
-                derived = derive_position(t, rowmap, loads, spec, method, hashes[t.index], dphash)
-                with store.transaction():
-                    if rows is not None:
-                        store.conn.execute("DELETE FROM measurements WHERE position=?", (t.index,))
-                        for r in rows:
-                            store.upsert(
-                                "measurements",
-                                {
-                                    "image": r.image,
-                                    "position": t.index,
-                                    "board_set": f"{ctx.mobile}|{ctx.fixed}",
-                                    "sha256": store.sha256(root / r.image),
-                                    "params_hash": mphash,
-                                    "version": __version__,
-                                    "status": "ok" if r.ok else "failed",
-                                    "error": r.error,
-                                    "mobile2cam": to_json(r.mobile2cam),
-                                    "mobile_cov": to_json(r.mobile_cov),
-                                    "fixed2cam": to_json(r.fixed2cam),
-                                    "fixed_cov": to_json(r.fixed_cov),
-                                    "mobile2base": None,
-                                    "base_cov": None,
-                                    "rms_px": r.rms_px,
-                                    "n_corners": r.n_corners,
-                                    "tracked": int(r.tracked),
-                                    "seconds": r.seconds,
-                                },
-                            )
-                    for table in ("displacements", "repeat_stats", "stiffness"):
-                        store.conn.execute(f"DELETE FROM {table} WHERE position=?", (t.index,))
-                    for row in derived.displacements:
-                        store.upsert("displacements", row)
-                    for row in derived.repeat_stats:
-                        store.upsert("repeat_stats", row)
-                    store.upsert("stiffness", derived.stiffness)
-                summary.failures.extend(derived.problems)
-            if rows is not None:
-                summary.measured += 1
-                summary.images += len(rows)
-                summary.image_seconds += sum(r.seconds for r in rows)
-                summary.failures.extend(f"{r.image}: {r.error}" for r in rows if not r.ok)
-                measured_images += len(t.images)
-            done += len(t.images)
-            if progress is not None:
-                progress(done, total, measured_images)
-
-        for t in tasks:
-            if t.index in cached:
-                finish(t, None)
-        if to_measure:
-            if workers <= 1:
-                for t in to_measure:
-                    finish(t, measure_position(ctx, t))
-            else:
-                with ProcessPoolExecutor(max_workers=workers) as pool:
-                    pending = {pool.submit(_measure_worker, ctx, t) for t in to_measure}
-                    while pending:
-                        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                        for fut in finished:
-                            idx, rows = fut.result()
-                            if isinstance(rows, str):
-                                summary.failures.append(f"position {idx}: {rows.splitlines()[-1]}")
-                                done += len(by_index[idx].images)
-                                continue
-                            finish(by_index[idx], rows)
-        summary.failures.extend(fit_and_evaluate_model(store, spec))
-        summary.wall_seconds = time.perf_counter() - t_start
-        store.end_run(run_id, "done", {"failures": len(summary.failures)})
-    return summary
+        fitted = fit.model
+        fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
+    except (InputError, ValueError) as e:
+        fit_row.update(status="failed", error=str(e))
+        problems.append(f"model fit: {e}")
+    return fitted
 
 
 def default_workers() -> int:

@@ -11,6 +11,7 @@ and the fitted model's static errors are stored beside the measured ones.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,17 +21,19 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from .spec import CampaignSpec
+from ..models.fit import fit_static_errors
+from ..sensors.analysis import SensorConfig, analyse_recording
+from ..sensors.batch import direction_from
+from ..sensors.io import read_recording
+from ..sensors.recording import ChannelMap, parse_channel_map
+from .spec import CampaignSpec, SensorRecordingSpec
 from .store import Store, from_json, model_fit_columns, params_hash, to_json
 
 __all__ = ["run_sensor_campaign", "sensor_config", "SensorCampaignResult"]
 
 
-def sensor_config(spec: CampaignSpec):
+def sensor_config(spec: CampaignSpec) -> tuple[SensorConfig, ChannelMap]:
     """The :class:`~stiffmap.sensors.analysis.SensorConfig` and channel map of a sensor campaign."""
-    from ..sensors.analysis import SensorConfig
-    from ..sensors.recording import parse_channel_map
-
     s = spec.sensor
     cmap = parse_channel_map(",".join(f"{k}={v}" for k, v in s.channel_map.items()) or None)
     steps, unit = (s.steps_n, "N") if s.steps_n is not None else (s.steps_kgf, "kgf")
@@ -66,80 +69,71 @@ class SensorCampaignResult:
 
 def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorCampaignResult:
     """Analyse every recording (reusing unchanged ones) and fit the model."""
-    import dataclasses
-
-    from ..sensors.analysis import analyse_recording
-    from ..sensors.io import read_recording
-
     t0 = time.perf_counter()
     cfg, cmap = sensor_config(spec)
     phash = params_hash({"config": dataclasses.asdict(cfg), "channels": dataclasses.asdict(cmap)})
     out = SensorCampaignResult(campaign=spec.name, recordings=len(spec.sensor.recordings), failures=[])
-    listed = [rec.file for rec in spec.sensor.recordings]
-    with store.transaction():
-        # Recordings no longer in campaign.toml leave the results.
-        for r in store.rows("SELECT recording FROM sensor_results"):
-            if r["recording"] not in listed:
-                store.conn.execute("DELETE FROM sensor_results WHERE recording=?", (r["recording"],))
+    # Recordings no longer in campaign.toml leave the results.
+    store.delete_recordings_not_in([rec.file for rec in spec.sensor.recordings])
     for rec in spec.sensor.recordings:
-        path = root / rec.file
-        key = rec.file
-        rhash = params_hash({"analysis": phash, "sign": rec.sign, "step_times": rec.step_times})
-        row: dict[str, Any] = {
-            "recording": key,
-            "point": to_json(rec.point),
-            "direction": rec.direction,
-            "params_hash": rhash,
-            "version": __version__,
-        }
-        if not path.is_file():
-            with store.transaction():
-                store.upsert(
-                    "sensor_results", {**row, "sha256": None, "status": "failed", "error": "file not found"}
-                )
-            out.failures.append(f"{key}: file not found")
-            continue
-        with store.transaction():
-            sha = store.sha256(path)
-        prev = store.rows(
-            "SELECT sha256, params_hash, status, error, point, direction FROM sensor_results "
-            "WHERE recording=?",
-            (key,),
-        )
-        if prev and prev[0]["sha256"] == sha and prev[0]["params_hash"] == rhash:
-            out.reused += 1
-            if (prev[0]["point"], prev[0]["direction"]) != (row["point"], row["direction"]):
-                with store.transaction():  # where it was measured has been corrected
-                    store.conn.execute(
-                        "UPDATE sensor_results SET point=?, direction=? WHERE recording=?",
-                        (row["point"], row["direction"], key),
-                    )
-            if prev[0]["status"] != "ok":
-                out.failures.append(prev[0]["error"])
-            continue
-        c = dataclasses.replace(
-            cfg,
-            axis_sign=rec.sign,
-            step_times_s=tuple(tuple(span) for span in rec.step_times) if rec.step_times else None,
-        )
-        try:
-            res = analyse_recording(read_recording(path, cmap), c)
-            result = res.to_dict()
-            result["static_error_mm"] = res.static_error_mm
-            result["static_error_std_mm"] = res.static_error_std_mm
-            status, error = "ok", None
-        except InputError as e:
-            result, status, error = None, "failed", str(e.with_source(key))
-            out.failures.append(error)
-        with store.transaction():
-            store.upsert(
-                "sensor_results",
-                {**row, "sha256": sha, "status": status, "error": error, "result": to_json(result)},
-            )
-        out.analysed += 1
+        _analyse_or_reuse(root, store, rec, cfg, cmap, phash, out)
     out.failures.extend(_fit_model(spec, store))
     out.wall_seconds = time.perf_counter() - t0
     return out
+
+
+def _analyse_or_reuse(
+    root: Path,
+    store: Store,
+    rec: SensorRecordingSpec,
+    cfg: SensorConfig,
+    cmap: ChannelMap,
+    phash: str,
+    out: SensorCampaignResult,
+) -> None:
+    """Analyse one recording and store its result, unless the stored one is of the same file and settings."""
+    path = root / rec.file
+    key = rec.file
+    rhash = params_hash({"analysis": phash, "sign": rec.sign, "step_times": rec.step_times})
+    row: dict[str, Any] = {
+        "recording": key,
+        "point": to_json(rec.point),
+        "direction": rec.direction,
+        "params_hash": rhash,
+        "version": __version__,
+    }
+    if not path.is_file():
+        store.save_sensor_result({**row, "sha256": None, "status": "failed", "error": "file not found"})
+        out.failures.append(f"{key}: file not found")
+        return
+    sha = store.sha256(path)
+    prev = store.sensor_result(key)
+    if prev is not None and prev["sha256"] == sha and prev["params_hash"] == rhash:
+        out.reused += 1
+        if (prev["point"], prev["direction"]) != (row["point"], row["direction"]):
+            # Where it was measured has been corrected.
+            store.set_recording_place(key, row["point"], row["direction"])
+        if prev["status"] != "ok":
+            out.failures.append(prev["error"])
+        return
+    c = dataclasses.replace(
+        cfg,
+        axis_sign=rec.sign,
+        step_times_s=tuple(tuple(span) for span in rec.step_times) if rec.step_times else None,
+    )
+    try:
+        res = analyse_recording(read_recording(path, cmap), c)
+        result = res.to_dict()
+        result["static_error_mm"] = res.static_error_mm
+        result["static_error_std_mm"] = res.static_error_std_mm
+        status, error = "ok", None
+    except InputError as e:
+        result, status, error = None, "failed", str(e.with_source(key))
+        out.failures.append(error)
+    store.save_sensor_result(
+        {**row, "sha256": sha, "status": status, "error": error, "result": to_json(result)}
+    )
+    out.analysed += 1
 
 
 def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.ndarray]:
@@ -151,8 +145,6 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
         ``points`` (m, d) mm, ``directions`` (m, d) unit, ``value_mm``, ``std_mm`` (m,)
         (NaN where the recording failed), ``valid`` (m,) bool, ``files`` list.
     """
-    from ..sensors.batch import direction_from
-
     recs = spec.sensor.recordings
     d = max(len(r.point) for r in recs)
     pts = np.array([list(r.point) + [0.0] * (d - len(r.point)) for r in recs], dtype=float)
@@ -161,7 +153,7 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
     stds = np.full(len(recs), np.nan)
     stiff = np.full(len(recs), np.nan)
     flags: list[list[str]] = [[] for _ in recs]
-    rows = {r["recording"]: r for r in store.rows("SELECT * FROM sensor_results")}
+    rows = {r["recording"]: r for r in store.sensor_result_rows()}
     for i, r in enumerate(recs):
         row = rows.get(r.file)
         if row is not None and row["status"] == "ok":
@@ -185,8 +177,7 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
 
 
 def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
-    from ..models.fit import fit_static_errors
-
+    """Fit the campaign's model to the measured static errors; store the fit and its static errors."""
     name = spec.robot.model
     if name == "none":
         return []
@@ -248,21 +239,20 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
     # The fitted model's static error along each measured direction, and its reach.
     mm = fitted.evaluate(m["points"])
     pred = np.einsum("ij,ij->i", mm.static_error(ref * m["directions"]), m["directions"])
-    with store.transaction():
-        store.upsert("model_fit", row)
-        store.conn.execute("DELETE FROM model_static_error")
-        for i, f in enumerate(m["files"]):
-            store.upsert(
-                "model_static_error",
-                {
-                    "recording": f,
-                    "model": name,
-                    "valid": int(bool(mm.valid[i])),
-                    "reason": mm.reasons[i] or None,
-                    "predicted_mm": float(pred[i]) if mm.valid[i] else None,
-                    "inputs_hash": ihash,
-                },
-            )
+    store.save_model_static_errors(
+        row,
+        [
+            {
+                "recording": f,
+                "model": name,
+                "valid": int(bool(mm.valid[i])),
+                "reason": mm.reasons[i] or None,
+                "predicted_mm": float(pred[i]) if mm.valid[i] else None,
+                "inputs_hash": ihash,
+            }
+            for i, f in enumerate(m["files"])
+        ],
+    )
     for i, f in enumerate(m["files"]):
         if not mm.valid[i]:
             problems.append(

@@ -9,34 +9,38 @@ A campaign is a directory (DESIGN.md section 4)::
       stiffmap.db          # results (written by ``stiffmap run``)
       report/              # derived report
 
-The spec is validated with pydantic; every problem is reported with the key
-(``targets.fixed.square_mm``) and the line of ``campaign.toml`` it is on.
-``stiffmap init DIR`` writes a commented example (:data:`EXAMPLE_TOML`).
+This module holds the schema (pydantic models, one per table) and reading it:
+:func:`load_spec`, :func:`parse_spec`. Every problem is reported with the key
+(``targets.fixed.square_mm``) and the line of ``campaign.toml`` it is on
+(:mod:`stiffmap.campaign.spec_errors`). Writing a spec, with every key
+explained, and the commented example ``stiffmap init DIR`` writes are in
+:mod:`stiffmap.campaign.spec_writer`.
 """
 
 from __future__ import annotations
 
-import difflib
-import math
-import re
 import string
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..errors import InputError
+from ..geometry import as_transform
+from ..loads import LoadCase, load_from_mass, with_friction
+from ..loads import preset as load_preset
+from ..models import MECHANISMS
+from ..models.presets import preset_points
 from ..targets import parse_board_size
+from .spec_errors import validation_message
 
 __all__ = [
     "CampaignSpec",
     "load_spec",
     "parse_spec",
-    "dump_spec",
     "SPEC_NAME",
-    "EXAMPLE_TOML",
     "DEFAULT_UNLOADED",
     "DEFAULT_LOADED",
 ]
@@ -55,8 +59,6 @@ class _Spec(BaseModel):
 
 
 def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
-    from ..geometry import as_transform
-
     a = np.asarray(v, dtype=float)
     if a.shape != (4, 4):
         raise ValueError(f"must be a 4x4 matrix (4 rows of 4 numbers), got shape {a.shape}")
@@ -77,8 +79,6 @@ class RobotSpec(_Spec):
 
     def mechanism(self, **overrides: float):
         """The model with ``params`` (then ``overrides``) applied; ValueError on a bad parameter."""
-        from ..models import MECHANISMS
-
         if self.model == "none":
             raise ValueError("robot.model is 'none': the campaign has no model")
         model = MECHANISMS[self.model]()
@@ -187,8 +187,6 @@ class PositionsSpec(_Spec):
     def resolve(self) -> np.ndarray:
         """Positions, shape (n, 3) mm (z = 0 for planar points)."""
         if self.preset is not None:
-            from ..models.presets import preset_points
-
             pts = np.asarray(preset_points(self.preset), dtype=float)
         elif self.points is not None:
             pts = np.array([list(p) + [0.0] * (3 - len(p)) for p in self.points], dtype=float)
@@ -245,10 +243,8 @@ class LoadsSpec(_Spec):
 
     def resolve(self, g: float):
         """The load cases (:class:`stiffmap.loads.LoadCase`), friction applied."""
-        from ..loads import LoadCase, load_from_mass, preset, with_friction
-
         if self.preset is not None:
-            loads = preset(self.preset, g=g)
+            loads = load_preset(self.preset, g=g)
         else:
             loads = []
             for c in self.cases:
@@ -387,7 +383,7 @@ class SensorSpec(_Spec):
 
 
 class CampaignSpec(_Spec):
-    """A whole campaign (see :data:`EXAMPLE_TOML` for every key with comments)."""
+    """A whole campaign (every key, with comments: :data:`stiffmap.campaign.spec_writer.EXAMPLE_TOML`)."""
 
     name: str = "campaign"
     kind: Literal["vision", "sensor"] = "vision"
@@ -427,93 +423,6 @@ class CampaignSpec(_Spec):
 # ---------------------------------------------------------------------- loading
 
 
-def _table_paths(text: str) -> list[tuple[int, tuple]]:
-    """(line number, key path) of every ``key =`` line and table header in a TOML text."""
-    out: list[tuple[int, tuple]] = []
-    table: tuple = ()
-    counters: dict[tuple, int] = {}
-    header = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?")
-    keyline = re.compile(r"^\s*([A-Za-z0-9_\-\"'.]+)\s*=")
-    for i, line in enumerate(text.splitlines(), start=1):
-        m = header.match(line)
-        if m:
-            parts = tuple(p.strip().strip("\"'") for p in m.group(2).split("."))
-            if m.group(1) == "[[":
-                counters[parts] = counters.get(parts, -1) + 1
-                table = (*parts, counters[parts])
-            else:
-                table = parts
-            out.append((i, table))
-            continue
-        m = keyline.match(line)
-        if m:
-            key = tuple(p.strip().strip("\"'") for p in m.group(1).split("."))
-            out.append((i, table + key))
-    return out
-
-
-def _line_of(paths: list[tuple[int, tuple]], loc: tuple) -> int | None:
-    best, best_len = None, -1
-    for line, path in paths:
-        n = 0
-        for a, b in zip(path, loc, strict=False):
-            if str(a) != str(b):
-                break
-            n += 1
-        if n == len(path) and n > best_len:
-            best, best_len = line, n
-    return best
-
-
-_KNOWN_KEYS: dict[tuple, list[str]] = {}
-
-
-def _known_keys(loc: tuple) -> list[str]:
-    """Names of the keys valid at the table ``loc`` (for 'did you mean')."""
-    model: Any = CampaignSpec
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        field = getattr(model, "model_fields", {}).get(part)
-        if field is None:
-            return []
-        ann = field.annotation
-        candidates = [ann, *getattr(ann, "__args__", ())]
-        nxt = None
-        for c in candidates:
-            for cc in (c, *getattr(c, "__args__", ())):
-                if isinstance(cc, type) and issubclass(cc, BaseModel):
-                    nxt = cc
-        if nxt is None:
-            return []
-        model = nxt
-    return list(getattr(model, "model_fields", {}))
-
-
-def _describe(err: dict) -> str:
-    kind = err["type"]
-    loc = tuple(err["loc"])
-    if kind == "extra_forbidden":
-        known = _known_keys(loc[:-1])
-        close = difflib.get_close_matches(str(loc[-1]), known, n=1)
-        hint = (
-            f" (did you mean {close[0]!r}?)"
-            if close
-            else (f" (expected one of {', '.join(known)})" if known else "")
-        )
-        return f"unknown key{hint}"
-    if kind == "missing":
-        return "missing key"
-    msg = err["msg"]
-    msg = msg.removeprefix("Value error, ")
-    if "input" in err and kind not in ("model_type",) and not isinstance(err["input"], dict):
-        shown = repr(err["input"])
-        if len(shown) > 60:
-            shown = shown[:57] + "..."
-        msg = f"{msg} (got {shown})"
-    return msg
-
-
 def parse_spec(text: str, source: str = SPEC_NAME) -> CampaignSpec:
     """Validate the text of a ``campaign.toml``.
 
@@ -529,28 +438,7 @@ def parse_spec(text: str, source: str = SPEC_NAME) -> CampaignSpec:
     try:
         return CampaignSpec.model_validate(data)
     except ValidationError as e:
-        paths = _table_paths(text)
-        msgs = []
-        for err in e.errors():
-            loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and x.startswith("function-")))
-            # pydantic adds union member names such as 'list[float]'; drop them.
-            loc = tuple(
-                x for x in loc if not (isinstance(x, str) and ("[" in x or x in ("str", "float", "int")))
-            )
-            text_msg = _describe(err)
-            if not loc:
-                # A check across sections names its key at the start of its message.
-                m = re.match(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)(?:\[(\d+)\])? = ", text_msg)
-                if m:
-                    loc = tuple(m.group(1).split(".")) + ((int(m.group(2)),) if m.group(2) else ())
-                    text_msg = text_msg[m.end() :]
-            line = _line_of(paths, loc) if loc else None
-            key = ".".join(str(x) for x in loc) if loc else "(top level)"
-            where = f"line {line}, " if line else ""
-            msgs.append(f"{where}key {key!r}: {text_msg}")
-        # One line per campaign: the problems joined.
-        uniq = list(dict.fromkeys(msgs))
-        raise InputError("; ".join(uniq), source=source) from None
+        raise InputError(validation_message(e, text, CampaignSpec), source=source) from None
 
 
 def load_spec(path: str | Path) -> CampaignSpec:
@@ -565,143 +453,3 @@ def load_spec(path: str | Path) -> CampaignSpec:
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(f"cannot read: {e}", source=str(p)) from None
     return parse_spec(text, source=str(p))
-
-
-# ---------------------------------------------------------------------- writing
-
-
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"cannot write a non-finite number {v} to TOML")
-        return repr(float(v))
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
-    if isinstance(v, np.generic):
-        return _toml_value(v.item())
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
-#: What each key means, written beside it by :func:`dump_spec` (the same words as EXAMPLE_TOML).
-KEY_COMMENTS = {
-    "kind": '"vision" (camera + boards) or "sensor" (LDV/DAQ recordings)',
-    "g": "m/s^2, turns masses into forces once",
-    "repeats": "repeated measurements of each load case (ISO 5725)",
-    "robot.model": '"delta", "3prr", or "none" for measurements only',
-    "robot.params": "model parameters to start from (the model's defaults for the others)",
-    "robot.fit": "parameters fitted to the measurements",
-    "camera.file": "from: stiffmap calibrate IMAGES... --board COLSxROWS --square-mm S --out camera.json",
-    "targets.fixed.board": "the board fixed to the robot base: inner corners COLSxROWS",
-    "targets.fixed.fixed2base": "its pose in the robot base frame (4x4, mm)",
-    "targets.mobile.board": "the board on the moving platform (a different size from the fixed one)",
-    "targets.mobile.point_mm": "the point whose displacement is reported, in the mobile board frame (mm)",
-    "targets.mobile.mobile2tcp": "the mobile board's pose in the tool frame (4x4, mm)",
-    "positions.preset": "paper48: 16 positions on each of z = -200, -310, -400 mm",
-    "positions.list": "[x, y, z] in mm, base frame",
-    "loads.preset": "paper9: 0.5, 0.2, 0.1 kg along +y, -x, -z",
-    "loads.cases": "{mass_kg, direction} or {force_n = [fx, fy, fz]} (N, base frame)",
-    "loads.friction": "pulley friction, subtracted from the loads along these directions",
-    "images.unloaded": "file pattern, 1-based {position}, {load}, {repeat}",
-    "images.loaded": "file pattern, 1-based {position}, {load}, {repeat}",
-    "images.pairing": '"pairs", or "mean-reference" when the robot stays at each position for all its loads',
-    "measurement.refine": '"auto" (photometric poses, corner poses as fallback) or "corners" (faster)',
-    "sensor.scale_um_per_v": "displacement sensor scale, um/V",
-    "sensor.range_v": "analog output range, +-V (saturation)",
-    "sensor.load_unit": '"kgf", "N" or "V" (with load_n_per_v)',
-    "sensor.reference_load_n": "load of the static error, N (50 kgf = 490.5 N)",
-    "sensor.recordings": "sign = -1 behind a mirror; step_times = [[start, end], ...] s: plateaus by hand",
-}
-
-
-def _commented(line: str, comment: str | None) -> list[str]:
-    """The line with its comment beside it, or above it when the line is long."""
-    if not comment:
-        return [line]
-    if len(line) > 50:
-        return [f"# {line.split(' =', 1)[0]}: {comment}", line]
-    return [f"{line:<26} # {comment}" if len(line) < 26 else f"{line}  # {comment}"]
-
-
-def _toml_table(prefix: str, d: dict, out: list[str], comments: dict[str, str] | None = None) -> None:
-    scalars = {k: v for k, v in d.items() if not isinstance(v, dict) or k in ("params", "channel_map")}
-    tables = {k: v for k, v in d.items() if k not in scalars}
-    if prefix and scalars:
-        out.append(f"\n[{prefix}]")
-    for k, v in scalars.items():
-        note = (comments or {}).get(f"{prefix}.{k}" if prefix else k)
-        long_list = isinstance(v, list) and v and all(isinstance(x, (list, tuple)) for x in v) and len(v) > 4
-        if isinstance(v, list) and v and (all(isinstance(x, dict) for x in v) or long_list):
-            if note:
-                out.append(f"# {k}: {note}")
-            out.append(f"{k} = [")
-            out.extend(f"  {_toml_value(x)}," for x in v)
-            out.append("]")
-        else:
-            out.extend(_commented(f"{k} = {_toml_value(v)}", note))
-    for k, v in tables.items():
-        _toml_table(f"{prefix}.{k}" if prefix else k, v, out, comments)
-
-
-def dump_spec(spec: CampaignSpec, header: str = "", *, comments: bool = True) -> str:
-    """TOML text of a spec (round-trips through :func:`parse_spec`), keys explained in comments."""
-    data = spec.model_dump(exclude_none=True, mode="python", by_alias=True)
-    out: list[str] = []
-    if header:
-        out.extend("# " + ln if ln else "#" for ln in header.strip().splitlines())
-    _toml_table("", data, out, KEY_COMMENTS if comments else None)
-    text = "\n".join(out) + "\n"
-    parse_spec(text)  # never write a spec we could not read back
-    return text
-
-
-EXAMPLE_TOML = """\
-# stiffmap campaign: what was measured, how, and where the files are.
-# Units: mm, N, kg (converted once with g), rad. Paths are relative to this directory.
-
-name = "my robot, 2026-11"
-kind = "vision"            # "vision" (camera + boards) or "sensor" (LDV/DAQ recordings)
-g = 9.80665                # m/s^2, turns masses into forces (the reference study used 9.81)
-repeats = 10               # repeated measurements of each load case (ISO 5725)
-
-[robot]
-model = "delta"            # "delta", "3prr", or "none" for measurements only
-params = {}                # model parameters to start from, e.g. {k_theta = 450000.0}
-
-[camera]
-file = "camera.json"       # from: stiffmap calibrate IMAGES... --board 13x12 --square-mm 30 --out camera.json
-
-[targets.fixed]            # the board fixed to the robot base
-board = "9x6"              # inner corners COLSxROWS
-square_mm = 10.0
-# its pose in the robot base frame (4x4, mm): the reference study's motor-support board
-fixed2base = [[1.0, 0.0, 0.0, -75.63], [0.0, 0.0, 1.0, 188.10], [0.0, -1.0, 0.0, 31.00], [0.0, 0.0, 0.0, 1.0]]
-
-[targets.mobile]           # the board on the moving platform (a different size from the fixed one)
-board = "5x4"
-square_mm = 10.0
-point_mm = [0.0, 0.0, 0.0] # the point whose displacement is reported, in the mobile board frame
-
-# positions, mm in the base frame: one of
-#   preset = "paper48" | list = [[x, y, z], ...] | grid = {x = [...], y = [...], z = [...]}
-[positions]
-preset = "paper48"         # 16 positions on each of z = -200, -310, -400 mm
-
-# loads: one of
-#   preset = "paper9" | cases = [{mass_kg = 0.5, direction = "+y"}, {force_n = [0.0, 0.0, -4.9]}]
-[loads]
-preset = "paper9"          # 0.5, 0.2, 0.1 kg along +y, -x, -z
-friction = {mass_kg = 0.028, std_kg = 0.008, directions = ["x", "y"]}   # pulley friction, subtracted
-
-[images]                   # 1-based {position}, {load}, {repeat}
-unloaded = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_unloaded.png"
-loaded = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png"
-pairing = "pairs"          # or "mean-reference" when the robot stays at each position for all its loads
-"""

@@ -6,7 +6,9 @@ in transactions (one per robot position for image work), so a run killed at any
 moment leaves either all of a position's rows or none of them, and the next run
 recomputes exactly what is missing or changed. Raw inputs are only ever read.
 
-Arrays are stored as JSON text (row-major lists), readable from any SQLite
+Every SQL statement of stiffmap is in this module: the rest of the code reads
+and writes the results through :class:`Store`'s methods, named for what they
+mean. Arrays are stored as JSON text (row-major lists), readable from any SQLite
 client. :func:`dump_content` returns the content without run-dependent columns
 (timings, run ids, timestamps) for comparisons.
 """
@@ -36,6 +38,7 @@ __all__ = [
     "dump_content",
     "model_fit_columns",
     "SCHEMA_VERSION",
+    "remove_database",
 ]
 
 DB_NAME = "stiffmap.db"
@@ -83,6 +86,9 @@ CREATE TABLE IF NOT EXISTS sensor_results (
     recording TEXT PRIMARY KEY, point TEXT, direction TEXT, sha256 TEXT, params_hash TEXT NOT NULL,
     version TEXT NOT NULL, status TEXT NOT NULL, error TEXT, result TEXT);
 """
+
+#: Tables whose rows belong to one robot position (column ``position``).
+POSITION_TABLES = ("measurements", "displacements", "repeat_stats", "stiffness", "model_stiffness")
 
 #: Columns that depend on the run, not on the inputs (left out of :func:`dump_content`).
 VOLATILE = {"seconds", "started", "finished", "id", "summary"}
@@ -135,15 +141,30 @@ def model_fit_columns(fit, residuals) -> dict[str, Any]:
 
 
 class Store:
-    """A campaign's ``stiffmap.db``.
+    """A campaign's ``stiffmap.db``: every read and write of the results, by what it means.
 
-    Use as a context manager; group writes with :meth:`transaction`.
+    Use as a context manager. Each write method is one transaction; group several
+    in :meth:`transaction` to make them one.
+
+    Parameters
+    ----------
+    path : path
+        The database file (created with its tables unless ``read_only``).
+    read_only : bool
+        Open an existing database for reading only (no table is created, nothing
+        can be written), e.g. beside a run in progress.
+    timeout : float
+        Seconds to wait for a lock held by another connection.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, read_only: bool = False, timeout: float = 60) -> None:
         self.path = Path(path)
+        if read_only:
+            self.conn = sqlite3.connect(f"file:{os.fspath(self.path)}?mode=ro", uri=True, timeout=timeout)
+            self.conn.row_factory = sqlite3.Row
+            return
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.conn = sqlite3.connect(self.path, timeout=60, isolation_level=None)
+        self.conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
         self.conn.row_factory = sqlite3.Row
         self.conn.execute("PRAGMA journal_mode=WAL")
         self.conn.execute("PRAGMA synchronous=NORMAL")
@@ -172,7 +193,13 @@ class Store:
 
     @contextlib.contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
-        """BEGIN IMMEDIATE ... COMMIT (ROLLBACK on any exception, including KeyboardInterrupt)."""
+        """BEGIN IMMEDIATE ... COMMIT (ROLLBACK on any exception, including KeyboardInterrupt).
+
+        Inside another transaction it joins it: the outer one commits or rolls back everything.
+        """
+        if self.conn.in_transaction:
+            yield self.conn
+            return
         self.conn.execute("BEGIN IMMEDIATE")
         try:
             yield self.conn
@@ -182,23 +209,36 @@ class Store:
         else:
             self.conn.execute("COMMIT")
 
+    def _upsert(self, table: str, row: dict[str, Any]) -> None:
+        """INSERT OR REPLACE one row (dict keys are column names)."""
+        cols = ", ".join(row)
+        marks = ", ".join("?" for _ in row)
+        self.conn.execute(f"INSERT OR REPLACE INTO {table} ({cols}) VALUES ({marks})", tuple(row.values()))
+
+    def _rows(self, sql: str, args: tuple = ()) -> list[sqlite3.Row]:
+        return self.conn.execute(sql, args).fetchall()
+
     # ----------------------------------------------------------------- files
     def sha256(self, path: str | Path) -> str:
         """SHA-256 of a file, cached by (size, mtime) in the ``files`` table."""
         p = Path(path)
         st = p.stat()
         key = str(p.resolve())
-        row = self.conn.execute("SELECT size, mtime_ns, sha256 FROM files WHERE path=?", (key,)).fetchone()
-        if row is not None and row["size"] == st.st_size and row["mtime_ns"] == st.st_mtime_ns:
-            return row["sha256"]
-        digest = file_sha256(p)
-        self.conn.execute(
-            "INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?)", (key, st.st_size, st.st_mtime_ns, digest)
-        )
+        with self.transaction():
+            row = self.conn.execute(
+                "SELECT size, mtime_ns, sha256 FROM files WHERE path=?", (key,)
+            ).fetchone()
+            if row is not None and row["size"] == st.st_size and row["mtime_ns"] == st.st_mtime_ns:
+                return row["sha256"]
+            digest = file_sha256(p)
+            self.conn.execute(
+                "INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?)", (key, st.st_size, st.st_mtime_ns, digest)
+            )
         return digest
 
     # ------------------------------------------------------------------ runs
     def begin_run(self, params: Any) -> int:
+        """Record the start of a run (its parameters); return its id."""
         with self.transaction():
             cur = self.conn.execute(
                 "INSERT INTO runs (started, version, params, status) VALUES (?, ?, ?, 'running')",
@@ -207,21 +247,144 @@ class Store:
         return int(cur.lastrowid)
 
     def end_run(self, run_id: int, status: str, summary: Any = None) -> None:
+        """Record the end of a run: its status and a summary."""
         with self.transaction():
             self.conn.execute(
                 "UPDATE runs SET finished=?, status=?, summary=? WHERE id=?",
                 (datetime.now(UTC).isoformat(timespec="seconds"), status, to_json(summary), run_id),
             )
 
-    # --------------------------------------------------------------- helpers
-    def upsert(self, table: str, row: dict[str, Any]) -> None:
-        """INSERT OR REPLACE one row (dict keys are column names)."""
-        cols = ", ".join(row)
-        marks = ", ".join("?" for _ in row)
-        self.conn.execute(f"INSERT OR REPLACE INTO {table} ({cols}) VALUES ({marks})", tuple(row.values()))
+    # ------------------------------------------------- vision: per position
+    def delete_positions_after(self, last: int) -> None:
+        """Remove every row of the positions numbered above ``last`` (no longer in the spec)."""
+        with self.transaction():
+            for table in POSITION_TABLES:
+                self.conn.execute(f"DELETE FROM {table} WHERE position > ?", (last,))
 
-    def rows(self, sql: str, args: tuple = ()) -> list[sqlite3.Row]:
-        return self.conn.execute(sql, args).fetchall()
+    def measurement_rows(self, position: int | None = None) -> list[sqlite3.Row]:
+        """``measurements`` rows: of one position, or all of them by position and image."""
+        if position is not None:
+            return self._rows("SELECT * FROM measurements WHERE position=?", (position,))
+        return self._rows("SELECT * FROM measurements ORDER BY position, image")
+
+    def stiffness_inputs_hash(self, position: int) -> str | None:
+        """The hash of the inputs the stored stiffness of a position was derived from."""
+        rows = self._rows("SELECT inputs_hash, status FROM stiffness WHERE position=?", (position,))
+        return rows[0]["inputs_hash"] if rows else None
+
+    def save_position(
+        self,
+        position: int,
+        *,
+        displacements: list[dict[str, Any]],
+        repeat_stats: list[dict[str, Any]],
+        stiffness: dict[str, Any],
+        measurements: list[dict[str, Any]] | None = None,
+    ) -> None:
+        """Replace a position's derived rows (and its measurements, when given) in one transaction.
+
+        Rows are dicts of column values; ``measurements=None`` keeps the stored ones.
+        """
+        with self.transaction():
+            if measurements is not None:
+                self.conn.execute("DELETE FROM measurements WHERE position=?", (position,))
+                for row in measurements:
+                    self._upsert("measurements", row)
+            for table in ("displacements", "repeat_stats", "stiffness"):
+                self.conn.execute(f"DELETE FROM {table} WHERE position=?", (position,))
+            for row in displacements:
+                self._upsert("displacements", row)
+            for row in repeat_stats:
+                self._upsert("repeat_stats", row)
+            self._upsert("stiffness", stiffness)
+
+    def stiffness_rows(self) -> list[sqlite3.Row]:
+        """``stiffness`` rows by position."""
+        return self._rows("SELECT * FROM stiffness ORDER BY position")
+
+    def displacement_rows(self, *, only_ok: bool = False) -> list[sqlite3.Row]:
+        """``displacements`` rows by position, load case and repeat (``only_ok``: the measured ones)."""
+        if only_ok:
+            return self._rows("SELECT * FROM displacements WHERE status='ok' ORDER BY position, load, repeat")
+        return self._rows("SELECT * FROM displacements ORDER BY position, load, repeat")
+
+    def repeat_stat_rows(self) -> list[sqlite3.Row]:
+        """``repeat_stats`` rows by position, load case and quantity."""
+        return self._rows("SELECT * FROM repeat_stats ORDER BY position, load, quantity")
+
+    # ---------------------------------------------------------------- models
+    def save_model_stiffness(self, fit: dict[str, Any], positions: list[dict[str, Any]]) -> None:
+        """Store a model fit to the measured stiffness and the model's K per position (one transaction)."""
+        with self.transaction():
+            self._upsert("model_fit", fit)
+            for row in positions:
+                self._upsert("model_stiffness", row)
+
+    def model_stiffness_rows(self) -> list[sqlite3.Row]:
+        """``model_stiffness`` rows by position."""
+        return self._rows("SELECT * FROM model_stiffness ORDER BY position")
+
+    def model_fit_rows(self) -> list[sqlite3.Row]:
+        """Every ``model_fit`` row (the stiffness fit, the static-error fit)."""
+        return self._rows("SELECT * FROM model_fit")
+
+    def model_fit(self, name: str) -> sqlite3.Row | None:
+        """The ``model_fit`` row called ``name`` ("stiffness" or "static_error"), if any."""
+        rows = self._rows("SELECT * FROM model_fit WHERE name=?", (name,))
+        return rows[0] if rows else None
+
+    # --------------------------------------------------------------- sensors
+    def delete_recordings_not_in(self, recordings: list[str]) -> None:
+        """Remove the results of the recordings not listed (no longer in the spec)."""
+        with self.transaction():
+            for r in self._rows("SELECT recording FROM sensor_results"):
+                if r["recording"] not in recordings:
+                    self.conn.execute("DELETE FROM sensor_results WHERE recording=?", (r["recording"],))
+
+    def sensor_result(self, recording: str) -> sqlite3.Row | None:
+        """The ``sensor_results`` row of a recording, if any."""
+        rows = self._rows("SELECT * FROM sensor_results WHERE recording=?", (recording,))
+        return rows[0] if rows else None
+
+    def sensor_result_rows(self) -> list[sqlite3.Row]:
+        """Every ``sensor_results`` row, in the order they were written."""
+        return self._rows("SELECT * FROM sensor_results ORDER BY rowid")
+
+    def save_sensor_result(self, row: dict[str, Any]) -> None:
+        """Store (replace) one recording's result."""
+        with self.transaction():
+            self._upsert("sensor_results", row)
+
+    def set_recording_place(self, recording: str, point: str | None, direction: str) -> None:
+        """Correct where a recording was measured (``point`` as JSON text) without analysing it again."""
+        with self.transaction():
+            self.conn.execute(
+                "UPDATE sensor_results SET point=?, direction=? WHERE recording=?",
+                (point, direction, recording),
+            )
+
+    def save_model_static_errors(self, fit: dict[str, Any], recordings: list[dict[str, Any]]) -> None:
+        """Store a model fit to the static errors and the model's static error per recording.
+
+        The ``model_static_error`` rows are replaced as a whole, in one transaction.
+        """
+        with self.transaction():
+            self._upsert("model_fit", fit)
+            self.conn.execute("DELETE FROM model_static_error")
+            for row in recordings:
+                self._upsert("model_static_error", row)
+
+    def model_static_errors(self) -> dict[str, float | None]:
+        """The model's static error per recording, mm (None where the model has none)."""
+        return {r["recording"]: r["predicted_mm"] for r in self._rows("SELECT * FROM model_static_error")}
+
+
+def remove_database(directory: str | Path) -> None:
+    """Delete a campaign's results database (``stiffmap.db`` and its WAL files), if there is one."""
+    for name in (DB_NAME, f"{DB_NAME}-wal", f"{DB_NAME}-shm"):
+        p = Path(directory) / name
+        if p.is_file():
+            p.unlink()
 
 
 def dump_content(path: str | Path) -> dict[str, list[tuple]]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 import time
 from enum import StrEnum
 from pathlib import Path
@@ -10,7 +11,17 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..campaign.demo import demo_config
+from ..campaign.export import export_tables, summary_dict
+from ..campaign.runner import default_workers, run_campaign
+from ..campaign.sensor_runner import measured_static_errors, run_sensor_campaign
+from ..campaign.simulated import check_output_dir, write_campaign
+from ..campaign.spec import SPEC_NAME, load_spec
+from ..campaign.spec_writer import EXAMPLE_TOML
+from ..campaign.store import DB_NAME, Store, from_json
 from ..errors import InputError
+from ..io import atomic_write_text
+from ..report.campaign import write_campaign_report
 from .common import EXIT_PARTIAL, err, fmt, out, print_json, warn
 
 
@@ -39,11 +50,6 @@ def init(
     images beside it, then run: stiffmap run DIRECTORY. With --from-demo, a complete
     simulated campaign to try the whole chain on first.
     """
-    import shlex
-
-    from ..campaign.spec import EXAMPLE_TOML, SPEC_NAME
-    from ..io import atomic_write_text
-
     path = directory / SPEC_NAME
     if from_demo:
         _init_from_demo(directory, force)
@@ -61,10 +67,6 @@ def init(
 
 def _init_from_demo(directory: Path, force: bool) -> None:
     """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
-    from ..campaign.demo import demo_config
-    from ..campaign.runner import default_workers
-    from ..sim.writer import check_output_dir, write_campaign
-
     check_output_dir(directory, force)
     with _progress() as prog:
         task = prog.add_task("rendering images", total=None, measured=0)
@@ -112,13 +114,11 @@ def _progress():
     )
 
 
-def _summary_table(store) -> Table:
-    from ..campaign.store import from_json
-
+def _summary_table(store: Store) -> Table:
     t = Table(title="stiffness per position (N/mm)", show_lines=False)
     for col in ("#", "x, y, z (mm)", "K (rows)", "det K", "min principal", "flags"):
         t.add_column(col, no_wrap=col != "flags")
-    for r in store.rows("SELECT * FROM stiffness ORDER BY position"):
+    for r in store.stiffness_rows():
         xyz = f"{r['x']:.0f}, {r['y']:.0f}, {r['z']:.0f}"
         if r["status"] != "ok":
             t.add_row(str(r["position"]), xyz, "[red]failed[/]", "", "", r["error"] or "")
@@ -137,20 +137,17 @@ def _summary_table(store) -> Table:
     return t
 
 
-def _sensor_table(spec, store) -> Table:
-    from ..campaign.sensor_runner import measured_static_errors
-    from ..campaign.store import from_json
-
+def _sensor_table(spec, store: Store) -> Table:
     m = measured_static_errors(spec, store)
-    pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
-    fit = store.rows("SELECT * FROM model_fit WHERE name='static_error'")
+    pred = store.model_static_errors()
+    fit = store.model_fit("static_error")
     title = f"static error at {fmt(m['reference_load_n'], 4)} N (um)"
     model_col = "model"
-    if fit and fit[0]["status"] == "ok":
-        est, std = from_json(fit[0]["params"], array=False), from_json(fit[0]["std"], array=False)
+    if fit is not None and fit["status"] == "ok":
+        est, std = from_json(fit["params"], array=False), from_json(fit["std"], array=False)
         title += "; model fit: " + ", ".join(f"{k} = {fmt(v, 5)} ± {fmt(std[k], 2)}" for k, v in est.items())
         model_col = "model (fitted)"
-    elif fit:
+    elif fit is not None:
         title += "; model fit failed: the model column uses the parameters of campaign.toml"
         model_col = "model (not fitted)"
     t = Table(title=title)
@@ -192,12 +189,6 @@ def run(
 
     Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
     """
-    from ..campaign.export import export_tables, summary_dict
-    from ..campaign.runner import default_workers, run_campaign
-    from ..campaign.sensor_runner import run_sensor_campaign
-    from ..campaign.spec import load_spec
-    from ..campaign.store import DB_NAME, Store
-
     spec = load_spec(campaign)
     root = campaign.resolve()
     n_workers = workers or default_workers()
@@ -227,8 +218,6 @@ def run(
         else:
             out.print(_sensor_table(spec, store))
     if report:
-        from ..report.campaign import write_campaign_report
-
         page = write_campaign_report(root, failures)
     if not as_json:
         if spec.kind == "vision":

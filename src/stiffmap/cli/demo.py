@@ -4,9 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.table import Table
 
+from ..campaign.demo import run_demo
+from ..campaign.runner import default_workers
+from ..report.campaign import write_campaign_report
 from .common import EXIT_PARTIAL, err, out, warn
 
 
@@ -34,11 +38,7 @@ def demo(
     prints the recovered stiffness against the truth at every position, ending with
     the worst relative error (Frobenius norm) over all positions.
     """
-    import numpy as np
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-    from ..campaign.demo import run_demo
-    from ..campaign.runner import default_workers
 
     n_workers = workers or default_workers()
     with Progress(
@@ -98,8 +98,6 @@ def demo(
         f"simulate {res.seconds_simulate:.0f} s, measure + identify {res.seconds_run:.0f} s"
     )
     if report:
-        from ..report.campaign import write_campaign_report
-
         out.print(f"report: {write_campaign_report(res.out_dir, res.failures)}")
     for f in res.failures:
         warn(f)

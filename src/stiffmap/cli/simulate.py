@@ -233,11 +233,11 @@ def simulate(
     import numpy as np
 
     from ..camera import load_camera, reference_camera
+    from ..campaign.simulated import check_output_dir, write_campaign
     from ..sim.render import Photometry
     from ..sim.robot import VirtualRobot, delta_robot, with_rotational_compliance
     from ..sim.scene import default_scene
     from ..sim.testbed import SimConfig, plan_campaign
-    from ..sim.writer import check_output_dir, write_campaign
     from ..units import G_REFERENCE_PAPER
 
     _refuse_options_of_the_other_robot(ctx, robot)
@@ -421,8 +421,8 @@ def _simulate_sensor(
     as_json: bool,
 ) -> None:
     """The 3PRR: LDV recordings of stepped loads, written as a sensor campaign."""
+    from ..campaign.simulated_sensor import write_sensor_campaign
     from ..models.prr3 import PRR3
-    from ..sim.sensor_campaign import write_sensor_campaign
 
     P = _positions(positions or "points22", select, "3prr")
     given = parse_key_values(param, "--param")

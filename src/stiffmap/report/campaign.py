@@ -14,32 +14,31 @@ from pathlib import Path
 import numpy as np
 
 from ..camera import load_camera
+from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
 from ..campaign.store import DB_NAME, Store, from_json
 from ..errors import InputError
+from . import data as contract
+from . import write_report
 
 __all__ = ["report_data", "failures_as_items", "write_campaign_report"]
 
 
 def failures_as_items(failures: list[str]):
     """``Failure(item, message)`` records from "item: message" strings."""
-    from .data import Failure
-
     out = []
     for f in failures:
         item, _, msg = f.partition(": ")
-        out.append(Failure(item or "run", msg or f))
+        out.append(contract.Failure(item or "run", msg or f))
     return tuple(out)
 
 
 def _parameters(store: Store, name: str):
-    from .data import Parameter
-
-    rows = store.rows("SELECT * FROM model_fit WHERE name=?", (name,))
-    if not rows or rows[0]["status"] != "ok":
+    fit = store.model_fit(name)
+    if fit is None or fit["status"] != "ok":
         return ()
-    est = from_json(rows[0]["params"], array=False)
-    std = from_json(rows[0]["std"], array=False)
+    est = from_json(fit["params"], array=False)
+    std = from_json(fit["std"], array=False)
     units = {
         "k_theta": "N*mm/rad",
         "kj": "N/mm",
@@ -50,7 +49,7 @@ def _parameters(store: Store, name: str):
         "L": "mm",
     }
     return tuple(
-        Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, units.get(k, ""))
+        contract.Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, units.get(k, ""))
         for k, v in est.items()
     )
 
@@ -60,16 +59,7 @@ def _fitted_model(spec: CampaignSpec, store: Store, fit_name: str):
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
-    from .data import (
-        CalibrationData,
-        LoadData,
-        MeasuredStiffness,
-        ModelMap,
-        ModelStiffness,
-        TruthStiffness,
-    )
-
-    rows = store.rows("SELECT * FROM stiffness ORDER BY position")
+    rows = store.stiffness_rows()
     n = len(rows)
     if n == 0:
         return {}
@@ -80,7 +70,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
         if r["status"] == "ok":
             K[i] = from_json(r["K"])
             S[i] = from_json(r["K_std"])
-    measured = MeasuredStiffness.from_K(
+    measured = contract.MeasuredStiffness.from_K(
         pos,
         K,
         S,
@@ -92,15 +82,17 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
     loads = spec.loads.resolve(spec.g)
     norms = np.full((n, len(loads), spec.repeats), np.nan)
     index = {r["position"]: i for i, r in enumerate(rows)}
-    for d in store.rows("SELECT position, load, repeat, d FROM displacements WHERE status='ok'"):
+    for d in store.displacement_rows(only_ok=True):
         i = index.get(d["position"])
         if i is not None and d["load"] <= len(loads) and d["repeat"] <= spec.repeats:
             norms[i, d["load"] - 1, d["repeat"] - 1] = float(np.linalg.norm(from_json(d["d"])[:3]))
-    out["loads"] = LoadData(tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms)
+    out["loads"] = contract.LoadData(
+        tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
+    )
     if spec.robot.model == "delta":
         model = _fitted_model(spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
-        for r in store.rows("SELECT * FROM model_stiffness ORDER BY position"):
+        for r in store.model_stiffness_rows():
             i = index.get(r["position"])
             if i is not None and r["valid"]:
                 Km[i] = from_json(r["K"])
@@ -113,32 +105,31 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
             grid.append(np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)])
         g = np.concatenate(grid)
         mm = model.evaluate(g)
-        dense = ModelMap(g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan))
-        out["model"] = ModelStiffness.from_K("delta", _parameters(store, "stiffness"), Km, map=dense)
+        dense = contract.ModelMap(
+            g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
+        )
+        out["model"] = contract.ModelStiffness.from_K("delta", _parameters(store, "stiffness"), Km, map=dense)
     truth = root / "truth.json"
     if truth.is_file():
         try:
             t = json.loads(truth.read_text())
             Kt = np.array([p["K"] for p in t["positions"]], dtype=float)
             if Kt.shape == (n, 3, 3):
-                out["truth"] = TruthStiffness(Kt)
+                out["truth"] = contract.TruthStiffness(Kt)
         except (OSError, ValueError, KeyError, TypeError):
             pass  # truth.json is an optional extra of simulated campaigns
     try:
-        out["calibration"] = CalibrationData(load_camera(root / spec.camera.file).to_dict())
+        out["calibration"] = contract.CalibrationData(load_camera(root / spec.camera.file).to_dict())
     except InputError:
         pass
     return out
 
 
 def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
-    from ..campaign.sensor_runner import measured_static_errors
-    from .data import SensorMap, SensorResults
-
     m = measured_static_errors(spec, store)
     if m["points"].shape[1] != 2:
         return {}
-    pred = {r["recording"]: r["predicted_mm"] for r in store.rows("SELECT * FROM model_static_error")}
+    pred = store.model_static_errors()
     model_um = None
     maps: tuple = ()
     middle = None
@@ -158,14 +149,14 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
         ref = m["reference_load_n"]
         dirs = sorted({_axis(u) for u in m["directions"]})
         maps = tuple(
-            SensorMap(a, g, 1e3 * mm.static_error(ref * _unit(a))[:, "xy".index(a)])
+            contract.SensorMap(a, g, 1e3 * mm.static_error(ref * _unit(a))[:, "xy".index(a)])
             for a in dirs
             if a in ("x", "y")
         )
         middle = np.abs(m["points"][:, 0] - h / 2) < 1e-6
         if not middle.any():
             middle = None
-    sr = SensorResults(
+    sr = contract.SensorResults(
         points=m["points"],
         direction=tuple(_axis(u) for u in m["directions"]),
         error_um=1e3 * m["value_mm"],
@@ -194,11 +185,11 @@ def _unit(axis: str) -> np.ndarray:
 
 def report_data(root: Path, spec: CampaignSpec, store: Store, failures: list[str]):
     """The :class:`~stiffmap.report.data.ReportData` of a campaign, from its database."""
-    from .data import CampaignInfo, ReportData
-
-    info = CampaignInfo(name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root))
+    info = contract.CampaignInfo(
+        name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root)
+    )
     parts = _vision(root, spec, store) if spec.kind == "vision" else _sensor(root, spec, store)
-    return ReportData(campaign=info, failures=failures_as_items(failures), **parts)
+    return contract.ReportData(campaign=info, failures=failures_as_items(failures), **parts)
 
 
 def write_campaign_report(
@@ -217,8 +208,6 @@ def write_campaign_report(
     Path
         The report's ``index.html``.
     """
-    from . import write_report
-
     root = Path(campaign_dir).resolve()
     spec = load_spec(root)
     if not (root / DB_NAME).is_file():

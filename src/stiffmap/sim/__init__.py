@@ -10,9 +10,11 @@
 - :mod:`stiffmap.sim.scene`: board poses, the default robot scene;
 - :mod:`stiffmap.sim.robot`: the virtual robot (stiffness field, repeatability);
 - :mod:`stiffmap.sim.testbed`: a campaign's images and their truth (no I/O);
-- :mod:`stiffmap.sim.writer`: the vision campaign directory and ``truth.json``;
-- :mod:`stiffmap.sim.traces`: displacement-sensor recordings of stepped loads;
-- :mod:`stiffmap.sim.sensor_campaign`: the 3PRR sensor campaign directory.
+- :mod:`stiffmap.sim.render_pool`: those images rendered to files in a pool of processes;
+- :mod:`stiffmap.sim.traces`: displacement-sensor recordings of stepped loads.
 
-OpenCV is imported only here and in ``stiffmap.vision``. See ``docs/simulation.md``.
+The test-bed produces data; the campaign directories it becomes (``campaign.toml``,
+``truth.json``) are written by :mod:`stiffmap.campaign.simulated` and
+:mod:`stiffmap.campaign.simulated_sensor`. OpenCV is imported only here and in
+``stiffmap.vision``. See ``docs/simulation.md``.
 """

@@ -12,12 +12,11 @@ as a campaign that ``stiffmap run`` reads::
       campaign.toml            # kind = "sensor", [robot] 3prr and its parameters, [sensor] recordings
       recordings/trace_000.csv, ...   # one per point x direction x repeat (+ index.csv, truth.json)
       truth.json               # K (2x2) and the static error at the reference load per point
-      .stiffmap-simulation     # marker (see stiffmap.sim.writer)
+      .stiffmap-simulation     # marker (see stiffmap.campaign.truth)
 """
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -29,8 +28,13 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..io import atomic_write_text, to_jsonable
+from ..models.base import PoseError
+from ..sim.traces import simulate_point_traces
 from ..units import G_REFERENCE_PAPER
-from .writer import MARKER_NAME, TRUTH_FORMAT, TRUTH_NAME, _compact_json, _prepare_dir
+from .simulated import prepare_output_dir
+from .spec import CampaignSpec
+from .spec_writer import dump_spec
+from .truth import TRUTH_FORMAT, TRUTH_NAME, compact_json
 
 __all__ = ["SensorSimSummary", "write_sensor_campaign"]
 
@@ -90,10 +94,6 @@ def write_sensor_campaign(
     InputError
         Output directory not usable; a point where the model has no stiffness (named).
     """
-    from ..campaign.spec import CampaignSpec, dump_spec
-    from ..models.base import PoseError
-    from .traces import simulate_point_traces
-
     t0 = time.perf_counter()
     P = np.asarray(points, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] != 2 or P.shape[0] == 0 or not np.all(np.isfinite(P)):
@@ -115,9 +115,8 @@ def write_sensor_campaign(
             f"position {e.index + 1} ({p[0]:g}, {p[1]:g}) mm: the robot model has no stiffness there "
             f"({e.reason or e.detail})"
         ) from None
-    _prepare_dir(Path(out_dir), force)
     out = Path(out_dir)
-    atomic_write_text(out / MARKER_NAME, json.dumps({"format": TRUTH_FORMAT}) + "\n")
+    prepare_output_dir(out, force)
     rows = [(i, d, r) for i in range(len(P)) for d in dirs for r in range(1, int(repeats) + 1)]
     pts = np.array([P[i] for i, _, _ in rows])
     U = np.array([_AXES[d] for _, d, _ in rows])
@@ -181,7 +180,7 @@ def write_sensor_campaign(
         "positions": positions,
         "recordings": [{**t.to_dict(), "file": f"recordings/{t.file}"} for t in truths],
     }
-    atomic_write_text(out / TRUTH_NAME, _compact_json(to_jsonable(truth)) + "\n")
+    atomic_write_text(out / TRUTH_NAME, compact_json(to_jsonable(truth)) + "\n")
     se = [abs(t.static_error_mm) for t in truths]
     size = sum(f.stat().st_size for f in (out / "recordings").iterdir() if f.is_file())
     return SensorSimSummary(

@@ -1,4 +1,4 @@
-"""Write a simulated vision campaign directory, and read its ground truth back.
+"""Write a simulated vision campaign directory: the virtual test-bed's images as a normal campaign.
 
 Layout (``docs/simulation.md``)::
 
@@ -10,10 +10,12 @@ Layout (``docs/simulation.md``)::
       truth_corners.json.gz    # every image's true board poses and corner pixels
       .stiffmap-simulation     # marker written first (lets --force clean up an interrupted run)
 
-Every file is written atomically. A directory that is not empty is refused
-unless ``force``, and ``force`` only overwrites a previous simulation (a
-directory whose ``truth.json`` this module wrote): raw images of a real
-campaign are never deleted.
+The images and their truth come from the test-bed (:mod:`stiffmap.sim.testbed`,
+:mod:`stiffmap.sim.render_pool`); this module lays them out in the campaign
+format. Every file is written atomically. A directory that is not empty is
+refused unless ``force``, and ``force`` only overwrites a previous simulation (a
+directory whose ``truth.json`` or marker the simulator wrote): raw images of a
+real campaign are never deleted.
 """
 
 from __future__ import annotations
@@ -24,39 +26,31 @@ import os
 import shutil
 import time
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from ..camera import CameraModel, save_camera
+from ..camera import save_camera
 from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
-from .render import true_corners
-from .testbed import CampaignPlan, ImageJob, SimConfig, plan_campaign, render_job
+from ..sim.render_pool import render_campaign_images
+from ..sim.testbed import CampaignPlan, SimConfig, plan_campaign
+from .spec import CampaignSpec
+from .spec_writer import dump_spec
+from .store import remove_database
+from .truth import CORNERS_NAME, MARKER_NAME, TRUTH_FORMAT, TRUTH_NAME, compact_json
 
 __all__ = [
-    "TRUTH_NAME",
-    "CORNERS_NAME",
-    "TRUTH_FORMAT",
     "SimSummary",
-    "SimTruth",
     "write_campaign",
-    "load_truth",
     "campaign_spec_dict",
     "check_output_dir",
-    "MARKER_NAME",
+    "prepare_output_dir",
 ]
 
-TRUTH_NAME = "truth.json"
-CORNERS_NAME = "truth_corners.json.gz"
-TRUTH_FORMAT = "stiffmap-sim-truth/1"
-#: Written first: marks a directory as the simulator's even if a run was interrupted.
-MARKER_NAME = ".stiffmap-simulation"
 _OWN_FILES = ("campaign.toml", "camera.json", TRUTH_NAME, CORNERS_NAME)
 
 
@@ -137,29 +131,33 @@ def check_output_dir(out_dir: str | os.PathLike, force: bool = False) -> bool:
     return True
 
 
-def _prepare_dir(out: Path, force: bool) -> None:
+def prepare_output_dir(out: Path, force: bool) -> None:
+    """Create ``out``, or empty a previous simulation there (``force``); then write the marker.
+
+    Raises
+    ------
+    InputError
+        As :func:`check_output_dir`.
+    """
     if not check_output_dir(out, force):
         out.mkdir(parents=True, exist_ok=True)
-        return
-    # truth.json goes first: an interrupted clean-up never leaves a "finished" mark; the
-    # marker stays, so a second --force can finish the job.
-    for name in (TRUTH_NAME, *_OWN_FILES):
-        p = out / name
-        if p.is_file():
-            p.unlink()
-    for sub in ("images", "recordings"):  # a vision or a sensor simulation
-        if (out / sub).is_dir():
-            shutil.rmtree(out / sub)
-    # Results of 'stiffmap run' on the previous simulation: they describe images that are
-    # gone, and a run on the new ones must not mix with them.
-    from ..campaign.store import DB_NAME
-
-    for name in (DB_NAME, f"{DB_NAME}-wal", f"{DB_NAME}-shm"):
-        if (out / name).is_file():
-            (out / name).unlink()
-    for sub in ("exports", "report"):
-        if (out / sub).is_dir():
-            shutil.rmtree(out / sub)
+    else:
+        # truth.json goes first: an interrupted clean-up never leaves a "finished" mark; the
+        # marker stays, so a second --force can finish the job.
+        for name in (TRUTH_NAME, *_OWN_FILES):
+            p = out / name
+            if p.is_file():
+                p.unlink()
+        for sub in ("images", "recordings"):  # a vision or a sensor simulation
+            if (out / sub).is_dir():
+                shutil.rmtree(out / sub)
+        # Results of 'stiffmap run' on the previous simulation: they describe images that are
+        # gone, and a run on the new ones must not mix with them.
+        remove_database(out)
+        for sub in ("exports", "report"):
+            if (out / sub).is_dir():
+                shutil.rmtree(out / sub)
+    atomic_write_text(out / MARKER_NAME, json.dumps({"format": TRUTH_FORMAT}) + "\n")
 
 
 # ------------------------------------------------------------------ spec/truth
@@ -202,18 +200,6 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
             "pairing": "mean-reference" if config.robot_stays else "pairs",
         },
     }
-
-
-def _compact_json(obj: Any, indent: int = 0, depth: int = 2) -> str:
-    """JSON with dicts broken over lines down to ``depth`` and everything below on one line."""
-    if depth <= 0 or not isinstance(obj, (dict, list)) or not obj:
-        return json.dumps(obj, allow_nan=False, separators=(", ", ": "))
-    pad = "  " * (indent + 1)
-    if isinstance(obj, dict):
-        items = [f"{pad}{json.dumps(k)}: {_compact_json(v, indent + 1, depth - 1)}" for k, v in obj.items()]
-        return "{\n" + ",\n".join(items) + "\n" + "  " * indent + "}"
-    items = [f"{pad}{_compact_json(v, indent + 1, depth - 1)}" for v in obj]
-    return "[\n" + ",\n".join(items) + "\n" + "  " * indent + "]"
 
 
 def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str, Any]:
@@ -288,46 +274,7 @@ def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str
     )
 
 
-# ------------------------------------------------------------------ rendering
-
-_CTX: dict[str, Any] = {}
-
-
-def _init_worker(ctx: dict[str, Any]) -> None:
-    import cv2
-
-    cv2.setNumThreads(1)
-    _CTX.clear()
-    _CTX.update(ctx)
-
-
-def _image_truth(scene, job: ImageJob, rendering=None) -> dict[str, Any]:
-    targets = scene.targets(job.tcp2base) if rendering is None else None
-    out: dict[str, Any] = {"file": job.file}
-    if rendering is not None:
-        for t in rendering.targets:
-            out[t.name] = {"board2cam": t.board2cam, "corners_px": t.corners_px}
-    else:
-        for tg in targets:
-            out[tg.name] = {
-                "board2cam": tg.board2cam,
-                "corners_px": true_corners(scene.camera, tg.board, tg.board2cam),
-            }
-    return out
-
-
-def _do_job(job: ImageJob) -> tuple[dict[str, Any], int]:
-    c = _CTX
-    scene = c["scene"]
-    if not c["render"]:
-        return _image_truth(scene, job), 0
-    data, r = render_job(scene, c["photometry"], c["seed"], job, c["format"], c["quality"])
-    atomic_write_bytes(Path(c["out"]) / job.file, data)
-    return _image_truth(scene, job, r), len(data)
-
-
-def _do_chunk(jobs: list[ImageJob]) -> list[tuple[dict[str, Any], int]]:
-    return [_do_job(j) for j in jobs]
+# ------------------------------------------------------------------ writing
 
 
 def write_campaign(
@@ -373,8 +320,6 @@ def write_campaign(
         Output directory not usable; a position where the robot model has no
         stiffness or a board leaves the image (naming it).
     """
-    from ..campaign.spec import CampaignSpec, dump_spec
-
     t0 = time.perf_counter()
     out = Path(out_dir)
     if int(workers) < 1:
@@ -386,8 +331,7 @@ def write_campaign(
             raise
         except ValueError as e:
             raise InputError(str(e)) from None
-    _prepare_dir(out, force)
-    atomic_write_text(out / MARKER_NAME, json.dumps({"format": TRUTH_FORMAT}) + "\n")
+    prepare_output_dir(out, force)
     save_camera(config.scene.camera, out / "camera.json")
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
@@ -398,144 +342,23 @@ def write_campaign(
     atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
 
     jobs = list(plan.jobs)
-    ctx = {
-        "scene": config.scene,
-        "photometry": config.photometry,
-        "seed": config.seed,
-        "format": config.image_format,
-        "quality": config.jpeg_quality,
-        "out": str(out),
-        "render": bool(render_images),
-    }
-    results: dict[str, tuple[dict[str, Any], int]] = {}
-    total = len(jobs)
-    if progress:
-        progress(0, total)
-    if workers == 1 or not render_images:
-        _init_worker(ctx)
-        for k, job in enumerate(jobs, start=1):
-            results[job.file] = _do_job(job)
-            if progress:
-                progress(k, total)
-    else:
-        chunk = 2
-        chunks = [jobs[i : i + chunk] for i in range(0, len(jobs), chunk)]
-        with ProcessPoolExecutor(
-            max_workers=int(workers),
-            mp_context=get_context("spawn"),
-            initializer=_init_worker,
-            initargs=(ctx,),
-        ) as ex:
-            pending = {ex.submit(_do_chunk, c) for c in chunks}
-            done_n = 0
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for f in finished:
-                    for truth, nbytes in f.result():
-                        results[truth["file"]] = (truth, nbytes)
-                        done_n += 1
-                if progress:
-                    progress(done_n, total)
+    results = render_campaign_images(
+        out, config, jobs, workers=workers, render_images=render_images, progress=progress
+    )
     corners = [results[j.file][0] for j in jobs]
     data = json.dumps(to_jsonable({"format": TRUTH_FORMAT, "images": corners}), allow_nan=False)
     atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
-    atomic_write_text(out / TRUTH_NAME, _compact_json(_truth_dict(config, plan, command)) + "\n")
+    atomic_write_text(out / TRUTH_NAME, compact_json(_truth_dict(config, plan, command)) + "\n")
     eig = np.linalg.eigvalsh(0.5 * (plan.K3 + np.swapaxes(plan.K3, 1, 2)))
     return SimSummary(
         out_dir=out,
         n_positions=len(config.positions),
         n_loads=len(config.loads),
         repeats=config.repeats,
-        n_images=total if render_images else 0,
+        n_images=len(jobs) if render_images else 0,
         images_rendered=bool(render_images),
         bytes_written=int(sum(n for _, n in results.values())),
         seconds=time.perf_counter() - t0,
         principal_range=(float(eig.min()), float(eig.max())),
         files=_OWN_FILES,
     )
-
-
-# ------------------------------------------------------------------ reading
-
-
-@dataclass(frozen=True)
-class SimTruth:
-    """The ground truth of a simulated campaign (:func:`load_truth`).
-
-    Attributes
-    ----------
-    root : Path
-        The campaign directory.
-    camera : CameraModel or None
-        None for a sensor campaign.
-    cam2base : ndarray, shape (4, 4), or None
-    positions : ndarray, shape (n, 3) (vision) or (n, 2) (sensor, planar), mm
-    K : ndarray, shape (n, 3, 3) or (n, 2, 2), N/mm
-        What a force-only identification should recover at each position.
-    data : dict
-        The whole truth.json.
-    """
-
-    root: Path
-    camera: CameraModel | None
-    cam2base: np.ndarray | None
-    positions: np.ndarray
-    K: np.ndarray
-    data: dict
-
-    def images(self) -> list[dict]:
-        """Per image: file, indices, state, commanded and true tcp2base, photometry."""
-        return self.data["images"]
-
-    def corners(self) -> dict[str, dict]:
-        """Per image file: ``{"fixed": {"board2cam", "corners_px"}, "mobile": {...}}`` (arrays)."""
-        p = self.root / self.data.get("corners_file", CORNERS_NAME)
-        try:
-            raw = json.loads(gzip.decompress(p.read_bytes()).decode("utf-8"))
-        except (OSError, ValueError, EOFError) as e:
-            raise InputError(f"cannot read the true corners: {e}", source=str(p)) from None
-        out = {}
-        for im in raw["images"]:
-            out[im["file"]] = {
-                k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()}
-                for k, v in im.items()
-                if k != "file"
-            }
-        return out
-
-
-def load_truth(path: str | os.PathLike) -> SimTruth:
-    """Read ``truth.json`` (a file, or a campaign directory holding one).
-
-    Raises
-    ------
-    InputError
-        Missing file, not JSON, not a stiffmap simulation truth, or a key missing.
-    """
-    p = Path(path)
-    if p.is_dir():
-        p = p / TRUTH_NAME
-    src = str(p)
-    if not p.is_file():
-        raise InputError("no truth.json (not a simulated campaign?)", source=src)
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(f"cannot read as JSON: {e}", source=src) from None
-    if not isinstance(d, dict) or d.get("format") != TRUTH_FORMAT:
-        raise InputError(f"not a stiffmap simulation truth (expected format {TRUTH_FORMAT!r})", source=src)
-    try:
-        if d.get("kind") == "sensor":
-            cam, cam2base = None, None
-            m = 2
-        else:
-            cam = CameraModel.from_dict(d["camera"], source=f"{src}: camera")
-            cam2base = np.asarray(d["cam2base"], dtype=np.float64)
-            m = 3
-        pos = np.asarray([e["position"] for e in d["positions"]], dtype=np.float64).reshape(-1, m)
-        K = np.asarray([e["K"] for e in d["positions"]], dtype=np.float64).reshape(-1, m, m)
-    except KeyError as e:
-        raise InputError(f"missing key {e.args[0]!r}", source=src) from None
-    except (TypeError, ValueError) as e:
-        raise InputError(f"malformed truth: {e}", source=src) from None
-    return SimTruth(root=p.parent, camera=cam, cam2base=cam2base, positions=pos, K=K, data=d)

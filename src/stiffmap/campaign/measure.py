@@ -1,0 +1,156 @@
+"""Measuring a vision campaign's images: the board poses of every image, one robot position at a time.
+
+A position's images are measured in acquisition order by
+:func:`stiffmap.vision.sequence.measure_sequence` (the platform target is
+tracked from image to image), in this process or in a worker process
+(:func:`measure_positions`). An image that cannot be measured gives an
+:class:`ImageRow` with its error; it never stops the position.
+"""
+
+from __future__ import annotations
+
+import traceback
+import warnings
+from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..camera import CameraModel
+from ..errors import StiffmapWarning
+from ..targets import Chessboard
+from ..vision.sequence import measure_sequence
+from .positions import PositionTask
+from .spec import CampaignSpec
+
+__all__ = ["MeasureContext", "ImageRow", "measure_position", "measure_positions"]
+
+
+@dataclass(frozen=True)
+class MeasureContext:
+    """What a worker needs to measure images (picklable)."""
+
+    root: str
+    camera: dict
+    mobile: tuple[int, int, float]
+    fixed: tuple[int, int, float] | None
+    fixed2base: list | None
+    refine: str = "auto"
+
+    @classmethod
+    def from_spec(cls, spec: CampaignSpec, root: Path, camera: CameraModel) -> MeasureContext:
+        """The context of a vision campaign: its camera, boards and refinement."""
+        t = spec.targets
+        mob = Chessboard.parse(t.mobile.board, t.mobile.square_mm)
+        fix = Chessboard.parse(t.fixed.board, t.fixed.square_mm) if t.fixed is not None else None
+        return cls(
+            root=str(root),
+            camera=camera.to_dict(),
+            mobile=(mob.cols, mob.rows, mob.square_mm),
+            fixed=None if fix is None else (fix.cols, fix.rows, fix.square_mm),
+            fixed2base=t.fixed.fixed2base if t.fixed is not None else None,
+            refine=spec.measurement.refine,
+        )
+
+
+@dataclass
+class ImageRow:
+    """What one image gave: the board poses (camera frame, mm) with covariances, or an error."""
+
+    image: str
+    ok: bool
+    error: str | None = None
+    mobile2cam: np.ndarray | None = None
+    mobile_cov: np.ndarray | None = None
+    fixed2cam: np.ndarray | None = None
+    fixed_cov: np.ndarray | None = None
+    rms_px: float | None = None
+    n_corners: int | None = None
+    tracked: bool = False
+    seconds: float = 0.0
+
+
+def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
+    """Measure every existing image of a position (worker process). Never raises for an image."""
+    camera = CameraModel.from_dict(ctx.camera)
+    mobile = Chessboard(*ctx.mobile)
+    fixed = Chessboard(*ctx.fixed) if ctx.fixed is not None else None
+    root = Path(ctx.root)
+    present = [rel for rel in task.images if rel not in task.missing]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StiffmapWarning)
+        ms = measure_sequence(
+            [root / rel for rel in present],
+            camera,
+            mobile,
+            fixed,
+            None,
+            names=present,
+            refine=ctx.refine,
+            # The fixed target only orients the displacements, through its mean pose over the
+            # position's images: corner poses are precise enough there.
+            refine_fixed="corners",
+        )
+    rows = []
+    for rel, m in zip(present, ms, strict=True):
+        if m.error is not None or m.mobile is None:
+            rows.append(
+                ImageRow(
+                    rel, False, m.error or "mobile target not measured", seconds=m.timings.get("total", 0)
+                )
+            )
+            continue
+        rms = [p.rms_px for p in (m.mobile, m.fixed) if p is not None]
+        n = sum(p.n_corners for p in (m.mobile, m.fixed) if p is not None)
+        row = ImageRow(
+            rel,
+            True,
+            mobile2cam=m.mobile.board2cam,
+            mobile_cov=m.mobile.cov,
+            fixed2cam=None if m.fixed is None else m.fixed.board2cam,
+            fixed_cov=None if m.fixed is None else m.fixed.cov,
+            rms_px=float(np.sqrt(np.mean(np.square(rms)))),
+            n_corners=int(n),
+            tracked=bool(m.tracked),
+            seconds=float(m.timings.get("total", 0.0)),
+        )
+        if fixed is not None and m.fixed is None:
+            row.ok = False
+            row.error = "fixed target not found"
+        rows.append(row)
+    return rows
+
+
+def _measure_worker(ctx: MeasureContext, task: PositionTask) -> tuple[int, list[ImageRow] | str]:
+    try:
+        return task.index, measure_position(ctx, task)
+    except Exception:  # a bug, not a user error: keep the message, let the run go on
+        return task.index, "internal error while measuring:\n" + traceback.format_exc()
+
+
+def measure_positions(
+    ctx: MeasureContext, tasks: list[PositionTask], workers: int
+) -> Iterator[tuple[PositionTask, list[ImageRow] | str]]:
+    """Measure positions, yielding each as soon as it is done.
+
+    With ``workers`` > 1 the positions are measured by a pool of processes, in
+    the order they finish, and a position whose worker failed yields the text of
+    the error (a bug, not a user error) instead of its rows. Close the iterator
+    (``contextlib.closing``) to stop the pool when the caller stops early.
+    """
+    if not tasks:
+        return
+    if workers <= 1:
+        for t in tasks:
+            yield t, measure_position(ctx, t)
+        return
+    by_index = {t.index: t for t in tasks}
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        pending = {pool.submit(_measure_worker, ctx, t) for t in tasks}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                idx, rows = fut.result()
+                yield by_index[idx], rows

@@ -1,0 +1,137 @@
+"""The ground truth of a simulated campaign: ``truth.json`` and the true corners, and reading them back.
+
+A campaign written by the virtual test-bed (:mod:`stiffmap.campaign.simulated`,
+:mod:`stiffmap.campaign.simulated_sensor`) keeps beside its spec and raw files
+what the simulation knew (``docs/simulation.md``)::
+
+    truth.json               # format TRUTH_FORMAT: true K per position, every image's poses, ...
+    truth_corners.json.gz    # every image's true board poses and corner pixels (vision)
+    .stiffmap-simulation     # marker written first (lets --force clean up an interrupted run)
+
+:func:`load_truth` reads it back as a :class:`SimTruth`.
+"""
+
+from __future__ import annotations
+
+import gzip
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..camera import CameraModel
+from ..errors import InputError
+
+__all__ = [
+    "TRUTH_NAME",
+    "CORNERS_NAME",
+    "TRUTH_FORMAT",
+    "MARKER_NAME",
+    "SimTruth",
+    "load_truth",
+    "compact_json",
+]
+
+TRUTH_NAME = "truth.json"
+CORNERS_NAME = "truth_corners.json.gz"
+TRUTH_FORMAT = "stiffmap-sim-truth/1"
+#: Written first: marks a directory as the simulator's even if a run was interrupted.
+MARKER_NAME = ".stiffmap-simulation"
+
+
+def compact_json(obj: Any, indent: int = 0, depth: int = 2) -> str:
+    """JSON with dicts broken over lines down to ``depth`` and everything below on one line."""
+    if depth <= 0 or not isinstance(obj, (dict, list)) or not obj:
+        return json.dumps(obj, allow_nan=False, separators=(", ", ": "))
+    pad = "  " * (indent + 1)
+    if isinstance(obj, dict):
+        items = [f"{pad}{json.dumps(k)}: {compact_json(v, indent + 1, depth - 1)}" for k, v in obj.items()]
+        return "{\n" + ",\n".join(items) + "\n" + "  " * indent + "}"
+    items = [f"{pad}{compact_json(v, indent + 1, depth - 1)}" for v in obj]
+    return "[\n" + ",\n".join(items) + "\n" + "  " * indent + "]"
+
+
+@dataclass(frozen=True)
+class SimTruth:
+    """The ground truth of a simulated campaign (:func:`load_truth`).
+
+    Attributes
+    ----------
+    root : Path
+        The campaign directory.
+    camera : CameraModel or None
+        None for a sensor campaign.
+    cam2base : ndarray, shape (4, 4), or None
+    positions : ndarray, shape (n, 3) (vision) or (n, 2) (sensor, planar), mm
+    K : ndarray, shape (n, 3, 3) or (n, 2, 2), N/mm
+        What a force-only identification should recover at each position.
+    data : dict
+        The whole truth.json.
+    """
+
+    root: Path
+    camera: CameraModel | None
+    cam2base: np.ndarray | None
+    positions: np.ndarray
+    K: np.ndarray
+    data: dict
+
+    def images(self) -> list[dict]:
+        """Per image: file, indices, state, commanded and true tcp2base, photometry."""
+        return self.data["images"]
+
+    def corners(self) -> dict[str, dict]:
+        """Per image file: ``{"fixed": {"board2cam", "corners_px"}, "mobile": {...}}`` (arrays)."""
+        p = self.root / self.data.get("corners_file", CORNERS_NAME)
+        try:
+            raw = json.loads(gzip.decompress(p.read_bytes()).decode("utf-8"))
+        except (OSError, ValueError, EOFError) as e:
+            raise InputError(f"cannot read the true corners: {e}", source=str(p)) from None
+        out = {}
+        for im in raw["images"]:
+            out[im["file"]] = {
+                k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()}
+                for k, v in im.items()
+                if k != "file"
+            }
+        return out
+
+
+def load_truth(path: str | os.PathLike) -> SimTruth:
+    """Read ``truth.json`` (a file, or a campaign directory holding one).
+
+    Raises
+    ------
+    InputError
+        Missing file, not JSON, not a stiffmap simulation truth, or a key missing.
+    """
+    p = Path(path)
+    if p.is_dir():
+        p = p / TRUTH_NAME
+    src = str(p)
+    if not p.is_file():
+        raise InputError("no truth.json (not a simulated campaign?)", source=src)
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise InputError(f"cannot read as JSON: {e}", source=src) from None
+    if not isinstance(d, dict) or d.get("format") != TRUTH_FORMAT:
+        raise InputError(f"not a stiffmap simulation truth (expected format {TRUTH_FORMAT!r})", source=src)
+    try:
+        if d.get("kind") == "sensor":
+            cam, cam2base = None, None
+            m = 2
+        else:
+            cam = CameraModel.from_dict(d["camera"], source=f"{src}: camera")
+            cam2base = np.asarray(d["cam2base"], dtype=np.float64)
+            m = 3
+        pos = np.asarray([e["position"] for e in d["positions"]], dtype=np.float64).reshape(-1, m)
+        K = np.asarray([e["K"] for e in d["positions"]], dtype=np.float64).reshape(-1, m, m)
+    except KeyError as e:
+        raise InputError(f"missing key {e.args[0]!r}", source=src) from None
+    except (TypeError, ValueError) as e:
+        raise InputError(f"malformed truth: {e}", source=src) from None
+    return SimTruth(root=p.parent, camera=cam, cam2base=cam2base, positions=pos, K=K, data=d)

@@ -1,0 +1,134 @@
+"""Render a planned campaign's images to files, in a pool of processes, with their true corners.
+
+:func:`render_campaign_images` renders every :class:`~stiffmap.sim.testbed.ImageJob`
+of a :class:`~stiffmap.sim.testbed.CampaignPlan` (:func:`~stiffmap.sim.testbed.render_job`),
+writes each image atomically to ``out_dir / job.file`` and returns every image's
+true board poses and corner pixels. The images do not depend on the number of
+processes. What else a simulated campaign directory holds (``campaign.toml``,
+``truth.json``) is written by :mod:`stiffmap.campaign.simulated`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import cv2
+
+from ..io import atomic_write_bytes
+from .render import true_corners
+from .testbed import ImageJob, SimConfig, render_job
+
+__all__ = ["render_campaign_images"]
+
+_CTX: dict[str, Any] = {}
+
+
+def _init_worker(ctx: dict[str, Any]) -> None:
+    cv2.setNumThreads(1)
+    _CTX.clear()
+    _CTX.update(ctx)
+
+
+def _image_truth(scene, job: ImageJob, rendering=None) -> dict[str, Any]:
+    targets = scene.targets(job.tcp2base) if rendering is None else None
+    out: dict[str, Any] = {"file": job.file}
+    if rendering is not None:
+        for t in rendering.targets:
+            out[t.name] = {"board2cam": t.board2cam, "corners_px": t.corners_px}
+    else:
+        for tg in targets:
+            out[tg.name] = {
+                "board2cam": tg.board2cam,
+                "corners_px": true_corners(scene.camera, tg.board, tg.board2cam),
+            }
+    return out
+
+
+def _do_job(job: ImageJob) -> tuple[dict[str, Any], int]:
+    c = _CTX
+    scene = c["scene"]
+    if not c["render"]:
+        return _image_truth(scene, job), 0
+    data, r = render_job(scene, c["photometry"], c["seed"], job, c["format"], c["quality"])
+    atomic_write_bytes(Path(c["out"]) / job.file, data)
+    return _image_truth(scene, job, r), len(data)
+
+
+def _do_chunk(jobs: list[ImageJob]) -> list[tuple[dict[str, Any], int]]:
+    return [_do_job(j) for j in jobs]
+
+
+def render_campaign_images(
+    out_dir: str | os.PathLike,
+    config: SimConfig,
+    jobs: Sequence[ImageJob],
+    *,
+    workers: int = 1,
+    render_images: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, tuple[dict[str, Any], int]]:
+    """Render every job's image to ``out_dir / job.file`` and collect its truth.
+
+    Parameters
+    ----------
+    out_dir : path-like
+    config : SimConfig
+        The scene, photometry, seed and image format.
+    jobs : sequence of ImageJob
+    workers : int
+        Processes rendering images (1: in this process; spawned processes otherwise).
+    render_images : bool
+        False: the true poses and corners only, no image (in this process).
+    progress : callable, optional
+        Called as ``progress(done, total)`` at the start and as images finish.
+
+    Returns
+    -------
+    dict
+        Per image file: ``({"file", "fixed": {"board2cam", "corners_px"}, "mobile": {...}},
+        bytes written)``.
+    """
+    ctx = {
+        "scene": config.scene,
+        "photometry": config.photometry,
+        "seed": config.seed,
+        "format": config.image_format,
+        "quality": config.jpeg_quality,
+        "out": str(out_dir),
+        "render": bool(render_images),
+    }
+    results: dict[str, tuple[dict[str, Any], int]] = {}
+    total = len(jobs)
+    if progress:
+        progress(0, total)
+    if workers == 1 or not render_images:
+        _init_worker(ctx)
+        for k, job in enumerate(jobs, start=1):
+            results[job.file] = _do_job(job)
+            if progress:
+                progress(k, total)
+        return results
+    chunk = 2
+    chunks = [jobs[i : i + chunk] for i in range(0, len(jobs), chunk)]
+    with ProcessPoolExecutor(
+        max_workers=int(workers),
+        mp_context=get_context("spawn"),
+        initializer=_init_worker,
+        initargs=(ctx,),
+    ) as ex:
+        pending = {ex.submit(_do_chunk, c) for c in chunks}
+        done_n = 0
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in finished:
+                for truth, nbytes in f.result():
+                    results[truth["file"]] = (truth, nbytes)
+                    done_n += 1
+            if progress:
+                progress(done_n, total)
+    return results
