@@ -30,6 +30,7 @@ from .. import __version__
 from ..camera import CameraModel
 from ..errors import InputError
 from ..io import to_jsonable
+from ..stiffness import stiffness_indices
 
 __all__ = [
     "SCHEMA",
@@ -117,9 +118,6 @@ def _float(obj, name: str, value, *, positive: bool = False, allow_nan: bool = F
 
 def _indices(K: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """det, smallest principal stiffness and eigenvalues of the symmetric part (NaN where not ok)."""
-    # Lazy: stiffmap.identify imports SciPy, which `import stiffmap.report` must not load.
-    from ..identify import stiffness_indices
-
     n = K.shape[0]
     det = np.full(n, np.nan)
     mp = np.full(n, np.nan)
