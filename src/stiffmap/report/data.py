@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,7 @@ from ..camera import CameraModel
 from ..errors import InputError
 from ..io import to_jsonable
 from ..stiffness import stiffness_indices
+from .records import dump_record, load_record, set_array, set_float, set_optional_array, set_strings
 
 __all__ = [
     "SCHEMA",
@@ -58,64 +59,6 @@ STATUSES = ("ok", "failed")
 
 
 # --------------------------------------------------------------------------- helpers
-def _array(obj, name: str, value, shape: tuple, dims: dict[str, int], *, finite: bool = False) -> None:
-    """Convert ``obj.name`` to a read-only float64 array of ``shape`` (ints or symbols)."""
-    try:
-        a = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected numbers, got {type(value).__name__}") from None
-    want = "(" + ", ".join(str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
-    if a.ndim != len(shape):
-        raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
-    for s, k in zip(shape, a.shape, strict=True):
-        if isinstance(s, int):
-            if k != s:
-                raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
-        elif s in dims and dims[s] != k:
-            raise ValueError(f"{name}: expected shape {want} with {s} = {dims[s]}, got {a.shape}")
-        else:
-            dims[s] = k
-    if np.any(np.isinf(a)):
-        raise ValueError(f"{name}: infinite values")
-    if finite and np.any(np.isnan(a)):
-        raise ValueError(f"{name}: NaN values where numbers are required")
-    a.setflags(write=False)
-    object.__setattr__(obj, name, a)
-
-
-def _opt_array(obj, name: str, value, shape: tuple, dims: dict[str, int], **kw) -> None:
-    if value is None:
-        object.__setattr__(obj, name, None)
-    else:
-        _array(obj, name, value, shape, dims, **kw)
-
-
-def _strs(obj, name: str, value, n: int | None, *, default: Sequence[str] | None = None) -> None:
-    if value is None:
-        value = default
-    if isinstance(value, str) or not isinstance(value, Sequence):
-        raise ValueError(f"{name}: expected a list of strings, got {type(value).__name__}")
-    t = tuple(value)
-    if not all(isinstance(s, str) for s in t):
-        raise ValueError(f"{name}: expected a list of strings")
-    if n is not None and len(t) != n:
-        raise ValueError(f"{name}: expected {n} entries, got {len(t)}")
-    object.__setattr__(obj, name, t)
-
-
-def _float(obj, name: str, value, *, positive: bool = False, allow_nan: bool = False) -> None:
-    if value is None and allow_nan:
-        value = math.nan
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"{name}: expected a number, got {value!r}")
-    v = float(value)
-    if math.isinf(v) or (math.isnan(v) and not allow_nan):
-        raise ValueError(f"{name}: expected a finite number, got {value!r}")
-    if positive and not v > 0:
-        raise ValueError(f"{name}: expected a positive number, got {value!r}")
-    object.__setattr__(obj, name, v)
-
-
 def _indices(K: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """det, smallest principal stiffness and eigenvalues of the symmetric part (NaN where not ok)."""
     n = K.shape[0]
@@ -184,8 +127,8 @@ class Parameter:
             raise ValueError(f"name: expected a non-empty string, got {self.name!r}")
         if not isinstance(self.unit, str):
             raise ValueError(f"unit: expected a string, got {self.unit!r}")
-        _float(self, "value", self.value)
-        _float(self, "std", self.std, allow_nan=True)
+        set_float(self, "value", self.value)
+        set_float(self, "std", self.std, allow_nan=True)
 
 
 @dataclass(frozen=True)
@@ -240,18 +183,18 @@ class MeasuredStiffness:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        _array(self, "positions", self.positions, ("n", 3), d, finite=True)
+        set_array(self, "positions", self.positions, ("n", 3), d, finite=True)
         n = d["n"]
-        _strs(self, "status", self.status, n)
+        set_strings(self, "status", self.status, n)
         bad = [s for s in self.status if s not in STATUSES]
         if bad:
             raise ValueError(f"status: expected 'ok' or 'failed', got {bad[0]!r}")
-        _strs(self, "messages", self.messages, n, default=[""] * n)
-        _array(self, "K", self.K, ("n", 3, 3), d)
-        _array(self, "K_std", self.K_std, ("n", 3, 3), d)
-        _array(self, "det", self.det, ("n",), d)
-        _array(self, "min_principal", self.min_principal, ("n",), d)
-        _array(self, "eigenvalues", self.eigenvalues, ("n", 3), d)
+        set_strings(self, "messages", self.messages, n, default=[""] * n)
+        set_array(self, "K", self.K, ("n", 3, 3), d)
+        set_array(self, "K_std", self.K_std, ("n", 3, 3), d)
+        set_array(self, "det", self.det, ("n",), d)
+        set_array(self, "min_principal", self.min_principal, ("n",), d)
+        set_array(self, "eigenvalues", self.eigenvalues, ("n", 3), d)
         fl = self.flags if self.flags is not None else [()] * n
         if len(fl) != n:
             raise ValueError(f"flags: expected {n} lists, got {len(fl)}")
@@ -352,9 +295,9 @@ class LoadData:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        _array(self, "forces", self.forces, ("L", 3), d, finite=True)
-        _strs(self, "labels", self.labels, d["L"])
-        _array(self, "norms", self.norms, ("n", "L", "R"), d)
+        set_array(self, "forces", self.forces, ("L", 3), d, finite=True)
+        set_strings(self, "labels", self.labels, d["L"])
+        set_array(self, "norms", self.norms, ("n", "L", "R"), d)
         if np.any(self.norms < 0):
             raise ValueError("norms: a displacement norm is negative")
 
@@ -397,9 +340,9 @@ class ModelMap:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        _array(self, "points", self.points, ("g", 3), d, finite=True)
-        _array(self, "det", self.det, ("g",), d)
-        _array(self, "min_principal", self.min_principal, ("g",), d)
+        set_array(self, "points", self.points, ("g", 3), d, finite=True)
+        set_array(self, "det", self.det, ("g",), d)
+        set_array(self, "min_principal", self.min_principal, ("g",), d)
 
 
 @dataclass(frozen=True)
@@ -433,9 +376,9 @@ class ModelStiffness:
             raise ValueError("parameters: expected Parameter objects")
         object.__setattr__(self, "parameters", tuple(self.parameters))
         d: dict[str, int] = {}
-        _array(self, "K", self.K, ("n", 3, 3), d)
-        _array(self, "det", self.det, ("n",), d)
-        _array(self, "min_principal", self.min_principal, ("n",), d)
+        set_array(self, "K", self.K, ("n", 3, 3), d)
+        set_array(self, "det", self.det, ("n",), d)
+        set_array(self, "min_principal", self.min_principal, ("n",), d)
         if self.map is not None and not isinstance(self.map, ModelMap):
             raise ValueError("map: expected a ModelMap")
 
@@ -462,7 +405,7 @@ class TruthStiffness:
     K: np.ndarray
 
     def __post_init__(self) -> None:
-        _array(self, "K", self.K, ("n", 3, 3), {}, finite=True)
+        set_array(self, "K", self.K, ("n", 3, 3), {}, finite=True)
 
 
 @dataclass(frozen=True)
@@ -489,7 +432,7 @@ class CalibrationData:
         except InputError as e:
             raise ValueError(e.detail) from None
         object.__setattr__(self, "camera", dict(self.camera))
-        _opt_array(self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True)
+        set_optional_array(self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True)
 
 
 @dataclass(frozen=True)
@@ -514,8 +457,8 @@ class SensorMap:
         if not isinstance(self.direction, str) or not self.direction:
             raise ValueError(f"direction: expected a non-empty string, got {self.direction!r}")
         d: dict[str, int] = {}
-        _array(self, "points", self.points, ("g", 2), d, finite=True)
-        _array(self, "error_um", self.error_um, ("g",), d)
+        set_array(self, "points", self.points, ("g", 2), d, finite=True)
+        set_array(self, "error_um", self.error_um, ("g",), d)
 
 
 @dataclass(frozen=True)
@@ -565,15 +508,15 @@ class SensorResults:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        _array(self, "points", self.points, ("m", 2), d, finite=True)
+        set_array(self, "points", self.points, ("m", 2), d, finite=True)
         m = d["m"]
-        _strs(self, "direction", self.direction, m)
+        set_strings(self, "direction", self.direction, m)
         if not all(self.direction):
             raise ValueError("direction: empty direction name")
-        _array(self, "error_um", self.error_um, ("m",), d)
-        _array(self, "error_std_um", self.error_std_um, ("m",), d)
-        _strs(self, "labels", self.labels, m, default=[str(i + 1) for i in range(m)])
-        _opt_array(self, "model_error_um", self.model_error_um, ("m",), d)
+        set_array(self, "error_um", self.error_um, ("m",), d)
+        set_array(self, "error_std_um", self.error_std_um, ("m",), d)
+        set_strings(self, "labels", self.labels, m, default=[str(i + 1) for i in range(m)])
+        set_optional_array(self, "model_error_um", self.model_error_um, ("m",), d)
         if self.middle_line is not None:
             ml = np.asarray(self.middle_line)
             if ml.shape != (m,) or ml.dtype != bool:
@@ -581,7 +524,7 @@ class SensorResults:
             ml = ml.copy()
             ml.setflags(write=False)
             object.__setattr__(self, "middle_line", ml)
-        _float(self, "reference_load_n", self.reference_load_n, positive=True)
+        set_float(self, "reference_load_n", self.reference_load_n, positive=True)
         if not isinstance(self.model_name, str):
             raise ValueError("model_name: expected a string")
         if not all(isinstance(p, Parameter) for p in self.parameters):
@@ -701,7 +644,7 @@ class ReportData:
     # ------------------------------------------------------------------ JSON
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON values (NaN as ``null``), with ``"schema": SCHEMA``."""
-        return {"schema": SCHEMA, **to_jsonable(_dump(self))}
+        return {"schema": SCHEMA, **to_jsonable(dump_record(self))}
 
     @classmethod
     def from_dict(cls, data: Any, source: str | None = None) -> ReportData:
@@ -741,27 +684,6 @@ _NESTED_LISTS: dict[tuple[type, str], type] = {
 }
 
 
-def _dump(obj) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for f in fields(obj):
-        v = getattr(obj, f.name)
-        if hasattr(v, "__dataclass_fields__"):
-            v = _dump(v)
-        elif isinstance(v, tuple) and v and hasattr(v[0], "__dataclass_fields__"):
-            v = [_dump(x) for x in v]
-        out[f.name] = v
-    return out
-
-
-def _nan_from_null(v):
-    """JSON ``null`` (as written for NaN) back to NaN, recursively in lists."""
-    if v is None:
-        return math.nan
-    if isinstance(v, list):
-        return [_nan_from_null(x) for x in v]
-    return v
-
-
 #: Fields whose JSON values are arrays of numbers (``null`` means NaN).
 _ARRAY_FIELDS = {
     "positions",
@@ -781,41 +703,6 @@ _ARRAY_FIELDS = {
 
 
 def _load(cls: type, data: Any, path: str, source: str | None):
-    where = path or "top level"
-    if not isinstance(data, Mapping):
-        raise InputError(f"key {where!r}: expected an object, got {type(data).__name__}", source=source)
-    names = {f.name: f for f in fields(cls)}
-    unknown = sorted(set(data) - set(names))
-    if unknown:
-        raise InputError(
-            f"key {(path + '.' if path else '') + unknown[0]!r}: unknown key "
-            f"(expected one of {', '.join(names)})",
-            source=source,
-        )
-    kwargs: dict[str, Any] = {}
-    for name, f in names.items():
-        key = f"{path}.{name}" if path else name
-        if name not in data:
-            if f.default is MISSING and f.default_factory is MISSING:
-                raise InputError(f"key {key!r} is missing", source=source)
-            continue
-        v = data[name]
-        if (cls, name) in _NESTED:
-            v = None if v is None else _load(_NESTED[(cls, name)], v, key, source)
-        elif (cls, name) in _NESTED_LISTS:
-            if not isinstance(v, list):
-                raise InputError(f"key {key!r}: expected a list, got {type(v).__name__}", source=source)
-            v = tuple(_load(_NESTED_LISTS[(cls, name)], x, f"{key}[{i}]", source) for i, x in enumerate(v))
-        elif name in _ARRAY_FIELDS and v is not None:
-            v = _nan_from_null(v)
-        elif name in ("std", "value", "reference_load_n") and v is None:
-            v = math.nan
-        kwargs[name] = v
-    try:
-        return cls(**kwargs)
-    except InputError:
-        raise
-    except (ValueError, TypeError) as e:
-        msg = str(e)
-        # The record's own message starts with the field name; prefix the path.
-        raise InputError(f"key {(path + '.' if path else '')}{msg}", source=source) from None
+    return load_record(
+        cls, data, path, source, nested=_NESTED, nested_lists=_NESTED_LISTS, array_fields=_ARRAY_FIELDS
+    )
