@@ -46,3 +46,35 @@ def test_help_loads_no_command_module():
     assert "HEAVY []" in proc.stdout
     for name in main.COMMANDS:
         assert name in proc.stdout
+
+
+def _raise_bug(*args, **kwargs):
+    raise ZeroDivisionError("float division by zero")
+
+
+def test_a_bug_is_one_line_naming_the_command_and_exit_3(monkeypatch, capsys, tmp_path):
+    """An unexpected exception is one ``error:`` line saying it is a bug, never a traceback."""
+    import stiffmap.cli.identify as cli_identify
+
+    monkeypatch.setattr(cli_identify, "identify_from_files", _raise_bug)
+    monkeypatch.delenv(main.DEBUG_ENV, raising=False)
+    f = tmp_path / "forces.csv"
+    assert main.main(["identify", str(f), str(f)]) == main.EXIT_BUG
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: internal error")
+    assert "ZeroDivisionError: float division by zero" in lines[0]
+    assert f"stiffmap identify {f} {f}" in lines[0] and "--debug" in lines[0]
+    assert "Traceback" not in err
+
+
+def test_debug_anywhere_shows_the_traceback(monkeypatch, capsys, tmp_path):
+    import stiffmap.cli.identify as cli_identify
+
+    monkeypatch.setattr(cli_identify, "identify_from_files", _raise_bug)
+    f = tmp_path / "forces.csv"
+    assert main.main(["identify", str(f), "--debug", str(f)]) == main.EXIT_BUG
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "_raise_bug" in err
+    assert err.strip().splitlines()[-1].startswith("error: internal error")

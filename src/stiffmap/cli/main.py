@@ -13,7 +13,12 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import os
+import shlex
 import sys
+import traceback
+import warnings
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import click
@@ -24,7 +29,7 @@ from typer.models import ParameterInfo
 
 from .. import __version__
 from ..errors import InputError
-from .common import EXIT_INPUT, fail
+from .common import EXIT_INPUT, fail, warn
 
 
 class CommandEntry(NamedTuple):
@@ -119,6 +124,13 @@ app = typer.Typer(
 )
 
 
+#: Exit status of an unexpected error: a bug in stiffmap, not the user's mistake.
+EXIT_BUG = 3
+#: Where ``--debug`` is given (anywhere on the line) or set, a bug shows its traceback.
+DEBUG_FLAG = "--debug"
+DEBUG_ENV = "STIFFMAP_DEBUG"
+
+
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"stiffmap {__version__}")
@@ -129,6 +141,11 @@ def _version(value: bool) -> None:
 def _main(
     version: bool = typer.Option(
         False, "--version", help="Print the version and exit.", callback=_version, is_eager=True
+    ),
+    debug: bool = typer.Option(
+        False,
+        DEBUG_FLAG,
+        help="Show the traceback of an internal error (a bug), to report it. Anywhere on the line.",
     ),
 ) -> None:
     """stiffmap: stiffness and static-error measurement, models and maps."""
@@ -155,22 +172,59 @@ def _literal_brackets(app: typer.Typer) -> None:
                 d.help = escape(d.help)
 
 
-def run() -> None:
-    """Console-script entry point: user errors become one line and a non-zero exit."""
+def _one_line_warnings(message, category, filename, lineno, file=None, line=None) -> None:
+    """Show a Python warning as one ``warning:`` line (no source path, no code line)."""
+    warn(str(message))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``stiffmap`` on ``argv`` (default ``sys.argv[1:]``) and return its exit status.
+
+    A user error (:class:`~stiffmap.errors.InputError`, a file the system refuses) is one
+    ``error:`` line and status 2. Anything else that escapes a command is a bug: one line
+    that says so, names the command line and the exception, and status 3; the traceback
+    only with ``--debug`` (anywhere on the command line) or ``STIFFMAP_DEBUG=1``.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = DEBUG_FLAG in args or os.environ.get(DEBUG_ENV, "") not in ("", "0")
+    args = [a for a in args if a != DEBUG_FLAG]
     try:
-        app()
+        with warnings.catch_warnings():
+            if not sys.warnoptions:
+                warnings.showwarning = _one_line_warnings
+            app(args=args, prog_name="stiffmap", standalone_mode=True)
+    except SystemExit as e:
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
     except InputError as e:
         fail(str(e))
-        sys.exit(EXIT_INPUT)
+        return EXIT_INPUT
     except OSError as e:
         # An output path that is a directory, a file where a folder is needed, no permission,
         # a full disk: the user's to fix, so one line that names the path, not a traceback.
         where = f"{e.filename}: " if e.filename else ""
         fail(f"{where}{e.strerror or e}")
-        sys.exit(EXIT_INPUT)
+        return EXIT_INPUT
     except KeyboardInterrupt:
         fail("interrupted", 130)
-        sys.exit(130)
+        return 130
+    except Exception as e:  # the one place that turns a bug into a message
+        if debug:
+            traceback.print_exc()
+        what = " ".join(str(e).split())[:300]
+        line = shlex.join(args)[:300]
+        advice = "Please report it with this line." if debug else "Rerun with --debug to see the traceback."
+        fail(
+            f"internal error (a bug in stiffmap {__version__}, not in your input): "
+            f"{type(e).__name__}: {what} -- while running: stiffmap {line}. {advice}",
+            EXIT_BUG,
+        )
+        return EXIT_BUG
+    return 0
+
+
+def run() -> None:
+    """Console-script entry point (``stiffmap``, ``python -m stiffmap``)."""
+    sys.exit(main())
 
 
 if __name__ == "__main__":  # pragma: no cover
