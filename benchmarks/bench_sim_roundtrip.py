@@ -29,8 +29,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from _sim_helpers import derive_from_true_corners, pnp_image_row, round_trip_from_true_corners  # noqa: E402
 from _table import write  # noqa: E402
+from helpers.corner_round_trip import derive_from_true_corners, pnp_image_row, round_trip_from_true_corners  # noqa: E402
 
 from stiffmap.campaign.derive import derive_position  # noqa: E402
 from stiffmap.campaign.measure import ImageRow  # noqa: E402

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import random_spd
+from helpers.random_matrices import random_spd
 
 from stiffmap.errors import InputError
 from stiffmap.report import load_report_data

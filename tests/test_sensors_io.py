@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 import scipy.io
-from _sensors_helpers import quick_trace
+from helpers.sensor_traces import quick_trace
 from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
 
 from stiffmap.errors import InputError

@@ -13,7 +13,9 @@ import json
 import cv2
 import numpy as np
 import pytest
-from _vision_helpers import CALIB_DIR, look_at_pose, render, small_camera
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import look_at_pose, small_camera
+from helpers.shared_data import CALIB_DIR
 from typer.testing import CliRunner
 
 from stiffmap.camera import save_camera
@@ -54,7 +56,7 @@ def data(tmp_path_factory):
         for k in range(2):
             shots[f"stage{step:g}_{k}"] = _moved(M0, np.r_[step * axis, 0, 0, 0])
     for name, T in shots.items():
-        cv2.imwrite(str(d / f"{name}.png"), render(CAM, [(FIXED, F), (MOBILE, T)], rng=rng))
+        cv2.imwrite(str(d / f"{name}.png"), quick_board_image(CAM, [(FIXED, F), (MOBILE, T)], rng=rng))
     # Bad inputs.
     data = (d / "moved0.png").read_bytes()
     (d / "truncated.png").write_bytes(data[: len(data) // 2])
@@ -63,7 +65,7 @@ def data(tmp_path_factory):
     cv2.imwrite(str(d / "big.png"), np.full((600, 800), 90, np.uint8))
     cv2.imwrite(
         str(d / "hidden.png"),
-        render(CAM, [(FIXED, F), (MOBILE, M0)], rng=rng, occluder=(450, 0, 640, 480)),
+        quick_board_image(CAM, [(FIXED, F), (MOBILE, M0)], rng=rng, occluder=(450, 0, 640, 480)),
     )
     (d / "stage.csv").write_text(
         "image,nominal_mm\nref0.png,0\nref1.png,0\n"

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _vision_helpers import look_at_pose, render, small_camera
-from conftest import random_rotation
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import look_at_pose, small_camera
+from helpers.random_matrices import random_rotation
 
 from stiffmap.errors import InputError
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec
@@ -162,7 +163,7 @@ def test_rendered_sequence_tracks_and_measures_small_displacements():
     for k in range(6):
         T = _perturb(M0, delta) if k >= 3 else M0
         poses.append(T)
-        frames.append(render(cam, [(FIXED, F), (MOBILE, T)], rng=rng))
+        frames.append(quick_board_image(cam, [(FIXED, F), (MOBILE, T)], rng=rng))
     frames.insert(3, np.full((480, 640), 90, np.uint8))  # a frame without boards
     ms = measure_sequence(frames, cam, MOBILE, FIXED, B, names=[f"f{k}" for k in range(7)])
     assert not ms[3].ok and "no 7x6 chessboard found" in ms[3].error and "no 9x4" in ms[3].error
@@ -185,7 +186,7 @@ def test_tracker_reports_size_mismatch_and_goes_on():
     tr = PoseTracker(cam, MOBILE, camera_source="cam.json")
     m = tr.measure(np.zeros((100, 100), np.uint8), "tiny.png")
     assert not m.ok and m.error.startswith("tiny.png:") and "100x100" in m.error and "640x480" in m.error
-    m = tr.measure(render(cam, [(MOBILE, T)], rng=np.random.default_rng(1)), "ok.png")
+    m = tr.measure(quick_board_image(cam, [(MOBILE, T)], rng=np.random.default_rng(1)), "ok.png")
     assert m.ok and m.mobile.n_corners == 42 and m.timings["total"] > 0
     with pytest.raises(ValueError, match="fixed_board"):
         PoseTracker(cam, MOBILE, fixed2base=np.eye(4))

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _vision_helpers import look_at_pose, render, true_corners
-from conftest import random_rotation
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import exact_corners, look_at_pose
+from helpers.random_matrices import random_rotation
 
 from stiffmap.camera import reference_camera
 from stiffmap.geometry import matrix_from_rotvec, rotvec_from_matrix
@@ -37,7 +38,7 @@ def _pose_error(T_est, T_true):
 
 
 def _synthetic_detection(T, sigma_px, rng):
-    uv = true_corners(CAM, BOARD, T) + rng.normal(scale=sigma_px, size=(BOARD.n_corners, 2))
+    uv = exact_corners(CAM, BOARD, T) + rng.normal(scale=sigma_px, size=(BOARD.n_corners, 2))
     return BoardDetection(
         board=BOARD, corners=uv, ids=np.arange(BOARD.n_corners), residual_px=np.zeros(BOARD.n_corners)
     )
@@ -106,7 +107,7 @@ def test_frontal_boards_and_random_poses_are_recovered(seed):
 
 def test_rendered_image_pose_within_its_covariance():
     T = look_at_pose(700, BOARD, tilt_deg=(10, -15, 5), offset_mm=(20, 10))
-    img = render(CAM, [(BOARD, T)], rng=np.random.default_rng(11))
+    img = quick_board_image(CAM, [(BOARD, T)], rng=np.random.default_rng(11))
     p = estimate_pose(detect_board(img, BOARD, camera=CAM), BOARD, CAM)
     e = _pose_error(p.board2cam, T)
     z = e / np.sqrt(np.diag(p.cov))
