@@ -96,13 +96,7 @@ def test_link_compliances_match_virtual_work(rng):
         th0 = d.inverse_kinematics(p).q[0]
         q0 = np.concatenate([th0, np.zeros(6)])
         h = np.array([1e-6] * 3 + [1e-4] * 6)
-        G = np.empty((3, 9))
-        for k in range(9):
-            dq = np.zeros(9)
-            dq[k] = h[k]
-            plus = _generalised_fk(d, *np.split(q0 + dq, 3), p)
-            minus = _generalised_fk(d, *np.split(q0 - dq, 3), p)
-            G[:, k] = (plus - minus) / (2 * h[k])
+        G = central_jacobian(lambda q, p=p: _generalised_fk(d, *np.split(q, 3), p), q0, h)
         C = G @ np.diag(1 / kdiag) @ G.T
         np.testing.assert_allclose(np.linalg.inv(d.stiffness(p)), C, rtol=1e-6, atol=1e-9 * np.abs(C).max())
 

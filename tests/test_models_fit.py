@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from helpers.finite_difference import central_jacobian
 
 from stiffmap.errors import DesignError
 from stiffmap.models import PRR3, DeltaRobot, PoseError
@@ -103,11 +104,11 @@ def test_noise_free_data_give_the_truth_exactly_and_absolute_sigma():
     np.testing.assert_allclose(f.residuals, 0.0, atol=1e-9)
     # absolute sigma: the standard error follows from the given 0.01 mm alone (linearised):
     # var(log kj) = 1 / sum((d y / d log kj / sigma)^2).
-    h = 1e-6
-    dy = (
-        static_error_predictions(truth.with_params(kj=610.0 * np.exp(h)), pts, F, U)
-        - static_error_predictions(truth.with_params(kj=610.0 * np.exp(-h)), pts, F, U)
-    ) / (2 * h)
+    dy = central_jacobian(
+        lambda log_kj: static_error_predictions(truth.with_params(kj=610.0 * np.exp(log_kj)), pts, F, U),
+        0.0,
+        1e-6,
+    )
     se = 610.0 / np.sqrt(np.sum((dy / 0.01) ** 2))
     assert f.std[0] == pytest.approx(se, rel=1e-4)
 
