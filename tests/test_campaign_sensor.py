@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 
 import numpy as np
@@ -115,7 +116,5 @@ def test_sign_mistakes_and_unreachable_points_are_left_out_of_the_fit_by_name(tm
 
 
 def _csv(path):
-    import csv
-
     with open(path) as f:
         return list(csv.DictReader(f))

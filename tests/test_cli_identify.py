@@ -9,6 +9,7 @@ import pytest
 from helpers.cli_process import assert_one_line_error, run_stiffmap
 from helpers.random_matrices import random_spd
 
+from stiffmap import __version__
 from stiffmap.loads import forces_matrix, paper9
 
 F9 = forces_matrix(paper9())
@@ -108,8 +109,6 @@ def test_missing_file(tmp_path):
 
 
 def test_version_and_help():
-    from stiffmap import __version__
-
     proc = run_stiffmap("--version")
     assert proc.returncode == 0 and proc.stdout.strip() == f"stiffmap {__version__}"
     proc = run_stiffmap("identify", "--help")

@@ -9,7 +9,8 @@ import pytest
 from helpers.finite_difference import central_jacobian
 
 from stiffmap.errors import DesignError
-from stiffmap.models import PRR3, DeltaRobot, PoseError
+from stiffmap.models import PRR3, DeltaRobot, IKSolution, Mechanism, PoseError
+from stiffmap.models.base import model_map
 from stiffmap.models.fit import ModelFit, fit_static_errors, fit_stiffness, static_error_predictions
 from stiffmap.models.presets import paper48, prr3_points22
 
@@ -183,8 +184,6 @@ class _AxisSprings:
         return dataclasses.replace(self, **p)
 
     def inverse_kinematics(self, points):
-        from stiffmap.models import IKSolution
-
         P = np.atleast_2d(np.asarray(points, dtype=float))
         ok = np.all((P >= 0) & (P <= 100), axis=1)
         return IKSolution(
@@ -192,8 +191,6 @@ class _AxisSprings:
         )
 
     def evaluate(self, points):
-        from stiffmap.models.base import model_map
-
         P = np.atleast_2d(np.asarray(points, dtype=float))
         ik = self.inverse_kinematics(P)
         K = np.broadcast_to(np.diag([self.kx, self.ky]), (P.shape[0], 2, 2))
@@ -207,8 +204,6 @@ class _AxisSprings:
 
 
 def test_a_user_defined_mechanism_plugs_into_maps_and_fits():
-    from stiffmap.models import Mechanism
-
     g = _AxisSprings()
     assert isinstance(g, Mechanism)
     m = g.evaluate([[10.0, 10.0], [200.0, 0.0]])

@@ -51,7 +51,7 @@ def test_jacobian_matches_central_differences(rng):
 def _anastruct_tool_displacement(m: PRR3, T: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The same truss in anastruct: rods as truss elements (EA), each slider's springs as truss
     elements of axial stiffness kj (along the rail) and kb (across it) to hinged supports."""
-    from anastruct import SystemElements
+    from anastruct import SystemElements  # lazy: it loads matplotlib, for this one test only
 
     lg = m.legs(T)
     u = lg.u

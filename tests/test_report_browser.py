@@ -6,10 +6,12 @@ Skipped, with a message, when no Chromium is installed (``apt-get install chromi
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from stiffmap.report import write_report
 from stiffmap.report.browser import ConsoleEntry, PageCheck, check_page, find_chromium
+from stiffmap.report.data import CampaignInfo, LoadData, MeasuredStiffness, ReportData
 from stiffmap.report.example import example_sensor, example_vision
 
 pytestmark = pytest.mark.browser
@@ -129,10 +131,6 @@ def test_external_request_classification() -> None:
 
 
 def test_page_with_every_position_failed_renders(chromium, tmp_path) -> None:
-    import numpy as np
-
-    from stiffmap.report.data import CampaignInfo, LoadData, MeasuredStiffness, ReportData
-
     pos = np.array([[0.0, 0.0, -200.0], [100.0, 0.0, -200.0], [0.0, 0.0, -300.0]])
     data = ReportData(
         CampaignInfo("all failed", "vision"),

@@ -10,6 +10,7 @@ import pytest
 from helpers.cli_process import run_stiffmap
 from helpers.sensor_traces import FAST_DAQ_CHAIN, FAST_LOAD_STEPS, quick_trace
 
+from stiffmap.errors import InputError
 from stiffmap.sensors import (
     MeasurementEntry,
     SensorConfig,
@@ -182,7 +183,5 @@ def test_index_with_direction_names(tmp_path):
     assert es[0].direction.tolist() == [0, 0, -1] and es[1].point.tolist() == [10, 0, -300]
     assert es[0].file == str(tmp_path / "a.csv")
     (tmp_path / "bad.csv").write_text("x,y,direction,file\n0,0,w,a.csv\n")
-    from stiffmap.errors import InputError
-
     with pytest.raises(InputError, match=r"bad\.csv: line 2: direction must be one of x, y"):
         read_measurement_index(tmp_path / "bad.csv")

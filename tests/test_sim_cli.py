@@ -13,7 +13,8 @@ from stiffmap.camera import reference_camera, save_camera
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.truth import load_truth
 from stiffmap.models.delta import DeltaRobot
-from stiffmap.models.presets import paper48
+from stiffmap.models.presets import paper48, prr3_points22
+from stiffmap.models.prr3 import PRR3
 
 
 def test_truth_only_json_summary(tmp_path):
@@ -152,9 +153,6 @@ def test_3prr_sensor_campaign_round_trip(tmp_path):
     assert [r.direction for r in spec.sensor.recordings] == ["x", "y"] * 3
     assert [r.sign for r in spec.sensor.recordings] == [-1, 1] * 3  # x through a mirror
     truth = load_truth(out)
-    from stiffmap.models.presets import prr3_points22
-    from stiffmap.models.prr3 import PRR3
-
     pts = prr3_points22()[[1, 7, 18]]
     np.testing.assert_allclose(truth.positions, pts)
     np.testing.assert_allclose(truth.K, PRR3().stiffness(pts), rtol=1e-12)  # N/mm
