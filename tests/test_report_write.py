@@ -9,11 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.report_cases import all_positions_failed
 from plotly.offline import get_plotlyjs
 from scipy.spatial import Delaunay
 
 from stiffmap.report import write_report
-from stiffmap.report.data import CampaignInfo, LoadData, MeasuredStiffness, ReportData, SensorResults
+from stiffmap.report.data import CampaignInfo, MeasuredStiffness, ReportData, SensorResults
 from stiffmap.report.example import REFERENCE_PLANES_Z, example_sensor, example_vision
 from stiffmap.report.figure_data import (
     MAX_DIAMETER,
@@ -266,13 +267,7 @@ def test_grid_detection_and_planes() -> None:
 def _degenerate() -> dict[str, ReportData]:
     pos = np.array([[0.0, 0.0, -200.0], [100.0, 0.0, -200.0], [0.0, 0.0, -300.0]])
     return {
-        "all positions failed": ReportData(
-            CampaignInfo("all failed", "vision"),
-            measured=MeasuredStiffness.from_K(
-                pos, np.full((3, 3, 3), np.nan), messages=["a.png", "b.png", "c.png"]
-            ),
-            loads=LoadData(("l1",), np.array([[1.0, 0.0, 0.0]]), np.full((3, 1, 2), np.nan)),
-        ),
+        "all positions failed": all_positions_failed(),
         "one position, nothing else": ReportData(
             CampaignInfo("one", "vision"), measured=MeasuredStiffness.from_K(pos[:1], 5.0 * np.eye(3)[None])
         ),

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 from helpers.board_images import quick_board_image
-from helpers.board_scenes import look_at_pose, small_camera
+from helpers.board_scenes import close_two_target_poses, moved_pose, small_camera
 from helpers.cli_process import run_stiffmap
 from helpers.shared_data import CALIB_DIR
 
@@ -28,19 +28,11 @@ FIXED = Chessboard(9, 4, 10.0)
 CAM = small_camera()
 
 
-def _moved(T, delta):
-    out = T.copy()
-    out[:3, 3] = T[:3, 3] + delta[:3]
-    out[:3, :3] = matrix_from_rotvec(delta[3:]) @ T[:3, :3]
-    return out
-
-
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     d = tmp_path_factory.mktemp("vision_cli")
     save_camera(CAM, d / "camera.json")
-    F = look_at_pose(340, FIXED, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
-    M0 = look_at_pose(300, MOBILE, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M0, F = close_two_target_poses(MOBILE, FIXED)
     B = np.eye(4)
     B[:3, :3] = matrix_from_rotvec([0.1, -0.2, 0.3])
     B[:3, 3] = [150.0, -20.0, 35.0]
@@ -50,10 +42,10 @@ def data(tmp_path_factory):
     axis /= np.linalg.norm(axis)
     rng = np.random.default_rng(5)
     truth = {"F": F, "M0": M0, "B": B, "delta": delta, "axis": axis}
-    shots = {"ref0": M0, "ref1": M0, "moved0": _moved(M0, delta), "moved1": _moved(M0, delta)}
+    shots = {"ref0": M0, "ref1": M0, "moved0": moved_pose(M0, delta), "moved1": moved_pose(M0, delta)}
     for step in (2.0, 5.0):
         for k in range(2):
-            shots[f"stage{step:g}_{k}"] = _moved(M0, np.r_[step * axis, 0, 0, 0])
+            shots[f"stage{step:g}_{k}"] = moved_pose(M0, np.r_[step * axis, 0, 0, 0])
     for name, T in shots.items():
         cv2.imwrite(str(d / f"{name}.png"), quick_board_image(CAM, [(FIXED, F), (MOBILE, T)], rng=rng))
     # Bad inputs.
@@ -156,7 +148,7 @@ def test_pose_json_and_every_bad_input(data):
     by = {f: row for f, row in zip(files, rows, strict=True)}
     for f in ("ref0.png", "moved0.png"):
         T = np.array(by[f]["board2cam"])
-        truth = t["M0"] if f == "ref0.png" else _moved(t["M0"], t["delta"])
+        truth = t["M0"] if f == "ref0.png" else moved_pose(t["M0"], t["delta"])
         np.testing.assert_allclose(T[:3, 3], truth[:3, 3], atol=0.05)  # mm
         assert np.array(by[f]["cov"]).shape == (6, 6) and by[f]["rms_px"] < 0.1
     assert "truncated PNG" in by["truncated.png"]["error"]
@@ -213,7 +205,7 @@ def test_displacement_camera_and_base_frames(data):
     r2 = _invoke([*_measure("displacement", d), *refs, d / "moved0.png"])
     assert r2.returncode == 1 and "nope.png" in r2.stderr
     rows = json.loads(r.stdout)
-    truth = displacement_from_poses(t["M0"], _moved(t["M0"], t["delta"]))
+    truth = displacement_from_poses(t["M0"], moved_pose(t["M0"], t["delta"]))
     for row in rows[:2]:
         assert row["frame"] == "cam"
         assert np.all(np.abs(np.array(row["d"]) - truth[:3]) < [0.01, 0.01, 0.08])  # mm
@@ -241,7 +233,7 @@ def test_displacement_camera_and_base_frames(data):
     assert r.returncode == 0, r.stderr
     rows = json.loads(r.stdout)
     G = t["B"] @ np.linalg.inv(t["F"])
-    truth_b = displacement_from_poses(G @ t["M0"], G @ _moved(t["M0"], t["delta"]), q)
+    truth_b = displacement_from_poses(G @ t["M0"], G @ moved_pose(t["M0"], t["delta"]), q)
     assert rows[-1]["frame"] == "base"
     err = np.array(rows[-1]["d"]) - truth_b[:3]
     assert np.linalg.norm(err) < 0.08, err  # mm (the depth error, turned into base axes)

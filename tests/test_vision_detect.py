@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 from helpers.board_images import quick_board_image
-from helpers.board_scenes import exact_corners, look_at_pose, small_camera
+from helpers.board_scenes import close_two_target_poses, exact_corners, look_at_pose, small_camera
 
 from stiffmap.camera import reference_camera
 from stiffmap.errors import InputError
@@ -187,8 +187,7 @@ def test_one_board_tracked_the_other_searched_again():
     # The platform moves by half a square (tracking refused) while the base board stays:
     # the tracked board is hidden from the new search, which must find the platform's.
     fixed = Chessboard(9, 4, 10.0)
-    F = look_at_pose(340, fixed, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
-    M0 = look_at_pose(300, ODD, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M0, F = close_two_target_poses(ODD, fixed)
     M1 = M0.copy()
     M1[:3, 3] += [6.0, -4.0, 0.0]
     d0 = detect_boards(_img([(fixed, F), (ODD, M0)]), [ODD, fixed], camera=CAM)

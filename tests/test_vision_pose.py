@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from helpers.board_images import quick_board_image
-from helpers.board_scenes import exact_corners, look_at_pose
+from helpers.board_scenes import exact_corners, look_at_pose, moved_pose, two_target_scene
 from helpers.finite_difference import central_jacobian
 from helpers.random_matrices import random_rotation
 
 from stiffmap.camera import reference_camera
-from stiffmap.geometry import matrix_from_rotvec, rotvec_from_matrix
+from stiffmap.geometry import rotvec_from_matrix
 from stiffmap.targets import Chessboard
 from stiffmap.vision import (
     BoardDetection,
@@ -23,14 +23,6 @@ from stiffmap.vision import (
 
 CAM = reference_camera()
 BOARD = Chessboard(8, 6, 10.0)
-
-
-def _perturb(T, delta):
-    """Apply (dt, dr) with the left convention of docs/conventions.md."""
-    out = T.copy()
-    out[:3, 3] = T[:3, 3] + delta[:3]
-    out[:3, :3] = matrix_from_rotvec(delta[3:]) @ T[:3, :3]
-    return out
 
 
 def _pose_error(T_est, T_true):
@@ -50,7 +42,7 @@ def test_projection_jacobian_matches_finite_differences(rng):
     obj = BOARD.object_points()
     _, J = projection_jacobian(T, obj, CAM)
     h = np.array([1e-4] * 3 + [1e-7] * 3)  # mm, rad
-    fd = central_jacobian(lambda e: projection_jacobian(_perturb(T, e), obj, CAM)[0], np.zeros(6), h)
+    fd = central_jacobian(lambda e: projection_jacobian(moved_pose(T, e), obj, CAM)[0], np.zeros(6), h)
     np.testing.assert_allclose(J, fd, rtol=1e-5, atol=1e-4)
 
 
@@ -79,7 +71,7 @@ def test_initial_guess_converges_to_the_same_pose(rng):
     T = look_at_pose(550, BOARD, tilt_deg=(-25, 15, 170), offset_mm=(-30, 20))
     det = _synthetic_detection(T, 0.03, rng)
     p0 = estimate_pose(det, BOARD, CAM)
-    start = _perturb(T, np.array([2.0, -1.5, 8.0, 0.02, -0.03, 0.01]))
+    start = moved_pose(T, np.array([2.0, -1.5, 8.0, 0.02, -0.03, 0.01]))
     p1 = estimate_pose(det, BOARD, CAM, initial=start)
     np.testing.assert_allclose(p1.board2cam, p0.board2cam, atol=1e-7)
     assert p1.sigma_px == pytest.approx(0.03, rel=0.25)
@@ -126,11 +118,7 @@ def test_too_few_corners_and_board_mismatch(rng):
 
 
 def test_mobile2base_covariance_by_monte_carlo(rng):
-    M = look_at_pose(700, BOARD, tilt_deg=(10, -15, 5), offset_mm=(20, 10))
-    F = look_at_pose(750, Chessboard(12, 7, 10.0), tilt_deg=(-5, 20, -3), offset_mm=(-150, 100))
-    B = np.eye(4)
-    B[:3, :3] = random_rotation(rng)
-    B[:3, 3] = [120.0, -80.0, 310.0]
+    M, F, B = two_target_scene(rng, BOARD, Chessboard(12, 7, 10.0))
     A = rng.normal(size=(6, 6))
     Cm = A @ A.T * 1e-6
     A = rng.normal(size=(6, 6))
@@ -140,8 +128,8 @@ def test_mobile2base_covariance_by_monte_carlo(rng):
     Lm, Lf = np.linalg.cholesky(Cm), np.linalg.cholesky(Cf)
     errs = []
     for _ in range(4000):
-        Mi = _perturb(M, Lm @ rng.normal(size=6))
-        Fi = _perturb(F, Lf @ rng.normal(size=6))
+        Mi = moved_pose(M, Lm @ rng.normal(size=6))
+        Fi = moved_pose(F, Lf @ rng.normal(size=6))
         errs.append(_pose_error(B @ np.linalg.inv(Fi) @ Mi, T0))
     emp = np.cov(np.array(errs).T)
     np.testing.assert_allclose(emp, cov, atol=0.08 * np.sqrt(np.outer(np.diag(cov), np.diag(cov))).max())

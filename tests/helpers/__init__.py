@@ -10,7 +10,9 @@ makes sure of it whatever the import mode); a benchmark inserts ``tests/`` itsel
 - :mod:`helpers.board_scenes` poses boards before a camera: poses, exact corners, cameras.
 - :mod:`helpers.board_images` makes images of boards (a quick test renderer, the test-bed's
   renderer, a brute-force reference).
+- :mod:`helpers.opencv_corners` finds a board's corners with OpenCV alone (a reference detector).
 - :mod:`helpers.corner_round_trip` measures a simulated campaign from its exported corners.
 - :mod:`helpers.mechanism_checks` draws reachable poses of a model and checks its Jacobian.
 - :mod:`helpers.sensor_traces` simulates short sensor recordings.
+- :mod:`helpers.report_cases` builds degenerate report data.
 """

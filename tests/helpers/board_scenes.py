@@ -1,16 +1,18 @@
 """Boards posed before a camera with known ground truth: poses, exact corners, small cameras.
 
-Independent of the library's own pose maths where a test compares against it (the corners
-by a plain projection).
+Independent of the library's own pose maths where a test compares against it (the pose
+moves by :func:`moved_pose`, the corners by a plain projection).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from helpers.random_matrices import random_rotation
 from stiffmap.camera import CameraModel
-from stiffmap.geometry import matrix_from_euler
+from stiffmap.geometry import matrix_from_euler, matrix_from_rotvec
 from stiffmap.targets import Chessboard
+from stiffmap.vision import BoardPose
 
 
 def look_at_pose(distance_mm: float, board: Chessboard, *, tilt_deg=(0.0, 0.0, 0.0), offset_mm=(0.0, 0.0)):
@@ -37,10 +39,81 @@ def look_at_pose(distance_mm: float, board: Chessboard, *, tilt_deg=(0.0, 0.0, 0
     return T
 
 
+def two_target_scene(
+    rng: np.random.Generator, mobile: Chessboard, fixed: Chessboard
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The scene of the displacement tests: a mobile and a fixed target before the camera, and the base.
+
+    The mobile board's centre 700 mm from the camera, the fixed board's 750 mm, both tilted
+    and off the axis; ``fixed2base`` a random rotation (drawn from ``rng``) and a translation
+    of (120, -80, 310) mm.
+
+    Returns
+    -------
+    mobile2cam, fixed2cam, fixed2base : ndarray, shape (4, 4), mm
+    """
+    mobile2cam = look_at_pose(700, mobile, tilt_deg=(10, -15, 5), offset_mm=(20, 10))
+    fixed2cam = look_at_pose(750, fixed, tilt_deg=(-5, 20, -3), offset_mm=(-150, 100))
+    fixed2base = np.eye(4)
+    fixed2base[:3, :3] = random_rotation(rng)
+    fixed2base[:3, 3] = [120.0, -80.0, 310.0]
+    return mobile2cam, fixed2cam, fixed2base
+
+
+def close_two_target_poses(mobile: Chessboard, fixed: Chessboard) -> tuple[np.ndarray, np.ndarray]:
+    """The rendered two-target scene of :func:`small_camera`: the mobile board 300 mm away, the fixed 340 mm.
+
+    Both tilted a few degrees and off the axis, side by side in the 640x480 image.
+
+    Returns
+    -------
+    mobile2cam, fixed2cam : ndarray, shape (4, 4), mm
+    """
+    mobile2cam = look_at_pose(300, mobile, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    fixed2cam = look_at_pose(340, fixed, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
+    return mobile2cam, fixed2cam
+
+
+def moved_pose(T: np.ndarray, delta) -> np.ndarray:
+    """The pose moved by a small (dt, dr), left convention of docs/conventions.md.
+
+    t <- t + dt, R <- Exp(dr) R, both in the camera frame.
+
+    Parameters
+    ----------
+    T : ndarray, shape (4, 4), mm
+    delta : array_like, shape (6,)
+        (dt (3, mm), dr (3, rad)).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        A new array.
+    """
+    out = T.copy()
+    out[:3, 3] = T[:3, 3] + delta[:3]
+    out[:3, :3] = matrix_from_rotvec(delta[3:]) @ T[:3, :3]
+    return out
+
+
 def exact_corners(camera: CameraModel, board: Chessboard, board2cam: np.ndarray) -> np.ndarray:
     """Exact pixel positions of the inner corners, shape (n, 2), canonical order."""
     b2c = np.asarray(board2cam, dtype=np.float64)
     return camera.project(board.object_points() @ b2c[:3, :3].T + b2c[:3, 3])
+
+
+def exact_board_pose(board2cam: np.ndarray, cov: np.ndarray, n_corners: int) -> BoardPose:
+    """A measured pose with no residual: ``board2cam`` with covariance ``cov`` (6, 6), from n corners."""
+    return BoardPose(
+        board2cam=board2cam,
+        cov=cov,
+        rms_px=0.0,
+        n_corners=n_corners,
+        residuals_px=np.zeros((n_corners, 2)),
+        sigma_px=0.0,
+        condition=1.0,
+        iterations=0,
+    )
 
 
 def small_camera() -> CameraModel:
