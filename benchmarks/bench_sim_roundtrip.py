@@ -29,8 +29,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from _sim_helpers import derive_from_true_corners, pnp_image_row, round_trip_from_true_corners  # noqa: E402
 from _table import write  # noqa: E402
+from helpers.corner_round_trip import derive_from_true_corners, pnp_image_row, round_trip_from_true_corners  # noqa: E402
+from helpers.opencv_corners import opencv_corners_near  # noqa: E402
 
 from stiffmap.campaign.derive import derive_position  # noqa: E402
 from stiffmap.campaign.measure import ImageRow  # noqa: E402
@@ -57,14 +58,9 @@ def rel_errors(res):
 
 def detect(image, truth_uv, pattern):
     """SB + cornerSubPix on a crop around the board (the crop only bounds the search)."""
-    lo = np.maximum(np.floor(truth_uv.min(axis=0)).astype(int) - 40, 0)
-    hi = np.ceil(truth_uv.max(axis=0)).astype(int) + 40
-    crop = np.ascontiguousarray(image[lo[1] : hi[1], lo[0] : hi[0]])
-    ok, c = cv2.findChessboardCornersSB(crop, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
-    if not ok:
+    c = opencv_corners_near(image, truth_uv, pattern, margin_px=40, half_window=5)
+    if c is None:
         return None
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
-    c = cv2.cornerSubPix(crop, c, (5, 5), (-1, -1), crit).reshape(-1, 2).astype(np.float64) + lo
     # Canonical order (the vision code's job): match to the true corners.
     idx = np.linalg.norm(truth_uv[:, None] - c[None], axis=2).argmin(axis=1)
     if sorted(idx) != list(range(len(truth_uv))):

@@ -23,8 +23,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
-from _sim_helpers import brute_force_reflectance  # noqa: E402
 from _table import write  # noqa: E402
+from helpers.board_images import brute_force_reflectance  # noqa: E402
 
 from stiffmap.camera import CameraModel, reference_camera  # noqa: E402
 from stiffmap.sim.render import Photometry, Target, render, render_reflectance, true_corners  # noqa: E402

@@ -16,9 +16,8 @@ per distance (the claim is checked per distance, over all displacements).
 The reference study (Table I, an X-table moved 2-20 mm, 10 repeats, hand-clicked
 corners on the same camera) reports standard deviations of 0.21-0.28 mm.
 
-Renderer: ``stiffmap.sim.render`` when it is installed (the virtual test-bed), else the
-test fixture renderer in ``tests/_vision_helpers.py`` (exact box-filtered edges,
-Gaussian blur, shot + read noise, 8-bit); the table says which.
+Renderer: the virtual test-bed's ``stiffmap.sim.render`` (through
+``tests/helpers/board_images.py``); the table says so.
 
 Run:  .venv/bin/python benchmarks/bench_vision_accuracy.py [--quick] [--repeats N]
 Saves benchmarks/results/vision_accuracy.md.
@@ -38,7 +37,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from _table import write  # noqa: E402
-from _vision_helpers import RENDERER, look_at_pose, render_scene  # noqa: E402
+from helpers.board_images import TESTBED_RENDERER, testbed_board_image  # noqa: E402
+from helpers.board_scenes import look_at_pose  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec  # noqa: E402
@@ -76,7 +76,7 @@ def one_case(rng, distance, magnitude):
     T1[:3, :3] = matrix_from_rotvec(rv) @ T0[:3, :3]
     T1[:3, 3] = T0[:3, 3] + magnitude * u
     tr = PoseTracker(cam, BOARD)
-    ims = [render_scene(cam, [(BOARD, T)], rng) for T in (T0, T1)]
+    ims = [testbed_board_image(cam, [(BOARD, T)], rng) for T in (T0, T1)]
     m0 = tr.measure(ims[0], "unloaded")
     m1 = tr.measure(ims[1], "loaded")
     if not (m0.ok and m1.ok):
@@ -115,7 +115,7 @@ def main() -> None:
         "",
         "Reference camera 2592x1944 px, fx = 3733 px, k1 = -0.09, k2 = 0.11; 8x6 board, 10 mm squares; "
         f"{n} random cases per cell (pose, direction, rotation <= 1 mrad), unloaded and loaded images with "
-        f"independent noise. Renderer: {RENDERER}. Errors of the measured displacement of the target "
+        f"independent noise. Renderer: {TESTBED_RENDERER}. Errors of the measured displacement of the target "
         "origin, camera frame; 1 sigma = RMS over the cases (bias included). Predicted = RMS of the "
         "1-sigma propagated from the two pose covariances.",
         "",

@@ -36,7 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from _vision_helpers import look_at_pose  # noqa: E402
+from helpers.board_scenes import look_at_pose  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec  # noqa: E402

@@ -39,7 +39,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from _table import write  # noqa: E402
-from _vision_helpers import RENDERER, look_at_pose, render_scene, true_corners  # noqa: E402
+from helpers.board_images import TESTBED_RENDERER, testbed_board_image  # noqa: E402
+from helpers.board_scenes import exact_corners, look_at_pose  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
 from stiffmap.geometry import matrix_from_rotvec  # noqa: E402
@@ -62,7 +63,7 @@ def make_sequence(n: int, folder: Path, rng) -> tuple[list[Path], list[np.ndarra
             T[:3, :3] = matrix_from_rotvec([2e-4, 0.0, 0.0]) @ T[:3, :3]
             T[:3, 3] = T[:3, 3] + load
         T[:3, 3] = T[:3, 3] + rng.normal(scale=0.005, size=3)  # vibration, mm
-        img = render_scene(cam, [(FIXED, F), (MOBILE, T)], rng)
+        img = testbed_board_image(cam, [(FIXED, F), (MOBILE, T)], rng)
         p = folder / f"img{k:02d}.png"
         cv2.imwrite(str(p), img)
         poses.append(T)
@@ -127,8 +128,8 @@ def run(paths, poses, F, repeats):
                 raise RuntimeError(mp.error)
             if r == 0:
                 tracked[k] = m.tracked
-                gt_f = true_corners(cam, FIXED, F)
-                gt_m = true_corners(cam, MOBILE, poses[k])
+                gt_f = exact_corners(cam, FIXED, F)
+                gt_m = exact_corners(cam, MOBILE, poses[k])
                 if c is not None:
                     base_ok += 1
                     acc_base.append(rms_to_truth(c, gt_f))
@@ -170,7 +171,7 @@ def main() -> None:
         f"One robot position of the reference setup (fixed 12x7 board, mobile 8x6 board, 10 mm squares, "
         f"reference camera), a sequence of {n} images (half unloaded, half loaded: 0.3 mm, 0.2 mrad; "
         f"5 um vibration). Times are per image, median of {repeats} passes over the same files, "
-        f"one process on this machine (2 cores). Renderer: {RENDERER}.",
+        f"one process on this machine (2 cores). Renderer: {TESTBED_RENDERER}.",
         "",
     ]
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,37 +1,20 @@
-"""Shared test fixtures and paths."""
+"""Shared test fixtures. The test helpers live in the ``helpers`` package beside this file."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-#: Real data nobody on this project made (see ../shared/data/*/README.md).
-SHARED_DATA = REPO.parent / "shared" / "data"
+# pytest's default import mode puts tests/ on sys.path, which makes ``import helpers`` work;
+# this keeps it so under ``--import-mode=importlib`` too.
+_TESTS = str(Path(__file__).resolve().parent)
+if _TESTS not in sys.path:
+    sys.path.insert(0, _TESTS)
 
 
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
-
-
-def random_rotation(rng: np.random.Generator) -> np.ndarray:
-    """A uniformly random rotation matrix."""
-    q = rng.normal(size=4)
-    q /= np.linalg.norm(q)
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def random_spd(rng: np.random.Generator, m: int = 3, lo: float = 0.5, hi: float = 20.0) -> np.ndarray:
-    """A random symmetric positive-definite matrix with eigenvalues in [lo, hi]."""
-    Q, _ = np.linalg.qr(rng.normal(size=(m, m)))
-    return Q @ np.diag(rng.uniform(lo, hi, size=m)) @ Q.T

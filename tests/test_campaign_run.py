@@ -16,7 +16,7 @@ import tomllib
 
 import numpy as np
 import pytest
-from _cli import stiffmap
+from helpers.cli_process import run_stiffmap
 
 from stiffmap.campaign.demo import demo_config
 from stiffmap.campaign.simulated import write_campaign
@@ -42,7 +42,7 @@ def _copy(src, dst):
 
 
 def _run(path, *args):
-    return stiffmap("run", path, "--quiet", "--no-report", *args)
+    return run_stiffmap("run", path, "--quiet", "--no-report", *args)
 
 
 def test_killed_run_resumes_to_the_same_database(campaign, tmp_path):
@@ -129,7 +129,7 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     c = _copy(campaign, tmp_path / "c")
     assert _run(c).returncode == 0
     # The report of a run campaign, (re)written from its directory.
-    rep = stiffmap("report", c, "--no-png")
+    rep = run_stiffmap("report", c, "--no-png")
     assert rep.returncode == 0, rep.stderr
     assert "stiffness map" in (c / "report" / "index.html").read_text().lower()
     spec = (c / "campaign.toml").read_text()
@@ -169,7 +169,7 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
 @pytest.fixture(scope="module")
 def quick_demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "demo"
-    return stiffmap("demo", out, "--quick", "--workers", "2"), out
+    return run_stiffmap("demo", out, "--quick", "--workers", "2"), out
 
 
 def test_quick_demo_recovers_the_true_stiffness(quick_demo):
@@ -194,7 +194,7 @@ def test_init_from_demo_writes_the_quick_demo_campaign_ready_to_run(quick_demo, 
     """`stiffmap init DIR --from-demo`: the quick demo's campaign, byte for byte, and commented."""
     _, demo = quick_demo
     d = tmp_path / "my first campaign"
-    proc = stiffmap("init", d, "--from-demo")
+    proc = run_stiffmap("init", d, "--from-demo")
     assert proc.returncode == 0, proc.stderr
     assert "next: stiffmap run '" in proc.stdout  # quoted: the path has spaces
     ours = sorted(p.relative_to(d) for p in (d / "images").rglob("*.png"))
@@ -207,7 +207,7 @@ def test_init_from_demo_writes_the_quick_demo_campaign_ready_to_run(quick_demo, 
     )
     spec = (d / "campaign.toml").read_text()
     assert "# list: [x, y, z] in mm, base frame" in spec and "ISO 5725" in spec
-    again = stiffmap("init", d, "--from-demo")
+    again = run_stiffmap("init", d, "--from-demo")
     assert again.returncode == 2 and "not empty" in again.stderr
 
 

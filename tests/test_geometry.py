@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from conftest import random_rotation
+from helpers.random_matrices import random_rotation
 from scipy.spatial.transform import Rotation
 
 from stiffmap import geometry as g

@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import random_spd
+from helpers.random_matrices import random_spd
 
 from stiffmap.errors import DesignError, IllConditionedWarning
 from stiffmap.identify import (

@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 import pytest
-from _models_helpers import assert_jacobian_fd, central_jacobian, random_reachable
+from helpers.finite_difference import central_jacobian
+from helpers.mechanism_checks import assert_jacobian_matches_fd, random_reachable_poses
 
 from stiffmap.models import DeltaRobot, Mechanism, PoseError
 from stiffmap.models.presets import paper48
@@ -24,7 +25,7 @@ def test_delta_is_a_mechanism():
 
 def test_ik_closes_every_leg_and_fk_inverts_it(rng):
     d = DeltaRobot()
-    P = random_reachable(d, rng, 300, BOX_LO, BOX_HI, margin=0.0)
+    P = random_reachable_poses(d, rng, 300, BOX_LO, BOX_HI, margin=0.0)
     L = d.legs(P)
     # |C_i - B_i| = b and |B_i - A_i| = a for every leg (mm).
     np.testing.assert_allclose(np.linalg.norm(L.C - L.B, axis=2), d.forearm_length, atol=1e-9)
@@ -42,11 +43,11 @@ def test_ik_closes_every_leg_and_fk_inverts_it(rng):
 
 def test_jacobian_matches_central_differences(rng):
     d = DeltaRobot()
-    P = random_reachable(d, rng, 200, BOX_LO, BOX_HI)
-    J = assert_jacobian_fd(d, P, h=1e-3, atol=1e-6)
+    P = random_reachable_poses(d, rng, 200, BOX_LO, BOX_HI)
+    J = assert_jacobian_matches_fd(d, P, h=1e-3, atol=1e-6)
     # The forward-kinematic Jacobian dP/dtheta is its inverse (FD of forward_kinematics).
     th = d.inverse_kinematics(P).q
-    Jf = central_jacobian(d.forward_kinematics, th, h=1e-6)
+    Jf = central_jacobian(d.forward_kinematics, th, 1e-6)
     Jinv = np.linalg.inv(J)
     scale = np.linalg.norm(Jinv, axis=(1, 2))[:, None, None]
     np.testing.assert_allclose(Jinv / scale, Jf / scale, rtol=0, atol=1e-6)
@@ -54,7 +55,7 @@ def test_jacobian_matches_central_differences(rng):
 
 def test_rigid_links_give_gosselin_stiffness(rng):
     d = DeltaRobot(k_theta=3.3e5)
-    P = random_reachable(d, rng, 100, BOX_LO, BOX_HI)
+    P = random_reachable_poses(d, rng, 100, BOX_LO, BOX_HI)
     J = d.jacobian(P)
     K = d.stiffness(P)
     Kg = d.k_theta * np.einsum("nji,njk->nik", J, J)  # K = J^T K_theta J (Gosselin 1990)
@@ -90,18 +91,12 @@ def test_link_compliances_match_virtual_work(rng):
     # (theta, w, e), by central differences (principle of virtual work).
     d = DeltaRobot(k_theta=2.0e5, k_arm=800.0, k_forearm=5000.0)
     kdiag = np.repeat([d.k_theta, d.k_arm, d.k_forearm], 3)
-    P = random_reachable(d, rng, 8, BOX_LO, BOX_HI, margin=0.2)
+    P = random_reachable_poses(d, rng, 8, BOX_LO, BOX_HI, margin=0.2)
     for p in P:
         th0 = d.inverse_kinematics(p).q[0]
         q0 = np.concatenate([th0, np.zeros(6)])
         h = np.array([1e-6] * 3 + [1e-4] * 6)
-        G = np.empty((3, 9))
-        for k in range(9):
-            dq = np.zeros(9)
-            dq[k] = h[k]
-            plus = _generalised_fk(d, *np.split(q0 + dq, 3), p)
-            minus = _generalised_fk(d, *np.split(q0 - dq, 3), p)
-            G[:, k] = (plus - minus) / (2 * h[k])
+        G = central_jacobian(lambda q, p=p: _generalised_fk(d, *np.split(q, 3), p), q0, h)
         C = G @ np.diag(1 / kdiag) @ G.T
         np.testing.assert_allclose(np.linalg.inv(d.stiffness(p)), C, rtol=1e-6, atol=1e-9 * np.abs(C).max())
 

@@ -6,9 +6,11 @@ import dataclasses
 
 import numpy as np
 import pytest
+from helpers.finite_difference import central_jacobian
 
 from stiffmap.errors import DesignError
-from stiffmap.models import PRR3, DeltaRobot, PoseError
+from stiffmap.models import PRR3, DeltaRobot, IKSolution, Mechanism, PoseError
+from stiffmap.models.base import model_map
 from stiffmap.models.fit import ModelFit, fit_static_errors, fit_stiffness, static_error_predictions
 from stiffmap.models.presets import paper48, prr3_points22
 
@@ -103,11 +105,11 @@ def test_noise_free_data_give_the_truth_exactly_and_absolute_sigma():
     np.testing.assert_allclose(f.residuals, 0.0, atol=1e-9)
     # absolute sigma: the standard error follows from the given 0.01 mm alone (linearised):
     # var(log kj) = 1 / sum((d y / d log kj / sigma)^2).
-    h = 1e-6
-    dy = (
-        static_error_predictions(truth.with_params(kj=610.0 * np.exp(h)), pts, F, U)
-        - static_error_predictions(truth.with_params(kj=610.0 * np.exp(-h)), pts, F, U)
-    ) / (2 * h)
+    dy = central_jacobian(
+        lambda log_kj: static_error_predictions(truth.with_params(kj=610.0 * np.exp(log_kj)), pts, F, U),
+        0.0,
+        1e-6,
+    )
     se = 610.0 / np.sqrt(np.sum((dy / 0.01) ** 2))
     assert f.std[0] == pytest.approx(se, rel=1e-4)
 
@@ -182,8 +184,6 @@ class _AxisSprings:
         return dataclasses.replace(self, **p)
 
     def inverse_kinematics(self, points):
-        from stiffmap.models import IKSolution
-
         P = np.atleast_2d(np.asarray(points, dtype=float))
         ok = np.all((P >= 0) & (P <= 100), axis=1)
         return IKSolution(
@@ -191,8 +191,6 @@ class _AxisSprings:
         )
 
     def evaluate(self, points):
-        from stiffmap.models.base import model_map
-
         P = np.atleast_2d(np.asarray(points, dtype=float))
         ik = self.inverse_kinematics(P)
         K = np.broadcast_to(np.diag([self.kx, self.ky]), (P.shape[0], 2, 2))
@@ -206,8 +204,6 @@ class _AxisSprings:
 
 
 def test_a_user_defined_mechanism_plugs_into_maps_and_fits():
-    from stiffmap.models import Mechanism
-
     g = _AxisSprings()
     assert isinstance(g, Mechanism)
     m = g.evaluate([[10.0, 10.0], [200.0, 0.0]])

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from _models_helpers import assert_jacobian_fd, random_reachable
+from helpers.mechanism_checks import assert_jacobian_matches_fd, random_reachable_poses
 
 from stiffmap.models import PRR3, Mechanism, PoseError
 from stiffmap.models.presets import POSITION_PRESETS, PRR3_MIDDLE_LINE, paper48, preset_points, prr3_points22
@@ -27,7 +27,7 @@ def test_prr3_is_a_mechanism_with_the_published_stiffnesses():
 
 def test_ik_satisfies_the_papers_equations(rng):
     m = PRR3()
-    T = random_reachable(m, rng, 300, BOX_LO, BOX_HI, margin=0.0)
+    T = random_reachable_poses(m, rng, 300, BOX_LO, BOX_HI, margin=0.0)
     x, y = T[:, 0], T[:, 1]
     l1, l2, l3 = m.inverse_kinematics(T).q.T
     h, L = m.h, m.L
@@ -44,14 +44,14 @@ def test_ik_satisfies_the_papers_equations(rng):
 
 def test_jacobian_matches_central_differences(rng):
     m = PRR3()
-    T = random_reachable(m, rng, 300, BOX_LO, BOX_HI)
-    assert_jacobian_fd(m, T, h=1e-3, atol=1e-6)
+    T = random_reachable_poses(m, rng, 300, BOX_LO, BOX_HI)
+    assert_jacobian_matches_fd(m, T, h=1e-3, atol=1e-6)
 
 
 def _anastruct_tool_displacement(m: PRR3, T: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The same truss in anastruct: rods as truss elements (EA), each slider's springs as truss
     elements of axial stiffness kj (along the rail) and kb (across it) to hinged supports."""
-    from anastruct import SystemElements
+    from anastruct import SystemElements  # lazy: it loads matplotlib, for this one test only
 
     lg = m.legs(T)
     u = lg.u
@@ -82,7 +82,7 @@ def test_truss_equals_anastruct_on_random_poses_and_stiffnesses(rng):
             E=rng.uniform(20000, 210000),
             area=rng.uniform(20, 400),
         )
-        T = random_reachable(m, rng, 1, BOX_LO, BOX_HI)[0]
+        T = random_reachable_poses(m, rng, 1, BOX_LO, BOX_HI)[0]
         F = rng.normal(scale=300.0, size=2)
         u_closed = m.static_error(T, F)
         d_full = m.truss_displacements(T, F)
@@ -120,7 +120,7 @@ def test_mirror_symmetry_about_the_middle_line(rng):
     # Rails 1 and 2 mirror each other about x = h/2 and rail 3 lies on it: the static error of the
     # mirrored pose under the mirrored force is the mirrored static error.
     m = PRR3()
-    T = random_reachable(m, rng, 50, BOX_LO, BOX_HI)
+    T = random_reachable_poses(m, rng, 50, BOX_LO, BOX_HI)
     F = rng.normal(scale=400.0, size=T.shape)
     flip = np.array([-1.0, 1.0])
     Tm = T * flip + [m.h, 0.0]
@@ -131,7 +131,7 @@ def test_mirror_symmetry_about_the_middle_line(rng):
 
 def test_stiffness_is_symmetric_positive_and_softer_with_softer_joints(rng):
     m = PRR3()
-    T = random_reachable(m, rng, 200, BOX_LO, BOX_HI)
+    T = random_reachable_poses(m, rng, 200, BOX_LO, BOX_HI)
     K = m.stiffness(T)
     np.testing.assert_array_equal(K, np.swapaxes(K, 1, 2))
     assert np.all(np.linalg.eigvalsh(K) > 0)

@@ -7,6 +7,7 @@ Skipped, with a message, when no Chromium is installed (``apt-get install chromi
 from __future__ import annotations
 
 import pytest
+from helpers.report_cases import all_positions_failed
 
 from stiffmap.report import write_report
 from stiffmap.report.browser import ConsoleEntry, PageCheck, check_page, find_chromium
@@ -129,19 +130,7 @@ def test_external_request_classification() -> None:
 
 
 def test_page_with_every_position_failed_renders(chromium, tmp_path) -> None:
-    import numpy as np
-
-    from stiffmap.report.data import CampaignInfo, LoadData, MeasuredStiffness, ReportData
-
-    pos = np.array([[0.0, 0.0, -200.0], [100.0, 0.0, -200.0], [0.0, 0.0, -300.0]])
-    data = ReportData(
-        CampaignInfo("all failed", "vision"),
-        measured=MeasuredStiffness.from_K(
-            pos, np.full((3, 3, 3), np.nan), messages=["a.png", "b.png", "c.png"]
-        ),
-        loads=LoadData(("l1",), np.array([[1.0, 0.0, 0.0]]), np.full((3, 1, 2), np.nan)),
-    )
-    index = write_report(data, tmp_path, png=False)
+    index = write_report(all_positions_failed(), tmp_path, png=False)
     r = check_page(index, script="document.getElementById('pos-select').options.length", chromium=chromium)
     assert r.ready
     assert r.errors == (), r.errors

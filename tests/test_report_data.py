@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
-from conftest import random_spd
+from helpers.random_matrices import random_spd
 
 from stiffmap.errors import InputError
 from stiffmap.report import load_report_data
@@ -296,9 +298,6 @@ def test_arrays_are_read_only(rng) -> None:
 
 
 def test_importing_the_report_package_loads_no_plotting_library() -> None:
-    import subprocess
-    import sys
-
     code = (
         "import sys, stiffmap.report, stiffmap.report.data; "
         "heavy = sorted(m for m in ('plotly', 'matplotlib', 'scipy') if m in sys.modules); "

@@ -9,9 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.report_cases import all_positions_failed
+from plotly.offline import get_plotlyjs
+from scipy.spatial import Delaunay
 
 from stiffmap.report import write_report
-from stiffmap.report.data import CampaignInfo, ReportData
+from stiffmap.report.data import CampaignInfo, MeasuredStiffness, ReportData, SensorResults
 from stiffmap.report.example import REFERENCE_PLANES_Z, example_sensor, example_vision
 from stiffmap.report.figure_data import (
     MAX_DIAMETER,
@@ -22,6 +25,7 @@ from stiffmap.report.figure_data import (
     middle_line_order,
     plane_values,
 )
+from stiffmap.report.interactive_figures import plane_maps, stiffness_map_3d
 
 #: plotly.js is large; the page holds it once plus figure JSON.
 MAX_PAGE_BYTES = 6_500_000
@@ -83,8 +87,6 @@ def test_vision_report_files_and_pngs(tmp_path) -> None:
 def test_page_is_self_contained(vision_report: Path) -> None:
     page = vision_report.read_text(encoding="utf-8")
     assert len(page.encode()) < MAX_PAGE_BYTES
-    from plotly.offline import get_plotlyjs
-
     bundle = get_plotlyjs()
     assert page.count(bundle) == 1  # plotly.js embedded once
     own = page.replace(bundle, "")
@@ -113,8 +115,6 @@ def test_header_says_what_and_units(vision_report: Path, vision: ReportData) -> 
 
 
 def test_stiffness_map_marker_diameters_proportional_to_det(vision: ReportData) -> None:
-    from stiffmap.report.interactive_figures import stiffness_map_3d
-
     fig = stiffness_map_3d(vision)
     tr = fig.data[0]
     size = np.asarray(tr.marker.size, dtype=float)
@@ -139,8 +139,6 @@ def test_det_diameters_floor_and_nan() -> None:
 
 
 def test_plane_maps_one_panel_per_plane(vision: ReportData) -> None:
-    from stiffmap.report.interactive_figures import plane_maps
-
     fig = plane_maps(vision, "min_principal")
     titles = [a.text for a in fig.layout.annotations]
     for z in REFERENCE_PLANES_Z:
@@ -245,8 +243,6 @@ def test_interpolation_is_exact_for_a_linear_field_and_never_extrapolates(rng) -
     inside = np.isfinite(g.Z)
     assert inside.sum() > 200
     np.testing.assert_allclose(g.Z[inside], 3.0 * X[inside] - 2.0 * Y[inside] + 7.0, rtol=0, atol=1e-9)
-    from scipy.spatial import Delaunay
-
     hull = Delaunay(p)
     outside = hull.find_simplex(np.c_[X.ravel(), Y.ravel()]) < 0
     assert np.all(~inside.ravel()[outside])
@@ -269,17 +265,9 @@ def test_grid_detection_and_planes() -> None:
 
 
 def _degenerate() -> dict[str, ReportData]:
-    from stiffmap.report.data import LoadData, MeasuredStiffness, SensorResults
-
     pos = np.array([[0.0, 0.0, -200.0], [100.0, 0.0, -200.0], [0.0, 0.0, -300.0]])
     return {
-        "all positions failed": ReportData(
-            CampaignInfo("all failed", "vision"),
-            measured=MeasuredStiffness.from_K(
-                pos, np.full((3, 3, 3), np.nan), messages=["a.png", "b.png", "c.png"]
-            ),
-            loads=LoadData(("l1",), np.array([[1.0, 0.0, 0.0]]), np.full((3, 1, 2), np.nan)),
-        ),
+        "all positions failed": all_positions_failed(),
         "one position, nothing else": ReportData(
             CampaignInfo("one", "vision"), measured=MeasuredStiffness.from_K(pos[:1], 5.0 * np.eye(3)[None])
         ),

@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from _sensors_helpers import FAST_CHAIN, FAST_STEPS, quick_trace
+from helpers.sensor_traces import FAST_DAQ_CHAIN, FAST_LOAD_STEPS, quick_trace
 
 from stiffmap.errors import InputError
 from stiffmap.sensors import Recording, SensorConfig, analyse_recording
@@ -81,7 +81,7 @@ def test_noise_free_staircase_gives_exact_plateaus_and_line():
 
 def test_drift_is_removed_through_the_zero_load_plateaus():
     """A 2 um/s drift (70 um over the recording) is gone with the zero plateaus, and biases without."""
-    chain = dataclasses.replace(FAST_CHAIN, drift_um_per_s=2.0, drift_wander_um=0.0)
+    chain = dataclasses.replace(FAST_DAQ_CHAIN, drift_um_per_s=2.0, drift_wander_um=0.0)
     tr = quick_trace(0.2, seed=5, chain=chain)
     r = analyse_recording(tr.recording)
     assert 1e3 * abs(r.static_error_mm - tr.truth.static_error_mm) <= _tol_um(0.2)
@@ -90,7 +90,9 @@ def test_drift_is_removed_through_the_zero_load_plateaus():
     raw = analyse_recording(tr.recording, SensorConfig(remove_drift=False))
     assert 1e3 * abs(raw.static_error_mm - tr.truth.static_error_mm) > 10.0
     # One zero plateau only (the milling study's 50 -> 0): said in the flags.
-    one = quick_trace(0.2, seed=5, protocol=dataclasses.replace(FAST_STEPS, steps=(50, 40, 30, 20, 10, 0)))
+    one = quick_trace(
+        0.2, seed=5, protocol=dataclasses.replace(FAST_LOAD_STEPS, steps=(50, 40, 30, 20, 10, 0))
+    )
     r1 = analyse_recording(one.recording)
     assert any("only one zero-load plateau" in f for f in r1.flags)
 
@@ -102,7 +104,7 @@ def test_hysteresis_of_a_backlash_is_measured():
     (F50, c (F50 - r)) and the unloading branch c (F + r) below 50 kgf, so the largest gap is at
     40 kgf: c r (1 + F40 / F50) = 1.8 c r.
     """
-    chain = dataclasses.replace(FAST_CHAIN, noise_um=0.2, drift_um_per_s=0.0, drift_wander_um=0.0)
+    chain = dataclasses.replace(FAST_DAQ_CHAIN, noise_um=0.2, drift_um_per_s=0.0, drift_wander_um=0.0)
     c, r_n = 2e-3, 20.0
     tr = quick_trace(c * F_REF, seed=8, chain=chain, hysteresis_n=r_n)
     res = analyse_recording(tr.recording, SensorConfig(remove_drift=False))
@@ -112,7 +114,7 @@ def test_hysteresis_of_a_backlash_is_measured():
     assert 1e3 * h.max_mm == pytest.approx(1e3 * 1.8 * c * r_n, abs=0.5)  # 72 um, +-0.5 um
     # Loading only: no hysteresis.
     up = quick_trace(
-        0.5, seed=8, chain=chain, protocol=dataclasses.replace(FAST_STEPS, steps=(0, 10, 20, 30))
+        0.5, seed=8, chain=chain, protocol=dataclasses.replace(FAST_LOAD_STEPS, steps=(0, 10, 20, 30))
     )
     assert analyse_recording(up.recording).hysteresis is None
 
@@ -161,7 +163,7 @@ def test_dropout_is_refused_or_left_out_on_request(kind):
 
 def test_fewer_plateaus_than_the_table_names_the_span():
     """A table of 8 steps for a recording of 7, then a recording whose 30 kgf plateau is too short."""
-    tr = quick_trace(0.5, seed=6, protocol=dataclasses.replace(FAST_STEPS, load_channel=False))
+    tr = quick_trace(0.5, seed=6, protocol=dataclasses.replace(FAST_LOAD_STEPS, load_channel=False))
     with pytest.raises(InputError, match=r"found 7 plateau\(s\) but the table of steps has 8"):
         analyse_recording(tr.recording, SensorConfig(steps=(0, 50, 45, 40, 30, 20, 10, 0)))
     # Squeeze a plateau to 0.2 s (below --min-plateau-s 0.5): 6 found, the gap holding it named.
@@ -201,7 +203,7 @@ def test_mirror_sign_and_its_flag():
 
 def test_load_units_and_missing_load():
     tr = quick_trace(
-        0.4, seed=12, protocol=dataclasses.replace(FAST_STEPS, unit="N", steps=(0, 400, 300, 200, 0))
+        0.4, seed=12, protocol=dataclasses.replace(FAST_LOAD_STEPS, unit="N", steps=(0, 400, 300, 200, 0))
     )
     rec = tr.recording
     assert rec.load_name == "load_n" and rec.load_unit == "N"
@@ -218,7 +220,7 @@ def test_load_units_and_missing_load():
 
 
 def test_two_plateaus_have_no_standard_error():
-    tr = quick_trace(0.5, seed=13, protocol=dataclasses.replace(FAST_STEPS, steps=(0, 50)))
+    tr = quick_trace(0.5, seed=13, protocol=dataclasses.replace(FAST_LOAD_STEPS, steps=(0, 50)))
     r = analyse_recording(tr.recording)
     assert len(r.plateaus) == 2
     assert np.isnan(r.fit.stiffness_std_n_per_mm)
@@ -227,7 +229,7 @@ def test_two_plateaus_have_no_standard_error():
 
 
 def test_reference_load_beyond_the_loads_is_flagged():
-    tr = quick_trace(0.5, seed=14, protocol=dataclasses.replace(FAST_STEPS, steps=(0, 20, 10, 0)))
+    tr = quick_trace(0.5, seed=14, protocol=dataclasses.replace(FAST_LOAD_STEPS, steps=(0, 20, 10, 0)))
     r = analyse_recording(tr.recording)
     assert any("static error extrapolated" in f for f in r.flags)
     assert 1e3 * abs(r.static_error_mm - 0.5) <= _tol_um(0.5) * 2.5  # x2.5 extrapolation of the slope
@@ -236,7 +238,9 @@ def test_reference_load_beyond_the_loads_is_flagged():
 @pytest.mark.parametrize(("vib_hz", "settle_s"), [(3.0, 0.0), (50.0, 0.0), (0.0, 0.2)])
 def test_vibration_lines_and_settling_do_not_break_the_plateaus(vib_hz, settle_s):
     """Non-white noise (a 5 um vibration line at 3 or 50 Hz) and a 0.2 s settling after each change."""
-    chain = dataclasses.replace(FAST_CHAIN, vibration_um=5.0 if vib_hz else 0.0, vibration_hz=vib_hz or 50.0)
+    chain = dataclasses.replace(
+        FAST_DAQ_CHAIN, vibration_um=5.0 if vib_hz else 0.0, vibration_hz=vib_hz or 50.0
+    )
     for seed in range(4):
         tr = quick_trace(0.4, seed=seed, chain=chain, settle_s=settle_s)
         r = analyse_recording(tr.recording)

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 import scipy.io
-from _sensors_helpers import quick_trace
-from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+from helpers.sensor_traces import quick_trace
+from nptdms import ChannelObject, GroupObject, RootObject, TdmsFile, TdmsWriter
 
 from stiffmap.errors import InputError
 from stiffmap.io import dumps_json
@@ -22,13 +22,12 @@ from stiffmap.sensors import (
     read_recording,
     write_recording,
 )
+from stiffmap.sim.traces import LoadSteps
 
 
 @pytest.mark.parametrize("load_channel", [True, False])
 def test_same_recording_as_csv_tdms_mat_gives_identical_results(tmp_path, load_channel):
     """The issue's must-show: one recording stored in the three formats analyses identically."""
-    from stiffmap.sim.traces import LoadSteps
-
     tr = quick_trace(
         0.8, seed=11, protocol=LoadSteps(plateau_s=2.0, transition_s=0.8, load_channel=load_channel)
     )
@@ -75,8 +74,6 @@ def test_tab_and_semicolon_separated_text_reads_like_the_csv(tmp_path, sep, deci
 def test_tdms_waveform_without_time_channel_and_with_gap(tmp_path):
     tr = quick_trace(0.3, seed=2)
     p = write_recording(tr.recording, tmp_path / "w.tdms")
-    from nptdms import TdmsFile
-
     f = TdmsFile.read(p)
     names = [c.name for c in f["daq"].channels()]
     assert "time_s" not in names  # uniform sampling: written as a waveform (wf_increment)

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from _sensors_helpers import FAST_CHAIN, FAST_STEPS, quick_trace
+from helpers.sensor_traces import FAST_DAQ_CHAIN, FAST_LOAD_STEPS, quick_trace
 
 from stiffmap.sim.traces import DaqChain, compliance_along, simulate_point_traces, simulate_trace
 
@@ -71,7 +71,13 @@ def test_point_traces_index_and_truth(tmp_path):
     pts = [[0.0, 400.0], [0.0, 450.0]]
     dirs = [[2.0, 0.0], [0.0, 1.0]]  # normalised inside
     truths = simulate_point_traces(
-        tmp_path, pts, dirs, lambda q: 1e-6 * q[1], axis_signs=[-1, 1], chain=FAST_CHAIN, protocol=FAST_STEPS
+        tmp_path,
+        pts,
+        dirs,
+        lambda q: 1e-6 * q[1],
+        axis_signs=[-1, 1],
+        chain=FAST_DAQ_CHAIN,
+        protocol=FAST_LOAD_STEPS,
     )
     assert [t.static_error_mm for t in truths] == pytest.approx([0.4 * 490.5e-3, 0.45 * 490.5e-3], rel=1e-12)
     idx = (tmp_path / "index.csv").read_text().splitlines()

@@ -9,7 +9,8 @@ import json
 import cv2
 import numpy as np
 import pytest
-from _sim_helpers import round_trip_from_true_corners, scaled_camera
+from helpers.board_scenes import scaled_camera
+from helpers.corner_round_trip import round_trip_from_true_corners
 
 from stiffmap.camera import load_camera, reference_camera
 from stiffmap.campaign.positions import plan

@@ -6,19 +6,20 @@ import json
 
 import numpy as np
 import pytest
-from _cli import assert_one_line_error, stiffmap
-from _sim_helpers import scaled_camera
+from helpers.board_scenes import scaled_camera
+from helpers.cli_process import assert_one_line_error, run_stiffmap
 
 from stiffmap.camera import reference_camera, save_camera
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.truth import load_truth
 from stiffmap.models.delta import DeltaRobot
-from stiffmap.models.presets import paper48
+from stiffmap.models.presets import paper48, prr3_points22
+from stiffmap.models.prr3 import PRR3
 
 
 def test_truth_only_json_summary(tmp_path):
     out = tmp_path / "sim"
-    p = stiffmap("simulate", out, "--select", "1,48", "--repeats", "2", "--truth-only", "--json")
+    p = run_stiffmap("simulate", out, "--select", "1,48", "--repeats", "2", "--truth-only", "--json")
     assert p.returncode == 0, p.stderr
     info = json.loads(p.stdout)
     assert info["positions"] == 2 and info["load_cases"] == 9 and info["repeats"] == 2
@@ -40,8 +41,8 @@ def test_images_are_written_and_reproducible(tmp_path):
     loads.write_text("fx,fy,fz,label\n0,0,-4.905,0.5 kg down\n-2,0,0,2 N -x\n0,3,0,3 N +y\n")
     args = ["--camera", cam, "--positions", "100,-50,-250", "--loads", loads, "--repeats", "1"]
     args += ["--seed", "11", "--clutter", "--colour"]
-    a = stiffmap("simulate", tmp_path / "a", *args, "--workers", "1")
-    b = stiffmap("simulate", tmp_path / "b", *args, "--workers", "2")
+    a = run_stiffmap("simulate", tmp_path / "a", *args, "--workers", "1")
+    b = run_stiffmap("simulate", tmp_path / "b", *args, "--workers", "2")
     assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
     assert "6 png" in a.stdout and "rendering" in a.stderr
     files = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*.png"))
@@ -58,13 +59,13 @@ def test_images_are_written_and_reproducible(tmp_path):
     jb["generator"].pop("command")
     assert ja == jb
     # --force overwrites a previous simulation.
-    c = stiffmap("simulate", tmp_path / "a", *args, "--truth-only", "--force", "--json")
+    c = run_stiffmap("simulate", tmp_path / "a", *args, "--truth-only", "--force", "--json")
     assert c.returncode == 0, c.stderr
     assert not (tmp_path / "a" / "images").exists()
 
 
 def test_six_by_six_option(tmp_path):
-    p = stiffmap(
+    p = run_stiffmap(
         "simulate",
         tmp_path / "s",
         "--select",
@@ -97,39 +98,43 @@ def test_six_by_six_option(tmp_path):
 def test_user_errors_are_one_line(tmp_path):
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "x.png").write_bytes(b"raw")
-    assert_one_line_error(stiffmap("simulate", tmp_path / "full", "--truth-only"), "not empty", "--force")
+    assert_one_line_error(run_stiffmap("simulate", tmp_path / "full", "--truth-only"), "not empty", "--force")
     assert_one_line_error(
-        stiffmap("simulate", tmp_path / "full", "--truth-only", "--force"), "nothing was deleted"
+        run_stiffmap("simulate", tmp_path / "full", "--truth-only", "--force"), "nothing was deleted"
     )
     assert (tmp_path / "full" / "x.png").read_bytes() == b"raw"
     assert_one_line_error(
-        stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--positions", "paper48"), "delta model"
+        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--positions", "paper48"), "delta model"
     )
     assert_one_line_error(
-        stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--directions", "z"), "x and/or y"
+        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--directions", "z"), "x and/or y"
     )
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--positions", "1,2"), "--positions", "x,y,z")
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--select", "0,49"), "between 1 and 48")
     assert_one_line_error(
-        stiffmap("simulate", tmp_path / "n", "--positions", "0,0,-310;0,0,-900", "--truth-only"),
+        run_stiffmap("simulate", tmp_path / "n", "--positions", "1,2"), "--positions", "x,y,z"
+    )
+    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--select", "0,49"), "between 1 and 48")
+    assert_one_line_error(
+        run_stiffmap("simulate", tmp_path / "n", "--positions", "0,0,-310;0,0,-900", "--truth-only"),
         "position 2 (0, 0, -900) mm",
         "no stiffness",
     )
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--param", "k_nope=1"), "k_nope")
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--select", "1,1"), "more than once")
+    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--param", "k_nope=1"), "k_nope")
+    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--select", "1,1"), "more than once")
     # Options of the other kind of simulation are refused, not silently ignored.
     assert_one_line_error(
-        stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--colour", "--camera", "c.json"),
+        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--colour", "--camera", "c.json"),
         "--camera, --colour",
         "not used",
     )
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--trace-format", "mat"), "--trace-format")
+    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--trace-format", "mat"), "--trace-format")
     flat = tmp_path / "flat.csv"
     flat.write_text("fx,fy,fz\n1,0,0\n2,0,0\n")
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--loads", flat), "1 independent direction")
+    assert_one_line_error(
+        run_stiffmap("simulate", tmp_path / "n", "--loads", flat), "1 independent direction"
+    )
     bad = tmp_path / "loads.csv"
     bad.write_text("fx,fy\n1,2\n")
-    assert_one_line_error(stiffmap("simulate", tmp_path / "n", "--loads", bad), str(bad), "'fz'")
+    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--loads", bad), str(bad), "'fz'")
     assert not (tmp_path / "n").exists()
 
 
@@ -137,7 +142,7 @@ def test_3prr_sensor_campaign_round_trip(tmp_path):
     # The 3PRR is measured by an LDV: 'simulate --robot 3prr' writes a sensor campaign whose
     # recordings 'stiffmap run' analyses; the static errors come back to the truth.
     out = tmp_path / "s"
-    p = stiffmap(
+    p = run_stiffmap(
         "simulate", out, "--robot", "3prr", "--select", "2,8,19", "--repeats", "1", "--seed", "5", "--json"
     )
     assert p.returncode == 0, p.stderr
@@ -148,13 +153,10 @@ def test_3prr_sensor_campaign_round_trip(tmp_path):
     assert [r.direction for r in spec.sensor.recordings] == ["x", "y"] * 3
     assert [r.sign for r in spec.sensor.recordings] == [-1, 1] * 3  # x through a mirror
     truth = load_truth(out)
-    from stiffmap.models.presets import prr3_points22
-    from stiffmap.models.prr3 import PRR3
-
     pts = prr3_points22()[[1, 7, 18]]
     np.testing.assert_allclose(truth.positions, pts)
     np.testing.assert_allclose(truth.K, PRR3().stiffness(pts), rtol=1e-12)  # N/mm
-    r = stiffmap("run", out, "--json")
+    r = run_stiffmap("run", out, "--json")
     assert r.returncode == 0, r.stderr
     res = {x["file"]: x for x in json.loads(r.stdout)["sensor_results"]}
     for rec in truth.data["recordings"]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _sim_helpers import brute_force_reflectance, pose_at_pixel
+from helpers.board_images import brute_force_reflectance
 
 from stiffmap.camera import CameraModel, reference_camera
 from stiffmap.geometry import transform_from
@@ -19,6 +19,7 @@ from stiffmap.sim.render import (
     render_reflectance,
     true_corners,
 )
+from stiffmap.sim.scene import board_pose_at_pixel
 from stiffmap.sim.texture import texture_from_board
 from stiffmap.targets import CharucoBoard, Chessboard
 
@@ -88,7 +89,9 @@ def test_edges_land_exactly_without_distortion():
 def test_matches_brute_force_supersampling(board, tilt, spin):
     # Near the image corner (strongest distortion) and with strong perspective.
     cam = SMALL
-    T = pose_at_pixel(cam, (250, 180), 300.0, (15.0, 10.0), tilt_deg=tilt, tilt_axis_deg=30, spin_deg=spin)
+    T = board_pose_at_pixel(
+        cam, (250, 180), 300.0, (15.0, 10.0), tilt_deg=tilt, tilt_axis_deg=30, spin_deg=spin
+    )
     tg = Target(board, T)
     c = np.round(true_corners(cam, board, T)[7]).astype(int)
     roi = (c[0] - 8, c[1] - 8, c[0] + 8, c[1] + 8)
@@ -107,7 +110,9 @@ def test_coverage_total_is_conserved():
     # Sum of the rendered image of a uniform white board on black = its projected area.
     cam = CameraModel((300, 300), 500.0, 500.0, 149.5, 149.5)
     board = Chessboard(3, 3, 10.0)
-    T = pose_at_pixel(cam, (150, 150), 400.0, (10.0, 10.0), tilt_deg=35.0, tilt_axis_deg=60.0, spin_deg=12)
+    T = board_pose_at_pixel(
+        cam, (150, 150), 400.0, (10.0, 10.0), tilt_deg=35.0, tilt_axis_deg=60.0, spin_deg=12
+    )
     tg = Target(board, T, margin_mm=2.0, white=1.0, black=1.0)
     img = render_reflectance(cam, [tg], background=0.0)
     # Exact projected area (no distortion): the board outline is a quadrilateral.
@@ -140,7 +145,7 @@ def test_colour_convention_and_charuco_match_opencv():
 def test_charuco_detected_with_right_ids_and_corners():
     cam = CameraModel((640, 480), 800.0, 800.0, 319.5, 239.5, (-0.09, 0.11, 0.0, 0.0, 0.0))
     board = CharucoBoard(6, 5, 10.0, 7.0, "DICT_5X5_100")
-    T = pose_at_pixel(cam, (320, 240), 260.0, (20.0, 15.0), tilt_deg=25.0, tilt_axis_deg=70, spin_deg=8)
+    T = board_pose_at_pixel(cam, (320, 240), 260.0, (20.0, 15.0), tilt_deg=25.0, tilt_axis_deg=70, spin_deg=8)
     r = render(cam, [Target(board, T)], photometry=Photometry.noise_free())
     d = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_100)
     det = cv2.aruco.CharucoDetector(cv2.aruco.CharucoBoard((6, 5), 10.0, 7.0, d))
@@ -156,7 +161,7 @@ def test_chessboard_colours_follow_the_convention_under_distortion():
     # projected centre of every square, and OpenCV finds every corner.
     cam = CameraModel((640, 480), 800.0, 800.0, 319.5, 239.5, (-0.09, 0.11, 0.0, 0.0, 0.0))
     board = Chessboard(6, 5, 10.0)
-    T = pose_at_pixel(cam, (330, 230), 300.0, (25.0, 20.0), tilt_deg=20.0, tilt_axis_deg=10, spin_deg=5)
+    T = board_pose_at_pixel(cam, (330, 230), 300.0, (25.0, 20.0), tilt_deg=20.0, tilt_axis_deg=10, spin_deg=5)
     r = render(cam, [Target(board, T)], photometry=Photometry.noise_free())
     i, j = np.meshgrid(np.arange(-1, 6), np.arange(-1, 5))
     centres = np.stack([(i + 0.5) * 10.0, (j + 0.5) * 10.0, np.zeros_like(i, dtype=float)], -1).reshape(-1, 3)
@@ -173,8 +178,10 @@ def test_chessboard_colours_follow_the_convention_under_distortion():
 
 def test_same_seed_gives_identical_png():
     cam = reference_camera()
-    A = Target(Chessboard(9, 6, 10.0), pose_at_pixel(cam, (900, 900), 700.0, (40.0, 25.0), tilt_deg=20))
-    B = Target(Chessboard(5, 4, 10.0), pose_at_pixel(cam, (1900, 1100), 650.0, (20.0, 15.0), tilt_deg=30))
+    A = Target(Chessboard(9, 6, 10.0), board_pose_at_pixel(cam, (900, 900), 700.0, (40.0, 25.0), tilt_deg=20))
+    B = Target(
+        Chessboard(5, 4, 10.0), board_pose_at_pixel(cam, (1900, 1100), 650.0, (20.0, 15.0), tilt_deg=30)
+    )
     ph = Photometry(clutter=True)
     png1 = encode_image(render(cam, [A, B], photometry=ph, seed=42).image)
     png2 = encode_image(render(cam, [A, B], photometry=ph, seed=42).image)
@@ -215,7 +222,7 @@ def test_sub_pixel_squares_average_to_grey():
     # fallback (16 x 16 affine sub-samples) must still give the right mean level.
     cam = CameraModel((120, 90), 400.0, 400.0, 59.5, 44.5)
     board = Chessboard(30, 20, 1.0)
-    T = pose_at_pixel(cam, (60, 45), 2000.0, (15.0, 10.0), tilt_deg=70.0, tilt_axis_deg=0.0)
+    T = board_pose_at_pixel(cam, (60, 45), 2000.0, (15.0, 10.0), tilt_deg=70.0, tilt_axis_deg=0.0)
     tg = Target(board, T, margin_mm=0.0)
     ours = render_reflectance(cam, [tg], background=0.0)
     roi = (55, 43, 65, 47)
@@ -227,7 +234,7 @@ def test_sub_pixel_squares_average_to_grey():
 
 def test_jpeg_round_trip_is_close():
     cam = SMALL
-    T = pose_at_pixel(cam, (160, 120), 300.0, (20.0, 15.0), tilt_deg=10)
+    T = board_pose_at_pixel(cam, (160, 120), 300.0, (20.0, 15.0), tilt_deg=10)
     r = render(cam, [Target(Chessboard(5, 4, 10.0), T)], photometry=Photometry.noise_free(colour=True))
     data = encode_image(r.image, "jpeg", jpeg_quality=95)
     back = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
@@ -262,7 +269,7 @@ def test_bad_inputs_are_refused():
 
 def test_target_outside_the_image_leaves_background():
     cam = SMALL
-    T = pose_at_pixel(cam, (160, 120), 300.0, (20.0, 15.0))
+    T = board_pose_at_pixel(cam, (160, 120), 300.0, (20.0, 15.0))
     T[0, 3] += 500.0  # far to the right, out of view
     img = render_reflectance(cam, [Target(Chessboard(5, 4, 10.0), T)], background=0.25)
     assert np.all(img == 0.25)

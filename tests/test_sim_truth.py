@@ -4,8 +4,8 @@ over poses tilted up to 45 degrees across the whole image, distortion included."
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
+from helpers.opencv_corners import opencv_corners_near
 
 from stiffmap.camera import reference_camera
 from stiffmap.sim.render import Photometry, Target, render
@@ -15,14 +15,9 @@ from stiffmap.targets import Chessboard
 
 def detect_corners(image: np.ndarray, truth: np.ndarray, pattern: tuple[int, int], win: int = 9):
     """findChessboardCornersSB + cornerSubPix on a crop around the board; errors vs truth (px)."""
-    lo = np.maximum(np.floor(truth.min(axis=0)).astype(int) - 70, 0)
-    hi = np.ceil(truth.max(axis=0)).astype(int) + 70
-    crop = np.ascontiguousarray(image[lo[1] : hi[1], lo[0] : hi[0]])
-    ok, c = cv2.findChessboardCornersSB(crop, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
-    if not ok:
+    c = opencv_corners_near(image, truth, pattern, margin_px=70, half_window=win)
+    if c is None:
         return None
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
-    c = cv2.cornerSubPix(crop, c, (win, win), (-1, -1), crit).reshape(-1, 2).astype(np.float64) + lo
     # OpenCV's numbering may start at either end; match each corner to its true one.
     idx = np.linalg.norm(c[:, None] - truth[None], axis=2).argmin(axis=1)
     assert sorted(idx) == list(range(len(truth)))

@@ -5,8 +5,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _vision_helpers import CALIB_DIR, true_corners
-from conftest import random_rotation
+from helpers.board_scenes import exact_corners
+from helpers.random_matrices import random_rotation
+from helpers.shared_data import CALIB_DIR
 
 from stiffmap.camera import CameraModel
 from stiffmap.errors import InputError
@@ -66,7 +67,7 @@ def _synthetic_views(cam, board, n, sigma_px, rng):
         T[:3, :3] = R
         centre = np.array([(board.cols - 1) / 2, (board.rows - 1) / 2, 0.0]) * board.square_mm
         T[:3, 3] = np.array([rng.uniform(-40, 40), rng.uniform(-30, 30), rng.uniform(350, 550)]) - R @ centre
-        uv = true_corners(cam, board, T)
+        uv = exact_corners(cam, board, T)
         w, h = cam.image_size
         if uv.min() < 5 or uv[:, 0].max() > w - 5 or uv[:, 1].max() > h - 5:
             continue

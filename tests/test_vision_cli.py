@@ -9,37 +9,30 @@ are still processed; the exit status is non-zero only when something failed.
 from __future__ import annotations
 
 import json
+import xml.etree.ElementTree as ET
 
 import cv2
 import numpy as np
 import pytest
-from _vision_helpers import CALIB_DIR, look_at_pose, render, small_camera
-from typer.testing import CliRunner
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import close_two_target_poses, moved_pose, small_camera
+from helpers.cli_process import run_stiffmap
+from helpers.shared_data import CALIB_DIR
 
 from stiffmap.camera import save_camera
-from stiffmap.cli.main import app
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec
 from stiffmap.targets import Chessboard
 
 MOBILE = Chessboard(7, 6, 10.0)
 FIXED = Chessboard(9, 4, 10.0)
 CAM = small_camera()
-runner = CliRunner()
-
-
-def _moved(T, delta):
-    out = T.copy()
-    out[:3, 3] = T[:3, 3] + delta[:3]
-    out[:3, :3] = matrix_from_rotvec(delta[3:]) @ T[:3, :3]
-    return out
 
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     d = tmp_path_factory.mktemp("vision_cli")
     save_camera(CAM, d / "camera.json")
-    F = look_at_pose(340, FIXED, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
-    M0 = look_at_pose(300, MOBILE, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M0, F = close_two_target_poses(MOBILE, FIXED)
     B = np.eye(4)
     B[:3, :3] = matrix_from_rotvec([0.1, -0.2, 0.3])
     B[:3, 3] = [150.0, -20.0, 35.0]
@@ -49,12 +42,12 @@ def data(tmp_path_factory):
     axis /= np.linalg.norm(axis)
     rng = np.random.default_rng(5)
     truth = {"F": F, "M0": M0, "B": B, "delta": delta, "axis": axis}
-    shots = {"ref0": M0, "ref1": M0, "moved0": _moved(M0, delta), "moved1": _moved(M0, delta)}
+    shots = {"ref0": M0, "ref1": M0, "moved0": moved_pose(M0, delta), "moved1": moved_pose(M0, delta)}
     for step in (2.0, 5.0):
         for k in range(2):
-            shots[f"stage{step:g}_{k}"] = _moved(M0, np.r_[step * axis, 0, 0, 0])
+            shots[f"stage{step:g}_{k}"] = moved_pose(M0, np.r_[step * axis, 0, 0, 0])
     for name, T in shots.items():
-        cv2.imwrite(str(d / f"{name}.png"), render(CAM, [(FIXED, F), (MOBILE, T)], rng=rng))
+        cv2.imwrite(str(d / f"{name}.png"), quick_board_image(CAM, [(FIXED, F), (MOBILE, T)], rng=rng))
     # Bad inputs.
     data = (d / "moved0.png").read_bytes()
     (d / "truncated.png").write_bytes(data[: len(data) // 2])
@@ -63,7 +56,7 @@ def data(tmp_path_factory):
     cv2.imwrite(str(d / "big.png"), np.full((600, 800), 90, np.uint8))
     cv2.imwrite(
         str(d / "hidden.png"),
-        render(CAM, [(FIXED, F), (MOBILE, M0)], rng=rng, occluder=(450, 0, 640, 480)),
+        quick_board_image(CAM, [(FIXED, F), (MOBILE, M0)], rng=rng, occluder=(450, 0, 640, 480)),
     )
     (d / "stage.csv").write_text(
         "image,nominal_mm\nref0.png,0\nref1.png,0\n"
@@ -75,7 +68,7 @@ def data(tmp_path_factory):
 
 
 def _invoke(args):
-    return runner.invoke(app, [str(a) for a in args])
+    return run_stiffmap(*args)
 
 
 def _measure(command, d, board="7x6", camera="camera.json"):
@@ -87,7 +80,7 @@ def test_calibrate_the_real_photographs(tmp_path):
     files = sorted(CALIB_DIR.glob("Image*.tif"))
     out = tmp_path / "camera.json"
     r = _invoke(["calibrate", *files, "--board", "13x12", "--square-mm", "30", "--out", out, "--json"])
-    assert r.exit_code == 0, r.stderr
+    assert r.returncode == 0, r.stderr
     cam = json.loads(r.stdout)
     assert json.loads(out.read_text()) == cam
     assert set(cam) >= {
@@ -109,7 +102,7 @@ def test_calibrate_the_real_photographs(tmp_path):
     assert max(cam["residual_std_px"]) <= 0.13
     assert set(cam["std"]) == {"fx", "fy", "cx", "cy", "dist"}
     r = _invoke(["calibrate", *files[:5], "--board", "13x12", "--square-mm", "30", "--out", out, "--fix-k3"])
-    assert r.exit_code == 0
+    assert r.returncode == 0
     assert "Focal Length:          fc = [ 6" in r.stdout and "Pixel error:" in r.stdout
     # The second calibration replaced camera.json; the first is kept beside it, not lost.
     assert json.loads((tmp_path / "camera.json.bak").read_text()) == cam
@@ -131,7 +124,7 @@ def test_calibrate_with_nothing_usable_fails_cleanly(data, tmp_path):
             tmp_path / "c.json",
         ]
     )
-    assert r.exit_code == 2
+    assert r.returncode == 2
     assert r.stderr.startswith("error:") and "blank.png" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "c.json").exists()
 
@@ -149,13 +142,13 @@ def test_pose_json_and_every_bad_input(data):
         "moved0.png",
     ]
     r = _invoke([*_measure("pose", d), "--json", *[d / f for f in files]])
-    assert r.exit_code == 1  # some images failed, others measured
+    assert r.returncode == 1  # some images failed, others measured
     rows = json.loads(r.stdout)
     assert [row["image"] for row in rows] == [str(d / f) for f in files]
     by = {f: row for f, row in zip(files, rows, strict=True)}
     for f in ("ref0.png", "moved0.png"):
         T = np.array(by[f]["board2cam"])
-        truth = t["M0"] if f == "ref0.png" else _moved(t["M0"], t["delta"])
+        truth = t["M0"] if f == "ref0.png" else moved_pose(t["M0"], t["delta"])
         np.testing.assert_allclose(T[:3, 3], truth[:3, 3], atol=0.05)  # mm
         assert np.array(by[f]["cov"]).shape == (6, 6) and by[f]["rms_px"] < 0.1
     assert "truncated PNG" in by["truncated.png"]["error"]
@@ -174,11 +167,11 @@ def test_pose_json_and_every_bad_input(data):
 def test_pose_table_wrong_board_size_and_all_failed(data):
     d, _ = data
     r = _invoke([*_measure("pose", d, "6x5"), d / "ref0.png"])
-    assert r.exit_code == 2  # nothing could be done, and one error line says so
+    assert r.returncode == 2  # nothing could be done, and one error line says so
     assert "more inner corners than 6x5" in r.stderr or "at least" in r.stderr
     assert "error: none of the 1 image(s) could be measured" in r.stderr
     r = _invoke([*_measure("pose", d), d / "ref0.png"])
-    assert r.exit_code == 0 and "board2cam of the 7x6 board" in r.stdout and "failed" not in r.stdout
+    assert r.returncode == 0 and "board2cam of the 7x6 board" in r.stdout and "failed" not in r.stdout
 
 
 @pytest.mark.parametrize(
@@ -188,7 +181,7 @@ def test_pose_table_wrong_board_size_and_all_failed(data):
 def test_malformed_camera_json(data, camera, message):
     d, _ = data
     r = _invoke([*_measure("pose", d, camera=camera), d / "ref0.png"])
-    assert r.exit_code == 2
+    assert r.returncode == 2
     assert camera in r.stderr and message in r.stderr and r.stderr.count("\n") == 1
 
 
@@ -206,13 +199,13 @@ def test_displacement_camera_and_base_frames(data):
         "--json",
     ]
     r = _invoke(args)
-    assert r.exit_code == 1  # blank.png failed
+    assert r.returncode == 1  # blank.png failed
     # A reference that cannot be read is a failure too, not a silent exit 0.
     refs = ["--reference", d / "ref0.png", "--reference", d / "nope.png"]
     r2 = _invoke([*_measure("displacement", d), *refs, d / "moved0.png"])
-    assert r2.exit_code == 1 and "nope.png" in r2.stderr
+    assert r2.returncode == 1 and "nope.png" in r2.stderr
     rows = json.loads(r.stdout)
-    truth = displacement_from_poses(t["M0"], _moved(t["M0"], t["delta"]))
+    truth = displacement_from_poses(t["M0"], moved_pose(t["M0"], t["delta"]))
     for row in rows[:2]:
         assert row["frame"] == "cam"
         assert np.all(np.abs(np.array(row["d"]) - truth[:3]) < [0.01, 0.01, 0.08])  # mm
@@ -237,10 +230,10 @@ def test_displacement_camera_and_base_frames(data):
             "--json",
         ]
     )
-    assert r.exit_code == 0, r.stderr
+    assert r.returncode == 0, r.stderr
     rows = json.loads(r.stdout)
     G = t["B"] @ np.linalg.inv(t["F"])
-    truth_b = displacement_from_poses(G @ t["M0"], G @ _moved(t["M0"], t["delta"]), q)
+    truth_b = displacement_from_poses(G @ t["M0"], G @ moved_pose(t["M0"], t["delta"]), q)
     assert rows[-1]["frame"] == "base"
     err = np.array(rows[-1]["d"]) - truth_b[:3]
     assert np.linalg.norm(err) < 0.08, err  # mm (the depth error, turned into base axes)
@@ -251,26 +244,26 @@ def test_displacement_option_errors(data):
     d, _ = data
     base = [*_measure("displacement", d), "--reference", d / "ref0.png", d / "moved0.png"]
     r = _invoke([*base, "--point", "1,2"])
-    assert r.exit_code == 2 and "--point" in r.stderr
+    assert r.returncode == 2 and "--point" in r.stderr
     r = _invoke([*base, "--fixed-board", "9x4"])
-    assert r.exit_code == 2 and "--fixed-square-mm" in r.stderr
+    assert r.returncode == 2 and "--fixed-square-mm" in r.stderr
     # A fixed board without its pose on the base would silently leave the camera frame in use.
     r = _invoke([*base, "--fixed-board", "9x4", "--fixed-square-mm", "10"])
-    assert r.exit_code == 2 and "--fixed2base" in r.stderr
+    assert r.returncode == 2 and "--fixed2base" in r.stderr
     (d / "notrigid.json").write_text(json.dumps((2 * np.eye(4)).tolist()))
     r = _invoke(
         [*base, "--fixed-board", "9x4", "--fixed-square-mm", "10", "--fixed2base", d / "notrigid.json"]
     )
-    assert r.exit_code == 2 and "notrigid.json" in r.stderr and "rigid" in r.stderr
+    assert r.returncode == 2 and "notrigid.json" in r.stderr and "rigid" in r.stderr
     r = _invoke([*_measure("displacement", d), "--reference", d / "blank.png", d / "moved0.png"])
-    assert r.exit_code == 2 and "no reference image" in r.stderr
+    assert r.returncode == 2 and "no reference image" in r.stderr
 
 
 def test_validate_table_json_and_plot(data):
     d, _ = data
     plot = d / "stage.svg"
     r = _invoke([*_measure("validate", d), d / "stage.csv", "--plot", plot, "--json"])
-    assert r.exit_code == 0, r.stderr
+    assert r.returncode == 0, r.stderr
     res = json.loads(r.stdout)
     assert [s["nominal_mm"] for s in res["steps"]] == [2.0, 5.0]
     for s in res["steps"]:
@@ -278,9 +271,7 @@ def test_validate_table_json_and_plot(data):
         assert abs(s["error_mm"]) < 0.06  # mm, 640x480 camera at 300 mm
         assert abs(s["along_mean_mm"] - s["nominal_mm"]) < 0.06
     assert res["n_reference"] == 2
-    import xml.etree.ElementTree as ET
-
     root = ET.fromstring(plot.read_text())
     assert root.tag.endswith("svg") and len(root.findall(".//{http://www.w3.org/2000/svg}circle")) == 4
     r = _invoke([*_measure("validate", d), d / "stage.csv"])
-    assert r.exit_code == 0 and "nominal" in r.stdout and "RMS error" in r.stdout
+    assert r.returncode == 0 and "nominal" in r.stdout and "RMS error" in r.stdout

@@ -5,7 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _vision_helpers import Photometry, look_at_pose, render, small_camera, true_corners
+from helpers.board_images import QuickPhotometry, quick_board_image
+from helpers.board_scenes import exact_corners, look_at_pose, small_camera
 
 from stiffmap.camera import CameraModel
 from stiffmap.targets import Chessboard
@@ -18,8 +19,8 @@ def _scene(roll_deg: float, noise: bool, seed: int = 3):
     # 1200 px focal length at 280 mm: 43 px squares, like the reference camera at 870 mm.
     cam = CameraModel((800, 600), 1200.0, 1200.0, 401.3, 298.6, (-0.1, 0.05, 0.0, 0.0, 0.0))
     T = look_at_pose(280, BOARD, tilt_deg=(8, -12, roll_deg), offset_mm=(3, -2))
-    img = render(cam, [(BOARD, T)], rng=np.random.default_rng(seed) if noise else None)
-    return img, true_corners(cam, BOARD, T)
+    img = quick_board_image(cam, [(BOARD, T)], rng=np.random.default_rng(seed) if noise else None)
+    return img, exact_corners(cam, BOARD, T)
 
 
 @pytest.mark.parametrize("roll", [0.0, 4.0, 30.0])
@@ -61,10 +62,12 @@ def test_noise_level_scales_the_scatter():
     # Same corners, 4x the noise: the error grows (the estimator is noise-limited, not stuck).
     cam = small_camera()
     T = look_at_pose(230, BOARD, tilt_deg=(5, 5, 12))
-    gt = true_corners(cam, BOARD, T)
+    gt = exact_corners(cam, BOARD, T)
     errs = []
     for read in (0.5, 6.0):
-        img = render(cam, [(BOARD, T)], photometry=Photometry(read_noise=read), rng=np.random.default_rng(9))
+        img = quick_board_image(
+            cam, [(BOARD, T)], photometry=QuickPhotometry(read_noise=read), rng=np.random.default_rng(9)
+        )
         c, ok = refine_corners(img, gt + 0.3, 8)
         errs.append(np.sqrt(np.mean(np.sum((c - gt) ** 2, axis=1))))
     assert errs[1] > 1.5 * errs[0]

@@ -5,12 +5,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _vision_helpers import look_at_pose, render, small_camera, true_corners
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import close_two_target_poses, exact_corners, look_at_pose, small_camera
 
 from stiffmap.camera import reference_camera
 from stiffmap.errors import InputError
-from stiffmap.sim.render import Target
-from stiffmap.sim.render import render as render_scene
+from stiffmap.sim.render import Target, render
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import DetectionError, detect_board, detect_boards, track_board
 
@@ -20,14 +20,14 @@ SYM = Chessboard(8, 6, 10.0)  # cols + rows even: looks the same turned by 180 d
 
 
 def _img(scene, seed=0, **kw):
-    return render(CAM, scene, rng=np.random.default_rng(seed), **kw)
+    return quick_board_image(CAM, scene, rng=np.random.default_rng(seed), **kw)
 
 
 @pytest.mark.parametrize("roll", [0, 90, 180, 270, 135])
 def test_colours_fix_the_frame_whatever_the_roll(roll):
     T = look_at_pose(250, ODD, tilt_deg=(10, -10, roll))
     d = detect_board(_img([(ODD, T)]), ODD, camera=CAM)
-    gt = true_corners(CAM, ODD, T)
+    gt = exact_corners(CAM, ODD, T)
     assert d.orientation == "colour"
     assert d.complete
     np.testing.assert_array_equal(d.ids, np.arange(ODD.n_corners))
@@ -38,7 +38,7 @@ def test_symmetric_board_follows_continuity_with_a_reference():
     T0 = look_at_pose(250, SYM, tilt_deg=(10, -10, 178))
     T1 = look_at_pose(250, SYM, tilt_deg=(10, -10, 184))
     d0 = detect_board(_img([(SYM, T0)]), SYM, camera=CAM)
-    gt0 = true_corners(CAM, SYM, T0)
+    gt0 = exact_corners(CAM, SYM, T0)
     # Without a reference the x axis points to the image's right: here the board's is turned.
     assert d0.orientation == "default"
     np.testing.assert_allclose(d0.corners, gt0[::-1], atol=0.08)
@@ -46,7 +46,7 @@ def test_symmetric_board_follows_continuity_with_a_reference():
     ref = type(d0)(**{**d0.__dict__, "corners": gt0.copy()})
     d1 = detect_board(_img([(SYM, T1)], seed=1), SYM, camera=CAM, reference=ref)
     assert d1.orientation == "continuity"
-    np.testing.assert_allclose(d1.corners, true_corners(CAM, SYM, T1), atol=0.08)
+    np.testing.assert_allclose(d1.corners, exact_corners(CAM, SYM, T1), atol=0.08)
 
 
 def test_two_boards_are_told_apart_by_size():
@@ -60,7 +60,7 @@ def test_two_boards_are_told_apart_by_size():
         for d, b in zip(dets, order, strict=True):
             T = Tb if b is big else Ts
             assert d.board is b
-            np.testing.assert_allclose(d.corners, true_corners(CAM, b, T)[d.ids], atol=0.08)
+            np.testing.assert_allclose(d.corners, exact_corners(CAM, b, T)[d.ids], atol=0.08)
 
 
 def test_boards_of_the_same_size_are_refused():
@@ -77,7 +77,7 @@ def test_tracking_refines_small_motions_and_hands_over_large_ones():
     img1 = _img([(ODD, T1)], seed=2)
     d1 = track_board(img1, d0, camera=CAM)
     assert d1 is not None and d1.tracked
-    np.testing.assert_allclose(d1.corners, true_corners(CAM, ODD, T1), atol=0.08)
+    np.testing.assert_allclose(d1.corners, exact_corners(CAM, ODD, T1), atol=0.08)
     # Half a square of motion: refinement could lock on a neighbour, so it is refused...
     T2 = T0.copy()
     T2[:3, 3] += [5.0, 0.0, 0.0]
@@ -86,7 +86,7 @@ def test_tracking_refines_small_motions_and_hands_over_large_ones():
     # ...and detect_board falls back to the full detection.
     d2 = detect_board(img2, ODD, previous=d0, camera=CAM)
     assert not d2.tracked
-    np.testing.assert_allclose(d2.corners, true_corners(CAM, ODD, T2), atol=0.08)
+    np.testing.assert_allclose(d2.corners, exact_corners(CAM, ODD, T2), atol=0.08)
 
 
 def test_wrong_board_size_is_reported():
@@ -105,7 +105,7 @@ def test_a_far_board_seen_whole_only_at_finer_scale_is_named_with_its_size():
     """A 9x6 board 1.5 m away at 50 degrees: the coarse search sees a 5x3 piece only."""
     board = Chessboard(9, 6, 10.0)
     T = look_at_pose(1500, board, tilt_deg=(50, 0, 0), offset_mm=(-150, -250))
-    img = render_scene(reference_camera(), [Target(board, T)], seed=1).image
+    img = render(reference_camera(), [Target(board, T)], seed=1).image
     with pytest.raises(DetectionError, match=r"at least 9x6 inner corners \(wrong board size") as e:
         detect_board(img, Chessboard(8, 5, 10.0))
     assert e.value.reason == "wrong_size"
@@ -125,7 +125,7 @@ def test_partly_hidden_and_missing_boards():
 def test_a_corner_off_the_board_plane_is_rejected():
     T = look_at_pose(250, ODD, tilt_deg=(10, -10, 5))
     img = _img([(ODD, T)])
-    gt = true_corners(CAM, ODD, T)
+    gt = exact_corners(CAM, ODD, T)
     d = detect_board(img, ODD, camera=CAM)
     assert d.rejected.size == 0
     assert d.residual_px.max() < 0.1  # px
@@ -175,10 +175,10 @@ def test_charuco_corners_get_their_canonical_ids_even_when_partly_hidden():
 def test_large_image_is_searched_reduced_and_refined_at_full_resolution():
     cam = reference_camera()
     T = look_at_pose(700, SYM, tilt_deg=(8, -12, 4), offset_mm=(15, 10))
-    img = render(cam, [(SYM, T)], rng=np.random.default_rng(4))
+    img = quick_board_image(cam, [(SYM, T)], rng=np.random.default_rng(4))
     d = detect_board(img, SYM, camera=cam)
     assert d.scale == 3  # 2592 px -> 864 px for the search
-    gt = true_corners(cam, SYM, T)
+    gt = exact_corners(cam, SYM, T)
     np.testing.assert_allclose(d.corners, gt, atol=0.06)  # px
     assert np.sqrt(np.mean(np.sum((d.corners - gt) ** 2, axis=1))) < 0.03  # px
 
@@ -187,13 +187,12 @@ def test_one_board_tracked_the_other_searched_again():
     # The platform moves by half a square (tracking refused) while the base board stays:
     # the tracked board is hidden from the new search, which must find the platform's.
     fixed = Chessboard(9, 4, 10.0)
-    F = look_at_pose(340, fixed, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
-    M0 = look_at_pose(300, ODD, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M0, F = close_two_target_poses(ODD, fixed)
     M1 = M0.copy()
     M1[:3, 3] += [6.0, -4.0, 0.0]
     d0 = detect_boards(_img([(fixed, F), (ODD, M0)]), [ODD, fixed], camera=CAM)
     img1 = _img([(fixed, F), (ODD, M1)], seed=4)
     d1 = detect_boards(img1, [ODD, fixed], previous=d0, camera=CAM)
     assert not d1[0].tracked and d1[1].tracked
-    np.testing.assert_allclose(d1[0].corners, true_corners(CAM, ODD, M1), atol=0.08)
-    np.testing.assert_allclose(d1[1].corners, true_corners(CAM, fixed, F), atol=0.08)
+    np.testing.assert_allclose(d1[0].corners, exact_corners(CAM, ODD, M1), atol=0.08)
+    np.testing.assert_allclose(d1[1].corners, exact_corners(CAM, fixed, F), atol=0.08)

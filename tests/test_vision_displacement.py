@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _vision_helpers import look_at_pose, render, small_camera
-from conftest import random_rotation
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import (
+    close_two_target_poses,
+    exact_board_pose,
+    look_at_pose,
+    moved_pose,
+    small_camera,
+    two_target_scene,
+)
 
 from stiffmap.errors import InputError
-from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec
+from stiffmap.geometry import displacement_from_poses
 from stiffmap.targets import Chessboard
 from stiffmap.vision import (
-    BoardPose,
     ImageMeasurement,
     PoseTracker,
     compliant_displacement,
@@ -23,34 +29,14 @@ MOBILE = Chessboard(7, 6, 10.0)
 FIXED = Chessboard(9, 4, 10.0)
 
 
-def _perturb(T, delta):
-    out = T.copy()
-    out[:3, 3] = T[:3, 3] + delta[:3]
-    out[:3, :3] = matrix_from_rotvec(delta[3:]) @ T[:3, :3]
-    return out
-
-
-def _pose(T, cov):
-    return BoardPose(
-        board2cam=T,
-        cov=cov,
-        rms_px=0.0,
-        n_corners=42,
-        residuals_px=np.zeros((42, 2)),
-        sigma_px=0.0,
-        condition=1.0,
-        iterations=0,
-    )
-
-
 def _meas(name, M, cov_m, F=None, cov_f=None, fixed2base=None):
     m2b = m2b_cov = None
     if F is not None and fixed2base is not None:
         m2b, m2b_cov = mobile2base_from_poses(M, cov_m, F, cov_f, fixed2base)
     return ImageMeasurement(
         image=name,
-        mobile=_pose(M, cov_m),
-        fixed=None if F is None else _pose(F, cov_f),
+        mobile=exact_board_pose(M, cov_m, 42),
+        fixed=None if F is None else exact_board_pose(F, cov_f, 42),
         mobile2base=m2b,
         mobile2base_cov=m2b_cov,
     )
@@ -58,11 +44,7 @@ def _meas(name, M, cov_m, F=None, cov_f=None, fixed2base=None):
 
 @pytest.fixture
 def setup(rng):
-    M0 = look_at_pose(700, MOBILE, tilt_deg=(10, -15, 5), offset_mm=(20, 10))
-    F0 = look_at_pose(750, FIXED, tilt_deg=(-5, 20, -3), offset_mm=(-150, 100))
-    B = np.eye(4)
-    B[:3, :3] = random_rotation(rng)
-    B[:3, 3] = [120.0, -80.0, 310.0]
+    M0, F0, B = two_target_scene(rng, MOBILE, FIXED)
     A = rng.normal(size=(6, 6))
     cov = A @ A.T * 1e-8 + np.diag([1e-6, 1e-6, 1e-4, 1e-8, 1e-8, 1e-9])
     return M0, F0, B, cov
@@ -71,7 +53,7 @@ def setup(rng):
 def test_exact_displacement_in_camera_and_base_frames(setup):
     M0, F0, B, cov = setup
     delta = np.array([0.3, -1.2, 2.5, 2e-3, -1e-3, 4e-3])
-    M1 = _perturb(M0, delta)
+    M1 = moved_pose(M0, delta)
     q = np.array([35.0, 25.0, -60.0])  # a tool point below the target, mm
     u = [_meas("u", M0, cov, F0, cov, B)]
     lo = [_meas("l", M1, cov, F0, cov, B)]
@@ -93,8 +75,8 @@ def test_repeats_give_mean_std_and_n(setup, rng):
     for k in range(10):
         drift = rng.normal(scale=[0.01, 0.01, 0.01, 1e-5, 1e-5, 1e-5])
         noise = rng.normal(scale=[0.002, 0.002, 0.01, 2e-6, 2e-6, 1e-6])
-        a = _perturb(M0, drift)
-        b = _perturb(a, true + noise)
+        a = moved_pose(M0, drift)
+        b = moved_pose(a, true + noise)
         u.append(_meas(f"u{k}", a, cov))
         lo.append(_meas(f"l{k}", b, cov))
         samples.append(displacement_from_poses(a, b))
@@ -114,12 +96,12 @@ def test_covariance_of_the_mean_displacement_by_monte_carlo(setup, rng):
     M0, F0, B, cov = setup
     L = np.linalg.cholesky(cov)
     delta = np.array([0.5, 0.2, -1.0, 1e-3, 0.0, -2e-3])
-    M1 = _perturb(M0, delta)
+    M1 = moved_pose(M0, delta)
     q = np.array([30.0, 20.0, -50.0])
     draws, covs = [], []
     for _ in range(1500):
-        u = [_meas(f"u{k}", _perturb(M0, L @ rng.normal(size=6)), cov) for k in range(3)]
-        lo = [_meas(f"l{k}", _perturb(M1, L @ rng.normal(size=6)), cov) for k in range(2)]
+        u = [_meas(f"u{k}", moved_pose(M0, L @ rng.normal(size=6)), cov) for k in range(3)]
+        lo = [_meas(f"l{k}", moved_pose(M1, L @ rng.normal(size=6)), cov) for k in range(2)]
         d = compliant_displacement(u, lo, q)
         draws.append(d.vector)
         covs.append(d.cov)
@@ -131,8 +113,8 @@ def test_covariance_of_the_mean_displacement_by_monte_carlo(setup, rng):
 
 def test_fixed_target_motion_is_flagged(setup):
     M0, F0, B, cov = setup
-    M1 = _perturb(M0, np.array([0.1, 0.0, 0.0, 0, 0, 0]))
-    F1 = _perturb(F0, np.array([0.05, 0.0, 0.0, 0, 0, 0]))  # 50 sigma of the fixed target
+    M1 = moved_pose(M0, np.array([0.1, 0.0, 0.0, 0, 0, 0]))
+    F1 = moved_pose(F0, np.array([0.05, 0.0, 0.0, 0, 0, 0]))  # 50 sigma of the fixed target
     d = compliant_displacement([_meas("u", M0, cov, F0, cov, B)], [_meas("l", M1, cov, F1, cov, B)])
     assert d.fixed_shift[0] == pytest.approx(0.05, abs=1e-9)
     assert any("fixed target moved" in f for f in d.flags)
@@ -142,7 +124,7 @@ def test_failed_images_are_left_out_and_all_failed_is_an_error(setup):
     M0, _, _, cov = setup
     ok = _meas("good.png", M0, cov)
     bad = ImageMeasurement(image="bad.png", error="bad.png: no 7x6 chessboard found in the image")
-    d = compliant_displacement([ok, bad], [_meas("l.png", _perturb(M0, np.full(6, 1e-3)), cov)])
+    d = compliant_displacement([ok, bad], [_meas("l.png", moved_pose(M0, np.full(6, 1e-3)), cov)])
     assert d.n_unloaded == 1 and "bad.png" in d.flags[0]
     with pytest.raises(InputError, match="no usable loaded image"):
         compliant_displacement([ok], [bad])
@@ -152,17 +134,16 @@ def test_failed_images_are_left_out_and_all_failed_is_an_error(setup):
 
 def test_rendered_sequence_tracks_and_measures_small_displacements():
     cam = small_camera()
-    F = look_at_pose(340, FIXED, tilt_deg=(-5, 10, -2), offset_mm=(-60, -48))
-    M0 = look_at_pose(300, MOBILE, tilt_deg=(8, -12, 3), offset_mm=(38, 28))
+    M0, F = close_two_target_poses(MOBILE, FIXED)
     B = np.eye(4)
     B[:3, 3] = [100.0, 50.0, 0.0]
     delta = np.array([0.05, -0.03, 0.0, 0.0, 0.0, 0.0])  # mm: 0.15 px and 0.09 px here
     frames, poses = [], []
     rng = np.random.default_rng(7)
     for k in range(6):
-        T = _perturb(M0, delta) if k >= 3 else M0
+        T = moved_pose(M0, delta) if k >= 3 else M0
         poses.append(T)
-        frames.append(render(cam, [(FIXED, F), (MOBILE, T)], rng=rng))
+        frames.append(quick_board_image(cam, [(FIXED, F), (MOBILE, T)], rng=rng))
     frames.insert(3, np.full((480, 640), 90, np.uint8))  # a frame without boards
     ms = measure_sequence(frames, cam, MOBILE, FIXED, B, names=[f"f{k}" for k in range(7)])
     assert not ms[3].ok and "no 7x6 chessboard found" in ms[3].error and "no 9x4" in ms[3].error
@@ -185,7 +166,7 @@ def test_tracker_reports_size_mismatch_and_goes_on():
     tr = PoseTracker(cam, MOBILE, camera_source="cam.json")
     m = tr.measure(np.zeros((100, 100), np.uint8), "tiny.png")
     assert not m.ok and m.error.startswith("tiny.png:") and "100x100" in m.error and "640x480" in m.error
-    m = tr.measure(render(cam, [(MOBILE, T)], rng=np.random.default_rng(1)), "ok.png")
+    m = tr.measure(quick_board_image(cam, [(MOBILE, T)], rng=np.random.default_rng(1)), "ok.png")
     assert m.ok and m.mobile.n_corners == 42 and m.timings["total"] > 0
     with pytest.raises(ValueError, match="fixed_board"):
         PoseTracker(cam, MOBILE, fixed2base=np.eye(4))

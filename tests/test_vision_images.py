@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _vision_helpers import CALIB_DIR
+from helpers.shared_data import CALIB_DIR
 
 from stiffmap.errors import InputError
 from stiffmap.vision import ImageError, check_image_size, read_image

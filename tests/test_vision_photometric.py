@@ -16,8 +16,10 @@ import re
 import cv2
 import numpy as np
 import pytest
-from _cli import assert_one_line_error, stiffmap
-from _vision_helpers import CALIB_DIR, look_at_pose, small_camera
+from helpers.board_scenes import look_at_pose, small_camera
+from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.finite_difference import central_jacobian
+from helpers.shared_data import CALIB_DIR
 
 from stiffmap.camera import reference_camera, save_camera
 from stiffmap.geometry import rotvec_from_matrix
@@ -97,14 +99,12 @@ def test_jacobian_matches_central_differences(tilt):
 
     # Steps: 1e-5 mm, 1e-7 rad, 1e-5 px (blur, dilation), 1e-3 DN (shading).
     steps = [1e-5] * 3 + [1e-7] * 3 + [1e-5] * 6 + [1e-3] * 12
-    for i, h in enumerate(steps):
-        d = np.zeros(len(steps))
-        d[i] = h
-        fd = (f(d) - f(-d)) / (2 * h)
+    fd = central_jacobian(f, np.zeros(len(steps)), steps)
+    for i in range(len(steps)):
         scale = np.abs(J[i]).max()
         assert scale > 0
         # Central differences are exact to ~1e-8 of the row's scale here (truncation + rounding).
-        assert np.abs(fd - J[i]).max() <= 1e-6 * scale, f"row {i}"
+        assert np.abs(fd[:, i] - J[i]).max() <= 1e-6 * scale, f"row {i}"
 
 
 # ---------------------------------------------------------------- truth on renders
@@ -329,20 +329,20 @@ def test_sequence_and_cli_refine_option(tmp_path):
     cam = tmp_path / "camera.json"
     save_camera(SMALL, cam)
     common = ["--camera", cam, "--board", "8x6", "--square-mm", "10"]
-    r = stiffmap("pose", *common, *paths, "--json")
+    r = run_stiffmap("pose", *common, *paths, "--json")
     assert r.returncode == 0, r.stderr
     rows = json.loads(r.stdout)
     assert [x["method"] for x in rows] == ["photometric", "photometric"]
     assert 1.0 < rows[0]["photometric"]["rms_dn"] < 4.0 and rows[0]["photometric"]["n_pixels"] > 3000
-    r = stiffmap("pose", *common, *paths, "--json", "--refine", "corners")
+    r = run_stiffmap("pose", *common, *paths, "--json", "--refine", "corners")
     assert [x["method"] for x in json.loads(r.stdout)] == ["corners", "corners"]
-    r = stiffmap(
+    r = run_stiffmap(
         "displacement", *common, "--reference", paths[0], paths[1], "--json", "--refine", "photometric"
     )
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)[0]["d"]
     assert abs(np.asarray(d) @ los - d_true) < 4 * sd
-    assert_one_line_error(stiffmap("pose", *common, *paths, "--refine", "edges"), "--refine", "edges")
+    assert_one_line_error(run_stiffmap("pose", *common, *paths, "--refine", "edges"), "--refine", "edges")
 
 
 # ------------------------------------------------------------------ real optics

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _vision_helpers import look_at_pose, render, true_corners
-from conftest import random_rotation
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import exact_corners, look_at_pose, moved_pose, two_target_scene
+from helpers.finite_difference import central_jacobian
+from helpers.random_matrices import random_rotation
 
 from stiffmap.camera import reference_camera
-from stiffmap.geometry import matrix_from_rotvec, rotvec_from_matrix
+from stiffmap.geometry import rotvec_from_matrix
 from stiffmap.targets import Chessboard
 from stiffmap.vision import (
     BoardDetection,
@@ -23,21 +25,13 @@ CAM = reference_camera()
 BOARD = Chessboard(8, 6, 10.0)
 
 
-def _perturb(T, delta):
-    """Apply (dt, dr) with the left convention of docs/conventions.md."""
-    out = T.copy()
-    out[:3, 3] = T[:3, 3] + delta[:3]
-    out[:3, :3] = matrix_from_rotvec(delta[3:]) @ T[:3, :3]
-    return out
-
-
 def _pose_error(T_est, T_true):
     dr = rotvec_from_matrix(T_est[:3, :3] @ T_true[:3, :3].T)
     return np.concatenate([T_est[:3, 3] - T_true[:3, 3], dr])
 
 
 def _synthetic_detection(T, sigma_px, rng):
-    uv = true_corners(CAM, BOARD, T) + rng.normal(scale=sigma_px, size=(BOARD.n_corners, 2))
+    uv = exact_corners(CAM, BOARD, T) + rng.normal(scale=sigma_px, size=(BOARD.n_corners, 2))
     return BoardDetection(
         board=BOARD, corners=uv, ids=np.arange(BOARD.n_corners), residual_px=np.zeros(BOARD.n_corners)
     )
@@ -48,12 +42,8 @@ def test_projection_jacobian_matches_finite_differences(rng):
     obj = BOARD.object_points()
     _, J = projection_jacobian(T, obj, CAM)
     h = np.array([1e-4] * 3 + [1e-7] * 3)  # mm, rad
-    for k in range(6):
-        e = np.zeros(6)
-        e[k] = h[k]
-        up, _ = projection_jacobian(_perturb(T, e), obj, CAM)
-        um, _ = projection_jacobian(_perturb(T, -e), obj, CAM)
-        np.testing.assert_allclose(J[:, :, k], (up - um) / (2 * h[k]), rtol=1e-5, atol=1e-4)
+    fd = central_jacobian(lambda e: projection_jacobian(moved_pose(T, e), obj, CAM)[0], np.zeros(6), h)
+    np.testing.assert_allclose(J, fd, rtol=1e-5, atol=1e-4)
 
 
 def test_pose_covariance_matches_monte_carlo(rng):
@@ -81,7 +71,7 @@ def test_initial_guess_converges_to_the_same_pose(rng):
     T = look_at_pose(550, BOARD, tilt_deg=(-25, 15, 170), offset_mm=(-30, 20))
     det = _synthetic_detection(T, 0.03, rng)
     p0 = estimate_pose(det, BOARD, CAM)
-    start = _perturb(T, np.array([2.0, -1.5, 8.0, 0.02, -0.03, 0.01]))
+    start = moved_pose(T, np.array([2.0, -1.5, 8.0, 0.02, -0.03, 0.01]))
     p1 = estimate_pose(det, BOARD, CAM, initial=start)
     np.testing.assert_allclose(p1.board2cam, p0.board2cam, atol=1e-7)
     assert p1.sigma_px == pytest.approx(0.03, rel=0.25)
@@ -106,7 +96,7 @@ def test_frontal_boards_and_random_poses_are_recovered(seed):
 
 def test_rendered_image_pose_within_its_covariance():
     T = look_at_pose(700, BOARD, tilt_deg=(10, -15, 5), offset_mm=(20, 10))
-    img = render(CAM, [(BOARD, T)], rng=np.random.default_rng(11))
+    img = quick_board_image(CAM, [(BOARD, T)], rng=np.random.default_rng(11))
     p = estimate_pose(detect_board(img, BOARD, camera=CAM), BOARD, CAM)
     e = _pose_error(p.board2cam, T)
     z = e / np.sqrt(np.diag(p.cov))
@@ -128,11 +118,7 @@ def test_too_few_corners_and_board_mismatch(rng):
 
 
 def test_mobile2base_covariance_by_monte_carlo(rng):
-    M = look_at_pose(700, BOARD, tilt_deg=(10, -15, 5), offset_mm=(20, 10))
-    F = look_at_pose(750, Chessboard(12, 7, 10.0), tilt_deg=(-5, 20, -3), offset_mm=(-150, 100))
-    B = np.eye(4)
-    B[:3, :3] = random_rotation(rng)
-    B[:3, 3] = [120.0, -80.0, 310.0]
+    M, F, B = two_target_scene(rng, BOARD, Chessboard(12, 7, 10.0))
     A = rng.normal(size=(6, 6))
     Cm = A @ A.T * 1e-6
     A = rng.normal(size=(6, 6))
@@ -142,8 +128,8 @@ def test_mobile2base_covariance_by_monte_carlo(rng):
     Lm, Lf = np.linalg.cholesky(Cm), np.linalg.cholesky(Cf)
     errs = []
     for _ in range(4000):
-        Mi = _perturb(M, Lm @ rng.normal(size=6))
-        Fi = _perturb(F, Lf @ rng.normal(size=6))
+        Mi = moved_pose(M, Lm @ rng.normal(size=6))
+        Fi = moved_pose(F, Lf @ rng.normal(size=6))
         errs.append(_pose_error(B @ np.linalg.inv(Fi) @ Mi, T0))
     emp = np.cov(np.array(errs).T)
     np.testing.assert_allclose(emp, cov, atol=0.08 * np.sqrt(np.outer(np.diag(cov), np.diag(cov))).max())

@@ -6,26 +6,17 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from helpers.board_scenes import exact_board_pose
 
 from stiffmap.errors import InputError
 from stiffmap.geometry import matrix_from_rotvec
 from stiffmap.report.validation import stage_plot_svg
-from stiffmap.vision import BoardPose, ImageMeasurement, validate_stage
+from stiffmap.vision import ImageMeasurement, validate_stage
 from stiffmap.vision.validate import REFERENCE_TABLE_I
 
 
 def _m(name, T):
-    pose = BoardPose(
-        board2cam=T,
-        cov=np.eye(6) * 1e-8,
-        rms_px=0.0,
-        n_corners=48,
-        residuals_px=np.zeros((48, 2)),
-        sigma_px=0.0,
-        condition=1.0,
-        iterations=0,
-    )
-    return ImageMeasurement(image=name, mobile=pose)
+    return ImageMeasurement(image=name, mobile=exact_board_pose(T, np.eye(6) * 1e-8, 48))
 
 
 def test_steps_statistics_and_axis(rng):

@@ -1,84 +1,39 @@
-"""Test fixtures for the vision tests: a small chessboard renderer with known ground truth.
+"""Images of chessboards at known poses, for the vision and test-bed tests and the benchmarks.
 
-:func:`render` is a light stand-in for the virtual test-bed's renderer
-(``stiffmap.sim.render``, used by :func:`render_scene`, the benchmarks and the
-end-to-end tests), kept because it is quick on small images and takes an
-occluding rectangle: it draws chessboards at known poses through a :class:`~stiffmap.camera.CameraModel`
-(lens distortion included) by inverse mapping of supersampled pixel positions
-onto the board plane, then applies a Gaussian optical blur, a shot + read noise
-model and 8-bit quantisation. Corners' ground truth is the exact projection of
-the board's inner corners (``camera.project``).
+Three ways to make one:
 
-Only the region around each board is supersampled; the rest of the image is a
-flat background, so a 2592x1944 frame renders in about a second.
+- :func:`quick_board_image`, the tests' own light renderer, kept beside the virtual
+  test-bed's because it is quick on small images and takes an occluding rectangle: it
+  draws chessboards at known poses through a :class:`~stiffmap.camera.CameraModel` (lens
+  distortion included) by inverse mapping of supersampled pixel positions onto the board
+  plane, then applies a Gaussian optical blur, a shot + read noise model and 8-bit
+  quantisation (:class:`QuickPhotometry`). Only the region around each board is
+  supersampled; the rest of the image is a flat background, so a 2592x1944 frame renders
+  in about a second. The corners' ground truth is
+  :func:`helpers.board_scenes.exact_corners`.
+- :func:`testbed_board_image`, the virtual test-bed's renderer (``stiffmap.sim.render``)
+  with its realistic default photometry, used by the benchmarks and the end-to-end tests
+  (:data:`TESTBED_RENDERER` says so in the benchmarks' tables).
+- :func:`brute_force_reflectance`, a slow reference of the test-bed's reflectance (point
+  samples mapped exactly), independent of its coverage formulas.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import pytest
 from scipy.ndimage import gaussian_filter
 
 from stiffmap.camera import CameraModel
-from stiffmap.geometry import matrix_from_euler
-from stiffmap.sim.render import Target
-from stiffmap.sim.render import render as sim_render
+from stiffmap.sim.render import Target, render
 from stiffmap.targets import Chessboard
 
 
-def _find_calib_example() -> Path | None:
-    """The real calibration photographs (../shared/data/calib_example), also from a git worktree.
-
-    ``$STIFFMAP_SHARED_DATA`` may point at the shared data folder instead.
-    """
-    from conftest import SHARED_DATA
-
-    here = Path(__file__).resolve().parents[1]
-    cands = [SHARED_DATA / "calib_example", here.parents[1] / "shared" / "data" / "calib_example"]
-    if os.environ.get("STIFFMAP_SHARED_DATA"):
-        cands.insert(0, Path(os.environ["STIFFMAP_SHARED_DATA"]) / "calib_example")
-    for cand in cands:
-        if (cand / "Image1.tif").is_file():
-            return cand
-    return None
-
-
-class _SharedData:
-    """Where the real photographs are; a test that uses them is skipped, with the reason, when absent."""
-
-    def __init__(self, path: Path | None) -> None:
-        self.path = path
-
-    def _get(self) -> Path:
-        if self.path is None:
-            pytest.skip(
-                "the real photographs ../shared/data/calib_example were not found next to the repository "
-                "(set STIFFMAP_SHARED_DATA to the shared data folder)"
-            )
-        return self.path
-
-    def __truediv__(self, other) -> Path:
-        return self._get() / other
-
-    def glob(self, pattern: str):
-        return self._get().glob(pattern)
-
-    def __fspath__(self) -> str:
-        return str(self._get())
-
-
-#: Bouguet's calibration example: 20 real 640x480 photographs of a 13x12 board, 30 mm squares.
-CALIB_DIR = _SharedData(_find_calib_example())
-
-
 @dataclass(frozen=True)
-class Photometry:
-    """Grey levels and noise of the rendered image (8-bit units).
+class QuickPhotometry:
+    """Grey levels and noise of :func:`quick_board_image` (8-bit units).
 
     black, white : reflectances of the printed squares seen by the camera.
     background : grey level outside the boards.
@@ -94,30 +49,6 @@ class Photometry:
     blur_px: float = 0.7
     read_noise: float = 1.0
     shot_gain: float = 0.02
-
-
-def look_at_pose(distance_mm: float, board: Chessboard, *, tilt_deg=(0.0, 0.0, 0.0), offset_mm=(0.0, 0.0)):
-    """A ``board2cam`` pose: the board's centre on the optical axis at ``distance_mm``.
-
-    Parameters
-    ----------
-    distance_mm : float
-        Distance of the board centre along the optical axis, mm.
-    tilt_deg : (3,) float
-        Rotations about the board's x, y and z axes, degrees (applied in that order).
-    offset_mm : (2,) float
-        Lateral offset of the board centre (camera x, y), mm.
-
-    Returns
-    -------
-    ndarray, shape (4, 4)
-    """
-    R = matrix_from_euler(np.radians(np.asarray(tilt_deg, dtype=float)))
-    centre = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = np.array([offset_mm[0], offset_mm[1], distance_mm]) - R @ centre
-    return T
 
 
 def _tri(x: np.ndarray, s: float) -> np.ndarray:
@@ -157,23 +88,23 @@ def _board_value(
     return np.where(on_target, val, np.nan)
 
 
-def render(
+def quick_board_image(
     camera: CameraModel,
     scene: Sequence[tuple[Chessboard, np.ndarray]],
     *,
-    photometry: Photometry | None = None,
+    photometry: QuickPhotometry | None = None,
     supersample: int = 2,
     rng: np.random.Generator | None = None,
     margin_sq: float = 1.0,
     occluder: tuple[int, int, int, int] | None = None,
 ) -> np.ndarray:
-    """Render chessboards at known poses.
+    """Render chessboards at known poses, quickly (the tests' light renderer).
 
     Parameters
     ----------
     camera : CameraModel
     scene : sequence of (Chessboard, board2cam (4, 4) mm)
-    photometry : Photometry, optional
+    photometry : QuickPhotometry, optional
     supersample : int
         Sub-pixels along each axis; each sub-pixel's footprint on the board is
         integrated exactly as an axis-aligned box (separable checker), so the
@@ -189,7 +120,7 @@ def render(
     -------
     ndarray, shape (h, w), uint8
     """
-    ph = photometry or Photometry()
+    ph = photometry or QuickPhotometry()
     w, h = camera.image_size
     radiance = np.full((h, w), ph.background, dtype=np.float64)
     n = int(supersample)
@@ -258,25 +189,14 @@ def render(
     return np.clip(np.round(radiance), 0, 255).astype(np.uint8)
 
 
-def true_corners(camera: CameraModel, board: Chessboard, board2cam: np.ndarray) -> np.ndarray:
-    """Exact pixel positions of the inner corners, shape (n, 2), canonical order."""
-    b2c = np.asarray(board2cam, dtype=np.float64)
-    return camera.project(board.object_points() @ b2c[:3, :3].T + b2c[:3, 3])
-
-
-def small_camera() -> CameraModel:
-    """A 640x480 camera with moderate barrel distortion, for quick tests."""
-    return CameraModel((640, 480), 900.0, 905.0, 322.5, 236.0, (-0.12, 0.08, 0.0005, -0.0003, 0.0))
-
-
 #: Which renderer the benchmarks and end-to-end tests use: the virtual test-bed's.
-RENDERER = (
+TESTBED_RENDERER = (
     "stiffmap.sim.render (virtual test-bed: exact area coverage, default Photometry: "
     "gain 0.8, read noise 0.8 DN, shot 0.04 DN/e, blur 0.8 px, vignetting 0.3)"
 )
 
 
-def render_scene(camera: CameraModel, scene, rng: np.random.Generator, photometry=None) -> np.ndarray:
+def testbed_board_image(camera: CameraModel, scene, rng: np.random.Generator, photometry=None) -> np.ndarray:
     """Render [(board, board2cam), ...] with ``stiffmap.sim.render`` (default realistic photometry).
 
     Parameters
@@ -292,4 +212,29 @@ def render_scene(camera: CameraModel, scene, rng: np.random.Generator, photometr
     ndarray, shape (h, w), uint8
     """
     targets = [Target(b, T) for b, T in scene]
-    return sim_render(camera, targets, photometry=photometry, seed=rng).image
+    return render(camera, targets, photometry=photometry, seed=rng).image
+
+
+def brute_force_reflectance(camera: CameraModel, target, roi, n: int = 64, background: float = 0.35):
+    """Reference render: n x n point samples per pixel, each mapped exactly (no linearisation).
+
+    Every sub-sample's ray is undistorted by Newton's method
+    (``CameraModel.rays_from_pixels``) and met with the board plane; the print is
+    point-sampled. Independent of the renderer's coverage formulas; its own error
+    on an edge pixel is at most about 1/n of the contrast.
+    """
+    c0, r0, c1, r1 = roi
+    off = (np.arange(n) + 0.5) / n - 0.5
+    cols = np.arange(c0, c1, dtype=np.float64)
+    rows = np.arange(r0, r1, dtype=np.float64)
+    U = cols[None, :, None, None] + off[None, None, None, :]
+    V = rows[:, None, None, None] + off[None, None, :, None]
+    U, V = np.broadcast_arrays(U, V)
+    rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
+    d = np.concatenate([rays, np.ones((*rays.shape[:-1], 1))], axis=-1)
+    T = target.board2cam
+    R, t = T[:3, :3], T[:3, 3]
+    lam = (R[:, 2] @ t) / (d @ R[:, 2])
+    p = lam[..., None] * d - t
+    refl, alpha = target.texture().sample(p @ R[:, 0], p @ R[:, 1])
+    return (refl * alpha + (1 - alpha) * background).mean(axis=(2, 3))

@@ -1,4 +1,4 @@
-"""Run the real ``stiffmap`` command as a user would (a subprocess)."""
+"""Run the real ``stiffmap`` command as a user would (a subprocess): the one CLI test harness."""
 
 from __future__ import annotations
 
@@ -8,10 +8,14 @@ import sys
 from pathlib import Path
 
 
-def stiffmap(
+def run_stiffmap(
     *args: str | Path, cwd: str | Path | None = None, timeout: float = 300
 ) -> subprocess.CompletedProcess:
-    """Run ``python -m stiffmap ARGS`` and return the completed process (text mode)."""
+    """Run ``python -m stiffmap ARGS`` and return the completed process (text mode).
+
+    The child runs with warnings as errors (``PYTHONWARNINGS=error``), 200 columns and no
+    colour, so its output does not depend on the terminal.
+    """
     env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONWARNINGS="error")
     return subprocess.run(
         [sys.executable, "-m", "stiffmap", *map(str, args)],

@@ -1,11 +1,15 @@
-"""Shared helpers of the model tests: random reachable poses away from singularities, FD Jacobians."""
+"""Checks of the mechanism models: random reachable poses away from singularities, Jacobian vs FD."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from helpers.finite_difference import central_jacobian
 
-def random_reachable(model, rng: np.random.Generator, n: int, lo, hi, margin: float = 0.05) -> np.ndarray:
+
+def random_reachable_poses(
+    model, rng: np.random.Generator, n: int, lo, hi, margin: float = 0.05
+) -> np.ndarray:
     """``n`` uniformly drawn poses in the box [lo, hi] (mm) that the model evaluates, with both
     singularity measures above ``margin`` (so finite differences stay meaningful)."""
     lo = np.asarray(lo, dtype=float)
@@ -19,24 +23,14 @@ def random_reachable(model, rng: np.random.Generator, n: int, lo, hi, margin: fl
     return np.concatenate(out)[:n]
 
 
-def central_jacobian(f, x: np.ndarray, h: float) -> np.ndarray:
-    """Central-difference Jacobian of a vectorised f: (N, d) -> (N, m), shape (N, m, d)."""
-    cols = []
-    for k in range(x.shape[1]):
-        e = np.zeros(x.shape[1])
-        e[k] = h
-        cols.append((f(x + e) - f(x - e)) / (2 * h))
-    return np.stack(cols, axis=2)
-
-
-def assert_jacobian_fd(model, points: np.ndarray, h: float, atol: float) -> np.ndarray:
+def assert_jacobian_matches_fd(model, points: np.ndarray, h: float, atol: float) -> np.ndarray:
     """Check ``model.jacobian`` (dq/dx) against central differences of its inverse kinematics.
 
     Each pose's matrices are compared relative to the analytic one's Frobenius norm, to
     ``atol`` (dimensionless); ``h`` is the step in mm. Returns the analytic J, shape (N, n_joints, dim).
     """
     J = model.jacobian(points)
-    Jn = central_jacobian(lambda x: model.inverse_kinematics(x).q, points, h=h)
+    Jn = central_jacobian(lambda x: model.inverse_kinematics(x).q, points, h)
     scale = np.linalg.norm(J, axis=(1, 2))[:, None, None]
     np.testing.assert_allclose(J / scale, Jn / scale, rtol=0, atol=atol)
     return J

@@ -1,51 +1,26 @@
-"""Shared helpers of the virtual test-bed's tests (tests/test_sim_*.py)."""
+"""A simulated campaign measured from its exported true corners, without images.
+
+Each image's board poses come from OpenCV's solvePnP on the true corners (plus noise, if
+asked); the campaign runner's own derivation turns them into displacements and K per
+position, to compare with ``truth.json`` (the test-bed's round trip, tests and benchmark).
+"""
 
 from __future__ import annotations
+
+import dataclasses
 
 import cv2
 import numpy as np
 
 from stiffmap.camera import CameraModel
+from stiffmap.campaign.derive import derive_position
+from stiffmap.campaign.measure import ImageRow
+from stiffmap.campaign.positions import plan
+from stiffmap.campaign.spec import load_spec
+from stiffmap.campaign.store import from_json
+from stiffmap.campaign.truth import load_truth
 from stiffmap.geometry import matrix_from_rotvec, transform_from
-from stiffmap.sim.scene import board_pose_at_pixel as pose_at_pixel  # noqa: F401
-
-
-def brute_force_reflectance(camera: CameraModel, target, roi, n: int = 64, background: float = 0.35):
-    """Reference render: n x n point samples per pixel, each mapped exactly (no linearisation).
-
-    Every sub-sample's ray is undistorted by Newton's method
-    (``CameraModel.rays_from_pixels``) and met with the board plane; the print is
-    point-sampled. Independent of the renderer's coverage formulas; its own error
-    on an edge pixel is at most about 1/n of the contrast.
-    """
-    c0, r0, c1, r1 = roi
-    off = (np.arange(n) + 0.5) / n - 0.5
-    cols = np.arange(c0, c1, dtype=np.float64)
-    rows = np.arange(r0, r1, dtype=np.float64)
-    U = cols[None, :, None, None] + off[None, None, None, :]
-    V = rows[:, None, None, None] + off[None, None, :, None]
-    U, V = np.broadcast_arrays(U, V)
-    rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
-    d = np.concatenate([rays, np.ones((*rays.shape[:-1], 1))], axis=-1)
-    T = target.board2cam
-    R, t = T[:3, :3], T[:3, 3]
-    lam = (R[:, 2] @ t) / (d @ R[:, 2])
-    p = lam[..., None] * d - t
-    refl, alpha = target.texture().sample(p @ R[:, 0], p @ R[:, 1])
-    return (refl * alpha + (1 - alpha) * background).mean(axis=(2, 3))
-
-
-def scaled_camera(camera: CameraModel, s: float) -> CameraModel:
-    """The same optics on a sensor with s times fewer pixels per side (same field of view)."""
-    w, h = camera.image_size
-    return CameraModel(
-        (round(w * s), round(h * s)),
-        camera.fx * s,
-        camera.fy * s,
-        (camera.cx + 0.5) * s - 0.5,
-        (camera.cy + 0.5) * s - 0.5,
-        camera.dist,
-    )
+from stiffmap.targets import Chessboard
 
 
 def pnp_pose(obj: np.ndarray, uv: np.ndarray, camera: CameraModel) -> np.ndarray:
@@ -67,8 +42,6 @@ def pnp_image_row(name: str, uv_mobile: np.ndarray, uv_fixed: np.ndarray, mobile
     mobile_board, fixed_board : Chessboard
     camera : CameraModel
     """
-    from stiffmap.campaign.measure import ImageRow
-
     return ImageRow(
         name,
         True,
@@ -94,14 +67,6 @@ def derive_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     loads : list of LoadCase (N, base frame)
     derived : list of (PositionTask, derivation result) per position
     """
-    import dataclasses
-
-    from stiffmap.campaign.derive import derive_position
-    from stiffmap.campaign.positions import plan
-    from stiffmap.campaign.spec import load_spec
-    from stiffmap.campaign.truth import load_truth
-    from stiffmap.targets import Chessboard
-
     spec = load_spec(root)
     truth = load_truth(root)
     cam = truth.camera
@@ -128,8 +93,6 @@ def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     -------
     list of (K, K_std, K_true) per position, N/mm.
     """
-    from stiffmap.campaign.store import from_json
-
     truth, _, derived = derive_from_true_corners(root, noise_px, seed)
     out = []
     for task, res in derived:
