@@ -10,15 +10,24 @@ measured with a dynamometer (28 g +- 8 g on a 500 g load, 10 repeats). The
 applied force is ``nominal - friction`` along the load direction, and the
 friction's standard deviation becomes the force's uncertainty along that
 direction.
+
+A load design -- the load cases applied at every position -- is a preset's name
+or a CSV file of forces (:func:`load_design`, :func:`read_loads_csv`);
+:func:`check_load_design` refuses one whose forces cannot determine a 3x3
+stiffness (fewer than three independent directions).
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from .errors import DesignError, InputError
+from .io import read_csv_columns
 from .units import G_REFERENCE_PAPER, G_STANDARD
 
 __all__ = [
@@ -31,6 +40,9 @@ __all__ = [
     "PRESETS",
     "preset",
     "AXES",
+    "check_load_design",
+    "read_loads_csv",
+    "load_design",
 ]
 
 #: Named directions in the base frame.
@@ -194,3 +206,88 @@ def preset(name: str, *, g: float | None = None) -> list[LoadCase]:
     if name not in PRESETS:
         raise ValueError(f"unknown load preset {name!r}; known: {', '.join(PRESETS)}")
     return PRESETS[name]() if g is None else PRESETS[name](g=g)
+
+
+def check_load_design(forces, *, source: str | None = None) -> None:
+    """Refuse forces that cannot determine a 3x3 stiffness.
+
+    Parameters
+    ----------
+    forces : array_like, shape (n, 3), N
+        One force per row (not all zero).
+    source : str, optional
+        The file the forces come from, named in the message.
+
+    Raises
+    ------
+    ValueError
+        When ``forces`` is not a non-empty (n, 3) array of finite numbers.
+    DesignError
+        When the forces span fewer than three independent directions (the rank
+        found is in the message; rank tolerance 1e-9 of the largest component).
+    """
+    F = np.asarray(forces, dtype=np.float64)
+    if F.ndim != 2 or F.shape[0] == 0 or F.shape[1] != 3 or not np.all(np.isfinite(F)):
+        raise ValueError(f"forces must be a non-empty (n, 3) array of finite N, got shape {F.shape}")
+    rank = int(np.linalg.matrix_rank(F, tol=1e-9 * float(np.abs(F).max())))
+    if rank < 3:
+        raise DesignError(
+            f"the {len(F)} load(s) span {rank} independent direction(s); 3 are needed to identify "
+            "a 3x3 stiffness (add loads along other axes)",
+            source=source,
+        )
+
+
+def read_loads_csv(path: str | os.PathLike) -> list[LoadCase]:
+    """Load cases from a CSV file with columns fx, fy, fz (N) and optionally label.
+
+    An empty or missing label becomes ``F = (fx, fy, fz) N``. The design is checked
+    (:func:`check_load_design`).
+
+    Raises
+    ------
+    InputError
+        Naming the file (and the line of a zero force), a missing column or a bad
+        cell; :class:`~stiffmap.errors.DesignError` when the forces span fewer than
+        three directions.
+    """
+    src = str(path)
+    t = read_csv_columns(path, ("fx", "fy", "fz"), ("label",), text_columns=("label",))
+    F = t.stack(("fx", "fy", "fz")).T
+    labels = t.text.get("label", [""] * len(F))
+    cases = []
+    for i, (f, lab) in enumerate(zip(F, labels, strict=True)):
+        if not np.any(f):
+            raise InputError(f"line {t.lines[i]}: the force is zero", source=src)
+        cases.append(LoadCase(f, np.zeros((3, 3)), lab or f"F = ({', '.join(f'{v:g}' for v in f)}) N"))
+    check_load_design(F, source=src)
+    return cases
+
+
+def load_design(text: str, g: float | None = None) -> list[LoadCase]:
+    """The load cases a user names: a preset (``PRESETS``, any case) or a CSV file (:func:`read_loads_csv`).
+
+    Parameters
+    ----------
+    text : str
+        ``paper9`` or the path of a CSV file.
+    g : float, optional
+        Gravity for a preset's masses, m/s^2 (default: the preset's own).
+
+    Raises
+    ------
+    ValueError
+        As ``'text': expected a preset (paper9) or a CSV file ...`` when ``text`` is
+        neither (the command line puts the option's name in front).
+    InputError
+        From :func:`read_loads_csv`, naming the file.
+    """
+    key = text.strip().lower()
+    if key in PRESETS:
+        return preset(key, g=g)
+    if not Path(text).is_file():
+        raise ValueError(
+            f"{text!r}: expected a preset ({', '.join(PRESETS)}) or a CSV file with columns "
+            "fx, fy, fz (N) and optionally label"
+        )
+    return read_loads_csv(text)

@@ -1,24 +1,40 @@
-"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report."""
+"""``stiffmap init`` and ``stiffmap run``: campaign directories from spec to report.
+
+``run`` is :func:`stiffmap.campaign.run.run_and_export` then the report
+(:func:`stiffmap.report.campaign.write_campaign_report`); ``init --from-demo`` writes
+the quick demo's simulation (:func:`stiffmap.campaign.demo.demo_config`).
+"""
 
 from __future__ import annotations
 
 import shlex
 import time
+from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 
 import typer
 from rich.markup import escape
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
+from rich.text import Text
 
 from ..campaign.demo import demo_config
-from ..campaign.export import export_tables, summary_dict
-from ..campaign.runner import default_workers, run_campaign
-from ..campaign.sensor_runner import measured_static_errors, run_sensor_campaign
+from ..campaign.export import summary_dict
+from ..campaign.run import CampaignRun, run_and_export
+from ..campaign.runner import default_workers
+from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.simulated import check_output_dir, write_campaign
 from ..campaign.spec import SPEC_NAME, load_spec
 from ..campaign.spec_writer import EXAMPLE_TOML
-from ..campaign.store import DB_NAME, Store, from_json
+from ..campaign.store import Store, from_json
 from ..errors import InputError
 from ..io import atomic_write_text
 from ..report.campaign import write_campaign_report
@@ -68,50 +84,49 @@ def init(
 def _init_from_demo(directory: Path, force: bool) -> None:
     """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
     check_output_dir(directory, force)
-    with _progress() as prog:
-        task = prog.add_task("rendering images", total=None, measured=0)
-
-        def hook(done: int, total: int) -> None:
-            prog.update(task, completed=done, total=total, measured=done)
-
+    with _images_progress("rendering images") as update:
         write_campaign(
             directory,
             demo_config(quick=True),
             workers=default_workers(),
             force=force,
-            progress=hook,
+            progress=lambda done, total: update(done, total, done),
             command=f"stiffmap init {directory} --from-demo",
         )
 
 
-def _progress():
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        ProgressColumn,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-    from rich.text import Text
+class _Rate(ProgressColumn):
+    """Images measured (or rendered) per second."""
 
-    class Rate(ProgressColumn):
-        def render(self, task) -> Text:
-            measured = task.fields.get("measured", 0)
-            elapsed = task.elapsed or 0.0
-            if not measured or elapsed <= 0:
-                return Text("-- images/s")
-            return Text(f"{measured / elapsed:.1f} images/s")
+    def render(self, task) -> Text:
+        measured = task.fields.get("measured", 0)
+        elapsed = task.elapsed or 0.0
+        if not measured or elapsed <= 0:
+            return Text("-- images/s")
+        return Text(f"{measured / elapsed:.1f} images/s")
 
-    return Progress(
+
+@contextmanager
+def _images_progress(description: str, show: bool = True):
+    """A progress bar on stderr; yields its hook ``update(done, total, measured)`` (None: no bar)."""
+    if not show:
+        yield None
+        return
+    with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
-        Rate(),
+        _Rate(),
         TimeRemainingColumn(),
         console=err,
         transient=False,
-    )
+    ) as prog:
+        task = prog.add_task(description, total=None, measured=0)
+
+        def update(done: int, total: int, measured: int) -> None:
+            prog.update(task, completed=done, total=total, measured=measured)
+
+        yield update
 
 
 def _summary_table(store: Store) -> Table:
@@ -190,54 +205,45 @@ def run(
     Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
     """
     spec = load_spec(campaign)
-    root = campaign.resolve()
-    n_workers = workers or default_workers()
     t0 = time.perf_counter()
-    if spec.kind == "vision":
-        if quiet:
-            summary = run_campaign(root, workers=n_workers, method=method.value)
-        else:
-            with _progress() as prog:
-                task = prog.add_task("measuring images", total=None, measured=0)
-
-                def hook(done: int, total: int, measured: int) -> None:
-                    prog.update(task, completed=done, total=total, measured=measured)
-
-                summary = run_campaign(root, workers=n_workers, method=method.value, progress=hook)
-        failures = summary.failures
-    else:
-        with Store(root / DB_NAME) as store:
-            res = run_sensor_campaign(root, spec, store)
-        failures = res.failures or []
-    with Store(root / DB_NAME) as store:
-        export_tables(store, root / "exports", spec.name, failures)
+    with _images_progress("measuring images", show=spec.kind == "vision" and not quiet) as hook:
+        done = run_and_export(
+            campaign, spec=spec, workers=workers or default_workers(), method=method.value, progress=hook
+        )
+    with Store(done.db) as store:
         if as_json:
-            print_json(summary_dict(store, spec.name, failures))
+            print_json(summary_dict(store, spec.name, done.failures))
         elif spec.kind == "vision":
             out.print(_summary_table(store), width=max(out.width, 110))
         else:
             out.print(_sensor_table(spec, store))
-    if report:
-        page = write_campaign_report(root, failures)
+    page = write_campaign_report(done.root, done.failures) if report else None
     if not as_json:
-        if spec.kind == "vision":
-            rate = summary.images / summary.wall_seconds if summary.wall_seconds > 0 and summary.images else 0
-            out.print(
-                f"{summary.positions} positions: {summary.measured} measured ({summary.images} images, "
-                f"{rate:.1f} images/s), "
-                + (f"{summary.rederived} re-derived (images unchanged), " if summary.rederived else "")
-                + f"{summary.reused} unchanged since the last run"
-            )
-        else:
-            out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")
-        out.print(f"results: {root / DB_NAME}; tables: {root / 'exports'}")
-        if report:
-            out.print(f"report: {page}")
-        out.print(f"done in {time.perf_counter() - t0:.1f} s")
-    if failures:
-        for f in failures:
+        _print_counts(done, page, time.perf_counter() - t0)
+    if done.failures:
+        for f in done.failures:
             warn(f)
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_counts(done: CampaignRun, page: Path | None, seconds: float) -> None:
+    """What was measured or reused, where the results are, and the time taken."""
+    if done.vision is not None:
+        summary = done.vision
+        rate = summary.images / summary.wall_seconds if summary.wall_seconds > 0 and summary.images else 0
+        out.print(
+            f"{summary.positions} positions: {summary.measured} measured ({summary.images} images, "
+            f"{rate:.1f} images/s), "
+            + (f"{summary.rederived} re-derived (images unchanged), " if summary.rederived else "")
+            + f"{summary.reused} unchanged since the last run"
+        )
+    else:
+        res = done.sensor
+        out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")
+    out.print(f"results: {done.db}; tables: {done.exports}")
+    if page is not None:
+        out.print(f"report: {page}")
+    out.print(f"done in {seconds:.1f} s")
 
 
 def register(app: typer.Typer) -> None:

@@ -5,6 +5,7 @@ Numbers are formatted by :mod:`stiffmap.textfmt`.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 from collections.abc import Sequence
@@ -91,18 +92,27 @@ def float_values(given: dict[str, str], what: str) -> dict[str, float]:
     return values
 
 
-def position_preset(option: str, text: str, mech: str):
-    """Points (ndarray, shape (N, dim), mm) of the position preset ``text`` for mechanism ``mech``.
+def from_option(option: str, parse, *args):
+    """``parse(*args)``, its ValueError as an InputError that starts with ``option``.
 
-    None when ``text`` names no preset; InputError when the preset is another mechanism's
-    (see :func:`stiffmap.models.presets.position_preset`).
+    The library's parsers say what was wrong with the text without the option's name
+    (``'1,2': expected ...``); an :class:`InputError` (which names its file) passes as it is.
     """
-    from ..models.presets import position_preset as preset
-
     try:
-        return preset(text, mech)
+        return parse(*args)
+    except InputError:
+        raise
     except ValueError as e:
         raise InputError(f"{option} {e}") from None
+
+
+def three_numbers(text: str) -> tuple[float, ...] | None:
+    """The three finite numbers of ``x,y,z``, or None when ``text`` is anything else."""
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        return None
+    return v if len(v) == 3 and all(math.isfinite(x) for x in v) else None
 
 
 def print_summary(title: str, rows: Sequence[tuple[str, str]]) -> None:

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from ..campaign.demo import run_demo
+from ..campaign.demo import DemoResult, run_demo
 from ..campaign.runner import default_workers
 from ..report.campaign import write_campaign_report
 from .common import EXIT_PARTIAL, err, out, warn
@@ -38,9 +40,32 @@ def demo(
     prints the recovered stiffness against the truth at every position, ending with
     the worst relative error (Frobenius norm) over all positions.
     """
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    with _demo_progress() as (sim_hook, run_hook):
+        res = run_demo(
+            out_dir,
+            quick=quick,
+            repeats=repeats or None,
+            seed=seed,
+            workers=workers or default_workers(),
+            fresh=fresh,
+            sim_progress=sim_hook,
+            run_progress=run_hook,
+        )
+    if not res.simulated:
+        err.print(f"reused the simulation already in {out_dir} (--fresh to simulate again)")
+    _print_demo(res)
+    if report:
+        out.print(f"report: {write_campaign_report(res.out_dir, res.failures)}")
+    for f in res.failures:
+        warn(f)
+    out.print(f"worst relative K error: {res.worst_percent:.2f} %")
+    if res.failures or not np.isfinite(res.worst_percent):
+        raise typer.Exit(EXIT_PARTIAL)
 
-    n_workers = workers or default_workers()
+
+@contextmanager
+def _demo_progress():
+    """Progress bars of the rendering and the measuring on stderr; yields their two hooks."""
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -62,18 +87,11 @@ def demo(
             rate = f"{measured / t.elapsed:.1f} images/s" if t.elapsed and measured else ""
             prog.update(meas, completed=done, total=total, rate=rate, visible=True)
 
-        res = run_demo(
-            out_dir,
-            quick=quick,
-            repeats=repeats or None,
-            seed=seed,
-            workers=n_workers,
-            fresh=fresh,
-            sim_progress=sim_hook,
-            run_progress=run_hook,
-        )
-    if not res.simulated:
-        err.print(f"reused the simulation already in {out_dir} (--fresh to simulate again)")
+        yield sim_hook, run_hook
+
+
+def _print_demo(res: DemoResult) -> None:
+    """Recovered against true K at every position, and the images and times."""
     t = Table(title="recovered against true stiffness (N/mm), base frame")
     for col in ("#", "position (mm)", "true K (rows)", "recovered K (rows)", "error"):
         t.add_column(col, no_wrap=True)
@@ -97,13 +115,6 @@ def demo(
         f"{len(res.positions)} positions, {res.images} images measured; "
         f"simulate {res.seconds_simulate:.0f} s, measure + identify {res.seconds_run:.0f} s"
     )
-    if report:
-        out.print(f"report: {write_campaign_report(res.out_dir, res.failures)}")
-    for f in res.failures:
-        warn(f)
-    out.print(f"worst relative K error: {res.worst_percent:.2f} %")
-    if res.failures or not np.isfinite(res.worst_percent):
-        raise typer.Exit(EXIT_PARTIAL)
 
 
 def register(app: typer.Typer) -> None:

@@ -1,19 +1,50 @@
-"""``stiffmap simulate``: write a virtual campaign (vision, or sensor for the 3PRR) with its ground truth."""
+"""``stiffmap simulate``: write a virtual campaign (vision, or sensor for the 3PRR) with its ground truth.
+
+The simulation is planned by :mod:`stiffmap.sim.plan` and written by
+:mod:`stiffmap.campaign.simulated` (vision) or :mod:`stiffmap.campaign.simulated_sensor`
+(3PRR); positions come from :mod:`stiffmap.models.presets`, loads from :mod:`stiffmap.loads`.
+"""
 
 from __future__ import annotations
 
-import os
 import shlex
-import shutil
 import sys
 import time
+from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 
 import typer
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 
+from ..camera import load_camera
+from ..campaign.runner import default_workers
+from ..campaign.simulated import SimSummary, check_output_dir, write_campaign
+from ..campaign.simulated_sensor import SensorSimSummary, write_sensor_campaign
 from ..errors import InputError
-from .common import err, float_values, fmt, parse_key_values, position_preset, print_json, print_summary
+from ..loads import load_design
+from ..models.presets import positions_from_text, select_positions
+from ..models.prr3 import PRR3
+from ..sim.plan import SimulationPlan, plan_simulation, vision_config
+from ..sim.robot import delta_robot
+from ..units import G_REFERENCE_PAPER
+from .common import (
+    err,
+    float_values,
+    fmt,
+    from_option,
+    parse_key_values,
+    print_json,
+    print_summary,
+    three_numbers,
+)
 
 
 class RobotName(StrEnum):
@@ -24,89 +55,6 @@ class RobotName(StrEnum):
 class ImageFormat(StrEnum):
     png = "png"
     jpeg = "jpeg"
-
-
-#: Bytes per pixel of a noisy 8-bit image (measured on the default scene: PNG ~0.50, JPEG q95 ~0.18).
-_BYTES_PER_PIXEL = {"png": 0.55, "jpeg": 0.2}
-
-
-def _positions(text: str, select: str | None, mech: str = "delta"):
-    import numpy as np
-
-    from ..io import read_csv_columns
-    from ..models.presets import POSITION_PRESETS
-
-    cols = ("x", "y", "z") if mech == "delta" else ("x", "y")
-    preset = position_preset("--positions", text, mech)
-    if preset is not None:
-        P = np.asarray(preset, dtype=np.float64)
-    elif Path(text).suffix.lower() == ".csv" or Path(text).is_file():
-        t = read_csv_columns(text, cols)
-        P = t.stack(cols).T
-    else:
-        try:
-            P = np.array([[float(v) for v in item.split(",")] for item in text.split(";") if item.strip()])
-        except ValueError:
-            P = np.zeros((0, 0))
-        if P.ndim != 2 or P.shape[0] == 0 or P.shape[1] != len(cols) or not np.all(np.isfinite(P)):
-            presets = ", ".join(k for k, v in POSITION_PRESETS.items() if v[0] == mech)
-            c = ",".join(cols)
-            raise InputError(
-                f"--positions {text!r}: expected a preset ({presets}), a CSV file with columns "
-                f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for the {mech} robot"
-            )
-    if select:
-        try:
-            idx = [int(v) for v in select.split(",") if v.strip()]
-        except ValueError:
-            idx = []
-        if not idx or min(idx) < 1 or max(idx) > len(P):
-            raise InputError(
-                f"--select {select!r}: expected comma-separated position numbers between 1 and {len(P)}"
-            )
-        dup = sorted({i for i in idx if idx.count(i) > 1})
-        if dup:
-            raise InputError(f"--select {select!r}: position {dup[0]} is given more than once")
-        P = P[[i - 1 for i in idx]]
-    return P
-
-
-def _loads(text: str, g: float):
-    import numpy as np
-
-    from ..io import read_csv_columns
-    from ..loads import PRESETS, LoadCase, preset
-
-    if text.strip().lower() in PRESETS:
-        return preset(text.strip().lower(), g=g)
-    if not Path(text).is_file():
-        raise InputError(
-            f"--loads {text!r}: expected a preset ({', '.join(PRESETS)}) or a CSV file with columns "
-            "fx, fy, fz (N) and optionally label"
-        )
-    t = read_csv_columns(text, ("fx", "fy", "fz"), ("label",), text_columns=("label",))
-    F = t.stack(("fx", "fy", "fz")).T
-    labels = t.text.get("label", [""] * len(F))
-    out_loads = []
-    for i, (f, lab) in enumerate(zip(F, labels, strict=True)):
-        if not np.any(f):
-            raise InputError(f"line {t.lines[i]}: the force is zero", source=text)
-        out_loads.append(LoadCase(f, np.zeros((3, 3)), lab or f"F = ({', '.join(f'{v:g}' for v in f)}) N"))
-    rank = int(np.linalg.matrix_rank(F, tol=1e-9 * float(np.abs(F).max())))
-    if rank < 3:
-        raise InputError(
-            f"the {len(F)} load(s) span {rank} independent direction(s); 3 are needed to identify "
-            "a 3x3 stiffness (add loads along other axes)",
-            source=text,
-        )
-    return out_loads
-
-
-def _free_workers() -> int:
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(os.cpu_count() or 1, 1)
 
 
 #: Options of one kind of simulation only (parameter name -> option), refused with the other.
@@ -127,6 +75,8 @@ _VISION_ONLY = {
     "workers": "--workers",
 }
 _SENSOR_ONLY = {"directions": "--directions", "trace_format": "--trace-format"}
+#: What a full disk's message suggests.
+_DISK_ADVICE = "use fewer --positions/--select/--repeats or --format jpeg"
 
 
 def _refuse_options_of_the_other_robot(ctx: typer.Context, robot: RobotName) -> None:
@@ -143,6 +93,28 @@ def _refuse_options_of_the_other_robot(ctx: typer.Context, robot: RobotName) -> 
             f"{', '.join(given)}: not used when simulating {what} (--robot {robot.value}); "
             "leave out, or choose the other --robot"
         )
+
+
+def _positions(text: str, select: str | None, mech: str):
+    """The positions of ``--positions`` (a preset, a CSV file or a list), those of ``--select`` only."""
+    P = from_option("--positions", positions_from_text, text, mech)
+    return from_option("--select", select_positions, P, select)
+
+
+def _load_point(text: str):
+    """``--load-point-mm`` as (x, y, z), mm."""
+    lp = three_numbers(text)
+    if lp is None:
+        raise InputError(f"--load-point-mm {text!r}: expected x,y,z in mm")
+    return lp
+
+
+def _check_rotation_options(rot_stiffness: float | None, load_point) -> None:
+    if rot_stiffness is not None:
+        if rot_stiffness <= 0:
+            raise InputError("--rot-stiffness-nmm-per-rad must be positive")
+    elif any(load_point):
+        raise InputError("--load-point-mm needs --rot-stiffness-nmm-per-rad (a 3x3 field has no rotation)")
 
 
 def simulate(
@@ -230,176 +202,102 @@ def simulate(
     position, every image's poses) with truth_corners.json.gz (true corner pixels).
     The same --seed gives byte-identical files, whatever --workers.
     """
-    import numpy as np
-
-    from ..camera import load_camera, reference_camera
-    from ..campaign.simulated import check_output_dir, write_campaign
-    from ..sim.render import Photometry
-    from ..sim.robot import VirtualRobot, delta_robot, with_rotational_compliance
-    from ..sim.scene import default_scene
-    from ..sim.testbed import SimConfig, plan_campaign
-    from ..units import G_REFERENCE_PAPER
-
     _refuse_options_of_the_other_robot(ctx, robot)
     check_output_dir(out_dir, force)
     command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
     if robot is RobotName.prr3:
-        _simulate_sensor(
-            out_dir,
-            positions,
-            select,
-            directions,
-            repeats,
-            seed,
-            trace_format,
-            force,
-            param,
-            name,
-            command,
-            as_json,
-        )
+        args = (positions, select, directions, repeats, seed, trace_format, force, param, name, command)
+        _simulate_sensor(out_dir, *args, as_json)
         return
-    P = _positions(positions or "paper48", select)
-    load_cases = _loads(loads, G_REFERENCE_PAPER)
-    cam = load_camera(camera_file) if camera_file is not None else reference_camera()
+    P = _positions(positions or "paper48", select, "delta")
+    load_cases = from_option("--loads", load_design, loads, G_REFERENCE_PAPER)
+    cam = load_camera(camera_file) if camera_file is not None else None
     values = float_values(parse_key_values(param, "--param"), "--param")
-    try:
-        lp = tuple(float(v) for v in load_point.split(","))
-    except ValueError:
-        lp = ()
-    if len(lp) != 3 or not all(np.isfinite(lp)):
-        raise InputError(f"--load-point-mm {load_point!r}: expected x,y,z in mm")
-    try:
-        base = delta_robot(values)
-    except ValueError as e:
-        raise InputError(f"--param: {e}") from None
-    field = base.field
-    if rot_stiffness is not None:
-        if rot_stiffness <= 0:
-            raise InputError("--rot-stiffness-nmm-per-rad must be positive")
-        field = with_rotational_compliance(field, rot_stiffness)
-    elif any(lp):
-        raise InputError("--load-point-mm needs --rot-stiffness-nmm-per-rad (a 3x3 field has no rotation)")
-    vr = VirtualRobot(
-        field,
-        repeatability_mm=repeatability_mm,
-        jitter_mm=jitter_mm,
-        load_point_mm=lp,
-        model=base.model,
-        params=base.params,
-    )
-    ph = Photometry(blur_px=blur_px, clutter=clutter, colour=colour)
-    if not noise:
-        ph = Photometry.noise_free(blur_px=blur_px, clutter=clutter, colour=colour)
-    try:
-        cfg = SimConfig(
-            scene=default_scene(cam),
-            robot=vr,
-            positions=P,
-            loads=tuple(load_cases),
-            repeats=repeats,
-            seed=seed,
-            photometry=ph,
-            image_format=image_format.value,
-            jpeg_quality=jpeg_quality,
-            name=name,
-            gain_jitter=0.03 if noise else 0.0,
-            offset_jitter_dn=1.0 if noise else 0.0,
-        )
-        plan = plan_campaign(cfg)
-    except InputError:
-        raise
-    except ValueError as e:
-        raise InputError(str(e)) from None
-    n_images = 0 if truth_only else 2 * len(P) * len(load_cases) * repeats
-    w, h = cam.image_size
-    need = n_images * w * h * (3 if colour else 1) ** 0.5 * _BYTES_PER_PIXEL[image_format.value]
-    probe = (
-        out_dir if out_dir.exists() else next((p for p in out_dir.resolve().parents if p.exists()), Path("."))
-    )
-    free = shutil.disk_usage(probe).free
-    if need > 0.95 * free:
-        raise InputError(
-            f"{n_images} images need about {need / 1e9:.1f} GB but only {free / 1e9:.1f} GB are free; "
-            "use fewer --positions/--select/--repeats or --format jpeg",
-            source=str(out_dir),
-        )
-    n_workers = workers or _free_workers()
+    lp = _load_point(load_point)
+    base = from_option("--param:", delta_robot, values)
+    _check_rotation_options(rot_stiffness, lp)
+    cfg = vision_config(
+        base, P, load_cases, cam, rot_stiffness_nmm_per_rad=rot_stiffness, load_point_mm=lp,
+        repeatability_mm=repeatability_mm, jitter_mm=jitter_mm, noise=noise, blur_px=blur_px,
+        clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
+        jpeg_quality=jpeg_quality, name=name,
+    )  # fmt: skip
+    sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
+    n_workers = workers or default_workers()
     if not as_json:
         err.print(
             f"simulating {len(P)} position(s) x {len(load_cases)} load case(s) x {repeats} repeat(s): "
-            f"{n_images} images (~{need / 1e9:.2f} GB) with {n_workers} process(es) -> {out_dir}",
+            f"{sim.n_images} images (~{sim.bytes_needed / 1e9:.2f} GB) with {n_workers} process(es) "
+            f"-> {out_dir}",
             highlight=False,
         )
-    t0 = time.perf_counter()
-    if as_json or truth_only:
+    with _rendering_progress(sim, show=not (as_json or truth_only)) as progress:
         summary = write_campaign(
-            out_dir,
-            cfg,
-            workers=n_workers,
-            force=force,
-            render_images=not truth_only,
-            command=command,
-            plan=plan,
-        )
-    else:
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
+            out_dir, cfg, workers=n_workers, force=force, render_images=not truth_only,
+            progress=progress, command=command, plan=sim.plan,
+        )  # fmt: skip
+    _print_vision_summary(summary, sim, as_json)
 
-        with Progress(
-            TextColumn("rendering"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("{task.fields[rate]}"),
-            TimeElapsedColumn(),
-            TextColumn("left"),
-            TimeRemainingColumn(),
-            console=err,
-        ) as bar:
-            task = bar.add_task("images", total=n_images or 1, rate="")
 
-            def progress(done: int, total: int) -> None:
-                dt = time.perf_counter() - t0
-                rate = f"{done / dt:.2f} images/s" if done and dt > 0 else ""
-                bar.update(task, completed=done, total=total or 1, rate=rate)
+@contextmanager
+def _rendering_progress(sim: SimulationPlan, show: bool):
+    """A progress bar of the rendered images on stderr, and its hook for write_campaign (None: no bar)."""
+    if not show:
+        yield None
+        return
+    t0 = time.perf_counter()
+    with Progress(
+        TextColumn("rendering"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+        console=err,
+    ) as bar:
+        task = bar.add_task("images", total=sim.n_images or 1, rate="")
 
-            summary = write_campaign(
-                out_dir, cfg, workers=n_workers, force=force, progress=progress, command=command, plan=plan
-            )
+        def progress(done: int, total: int) -> None:
+            dt = time.perf_counter() - t0
+            rate = f"{done / dt:.2f} images/s" if done and dt > 0 else ""
+            bar.update(task, completed=done, total=total or 1, rate=rate)
+
+        yield progress
+
+
+def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: bool) -> None:
+    cfg = sim.config
+    vr = cfg.robot
     lo, hi = summary.principal_range
-    info = {
-        "out_dir": str(summary.out_dir),
-        "positions": summary.n_positions,
-        "load_cases": summary.n_loads,
-        "repeats": summary.repeats,
-        "images": summary.n_images,
-        "format": image_format.value,
-        "bytes": summary.bytes_written,
-        "seconds": summary.seconds,
-        "seed": seed,
-        "robot": vr.model,
-        "params": vr.params,
-        "field": "6x6" if rot_stiffness is not None else "3x3",
-        "principal_stiffness_range": [lo, hi],
-        "files": list(summary.files),
-    }
     if as_json:
-        print_json(info)
+        print_json(
+            {
+                "out_dir": str(summary.out_dir),
+                "positions": summary.n_positions,
+                "load_cases": summary.n_loads,
+                "repeats": summary.repeats,
+                "images": summary.n_images,
+                "format": cfg.image_format,
+                "bytes": summary.bytes_written,
+                "seconds": summary.seconds,
+                "seed": cfg.seed,
+                "robot": vr.model,
+                "params": vr.params,
+                "field": "6x6" if sim.plan.K.shape[-1] == 6 else "3x3",
+                "principal_stiffness_range": [lo, hi],
+                "files": list(summary.files),
+            }
+        )
         return
     print_summary(
         f"simulated campaign in {summary.out_dir}",
         [
-            ("images", f"{summary.n_images} {image_format.value} ({summary.bytes_written / 1e6:.1f} MB)"),
+            ("images", f"{summary.n_images} {cfg.image_format} ({summary.bytes_written / 1e6:.1f} MB)"),
             ("positions x loads x repeats", f"{summary.n_positions} x {summary.n_loads} x {summary.repeats}"),
             ("robot", f"{vr.model} ({', '.join(f'{k}={v:g}' for k, v in vr.params.items())})"),
             ("true principal stiffnesses", f"{fmt(lo, 4)} to {fmt(hi, 4)} N/mm"),
-            ("seed", str(seed)),
+            ("seed", str(cfg.seed)),
             ("time", f"{summary.seconds:.1f} s"),
             ("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/"),
         ],
@@ -421,23 +319,11 @@ def _simulate_sensor(
     as_json: bool,
 ) -> None:
     """The 3PRR: LDV recordings of stepped loads, written as a sensor campaign."""
-    from ..campaign.simulated_sensor import write_sensor_campaign
-    from ..models.prr3 import PRR3
-
     P = _positions(positions or "points22", select, "3prr")
-    given = parse_key_values(param, "--param")
-    try:
-        model = PRR3(**{k: float(v) for k, v in given.items()})
-    except ValueError as e:
-        raise InputError(f"--param: {e}") from None
-    except TypeError:
-        bad = sorted(set(given) - set(PRR3.param_names()))
-        raise InputError(
-            f"--param: unknown 3PRR parameter(s) {', '.join(bad)}; valid: {', '.join(PRR3.param_names())}"
-        ) from None
+    model = from_option("--param:", _prr3, parse_key_values(param, "--param"))
     dirs = tuple(d.strip() for d in directions.split(",") if d.strip())
-    fmt = trace_format.strip().lower()
-    if fmt not in ("csv", "tdms", "mat"):
+    trace_fmt = trace_format.strip().lower()
+    if trace_fmt not in ("csv", "tdms", "mat"):
         raise InputError(f"--trace-format {trace_format!r}: expected csv, tdms or mat")
     s = write_sensor_campaign(
         out_dir,
@@ -446,12 +332,20 @@ def _simulate_sensor(
         directions=dirs,
         repeats=repeats,
         seed=seed,
-        fmt=fmt,
+        fmt=trace_fmt,
         force=force,
         name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
         command=command,
     )
-    params = {k: v for k, v in model.params().items()}
+    _print_sensor_summary(s, model.params(), trace_fmt, seed, as_json)
+
+
+def _prr3(given: dict[str, str]) -> PRR3:
+    """The 3PRR with the parameters of ``--param`` (ValueError naming a bad one)."""
+    return PRR3().with_params(**{k: float(v) for k, v in given.items()})
+
+
+def _print_sensor_summary(s: SensorSimSummary, params: dict, fmt_name: str, seed: int, as_json: bool) -> None:
     lo, hi = s.static_error_range_mm
     if as_json:
         print_json(
@@ -462,7 +356,7 @@ def _simulate_sensor(
                 "directions": list(s.directions),
                 "repeats": s.repeats,
                 "recordings": s.n_recordings,
-                "format": fmt,
+                "format": fmt_name,
                 "bytes": s.bytes_written,
                 "seconds": s.seconds,
                 "seed": seed,
@@ -476,19 +370,15 @@ def _simulate_sensor(
     print_summary(
         f"simulated sensor campaign in {s.out_dir}",
         [
-            ("recordings", f"{s.n_recordings} {fmt} ({s.bytes_written / 1e6:.1f} MB)"),
+            ("recordings", f"{s.n_recordings} {fmt_name} ({s.bytes_written / 1e6:.1f} MB)"),
             ("points x axes x repeats", f"{s.n_points} x {len(s.directions)} x {s.repeats}"),
             ("robot", f"3prr ({', '.join(f'{k}={v:g}' for k, v in params.items())})"),
-            ("true static errors at 50 kgf", f"{fmt_mm(lo)} to {fmt_mm(hi)} mm"),
+            ("true static errors at 50 kgf", f"{fmt(lo, 4)} to {fmt(hi, 4)} mm"),
             ("seed", str(seed)),
             ("time", f"{s.seconds:.1f} s"),
             ("files", "campaign.toml, truth.json, recordings/ (+ index.csv); run: stiffmap run DIR"),
         ],
     )
-
-
-def fmt_mm(x: float) -> str:
-    return fmt(x, 4)
 
 
 def register(app: typer.Typer) -> None:

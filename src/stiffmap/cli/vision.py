@@ -1,18 +1,31 @@
 """Vision commands: ``calibrate``, ``pose``, ``displacement``, ``validate`` (see docs/vision.md).
 
-Heavy libraries (OpenCV) are imported inside the commands so that ``stiffmap
---help`` stays fast.
+Each command reads its options, calls :mod:`stiffmap.vision` (through the file-level
+entry points of :mod:`stiffmap.vision.files`) and prints. An input error becomes its
+``error:`` line and exit status here (:func:`~stiffmap.cli.common.fail`), also when a
+command runs in-process without :func:`stiffmap.cli.main.run` (typer's ``CliRunner``).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.table import Table
 
+from ..camera import load_camera, save_camera
 from ..errors import InputError
-from .common import EXIT_PARTIAL, fail, fmt, out, print_json, warn
+from ..geometry import rotvec_from_matrix
+from ..io import atomic_write_text
+from ..report.validation import stage_plot_svg
+from ..targets import CharucoBoard, Chessboard, parse_board_size
+from ..vision.calibrate import CalibrationResult
+from ..vision.displacement import ImageDisplacements, displacement_per_image
+from ..vision.files import calibrate_files, measure_files, read_stage_manifest, read_transform
+from ..vision.sequence import ImageMeasurement
+from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
+from .common import EXIT_PARTIAL, fail, fmt, out, print_json, three_numbers, warn
 
 _BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
 _CHARUCO_HELP = (
@@ -24,8 +37,6 @@ _CHARUCO_HELP = (
 def _board(
     size: str, square_mm: float, charuco: str | None = None, marker_mm: float | None = None, what="--board"
 ):
-    from ..targets import CharucoBoard, Chessboard, parse_board_size
-
     try:
         cols, rows = parse_board_size(size)
         if charuco:
@@ -42,15 +53,22 @@ def _board(
 def _point(text: str | None):
     if text is None:
         return None
-    import numpy as np
-
-    try:
-        v = [float(x) for x in text.split(",")]
-    except ValueError:
-        v = []
-    if len(v) != 3 or not np.all(np.isfinite(v)):
+    v = three_numbers(text)
+    if v is None:
         raise InputError(f"--point must be three numbers x,y,z in mm (target frame), got {text!r}")
     return np.array(v)
+
+
+def _fixed_target(board: str | None, square_mm: float | None, fixed2base: Path | None):
+    """The fixed target and its pose on the base (None, None when not given)."""
+    if board is None and square_mm is None and fixed2base is None:
+        return None, None
+    if board is None or square_mm is None or fixed2base is None:
+        raise InputError(
+            "--fixed-board, --fixed-square-mm and --fixed2base go together (for the fixed "
+            "target's own frame, give a --fixed2base file holding the 4x4 identity)"
+        )
+    return _board(board, square_mm, what="--fixed-board"), read_transform(fixed2base)
 
 
 _REFINE_HELP = (
@@ -84,10 +102,15 @@ def _pose_json(p) -> dict:
     return d
 
 
-def _camera(path: Path):
-    from ..camera import load_camera
-
-    return load_camera(path)
+def _warn_failures(ms: list[ImageMeasurement]) -> None:
+    """One warning per image that failed, or whose pose fell back to the corners (with why)."""
+    for m in ms:
+        if not m.ok:
+            warn(m.error)
+        else:
+            for p in (m.mobile, m.fixed):
+                if p is not None and p.fallback:
+                    warn(f"{m.image}: {p.fallback}")
 
 
 def _exit_for(n_ok: int, n_total: int) -> None:
@@ -120,9 +143,6 @@ def calibrate(
     reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
     Exit status 1 when some images were left out (each named), 2 when no calibration was possible.
     """
-    from ..camera import save_camera
-    from ..vision.files import calibrate_files
-
     try:
         b = _board(board, square_mm, charuco, marker_mm)
         if sum([fix_k3, rational, thin_prism]) > 1:
@@ -139,9 +159,14 @@ def calibrate(
             warn(f"{v.image}: not used: {v.reason}")
     if as_json:
         print_json(res.to_dict())
-        if res.n_used < len(res.views):
-            raise typer.Exit(EXIT_PARTIAL)
-        return
+    else:
+        _print_calibration(res, out_path)
+    if res.n_used < len(res.views):
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
+    """The camera's parameters with their 1 sigma, the views, and the Matlab toolbox's text."""
     c = res.camera
     s = c.std
     t = Table(title=f"camera ({c.image_size[0]}x{c.image_size[1]} px, model {res.model}), +/- 1 sigma")
@@ -170,8 +195,6 @@ def calibrate(
     out.print("\nAs the Camera Calibration Toolbox for Matlab prints it:\n")
     out.print(res.matlab_text(), markup=False)
     out.print(f"\nwrote {out_path}")
-    if res.n_used < len(res.views):
-        raise typer.Exit(EXIT_PARTIAL)
 
 
 # ---------------------------------------------------------------------------------- pose
@@ -190,72 +213,52 @@ def pose(
     An image that fails gives an entry with its error; the others go on. Exit status 1 when
     some images failed, 2 when all did.
     """
-    import numpy as np
-
-    from ..geometry import rotvec_from_matrix
-    from ..vision.files import measure_files
-
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        cam = _camera(camera)
+        cam = load_camera(camera)
         refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
     ms = measure_files(images, cam, b, camera_source=str(camera), refine=refine)
-    n_ok = sum(m.ok for m in ms)
     if as_json:
-        rows = []
-        for m in ms:
-            if m.ok:
-                rows.append(
-                    {
-                        "image": m.image,
-                        "board2cam": m.mobile.board2cam,
-                        "cov": m.mobile.cov,
-                        **_pose_json(m.mobile),
-                    }
-                )
-            else:
-                rows.append({"image": m.image, "error": m.error})
-        print_json(rows)
+        print_json([_pose_row(m) for m in ms])
     else:
-        t = Table(title=f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
-        t.add_column("image", overflow="fold")
-        for col in (
-            "t (mm)",
-            "1 sigma t (mm)",
-            "rotation vector (rad)",
-            "RMS (px)",
-            "corners",
-            "method",
-            "ms",
-        ):
-            t.add_column(col)
-        for m in ms:
-            if not m.ok:
-                t.add_row(m.image, "[red]failed[/]", "", "", "", "", "", "")
-                continue
-            p = m.mobile
-            method = p.method
-            if p.photometric is not None:
-                method += f" ({p.photometric.rms_dn:.2f} DN RMS)"
-            t.add_row(
-                m.image,
-                ", ".join(f"{x:.4f}" for x in p.board2cam[:3, 3]),
-                ", ".join(f"{x:.4f}" for x in p.t_std_mm),
-                ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2cam[:3, :3])),
-                f"{p.rms_px:.3f}",
-                str(p.n_corners),
-                method,
-                f"{1000 * m.timings.get('total', np.nan):.0f}",
-            )
-        out.print(t)
+        _print_poses(ms, f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
+    _warn_failures(ms)
+    _exit_for(sum(m.ok for m in ms), len(ms))
+
+
+def _pose_row(m: ImageMeasurement) -> dict:
+    """The JSON object of one image: its pose, or its error."""
+    if not m.ok:
+        return {"image": m.image, "error": m.error}
+    return {"image": m.image, "board2cam": m.mobile.board2cam, "cov": m.mobile.cov, **_pose_json(m.mobile)}
+
+
+def _print_poses(ms: list[ImageMeasurement], title: str) -> None:
+    t = Table(title=title)
+    t.add_column("image", overflow="fold")
+    for col in ("t (mm)", "1 sigma t (mm)", "rotation vector (rad)", "RMS (px)", "corners", "method", "ms"):
+        t.add_column(col)
     for m in ms:
         if not m.ok:
-            warn(m.error)
-        elif m.mobile.fallback:
-            warn(f"{m.image}: {m.mobile.fallback}")
-    _exit_for(n_ok, len(ms))
+            t.add_row(m.image, "[red]failed[/]", "", "", "", "", "", "")
+            continue
+        p = m.mobile
+        method = p.method
+        if p.photometric is not None:
+            method += f" ({p.photometric.rms_dn:.2f} DN RMS)"
+        t.add_row(
+            m.image,
+            ", ".join(f"{x:.4f}" for x in p.board2cam[:3, 3]),
+            ", ".join(f"{x:.4f}" for x in p.t_std_mm),
+            ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2cam[:3, :3])),
+            f"{p.rms_px:.3f}",
+            str(p.n_corners),
+            method,
+            f"{1000 * m.timings.get('total', np.nan):.0f}",
+        )
+    out.print(t)
 
 
 # -------------------------------------------------------------------------- displacement
@@ -284,48 +287,37 @@ def displacement(
     base frame with --fixed-board/--fixed-square-mm/--fixed2base. The mean, standard deviation
     and n over the images are printed at the end. Exit status 1 when some images failed.
     """
-    import numpy as np
-
-    from ..vision.displacement import compliant_displacement
-    from ..vision.files import measure_files, read_transform
-
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        cam = _camera(camera)
-        fb = None
-        if fixed_board is not None or fixed_square_mm is not None or fixed2base is not None:
-            if fixed_board is None or fixed_square_mm is None or fixed2base is None:
-                raise InputError(
-                    "--fixed-board, --fixed-square-mm and --fixed2base go together (for the fixed "
-                    "target's own frame, give a --fixed2base file holding the 4x4 identity)"
-                )
-            fb = _board(fixed_board, fixed_square_mm, what="--fixed-board")
-        T_fb = read_transform(fixed2base) if fixed2base is not None else None
+        cam = load_camera(camera)
+        fb, T_fb = _fixed_target(fixed_board, fixed_square_mm, fixed2base)
         q = _point(point)
         refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
-    ms = measure_files(
-        list(reference) + list(images), cam, b, fb, T_fb, camera_source=str(camera), refine=refine
-    )
-    refs, moved = ms[: len(reference)], ms[len(reference) :]
-    for m in ms:
-        if not m.ok:
-            warn(m.error)
-        else:
-            for p in (m.mobile, m.fixed):
-                if p is not None and p.fallback:
-                    warn(f"{m.image}: {p.fallback}")
-    if not any(m.ok for m in refs):
-        raise fail("no reference image could be measured; nothing to compare with")
+    paths = list(reference) + list(images)
+    ms = measure_files(paths, cam, b, fb, T_fb, camera_source=str(camera), refine=refine)
+    _warn_failures(ms)
+    try:
+        res = displacement_per_image(ms[: len(reference)], ms[len(reference) :], q)
+    except InputError as e:
+        raise fail(str(e)) from None
+    for f in res.summary.flags if res.summary is not None else ():
+        warn(f)
+    if as_json:
+        print_json(_displacement_rows(res))
+    else:
+        _print_displacements(res)
+    _exit_for(res.n_ok, res.n_images)
+
+
+def _displacement_rows(res: ImageDisplacements) -> list[dict]:
+    """The JSON list: one object per image (its displacement or its error), then the mean."""
     rows = []
-    per = []
-    for m in moved:
-        if not m.ok:
+    for m, dsp in zip(res.images, res.displacements, strict=True):
+        if dsp is None:
             rows.append({"image": m.image, "error": m.error})
             continue
-        dsp = compliant_displacement(refs, [m], q, pairing="mean-reference")
-        per.append((m, dsp))
         rows.append(
             {
                 "image": m.image,
@@ -336,51 +328,50 @@ def displacement(
                 "r_std": dsp.r_sigma,
             }
         )
-    summary = None
-    if per:
-        summary = compliant_displacement(refs, [m for m, _ in per], q, pairing="mean-reference")
+    s = res.summary
+    if s is not None:
         rows.append(
             {
                 "image": None,
                 "summary": "mean over images",
-                "frame": summary.frame,
-                "n": summary.n,
-                "d": summary.d,
-                "r": summary.r,
-                "d_std": summary.d_std,
-                "r_std": summary.r_std,
+                "frame": s.frame,
+                "n": s.n,
+                "d": s.d,
+                "r": s.r,
+                "d_std": s.d_std,
+                "r_std": s.r_std,
             }
         )
-        for f in summary.flags:
-            warn(f)
-    if as_json:
-        print_json(rows)
-    else:
-        frame = summary.frame if summary else "cam"
-        t = Table(
-            title=f"displacement relative to {len(refs)} reference image(s), {frame} frame (+/- 1 sigma)"
+    return rows
+
+
+def _print_displacements(res: ImageDisplacements) -> None:
+    summary = res.summary
+    frame = summary.frame if summary else "cam"
+    n_ref = len(res.references)
+    t = Table(title=f"displacement relative to {n_ref} reference image(s), {frame} frame (+/- 1 sigma)")
+    t.add_column("image", overflow="fold")
+    for col in ("dx, dy, dz (mm)", "1 sigma (mm)", "rx, ry, rz (rad)", "|d| (mm)"):
+        t.add_column(col)
+    for m, dsp in zip(res.images, res.displacements, strict=True):
+        if dsp is None:
+            continue
+        t.add_row(
+            m.image,
+            ", ".join(f"{x:.4f}" for x in dsp.d),
+            ", ".join(f"{x:.4f}" for x in dsp.d_sigma),
+            ", ".join(f"{x:.2e}" for x in dsp.r),
+            f"{np.linalg.norm(dsp.d):.4f}",
         )
-        t.add_column("image", overflow="fold")
-        for col in ("dx, dy, dz (mm)", "1 sigma (mm)", "rx, ry, rz (rad)", "|d| (mm)"):
-            t.add_column(col)
-        for m, dsp in per:
-            t.add_row(
-                m.image,
-                ", ".join(f"{x:.4f}" for x in dsp.d),
-                ", ".join(f"{x:.4f}" for x in dsp.d_sigma),
-                ", ".join(f"{x:.2e}" for x in dsp.r),
-                f"{np.linalg.norm(dsp.d):.4f}",
-            )
-        if summary is not None:
-            t.add_row(
-                f"mean of {summary.n}",
-                ", ".join(f"{x:.4f}" for x in summary.d),
-                "std " + ", ".join(fmt(x, 3) for x in summary.d_std),
-                ", ".join(f"{x:.2e}" for x in summary.r),
-                f"{np.linalg.norm(summary.d):.4f}",
-            )
-        out.print(t)
-    _exit_for(len(per) + sum(m.ok for m in refs), len(moved) + len(refs))
+    if summary is not None:
+        t.add_row(
+            f"mean of {summary.n}",
+            ", ".join(f"{x:.4f}" for x in summary.d),
+            "std " + ", ".join(fmt(x, 3) for x in summary.d_std),
+            ", ".join(f"{x:.2e}" for x in summary.r),
+            f"{np.linalg.norm(summary.d):.4f}",
+        )
+    out.print(t)
 
 
 # ------------------------------------------------------------------------------ validate
@@ -403,77 +394,77 @@ def validate(
 
     After the reference study's X-table test (its Table I, shown beside when the steps match).
     """
-    from ..io import atomic_write_text
-    from ..report.validation import stage_plot_svg
-    from ..vision.files import measure_files, read_stage_manifest
-    from ..vision.validate import REFERENCE_TABLE_I, validate_stage
-
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        cam = _camera(camera)
+        cam = load_camera(camera)
         rows = read_stage_manifest(manifest)
         refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
     ms = measure_files([p for p, _ in rows], cam, b, camera_source=str(camera), refine=refine)
-    refs = [m for m, (_, n) in zip(ms, rows, strict=True) if n == 0]
-    moved = [(n, m) for m, (_, n) in zip(ms, rows, strict=True) if n != 0]
     for m in ms:
         if not m.ok:
             warn(m.error)
     try:
-        res = validate_stage(refs, moved)
+        res = validate_stage_series(ms, [n for _, n in rows])
     except InputError as e:
         raise fail(str(e)) from None
     if plot is not None:
         atomic_write_text(plot, stage_plot_svg(res, title=f"Stage validation: {manifest.name}"))
     if as_json:
-        print_json(
-            {
-                "steps": [
-                    {
-                        "nominal_mm": s.nominal_mm,
-                        "mean_mm": s.mean_mm,
-                        "std_mm": s.std_mm,
-                        "n": s.n,
-                        "error_mm": s.error_mm,
-                        "along_mean_mm": s.along_mean_mm,
-                        "along_std_mm": s.along_std_mm,
-                    }
-                    for s in res.steps
-                ],
-                "axis": res.axis,
-                "n_reference": res.n_reference,
-                "rms_error_mm": res.rms_error_mm,
-                "failed": [{"image": a, "error": e} for a, e in res.failed],
-            }
-        )
+        print_json(_validation_json(res))
     else:
-        t = Table(title=f"stage validation ({res.n_reference} reference image(s)); norm of the displacement")
-        for col in (
-            "nominal (mm)",
-            "measured mean ± std (mm)",
-            "n",
-            "error (mm)",
-            "along axis (mm)",
-            "reference study",
-        ):
-            t.add_column(col)
-        for s in res.steps:
-            ref = REFERENCE_TABLE_I.get(s.nominal_mm)
-            t.add_row(
-                f"{s.nominal_mm:g}",
-                f"{s.mean_mm:.4f} ± {fmt(s.std_mm, 2)}",
-                str(s.n),
-                f"{s.error_mm:+.4f}",
-                f"{s.along_mean_mm:.4f} ± {fmt(s.along_std_mm, 2)}",
-                f"{ref[0]} ± {ref[1]}" if ref else "",
-            )
-        out.print(t)
-        out.print(f"RMS error over all images: {res.rms_error_mm:.4f} mm")
-        if plot is not None:
-            out.print(f"wrote {plot}")
+        _print_validation(res, plot)
     _exit_for(len(ms) - len(res.failed), len(ms))
+
+
+def _validation_json(res: StageValidation) -> dict:
+    return {
+        "steps": [
+            {
+                "nominal_mm": s.nominal_mm,
+                "mean_mm": s.mean_mm,
+                "std_mm": s.std_mm,
+                "n": s.n,
+                "error_mm": s.error_mm,
+                "along_mean_mm": s.along_mean_mm,
+                "along_std_mm": s.along_std_mm,
+            }
+            for s in res.steps
+        ],
+        "axis": res.axis,
+        "n_reference": res.n_reference,
+        "rms_error_mm": res.rms_error_mm,
+        "failed": [{"image": a, "error": e} for a, e in res.failed],
+    }
+
+
+def _print_validation(res: StageValidation, plot: Path | None) -> None:
+    """Each step against the reference study's Table I, the RMS error, and the plot written."""
+    t = Table(title=f"stage validation ({res.n_reference} reference image(s)); norm of the displacement")
+    for col in (
+        "nominal (mm)",
+        "measured mean ± std (mm)",
+        "n",
+        "error (mm)",
+        "along axis (mm)",
+        "reference study",
+    ):
+        t.add_column(col)
+    for s in res.steps:
+        ref = REFERENCE_TABLE_I.get(s.nominal_mm)
+        t.add_row(
+            f"{s.nominal_mm:g}",
+            f"{s.mean_mm:.4f} ± {fmt(s.std_mm, 2)}",
+            str(s.n),
+            f"{s.error_mm:+.4f}",
+            f"{s.along_mean_mm:.4f} ± {fmt(s.along_std_mm, 2)}",
+            f"{ref[0]} ± {ref[1]}" if ref else "",
+        )
+    out.print(t)
+    out.print(f"RMS error over all images: {res.rms_error_mm:.4f} mm")
+    if plot is not None:
+        out.print(f"wrote {plot}")
 
 
 def register(app: typer.Typer) -> None:

@@ -10,6 +10,8 @@ the option's name (the command line adds it).
   ``DEFAULT_LOAD`` and ``DEFAULT_FIT`` are each mechanism's default load and
   fitted parameters (:func:`fit_parameter_names`).
 - :func:`grid_points`: a preset's name or a regular grid ``X0:X1:NX,Y0:Y1:NY[,...]``;
+  :func:`positions_from_text`: a preset's name, a CSV file of positions or a list
+  ``x,y,z;x,y,z``, and :func:`select_positions` to keep some of them by number;
   :func:`force_direction`: ``x``, ``-z`` or comma-separated components.
 
 Named sets of tool positions, the reference studies' measurement layouts:
@@ -50,11 +52,13 @@ Named sets of tool positions, the reference studies' measurement layouts:
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 
 from .base import Mechanism
 from .delta import DeltaRobot
+from .io import AXIS_NAMES, read_points
 from .prr3 import PRR3
 
 __all__ = [
@@ -66,6 +70,8 @@ __all__ = [
     "position_preset",
     "default_positions",
     "grid_points",
+    "positions_from_text",
+    "select_positions",
     "MAX_GRID_POINTS",
     "MECHANISMS",
     "DEFAULT_LOAD",
@@ -218,6 +224,74 @@ def grid_points(spec: str, dim: int, mechanism: str) -> np.ndarray:
     if pts.shape[0] > MAX_GRID_POINTS:
         raise ValueError(f"{spec!r}: {pts.shape[0]} points; at most 1 000 000")
     return pts
+
+
+def positions_from_text(text: str, mechanism: str) -> np.ndarray:
+    """Positions from a preset's name, a CSV file, or a list ``x,y,z;x,y,z`` (``x,y;x,y`` in 2-D).
+
+    Parameters
+    ----------
+    text : str
+        A preset of ``mechanism`` (:data:`POSITION_PRESETS`); a CSV file (a ``.csv`` name,
+        or any existing file) with columns x, y[, z] in mm; or positions in mm, their
+        coordinates separated by commas and the positions by semicolons.
+    mechanism : str
+        ``delta`` (3-D positions) or ``3prr`` (2-D).
+
+    Returns
+    -------
+    ndarray, shape (N, dim), mm
+
+    Raises
+    ------
+    ValueError
+        As ``'text': expected a preset ...`` (the command line puts the option's name in
+        front), or when the preset is another mechanism's.
+    InputError
+        Naming the CSV file and what is wrong in it.
+    """
+    dim = MECHANISMS[mechanism].dim
+    preset = position_preset(text, mechanism)
+    if preset is not None:
+        return np.asarray(preset, dtype=np.float64)
+    if Path(text).suffix.lower() == ".csv" or Path(text).is_file():
+        return read_points(text, dim)
+    try:
+        P = np.array([[float(v) for v in item.split(",")] for item in text.split(";") if item.strip()])
+    except ValueError:
+        P = np.zeros((0, 0))
+    if P.ndim != 2 or P.shape[0] == 0 or P.shape[1] != dim or not np.all(np.isfinite(P)):
+        presets = ", ".join(k for k, v in POSITION_PRESETS.items() if v[0] == mechanism)
+        cols = AXIS_NAMES[:dim]
+        c = ",".join(cols)
+        raise ValueError(
+            f"{text!r}: expected a preset ({presets}), a CSV file with columns "
+            f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for the {mechanism} robot"
+        )
+    return P
+
+
+def select_positions(points: np.ndarray, select: str | None) -> np.ndarray:
+    """The positions numbered in ``select`` (1-based, comma-separated, in that order); all when None.
+
+    Raises
+    ------
+    ValueError
+        As ``'select': expected comma-separated position numbers between 1 and N``, or
+        naming a number given twice.
+    """
+    if not select:
+        return points
+    try:
+        idx = [int(v) for v in select.split(",") if v.strip()]
+    except ValueError:
+        idx = []
+    if not idx or min(idx) < 1 or max(idx) > len(points):
+        raise ValueError(f"{select!r}: expected comma-separated position numbers between 1 and {len(points)}")
+    dup = sorted({i for i in idx if idx.count(i) > 1})
+    if dup:
+        raise ValueError(f"{select!r}: position {dup[0]} is given more than once")
+    return points[[i - 1 for i in idx]]
 
 
 def mechanism_from_params(name: str, params: Mapping[str, float]) -> Mechanism:

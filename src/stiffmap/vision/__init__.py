@@ -10,8 +10,9 @@ Main entry points:
 - :func:`estimate_pose` -> :class:`BoardPose` (corner-based, or refined by
   :func:`refine_pose_photometric`: a model of the blurred board fitted to its pixels)
 - :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement`
-- :func:`compliant_displacement` -> :class:`Displacement`
-- :func:`validate_stage` -> :class:`StageValidation` (drawn by
+- :func:`compliant_displacement` -> :class:`Displacement`; :func:`displacement_per_image`
+  -> :class:`ImageDisplacements` (each image of a series against the same reference)
+- :func:`validate_stage`, :func:`validate_stage_series` -> :class:`StageValidation` (drawn by
   :func:`stiffmap.report.validation.stage_plot_svg`)
 
 The pose maths shared with the test-bed (:class:`BoardPose`, :func:`projection_jacobian`,
@@ -23,13 +24,19 @@ from ..posemath import BoardPose, projection_jacobian
 from .calibrate import DIST_MODELS, CalibrationResult, ViewResult, calibrate_camera
 from .corners import refine_corners
 from .detect import BoardDetection, DetectionError, board_label, detect_board, detect_boards, track_board
-from .displacement import Displacement, compliant_displacement, mean_pose
+from .displacement import (
+    Displacement,
+    ImageDisplacements,
+    compliant_displacement,
+    displacement_per_image,
+    mean_pose,
+)
 from .files import calibrate_files, measure_files, read_stage_manifest, read_transform
 from .images import ImageError, check_image_size, read_image
 from .photometric import PhotometricError, PhotometricFit, refine_pose_photometric
 from .pose import estimate_pose, pose_shift_sigma
 from .sequence import ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
-from .validate import StageStep, StageValidation, validate_stage
+from .validate import StageStep, StageValidation, validate_stage, validate_stage_series
 
 __all__ = [
     "BoardDetection",
@@ -38,6 +45,7 @@ __all__ = [
     "DIST_MODELS",
     "DetectionError",
     "Displacement",
+    "ImageDisplacements",
     "ImageError",
     "ImageMeasurement",
     "PhotometricError",
@@ -53,6 +61,7 @@ __all__ = [
     "compliant_displacement",
     "detect_board",
     "detect_boards",
+    "displacement_per_image",
     "estimate_pose",
     "mean_pose",
     "measure_files",
@@ -67,4 +76,5 @@ __all__ = [
     "refine_pose_photometric",
     "track_board",
     "validate_stage",
+    "validate_stage_series",
 ]

@@ -21,6 +21,9 @@ target's pose noise, magnified by the lever arm between the two targets, to
 every displacement. The fixed target's apparent motion between the unloaded
 and loaded images is reported (``fixed_shift``) and flagged when it exceeds
 5 sigma: the camera or the base moved.
+
+:func:`displacement_per_image` compares each image of a series with the same
+reference images, one by one and together (``stiffmap displacement``).
 """
 
 from __future__ import annotations
@@ -35,7 +38,13 @@ from ..geometry import displacement_from_poses, mean_transform
 from ..posemath import skew
 from .sequence import ImageMeasurement
 
-__all__ = ["Displacement", "compliant_displacement", "mean_pose"]
+__all__ = [
+    "Displacement",
+    "compliant_displacement",
+    "mean_pose",
+    "ImageDisplacements",
+    "displacement_per_image",
+]
 
 
 @dataclass(frozen=True)
@@ -266,3 +275,74 @@ def compliant_displacement(
         fixed_shift=fixed_shift,
         flags=tuple(flags),
     )
+
+
+@dataclass(frozen=True)
+class ImageDisplacements:
+    """The displacement of the target in each image of a series, against the same reference.
+
+    Attributes
+    ----------
+    references : tuple of ImageMeasurement
+        The reference (unloaded) images, failed ones included.
+    images : tuple of ImageMeasurement
+        The images compared with them, in order, failed ones included.
+    displacements : tuple of (Displacement or None)
+        One per image: its displacement from the mean reference pose, None where the
+        image failed.
+    summary : Displacement or None
+        Mean, standard deviation and n over the measured images (None when none was).
+    """
+
+    references: tuple[ImageMeasurement, ...]
+    images: tuple[ImageMeasurement, ...]
+    displacements: tuple[Displacement | None, ...]
+    summary: Displacement | None
+
+    @property
+    def n_ok(self) -> int:
+        """Images measured, references included."""
+        return sum(m.ok for m in self.references) + sum(d is not None for d in self.displacements)
+
+    @property
+    def n_images(self) -> int:
+        """All images, references included."""
+        return len(self.references) + len(self.images)
+
+
+def displacement_per_image(
+    references: Sequence[ImageMeasurement], images: Sequence[ImageMeasurement], point=None
+) -> ImageDisplacements:
+    """Displacement of the target in each image relative to the mean pose of the references.
+
+    Each measured image is compared alone with the references, then all of them
+    together (the summary); both with :func:`compliant_displacement`
+    (``pairing="mean-reference"``, the frame chosen as there).
+
+    Parameters
+    ----------
+    references : sequence of ImageMeasurement
+        Reference (unloaded) images, averaged; failed ones are left out.
+    images : sequence of ImageMeasurement
+        Images after the load (or any moved state); failed ones get no displacement.
+    point : array_like, shape (3,), optional
+        Point of the mobile target (its frame, mm) whose displacement this is.
+
+    Returns
+    -------
+    ImageDisplacements
+
+    Raises
+    ------
+    InputError
+        When no reference image was measured.
+    """
+    refs = list(references)
+    if not any(m.ok for m in refs):
+        raise InputError("no reference image could be measured; nothing to compare with")
+    per = [
+        compliant_displacement(refs, [m], point, pairing="mean-reference") if m.ok else None for m in images
+    ]
+    measured = [m for m, d in zip(images, per, strict=True) if d is not None]
+    summary = compliant_displacement(refs, measured, point, pairing="mean-reference") if measured else None
+    return ImageDisplacements(tuple(refs), tuple(images), tuple(per), summary)

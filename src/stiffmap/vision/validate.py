@@ -9,6 +9,9 @@ the stage axis fitted to all images (the principal direction of the measured
 displacements). Per nominal step: mean, standard deviation, n and the error
 mean - nominal.
 
+:func:`validate_stage_series` takes the images of a stage manifest in its order
+(:func:`stiffmap.vision.files.read_stage_manifest`: nominal 0 is the start position).
+
 The result is data; :func:`stiffmap.report.validation.stage_plot_svg` draws it.
 """
 
@@ -24,7 +27,7 @@ from ..geometry import displacement_from_poses
 from .displacement import mean_pose
 from .sequence import ImageMeasurement
 
-__all__ = ["StageStep", "StageValidation", "validate_stage", "REFERENCE_TABLE_I"]
+__all__ = ["StageStep", "StageValidation", "validate_stage", "validate_stage_series", "REFERENCE_TABLE_I"]
 
 #: The reference study's Table I: nominal (mm) -> (mean, std) of the estimated displacement, mm.
 REFERENCE_TABLE_I = {2.0: (1.99, 0.28), 5.0: (4.97, 0.27), 10.0: (9.75, 0.24), 20.0: (20.01, 0.21)}
@@ -175,3 +178,28 @@ def validate_stage(
             )
         )
     return StageValidation(steps=tuple(steps), axis=axis, n_reference=len(ref), failed=tuple(failed))
+
+
+def validate_stage_series(
+    measurements: Sequence[ImageMeasurement], nominals_mm: Sequence[float], point=None
+) -> StageValidation:
+    """:func:`validate_stage` of a stage manifest's images: those at nominal 0 mm are the references.
+
+    Parameters
+    ----------
+    measurements : sequence of ImageMeasurement
+        One per image of the manifest, in its order.
+    nominals_mm : sequence of float
+        The stage displacement of each image, mm (0: the start position).
+    point : array_like, shape (3,), optional
+        As :func:`validate_stage`.
+
+    Raises
+    ------
+    InputError
+        As :func:`validate_stage`.
+    """
+    pairs = list(zip(measurements, nominals_mm, strict=True))
+    reference = [m for m, n in pairs if n == 0]
+    moved = [(n, m) for m, n in pairs if n != 0]
+    return validate_stage(reference, moved, point)
