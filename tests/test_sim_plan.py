@@ -6,7 +6,7 @@ from collections import namedtuple
 
 import numpy as np
 import pytest
-from _sim_helpers import scaled_camera
+from helpers.board_scenes import scaled_camera
 
 from stiffmap.camera import reference_camera
 from stiffmap.campaign.simulated import write_campaign

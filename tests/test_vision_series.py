@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _vision_helpers import look_at_pose
+from helpers.board_scenes import look_at_pose
 
 from stiffmap.errors import InputError
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec
