@@ -212,6 +212,10 @@ def read_json(path: str | os.PathLike, what: str = "file"):
         raise InputError(f"not valid JSON (line {e.lineno}, column {e.colno}: {e.msg})", source=src) from None
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(f"cannot read: {e}", source=src) from None
+    except RecursionError:
+        raise InputError("not a usable JSON file: nested too deeply", source=src) from None
+    except ValueError:  # an integer of thousands of digits
+        raise InputError("not a usable JSON file: a number has thousands of digits", source=src) from None
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
