@@ -11,6 +11,7 @@ command list below gives each command's module and one-line summary for the help
 
 from __future__ import annotations
 
+import functools
 import importlib
 import inspect
 import os
@@ -85,15 +86,20 @@ class _CommandStub(click.Command):
     """A command not loaded yet: its name and summary, enough for the help page."""
 
 
-def load_commands(module: str) -> list[click.Command]:
-    """Import ``stiffmap.cli.<module>`` and return its commands as click commands."""
+@functools.cache
+def load_commands(module: str) -> tuple[click.Command, ...]:
+    """Import ``stiffmap.cli.<module>`` and return its commands as click commands.
+
+    Once per module and process: the help texts are escaped in place (see
+    :func:`_literal_brackets`), which must not happen twice.
+    """
     sub = typer.Typer(**_TYPER_SETTINGS)
     importlib.import_module(f"{__package__}.{module}").register(sub)
     _literal_brackets(sub)
-    return [
+    return tuple(
         typer.main.get_command_from_info(info, pretty_exceptions_short=True, rich_markup_mode="rich")
         for info in sub.registered_commands
-    ]
+    )
 
 
 class _LazyCommands(TyperGroup):
