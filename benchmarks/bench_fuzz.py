@@ -64,7 +64,8 @@ def count(cls: FuzzClass, examples: int, seed: int) -> tuple[collections.Counter
         if o.kind not in HANDLED:
             last = (o.stderr.strip().splitlines() or [""])[-1]
             last = re.sub(r"/tmp/stiffmap-fuzz-\w+", "{dir}", last)[:200]
-            finding = f"{cls.name}: {o.kind}: {case.note} -> {last}" if case.note else f"{cls.name}: {o.kind}: {last}"
+            what = f"{case.note} -> " if case.note else ""
+            finding = f"{cls.name}: {o.kind}: {what}{last}"
             if finding not in findings and len(findings) < 5:
                 findings.append(finding)
 
