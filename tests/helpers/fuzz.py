@@ -267,9 +267,11 @@ def mutated_text(draw, valid: str, *, encoding: str = "utf-8") -> bytes:
     elif kind == "header only":
         t = lines[0] if lines else ""
     elif kind == "huge field":
-        t = _replace_number(t, draw(st.integers(0, n_num - 1)), draw(st.sampled_from(("7", "x", "-"))) * 200_000)
+        huge = draw(st.sampled_from(("7", "x", "-"))) * 200_000
+        t = _replace_number(t, draw(st.integers(0, n_num - 1)), huge)
     elif kind == "separator":
-        a, b = draw(st.sampled_from(((",", ";"), (",", "\t"), (",", " "), ("\n", "\r"), (".", ","), ("=", ":"))))
+        swaps = ((",", ";"), (",", "\t"), (",", " "), ("\n", "\r"), (".", ","), ("=", ":"))
+        a, b = draw(st.sampled_from(swaps))
         t = t.replace(a, b)
     elif kind == "encoding":
         enc = draw(st.sampled_from(("utf-16", "utf-32", "latin-1-bom", "cp1252")))
