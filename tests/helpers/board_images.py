@@ -23,6 +23,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
@@ -238,3 +239,72 @@ def brute_force_reflectance(camera: CameraModel, target, roi, n: int = 64, backg
     p = lam[..., None] * d - t
     refl, alpha = target.texture().sample(p @ R[:, 0], p @ R[:, 1])
     return (refl * alpha + (1 - alpha) * background).mean(axis=(2, 3))
+
+
+def warped_board_image(
+    camera: CameraModel,
+    board: Chessboard,
+    board2cam: np.ndarray,
+    *,
+    white_first: bool = False,
+    margin_sq: float = 1.0,
+    supersample: int = 4,
+    blur_after_px: float = 0.8,
+    black: float = 30.0,
+    white: float = 220.0,
+    background: float = 70.0,
+    noise: float = 1.0,
+    rng: np.random.Generator | None = None,
+) -> np.ndarray:
+    """A chessboard drawn through OpenCV alone, with a blur applied after pixel integration.
+
+    An image formation that is neither the test-bed's nor :func:`quick_board_image`'s: a
+    fine raster of the printed board (squares from -1 to ``cols`` and ``rows``, a white
+    margin of ``margin_sq`` squares) is mapped into a ``supersample`` times finer image
+    by ``cv2.warpPerspective`` (bilinear), integrated over each pixel by
+    ``cv2.resize(INTER_AREA)`` (the raster box-filtered first over a fine pixel's
+    footprint, so each fine pixel is an area average too), then blurred by ``cv2.GaussianBlur`` (sigma
+    ``blur_after_px``) -- the order of a camera whose optics are sharp but whose image
+    is softened afterwards (sensor cross-talk, demosaicing, compression) -- and given
+    Gaussian noise, 8 bits. ``white_first`` prints square (0, 0) white (the colour
+    phase of a board whose right-handed orderings cannot tell it).
+
+    The camera must have no lens distortion (the map is a homography).
+    """
+    if np.any(camera.dist_array != 0):
+        raise ValueError("warped_board_image draws through a homography: the camera must have no distortion")
+    s = board.square_mm
+    x0, y0 = -(1 + margin_sq) * s, -(1 + margin_sq) * s
+    x1, y1 = (board.cols + margin_sq) * s, (board.rows + margin_sq) * s
+    w, h = camera.image_size
+    T = np.asarray(board2cam, dtype=np.float64)
+    Hb = camera.matrix @ np.c_[T[:3, 0], T[:3, 1], T[:3, 3]]  # board mm -> image px
+    # Raster fine enough that one raster pixel is under a quarter of a supersampled pixel.
+    corners = np.array([[x0, y0, 1], [x1, y0, 1], [x1, y1, 1], [x0, y1, 1]]) @ Hb.T
+    px = corners[:, :2] / corners[:, 2:]
+    span_px = max(np.ptp(px[:, 0]) / (x1 - x0), np.ptp(px[:, 1]) / (y1 - y0))
+    r = 4.0 * supersample * span_px  # raster px per mm
+    nu, nv = int(np.ceil((x1 - x0) * r)), int(np.ceil((y1 - y0) * r))
+    u = x0 + (np.arange(nu) + 0.5) / r
+    v = y0 + (np.arange(nv) + 0.5) / r
+    i = np.floor(u / s).astype(int)[None, :]
+    j = np.floor(v / s).astype(int)[:, None]
+    checkered = (i >= -1) & (i <= board.cols - 1) & (j >= -1) & (j <= board.rows - 1)
+    is_black = checkered & (((i + j) % 2 == 0) != white_first)
+    raster = np.where(is_black, black, white).astype(np.float32)
+    # Box-filter the raster over about one supersampled pixel's footprint, so that the
+    # bilinear warp samples an area average, not a point (no staircase edges).
+    k = int(round(r / (supersample * span_px))) | 1  # odd: centred, no shift
+    raster = cv2.blur(raster, (k, k), borderType=cv2.BORDER_REPLICATE)
+    A = np.array([[1 / r, 0, x0 + 0.5 / r], [0, 1 / r, y0 + 0.5 / r], [0, 0, 1]])
+    ss = supersample
+    S = np.array([[ss, 0, (ss - 1) / 2], [0, ss, (ss - 1) / 2], [0, 0, 1]])
+    fine = cv2.warpPerspective(
+        raster, S @ Hb @ A, (w * ss, h * ss), flags=cv2.INTER_LINEAR, borderValue=float(background)
+    )
+    img = cv2.resize(fine, (w, h), interpolation=cv2.INTER_AREA)
+    if blur_after_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), blur_after_px)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    img = img + rng.normal(0.0, noise, img.shape)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)

@@ -123,7 +123,7 @@ def _exit_for(n_ok: int, n_total: int) -> None:
 
 # ----------------------------------------------------------------------------- calibrate
 def calibrate(
-    images: list[Path] = typer.Argument(..., help="Images of the board (at least 3 views)."),
+    images: list[Path] = typer.Argument(..., help="Images of the board (at least 3 views), or folders of them."),
     board: str = typer.Option(..., "--board", help=_BOARD_HELP),
     square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
     out_path: Path = typer.Option(Path("camera.json"), "--out", help="Where to write camera.json."),
@@ -199,7 +199,7 @@ def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
 
 # ---------------------------------------------------------------------------------- pose
 def pose(
-    images: list[Path] = typer.Argument(..., help="Images of the board."),
+    images: list[Path] = typer.Argument(..., help="Images of the board, or folders of them (in natural order)."),
     camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
     board: str = typer.Option(..., "--board", help=_BOARD_HELP),
     square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),

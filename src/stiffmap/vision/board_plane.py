@@ -28,8 +28,10 @@ __all__ = [
     "grid_spacing",
     "mask_polygon",
     "reject_outliers",
+    "corner_saddles",
     "saddle_score",
     "sample_bilinear",
+    "trim_to_saddles",
     "window_for",
 ]
 
@@ -118,6 +120,48 @@ def board_continues(image: np.ndarray, grid: np.ndarray, contrast: float) -> str
         s = saddle_score(image, H, pts[inside])
         if np.mean(s > 0.5 * contrast) > 0.5:
             return name
+    return None
+
+
+def corner_saddles(image: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Saddle contrast (as :func:`saddle_score`) at each corner of a (rows, cols, 2) grid.
+
+    The four square centres around a corner come from the grid's own local steps
+    (central differences, one-sided on the edges), not from one homography, so the
+    test holds under strong lens distortion.
+    """
+    du = np.gradient(grid, axis=1)
+    dv = np.gradient(grid, axis=0)
+    centres = [grid + 0.5 * (su * du + sv * dv) for su, sv in ((1, 1), (-1, -1), (1, -1), (-1, 1))]
+    a, b, c, d = (sample_bilinear(image, q) for q in centres)
+    return np.abs(a + b - c - d) / 2 - np.abs(a - b) / 2 - np.abs(c - d) / 2
+
+
+def trim_to_saddles(image: np.ndarray, grid: np.ndarray, fraction: float = 0.5) -> np.ndarray | None:
+    """The grid without its outer rows and columns whose corners are not chessboard saddles.
+
+    OpenCV's "larger" search may follow a board into its printed margin or the table
+    behind it; there the "corners" sit on an edge, not where four squares meet. A
+    side is removed while the median saddle contrast of its corners is below
+    ``fraction`` times the median of the grid's interior. Returns None when fewer
+    than 3x3 corners remain.
+    """
+    g = np.asarray(grid, dtype=np.float64)
+    while min(g.shape[:2]) >= 3:
+        s = corner_saddles(image, g)
+        ref = float(np.median(s[1:-1, 1:-1]))
+        if ref <= 0:
+            return None
+        sides = {
+            "top": np.median(s[0]),
+            "bottom": np.median(s[-1]),
+            "left": np.median(s[:, 0]),
+            "right": np.median(s[:, -1]),
+        }
+        worst = min(sides, key=sides.get)
+        if sides[worst] >= fraction * ref:
+            return g
+        g = {"top": g[1:], "bottom": g[:-1], "left": g[:, 1:], "right": g[:, :-1]}[worst]
     return None
 
 

@@ -1,11 +1,13 @@
 """Chessboard search: coarse grids on a reduced image, checked, refined and ordered.
 
-1. **Coarse search** with OpenCV's ``findChessboardCornersSB`` on the image reduced by
-   an integer factor (:func:`~stiffmap.vision.images.coarse_scales`), falling back to
-   finer scales and to the exhaustive search only when that fails. Several boards in one
-   image are told apart by their size (inner corners): the board with the most corners
-   is searched first and each board found is masked before the next search, because
-   the detector returns at most one board per call.
+1. **Coarse search** with OpenCV's detectors on the image reduced by an integer factor
+   (:func:`~stiffmap.vision.images.coarse_scales`): ``findChessboardCornersSB`` first,
+   then the classic ``findChessboardCorners`` (adaptive threshold, quads; it finds boards
+   seen at steep angles that SB misses), then SB's exhaustive search, and the same at
+   finer scales down to full resolution only when the coarser ones fail. Several boards
+   in one image are told apart by their size (inner corners): the board with the most
+   corners is searched first and each board found is masked before the next search,
+   because the detectors return at most one board per call.
 2. **Checks** that the grid is the whole board: a saddle test one step outside each side
    of the grid says when the printed board continues (wrong ``--board`` size), and the
    checkerboard contrast of the inner squares rejects spurious grids.
@@ -14,7 +16,9 @@
    (:mod:`stiffmap.vision.ordering`) and the rejection of corners off the board's plane.
 
 When a board is not found, :func:`diagnose` says why: no grid at all, a larger board
-(wrong size), or only part of one.
+(wrong size), or only part of one. A grid that OpenCV's "larger" mode follows beyond the
+board (its printed margin, the table edge behind it) is trimmed of the outer rows whose
+corners are not chessboard saddles before its size is named.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from .board_plane import (
     grid_spacing,
     mask_polygon,
     reject_outliers,
+    trim_to_saddles,
     window_for,
 )
 from .corners import refine_corners
@@ -62,16 +67,15 @@ def search_chessboards(
         fill = int(np.median(small))
         for poly in masks:
             cv2.fillConvexPoly(small, np.round((poly - (s - 1) / 2) / s).astype(np.int32), fill)
-        for flags in (0, cv2.CALIB_CB_EXHAUSTIVE):
+        for detector in DETECTORS:
             progress = True
             while progress and remaining:
                 progress = False
                 for k in list(remaining):
                     b = boards[k]
-                    ok, c = cv2.findChessboardCornersSB(small, b.pattern_size, flags=flags)
-                    if not ok or c is None or c.size != 2 * b.n_corners:
+                    g_small = _find_grid(small, b, detector)
+                    if g_small is None:
                         continue
-                    g_small = c.reshape(b.rows, b.cols, 2).astype(np.float64)
                     contrast = grid_contrast(small, g_small)
                     if contrast < MIN_CONTRAST or board_continues(small, g_small, contrast) is not None:
                         # A part of a larger board, or a spurious grid: not this board.
@@ -86,6 +90,25 @@ def search_chessboards(
             if not remaining:
                 return found
     return found
+
+
+#: OpenCV's detectors in the order they are tried at each scale (cheapest, most often right first).
+DETECTORS = ("sb", "classic", "sb-exhaustive")
+
+
+def _find_grid(small: np.ndarray, board: Chessboard, detector: str) -> np.ndarray | None:
+    """The (rows, cols, 2) grid one OpenCV detector finds for ``board`` in ``small``, or None."""
+    ps = board.pattern_size
+    if detector == "classic":
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        ok, c = cv2.findChessboardCorners(small, ps, flags=flags)
+    else:
+        flags = cv2.CALIB_CB_EXHAUSTIVE if detector == "sb-exhaustive" else 0
+        ok, c = cv2.findChessboardCornersSB(small, ps, flags=flags)
+    if not ok or c is None or c.size != 2 * board.n_corners:
+        return None
+    g = c.reshape(board.rows, board.cols, 2).astype(np.float64)
+    return g if np.all(np.isfinite(g)) else None
 
 
 def diagnose(
@@ -146,10 +169,15 @@ def _diagnose_at(
             break
         r, q = meta.shape[:2]
         g = c.reshape(r, q, 2).astype(np.float64)
+        trimmed = trim_to_saddles(small, g)
+        cv2.fillConvexPoly(small, np.round(mask_polygon(g, 1.2)).astype(np.int32), fill)
+        if trimmed is None:
+            continue
+        g = trimmed
+        r, q = g.shape[:2]
         if (q >= r) != (board.cols >= board.rows):
             q, r = r, q  # name the grid in the orientation of the size asked for
         seen.append((q, r))
-        cv2.fillConvexPoly(small, np.round(mask_polygon(g, 1.2)).astype(np.int32), fill)
     larger = [(q, r) for q, r in seen if (q >= board.cols and r >= board.rows)]
     if larger:
         return DetectionError(
@@ -178,7 +206,7 @@ def finish_chessboard(
     refined = np.where(ok[:, None], pts, grid.reshape(-1, 2)).reshape(grid.shape)
     okg = ok.reshape(grid.shape[:2])
     contrast = grid_contrast(image, refined)
-    canon, how = canonical_order(image, refined, board, contrast, reference)
+    canon, how, phase = canonical_order(image, refined, board, contrast, reference)
     # Apply the same re-indexing to the success flags.
     flat = refined.reshape(-1, 2)
     pos = np.array([int(np.argmin(np.abs(flat - p).sum(axis=1))) for p in canon.reshape(-1, 2)])
@@ -200,6 +228,7 @@ def finish_chessboard(
         window_px=win,
         scale=scale,
         orientation=how,
+        phase=phase,
         rejected=rejected,
         seconds=time.perf_counter() - t0,
     )

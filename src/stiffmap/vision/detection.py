@@ -83,6 +83,12 @@ class BoardDetection:
         Canonical ids of corners found but rejected by the homography check.
     seconds : float
         Time spent, s.
+    phase : int
+        Colour phase of the printed squares in the canonical frame: 0 when square
+        (i, j) is black for i + j even (``docs/conventions.md``), 1 when it is white.
+        Only a board whose two right-handed orderings have the same colours (odd
+        numbers of inner corners both ways, or even both ways) can have phase 1:
+        which diagonal of its corners is black depends on how it was printed.
     """
 
     board: Board
@@ -95,6 +101,7 @@ class BoardDetection:
     orientation: str = "colour"
     rejected: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     seconds: float = 0.0
+    phase: int = 0
 
     @property
     def n_corners(self) -> int:

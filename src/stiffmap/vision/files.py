@@ -9,6 +9,7 @@ turning each bad file into a recorded error while the others go on.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,7 +24,50 @@ from .detect import Board, BoardDetection, detect_board
 from .images import read_image
 from .sequence import ImageMeasurement, measure_sequence
 
-__all__ = ["read_transform", "read_stage_manifest", "calibrate_files", "measure_files"]
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "image_files",
+    "read_transform",
+    "read_stage_manifest",
+    "calibrate_files",
+    "measure_files",
+]
+
+#: File-name endings taken as images when a folder is given (any case).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".webp")
+
+
+def _natural_key(path: Path) -> list:
+    """Sort key putting ``view2.jpg`` before ``view10.jpg``."""
+    return [int(t) if t.isdigit() else t.lower() for t in re.split(r"(\d+)", path.name)]
+
+
+def image_files(paths: Sequence[str | os.PathLike]) -> list[Path]:
+    """The image files named: files as given, folders replaced by the images they hold.
+
+    A folder gives its files ending in :data:`IMAGE_SUFFIXES` (any case), in natural
+    order (``view2`` before ``view10``); sub-folders are not searched.
+
+    Raises
+    ------
+    InputError
+        A folder without image files (naming it and the endings looked for).
+    """
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if not p.is_dir():
+            out.append(p)
+            continue
+        found = sorted(
+            (q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES and q.is_file()), key=_natural_key
+        )
+        if not found:
+            raise InputError(
+                "the folder holds no image files (looked for " + ", ".join(IMAGE_SUFFIXES) + ")",
+                source=str(p),
+            )
+        out.extend(found)
+    return out
 
 
 def read_transform(path: str | os.PathLike, key: str = "fixed2base") -> np.ndarray:
@@ -97,7 +141,7 @@ def calibrate_files(
     outlier_factor: float = 3.0,
     scale: int | None = None,
 ) -> CalibrationResult:
-    """Calibrate a camera from image files of a board.
+    """Calibrate a camera from image files of a board (a folder stands for its images).
 
     Every image is read and searched; an unreadable image, one of another size
     or one without the board becomes a view with ``used = False`` and the
@@ -110,6 +154,7 @@ def calibrate_files(
     """
     if not paths:
         raise InputError("no calibration images given")
+    paths = image_files(paths)
     dets: list[BoardDetection | str] = []
     sizes: list[tuple[int, int] | None] = []
     for p in paths:
@@ -159,12 +204,14 @@ def measure_files(
     camera_source: str = "camera.json",
     refine: str = "auto",
 ) -> list[ImageMeasurement]:
-    """Poses in each image file (tracking along the list); bad files give ``error`` entries.
+    """Poses in each image file (tracking along the list; a folder stands for its images).
+
+    Bad files give ``error`` entries.
 
     ``refine`` as in :class:`~stiffmap.vision.sequence.PoseTracker`.
     """
     return measure_sequence(
-        list(paths),
+        image_files(paths),
         camera,
         board,
         fixed_board,

@@ -4,7 +4,9 @@ The grid a detector returns is re-indexed so that the board frame is right-hande
 into the board) and square (i, j) is black when i + j is even. When the colours cannot
 decide (``cols + rows`` even, square boards) the ordering follows continuity with a
 reference detection, else the board's x axis is taken as the one pointing most to the
-image's right.
+image's right; the colours then still say the board's colour *phase*: on such a board
+the right-handed orderings all put square (0, 0) on the same colour, black or white
+depending on how the board was printed, and the photometric model needs to know which.
 """
 
 from __future__ import annotations
@@ -49,8 +51,21 @@ def _parity_score(image: np.ndarray, g: np.ndarray) -> float:
 
 def canonical_order(
     image: np.ndarray, grid: np.ndarray, board: Chessboard, contrast: float, reference: BoardDetection | None
+) -> tuple[np.ndarray, str, int]:
+    """Canonical (rows, cols, 2) grid, what decided it, and the colour phase (0 or 1).
+
+    The phase is 1 when, in the grid returned, the squares with i + j even are clearly
+    white (:attr:`~stiffmap.vision.detection.BoardDetection.phase`).
+    """
+    g, how = _order(image, grid, contrast, reference)
+    score = _parity_score(image, g)
+    phase = int(score > 0 and abs(score) > 0.3 * max(contrast, 1.0))
+    return g, how, phase
+
+
+def _order(
+    image: np.ndarray, grid: np.ndarray, contrast: float, reference: BoardDetection | None
 ) -> tuple[np.ndarray, str]:
-    """Canonical (rows, cols, 2) grid and what decided it."""
     cands = _candidates(grid)
     if not cands:  # pragma: no cover - every grid has a right-handed re-indexing
         raise DetectionError("cannot orient the corner grid", reason="partial")

@@ -86,6 +86,7 @@ def track_board(
         window_px=win,
         scale=0,
         orientation="tracked",
+        phase=previous.phase,
         rejected=np.zeros(0, dtype=int),
         seconds=time.perf_counter() - t0,
     )

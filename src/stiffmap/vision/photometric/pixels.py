@@ -151,13 +151,14 @@ def _monomials(un: np.ndarray, vn: np.ndarray, degree: int) -> np.ndarray:
     return np.ascontiguousarray(np.stack(rows, axis=0))
 
 
-def _jumps(k: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
+def _jumps(k: np.ndarray, n: int, phase: int = 0) -> tuple[np.ndarray, ...]:
     """(A_F, B_F - A_F, A_G, B_G - A_G) across line k of the indicator F = I and of G = I S.
 
-    Lines k = -1..n at k s; square i spans [i s, (i + 1) s] for i = -1..n-1 with S = (-1)^i
-    (square (i, j) black when i + j is even: black = (1 + Sx Sy) / 2 on the checkered area).
+    Lines k = -1..n at k s; square i spans [i s, (i + 1) s] for i = -1..n-1 with S = (-1)^(i + phase)
+    (square (i, j) black when i + j + phase is even: black = (1 + Sx Sy) / 2 on the checkered
+    area; the phase is given to one axis only).
     """
-    sgn_right = np.where(k % 2 == 0, 1.0, -1.0)  # (-1)^k, the square right of line k
+    sgn_right = np.where((k + phase) % 2 == 0, 1.0, -1.0)  # the sign S of the square right of line k
     AF = np.where(k == -1, 0.0, 1.0)
     BF = np.where(k == n, 0.0, 1.0)
     AG = np.where(k == -1, 0.0, -sgn_right)
@@ -165,15 +166,15 @@ def _jumps(k: np.ndarray, n: int) -> tuple[np.ndarray, ...]:
     return AF, BF - AF, AG, BG - AG
 
 
-def _black_side(k: np.ndarray, j: np.ndarray, n: int, m: int) -> np.ndarray:
+def _black_side(k: np.ndarray, j: np.ndarray, n: int, m: int, phase: int = 0) -> np.ndarray:
     """+1 when square (k - 1, j) is black, -1 when square (k, j) is, 0 when neither.
 
-    Squares (i, j) with i in -1..n-1 and j in -1..m-1 are printed, black when i + j is
-    even; anything else is the white margin.
+    Squares (i, j) with i in -1..n-1 and j in -1..m-1 are printed, black when i + j +
+    phase is even; anything else is the white margin.
     """
     inside_j = (j >= -1) & (j <= m - 1)
-    left = inside_j & (k - 1 >= -1) & (k - 1 <= n - 1) & ((k - 1 + j) % 2 == 0)
-    right = inside_j & (k >= -1) & (k <= n - 1) & ((k + j) % 2 == 0)
+    left = inside_j & (k - 1 >= -1) & (k - 1 <= n - 1) & ((k - 1 + j + phase) % 2 == 0)
+    right = inside_j & (k >= -1) & (k <= n - 1) & ((k + j + phase) % 2 == 0)
     return left.astype(np.float64) - right.astype(np.float64)
 
 
@@ -197,6 +198,7 @@ def prepare_pixels(
     outer_edges: bool = True,
     exclude=(),
     saturation: int | None = None,
+    phase: int = 0,
 ) -> PhotometricSetup:
     """Select the pixels of a board for the photometric fit at a starting pose.
 
@@ -224,6 +226,9 @@ def prepare_pixels(
     saturation : int, optional
         Pixels at or above this value are left out (default the dtype's maximum), and so
         are pixels at 0.
+    phase : {0, 1}
+        Colour phase of the board: square (i, j) is black when i + j + phase is even
+        (:attr:`~stiffmap.vision.detection.BoardDetection.phase`).
 
     Returns
     -------
@@ -238,6 +243,8 @@ def prepare_pixels(
     T = check_board2cam(board2cam)
     if not isinstance(board, Chessboard):
         raise ValueError(f"the photometric model is for chessboards, got {type(board).__name__}")
+    if phase not in (0, 1):
+        raise ValueError(f"phase must be 0 or 1, got {phase!r}")
     if int(shading_degree) not in (0, 1, 2):
         raise ValueError(f"shading_degree must be 0, 1 or 2, got {shading_degree}")
     if not (np.isfinite(blur_px) and blur_px > 0):
@@ -365,14 +372,14 @@ def prepare_pixels(
     sYk = 1.0 / isYc[tk].astype(np.float64)
     kxs = kx.astype(np.int64)
     kys = ky.astype(np.int64)
-    fx0, fx1, gx0, gx1 = _jumps(kxs, cols)
+    fx0, fx1, gx0, gx1 = _jumps(kxs, cols, phase)
     fy0, fy1, gy0, gy1 = _jumps(kys, rows)
     # Which side of its line is black (the squares either side: (k - 1, j) and (k, j)).
     on_x = dX <= dY
     jx = np.floor(Y / sf).astype(np.int64)  # square row of an X-edge pixel
     iy = np.floor(X / sf).astype(np.int64)  # square column of a Y-edge pixel
-    bsx = np.where(on_x, _black_side(kxs, jx, cols, rows), 0.0)
-    bsy = np.where(on_x, 0.0, _black_side(kys, iy, rows, cols))
+    bsx = np.where(on_x, _black_side(kxs, jx, cols, rows, phase), 0.0)
+    bsy = np.where(on_x, 0.0, _black_side(kys, iy, rows, cols, phase))
     # Direction of the edge's normal in the image (the gradient of X or Y).
     nu = np.where(on_x, gXu, gYu)
     nv = np.where(on_x, gXv, gYv)

@@ -107,6 +107,7 @@ def refine_pose_photometric(
     max_iter: int = 30,
     max_outlier_fraction: float = 0.3,
     source: str | None = None,
+    phase: int | None = None,
 ):
     """Refine a chessboard's pose by fitting a model of the blurred board to its pixels.
 
@@ -144,6 +145,9 @@ def refine_pose_photometric(
         outliers (an obstructed board).
     source : str, optional
         Image name for error messages.
+    phase : {0, 1}, optional
+        Colour phase of the board (square (i, j) black when i + j + phase is even);
+        default ``detection.phase``, else 0.
 
     Returns
     -------
@@ -171,6 +175,7 @@ def refine_pose_photometric(
         raise ValueError(f"blur_init_px must be positive, got {blur_init_px}")
     T0 = check_board2cam(board2cam_init)
     img = check_image(image, uint16=True)
+    colour_phase = int(phase if phase is not None else getattr(detection, "phase", 0))
 
     def fail(msg: str) -> PhotometricError:
         return PhotometricError(f"{board.size} chessboard: photometric fit: {msg}", source=source)
@@ -187,6 +192,7 @@ def refine_pose_photometric(
                 shading_degree=shading_degree,
                 outer_edges=outer_edges,
                 exclude=exclude,
+                phase=colour_phase,
             )
         except PhotometricError as e:
             raise fail(e.detail) from None
