@@ -16,16 +16,16 @@ REPO = Path(__file__).resolve().parents[2]
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 
-def _find_calib_example() -> Path | None:
-    """The real calibration photographs (../shared/data/calib_example), also from a git worktree.
+def _find_shared(sub: str, probe: str) -> Path | None:
+    """A folder of ../shared/data holding ``probe``, also from a git worktree.
 
     ``$STIFFMAP_SHARED_DATA`` may point at the shared data folder instead.
     """
-    cands = [SHARED_DATA / "calib_example", REPO.parents[1] / "shared" / "data" / "calib_example"]
+    cands = [SHARED_DATA / sub, REPO.parents[1] / "shared" / "data" / sub]
     if os.environ.get("STIFFMAP_SHARED_DATA"):
-        cands.insert(0, Path(os.environ["STIFFMAP_SHARED_DATA"]) / "calib_example")
+        cands.insert(0, Path(os.environ["STIFFMAP_SHARED_DATA"]) / sub)
     for cand in cands:
-        if (cand / "Image1.tif").is_file():
+        if (cand / probe).is_file():
             return cand
     return None
 
@@ -33,13 +33,14 @@ def _find_calib_example() -> Path | None:
 class _SharedData:
     """Where the real photographs are; a test that uses them is skipped, with the reason, when absent."""
 
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, name: str = "calib_example") -> None:
         self.path = path
+        self.name = name
 
     def _get(self) -> Path:
         if self.path is None:
             pytest.skip(
-                "the real photographs ../shared/data/calib_example were not found next to the repository "
+                f"the real photographs ../shared/data/{self.name} were not found next to the repository "
                 "(set STIFFMAP_SHARED_DATA to the shared data folder)"
             )
         return self.path
@@ -55,4 +56,13 @@ class _SharedData:
 
 
 #: Bouguet's calibration example: 20 real 640x480 photographs of a 13x12 board, 30 mm squares.
-CALIB_DIR = _SharedData(_find_calib_example())
+CALIB_DIR = _SharedData(_find_shared("calib_example", "Image1.tif"))
+
+#: Real photographs of 9x6 boards from three more cameras (../shared/data/real/README.md), with
+#: the number of views where OpenCV 5.0's findChessboardCorners / findChessboardCornersSB find the
+#: board, as that README reports them.
+REAL_SETS = {
+    "udacity": (_SharedData(_find_shared("real/udacity", "calibration1.jpg"), "real/udacity"), 17, 18),
+    "christos": (_SharedData(_find_shared("real/christos", "0.jpg"), "real/christos"), 25, 19),
+    "greninja": (_SharedData(_find_shared("real/greninja", "1.jpg"), "real/greninja"), 18, 15),
+}
