@@ -14,7 +14,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ..camera import load_camera, save_camera
+from ..camera import load_camera, plausibility_problems, save_camera
 from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..io import atomic_write_text
@@ -171,7 +171,9 @@ def calibrate(
 
     Views where the board is not found, or whose RMS is an outlier, are left out with the
     reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
-    Exit status 1 when some images were left out (each named), 2 when no calibration was possible.
+    Exit status 1 when some images were left out (each named) or the result fails camera.json's
+    plausibility checks (a warning per key: the other commands will refuse it), 2 when no
+    calibration was possible.
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
@@ -187,11 +189,15 @@ def calibrate(
     for v in res.views:
         if not v.used:
             warn(f"{v.image}: not used: {v.reason}")
+    implausible = plausibility_problems(res.camera)
+    for key, what in implausible:
+        # The other commands refuse this camera.json: say so now, with the views to blame.
+        warn(f"{out_path}: key {key!r}: {what} (the views may not constrain the calibration)")
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views):
+    if res.n_used < len(res.views) or implausible:
         raise typer.Exit(EXIT_PARTIAL)
 
 
