@@ -285,6 +285,11 @@ def test_a_bad_fixed2base_names_the_file_and_the_cell(lab):
     M[:3, 3] = [1e300, 0.0, 0.0]
     (lab / "f2b.json").write_text(json.dumps(M.tolist()))
     assert_one_line_error(run_stiffmap(*base), "f2b.json", "translation of 1e+300 mm")
+    M = s.fixed2base.copy()
+    M[0, 0] = 1e308  # was an internal error (R^T R overflowed)
+    (lab / "f2b.json").write_text(json.dumps({"fixed2base": M.tolist()}))
+    r = run_stiffmap(*base)
+    assert_one_line_error(r, "f2b.json", "key 'fixed2base': not a rigid transform", "1e+308")
 
 
 def test_a_bad_image_is_one_named_warning_without_decoder_noise(lab):

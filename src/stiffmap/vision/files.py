@@ -72,6 +72,13 @@ def read_transform(path: str | os.PathLike, key: str = "fixed2base") -> np.ndarr
                     source=src,
                 )
             T[i, j] = x
+    big = float(np.abs(T[:3, :3]).max())
+    if big > 1 + 1e-4:  # checked first: R^T R of such entries overflows
+        raise InputError(
+            f"{where}not a rigid transform: the 3x3 rotation block holds {big:.3g}, a rotation's "
+            "entries lie within [-1, 1] (a scaled matrix, or the translation in the wrong column?)",
+            source=src,
+        )
     try:
         as_transform(T, key, atol=1e-4)
     except ValueError as e:

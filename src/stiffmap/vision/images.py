@@ -28,6 +28,7 @@ import os
 import re
 import sys
 import tempfile
+import threading
 import warnings
 import zlib
 from pathlib import Path
@@ -142,6 +143,10 @@ def _check_png(data: bytes, src: str) -> None:
         raise ImageError("corrupt PNG file: it holds no image data (no IDAT chunk)", source=src)
 
 
+#: fd 2 is the process's: one thread at a time redirects it (else one would restore another's).
+_STDERR_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def _decoder_messages():
     """Catch what the C decoders print on the process's stderr (fd 2) while decoding.
@@ -149,6 +154,12 @@ def _decoder_messages():
     Yields a list that holds the lines afterwards. OpenCV's own log is set to errors only
     (libtiff's warnings about unknown tags are noise; its errors mean damaged data).
     """
+    with _STDERR_LOCK, _caught_fd2() as lines:
+        yield lines
+
+
+@contextlib.contextmanager
+def _caught_fd2():
     lines: list[str] = []
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
