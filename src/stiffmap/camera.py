@@ -25,7 +25,19 @@ coefficients) are not supported.
      "rms_px": ..., "residual_std_px": [sx, sy],
      "views": [{"image": ..., "used": true, "rms_px": ..., "reason": ""}]}
 
-Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required.
+Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required. Reading one
+(:meth:`CameraModel.from_dict`, :func:`load_camera`) also checks that it describes a
+physical camera (:func:`plausibility_problems`): an image of 1 to 100 000 px per side, focal
+lengths of 0.1 to 100 times the image diagonal, the principal point within the image widened
+by half its size on each side, distortion coefficients of sane magnitude (radial k1..k6
+within +/-1000, tangential p1, p2 and thin-prism s1..s4 within +/-1), and non-negative
+uncertainties. Each problem is an :class:`~stiffmap.errors.InputError` naming the file and
+the key.
+
+The distortion polynomial is invertible only near the image centre for a strong lens (it
+folds over beyond the calibrated field): :meth:`CameraModel.undistort` raises
+:class:`UndistortionError` (a ``ValueError``) naming where it is not, never a NaN or an
+overflow.
 
 The camera owns the cache of its pixels' rays (:func:`pixel_rays`): the undistorted
 ray of every pixel does not depend on what the camera looks at, so the renderer
@@ -46,9 +58,36 @@ import numpy as np
 from .errors import InputError
 from .io import dumps_json, read_json, replace_keeping_previous
 
-__all__ = ["CameraModel", "PixelRays", "pixel_rays", "reference_camera", "load_camera", "save_camera"]
+__all__ = [
+    "CameraModel",
+    "PixelRays",
+    "UndistortionError",
+    "pixel_rays",
+    "plausibility_problems",
+    "reference_camera",
+    "load_camera",
+    "save_camera",
+]
 
 _DIST_LENGTHS = (4, 5, 8, 12)
+#: Names of the distortion coefficients, in OpenCV's order.
+DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
+#: Plausible ranges (camera.json's physical checks): focal length in image diagonals, the
+#: principal point's margin outside the image in image sizes, the largest radial (k) and
+#: tangential / thin-prism (p, s) coefficients, the largest image side in px.
+FOCAL_DIAGONALS = (0.1, 100.0)
+PRINCIPAL_MARGIN = 0.5
+MAX_RADIAL = 1e3
+MAX_TANGENTIAL = 1.0
+MAX_IMAGE_PX = 100_000
+
+
+class UndistortionError(ValueError):
+    """The lens-distortion model cannot be inverted at some points.
+
+    Beyond the calibrated field a strong distortion polynomial folds over: a distorted
+    position there has no undistorted ray (or several). ``where`` says which points.
+    """
 
 
 def _dist12(dist: np.ndarray) -> np.ndarray:
@@ -180,28 +219,38 @@ class CameraModel:
 
         Raises
         ------
-        ValueError
-            If Newton's method does not converge (far outside the image, where
-            the distortion polynomial folds over).
+        UndistortionError
+            If Newton's method does not converge at some point (far outside the image,
+            where the distortion polynomial folds over), or a point is not finite.
         """
         target = np.asarray(xy_distorted, dtype=np.float64)
+        x, bad = self._newton_undistort(target, tol, max_iter)
+        if np.any(bad):
+            raise UndistortionError(_undistortion_message(target, bad))
+        return x
+
+    def _newton_undistort(
+        self, target: np.ndarray, tol: float, max_iter: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Newton's method point by point (vectorised): the result and where it did not converge."""
         d = _dist12(self.dist_array)
         x = target.copy()
-        for _ in range(max_iter):
-            f, J = _distort(x, d, jacobian=True)
-            r = f - target
-            # Solve J dx = r per point (2x2).
-            a, b, c, e = J[..., 0, 0], J[..., 0, 1], J[..., 1, 0], J[..., 1, 1]
-            det = a * e - b * c
-            dx0 = (e * r[..., 0] - b * r[..., 1]) / det
-            dx1 = (-c * r[..., 0] + a * r[..., 1]) / det
-            x = x - np.stack([dx0, dx1], axis=-1)
-            if np.all(np.abs(r) < tol):
-                return x
-        f, _ = _distort(x, d, jacobian=False)
-        if not np.all(np.abs(f - target) < 1e3 * tol):
-            raise ValueError("undistortion did not converge (points far outside the calibrated field?)")
-        return x
+        # Newton's steps may overflow where the model folds over: judged by the residual below.
+        with np.errstate(all="ignore"):
+            for _ in range(max_iter):
+                f, J = _distort(x, d, jacobian=True)
+                r = f - target
+                if np.all(np.abs(r) < tol):
+                    return x, np.zeros(target.shape[:-1], dtype=bool)
+                # Solve J dx = r per point (2x2).
+                a, b, c, e = J[..., 0, 0], J[..., 0, 1], J[..., 1, 0], J[..., 1, 1]
+                det = a * e - b * c
+                dx0 = (e * r[..., 0] - b * r[..., 1]) / det
+                dx1 = (-c * r[..., 0] + a * r[..., 1]) / det
+                x = x - np.stack([dx0, dx1], axis=-1)
+            f, _ = _distort(x, d, jacobian=False)
+            bad = ~np.all((np.abs(f - target) < 1e3 * tol) & np.isfinite(x), axis=-1)
+        return x, bad
 
     def project(self, points_cam) -> np.ndarray:
         """Pixel coordinates of 3D points given in the camera frame.
@@ -278,8 +327,29 @@ class CameraModel:
         return np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
 
     def rays_from_pixels(self, uv) -> np.ndarray:
-        """Ideal normalised coordinates (X/Z, Y/Z) of the rays through pixel positions."""
-        return self.undistort(self.normalized_from_pixels(uv))
+        """Ideal normalised coordinates (X/Z, Y/Z) of the rays through pixel positions.
+
+        Raises
+        ------
+        UndistortionError
+            Naming the pixel (of those given) farthest from the principal point where the
+            distortion model cannot be inverted.
+        """
+        uv = np.asarray(uv, dtype=np.float64)
+        rays, bad = self._newton_undistort(self.normalized_from_pixels(uv), 1e-14, 50)
+        if not np.any(bad):
+            return rays
+        with np.errstate(all="ignore"):
+            r = np.hypot(uv[..., 0] - self.cx, uv[..., 1] - self.cy)
+        k = np.unravel_index(int(np.argmin(np.where(bad, r, np.inf))), r.shape)
+        u, v = uv[k]
+        n_bad = int(bad.sum())
+        raise UndistortionError(
+            "the lens distortion model cannot be inverted at "
+            + (f"{n_bad} of the {bad.size} pixel positions asked, the nearest " if bad.size > 1 else "")
+            + f"at ({u:.0f}, {v:.0f}) px, {float(r[k]):.0f} px from the principal point (beyond the "
+            "calibrated field the distortion polynomial folds over)"
+        )
 
     # -------------------------------------------------------------------- json
     def to_dict(self) -> dict[str, Any]:
@@ -304,12 +374,13 @@ class CameraModel:
 
     @classmethod
     def from_dict(cls, data: Any, source: str = "camera.json") -> CameraModel:
-        """Validate a ``camera.json`` object.
+        """Validate a ``camera.json`` object (types, then physical plausibility).
 
         Raises
         ------
         InputError
-            Naming ``source`` and the key that is missing or wrong.
+            Naming ``source`` and the key that is missing, of the wrong type, or not
+            physically plausible (:func:`plausibility_problems`).
         """
         if not isinstance(data, dict):
             raise InputError(
@@ -324,12 +395,18 @@ class CameraModel:
                 source=source,
             )
 
-        def number(key: str, v: Any, positive: bool = False) -> float:
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise InputError(f"key {key!r} must be a finite number, got {v!r}", source=source)
-            if positive and v <= 0:
-                raise InputError(f"key {key!r} must be positive, got {v!r}", source=source)
-            return float(v)
+        def bad(key: str, what: str) -> InputError:
+            return InputError(f"key {key!r}: {what}", source=source)
+
+        def number(key: str, v: Any, positive: bool = False, nonnegative: bool = False) -> float:
+            x = _finite_float(v)
+            if x is None:
+                raise bad(key, f"must be a finite number, got {_short(v)}")
+            if positive and x <= 0:
+                raise bad(key, f"must be positive, got {_short(v)}")
+            if nonnegative and x < 0:
+                raise bad(key, f"must be zero or positive, got {_short(v)}")
+            return x
 
         size = data["image_size"]
         if (
@@ -337,34 +414,37 @@ class CameraModel:
             or len(size) != 2
             or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)
         ):
-            raise InputError(
-                f"key 'image_size' must be [width, height] in px (positive integers), got {size!r}",
-                source=source,
+            raise bad("image_size", f"must be [width, height] in px (positive integers), got {_short(size)}")
+        if max(size) > MAX_IMAGE_PX:
+            raise bad(
+                "image_size",
+                f"{size[0]}x{size[1]} px is not a camera image (at most {MAX_IMAGE_PX} px per side)",
             )
         vals = {k: number(k, data[k], positive=k in ("fx", "fy")) for k in ("fx", "fy", "cx", "cy")}
         dist = data["dist"]
         if not isinstance(dist, list) or len(dist) not in _DIST_LENGTHS:
-            raise InputError(
-                f"key 'dist' must be a list of 4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...], got {dist!r}",
-                source=source,
+            raise bad(
+                "dist",
+                f"must be a list of 4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...], got {_short(dist)}",
             )
         dist = [number(f"dist[{i}]", v) for i, v in enumerate(dist)]
         std = data.get("std")
-        if std is not None and not isinstance(std, dict):
-            raise InputError(
-                f"key 'std' must be an object with keys fx, fy, cx, cy, dist; got {std!r}", source=source
-            )
+        if std is not None:
+            std = _check_std(std, len(dist), bad)
         rms = data.get("rms_px")
-        rms = number("rms_px", rms) if rms is not None else None
+        rms = number("rms_px", rms, nonnegative=True) if rms is not None else None
         rsd = data.get("residual_std_px")
         if rsd is not None:
             if not isinstance(rsd, list) or len(rsd) != 2:
-                raise InputError(f"key 'residual_std_px' must be [sx, sy], got {rsd!r}", source=source)
-            rsd = (number("residual_std_px[0]", rsd[0]), number("residual_std_px[1]", rsd[1]))
+                raise bad("residual_std_px", f"must be [sx, sy], got {_short(rsd)}")
+            rsd = tuple(number(f"residual_std_px[{i}]", rsd[i], nonnegative=True) for i in range(2))
         views = data.get("views", [])
         if not isinstance(views, list):
-            raise InputError(f"key 'views' must be a list, got {views!r}", source=source)
-        return cls(
+            raise bad("views", f"must be a list, got {_short(views)}")
+        for i, v in enumerate(views):
+            if not isinstance(v, dict):
+                raise bad(f"views[{i}]", f"must be an object (image, used, rms_px, reason), got {_short(v)}")
+        camera = cls(
             image_size=(size[0], size[1]),
             dist=tuple(dist),
             std=std,
@@ -373,6 +453,145 @@ class CameraModel:
             views=tuple(views),
             **vals,
         )
+        problems = plausibility_problems(camera)
+        if problems:
+            key, what = problems[0]
+            raise bad(key, what)
+        return camera
+
+
+def _finite_float(v: Any) -> float | None:
+    """``v`` as a float when it is a finite JSON number (not a bool), else None."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    try:
+        x = float(v)
+    except OverflowError:  # an integer of hundreds of digits
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _short(v: Any, n: int = 60) -> str:
+    """``repr(v)`` cut to ``n`` characters (a value of thousands of digits stays one line)."""
+    try:
+        text = repr(v)
+    except ValueError:  # an integer too long for repr
+        return "an integer of thousands of digits"
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
+def _check_std(std: Any, n_dist: int, bad) -> dict[str, Any]:
+    """Validate the ``std`` object (1 sigma, non-negative or null when unknown)."""
+    if not isinstance(std, dict):
+        raise bad("std", f"must be an object with keys fx, fy, cx, cy, dist; got {_short(std)}")
+
+    def sigma(key: str, v: Any) -> float | None:
+        if v is None:
+            return None
+        x = _finite_float(v)
+        if x is None or x < 0:
+            raise bad(key, f"must be a standard deviation (a finite number >= 0, or null), got {_short(v)}")
+        return x
+
+    out: dict[str, Any] = {}
+    for k, v in std.items():
+        if k in ("fx", "fy", "cx", "cy"):
+            out[k] = sigma(f"std.{k}", v)
+        elif k == "dist":
+            if not isinstance(v, list) or len(v) != n_dist:
+                raise bad(
+                    "std.dist", f"must be a list of {n_dist} standard deviations (as 'dist'), got {_short(v)}"
+                )
+            out[k] = [sigma(f"std.dist[{i}]", x) for i, x in enumerate(v)]
+        else:
+            out[k] = v
+    return out
+
+
+#: The central disc where any lens's distortion is one to one: this fraction of the smaller
+#: image side around the principal point.
+CENTRAL_FRACTION = 0.25
+
+
+def _fold_near_centre(camera: CameraModel) -> str | None:
+    """Why the distortion model is not one to one near the image centre (None when it is).
+
+    Checked on 16 rays x 64 radii out to :data:`CENTRAL_FRACTION` of the smaller image side:
+    the Jacobian of the distortion stays finite with a positive determinant there for any
+    lens (a fold or a pole of the rational model this near the centre is not a lens).
+    """
+    w, h = camera.image_size
+    r_max = CENTRAL_FRACTION * min(w, h) / max(camera.fx, camera.fy)
+    ang = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+    rad = np.linspace(0.0, r_max, 65)[1:]
+    xy = np.stack(np.broadcast_arrays(rad[:, None] * np.cos(ang), rad[:, None] * np.sin(ang)), axis=-1)
+    with np.errstate(all="ignore"):
+        out, J = _distort(xy, _dist12(camera.dist_array), jacobian=True)
+        det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+        bad = ~(np.isfinite(det) & (det > 0) & np.all(np.isfinite(out), axis=-1))
+    if not np.any(bad):
+        return None
+    i = int(np.argmax(np.any(bad, axis=1)))  # the smallest radius where it folds
+    px = rad[i] * max(camera.fx, camera.fy)
+    return (
+        f"the distortion model {list(camera.dist)} folds over (or has a pole) {px:.0f} px from the "
+        f"principal point, within the central {CENTRAL_FRACTION * min(w, h):.0f} px where any lens is "
+        "one to one: not a lens's distortion (a calibration that did not converge?)"
+    )
+
+
+def plausibility_problems(camera: CameraModel) -> list[tuple[str, str]]:
+    """What makes a camera physically implausible: (key, message) pairs, empty when none.
+
+    The checks of a ``camera.json`` (see the module docstring): focal lengths of 0.1 to 100
+    image diagonals, the principal point within the image widened by half its size on each
+    side, radial coefficients within +/-1000, tangential and thin-prism ones within +/-1.
+    """
+    w, h = camera.image_size
+    diag = math.hypot(w, h)
+    lo, hi = FOCAL_DIAGONALS[0] * diag, FOCAL_DIAGONALS[1] * diag
+    out = []
+    for k in ("fx", "fy"):
+        f = getattr(camera, k)
+        if not lo <= f <= hi:
+            out.append(
+                (
+                    k,
+                    f"{f:.6g} px is not a plausible focal length for a {w}x{h} px image (expected "
+                    f"{lo:.4g} to {hi:.4g} px: {FOCAL_DIAGONALS[0]:g} to {FOCAL_DIAGONALS[1]:g} times "
+                    "the image diagonal; a focal length in mm instead of px?)",
+                )
+            )
+    for k, n in (("cx", w), ("cy", h)):
+        c = getattr(camera, k)
+        m = PRINCIPAL_MARGIN * n
+        if not -m <= c <= n + m:
+            out.append(
+                (
+                    k,
+                    f"principal point {c:.6g} px is far outside the {w}x{h} px image (expected "
+                    f"{-m:.4g} to {n + m:.4g} px: within the image, or at most half its size beyond)",
+                )
+            )
+    for i, c in enumerate(camera.dist):
+        name = DIST_NAMES[i]
+        limit = MAX_RADIAL if name.startswith("k") else MAX_TANGENTIAL
+        if abs(c) > limit:
+            kind = (
+                "radial" if name.startswith("k") else "tangential" if name.startswith("p") else "thin-prism"
+            )
+            out.append(
+                (
+                    f"dist[{i}]",
+                    f"{name} = {c:.6g} is not a plausible {kind} distortion coefficient "
+                    f"(expected within +/-{limit:g}; a calibration that did not converge?)",
+                )
+            )
+    if not out:
+        fold = _fold_near_centre(camera)
+        if fold is not None:
+            out.append(("dist", fold))
+    return out
 
 
 def _distort(xy: np.ndarray, d: np.ndarray, *, jacobian: bool):
@@ -399,6 +618,26 @@ def _distort(xy: np.ndarray, d: np.ndarray, *, jacobian: bool):
     J[..., 1, 0] = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y + 2 * x * sy
     J[..., 1, 1] = rad + 2 * y * y * drad + 6 * p1 * y + 2 * p2 * x + 2 * y * sy
     return out, J
+
+
+def _undistortion_message(target: np.ndarray, bad: np.ndarray) -> str:
+    """What :class:`UndistortionError` says: how many points, and the normalised radius."""
+    with np.errstate(all="ignore"):
+        r = np.hypot(target[..., 0], target[..., 1])
+    n_bad = int(np.sum(bad))
+    r_bad = r[bad]
+    r_ok = r[~bad]
+    where = (
+        f"distorted radius up to {float(np.nanmax(r_bad)):.3g}"
+        if np.any(np.isfinite(r_bad))
+        else "not finite"
+    )
+    inside = f"; it converged up to {float(r_ok.max()):.3g}" if r_ok.size else ""
+    return (
+        f"the lens distortion model cannot be inverted at {n_bad} of {bad.size} points "
+        f"(normalised {where}{inside}): undistortion did not converge (points far outside the "
+        "calibrated field?)"
+    )
 
 
 def reference_camera() -> CameraModel:

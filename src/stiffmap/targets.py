@@ -24,9 +24,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Chessboard", "CharucoBoard", "parse_board_size"]
+__all__ = ["Chessboard", "CharucoBoard", "parse_board_size", "ARUCO_DICTIONARIES", "SQUARE_MM_RANGE"]
 
 _SIZE = re.compile(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$")
+
+#: Fewest inner corners along one side of a chessboard (OpenCV's detectors need 3).
+MIN_CORNERS_PER_SIDE = 3
+#: Most inner corners along one side of a board (a printed target, not a texture).
+MAX_CORNERS_PER_SIDE = 200
+#: Plausible side of a square or of a marker, mm (a micro-target to a 10 m board).
+SQUARE_MM_RANGE = (1e-3, 1e4)
+#: OpenCV's predefined ArUco dictionaries -> how many markers each holds.
+ARUCO_DICTIONARIES = {
+    **{f"DICT_{b}X{b}_{n}": n for b in (4, 5, 6, 7) for n in (50, 100, 250, 1000)},
+    "DICT_ARUCO_ORIGINAL": 1024,
+    "DICT_APRILTAG_16h5": 30,
+    "DICT_APRILTAG_25h9": 35,
+    "DICT_APRILTAG_36h10": 2320,
+    "DICT_APRILTAG_36h11": 587,
+    "DICT_ARUCO_MIP_36h12": 250,
+}
 
 
 def parse_board_size(text: str) -> tuple[int, int]:
@@ -35,21 +52,33 @@ def parse_board_size(text: str) -> tuple[int, int]:
     Raises
     ------
     ValueError
-        If the text is not two integers >= 2 joined by ``x``.
+        If the text is not two integers joined by ``x``, each from 3 to 200.
     """
     m = _SIZE.match(str(text))
     if not m:
         raise ValueError(f"board size must look like COLSxROWS (inner corners), e.g. 13x12; got {text!r}")
     cols, rows = int(m.group(1)), int(m.group(2))
-    if cols < 2 or rows < 2:
-        raise ValueError(f"a board needs at least 2x2 inner corners, got {cols}x{rows}")
+    _check_corners(cols, rows)
     return cols, rows
 
 
+def _check_corners(cols: int, rows: int, least: int = MIN_CORNERS_PER_SIDE) -> None:
+    if cols < least or rows < least:
+        raise ValueError(f"a board needs at least {least}x{least} inner corners, got {cols}x{rows}")
+    if max(cols, rows) > MAX_CORNERS_PER_SIDE:
+        raise ValueError(
+            f"{cols}x{rows} inner corners is not a printed board (at most {MAX_CORNERS_PER_SIDE} per side)"
+        )
+
+
 def _check_positive(value: float, name: str) -> float:
+    """A side in mm: finite, within :data:`SQUARE_MM_RANGE`."""
     v = float(value)
+    lo, hi = SQUARE_MM_RANGE
     if not np.isfinite(v) or v <= 0:
         raise ValueError(f"{name} must be a positive number of mm, got {value!r}")
+    if not lo <= v <= hi:
+        raise ValueError(f"{name} of {v:g} mm is not a printed square's side (expected {lo:g} to {hi:g} mm)")
     return v
 
 
@@ -70,8 +99,7 @@ class Chessboard:
     square_mm: float
 
     def __post_init__(self) -> None:
-        if int(self.cols) < 2 or int(self.rows) < 2:
-            raise ValueError(f"a board needs at least 2x2 inner corners, got {self.cols}x{self.rows}")
+        _check_corners(int(self.cols), int(self.rows))
         object.__setattr__(self, "cols", int(self.cols))
         object.__setattr__(self, "rows", int(self.rows))
         object.__setattr__(self, "square_mm", _check_positive(self.square_mm, "square_mm"))
@@ -136,7 +164,8 @@ class CharucoBoard:
     square_mm, marker_mm : float
         Side of a square and of a marker, mm (marker_mm < square_mm).
     dictionary : str
-        OpenCV predefined dictionary name, e.g. ``"DICT_5X5_100"``.
+        OpenCV predefined dictionary name, e.g. ``"DICT_5X5_100"`` (a key of
+        :data:`ARUCO_DICTIONARIES`; the board's markers must fit in it).
 
     The board frame and the corner numbering are those of :class:`Chessboard`
     with ``cols = squares_x - 1`` and ``rows = squares_y - 1``; the markers
@@ -156,6 +185,18 @@ class CharucoBoard:
             )
         object.__setattr__(self, "squares_x", int(self.squares_x))
         object.__setattr__(self, "squares_y", int(self.squares_y))
+        _check_corners(self.squares_x - 1, self.squares_y - 1, least=2)
+        if self.dictionary not in ARUCO_DICTIONARIES:
+            raise ValueError(
+                f"unknown ArUco dictionary {self.dictionary!r} (OpenCV's predefined ones: "
+                f"{', '.join(ARUCO_DICTIONARIES)})"
+            )
+        n_markers = self.squares_x * self.squares_y // 2
+        if n_markers > ARUCO_DICTIONARIES[self.dictionary]:
+            raise ValueError(
+                f"a ChArUco board of {self.squares_x}x{self.squares_y} squares holds {n_markers} markers, "
+                f"more than the {ARUCO_DICTIONARIES[self.dictionary]} of {self.dictionary}"
+            )
         sq = _check_positive(self.square_mm, "square_mm")
         mk = _check_positive(self.marker_mm, "marker_mm")
         if mk >= sq:

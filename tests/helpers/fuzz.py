@@ -63,6 +63,14 @@ class FuzzCase:
     blamed: str | None = None
     note: str = ""
 
+    def __repr__(self) -> str:
+        # Short, for hypothesis's report of a failing case (the files' bytes can be megabytes).
+        files = ", ".join(f"{k!r}: <{len(v)} bytes {v[:24]!r}...>" for k, v in self.files.items())
+        return f"FuzzCase(files={{{files}}}, argv={self.argv!r}, blamed={self.blamed!r}, note={self.note!r})"
+
+    def _repr_pretty_(self, p, cycle) -> None:  # hypothesis prints dataclasses field by field otherwise
+        p.text(repr(self))
+
 
 @dataclass(frozen=True)
 class FuzzClass:

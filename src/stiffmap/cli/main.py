@@ -26,6 +26,7 @@ import click
 import typer
 from rich.markup import escape
 from typer.core import TyperGroup
+from typer.exceptions import TyperException
 from typer.models import ParameterInfo
 
 from .. import __version__
@@ -186,10 +187,11 @@ def _one_line_warnings(message, category, filename, lineno, file=None, line=None
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``stiffmap`` on ``argv`` (default ``sys.argv[1:]``) and return its exit status.
 
-    A user error (:class:`~stiffmap.errors.InputError`, a file the system refuses) is one
-    ``error:`` line and status 2. Anything else that escapes a command is a bug: one line
-    that says so, names the command line and the exception, and status 3; the traceback
-    only with ``--debug`` (anywhere on the command line) or ``STIFFMAP_DEBUG=1``.
+    A user error (:class:`~stiffmap.errors.InputError`, a file the system refuses, a command
+    line that does not parse) is one ``error:`` line and status 2. Anything else that escapes
+    a command is a bug: one line that says so, names the command line and the exception, and
+    status 3; the traceback only with ``--debug`` (anywhere on the command line) or
+    ``STIFFMAP_DEBUG=1``.
     """
     args = list(sys.argv[1:] if argv is None else argv)
     debug = DEBUG_FLAG in args or os.environ.get(DEBUG_ENV, "") not in ("", "0")
@@ -198,9 +200,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             if not sys.warnoptions:
                 warnings.showwarning = _one_line_warnings
-            app(args=args, prog_name="stiffmap", standalone_mode=True)
+            rv = app(args=args, prog_name="stiffmap", standalone_mode=False)
     except SystemExit as e:
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+    except typer.Abort:
+        fail("aborted", 1)
+        return 1
+    except TyperException as e:  # click's usage errors: an unknown option, a value of the wrong type
+        return _usage_error(e)
     except InputError as e:
         fail(str(e))
         return EXIT_INPUT
@@ -225,7 +232,25 @@ def main(argv: Sequence[str] | None = None) -> int:
             EXIT_BUG,
         )
         return EXIT_BUG
-    return 0
+    return rv if isinstance(rv, int) else 0
+
+
+def _usage_error(e: TyperException) -> int:
+    """A command line that does not parse: one ``error:`` line naming the option (status 2).
+
+    (Bare ``stiffmap`` prints the help, as ``stiffmap --help`` does, with status 2 as before.)
+    """
+    ctx = getattr(e, "ctx", None)
+    if type(e).__name__ == "NoArgsIsHelpError":
+        # Its message is the help: rich printed it when the error was made (and left it "").
+        text = e.format_message() if hasattr(e, "format_message") else ""
+        if text:
+            typer.echo(text)
+        return EXIT_INPUT
+    where = ctx.command_path if ctx is not None else "stiffmap"
+    message = e.format_message() if hasattr(e, "format_message") else str(e)
+    fail(f"{' '.join(message.split())} (see '{where} --help')", getattr(e, "exit_code", EXIT_INPUT))
+    return int(getattr(e, "exit_code", EXIT_INPUT))
 
 
 def run() -> None:

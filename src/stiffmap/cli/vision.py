@@ -14,7 +14,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ..camera import load_camera, save_camera
+from ..camera import load_camera, plausibility_problems, save_camera
 from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..io import atomic_write_text
@@ -22,7 +22,13 @@ from ..report.validation import stage_plot_svg
 from ..targets import CharucoBoard, Chessboard, parse_board_size
 from ..vision.calibrate import CalibrationResult
 from ..vision.displacement import ImageDisplacements, displacement_per_image
-from ..vision.files import calibrate_files, measure_files, read_stage_manifest, read_transform
+from ..vision.files import (
+    MAX_TRANSLATION_MM,
+    calibrate_files,
+    measure_files,
+    read_stage_manifest,
+    read_transform,
+)
 from ..vision.sequence import ImageMeasurement
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
 from .common import EXIT_PARTIAL, fail, fmt, out, print_json, three_numbers, warn
@@ -35,27 +41,41 @@ _CHARUCO_HELP = (
 
 
 def _board(
-    size: str, square_mm: float, charuco: str | None = None, marker_mm: float | None = None, what="--board"
+    size: str,
+    square_mm: float,
+    charuco: str | None = None,
+    marker_mm: float | None = None,
+    what="--board",
+    square_option="--square-mm",
 ):
+    """The board of the options; an InputError naming the option that is wrong."""
     try:
         cols, rows = parse_board_size(size)
-        if charuco:
-            if marker_mm is None:
-                raise InputError("--charuco needs --marker-mm (side of the ArUco markers, mm)")
-            return CharucoBoard(cols + 1, rows + 1, square_mm, marker_mm, charuco)
-        return Chessboard(cols, rows, square_mm)
-    except InputError:
-        raise
     except ValueError as e:
         raise InputError(f"{what}: {e}") from None
+    try:
+        board = Chessboard(cols, rows, square_mm)
+    except ValueError as e:
+        raise InputError(f"{square_option}: {e}") from None
+    if not charuco:
+        return board
+    if marker_mm is None:
+        raise InputError("--charuco needs --marker-mm (side of the ArUco markers, mm)")
+    try:
+        return CharucoBoard(cols + 1, rows + 1, square_mm, marker_mm, charuco)
+    except ValueError as e:
+        raise InputError(f"--charuco {charuco} --marker-mm {marker_mm:g} {what} {size}: {e}") from None
 
 
 def _point(text: str | None):
     if text is None:
         return None
     v = three_numbers(text)
-    if v is None:
-        raise InputError(f"--point must be three numbers x,y,z in mm (target frame), got {text!r}")
+    if v is None or max(abs(x) for x in v) > MAX_TRANSLATION_MM:
+        raise InputError(
+            f"--point must be three numbers x,y,z in mm (target frame, within {MAX_TRANSLATION_MM:g} mm), "
+            f"got {text!r}"
+        )
     return np.array(v)
 
 
@@ -68,7 +88,9 @@ def _fixed_target(board: str | None, square_mm: float | None, fixed2base: Path |
             "--fixed-board, --fixed-square-mm and --fixed2base go together (for the fixed "
             "target's own frame, give a --fixed2base file holding the 4x4 identity)"
         )
-    return _board(board, square_mm, what="--fixed-board"), read_transform(fixed2base)
+    return _board(board, square_mm, what="--fixed-board", square_option="--fixed-square-mm"), read_transform(
+        fixed2base
+    )
 
 
 _REFINE_HELP = (
@@ -113,17 +135,27 @@ def _warn_failures(ms: list[ImageMeasurement]) -> None:
                     warn(f"{m.image}: {p.fallback}")
 
 
-def _exit_for(n_ok: int, n_total: int) -> None:
-    """Exit 2 (with an ``error:`` line) when nothing was measured, 1 when some items failed."""
+def _exit_for(n_ok: int, n_total: int, inputs: str = "") -> None:
+    """Exit 2 (with an ``error:`` line) when nothing was measured, 1 when some items failed.
+
+    ``inputs`` names what every image was measured with (the camera file, the board), the
+    suspects when none could be.
+    """
     if n_ok == 0:
-        raise fail(f"none of the {n_total} image(s) could be measured (see the warnings above)")
+        raise fail(f"none of the {n_total} image(s) could be measured{inputs} (see the warnings above)")
     if n_ok < n_total:
         raise typer.Exit(EXIT_PARTIAL)
 
 
+def _measured_with(camera: Path, board: str) -> str:
+    return f" with --camera {camera} and --board {board}"
+
+
 # ----------------------------------------------------------------------------- calibrate
 def calibrate(
-    images: list[Path] = typer.Argument(..., help="Images of the board (at least 3 views), or folders of them."),
+    images: list[Path] = typer.Argument(
+        ..., help="Images of the board (at least 3 views), or folders of them."
+    ),
     board: str = typer.Option(..., "--board", help=_BOARD_HELP),
     square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
     out_path: Path = typer.Option(Path("camera.json"), "--out", help="Where to write camera.json."),
@@ -141,7 +173,9 @@ def calibrate(
 
     Views where the board is not found, or whose RMS is an outlier, are left out with the
     reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
-    Exit status 1 when some images were left out (each named), 2 when no calibration was possible.
+    Exit status 1 when some images were left out (each named) or the result fails camera.json's
+    plausibility checks (a warning per key: the other commands will refuse it), 2 when no
+    calibration was possible.
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
@@ -157,11 +191,15 @@ def calibrate(
     for v in res.views:
         if not v.used:
             warn(f"{v.image}: not used: {v.reason}")
+    implausible = plausibility_problems(res.camera)
+    for key, what in implausible:
+        # The other commands refuse this camera.json: say so now, with the views to blame.
+        warn(f"{out_path}: key {key!r}: {what} (the views may not constrain the calibration)")
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views):
+    if res.n_used < len(res.views) or implausible:
         raise typer.Exit(EXIT_PARTIAL)
 
 
@@ -199,7 +237,9 @@ def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
 
 # ---------------------------------------------------------------------------------- pose
 def pose(
-    images: list[Path] = typer.Argument(..., help="Images of the board, or folders of them (in natural order)."),
+    images: list[Path] = typer.Argument(
+        ..., help="Images of the board, or folders of them (in natural order)."
+    ),
     camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
     board: str = typer.Option(..., "--board", help=_BOARD_HELP),
     square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
@@ -225,7 +265,7 @@ def pose(
     else:
         _print_poses(ms, f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
     _warn_failures(ms)
-    _exit_for(sum(m.ok for m in ms), len(ms))
+    _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board))
 
 
 def _pose_row(m: ImageMeasurement) -> dict:
@@ -308,7 +348,7 @@ def displacement(
         print_json(_displacement_rows(res))
     else:
         _print_displacements(res)
-    _exit_for(res.n_ok, res.n_images)
+    _exit_for(res.n_ok, res.n_images, _measured_with(camera, board))
 
 
 def _displacement_rows(res: ImageDisplacements) -> list[dict]:
@@ -388,6 +428,11 @@ def validate(
     charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
     marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
     refine: str = typer.Option("auto", "--refine", help=_REFINE_HELP),
+    allow_outside: bool = typer.Option(
+        False,
+        "--allow-outside-paths",
+        help="Read images the manifest lists outside its own folder (absolute paths, '..').",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of tables."),
 ) -> None:
     """Validate against known stage displacements: measured vs nominal, mean +/- std per step.
@@ -397,25 +442,25 @@ def validate(
     try:
         b = _board(board, square_mm, charuco, marker_mm)
         cam = load_camera(camera)
-        rows = read_stage_manifest(manifest)
+        rows = read_stage_manifest(manifest, allow_outside=allow_outside)
         refine = _refine(refine)
     except InputError as e:
         raise fail(str(e)) from None
-    ms = measure_files([p for p, _ in rows], cam, b, camera_source=str(camera), refine=refine)
-    for m in ms:
+    ms = measure_files([r.image for r in rows], cam, b, camera_source=str(camera), refine=refine)
+    for m, r in zip(ms, rows, strict=True):
         if not m.ok:
-            warn(m.error)
+            warn(f"{manifest}, line {r.line}: {m.error}")
     try:
-        res = validate_stage_series(ms, [n for _, n in rows])
+        res = validate_stage_series(ms, [r.nominal_mm for r in rows])
     except InputError as e:
-        raise fail(str(e)) from None
+        raise fail(f"{manifest}: {e}") from None
     if plot is not None:
         atomic_write_text(plot, stage_plot_svg(res, title=f"Stage validation: {manifest.name}"))
     if as_json:
         print_json(_validation_json(res))
     else:
         _print_validation(res, plot)
-    _exit_for(len(ms) - len(res.failed), len(ms))
+    _exit_for(len(ms) - len(res.failed), len(ms), _measured_with(camera, board))
 
 
 def _validation_json(res: StageValidation) -> dict:

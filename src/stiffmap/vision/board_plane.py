@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..camera import CameraModel
+from ..camera import CameraModel, UndistortionError
 from .detection import BoardDetection, DetectionError, grid_of
 
 __all__ = [
@@ -181,7 +181,8 @@ def fit_residuals(
     coordinates (residuals scaled to px by the focal lengths). Without it, the
     lens distortion bends the board's image by up to several px, so the model is
     a homography in px plus a polynomial correction in the board coordinates
-    (cubic from 20 corners on, quintic from 80 on).
+    (cubic from 20 corners on, quintic from 80 on); the same when the camera's
+    distortion model cannot be inverted at some corners (beyond its calibrated field).
 
     Returns
     -------
@@ -191,7 +192,11 @@ def fit_residuals(
     """
     fit = np.ones(len(corners), dtype=bool) if fit is None else fit
     if camera is not None:
-        pts = camera.rays_from_pixels(corners)
+        try:
+            pts = camera.rays_from_pixels(corners)
+        except UndistortionError:
+            # Corners beyond the field where the lens model is invertible: the model without it.
+            return fit_residuals(corners, obj_xy, None, fit)
         unit = np.array([camera.fx, camera.fy])
     else:
         pts = corners

@@ -339,7 +339,10 @@ def displacement_per_image(
     """
     refs = list(references)
     if not any(m.ok for m in refs):
-        raise InputError("no reference image could be measured; nothing to compare with")
+        names = ", ".join(m.image for m in refs)
+        raise InputError(
+            f"no reference image could be measured ({names or 'none given'}); nothing to compare with"
+        )
     per = [
         compliant_displacement(refs, [m], point, pairing="mean-reference") if m.ok else None for m in images
     ]

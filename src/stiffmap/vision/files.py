@@ -8,10 +8,12 @@ turning each bad file into a recorded error while the others go on.
 
 from __future__ import annotations
 
+import csv
 import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -29,9 +31,13 @@ __all__ = [
     "image_files",
     "read_transform",
     "read_stage_manifest",
+    "StageRow",
     "calibrate_files",
     "measure_files",
 ]
+
+#: Largest translation of a transform read from a file, mm (a robot cell is metres wide).
+MAX_TRANSLATION_MM = 1e6
 
 #: File-name endings taken as images when a folder is given (any case).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm", ".webp")
@@ -74,12 +80,15 @@ def read_transform(path: str | os.PathLike, key: str = "fixed2base") -> np.ndarr
     """Read a rigid transform (4x4, mm) from a JSON file.
 
     The file holds either the matrix itself (a list of 4 rows of 4 numbers) or
-    an object with the matrix under ``key`` (or ``"matrix"``).
+    an object with the matrix under ``key`` (or ``"matrix"``). The rotation block may be
+    rounded (orthonormal to 1e-4); it is returned re-orthonormalised, exactly rigid. A
+    translation beyond :data:`MAX_TRANSLATION_MM` (a kilometre) is refused.
 
     Raises
     ------
     InputError
-        Naming the file and what is wrong (missing, not JSON, not 4x4, not rigid).
+        Naming the file and what is wrong (missing, not JSON, not 4x4, not numbers, not
+        rigid, a translation of more than a kilometre).
     """
     src = str(path)
     data = read_json(path, "transform file")
@@ -87,50 +96,132 @@ def read_transform(path: str | os.PathLike, key: str = "fixed2base") -> np.ndarr
         for k in (key, "matrix"):
             if k in data:
                 data = data[k]
+                where = f"key {k!r}: "
                 break
         else:
             raise InputError(f"expected a 4x4 matrix or an object with key {key!r}", source=src)
+    else:
+        where = ""
+    rows = data if isinstance(data, list) else None
+    if rows is None or len(rows) != 4 or not all(isinstance(r, list) and len(r) == 4 for r in rows):
+        shape = f"{len(rows)} rows" if rows is not None else type(data).__name__
+        raise InputError(f"{where}expected a 4x4 matrix (4 rows of 4 numbers, mm), got {shape}", source=src)
+    T = np.empty((4, 4))
+    for i, r in enumerate(rows):
+        for j, v in enumerate(r):
+            x = _finite_number(v)
+            if x is None:
+                raise InputError(
+                    f"{where}row {i + 1}, column {j + 1}: expected a finite number, got {_short(v)}",
+                    source=src,
+                )
+            T[i, j] = x
+    big = float(np.abs(T[:3, :3]).max())
+    if big > 1 + 1e-4:  # checked first: R^T R of such entries overflows
+        raise InputError(
+            f"{where}not a rigid transform: the 3x3 rotation block holds {big:.3g}, a rotation's "
+            "entries lie within [-1, 1] (a scaled matrix, or the translation in the wrong column?)",
+            source=src,
+        )
     try:
-        T = np.array(data, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"expected a 4x4 matrix of numbers (mm), got {data!r:.80}", source=src) from None
-    if T.shape != (4, 4):
-        raise InputError(f"expected a 4x4 matrix (4 rows of 4 numbers, mm), got shape {T.shape}", source=src)
-    try:
-        return as_transform(T, key, atol=1e-4)
+        as_transform(T, key, atol=1e-4)
     except ValueError as e:
-        raise InputError(f"not a rigid transform: {e}", source=src) from None
+        raise InputError(f"{where}not a rigid transform: {e}", source=src) from None
+    t = float(np.abs(T[:3, 3]).max())
+    if t > MAX_TRANSLATION_MM:
+        raise InputError(
+            f"{where}a translation of {t:.3g} mm is not a pose in a robot cell (at most "
+            f"{MAX_TRANSLATION_MM:g} mm; the transform is in mm)",
+            source=src,
+        )
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    T[:3, :3] = U @ Vt
+    return T
 
 
-def read_stage_manifest(path: str | os.PathLike) -> list[tuple[str, float]]:
+def _finite_number(v) -> float | None:
+    """A JSON number as a finite float (not a bool), else None."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    try:
+        x = float(v)
+    except OverflowError:
+        return None
+    return x if np.isfinite(x) else None
+
+
+def _short(v, n: int = 40) -> str:
+    try:
+        text = repr(v)
+    except ValueError:  # an integer too long for repr
+        return "an integer of thousands of digits"
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
+class StageRow(NamedTuple):
+    """One row of a stage manifest: the image's path, its stage displacement (mm), its line."""
+
+    image: str
+    nominal_mm: float
+    line: int
+
+
+def read_stage_manifest(path: str | os.PathLike, *, allow_outside: bool = False) -> list[StageRow]:
     """Read a stage-validation manifest: CSV columns ``image`` and ``nominal_mm``.
 
-    Image paths are relative to the manifest's directory; rows with
-    ``nominal_mm = 0`` are the reference (start) position.
+    Image paths are relative to the manifest's directory and must stay inside it (no
+    absolute path, no ``..`` out of it) unless ``allow_outside`` (``--allow-outside-paths``); rows with
+    ``nominal_mm = 0`` are the reference (start) position. A nominal displacement is
+    finite, >= 0 and at most :data:`MAX_TRANSLATION_MM`.
 
     Returns
     -------
-    list of (image path, nominal displacement in mm)
+    list of StageRow
+        (image path, nominal displacement in mm, line in the file), in the file's order.
+
+    Raises
+    ------
+    InputError
+        Naming the file, the line and the column.
     """
-    t = read_csv_columns(path, ["image", "nominal_mm"], text_columns=["image"])
+    src = str(path)
+    try:
+        t = read_csv_columns(path, ["image", "nominal_mm"], text_columns=["image"])
+    except csv.Error as e:  # a field of hundreds of kB: not a manifest
+        raise InputError(f"not a readable CSV table ({e})", source=src) from None
     base = Path(path).parent
     out = []
     for name, nom, line in zip(t.text["image"], t.columns["nominal_mm"], t.lines, strict=True):
         if not name:
-            raise InputError(f"line {line}, column 'image': empty image name", source=str(path))
-        if nom < 0:
+            raise InputError(f"line {line}, column 'image': empty image name", source=src)
+        if not np.isfinite(nom) or nom < 0 or nom > MAX_TRANSLATION_MM:
             raise InputError(
-                f"line {line}, column 'nominal_mm': {nom:g} is negative; give the distance moved "
-                "from the start position (>= 0 mm)",
-                source=str(path),
+                f"line {line}, column 'nominal_mm': {nom:g} is not a stage displacement; give the "
+                f"distance moved from the start position (0 to {MAX_TRANSLATION_MM:g} mm)",
+                source=src,
             )
-        out.append((str(base / name) if not Path(name).is_absolute() else name, float(nom)))
-    if not any(n == 0 for _, n in out):
+        image = base / name
+        if not allow_outside and not _inside(image, base):
+            raise InputError(
+                f"line {line}, column 'image': {name!r} is outside the manifest's folder {str(base)!r}; "
+                "list images inside it, or pass --allow-outside-paths to read them from elsewhere",
+                source=src,
+            )
+        out.append(StageRow(str(image) if not Path(name).is_absolute() else name, float(nom), int(line)))
+    if not any(r.nominal_mm == 0 for r in out):
         raise InputError(
             "no reference image: at least one row needs nominal_mm = 0 (the stage's start position)",
-            source=str(path),
+            source=src,
         )
     return out
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` (absolute, or relative to the working directory) lies in ``folder``."""
+    try:
+        return Path(os.path.abspath(path)).is_relative_to(os.path.abspath(folder))
+    except (OSError, ValueError):
+        return False
 
 
 def calibrate_files(

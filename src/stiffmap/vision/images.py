@@ -6,9 +6,12 @@ are converted to grey by the decoder; 16-bit images are scaled to 8 bits by
 their own maximum (the corner positions do not depend on a grey-level gain).
 
 Every failure is an :class:`ImageError` (an :class:`~stiffmap.errors.InputError`)
-naming the file: missing, a directory, empty, truncated (checked from the
-file's own structure for PNG and JPEG before decoding, and by the decoder for
-the others), not an image or an unsupported format. :func:`check_image_size`
+naming the file: missing, a directory, empty, truncated or corrupt (checked from the
+file's own structure before decoding: every chunk of a PNG with its CRC and the size its
+header declares, the closing marker of a JPEG; and by the decoder for the others), not an
+image, an unsupported format, or smaller than 8x8 px. What the C decoders (libpng, libjpeg,
+OpenCV's TIFF reader) would print on the terminal is caught instead and said in the
+message: an image they report damaged is refused, not measured. :func:`check_image_size`
 compares an image with the size in ``camera.json``.
 
 :func:`check_image` is the one check of an image array handed to the vision
@@ -20,16 +23,24 @@ BGR uint8 image (h, w, 3) is converted to grey. :func:`coarse_scales` and
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import sys
+import tempfile
+import threading
+import warnings
+import zlib
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, StiffmapWarning
 
 __all__ = [
     "ImageError",
+    "ImageWarning",
     "read_image",
     "check_image",
     "check_image_size",
@@ -48,6 +59,10 @@ _PNG_IEND = b"IEND\xaeB`\x82"
 
 class ImageError(InputError):
     """An image file that cannot be read (missing, truncated, not an image)."""
+
+
+class ImageWarning(StiffmapWarning):
+    """An image was read, but its decoder noted something odd (extraneous bytes in a JPEG)."""
 
 
 def _format_of(head: bytes) -> str | None:
@@ -76,6 +91,114 @@ def _check_complete(fmt: str, tail: bytes, size: int, src: str) -> None:
         )
 
 
+#: Largest image side read, px (beyond: not a camera image, or a decompression bomb).
+MAX_IMAGE_SIDE_PX = 100_000
+
+
+def _check_png(data: bytes, src: str) -> None:
+    """Walk a PNG's chunks: lengths, the CRC of every critical chunk, the header's size."""
+    size = len(data)
+    pos = 8
+    first = True
+    n_idat = 0
+    while True:
+        if pos + 8 > size:
+            raise ImageError(
+                f"truncated PNG file ({size} bytes; a chunk header at byte {pos} is cut)", source=src
+            )
+        length = int.from_bytes(data[pos : pos + 4], "big")
+        tag = data[pos + 4 : pos + 8]
+        name = tag.decode("latin-1") if tag.isalpha() else repr(tag)
+        end = pos + 12 + length
+        if not tag.isalpha() or length > 2**31 - 1:
+            raise ImageError(f"corrupt PNG file: no valid chunk at byte {pos} ({name})", source=src)
+        if end > size:
+            raise ImageError(
+                f"truncated or corrupt PNG file: chunk {name} at byte {pos} needs {length} bytes, "
+                f"the file ends {size - pos - 12} bytes after its header",
+                source=src,
+            )
+        body = data[pos + 8 : pos + 8 + length]
+        critical = tag[:1].isupper()
+        if critical and zlib.crc32(tag + body) != int.from_bytes(data[pos + 8 + length : end], "big"):
+            raise ImageError(f"corrupt PNG file: chunk {name} at byte {pos} fails its CRC check", source=src)
+        if first:
+            if tag != b"IHDR" or length != 13:
+                raise ImageError(
+                    f"corrupt PNG file: it starts with chunk {name}, not a header (IHDR)", source=src
+                )
+            w, h = int.from_bytes(body[:4], "big"), int.from_bytes(body[4:8], "big")
+            if not (0 < w <= MAX_IMAGE_SIDE_PX and 0 < h <= MAX_IMAGE_SIDE_PX):
+                raise ImageError(
+                    f"the PNG header declares a {w}x{h} px image: not a camera image "
+                    f"(1 to {MAX_IMAGE_SIDE_PX} px per side)",
+                    source=src,
+                )
+            first = False
+        n_idat += tag == b"IDAT"
+        if tag == b"IEND":
+            break
+        pos = end
+    if n_idat == 0:
+        raise ImageError("corrupt PNG file: it holds no image data (no IDAT chunk)", source=src)
+
+
+#: fd 2 is the process's: one thread at a time redirects it (else one would restore another's).
+_STDERR_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _decoder_messages():
+    """Catch what the C decoders print on the process's stderr (fd 2) while decoding.
+
+    Yields a list that holds the lines afterwards. OpenCV's own log is set to errors only
+    (libtiff's warnings about unknown tags are noise; its errors mean damaged data).
+    """
+    with _STDERR_LOCK, _caught_fd2() as lines:
+        yield lines
+
+
+@contextlib.contextmanager
+def _caught_fd2():
+    lines: list[str] = []
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to catch: let the decoders print where they can
+        saved = None
+    try:
+        if saved is None:
+            yield lines
+            return
+        with tempfile.TemporaryFile() as tmp:
+            with contextlib.suppress(Exception):
+                sys.stderr.flush()
+            os.dup2(tmp.fileno(), 2)
+            try:
+                yield lines
+            finally:
+                os.dup2(saved, 2)
+                tmp.seek(0)
+                text = tmp.read(4096).decode("utf-8", errors="replace")
+                lines += [" ".join(ln.split()) for ln in text.splitlines() if ln.strip()]
+    finally:
+        if saved is not None:
+            os.close(saved)
+        cv2.utils.logging.setLogLevel(level)
+
+
+def _damage(lines: list[str]) -> tuple[list[str], list[str]]:
+    """Split decoder messages into damage (the data is corrupt or missing) and harmless notes."""
+    damage, notes = [], []
+    for ln in lines:
+        text = re.sub(r"^\[\s*ERROR:[^\]]*\]\s*(global\s+\S+\s+)?", "", ln)
+        if ln.startswith("libpng warning"):
+            continue  # e.g. "iCCP: known incorrect sRGB profile": the pixels are fine
+        (notes if "extraneous bytes" in ln else damage).append(text)
+    return damage, notes
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file as 8-bit grey.
 
@@ -91,7 +214,13 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     ------
     ImageError
         Naming the file and what is wrong: not found, a directory, empty,
-        truncated, not an image, unsupported format, or undecodable.
+        truncated or corrupt (with what the decoder says), not an image,
+        unsupported format, undecodable, or smaller than 8x8 px.
+
+    Warns
+    -----
+    ImageWarning
+        The image was decoded but its decoder noted extraneous bytes (a JPEG).
     """
     p = Path(path)
     src = str(path)
@@ -100,48 +229,53 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if p.is_dir():
         raise ImageError("is a directory, expected an image file", source=src)
     try:
-        size = p.stat().st_size
-        with open(p, "rb") as f:
-            head = f.read(16)
-            f.seek(max(size - 32, 0))
-            tail = f.read()
+        data = p.read_bytes()
     except OSError as e:
         raise ImageError(f"cannot read: {e.strerror or e}", source=src) from None
+    size = len(data)
     if size == 0:
         raise ImageError("empty file (0 bytes), expected an image", source=src)
-    fmt = _format_of(head)
+    fmt = _format_of(data[:16])
     if fmt is None:
         raise ImageError(
             "not an image file this tool can read (expected PNG, TIFF, BMP, JPEG, PGM or WebP)",
             source=src,
         )
-    _check_complete(fmt, tail, size, src)
+    _check_complete(fmt, data[-32:], size, src)
+    if fmt == "PNG":
+        _check_png(data, src)
     flags = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        img = cv2.imread(str(p), flags)
-        if img is None:
-            # imread cannot open some paths (non-ASCII names on Windows): decode from memory.
-            img = cv2.imdecode(np.fromfile(p, dtype=np.uint8), flags)
-    except cv2.error as e:  # pragma: no cover - OpenCV returns None rather than raising
-        raise ImageError(f"cannot decode the {fmt} data: {e}", source=src) from None
-    finally:
-        cv2.utils.logging.setLogLevel(level)
+    with _decoder_messages() as lines:
+        try:
+            img = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), flags)
+        except cv2.error as e:  # pragma: no cover - OpenCV returns None rather than raising
+            img = None
+            lines.append(str(e))
+    damage, notes = _damage(lines)
+    said = f" (the decoder says: {'; '.join(damage)[:300]})" if damage else ""
     if img is None:
         raise ImageError(
-            f"cannot decode the {fmt} data ({size} bytes): truncated or corrupt file, "
+            f"cannot decode the {fmt} data ({size} bytes){said}: truncated or corrupt file, "
             "or a variant of the format this OpenCV build does not support",
             source=src,
         )
+    if damage:
+        raise ImageError(f"damaged {fmt} data{said}: a truncated or corrupt file", source=src)
+    if notes:
+        warnings.warn(f"{src}: the {fmt} decoder says: {'; '.join(notes)[:300]}", ImageWarning, stacklevel=2)
     return _as_grey8(img, src)
 
 
 def _as_grey8(img: np.ndarray, src: str) -> np.ndarray:
     if img.ndim == 3:  # pragma: no cover - IMREAD_GRAYSCALE already converts
         img = cv2.cvtColor(img[..., :3], cv2.COLOR_BGR2GRAY)
-    if img.ndim != 2 or img.shape[0] < 2 or img.shape[1] < 2:
+    if img.ndim != 2:
         raise ImageError(f"expected a 2-D image, got an array of shape {img.shape}", source=src)
+    if min(img.shape) < MIN_IMAGE_PX:
+        h, w = img.shape
+        raise ImageError(
+            f"image is {w}x{h} px; a board image needs at least {MIN_IMAGE_PX}x{MIN_IMAGE_PX} px", source=src
+        )
     if img.dtype == np.uint8:
         return img
     if img.dtype in (np.uint16, np.int16, np.float32, np.float64):

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..geometry import matrix_from_rotvec
-from ..posemath import BoardPose, check_pose, perturb_pose, projection_jacobian
+from ..posemath import BoardPose, check_pose, faces_camera, perturb_pose, projection_jacobian
 from ..targets import Chessboard
 from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
 from .photometric import PhotometricError, refine_pose_photometric
@@ -148,6 +148,14 @@ def estimate_pose(
     if not isinstance(board, Chessboard):
         return replace(
             corner_pose, fallback="ChArUco boards are not modelled photometrically; corner pose kept"
+        )
+    if not faces_camera(corner_pose.board2cam):
+        return replace(
+            corner_pose,
+            fallback=(
+                "the corner pose shows the board from behind (its z axis towards the camera: a wrong "
+                "camera model?); corner pose kept"
+            ),
         )
     try:
         photo = refine_pose_photometric(

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..camera import CameraModel
+from ..camera import CameraModel, UndistortionError
 from ..errors import InputError
 from ..geometry import as_transform, invert_transform
 from ..posemath import BoardPose, skew
@@ -211,7 +211,8 @@ class PoseTracker:
         -------
         ImageMeasurement
             With ``error`` set (and the tracker reset) when the image could not
-            be used; never raises for a bad image.
+            be used (unreadable, another size, no board, or the lens model of the camera
+            cannot be inverted where the board is); never raises for a bad image.
         """
         t0 = time.perf_counter()
         if isinstance(image, (str, os.PathLike)):
@@ -264,6 +265,13 @@ class PoseTracker:
             self.reset()
             timings["total"] = time.perf_counter() - t0
             return ImageMeasurement(image=label, timings=timings, error=str(e.with_source(label)))
+        except UndistortionError as e:
+            # The lens model of camera.json cannot be inverted where this image needs it.
+            self.reset()
+            timings["total"] = time.perf_counter() - t0
+            return ImageMeasurement(
+                image=label, timings=timings, error=f"{label}: with {self.camera_source}: {e}"
+            )
         self._prev = list(dets)
         self._ref = list(dets)
         self._poses = [p.board2cam for p in poses]

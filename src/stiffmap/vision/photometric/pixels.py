@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ...camera import CameraModel, pixel_rays
+from ...camera import CameraModel, UndistortionError, pixel_rays
 from ...errors import InputError
 from ...posemath import check_pose, faces_camera, ray2board_homography
 from ...targets import Chessboard
@@ -237,7 +237,9 @@ def prepare_pixels(
     Raises
     ------
     PhotometricError
-        The board is (mostly) outside the image or too few pixels are usable.
+        The board is (mostly) outside the image, too few pixels are usable, or the
+        camera's ray map cannot be built (its distortion model cannot be inverted over
+        the image and its margin).
     """
     img = check_image(image, uint16=True)
     T = check_board2cam(board2cam)
@@ -273,7 +275,11 @@ def prepare_pixels(
     r1 = min(int(np.ceil(uv[:, 1].max())) + 1, h - 1)
     if c1 - c0 < 8 or r1 - r0 < 8:
         raise PhotometricError("the board is outside the image")
-    rm = pixel_rays(camera)
+    try:
+        rm = pixel_rays(camera)
+    except UndistortionError as e:
+        # The ray map covers the whole image and a margin: a strong lens model folds over there.
+        raise PhotometricError(f"the camera's ray map cannot be built ({e})") from None
     corr_x, corr_y = rm.correction_maps
     Hi = ray2board_homography(T)
     h32 = Hi.astype(np.float32)
