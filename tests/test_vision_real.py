@@ -102,7 +102,7 @@ def test_calibrate_pose_and_displacement_never_end_in_a_traceback(name, tmp_path
         if "board2cam" in r:
             assert np.all(np.isfinite(np.asarray(r["board2cam"], dtype=float)))
     # Each refinement on a few views, and a displacement between views.
-    few = [str(f) for f in files[:3]]
+    few = [str(f) for f in files if f.name not in PARTIAL.get(name, ())][:3]
     for refine in ("corners", "photometric"):
         proc = run_stiffmap("pose", *few, "--camera", cam, *board, "--refine", refine, "--json")
         _assert_no_traceback(proc)

@@ -62,6 +62,8 @@ __all__ = [
     "CameraModel",
     "PixelRays",
     "UndistortionError",
+    "InvertibleField",
+    "invertible_field",
     "pixel_rays",
     "plausibility_problems",
     "reference_camera",
@@ -668,6 +670,109 @@ def save_camera(camera: CameraModel, path: str | Path) -> Path | None:
     return replace_keeping_previous(path, dumps_json(camera.to_dict()) + "\n")
 
 
+# ------------------------------------------------------------------ invertible field
+
+#: Share of the radius where the distortion folds over that is used (rays closer to the fold
+#: are ill-conditioned: a pixel of noise there is many pixels of ray).
+FIELD_SAFETY = 0.97
+#: Directions and largest normalised radius (tan of the angle off axis) searched for a fold.
+_FIELD_ANGLES = 720
+_FIELD_R_MAX = 6.0
+_FIELD_STEPS = 1200
+_FIELD_CACHE: OrderedDict = OrderedDict()
+
+
+@dataclass(frozen=True)
+class InvertibleField:
+    """Where a camera's lens-distortion model is one to one (get one with :func:`invertible_field`).
+
+    A strong lens's calibrated polynomial (k1 -0.3, k2 0.15, k3 -0.08, say) stops growing
+    with the radius somewhere beyond the calibrated field and folds back: there a distorted
+    position has two undistorted rays, or none. Along each direction from the principal
+    point, the field ends at :data:`FIELD_SAFETY` times the first radius where the
+    distortion's Jacobian determinant is no longer positive; ``rho`` is that end in the
+    distorted normalised plane, at the angles ``phi`` (sorted, radians).
+
+    Attributes
+    ----------
+    phi, rho : ndarray, shape (n,)
+    folds : bool
+        False when the model is one to one out to 80 degrees off axis in every direction.
+    """
+
+    camera: CameraModel
+    phi: np.ndarray
+    rho: np.ndarray
+    folds: bool
+
+    def contains_normalized(self, xy_distorted) -> np.ndarray:
+        """True where distorted normalised points (..., 2) are inside the field."""
+        xy = np.asarray(xy_distorted, dtype=np.float64)
+        with np.errstate(all="ignore"):
+            ang = np.arctan2(xy[..., 1], xy[..., 0])
+            rho = np.hypot(xy[..., 0], xy[..., 1])
+            lim = np.interp(ang, self.phi, self.rho, period=2 * np.pi)
+            return np.isfinite(rho) & (rho < lim)
+
+    def contains_pixels(self, uv) -> np.ndarray:
+        """True where pixel positions (..., 2) are inside the field."""
+        return self.contains_normalized(self.camera.normalized_from_pixels(uv))
+
+    def radius_px(self) -> tuple[float, float]:
+        """Shortest and longest distance from the principal point to the field's end, px."""
+        c = self.camera
+        d = self.rho * np.hypot(c.fx * np.cos(self.phi), c.fy * np.sin(self.phi))
+        return float(d.min()), float(d.max())
+
+    def image_share(self) -> float:
+        """Share of the image's pixels inside the field (on a 64 x 64 sample grid)."""
+        w, h = self.camera.image_size
+        uv = np.stack(np.meshgrid(np.linspace(0, w - 1, 64), np.linspace(0, h - 1, 64)), axis=-1)
+        return float(np.mean(self.contains_pixels(uv)))
+
+    def describe(self) -> str:
+        """One sentence: how far the field reaches and how much of the image it covers."""
+        if not self.folds:
+            return "the lens model is one to one over the whole field of view"
+        lo, hi = self.radius_px()
+        share = self.image_share()
+        where = "the whole image" if share >= 1.0 else f"{100 * share:.1f} % of the image"
+        return (
+            f"the lens model is invertible out to {lo:.0f}-{hi:.0f} px from the principal point "
+            f"({where}; beyond, its polynomial folds over)"
+        )
+
+
+def invertible_field(camera: CameraModel) -> InvertibleField:
+    """The field where ``camera``'s distortion model is one to one, computed once per camera."""
+    key = camera.key
+    hit = _FIELD_CACHE.get(key)
+    if hit is not None:
+        return hit
+    theta = np.linspace(0.0, 2 * np.pi, _FIELD_ANGLES, endpoint=False)
+    r = np.linspace(0.0, _FIELD_R_MAX, _FIELD_STEPS + 1)[1:]
+    u = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    d = _dist12(camera.dist_array)
+    with np.errstate(all="ignore"):
+        _, J = _distort(r[:, None, None] * u[None], d, jacobian=True)
+        det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+        bad = ~(np.isfinite(det) & (det > 0))
+    folds = bool(bad.any())
+    first = np.where(bad.any(axis=0), np.argmax(bad, axis=0), r.size - 1)
+    r_end = FIELD_SAFETY * r[first]
+    with np.errstate(all="ignore"):
+        edge, _ = _distort(r_end[:, None] * u, d, jacobian=False)
+    phi = np.arctan2(edge[:, 1], edge[:, 0])
+    rho = np.hypot(edge[:, 0], edge[:, 1])
+    ok = np.isfinite(phi) & np.isfinite(rho)
+    order = np.argsort(phi[ok])
+    field_ = InvertibleField(camera, phi[ok][order], rho[ok][order], folds)
+    _FIELD_CACHE[key] = field_
+    while len(_FIELD_CACHE) > _RAY_CACHE_SIZE:
+        _FIELD_CACHE.popitem(last=False)
+    return field_
+
+
 # ------------------------------------------------------------------ ray cache
 
 #: Step of the grid of exact rays the ray map interpolates, px.
@@ -689,6 +794,14 @@ class PixelRays:
     reaching 64 px beyond the image: interpolation error about 1e-8 px for the
     reference camera.
 
+    Only pixels inside the lens model's :class:`InvertibleField` have rays. When the field
+    ends within the image or its margin (a strong wide-angle lens), the correction bends
+    too sharply near the fold for a spline: :attr:`correction_maps` are then the exact
+    rays of every pixel inside the field (Newton's method, computed once), zero beyond it,
+    and :attr:`valid_map` says which pixels have rays; :attr:`covers_image` says whether
+    users need to look. (:meth:`block`, for the renderer, needs a camera that covers
+    its image.)
+
     Attributes
     ----------
     px : ndarray, shape (w,)
@@ -702,22 +815,39 @@ class PixelRays:
     def __init__(self, camera: CameraModel) -> None:
         # Lazy: scipy.interpolate costs ~0.2 s to import, and reading camera.json must stay light.
         from scipy.interpolate import RectBivariateSpline
+        from scipy.ndimage import distance_transform_edt
 
         self.camera = camera
         w, h = camera.image_size
         us = np.arange(-_RAY_PAD_PX, w + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
         vs = np.arange(-_RAY_PAD_PX, h + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
         U, V = np.meshgrid(us, vs)
-        rays = camera.rays_from_pixels(np.stack([U, V], axis=-1))
+        uv = np.stack([U, V], axis=-1)
+        self.field = invertible_field(camera)
+        ok = self.field.contains_pixels(uv)
+        rays = np.zeros(uv.shape)
+        x, bad = camera._newton_undistort(camera.normalized_from_pixels(uv[ok]), 1e-14, 50)
+        rays[ok] = x
+        ok[ok] = ~bad
+        if not ok.any():  # pragma: no cover - the centre is always inside (plausibility checks)
+            raise UndistortionError(f"no pixel of the image can be undistorted: {self.field.describe()}")
         self.px = (np.arange(w, dtype=np.float64) - camera.cx) / camera.fx
         self.py = (np.arange(h, dtype=np.float64) - camera.cy) / camera.fy
         self.px32 = self.px.astype(np.float32)
         self.py32 = self.py.astype(np.float32)
         corr_x = rays[..., 0] - (U - camera.cx) / camera.fx
         corr_y = rays[..., 1] - (V - camera.cy) / camera.fy
+        if not ok.all():
+            # Beyond the field: the nearest valid node's correction (keeps the spline tame).
+            idx = distance_transform_edt(~ok, return_distances=False, return_indices=True)
+            corr_x, corr_y = corr_x[idx[0], idx[1]], corr_y[idx[0], idx[1]]
+        self._valid: np.ndarray | None = None
         self._sx = RectBivariateSpline(vs, us, corr_x, kx=3, ky=3, s=0)
         self._sy = RectBivariateSpline(vs, us, corr_y, kx=3, ky=3, s=0)
         self._maps: tuple[np.ndarray, np.ndarray] | None = None
+        # Where the field ends inside the grid the correction bends sharply near the fold, beyond
+        # a spline's reach: the maps are then the exact rays of every pixel (Newton, once).
+        self._exact = not ok.all()
 
     def block(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rays on the grid rows x cols (pixel positions, may reach outside the image).
@@ -733,6 +863,22 @@ class PixelRays:
         return rx, ry
 
     @property
+    def valid_map(self) -> np.ndarray:
+        """(h, w) bool: True where a pixel's ray is right (inside the invertible field)."""
+        if self._valid is None:
+            w, h = self.camera.image_size
+            if self._exact:
+                self.correction_maps  # noqa: B018 - computes the exact maps and their validity
+            else:
+                self._valid = np.ones((h, w), dtype=bool)
+        return self._valid
+
+    @property
+    def covers_image(self) -> bool:
+        """True when every pixel of the image has a right ray."""
+        return bool(self.valid_map.all())
+
+    @property
     def correction_maps(self) -> tuple[np.ndarray, np.ndarray]:
         """The corrections at every pixel centre, float32 (h, w) each (to ~1e-9), built once.
 
@@ -741,13 +887,26 @@ class PixelRays:
         if self._maps is None:
             w, h = self.camera.image_size
             cols = np.arange(w, dtype=np.float64)
-            cx = np.empty((h, w), dtype=np.float32)
-            cy = np.empty((h, w), dtype=np.float32)
+            cx = np.zeros((h, w), dtype=np.float32)
+            cy = np.zeros((h, w), dtype=np.float32)
+            valid = np.ones((h, w), dtype=bool)
+            cam = self.camera
             for r in range(0, h, 256):
                 rows = np.arange(r, min(r + 256, h), dtype=np.float64)
-                cx[r : r + rows.size] = self._sx(rows, cols)
-                cy[r : r + rows.size] = self._sy(rows, cols)
+                if not self._exact:
+                    cx[r : r + rows.size] = self._sx(rows, cols)
+                    cy[r : r + rows.size] = self._sy(rows, cols)
+                    continue
+                uv = np.stack(np.meshgrid(cols, rows), axis=-1)
+                ok = self.field.contains_pixels(uv)
+                x, bad = cam._newton_undistort(cam.normalized_from_pixels(uv[ok]), 1e-14, 50)
+                ok[ok] = ~bad
+                x = x[~bad]
+                cx[r : r + rows.size][ok] = x[:, 0] - (uv[ok][:, 0] - cam.cx) / cam.fx
+                cy[r : r + rows.size][ok] = x[:, 1] - (uv[ok][:, 1] - cam.cy) / cam.fy
+                valid[r : r + rows.size] = ok
             self._maps = (cx, cy)
+            self._valid = valid
         return self._maps
 
 

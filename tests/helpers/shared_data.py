@@ -54,6 +54,8 @@ class _SharedData:
     def __fspath__(self) -> str:
         return str(self._get())
 
+    __str__ = __fspath__
+
 
 #: Bouguet's calibration example: 20 real 640x480 photographs of a 13x12 board, 30 mm squares.
 CALIB_DIR = _SharedData(_find_shared("calib_example", "Image1.tif"))

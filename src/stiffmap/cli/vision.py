@@ -14,7 +14,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ..camera import load_camera, plausibility_problems, save_camera
+from ..camera import invertible_field, load_camera, plausibility_problems, save_camera
 from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..io import atomic_write_text
@@ -195,6 +195,9 @@ def calibrate(
     for key, what in implausible:
         # The other commands refuse this camera.json: say so now, with the views to blame.
         warn(f"{out_path}: key {key!r}: {what} (the views may not constrain the calibration)")
+    field = invertible_field(res.camera)
+    if not implausible and field.image_share() < 1.0:
+        warn(f"{out_path}: {field.describe()}; pose measurements use no pixel beyond it")
     if as_json:
         print_json(res.to_dict())
     else:
@@ -222,6 +225,7 @@ def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
         f"[{c.residual_std_px[0]:.4f}, {c.residual_std_px[1]:.4f}] px; "
         f"{res.n_used} of {len(res.views)} views used"
     )
+    out.print(invertible_field(c).describe())
     v = Table(title="views")
     v.add_column("image", overflow="fold")
     for col in ("used", "corners", "RMS (px)"):

@@ -142,6 +142,8 @@ def render_reflectance(
         if img.shape != shape:
             raise ValueError(f"background must have shape {shape}, got {img.shape}")
     rm = pixel_rays(camera)
+    if not rm.covers_image:
+        raise ValueError(f"cannot render through this camera's distortion: {rm.field.describe()}")
     # Painter's order: the farthest target first.
     order = sorted(targets, key=lambda tg: -float(np.linalg.norm(tg.board2cam[:3, 3])))
     for tg in order:

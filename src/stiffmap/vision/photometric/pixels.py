@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ...camera import CameraModel, UndistortionError, pixel_rays
+from ...camera import CameraModel, pixel_rays
 from ...errors import InputError
 from ...posemath import check_pose, faces_camera, ray2board_homography
 from ...targets import Chessboard
@@ -237,9 +237,9 @@ def prepare_pixels(
     Raises
     ------
     PhotometricError
-        The board is (mostly) outside the image, too few pixels are usable, or the
-        camera's ray map cannot be built (its distortion model cannot be inverted over
-        the image and its margin).
+        The board is (mostly) outside the image, or too few pixels are usable (only
+        pixels inside the field where the lens model is invertible are, see
+        :class:`~stiffmap.camera.InvertibleField`).
     """
     img = check_image(image, uint16=True)
     T = check_board2cam(board2cam)
@@ -275,11 +275,7 @@ def prepare_pixels(
     r1 = min(int(np.ceil(uv[:, 1].max())) + 1, h - 1)
     if c1 - c0 < 8 or r1 - r0 < 8:
         raise PhotometricError("the board is outside the image")
-    try:
-        rm = pixel_rays(camera)
-    except UndistortionError as e:
-        # The ray map covers the whole image and a margin: a strong lens model folds over there.
-        raise PhotometricError(f"the camera's ray map cannot be built ({e})") from None
+    rm = pixel_rays(camera)
     corr_x, corr_y = rm.correction_maps
     Hi = ray2board_homography(T)
     h32 = Hi.astype(np.float32)
@@ -353,6 +349,12 @@ def prepare_pixels(
     vals = img.ravel().take(v_i * w + u_i)
     sat = np.iinfo(img.dtype).max if saturation is None else int(saturation)
     sel &= (vals < sat) & (vals > 0)
+    # Only pixels whose rays are right: inside the field where the lens model is invertible.
+    n_out = 0
+    if not rm.covers_image:
+        in_field = rm.valid_map.ravel().take(v_i * w + u_i)
+        n_out = int(np.count_nonzero(sel & ~in_field))
+        sel &= in_field
     polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in exclude]
     if polys:
         m = np.zeros((r1 - r0, c1 - c0), dtype=np.uint8)
@@ -364,7 +366,10 @@ def prepare_pixels(
     idx = np.flatnonzero(sel)
     n = idx.size
     if n < MIN_PIXELS:
-        raise PhotometricError(f"only {n} usable pixels near the board's edges (at least {MIN_PIXELS})")
+        msg = f"only {n} usable pixels near the board's edges (at least {MIN_PIXELS})"
+        if n_out:
+            msg += f"; {n_out} lie beyond the lens model's invertible field: {rm.field.describe()}"
+        raise PhotometricError(msg)
     ui, vi = u_i[idx], v_i[idx]
     X, Y, dX, dY, kx, ky = X[idx], Y[idx], dX[idx], dY[idx], kx[idx], ky[idx]
     u = ui.astype(np.float64)
