@@ -101,6 +101,22 @@ def _positions(text: str, select: str | None, mech: str):
     return from_option("--select", select_positions, P, select)
 
 
+@contextmanager
+def _naming_positions_file(text: str | None, select: str | None):
+    """A ``position N ...`` error about positions read from a CSV file names that file.
+
+    The test-bed numbers the positions it refuses (unreachable, no stiffness); when they
+    come from ``--positions FILE`` (all of them, no ``--select``), N is the file's Nth row.
+    """
+    try:
+        yield
+    except InputError as e:
+        if e.source is None and select is None and e.detail.startswith("position ") and text:
+            if Path(text).is_file():
+                raise e.with_source(text) from None
+        raise
+
+
 def _load_point(text: str):
     """``--load-point-mm`` as (x, y, z), mm."""
     lp = three_numbers(text)
@@ -222,7 +238,8 @@ def simulate(
         clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
         jpeg_quality=jpeg_quality, name=name,
     )  # fmt: skip
-    sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
+    with _naming_positions_file(positions, select):
+        sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
     n_workers = workers or default_workers()
     if not as_json:
         err.print(
@@ -325,18 +342,19 @@ def _simulate_sensor(
     trace_fmt = trace_format.strip().lower()
     if trace_fmt not in ("csv", "tdms", "mat"):
         raise InputError(f"--trace-format {trace_format!r}: expected csv, tdms or mat")
-    s = write_sensor_campaign(
-        out_dir,
-        model,
-        P,
-        directions=dirs,
-        repeats=repeats,
-        seed=seed,
-        fmt=trace_fmt,
-        force=force,
-        name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
-        command=command,
-    )
+    with _naming_positions_file(positions, select):
+        s = write_sensor_campaign(
+            out_dir,
+            model,
+            P,
+            directions=dirs,
+            repeats=repeats,
+            seed=seed,
+            fmt=trace_fmt,
+            force=force,
+            name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
+            command=command,
+        )
     _print_sensor_summary(s, model.params(), trace_fmt, seed, as_json)
 
 
