@@ -22,14 +22,18 @@ by replacing it whole.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import io
+import logging
 import os
+import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, StiffmapWarning
 from ..io import atomic_write_bytes, atomic_write_text, read_csv_columns
 from .matfile import mat5_variables
 from .recording import ChannelMap, Recording, check_sample_rate, load_unit_from_name
@@ -197,7 +201,51 @@ def _read_csv(path: Path, cmap: ChannelMap) -> Recording:
     return _finish(src, cmap, t, get(cmap.displacement), get(cmap.load), {"format": "csv"}, None, where)
 
 
+class _NptdmsMessages(logging.Filter):
+    """Collects what npTDMS logs instead of letting it print to stderr.
+
+    npTDMS prints its own ``[nptdms.reader WARNING] ...`` lines on a damaged or truncated
+    file (and reads what it can); stiffmap says it once instead, as one warning naming the
+    file (or not at all when the file is refused with an error anyway).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.messages: list[str] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        self.messages.append(record.getMessage())
+        return False
+
+
+@contextlib.contextmanager
+def _quiet_nptdms(src: str):
+    from nptdms.log import log_manager
+
+    f = _NptdmsMessages()
+    handler = log_manager.console_handler
+    handler.addFilter(f)
+    try:
+        yield
+    finally:
+        handler.removeFilter(f)
+    if f.messages:  # the file was read, but not cleanly
+        first = re.sub(r"\s+", " ", f.messages[0])[:160]
+        more = f" (and {len(f.messages) - 1} more)" if len(f.messages) > 1 else ""
+        warnings.warn(
+            f"{src}: npTDMS: {first}{more}: a damaged or truncated file? Its samples were read "
+            "as far as they go; check the results",
+            StiffmapWarning,
+            stacklevel=3,
+        )
+
+
 def _read_tdms(path: Path, cmap: ChannelMap) -> Recording:
+    with _quiet_nptdms(str(path)):
+        return _read_tdms_quietly(path, cmap)
+
+
+def _read_tdms_quietly(path: Path, cmap: ChannelMap) -> Recording:
     from nptdms import TdmsFile
 
     src = str(path)
