@@ -461,3 +461,40 @@ def test_report_data_json_with_numbers_beyond_float(tmp_path, change, needles):
     f = tmp_path / "data.json"
     f.write_text(text)
     assert_one_line_error(run_stiffmap("report", f, tmp_path / "out", "--no-png"), "data.json", *needles)
+
+
+def test_a_damaged_tdms_file_gives_one_line_not_nptdms_log_lines(tmp_path):
+    """npTDMS printed its own ``[nptdms.reader WARNING]`` lines to stderr beside stiffmap's."""
+    data = bytearray(sensor_recording("tdms"))
+    f = tmp_path / "truncated.tdms"
+    f.write_bytes(bytes(data[:-5000]))
+    proc = run_stiffmap("sensor", f)
+    assert "[nptdms" not in proc.stderr, proc.stderr
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 2, proc.stderr
+    assert "truncated.tdms: load channel 'load_kgf' has" in proc.stderr
+    # A damaged property name: npTDMS reads the file; one warning says it was not clean.
+    i = data.find(b"unit_string")
+    data[i + 10] = 0xE8
+    # (In-process: the subprocess harness runs with every warning an error.)
+    o = run_case(FuzzCase({"damaged.tdms": bytes(data)}, ("sensor", "{dir}/damaged.tdms", "--json"), None))
+    assert o.kind == "ok", o.stderr
+    (line,) = o.stderr.strip().splitlines()
+    assert line.startswith("warning: ") and "damaged.tdms: npTDMS: Error decoding string" in line
+    assert "damaged or truncated file?" in line
+
+
+def test_simulate_writes_a_load_label_with_a_control_character_as_valid_toml(tmp_path):
+    """A label holding a control character was written into campaign.toml as it was, which
+    then failed to parse: 'campaign.toml: not valid TOML: Illegal character' (not the CSV)."""
+    import tomllib
+
+    loads = tmp_path / "loads.csv"
+    loads.write_bytes(b"fx,fy,fz,label\n0,4.905,0,\x01.5 kg +y\n-4.905,0,0,0.5 kg -x\n0,0,-4.905,0.5 kg -z\n")
+    pos = tmp_path / "positions.csv"
+    pos.write_text("x,y,z\n0,0,-310\n")
+    out = tmp_path / "out"
+    proc = run_stiffmap("simulate", out, "--truth-only", "--loads", loads, "--positions", pos, "--json")
+    assert proc.returncode == 0, proc.stderr
+    text = (out / "campaign.toml").read_text()
+    assert "\x01" not in text and "\\u0001.5 kg +y" in text
+    tomllib.loads(text)
