@@ -254,7 +254,10 @@ def test_constant_displacement_asks_whether_the_sensor_is_on_the_target(tmp_path
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 2 and "Traceback" not in proc.stderr, proc.stderr
     assert f"laser.{fmt}" in lines[0]
-    assert "the displacement is constant over the whole recording (1.234 V on every sample)" in lines[0]
+    assert (
+        "the displacement (channel 'displacement_v') is constant over the whole recording "
+        "(1.234 V on every sample)"
+    ) in lines[0]
     assert "is the sensor on the target?" in lines[0]
     assert lines[1].startswith("error: none of the 1 recording(s) could be analysed")
 
@@ -307,12 +310,16 @@ WRONG_RECORDINGS = {
     "tdms int16 displacement of raw codes": (
         "rec.tdms",
         lambda r: write_tdms_channels(_channels(displacement_v=_int16_codes())),
-        ("the displacement channel holds whole numbers", "beyond the sensor range of +-8 V", "raw DAQ codes"),
+        (
+            "the displacement (channel 'displacement_v') holds whole numbers",
+            "beyond the sensor range of +-8 V",
+            "raw DAQ codes",
+        ),
     ),
     "mat int16 displacement of raw codes": (
         "rec.mat",
         lambda r: write_mat_variables(_channels(displacement_v=_int16_codes())),
-        ("the displacement channel holds whole numbers", "without their scale to volts"),
+        ("the displacement (channel 'displacement_v') holds whole numbers", "without their scale to volts"),
     ),
     "tdms load of 1e300": (
         "rec.tdms",

@@ -346,7 +346,13 @@ def _manual_spans(times, t: np.ndarray, src: str) -> np.ndarray:
     return np.asarray(out, dtype=int).reshape(-1, 2)
 
 
-def _refuse_raw_codes(volts: np.ndarray, range_v: float, src: str) -> None:
+def _displacement_channel(recording: Recording) -> str:
+    """``the displacement (channel 'NAME')`` when the reader said which channel it was."""
+    name = recording.meta.get("displacement_channel")
+    return f"the displacement (channel {name!r})" if name else "the displacement"
+
+
+def _refuse_raw_codes(volts: np.ndarray, range_v: float, src: str, what: str = "the displacement") -> None:
     """Whole numbers far beyond the sensor range on most samples are DAQ codes, not volts.
 
     A DAQ that logs its ADC codes (int16: -32768 to 32767) without their scale writes
@@ -360,7 +366,7 @@ def _refuse_raw_codes(volts: np.ndarray, range_v: float, src: str) -> None:
     if beyond.mean() <= 0.5 or not np.all(v == np.round(v)):
         return
     raise InputError(
-        f"the displacement channel holds whole numbers from {v.min():.0f} to {v.max():.0f}, beyond the "
+        f"{what} holds whole numbers from {v.min():.0f} to {v.max():.0f}, beyond the "
         f"sensor range of +-{range_v:g} V on {beyond.mean():.0%} of the samples: raw DAQ codes (int16?) "
         "without their scale to volts? Export the scaled data (volts) from the DAQ software, or give "
         "the channel its scale (NI_Scale properties in TDMS)",
@@ -368,7 +374,9 @@ def _refuse_raw_codes(volts: np.ndarray, range_v: float, src: str) -> None:
     )
 
 
-def _refuse_constant_displacement(volts: np.ndarray, x: np.ndarray, ok: np.ndarray, src: str) -> None:
+def _refuse_constant_displacement(
+    volts: np.ndarray, x: np.ndarray, ok: np.ndarray, src: str, what: str = "the displacement"
+) -> None:
     """A displacement that does not change over the whole recording measured nothing.
 
     The usual cause in a lab: the laser spot is off the target (or on a part that does not
@@ -381,9 +389,9 @@ def _refuse_constant_displacement(volts: np.ndarray, x: np.ndarray, ok: np.ndarr
     if span >= DISPLACEMENT_FLOOR_MM:
         return
     v = volts[ok]
-    what = f"{v[0]:.6g} V on every sample" if span == 0 else f"it varies by {span:.3g} mm"
+    how = f"{v[0]:.6g} V on every sample" if span == 0 else f"it varies by {span:.3g} mm"
     raise InputError(
-        f"the displacement is constant over the whole recording ({what}): is the sensor on the "
+        f"{what} is constant over the whole recording ({how}): is the sensor on the "
         "target? (a laser spot off the target, or a stuck or disconnected sensor, reads a constant)",
         source=src,
     )
@@ -413,7 +421,8 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     cfg = config or SensorConfig()
     src = recording.source or "recording"
     t = recording.time_s
-    _refuse_raw_codes(recording.displacement_v, cfg.range_v, src)
+    disp_what = _displacement_channel(recording)
+    _refuse_raw_codes(recording.displacement_v, cfg.range_v, src, disp_what)
     n = t.size
     fs = recording.sample_rate_hz
     flags: list[str] = []
@@ -429,7 +438,7 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     x = conv.displacement_mm
     bad = conv.bad.copy()
     spans = list(conv.spans)
-    _refuse_constant_displacement(recording.displacement_v, x, ~bad, src)
+    _refuse_constant_displacement(recording.displacement_v, x, ~bad, src, disp_what)
 
     # Loads: a channel, a table, or both (the table rules, the channel is checked against it).
     load_n = None

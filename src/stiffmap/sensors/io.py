@@ -147,7 +147,7 @@ def _finish(
         load=load,
         load_unit=unit,
         load_name=cmap.load if load is not None else None,
-        meta=meta,
+        meta={**meta, "displacement_channel": cmap.displacement},
     )
 
 
