@@ -233,6 +233,14 @@ def test_simulate_names_the_positions_file_of_an_unreachable_position(tmp_path):
     proc = run_stiffmap("simulate", tmp_path / "out", "--truth-only", "--positions", p)
     assert_one_line_error(proc, "positions.csv", "position 2", "unreachable")
 
+    # A load that pushes the board out of the camera's view names the loads file too.
+    loads = tmp_path / "loads.csv"
+    loads.write_text("fx,fy,fz\n0,4.905,0\n-4.905,0,0\n0,0,-4905\n")
+    p.write_text("x,y,z\n0,0,-310\n")
+    proc = run_stiffmap("simulate", tmp_path / "out2", "--truth-only", "--positions", p, "--loads", loads)
+    line = assert_one_line_error(proc, "positions.csv", "position 1", "load 3", "leaves the image")
+    assert line.endswith(f"(load 3 from {loads})"), line
+
 
 # --------------------------------------------------------------------------- regressions: sensor
 def _channels(**change):
