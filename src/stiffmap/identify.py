@@ -47,6 +47,7 @@ from scipy import optimize, stats
 
 from .errors import DesignError, IllConditionedWarning
 from .stiffness import (
+    DISPLACEMENT_FLOOR_MM,
     StiffnessIndices,
     check_stiffness_matrix,
     compliance_from_stiffness,
@@ -423,7 +424,11 @@ def identify_stiffness(
     ------
     DesignError
         If the loads span fewer independent directions than there are
-        components (the rank found and needed are in the message).
+        components (the rank found and needed are in the message); if the
+        displacements cannot give a finite stiffness: all zero or below
+        :data:`DISPLACEMENT_FLOOR_MM`, spanning fewer directions than there are
+        components, or in a ratio to the forces beyond floating-point range
+        (named after ``names[1]``).
     ValueError
         On bad shapes, NaN, an unknown method.
 
@@ -459,6 +464,67 @@ def identify_stiffness(
         )
     Sd = _check_cov(disp_cov, m, n, "disp_cov")
     Sf = _check_cov(force_cov, m, n, "force_cov", semidefinite=True)
+    disp_source = names[1] if names[1] != "displacements" else None
+    _check_displacements(D, m, disp_source)
+    try:
+        # Under/overflow of degenerate data (tiny or huge ratios) is an error here, not a
+        # RuntimeWarning followed by a NaN result.
+        with np.errstate(over="raise", divide="raise", invalid="raise"):
+            return _estimate(
+                F, D, Fa, Sd, Sf, method=method, offset=offset, rank=rank, cond=cond, flags=flags
+            )
+    except (np.linalg.LinAlgError, FloatingPointError):
+        raise DesignError(_no_finite_stiffness(F, D), source=disp_source) from None
+
+
+def _check_displacements(D: np.ndarray, m: int, source: str | None) -> None:
+    """Refuse displacements that cannot give a finite stiffness: all zero, or too few directions."""
+    dmax = float(np.abs(D[:3]).max())
+    if dmax < DISPLACEMENT_FLOOR_MM:
+        what = "zero" if dmax == 0 else f"below {DISPLACEMENT_FLOOR_MM:g} mm (largest {dmax:.3g} mm)"
+        raise DesignError(
+            f"every displacement is {what}: nothing moved, so no finite stiffness can be identified "
+            "(are the displacements in mm? did the sensor or the target follow the robot?)",
+            source=source,
+        )
+    drank, _ = _design_rank(D)
+    if drank < m:
+        comp = "dx, dy, dz" if m == 3 else "dx, dy, dz, rx, ry, rz"
+        raise DesignError(
+            f"the displacements span rank {drank} but {m} independent directions ({comp}) are needed: "
+            "K would be infinite along the others (the same displacement for every load, a component "
+            "always zero, or a stuck sensor?)",
+            source=source,
+        )
+
+
+def _no_finite_stiffness(F: np.ndarray, D: np.ndarray) -> str:
+    """Why the estimate overflowed or was singular, for data that passed the design checks."""
+    fmax = float(np.abs(F[:3]).max())
+    dmax = float(np.abs(D[:3]).max())
+    return (
+        f"no finite stiffness from displacements of at most {dmax:.3g} mm under forces of at most "
+        f"{fmax:.3g} N: their ratio is beyond floating-point range; are the forces in N and the "
+        "displacements in mm?"
+    )
+
+
+def _estimate(
+    F: np.ndarray,
+    D: np.ndarray,
+    Fa: np.ndarray,
+    Sd: np.ndarray | None,
+    Sf: np.ndarray | None,
+    *,
+    method: str,
+    offset: bool,
+    rank: int,
+    cond: float,
+    flags: list[str],
+) -> StiffnessFit:
+    """The estimate of :func:`identify_stiffness` once its inputs are checked."""
+    m, n = F.shape
+    q = Fa.shape[0]
     dof = n - q
     given = Sd is not None
 
@@ -497,6 +563,8 @@ def identify_stiffness(
                 "spd constraint active: the unconstrained symmetric fit was not positive definite; "
                 "the data are not those of an admissible stiffness"
             )
+    if not np.all(np.isfinite(K)):  # numpy's linalg returns inf/NaN without raising
+        raise np.linalg.LinAlgError("K is not finite")
 
     Cm = np.linalg.inv(K)
     R = Dm - Cm @ F

@@ -3,7 +3,10 @@
 - :func:`read_csv_columns` reads a CSV with a header into float columns and
   raises :class:`~stiffmap.errors.InputError` naming the file, the row (as the
   line number in the file) and the column for every problem: missing file,
-  missing column, empty table, a cell that is not a number, NaN.
+  not UTF-8 text, missing column, empty table, a row with more cells than the
+  header, a cell that is not a number, NaN, a field too long for a table.
+- :func:`read_text_file` reads a UTF-8 text file, refusing one that is not
+  (UTF-16, Latin-1, binary) instead of reading garbage.
 - :func:`atomic_write_text` / :func:`atomic_write_bytes` write through a
   temporary file in the same directory and ``os.replace``, so a reader never
   sees a half-written result and an interrupted run leaves the old file.
@@ -31,6 +34,7 @@ from .errors import InputError
 __all__ = [
     "Table",
     "read_csv_columns",
+    "read_text_file",
     "read_json",
     "atomic_write_text",
     "atomic_write_bytes",
@@ -68,6 +72,26 @@ class Table:
         """Columns as rows of an array, shape (len(names), n)."""
         return np.stack([self.columns[c] for c in names])
 
+    def check_magnitude(self, names: Iterable[str], limit: float, unit: str, what: str) -> None:
+        """Refuse a cell of the columns ``names`` whose magnitude exceeds ``limit``.
+
+        For physical plausibility at the boundary (a displacement of 1e308 mm is a broken
+        file, not a measurement): an InputError ``line N, column 'x': 1e+308 mm is beyond
+        +-LIMIT mm: not a plausible WHAT``. Columns not in the table are skipped.
+        """
+        for c in names:
+            v = self.columns.get(c)
+            if v is None:
+                continue
+            bad = np.flatnonzero(np.abs(v) > limit)
+            if bad.size:
+                i = int(bad[0])
+                raise InputError(
+                    f"line {self.lines[i]}, column {c!r}: {v[i]:.6g} {unit} is beyond +-{limit:g} {unit}: "
+                    f"not a plausible {what}",
+                    source=self.path,
+                )
+
 
 def sniff_delimiter(lines: Sequence[str]) -> str:
     """The field separator of a delimited text file: comma, tab or semicolon.
@@ -83,6 +107,44 @@ def sniff_delimiter(lines: Sequence[str]) -> str:
             best = max(counts, key=lambda d: counts[d])
             return best if counts[best] > 0 else ","
     return ","
+
+
+_SEPARATOR_NAMES = {",": "','", "\t": "tab", ";": "';'"}
+
+
+def read_text_file(path: str | os.PathLike, what: str = "text file") -> str:
+    """The text of a UTF-8 file (a leading byte-order mark dropped), or an InputError naming it.
+
+    A file that is not UTF-8 (UTF-16, Latin-1 with accents, a binary file) is refused as
+    such rather than read as garbage: its bytes are not decoded, or it holds NUL characters
+    (UTF-16 text, binary data), which no text table holds.
+
+    Raises
+    ------
+    InputError
+        ``not UTF-8 text (...)``, ``cannot read: ...``; ``what`` names the expected kind of file.
+    """
+    p = Path(path)
+    src = str(path)
+    try:
+        raw = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(
+            f"not UTF-8 text ({e.reason} 0x{e.object[e.start]:02x} at byte {e.start}); "
+            f"expected a {what} saved as UTF-8",
+            source=src,
+        ) from None
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror}", source=src) from None
+    nul = raw.find("\x00")
+    if nul >= 0:
+        line = raw.count("\n", 0, nul) + 1
+        raise InputError(
+            f"not UTF-8 text: line {line} holds a NUL character (UTF-16 text, or a binary file?); "
+            f"expected a {what} saved as UTF-8",
+            source=src,
+        )
+    return raw
 
 
 def read_csv_columns(
@@ -124,15 +186,14 @@ def read_csv_columns(
         raise InputError("file not found", source=src)
     if p.is_dir():
         raise InputError("is a directory, expected a CSV file", source=src)
-    try:
-        raw = p.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise InputError(f"not a text CSV file ({e.reason} at byte {e.start})", source=src) from None
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror}", source=src) from None
+    raw = read_text_file(p, "CSV file")
     lines_text = raw.splitlines()
     delimiter = sniff_delimiter(lines_text)
-    rows = list(csv.reader(lines_text, delimiter=delimiter))
+    reader = csv.reader(lines_text, delimiter=delimiter)
+    try:
+        rows = list(reader)
+    except csv.Error as e:  # a field longer than the csv module's limit (131072 characters)
+        raise InputError(f"line {reader.line_num}: not a table of numbers ({e})", source=src) from None
     # Skip leading blank and comment lines.
     start = 0
     while start < len(rows) and (not rows[start] or rows[start][0].lstrip().startswith("#")):
@@ -160,6 +221,14 @@ def read_csv_columns(
         if not row or all(not cell.strip() for cell in row) or row[0].lstrip().startswith("#"):
             continue
         line = k + 1
+        if len(row) > len(header) and any(cell.strip() for cell in row[len(header) :]):
+            # A decimal comma in a comma-separated file, a separator in a cell, a shifted row:
+            # reading the first cells would give wrong numbers.
+            raise InputError(
+                f"line {line}: {len(row)} cells but the header has {len(header)} columns "
+                f"(separator {_SEPARATOR_NAMES[delimiter]}; a decimal comma in a comma-separated file?)",
+                source=src,
+            )
         for c in wanted:
             j = idx[c]
             cell = row[j].strip() if j < len(row) else ""

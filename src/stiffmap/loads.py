@@ -43,7 +43,15 @@ __all__ = [
     "check_load_design",
     "read_loads_csv",
     "load_design",
+    "MAX_FORCE_N",
+    "MAX_MOMENT_NMM",
 ]
+
+#: Largest force a load file may hold, N (1e5 tonnes-force: beyond, the file is broken or
+#: not in N). A plausibility limit at the input boundary, far above any stiffness test.
+MAX_FORCE_N = 1e9
+#: Largest moment a load file may hold, N*mm (1e9 N at 1 m).
+MAX_MOMENT_NMM = 1e12
 
 #: Named directions in the base frame.
 AXES: dict[str, tuple[float, float, float]] = {
@@ -253,6 +261,7 @@ def read_loads_csv(path: str | os.PathLike) -> list[LoadCase]:
     """
     src = str(path)
     t = read_csv_columns(path, ("fx", "fy", "fz"), ("label",), text_columns=("label",))
+    t.check_magnitude(("fx", "fy", "fz"), MAX_FORCE_N, "N", "force")
     F = t.stack(("fx", "fy", "fz")).T
     labels = t.text.get("label", [""] * len(F))
     cases = []

@@ -12,6 +12,11 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "DISPLACEMENT_FLOOR_MM",
+    "MAX_DISPLACEMENT_MM",
+    "MAX_POSITION_MM",
+    "MAX_ROTATION_RAD",
+    "MAX_STIFFNESS_N_PER_MM",
     "StiffnessIndices",
     "stiffness_indices",
     "directional_stiffness",
@@ -19,6 +24,19 @@ __all__ = [
     "stiffness_from_compliance",
     "check_stiffness_matrix",
 ]
+
+
+#: Plausibility limits of measured quantities at the input boundary: far beyond any
+#: stiffness test, so that only a broken file (or a wrong unit) meets them. A compliant
+#: displacement of 1 km, a rotation of a full turn, a stiffness of 1e12 N/mm, a robot
+#: position 1 km from its base (forces: :data:`stiffmap.loads.MAX_FORCE_N`).
+MAX_DISPLACEMENT_MM = 1e6
+MAX_POSITION_MM = 1e6
+MAX_ROTATION_RAD = 2 * np.pi
+MAX_STIFFNESS_N_PER_MM = 1e12
+#: Displacements that all stay below this (mm) measured nothing: a picometre, below the
+#: resolution of any displacement sensor or camera.
+DISPLACEMENT_FLOOR_MM = 1e-9
 
 
 def compliance_from_stiffness(K) -> np.ndarray:

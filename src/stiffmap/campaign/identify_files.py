@@ -22,7 +22,9 @@ import numpy as np
 from ..errors import InputError, StiffmapWarning
 from ..identify import StiffnessFit, identify_stiffness
 from ..io import read_csv_columns
+from ..loads import MAX_FORCE_N, MAX_MOMENT_NMM
 from ..stats import ConditionStats, describe
+from ..stiffness import MAX_DISPLACEMENT_MM, MAX_ROTATION_RAD
 
 __all__ = ["IdentifyReport", "identify_from_files", "FORCE_COLUMNS", "DISP_COLUMNS"]
 
@@ -98,13 +100,18 @@ def identify_from_files(
     Raises
     ------
     InputError
-        For any problem with the files (missing, missing column, bad cell,
-        row counts that do not match, too few independent loads), naming the
-        file and the row or column.
+        For any problem with the files (missing, missing column, bad cell, a
+        force or displacement beyond physical plausibility, row counts that do
+        not match, too few independent loads, displacements that cannot give a
+        finite stiffness), naming the file and the row or column.
     """
     ff, df = str(forces_file), str(displacements_file)
     ft = read_csv_columns(ff, FORCE_COLUMNS[:3], FORCE_COLUMNS[3:])
+    ft.check_magnitude(FORCE_COLUMNS[:3], MAX_FORCE_N, "N", "force")
+    ft.check_magnitude(FORCE_COLUMNS[3:], MAX_MOMENT_NMM, "N*mm", "moment")
     dt = read_csv_columns(df, DISP_COLUMNS[:3], DISP_COLUMNS[3:] + ("repeat",), text_columns=("repeat",))
+    dt.check_magnitude(DISP_COLUMNS[:3], MAX_DISPLACEMENT_MM, "mm", "compliant displacement")
+    dt.check_magnitude(DISP_COLUMNS[3:], MAX_ROTATION_RAD, "rad", "compliant rotation")
     notes: list[str] = []
     f_mom = [c for c in FORCE_COLUMNS[3:] if ft.has(c)]
     d_rot = [c for c in DISP_COLUMNS[3:] if dt.has(c)]

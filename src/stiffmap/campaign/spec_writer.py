@@ -19,6 +19,19 @@ from .spec import CampaignSpec, parse_spec
 __all__ = ["dump_spec", "EXAMPLE_TOML", "KEY_COMMENTS"]
 
 
+_TOML_ESCAPES = {"\\": "\\\\", '"': '\\"', "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+
+
+def _toml_char(c: str) -> str:
+    """One character of a TOML basic string: escaped when TOML does not allow it as it is
+    (quote, backslash, and every control character: a label read from a CSV may hold one)."""
+    if c in _TOML_ESCAPES:
+        return _TOML_ESCAPES[c]
+    if c < " " or c == "\x7f":
+        return f"\\u{ord(c):04x}"
+    return c
+
+
 def _toml_value(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -29,7 +42,7 @@ def _toml_value(v: Any) -> str:
             raise ValueError(f"cannot write a non-finite number {v} to TOML")
         return repr(float(v))
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return '"' + "".join(_toml_char(c) for c in v) + '"'
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):

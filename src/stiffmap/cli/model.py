@@ -99,10 +99,11 @@ def model(
     else:
         _print_map(m, mp, F)
     nbad = len(mp) - mp.n_valid
+    of = f"; points from {points}" if points is not None else ""
     if nbad == len(mp):
-        raise fail(f"none of the {len(mp)} point(s) can be evaluated by the {mech} model (see 'error')")
+        raise fail(f"none of the {len(mp)} point(s) can be evaluated by the {mech} model (see 'error'){of}")
     if nbad:
-        warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error')")
+        warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
 
 

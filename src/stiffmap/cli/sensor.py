@@ -167,12 +167,32 @@ def sensor(
     batch = analyse_batch(recordings or [], entries, cmap, cfg)
     if as_json:
         print_json(batch.to_json())
+        _warn_failed_recordings(batch)
     else:
         _print_batch(batch)
+    _warn_failed_entries(batch)
     if batch.n_ok == 0:
-        raise typer.Exit(EXIT_INPUT)
+        n = batch.n_failed
+        raise fail(f"none of the {n} recording(s) could be analysed (each is named above)", EXIT_INPUT)
     if batch.n_failed:
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _warn_failed_recordings(batch) -> None:
+    """One ``warning:`` line per recording that could not be used (its file and why)."""
+    for r in batch.results:
+        if isinstance(r, InputError):
+            warn(f"{r} (skipped)")
+
+
+def _warn_failed_entries(batch) -> None:
+    """One ``warning:`` line per index entry whose recording could not be used."""
+    ses = batch.static_errors
+    if ses is None:
+        return
+    for f, ok, reason in zip(ses.files, ses.valid, ses.reasons, strict=True):
+        if not ok:
+            warn(f"{reason if reason.startswith(f) else f'{f}: {reason}'} (skipped)")
 
 
 def _print_batch(batch) -> None:

@@ -7,6 +7,7 @@ The simulation is planned by :mod:`stiffmap.sim.plan` and written by
 
 from __future__ import annotations
 
+import re
 import shlex
 import sys
 import time
@@ -99,6 +100,33 @@ def _positions(text: str, select: str | None, mech: str):
     """The positions of ``--positions`` (a preset, a CSV file or a list), those of ``--select`` only."""
     P = from_option("--positions", positions_from_text, text, mech)
     return from_option("--select", select_positions, P, select)
+
+
+@contextmanager
+def _naming_positions_file(text: str | None, select: str | None, loads: str | None = None):
+    """A ``position N ...`` error about positions read from a CSV file names that file.
+
+    The test-bed numbers the positions it refuses (unreachable, no stiffness); when they
+    come from ``--positions FILE`` (all of them, no ``--select``), N is the file's Nth row.
+    When the error is about a load case too (``load K``: a load that pushes the board out of
+    view) and the loads come from ``--loads FILE``, that file is named as well.
+    """
+    try:
+        yield
+    except InputError as e:
+        if e.source is not None:
+            raise
+        pos_file = None
+        if select is None and e.detail.startswith("position ") and text and Path(text).is_file():
+            pos_file = text
+        m = re.search(r"\bload (\d+)\b", e.detail)
+        load_file = loads if m and loads and Path(loads).is_file() else None
+        if pos_file and load_file:
+            k = m.group(1)
+            raise InputError(f"{e.detail} (load {k} from {load_file})", source=pos_file) from None
+        if pos_file or load_file:
+            raise e.with_source(pos_file or load_file) from None
+        raise
 
 
 def _load_point(text: str):
@@ -222,7 +250,8 @@ def simulate(
         clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
         jpeg_quality=jpeg_quality, name=name,
     )  # fmt: skip
-    sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
+    with _naming_positions_file(positions, select, loads):
+        sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
     n_workers = workers or default_workers()
     if not as_json:
         err.print(
@@ -325,18 +354,19 @@ def _simulate_sensor(
     trace_fmt = trace_format.strip().lower()
     if trace_fmt not in ("csv", "tdms", "mat"):
         raise InputError(f"--trace-format {trace_format!r}: expected csv, tdms or mat")
-    s = write_sensor_campaign(
-        out_dir,
-        model,
-        P,
-        directions=dirs,
-        repeats=repeats,
-        seed=seed,
-        fmt=trace_fmt,
-        force=force,
-        name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
-        command=command,
-    )
+    with _naming_positions_file(positions, select):
+        s = write_sensor_campaign(
+            out_dir,
+            model,
+            P,
+            directions=dirs,
+            repeats=repeats,
+            seed=seed,
+            fmt=trace_fmt,
+            force=force,
+            name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
+            command=command,
+        )
     _print_sensor_summary(s, model.params(), trace_fmt, seed, as_json)
 
 

@@ -28,8 +28,11 @@ from typing import Any, ClassVar, Protocol, Self, runtime_checkable
 import numpy as np
 
 from ..errors import InputError
+from ..loads import MAX_FORCE_N
+from ..stiffness import MAX_POSITION_MM
 
 __all__ = [
+    "MAX_POSITION_MM",
     "Mechanism",
     "LegMechanism",
     "IKSolution",
@@ -248,6 +251,13 @@ def as_points(points, dim: int, name: str = "points") -> tuple[np.ndarray, bool]
     if not np.all(np.isfinite(P)):
         i = int(np.argwhere(~np.all(np.isfinite(P), axis=1))[0, 0])
         raise ValueError(f"{name}: row {i} is not finite: {P[i].tolist()}")
+    far = np.flatnonzero(np.any(np.abs(P) > MAX_POSITION_MM, axis=1))
+    if far.size:
+        i = int(far[0])
+        raise ValueError(
+            f"{name}: row {i} {format_pose(P[i])} is beyond +-{MAX_POSITION_MM:g} mm: "
+            "not a plausible position"
+        )
     return P, single
 
 
@@ -260,6 +270,8 @@ def as_forces(force, n: int, dim: int) -> np.ndarray:
         raise ValueError(f"force must have shape ({dim},) or ({n}, {dim}) in N, got {np.shape(force)}")
     if not np.all(np.isfinite(F)):
         raise ValueError("force contains NaN or infinite values")
+    if np.any(np.abs(F) > MAX_FORCE_N):
+        raise ValueError(f"force beyond +-{MAX_FORCE_N:g} N: not a plausible load")
     return F
 
 

@@ -37,6 +37,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import read_csv_columns, sniff_delimiter
+from ..loads import MAX_FORCE_N
+from ..stiffness import MAX_DISPLACEMENT_MM, MAX_POSITION_MM, MAX_STIFFNESS_N_PER_MM
 from .base import Mechanism, ModelMap, PoseError, format_pose
 from .fit import ModelFit, fit_static_errors, fit_stiffness
 
@@ -67,6 +69,7 @@ def read_points(path: str | os.PathLike, dim: int) -> np.ndarray:
         Naming the file, line and column of a bad cell.
     """
     t = read_csv_columns(path, AXIS_NAMES[:dim])
+    t.check_magnitude(AXIS_NAMES[:dim], MAX_POSITION_MM, "mm", "position")
     return t.stack(AXIS_NAMES[:dim]).T.copy()
 
 
@@ -161,6 +164,9 @@ def read_measurements(path: str | os.PathLike, dim: int) -> StaticErrorMeasureme
         ncols = [f"n{a}" for a in ax]
         has_n = any(c in header for c in ncols)
         t = read_csv_columns(path, [*ax, *fcols, "value_mm"] + (ncols if has_n else []), ["std_mm"])
+        t.check_magnitude(ax, MAX_POSITION_MM, "mm", "position")
+        t.check_magnitude(fcols, MAX_FORCE_N, "N", "force")
+        t.check_magnitude(("value_mm", "std_mm"), MAX_DISPLACEMENT_MM, "mm", "static error")
         F = t.stack(fcols).T.copy()
         fn = np.linalg.norm(F, axis=1)
         if has_n:
@@ -211,8 +217,17 @@ def read_measurements(path: str | os.PathLike, dim: int) -> StaticErrorMeasureme
         scols = [f"{c}_std" for c in kcols]
         has_s = any(c in header for c in scols)
         t = read_csv_columns(path, [*ax, *kcols] + (scols if has_s else []))
+        t.check_magnitude(ax, MAX_POSITION_MM, "mm", "position")
+        t.check_magnitude(kcols + scols, MAX_STIFFNESS_N_PER_MM, "N/mm", "stiffness")
         n = len(t)
         K = t.stack(kcols).T.reshape(n, dim, dim).copy()
+        zero = np.flatnonzero(~np.any(K.reshape(n, -1), axis=1))
+        if zero.size:
+            raise InputError(
+                f"line {t.lines[zero[0]]}: every entry of K is zero: not a measured stiffness "
+                "(a failed identification written as zeros?)",
+                source=src,
+            )
         S = None
         if has_s:
             S = t.stack(scols).T.reshape(n, dim, dim).copy()

@@ -30,7 +30,8 @@ from .. import __version__
 from ..camera import CameraModel
 from ..errors import InputError
 from ..io import to_jsonable
-from ..stiffness import stiffness_indices
+from ..loads import MAX_FORCE_N
+from ..stiffness import MAX_DISPLACEMENT_MM, MAX_POSITION_MM, MAX_STIFFNESS_N_PER_MM, stiffness_indices
 from .records import dump_record, load_record, set_array, set_float, set_optional_array, set_strings
 
 __all__ = [
@@ -50,6 +51,17 @@ __all__ = [
     "Residuals",
     "ReportData",
 ]
+
+#: Plausibility limits of the fields (a broken data.json is refused rather than drawn):
+#: positions (mm), stiffness (N/mm) and det K ((N/mm)^3), forces (N), displacement norms
+#: (mm), static errors (um), reprojection residuals (px).
+POS = MAX_POSITION_MM
+KLIM = MAX_STIFFNESS_N_PER_MM
+DETLIM = MAX_STIFFNESS_N_PER_MM**3
+FLIM = MAX_FORCE_N
+DLIM = MAX_DISPLACEMENT_MM
+UMLIM = 1e3 * MAX_DISPLACEMENT_MM
+PXLIM = 1e6
 
 #: Identifies the JSON dump of a :class:`ReportData`.
 SCHEMA = "stiffmap.report/1"
@@ -183,18 +195,18 @@ class MeasuredStiffness:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        set_array(self, "positions", self.positions, ("n", 3), d, finite=True)
+        set_array(self, "positions", self.positions, ("n", 3), d, finite=True, limit=POS)
         n = d["n"]
         set_strings(self, "status", self.status, n)
         bad = [s for s in self.status if s not in STATUSES]
         if bad:
             raise ValueError(f"status: expected 'ok' or 'failed', got {bad[0]!r}")
         set_strings(self, "messages", self.messages, n, default=[""] * n)
-        set_array(self, "K", self.K, ("n", 3, 3), d)
-        set_array(self, "K_std", self.K_std, ("n", 3, 3), d)
-        set_array(self, "det", self.det, ("n",), d)
-        set_array(self, "min_principal", self.min_principal, ("n",), d)
-        set_array(self, "eigenvalues", self.eigenvalues, ("n", 3), d)
+        set_array(self, "K", self.K, ("n", 3, 3), d, limit=KLIM)
+        set_array(self, "K_std", self.K_std, ("n", 3, 3), d, limit=KLIM)
+        set_array(self, "det", self.det, ("n",), d, limit=DETLIM)
+        set_array(self, "min_principal", self.min_principal, ("n",), d, limit=KLIM)
+        set_array(self, "eigenvalues", self.eigenvalues, ("n", 3), d, limit=KLIM)
         fl = self.flags if self.flags is not None else [()] * n
         if len(fl) != n:
             raise ValueError(f"flags: expected {n} lists, got {len(fl)}")
@@ -295,9 +307,9 @@ class LoadData:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        set_array(self, "forces", self.forces, ("L", 3), d, finite=True)
+        set_array(self, "forces", self.forces, ("L", 3), d, finite=True, limit=FLIM)
         set_strings(self, "labels", self.labels, d["L"])
-        set_array(self, "norms", self.norms, ("n", "L", "R"), d)
+        set_array(self, "norms", self.norms, ("n", "L", "R"), d, limit=DLIM)
         if np.any(self.norms < 0):
             raise ValueError("norms: a displacement norm is negative")
 
@@ -340,9 +352,9 @@ class ModelMap:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        set_array(self, "points", self.points, ("g", 3), d, finite=True)
-        set_array(self, "det", self.det, ("g",), d)
-        set_array(self, "min_principal", self.min_principal, ("g",), d)
+        set_array(self, "points", self.points, ("g", 3), d, finite=True, limit=POS)
+        set_array(self, "det", self.det, ("g",), d, limit=DETLIM)
+        set_array(self, "min_principal", self.min_principal, ("g",), d, limit=KLIM)
 
 
 @dataclass(frozen=True)
@@ -376,9 +388,9 @@ class ModelStiffness:
             raise ValueError("parameters: expected Parameter objects")
         object.__setattr__(self, "parameters", tuple(self.parameters))
         d: dict[str, int] = {}
-        set_array(self, "K", self.K, ("n", 3, 3), d)
-        set_array(self, "det", self.det, ("n",), d)
-        set_array(self, "min_principal", self.min_principal, ("n",), d)
+        set_array(self, "K", self.K, ("n", 3, 3), d, limit=KLIM)
+        set_array(self, "det", self.det, ("n",), d, limit=DETLIM)
+        set_array(self, "min_principal", self.min_principal, ("n",), d, limit=KLIM)
         if self.map is not None and not isinstance(self.map, ModelMap):
             raise ValueError("map: expected a ModelMap")
 
@@ -405,7 +417,7 @@ class TruthStiffness:
     K: np.ndarray
 
     def __post_init__(self) -> None:
-        set_array(self, "K", self.K, ("n", 3, 3), {}, finite=True)
+        set_array(self, "K", self.K, ("n", 3, 3), {}, finite=True, limit=KLIM)
 
 
 @dataclass(frozen=True)
@@ -432,7 +444,9 @@ class CalibrationData:
         except InputError as e:
             raise ValueError(e.detail) from None
         object.__setattr__(self, "camera", dict(self.camera))
-        set_optional_array(self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True)
+        set_optional_array(
+            self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True, limit=PXLIM
+        )
 
 
 @dataclass(frozen=True)
@@ -457,8 +471,8 @@ class SensorMap:
         if not isinstance(self.direction, str) or not self.direction:
             raise ValueError(f"direction: expected a non-empty string, got {self.direction!r}")
         d: dict[str, int] = {}
-        set_array(self, "points", self.points, ("g", 2), d, finite=True)
-        set_array(self, "error_um", self.error_um, ("g",), d)
+        set_array(self, "points", self.points, ("g", 2), d, finite=True, limit=POS)
+        set_array(self, "error_um", self.error_um, ("g",), d, limit=UMLIM)
 
 
 @dataclass(frozen=True)
@@ -508,15 +522,15 @@ class SensorResults:
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
-        set_array(self, "points", self.points, ("m", 2), d, finite=True)
+        set_array(self, "points", self.points, ("m", 2), d, finite=True, limit=POS)
         m = d["m"]
         set_strings(self, "direction", self.direction, m)
         if not all(self.direction):
             raise ValueError("direction: empty direction name")
-        set_array(self, "error_um", self.error_um, ("m",), d)
-        set_array(self, "error_std_um", self.error_std_um, ("m",), d)
+        set_array(self, "error_um", self.error_um, ("m",), d, limit=UMLIM)
+        set_array(self, "error_std_um", self.error_std_um, ("m",), d, limit=UMLIM)
         set_strings(self, "labels", self.labels, m, default=[str(i + 1) for i in range(m)])
-        set_optional_array(self, "model_error_um", self.model_error_um, ("m",), d)
+        set_optional_array(self, "model_error_um", self.model_error_um, ("m",), d, limit=UMLIM)
         if self.middle_line is not None:
             ml = np.asarray(self.middle_line)
             if ml.shape != (m,) or ml.dtype != bool:

@@ -21,12 +21,28 @@ from ..errors import InputError
 __all__ = ["set_array", "set_optional_array", "set_strings", "set_float", "dump_record", "load_record"]
 
 
-def set_array(obj, name: str, value, shape: tuple, dims: dict[str, int], *, finite: bool = False) -> None:
-    """Convert ``obj.name`` to a read-only float64 array of ``shape`` (ints or symbols)."""
+def set_array(
+    obj,
+    name: str,
+    value,
+    shape: tuple,
+    dims: dict[str, int],
+    *,
+    finite: bool = False,
+    limit: float | None = None,
+) -> None:
+    """Convert ``obj.name`` to a read-only float64 array of ``shape`` (ints or symbols).
+
+    ``limit``: the largest plausible magnitude of an entry (a physical bound of what the
+    field holds); beyond it the value is refused, as a broken file rather than a number
+    to draw.
+    """
     try:
         a = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"{name}: expected numbers, got {type(value).__name__}") from None
+    except OverflowError:  # an integer beyond float64
+        raise ValueError(f"{name}: a number beyond the range of floating point") from None
     want = "(" + ", ".join(str(s) for s in shape) + (",)" if len(shape) == 1 else ")")
     if a.ndim != len(shape):
         raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
@@ -42,6 +58,9 @@ def set_array(obj, name: str, value, shape: tuple, dims: dict[str, int], *, fini
         raise ValueError(f"{name}: infinite values")
     if finite and np.any(np.isnan(a)):
         raise ValueError(f"{name}: NaN values where numbers are required")
+    if limit is not None and np.any(np.abs(a) > limit):
+        v = float(a[np.abs(a) > limit].ravel()[0])
+        raise ValueError(f"{name}: {v:.6g} is beyond +-{limit:g}: not a plausible value")
     a.setflags(write=False)
     object.__setattr__(obj, name, a)
 
@@ -71,7 +90,10 @@ def set_float(obj, name: str, value, *, positive: bool = False, allow_nan: bool 
         value = math.nan
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise ValueError(f"{name}: expected a number, got {value!r}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond float64
+        raise ValueError(f"{name}: expected a finite number, got an integer beyond floating point") from None
     if math.isinf(v) or (math.isnan(v) and not allow_nan):
         raise ValueError(f"{name}: expected a finite number, got {value!r}")
     if positive and not v > 0:
@@ -153,7 +175,7 @@ def load_record(
         return cls(**kwargs)
     except InputError:
         raise
-    except (ValueError, TypeError) as e:
+    except (ValueError, TypeError, OverflowError) as e:
         msg = str(e)
         # The record's own message starts with the field name; prefix the path.
         raise InputError(f"key {(path + '.' if path else '')}{msg}", source=source) from None

@@ -76,6 +76,10 @@ def load_report_data(path: str | os.PathLike) -> ReportData:
         raise InputError(
             f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}", source=src
         ) from None
+    except RecursionError:
+        raise InputError("not a usable JSON file: nested too deeply", source=src) from None
+    except ValueError:  # an integer of thousands of digits
+        raise InputError("not a usable JSON file: a number has thousands of digits", source=src) from None
     return ReportData.from_dict(obj, source=src)
 
 

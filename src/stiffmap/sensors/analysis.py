@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..loads import MAX_FORCE_N
+from ..stiffness import DISPLACEMENT_FLOOR_MM
 from ..units import G_REFERENCE_PAPER, newton_from_kgf
 from .convert import (
     SampleSpan,
@@ -45,6 +47,18 @@ __all__ = ["SensorConfig", "Plateau", "SensorResult", "analyse_recording", "REFE
 REFERENCE_LOAD_N = 490.5
 
 _DETECT = ("auto", "load", "displacement", "both")
+
+#: Plausible ranges of the settings that scale the data: (low, high, unit). Beyond, a value
+#: is a typing mistake or a wrong unit, and the numbers it gives would be meaningless.
+PLAUSIBLE = {
+    "scale_um_per_v": (1e-6, 1e9, "um/V"),
+    "range_v": (1e-3, 1e4, "V"),
+    "g": (0.1, 100.0, "m/s^2"),
+    "load_n_per_v": (1e-9, 1e9, "N/V"),
+    "window_s": (1e-6, 1e6, "s"),
+    "min_plateau_s": (1e-6, 1e6, "s"),
+    "threshold_sigma": (0.1, 1e3, "sigma"),
+}
 
 
 def _pos(name: str, x, allow_none: bool = False):
@@ -128,9 +142,22 @@ class SensorConfig:
         for name in ("scale_um_per_v", "range_v", "g", "window_s", "min_plateau_s", "threshold_sigma"):
             object.__setattr__(self, name, _pos(name, getattr(self, name)))
         object.__setattr__(self, "load_n_per_v", _pos("load_n_per_v", self.load_n_per_v, True))
+        for name, (lo, hi, unit) in PLAUSIBLE.items():
+            v = getattr(self, name)
+            if v is not None and not (lo <= v <= hi):
+                raise ValueError(f"{name} must be between {lo:g} and {hi:g} {unit}, got {v:g}")
+        m = float(self.saturation_margin_v)
+        if not (math.isfinite(m) and 0 <= m < self.range_v):
+            raise ValueError(
+                f"range_v must exceed the saturation margin of {m:g} V, got {self.range_v:g}"
+                if math.isfinite(m) and m >= 0
+                else f"saturation_margin_v must be >= 0 V, got {self.saturation_margin_v!r}"
+            )
         r = float(self.reference_load_n)
         if not math.isfinite(r) or r == 0:
             raise ValueError(f"reference_load_n must be a non-zero number, got {self.reference_load_n!r}")
+        if abs(r) > MAX_FORCE_N:
+            raise ValueError(f"reference_load_n must be within +-{MAX_FORCE_N:g} N, got {r:g}")
         object.__setattr__(self, "reference_load_n", r)
         if self.axis_sign not in (1, -1):
             raise ValueError(f"axis_sign must be +1 or -1, got {self.axis_sign!r}")
@@ -146,6 +173,12 @@ class SensorConfig:
             st = tuple(float(s) for s in self.steps)
             if len(st) < 2 or not all(math.isfinite(s) for s in st):
                 raise ValueError(f"steps must hold at least 2 finite loads, got {self.steps!r}")
+            f = newton_from_kgf(1.0, self.g) if self.steps_unit == "kgf" else 1.0
+            big = [s for s in st if abs(s) * f > MAX_FORCE_N]
+            if big:
+                raise ValueError(
+                    f"steps: {big[0]:g} {self.steps_unit} is beyond +-{MAX_FORCE_N:g} N: not a plausible load"
+                )
             object.__setattr__(self, "steps", st)
         if self.step_times_s is not None:
             tt = tuple((float(a), float(b)) for a, b in self.step_times_s)
@@ -313,6 +346,57 @@ def _manual_spans(times, t: np.ndarray, src: str) -> np.ndarray:
     return np.asarray(out, dtype=int).reshape(-1, 2)
 
 
+def _displacement_channel(recording: Recording) -> str:
+    """``the displacement (channel 'NAME')`` when the reader said which channel it was."""
+    name = recording.meta.get("displacement_channel")
+    return f"the displacement (channel {name!r})" if name else "the displacement"
+
+
+def _refuse_raw_codes(volts: np.ndarray, range_v: float, src: str, what: str = "the displacement") -> None:
+    """Whole numbers far beyond the sensor range on most samples are DAQ codes, not volts.
+
+    A DAQ that logs its ADC codes (int16: -32768 to 32767) without their scale writes
+    integers where volts belong; read as volts, every sample would be out of range. The
+    message says what the numbers probably are, instead of listing hundreds of spans.
+    """
+    v = volts[np.isfinite(volts)]
+    if v.size < 2:
+        return
+    beyond = np.abs(v) > range_v
+    if beyond.mean() <= 0.5 or not np.all(v == np.round(v)):
+        return
+    raise InputError(
+        f"{what} holds whole numbers from {v.min():.0f} to {v.max():.0f}, beyond the "
+        f"sensor range of +-{range_v:g} V on {beyond.mean():.0%} of the samples: raw DAQ codes (int16?) "
+        "without their scale to volts? Export the scaled data (volts) from the DAQ software, or give "
+        "the channel its scale (NI_Scale properties in TDMS)",
+        source=src,
+    )
+
+
+def _refuse_constant_displacement(
+    volts: np.ndarray, x: np.ndarray, ok: np.ndarray, src: str, what: str = "the displacement"
+) -> None:
+    """A displacement that does not change over the whole recording measured nothing.
+
+    The usual cause in a lab: the laser spot is off the target (or on a part that does not
+    move), or the sensor is stuck or not connected; the message says so.
+    """
+    if ok.sum() < 2:
+        return
+    xs = x[ok]
+    span = float(xs.max() - xs.min())
+    if span >= DISPLACEMENT_FLOOR_MM:
+        return
+    v = volts[ok]
+    how = f"{v[0]:.6g} V on every sample" if span == 0 else f"it varies by {span:.3g} mm"
+    raise InputError(
+        f"{what} is constant over the whole recording ({how}): is the sensor on the "
+        "target? (a laser spot off the target, or a stuck or disconnected sensor, reads a constant)",
+        source=src,
+    )
+
+
 def analyse_recording(recording: Recording, config: SensorConfig | None = None) -> SensorResult:
     """Plateaus, load-displacement fit, stiffness and static error of one recording.
 
@@ -337,6 +421,8 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     cfg = config or SensorConfig()
     src = recording.source or "recording"
     t = recording.time_s
+    disp_what = _displacement_channel(recording)
+    _refuse_raw_codes(recording.displacement_v, cfg.range_v, src, disp_what)
     n = t.size
     fs = recording.sample_rate_hz
     flags: list[str] = []
@@ -352,6 +438,7 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     x = conv.displacement_mm
     bad = conv.bad.copy()
     spans = list(conv.spans)
+    _refuse_constant_displacement(recording.displacement_v, x, ~bad, src, disp_what)
 
     # Loads: a channel, a table, or both (the table rules, the channel is checked against it).
     load_n = None
@@ -370,7 +457,17 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
                 "(--load-n-per-v; load_n_per_v in campaign.toml)",
                 source=src,
             )
-        load_n = newton_from_load(recording.load, unit, g=cfg.g, n_per_v=cfg.load_n_per_v)
+        with np.errstate(over="ignore"):
+            load_n = newton_from_load(recording.load, unit, g=cfg.g, n_per_v=cfg.load_n_per_v)
+        huge = np.isfinite(recording.load) & ~(np.abs(load_n) <= MAX_FORCE_N)
+        if huge.any():
+            i = int(np.flatnonzero(huge)[0])
+            raise InputError(
+                f"load channel {recording.load_name or 'load'!r}: {recording.load[i]:.6g} {unit} at "
+                f"{t[i]:.3f} s is beyond +-{MAX_FORCE_N:g} N: not a plausible load (wrong unit or "
+                "load-cell scale?)",
+                source=src,
+            )
         lmiss = ~np.isfinite(load_n)
         if lmiss.any():
             bad |= lmiss

@@ -30,8 +30,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import read_csv_columns
+from ..stiffness import MAX_POSITION_MM
 from .analysis import SensorConfig, SensorResult, analyse_recording
-from .io import read_recording
+from .io import format_from_path, read_recording
 from .recording import ChannelMap
 
 __all__ = [
@@ -72,8 +73,11 @@ def direction_from(value, dim: int) -> np.ndarray:
         u[_AXES.index(ax)] = sign
         return u
     u = np.asarray(value, dtype=np.float64).ravel()
-    if u.shape != (dim,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
+    if u.shape != (dim,) or not np.all(np.isfinite(u)) or not np.any(u):
         raise ValueError(f"direction must be a finite non-zero vector of {dim} components, got {value!r}")
+    big = float(np.abs(u).max())
+    if not 1e-150 < big < 1e150:  # the norm of huge components would overflow, of tiny ones underflow
+        u = u / big
     return u / np.linalg.norm(u)
 
 
@@ -90,12 +94,15 @@ class MeasurementEntry:
     file : str
     axis_sign : int or None
         -1 behind a mirror; None: the configuration's.
+    origin : str
+        Where the entry was listed (``index.csv, line 3``), said when its recording fails.
     """
 
     point: np.ndarray
     direction: np.ndarray
     file: str
     axis_sign: int | None = None
+    origin: str = ""
 
     def __post_init__(self) -> None:
         p = np.asarray(self.point, dtype=np.float64).ravel()
@@ -249,7 +256,8 @@ def static_errors_from_files(
         try:
             r = analyse_recording(read_recording(e.file, channel_map), c)
         except InputError as err:
-            reasons.append(str(err.with_source(str(e.file))))
+            reason = str(err.with_source(str(e.file)))
+            reasons.append(f"{reason} (listed in {e.origin})" if e.origin else reason)
             results.append(None)
             continue
         vals[:, i] = (
@@ -372,6 +380,12 @@ def read_measurement_index(path: str | os.PathLike) -> list[MeasurementEntry]:
         coords = [head.columns[a][i] for a in _AXES[:dim]]
         if not all(math.isfinite(c) for c in coords):
             raise InputError(f"line {line}: point coordinates must be numbers", source=src)
+        if any(abs(c) > MAX_POSITION_MM for c in coords):
+            raise InputError(
+                f"line {line}: point ({', '.join(f'{c:.6g}' for c in coords)}) mm is beyond "
+                f"+-{MAX_POSITION_MM:g} mm: not a plausible position",
+                source=src,
+            )
         try:
             if use_vec:
                 uv = [head.columns[f"u{a}"][i] if head.has(f"u{a}") else 0.0 for a in _AXES[:dim]]
@@ -390,5 +404,12 @@ def read_measurement_index(path: str | os.PathLike) -> list[MeasurementEntry]:
                 raise InputError(f"line {line}, column 'axis_sign': {s!r}, expected 1 or -1", source=src)
             sign = -1 if s == "-1" else 1
         fp = Path(f)
-        out.append(MeasurementEntry(np.array(coords), u, str(fp if fp.is_absolute() else base / fp), sign))
+        try:
+            format_from_path(fp)
+        except InputError as e:
+            raise InputError(f"line {line}, column 'file': {f!r}: {e.detail}", source=src) from None
+        where = f"{src}, line {line}"
+        out.append(
+            MeasurementEntry(np.array(coords), u, str(fp if fp.is_absolute() else base / fp), sign, where)
+        )
     return out

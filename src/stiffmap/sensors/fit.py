@@ -66,6 +66,12 @@ class LinearFit:
         return self.compliance_mm_per_n * load_n, self.compliance_std_mm_per_n * abs(load_n)
 
 
+def _ratio(a: float, b: float) -> float:
+    """``a / b`` as IEEE arithmetic gives it (inf for an overflow), never a Python exception."""
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        return float(np.float64(a) / np.float64(b))
+
+
 def fit_load_displacement(load_n, displacement_mm, *, level: float = 0.95) -> LinearFit:
     """Least-squares line through load-displacement pairs.
 
@@ -113,13 +119,17 @@ def fit_load_displacement(load_n, displacement_mm, *, level: float = 0.95) -> Li
         tq = float(stats.t.ppf(0.5 + level / 2, dof))
     else:
         sc = sa = tq = float("nan")
-    k = 1.0 / c if c != 0 else float("inf")
-    sk = sc / c**2 if c != 0 else float("nan")
+    k = _ratio(1.0, c) if c != 0 else float("inf")
+    sk = _ratio(sc, c * c) if c != 0 else float("nan")
     c_lo, c_hi = c - tq * sc, c + tq * sc
     if math.isfinite(c_lo) and (c_lo > 0 or c_hi < 0):
-        k_ci = (1.0 / c_hi, 1.0 / c_lo)
-    elif math.isfinite(c_lo):
-        k_ci = (1.0 / c_hi if c_hi > 0 else -math.inf, math.inf) if c > 0 else (-math.inf, 1.0 / c_lo)
+        k_ci = (_ratio(1.0, c_hi), _ratio(1.0, c_lo))
+    elif math.isfinite(c_lo) and c > 0:
+        k_ci = (_ratio(1.0, c_hi), math.inf)
+    elif math.isfinite(c_lo) and c < 0:
+        k_ci = (-math.inf, _ratio(1.0, c_lo))
+    elif math.isfinite(c_lo):  # a zero slope: the interval of k is the whole line
+        k_ci = (-math.inf, math.inf)
     else:
         k_ci = (float("nan"), float("nan"))
     return LinearFit(

@@ -22,16 +22,21 @@ by replacing it whole.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import io
+import logging
 import os
+import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, StiffmapWarning
 from ..io import atomic_write_bytes, atomic_write_text, read_csv_columns
-from .recording import ChannelMap, Recording, load_unit_from_name
+from .matfile import mat5_variables
+from .recording import ChannelMap, Recording, check_sample_rate, load_unit_from_name
 
 __all__ = ["read_recording", "write_recording", "FORMATS", "format_from_path"]
 
@@ -60,6 +65,66 @@ def _time_from_rate(n: int, fs: float | None, src: str, where: str) -> np.ndarra
     return np.arange(n) * (1.0 / fs)
 
 
+def _numeric(values, where: str, src: str, *, time: bool = False) -> np.ndarray:
+    """The samples of a channel (TDMS) or variable (MAT) as float64, or an InputError naming it.
+
+    Floating point is read as it is, and so are integers (int16 is a common DAQ type: a
+    scaled TDMS channel comes out of npTDMS in its unit; an unscaled one holds whole numbers
+    of its unit, and raw ADC codes far beyond the sensor's range are refused by the analysis,
+    which knows the range). A time channel of TDMS time stamps becomes seconds from its first
+    sample. Text, booleans and complex numbers are refused.
+    """
+    a = np.asarray(values)
+    kind = a.dtype.kind
+    if kind in "fiu":
+        return a.astype(np.float64).ravel()
+    if kind == "M" and time and a.size:
+        return ((a - a.ravel()[0]) / np.timedelta64(1, "ns")).astype(np.float64).ravel() * 1e-9
+    if kind == "O" and a.size and all(isinstance(x, (str, bytes)) for x in a.ravel()[:1000]):
+        kind = "U"
+    what = {
+        "U": "text",
+        "S": "text",
+        "O": "mixed values",
+        "b": "booleans (a digital line?)",
+        "c": "complex numbers",
+        "M": "dates",
+        "m": "time spans",
+    }.get(kind, f"values of type {a.dtype}")
+    sample = ""
+    if kind in "USO" and a.size:
+        sample = f" (first: {str(a.ravel()[0])[:40]!r})"
+    raise InputError(f"{where} holds {what}{sample}, expected numbers", source=src)
+
+
+def _number(value, where: str, unit: str, src: str) -> float:
+    """A scalar property or variable as a finite float, or an InputError naming it."""
+    a = np.asarray(value)
+    if a.dtype.kind in "USO" and a.size == 1:
+        try:
+            return _finite(float(str(a.ravel()[0]).strip()), where, unit, src)
+        except ValueError:
+            pass
+        raise InputError(f"{where} = {str(a.ravel()[0])[:40]!r} is not a number of {unit}", source=src)
+    if a.dtype.kind not in "fiu" or a.size != 1:
+        shape = f"{a.size} values" if a.dtype.kind in "fiu" else f"a {a.dtype} value"
+        raise InputError(f"{where} holds {shape}; expected one number of {unit}", source=src)
+    return _finite(float(a.ravel()[0]), where, unit, src)
+
+
+def _finite(v: float, where: str, unit: str, src: str) -> float:
+    if not np.isfinite(v):
+        raise InputError(f"{where} = {v!r} is not a finite number of {unit}", source=src)
+    return v
+
+
+def _rate(fs: float, where: str, src: str) -> float:
+    try:
+        return check_sample_rate(fs, where)
+    except ValueError as e:
+        raise InputError(str(e), source=src) from None
+
+
 def _finish(
     src: str,
     cmap: ChannelMap,
@@ -82,7 +147,7 @@ def _finish(
         load=load,
         load_unit=unit,
         load_name=cmap.load if load is not None else None,
-        meta=meta,
+        meta={**meta, "displacement_channel": cmap.displacement},
     )
 
 
@@ -136,7 +201,51 @@ def _read_csv(path: Path, cmap: ChannelMap) -> Recording:
     return _finish(src, cmap, t, get(cmap.displacement), get(cmap.load), {"format": "csv"}, None, where)
 
 
+class _NptdmsMessages(logging.Filter):
+    """Collects what npTDMS logs instead of letting it print to stderr.
+
+    npTDMS prints its own ``[nptdms.reader WARNING] ...`` lines on a damaged or truncated
+    file (and reads what it can); stiffmap says it once instead, as one warning naming the
+    file (or not at all when the file is refused with an error anyway).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.messages: list[str] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        self.messages.append(record.getMessage())
+        return False
+
+
+@contextlib.contextmanager
+def _quiet_nptdms(src: str):
+    from nptdms.log import log_manager
+
+    f = _NptdmsMessages()
+    handler = log_manager.console_handler
+    handler.addFilter(f)
+    try:
+        yield
+    finally:
+        handler.removeFilter(f)
+    if f.messages:  # the file was read, but not cleanly
+        first = re.sub(r"\s+", " ", f.messages[0])[:160]
+        more = f" (and {len(f.messages) - 1} more)" if len(f.messages) > 1 else ""
+        warnings.warn(
+            f"{src}: npTDMS: {first}{more}: a damaged or truncated file? Its samples were read "
+            "as far as they go; check the results",
+            StiffmapWarning,
+            stacklevel=3,
+        )
+
+
 def _read_tdms(path: Path, cmap: ChannelMap) -> Recording:
+    with _quiet_nptdms(str(path)):
+        return _read_tdms_quietly(path, cmap)
+
+
+def _read_tdms_quietly(path: Path, cmap: ChannelMap) -> Recording:
     from nptdms import TdmsFile
 
     src = str(path)
@@ -174,25 +283,41 @@ def _read_tdms(path: Path, cmap: ChannelMap) -> Recording:
             return None
         return hits[0][1]
 
+    def data(ch, **kw) -> np.ndarray:
+        try:
+            raw = ch[:]
+        except Exception as e:  # npTDMS on a damaged data block: ValueError, struct.error, ...
+            raise InputError(
+                f"channel {ch.name!r}: cannot read its samples ({type(e).__name__}: {e})", source=src
+            ) from None
+        return _numeric(raw, f"channel {ch.name!r}", src, **kw)
+
     dch = find(cmap.displacement, True)
     tch = find(cmap.time, cmap.time_required)
     lch, cmap = _find_load(cmap, find)
-    disp = np.asarray(dch[:], dtype=np.float64)
+    disp = data(dch)
     meta = {"format": "tdms", "properties": {k: str(v) for k, v in dch.properties.items()}}
     t = None
     if tch is not None:
-        t = np.asarray(tch[:], dtype=np.float64)
+        t = data(tch, time=True)
         if t.size != disp.size:
             raise InputError(
                 f"time channel {tch.name!r} has {t.size} samples, {dch.name!r} has {disp.size}", source=src
             )
     elif "wf_increment" in dch.properties:
-        inc = float(dch.properties["wf_increment"])
-        if not (np.isfinite(inc) and inc > 0):
-            raise InputError(f"channel {dch.name!r}: wf_increment = {inc!r}, expected > 0 s", source=src)
-        off = float(dch.properties.get("wf_start_offset", 0.0))
+        where = f"channel {dch.name!r}: property wf_increment"
+        inc = _number(dch.properties["wf_increment"], where, "s", src)
+        if not inc > 0:
+            raise InputError(f"{where} = {inc!r}, expected > 0 s", source=src)
+        _rate(1.0 / inc, f"{where} = {inc:g} s", src)
+        off = _number(
+            dch.properties.get("wf_start_offset", 0.0),
+            f"channel {dch.name!r}: property wf_start_offset",
+            "s",
+            src,
+        )
         t = off + np.arange(disp.size) * inc
-    load = None if lch is None else np.asarray(lch[:], dtype=np.float64)
+    load = None if lch is None else data(lch)
     if load is not None and load.size != disp.size:
         raise InputError(
             f"load channel {lch.name!r} has {load.size} samples, {dch.name!r} has {disp.size}", source=src
@@ -201,14 +326,12 @@ def _read_tdms(path: Path, cmap: ChannelMap) -> Recording:
     return _finish(src, cmap, t, disp, load, meta, None, where)
 
 
-def _mat_vector(x, name: str, src: str) -> np.ndarray:
+def _mat_vector(x, name: str, src: str, *, time: bool = False) -> np.ndarray:
     a = np.asarray(x)
-    if a.dtype.kind not in "fiub":
-        raise InputError(f"variable {name!r} is not numeric (MATLAB class {a.dtype})", source=src)
-    a = a.astype(np.float64)
     if a.ndim > 1 and sum(s > 1 for s in a.shape) > 1:
         raise InputError(f"variable {name!r} has shape {a.shape}; expected a vector", source=src)
-    return a.ravel()
+    # MATLAB char arrays and cells come as text or objects, logicals as booleans: refused there.
+    return _numeric(a, f"variable {name!r}", src, time=time)
 
 
 def _read_mat(path: Path, cmap: ChannelMap) -> Recording:
@@ -216,7 +339,26 @@ def _read_mat(path: Path, cmap: ChannelMap) -> Recording:
 
     src = str(path)
     try:
-        mat = scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False)
+        data = path.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror}", source=src) from None
+    # Only the variables a recording needs are read (by any case of their names); in a v5 to v7
+    # file they are checked first by mat5_variables (SciPy crashes on some damaged files).
+    wanted = {n.lower() for n in (cmap.displacement, cmap.time, cmap.group, "sample_rate_hz", "fs") if n}
+    wanted |= {n.lower() for n in _load_names(cmap)}
+    names = listing = None
+    try:
+        version = scipy.io.matlab.matfile_version(io.BytesIO(data))[0]
+    except Exception:  # too short, unknown version: loadmat says it in its words below
+        version = None
+    if version == 1:
+        found = mat5_variables(data, lambda name: name.lower() in wanted, src)
+        names = [v.name for v in found if v.name.lower() in wanted]
+        listing = sorted(v.name for v in found)
+    try:
+        mat = scipy.io.loadmat(
+            io.BytesIO(data), squeeze_me=True, struct_as_record=False, variable_names=names
+        )
     except NotImplementedError:
         raise InputError(
             "MATLAB v7.3 (HDF5) file; save it with save(..., '-v7') so SciPy can read it", source=src
@@ -224,34 +366,37 @@ def _read_mat(path: Path, cmap: ChannelMap) -> Recording:
     except Exception as e:  # scipy raises ValueError, TypeError... on a bad file
         raise InputError(f"not a readable MATLAB .mat file ({type(e).__name__}: {e})", source=src) from None
     space: dict = {k: v for k, v in mat.items() if not k.startswith("__")}
+    if listing is None:
+        listing = sorted(space)
     if cmap.group is not None:
         if cmap.group not in space:
-            raise InputError(
-                f"no variable {cmap.group!r} (variables: {', '.join(sorted(space))})", source=src
-            )
+            raise InputError(f"no variable {cmap.group!r} (variables: {', '.join(listing)})", source=src)
         st = space[cmap.group]
         if not hasattr(st, "_fieldnames"):
             raise InputError(f"variable {cmap.group!r} is not a struct", source=src)
         space = {k: getattr(st, k) for k in st._fieldnames}
+        listing = sorted(space)
 
-    def get(name: str | None, required: bool) -> np.ndarray | None:
+    def get(name: str | None, required: bool, **kw) -> np.ndarray | None:
         if name is None:
             return None
         key = name if name in space else next((k for k in space if k.lower() == name.lower()), None)
         if key is None:
             if required:
-                raise InputError(f"no variable {name!r} (variables: {', '.join(sorted(space))})", source=src)
+                raise InputError(f"no variable {name!r} (variables: {', '.join(listing)})", source=src)
             return None
-        return _mat_vector(space[key], key, src)
+        return _mat_vector(space[key], key, src, **kw)
 
     disp = get(cmap.displacement, True)
     t = get(cmap.time, cmap.time_required)
     load, cmap = _find_load(cmap, get)
     fs = None
-    for k in ("sample_rate_hz", "fs"):
-        if k in space and np.size(space[k]) == 1:
-            fs = float(np.asarray(space[k], dtype=np.float64).ravel()[0])
-            break
+    if t is None and cmap.sample_rate_hz is None:  # the time comes from a sample rate variable
+        for k in ("sample_rate_hz", "fs"):
+            if k in space:
+                where = f"variable {k!r}"
+                fs = _rate(_number(space[k], where, "Hz", src), where, src)
+                break
     for name, arr in ((cmap.time, t), (cmap.load, load)):
         if arr is not None and arr.size != disp.size:
             raise InputError(

@@ -35,9 +35,9 @@ OPTION_OF = {
 }
 
 
-def _option_names(message: str) -> str:
+def _option_names(message: str, more: dict[str, str] | None = None) -> str:
     """A SensorConfig message in the words of the command line (its options, not its fields)."""
-    for field, opt in OPTION_OF.items():
+    for field, opt in {**OPTION_OF, **(more or {})}.items():
         message = re.sub(rf"(?<![\w-]){field}(?![\w-])", opt, message)
     return message
 
@@ -158,5 +158,6 @@ def config_from_options(
             exclude_bad_samples=exclude_bad_samples,
         )
     except ValueError as e:
-        raise InputError(_option_names(str(e))) from None
+        steps_option = "--steps-kgf" if steps_kgf else "--steps-n"
+        raise InputError(_option_names(str(e), {"steps": steps_option})) from None
     return cmap, cfg

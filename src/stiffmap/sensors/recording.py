@@ -21,10 +21,37 @@ __all__ = [
     "parse_channel_map",
     "load_unit_from_name",
     "LOAD_UNITS",
+    "SAMPLE_RATE_RANGE_HZ",
+    "MAX_TIME_S",
+    "check_sample_rate",
 ]
 
 #: Units a load channel or a table of steps may carry ("V" needs a load-cell scale, N/V).
 LOAD_UNITS = ("kgf", "N", "V")
+
+#: Plausible sample rates, Hz: from a dial gauge read by hand every few minutes to a fast
+#: digitiser. Outside, the rate (or the time step it comes from) is a broken value.
+SAMPLE_RATE_RANGE_HZ = (1e-4, 1e10)
+#: Largest time stamp, s: absolute clocks (Unix, LabVIEW's 1904 epoch) stay far below it.
+MAX_TIME_S = 1e12
+
+
+def check_sample_rate(fs, where: str) -> float:
+    """A sample rate (Hz) as a float within :data:`SAMPLE_RATE_RANGE_HZ`, else a ValueError.
+
+    ``where`` says where the rate comes from (``"variable 'fs'"``), for the message.
+    """
+    lo, hi = SAMPLE_RATE_RANGE_HZ
+    try:
+        f = float(fs)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: {fs!r} is not a number of Hz") from None
+    if not (math.isfinite(f) and lo <= f <= hi):
+        raise ValueError(
+            f"{where}: a sample rate of {f:g} Hz is not plausible; expected a positive number of Hz "
+            f"between {lo:g} and {hi:g}"
+        )
+    return f
 
 
 def load_unit_from_name(name: str | None) -> str | None:
@@ -75,10 +102,9 @@ class ChannelMap:
         if not isinstance(self.displacement, str) or not self.displacement.strip():
             raise ValueError(f"displacement channel must be a non-empty name, got {self.displacement!r}")
         if self.sample_rate_hz is not None:
-            fs = float(self.sample_rate_hz)
-            if not (math.isfinite(fs) and fs > 0):
-                raise ValueError(f"sample_rate_hz must be a positive number, got {self.sample_rate_hz!r}")
-            object.__setattr__(self, "sample_rate_hz", fs)
+            object.__setattr__(
+                self, "sample_rate_hz", check_sample_rate(self.sample_rate_hz, "sample_rate_hz")
+            )
 
 
 _MAP_KEYS = {
@@ -123,12 +149,9 @@ def parse_channel_map(text: str | None) -> ChannelMap:
             )
         if key == "sample_rate_hz":
             try:
-                fs = float(v)
-            except ValueError:
-                raise InputError(f"--channel-map: rate={v!r} is not a number of Hz") from None
-            if not (math.isfinite(fs) and fs > 0):
-                raise InputError(f"--channel-map: rate={v!r} must be a positive number of Hz")
-            kw[key] = fs
+                kw[key] = check_sample_rate(v, f"--channel-map: rate={v}")
+            except ValueError as e:
+                raise InputError(str(e)) from None
             continue
         if not v:
             raise InputError(f"--channel-map: {k}= needs a column name")
@@ -187,12 +210,26 @@ class Recording:
         if not np.all(np.isfinite(t)):
             i = int(np.flatnonzero(~np.isfinite(t))[0])
             raise InputError(f"time of sample {i} is not a finite number", source=src)
+        if np.any(np.abs(t) > MAX_TIME_S):
+            i = int(np.flatnonzero(np.abs(t) > MAX_TIME_S)[0])
+            raise InputError(
+                f"time of sample {i} is {t[i]:.6g} s, beyond +-{MAX_TIME_S:g} s: not a plausible time "
+                "(are the times in s?)",
+                source=src,
+            )
         dt = np.diff(t)
         if np.any(dt <= 0):
             i = int(np.flatnonzero(dt <= 0)[0])
             raise InputError(
                 f"time must increase: sample {i + 1} at {t[i + 1]:.6g} s follows {t[i]:.6g} s", source=src
             )
+        try:
+            check_sample_rate(
+                1.0 / float(np.median(dt)),
+                f"the time stamps give a median step of {float(np.median(dt)):.6g} s",
+            )
+        except ValueError as e:
+            raise InputError(f"{e} (are the times in s?)", source=src) from None
         object.__setattr__(self, "time_s", t)
         object.__setattr__(self, "displacement_v", v)
         if self.load is not None:
