@@ -3,7 +3,7 @@
 1. **Coarse search** with OpenCV's detectors on the image reduced by an integer factor
    (:func:`~stiffmap.vision.images.coarse_scales`): ``findChessboardCornersSB`` first,
    then the classic ``findChessboardCorners`` (adaptive threshold, quads; it finds boards
-   seen at steep angles that SB misses), then SB's exhaustive search, and the same at
+   seen at steep angles that SB misses; on images up to 1700 px), then SB's exhaustive search, and the same at
    finer scales down to full resolution only when the coarser ones fail. Several boards
    in one image are told apart by their size (inner corners): the board with the most
    corners is searched first and each board found is masked before the next search,
@@ -94,13 +94,19 @@ def search_chessboards(
 
 #: OpenCV's detectors in the order they are tried at each scale (cheapest, most often right first).
 DETECTORS = ("sb", "classic", "sb-exhaustive")
+#: The classic detector runs only on images up to this size (longest side, px): its quad
+#: search grows steeply with the image, and a partial board in a 2592x1944 frame can keep it
+#: busy for minutes (about 2 s at 860 px).
+CLASSIC_MAX_PX = 1700
 
 
 def _find_grid(small: np.ndarray, board: Chessboard, detector: str) -> np.ndarray | None:
     """The (rows, cols, 2) grid one OpenCV detector finds for ``board`` in ``small``, or None."""
     ps = board.pattern_size
     if detector == "classic":
-        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        if max(small.shape) > CLASSIC_MAX_PX:
+            return None
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE  # FAST_CHECK misses steep views
         ok, c = cv2.findChessboardCorners(small, ps, flags=flags)
     else:
         flags = cv2.CALIB_CB_EXHAUSTIVE if detector == "sb-exhaustive" else 0
