@@ -48,7 +48,7 @@ def _line_of(text: str, needle: str) -> int:
             "square_mm = 10.0\n# its pose",
             "square_mm = -10.0\n# its pose",
             "targets.fixed.square_mm",
-            "greater than 0",
+            "between 0.01 and 1000 mm",
         ),
         (
             'preset = "paper9"          #',
