@@ -408,11 +408,19 @@ def dumps_json(obj, *, indent: int | None = 2) -> str:
 ALLOW_OUTSIDE_OPTION = "--allow-outside-paths"
 
 
-def leaves_directory(root: str | os.PathLike, name: str) -> str | None:
+def leaves_directory(root: str | os.PathLike, name: str, cache: dict | None = None) -> str | None:
     """How the file name ``name`` (relative to ``root``) leads outside ``root``; None if it stays in.
 
     ``..`` and symbolic links are resolved first: ``a/../b`` stays inside, a link to
     elsewhere does not.
+
+    Parameters
+    ----------
+    root : path-like
+    name : str
+    cache : dict, optional
+        Folders already resolved, for many names checked at once (a campaign's images):
+        each folder is resolved once, each file only when it is a symbolic link.
 
     Returns
     -------
@@ -424,9 +432,18 @@ def leaves_directory(root: str | os.PathLike, name: str) -> str | None:
     p = Path(name)
     if p.is_absolute() or p.drive or p.root:
         return "is an absolute path"
+    cache = {} if cache is None else cache
+
+    def resolved(folder: Path) -> Path:
+        if folder not in cache:
+            cache[folder] = folder.resolve()
+        return cache[folder]
+
     try:
-        base = Path(root).resolve()
-        target = (base / p).resolve()
+        base = resolved(Path(root))
+        target = resolved(Path(root) / p.parent) / p.name
+        if p.name in ("", ".", "..") or target.is_symlink():
+            target = target.resolve()
     except (OSError, ValueError, RuntimeError):
         return None
     if target == base or target.is_relative_to(base):

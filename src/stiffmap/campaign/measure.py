@@ -78,7 +78,8 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
     mobile = Chessboard(*ctx.mobile)
     fixed = Chessboard(*ctx.fixed) if ctx.fixed is not None else None
     root = Path(ctx.root)
-    present = [rel for rel in task.images if rel not in task.missing]
+    missing = set(task.missing)
+    present = [rel for rel in task.images if rel not in missing]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StiffmapWarning)
         ms = measure_sequence(

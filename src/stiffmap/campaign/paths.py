@@ -24,7 +24,9 @@ from .spec import SPEC_NAME
 __all__ = ["ALLOW_OUTSIDE_OPTION", "campaign_file"]
 
 
-def campaign_file(root: Path, rel: str, key: str, item: str = "", *, allow_outside: bool = False) -> Path:
+def campaign_file(
+    root: Path, rel: str, key: str, item: str = "", *, allow_outside: bool = False, cache: dict | None = None
+) -> Path:
     """The path of a file that ``campaign.toml`` names under ``key``, relative to ``root``.
 
     Parameters
@@ -39,6 +41,9 @@ def campaign_file(root: Path, rel: str, key: str, item: str = "", *, allow_outsi
         Which of the files the key names, e.g. ``"position 2, load 3, repeat 1"``.
     allow_outside : bool
         Accept names that lead outside the directory (``--allow-outside-paths``).
+    cache : dict, optional
+        Resolved folders, shared by the calls for one campaign
+        (:func:`stiffmap.io.leaves_directory`).
 
     Raises
     ------
@@ -48,7 +53,7 @@ def campaign_file(root: Path, rel: str, key: str, item: str = "", *, allow_outsi
         when the name leads outside the campaign directory and ``allow_outside`` is False.
     """
     if not allow_outside:
-        how = leaves_directory(root, rel)
+        how = leaves_directory(root, rel, cache)
         if how is not None:
             where = f"key {key!r}" + (f" ({item})" if item else "")
             raise InputError(

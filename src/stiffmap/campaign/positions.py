@@ -54,9 +54,11 @@ def plan(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> list
     positions = spec.positions.resolve()
     n_loads = len(spec.loads.resolve(spec.g))
     roles: dict[str, tuple[str, int, int, int]] = {}
+    resolved: dict = {}  # folders resolved once for all the images
     tasks = []
     for p, xyz in enumerate(positions, start=1):
         pairs, images, missing = [], [], []
+        seen: set[str] = set()
         for ld in range(1, n_loads + 1):
             for r in range(1, spec.repeats + 1):
                 u = spec.images.path("unloaded", p, ld, r)
@@ -65,15 +67,17 @@ def plan(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> list
                 _claim(roles, lo, ("loaded", p, ld, r), root)
                 pairs.append(Pair(ld, r, u, lo))
                 for state, rel in (("unloaded", u), ("loaded", lo)):
-                    if rel not in images:
+                    if rel not in seen:
                         campaign_file(
                             root,
                             rel,
                             f"images.{state}",
                             f"position {p}, load {ld}, repeat {r}",
                             allow_outside=allow_outside,
+                            cache=resolved,
                         )
                         images.append(rel)
+                        seen.add(rel)
                         if not (root / rel).is_file():
                             missing.append(rel)
         tasks.append(

@@ -48,6 +48,10 @@ class MethodName(StrEnum):
     spd = "spd"
 
 
+#: Failures printed one per line; more are counted in one line (exports/summary.json lists all).
+MAX_WARNINGS = 50
+
+
 def init(
     directory: Path = typer.Argument(
         ..., help="Campaign directory (created if needed; it may already hold the images)."
@@ -242,8 +246,13 @@ def run(
     if not as_json:
         _print_counts(done, page, time.perf_counter() - t0)
     if done.failures:
-        for f in done.failures:
+        for f in done.failures[:MAX_WARNINGS]:
             warn(f)
+        if len(done.failures) > MAX_WARNINGS:
+            warn(
+                f"... and {len(done.failures) - MAX_WARNINGS} more failures, all listed in "
+                f"{done.exports / 'summary.json'}"
+            )
         raise typer.Exit(EXIT_PARTIAL)
 
 
