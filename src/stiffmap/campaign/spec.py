@@ -171,6 +171,10 @@ def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
         raise ValueError(
             f"its translation {a[:3, 3].tolist()} mm is beyond {LIMITS['coordinate_mm']:g} mm (1 km)"
         )
+    if np.abs(a[:3, :3]).max() > 1.0 + 1e-4:
+        raise ValueError(
+            f"its rotation part {a[:3, :3].tolist()} has an entry beyond 1 in size: not a rotation matrix"
+        )
     try:
         as_transform(a, name, atol=1e-4)
     except ValueError as e:

@@ -219,7 +219,10 @@ class Store:
 
     def _check_file(self) -> None:
         """InputError unless the file is an undamaged SQLite database (SQLite's quick check)."""
-        rows = self.conn.execute("PRAGMA quick_check").fetchall()
+        try:
+            rows = self.conn.execute("PRAGMA quick_check").fetchall()
+        except UnicodeDecodeError:  # the check's report quotes damaged bytes
+            rows = []
         if not rows or rows[0][0] != "ok":
             raise sqlite3.DatabaseError("database disk image is malformed")
 
