@@ -173,7 +173,9 @@ def test_run_where_no_position_can_be_measured(tmp_path):
     c = _write(tmp_path / "c", files)
     proc = run_stiffmap("run", c, "--quiet", "--workers", "1")
     assert proc.returncode == 2
-    line = assert_one_line_error(proc, str(c), "no position could be measured (2 failed)", "position 1")
+    line = assert_one_line_error(
+        proc, str(c), "no position could be measured (2 failed)", "images/p01/r01_unloaded.png: truncated PNG"
+    )
     assert "no report written" in line
     assert (c / "stiffmap.db").is_file()  # the failures are recorded: summary.json lists them all
     summary = json.loads((c / "exports" / "summary.json").read_text())

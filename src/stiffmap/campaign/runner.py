@@ -401,7 +401,8 @@ class _Tally:
             for r in measured:
                 if not r.ok:
                     why = r.error or "not measured"
-                    s.failures.append(why if why.startswith(f"{r.image}: ") else f"{r.image}: {why}")
+                    named = why.split(": ", 1)[0].endswith(r.image)  # the error names the image already
+                    s.failures.append(why if named else f"{r.image}: {why}")
             self.measured_images += len(task.images)
         self.done += len(task.images)
         if self.progress is not None:
