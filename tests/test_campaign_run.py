@@ -21,6 +21,7 @@ from helpers.cli_process import run_stiffmap
 from stiffmap.campaign.demo import demo_config
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.store import Store, dump_content
+from stiffmap.errors import InputError
 from stiffmap.report.browser import check_page, find_chromium
 
 pytestmark = pytest.mark.slow
@@ -66,7 +67,7 @@ def test_killed_run_resumes_to_the_same_database(campaign, tmp_path):
             try:
                 with Store(db, read_only=True, timeout=0.1) as st:
                     n = len(st.stiffness_rows())
-            except sqlite3.OperationalError:
+            except (sqlite3.OperationalError, InputError):  # being created: no tables yet
                 n = 0
             if n >= 1:
                 os.killpg(proc.pid, signal.SIGKILL)  # the run and its worker processes
@@ -100,7 +101,9 @@ def test_missing_image_and_wrong_camera_size_are_named_and_the_rest_goes_on(camp
     cam["image_size"] = [1296, 972]
     (c / "camera.json").write_text(json.dumps(cam))
     proc = _run(c)
-    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    # No position can be measured: exit 2, one line, the images' reason first.
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "no position could be measured" in proc.stderr
     assert re.search(r"images/p01/r01_unloaded\.png: .*2592.1944.*1296.972|1296.972.*2592.1944", proc.stderr)
     summary = json.loads((c / "exports" / "summary.json").read_text())
     assert all(p["status"] == "failed" for p in summary["positions"])

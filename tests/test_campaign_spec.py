@@ -48,7 +48,7 @@ def _line_of(text: str, needle: str) -> int:
             "square_mm = 10.0\n# its pose",
             "square_mm = -10.0\n# its pose",
             "targets.fixed.square_mm",
-            "greater than 0",
+            "between 0.01 and 1000 mm",
         ),
         (
             'preset = "paper9"          #',
@@ -57,6 +57,12 @@ def _line_of(text: str, needle: str) -> int:
             "did you mean 'preset'",
         ),
         ("repeats = 10 ", 'repeats = "ten" ', "repeats", "valid integer"),
+        (  # found by the fuzz tests: as_transform overflowed (R @ R.T) on such an entry
+            "fixed2base = [[1.0, 0.0",
+            "fixed2base = [[1e300, 0.0",
+            "targets.fixed.fixed2base",
+            "not a rotation matrix",
+        ),
         ('board = "5x4"', 'board = "5by4"', "targets.mobile.board", "COLSxROWS"),
         ('model = "delta"', 'model = "scara"', "robot.model", "'delta', '3prr' or 'none'"),
         ("[0.0, -1.0, 0.0, 31.00]", "[0.0, -1.0, 0.5, 31.00]", "targets.fixed.fixed2base", "rotation"),

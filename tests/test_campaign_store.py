@@ -9,6 +9,7 @@ import stat
 import pytest
 
 from stiffmap.campaign.store import Store, dump_content, file_sha256, params_hash
+from stiffmap.errors import InputError
 from stiffmap.io import atomic_write_text
 
 
@@ -103,7 +104,7 @@ def test_read_only_store_reads_and_never_writes(tmp_path):
         st.save_position(1, displacements=[], repeat_stats=[], stiffness=_stiffness_row(1))
     with Store(db, read_only=True) as st:
         assert [r["position"] for r in st.stiffness_rows()] == [1]
-        with pytest.raises(sqlite3.OperationalError):
+        with pytest.raises(InputError, match="stiffmap.db: cannot write the results database: .*readonly"):
             st.delete_positions_after(0)
 
 

@@ -40,6 +40,8 @@ __all__ = [
     "atomic_write_bytes",
     "to_jsonable",
     "dumps_json",
+    "ALLOW_OUTSIDE_OPTION",
+    "leaves_directory",
 ]
 
 
@@ -400,3 +402,52 @@ def to_jsonable(obj):
 def dumps_json(obj, *, indent: int | None = 2) -> str:
     """JSON text of ``obj`` after :func:`to_jsonable`."""
     return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False)
+
+
+#: The command-line option that lets a campaign.toml or an index file name files outside its directory.
+ALLOW_OUTSIDE_OPTION = "--allow-outside-paths"
+
+
+def leaves_directory(root: str | os.PathLike, name: str, cache: dict | None = None) -> str | None:
+    """How the file name ``name`` (relative to ``root``) leads outside ``root``; None if it stays in.
+
+    ``..`` and symbolic links are resolved first: ``a/../b`` stays inside, a link to
+    elsewhere does not.
+
+    Parameters
+    ----------
+    root : path-like
+    name : str
+    cache : dict, optional
+        Folders already resolved, for many names checked at once (a campaign's images):
+        each folder is resolved once, each file only when it is a symbolic link.
+
+    Returns
+    -------
+    str or None
+        "is an absolute path", "goes up with '..' (to TARGET)" or "leads through a
+        symbolic link to TARGET"; None for a name inside ``root`` (or one that cannot be
+        resolved at all, e.g. holding a NUL byte: reading it fails with its own message).
+    """
+    p = Path(name)
+    if p.is_absolute() or p.drive or p.root:
+        return "is an absolute path"
+    cache = {} if cache is None else cache
+
+    def resolved(folder: Path) -> Path:
+        if folder not in cache:
+            cache[folder] = folder.resolve()
+        return cache[folder]
+
+    try:
+        base = resolved(Path(root))
+        target = resolved(Path(root) / p.parent) / p.name
+        if p.name in ("", ".", "..") or target.is_symlink():
+            target = target.resolve()
+    except (OSError, ValueError, RuntimeError):
+        return None
+    if target == base or target.is_relative_to(base):
+        return None
+    if ".." in p.parts:
+        return f"goes up with '..' (to {target})"
+    return f"leads through a symbolic link to {target}"

@@ -78,7 +78,8 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
     mobile = Chessboard(*ctx.mobile)
     fixed = Chessboard(*ctx.fixed) if ctx.fixed is not None else None
     root = Path(ctx.root)
-    present = [rel for rel in task.images if rel not in task.missing]
+    missing = set(task.missing)
+    present = [rel for rel in task.images if rel not in missing]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StiffmapWarning)
         ms = measure_sequence(
@@ -136,15 +137,16 @@ def measure_positions(
     """Measure positions, yielding each as soon as it is done.
 
     With ``workers`` > 1 the positions are measured by a pool of processes, in
-    the order they finish, and a position whose worker failed yields the text of
-    the error (a bug, not a user error) instead of its rows. Close the iterator
+    the order they finish. A position whose measurement failed as a whole (a bug,
+    not a user error: an image's problem is its row's error) yields the text of
+    the error instead of its rows, in this process as in a worker. Close the iterator
     (``contextlib.closing``) to stop the pool when the caller stops early.
     """
     if not tasks:
         return
     if workers <= 1:
         for t in tasks:
-            yield t, measure_position(ctx, t)
+            yield t, _measure_worker(ctx, t)[1]
         return
     by_index = {t.index: t for t in tasks}
     with ProcessPoolExecutor(max_workers=workers) as pool:

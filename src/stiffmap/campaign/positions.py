@@ -8,10 +8,13 @@ missing on disk (the run names them and goes on).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from .spec import CampaignSpec
+from ..errors import InputError
+from .paths import campaign_file
+from .spec import SPEC_NAME, CampaignSpec
 
 __all__ = ["Pair", "PositionTask", "plan"]
 
@@ -37,21 +40,44 @@ class PositionTask:
     missing: tuple[str, ...] = ()
 
 
-def plan(spec: CampaignSpec, root: Path) -> list[PositionTask]:
-    """The positions of a vision campaign with their image files (missing ones listed)."""
+def plan(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> list[PositionTask]:
+    """The positions of a vision campaign with their image files (missing ones listed).
+
+    Raises
+    ------
+    InputError
+        An image name leads outside the campaign directory (unless ``allow_outside``:
+        ``stiffmap run --allow-outside-paths``), or the ``[images]`` patterns give one file
+        two roles (a loaded image that is also an unloaded one, or one file for two
+        positions or two load cases), naming the key and the two uses.
+    """
     positions = spec.positions.resolve()
     n_loads = len(spec.loads.resolve(spec.g))
+    roles: dict[str, tuple[str, int, int, int]] = {}
+    resolved: dict = {}  # folders resolved once for all the images
     tasks = []
     for p, xyz in enumerate(positions, start=1):
         pairs, images, missing = [], [], []
+        seen: set[str] = set()
         for ld in range(1, n_loads + 1):
             for r in range(1, spec.repeats + 1):
                 u = spec.images.path("unloaded", p, ld, r)
                 lo = spec.images.path("loaded", p, ld, r)
+                _claim(roles, u, ("unloaded", p, ld, r), root)
+                _claim(roles, lo, ("loaded", p, ld, r), root)
                 pairs.append(Pair(ld, r, u, lo))
-                for rel in (u, lo):
-                    if rel not in images:
+                for state, rel in (("unloaded", u), ("loaded", lo)):
+                    if rel not in seen:
+                        campaign_file(
+                            root,
+                            rel,
+                            f"images.{state}",
+                            f"position {p}, load {ld}, repeat {r}",
+                            allow_outside=allow_outside,
+                            cache=resolved,
+                        )
                         images.append(rel)
+                        seen.add(rel)
                         if not (root / rel).is_file():
                             missing.append(rel)
         tasks.append(
@@ -60,3 +86,25 @@ def plan(spec: CampaignSpec, root: Path) -> list[PositionTask]:
             )
         )
     return tasks
+
+
+def _claim(roles: dict, rel: str, role: tuple[str, int, int, int], root: Path) -> None:
+    """Record that ``rel`` is the image of ``role``; InputError when it already has another role.
+
+    An unloaded image may serve every load case (and repeat) of its position; a loaded
+    image is one load case and repeat; no file is both.
+    """
+    prev = roles.setdefault(os.path.normpath(rel), role)
+    if prev == role:
+        return
+    state, p, ld, r = role
+    pstate, pp, pld, pr = prev
+    if state == pstate == "unloaded" and p == pp:
+        return
+    where = f"key 'images.{state}'" if state == pstate else "keys 'images.loaded' and 'images.unloaded'"
+    raise InputError(
+        f"{where}: the patterns name the same file {rel!r} for the {pstate} image of position {pp}, "
+        f"load {pld}, repeat {pr} and for the {state} image of position {p}, load {ld}, repeat {r}; "
+        "each image has one role (zero-pad or separate the numbers, e.g. p{position:02d}_l{load:02d})",
+        source=str(root / SPEC_NAME),
+    )

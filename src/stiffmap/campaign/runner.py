@@ -42,8 +42,9 @@ from ..loads import LoadCase, force_covariances, forces_matrix
 from ..models.fit import fit_stiffness
 from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions
+from .paths import campaign_file
 from .positions import PositionTask, plan
-from .spec import CampaignSpec, load_spec
+from .spec import SPEC_NAME, CampaignSpec, load_spec
 from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
 __all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model", "default_workers"]
@@ -81,6 +82,7 @@ def run_campaign(
     workers: int = 1,
     method: str = "compliance",
     progress: ProgressHook | None = None,
+    allow_outside: bool = False,
 ) -> RunSummary:
     """Run a vision campaign: measure every position, identify K, fit the model.
 
@@ -95,6 +97,9 @@ def run_campaign(
     progress : callable, optional
         ``progress(images_done, images_total, images_measured)`` after each
         position (reused positions count as done but not as measured).
+    allow_outside : bool
+        Let ``campaign.toml`` name files outside the campaign directory
+        (``stiffmap run --allow-outside-paths``; :mod:`stiffmap.campaign.paths`).
 
     Returns
     -------
@@ -106,10 +111,10 @@ def run_campaign(
     ------
     InputError
         When nothing can be done: no or bad campaign.toml, camera file missing or
-        malformed.
+        malformed, a file named outside the campaign directory.
     """
     t_start = time.perf_counter()
-    campaign = _read_campaign(campaign_dir, method)  # plan: the spec's positions and images
+    campaign = _read_campaign(campaign_dir, method, allow_outside)  # plan: the spec's positions and images
     summary = RunSummary(campaign=campaign.spec.name, positions=len(campaign.tasks), db=str(campaign.db))
     for t in campaign.tasks:
         for rel in t.missing:
@@ -126,7 +131,9 @@ def run_campaign(
         with contextlib.closing(measuring):
             for task, rows in measuring:  # measured: derive and persist each position as it comes
                 if isinstance(rows, str):  # the worker failed: a bug, named, and the run goes on
-                    summary.failures.append(f"position {task.index}: {rows.splitlines()[-1]}")
+                    why = f"internal error while measuring (a bug): {rows.splitlines()[-1]}"
+                    summary.failures.append(f"position {task.index}: {why}")
+                    _persist_lost(store, work, task, why)
                     tally.position_lost(task)
                     continue
                 problems = _derive_and_persist(store, campaign, work, task, rows)
@@ -157,7 +164,7 @@ class _Campaign:
         return self.root / DB_NAME
 
 
-def _read_campaign(campaign_dir: str | Path, method: str) -> _Campaign:
+def _read_campaign(campaign_dir: str | Path, method: str, allow_outside: bool = False) -> _Campaign:
     """Read the spec and the camera and plan the positions; InputError when nothing can be done."""
     root = Path(campaign_dir).resolve()
     spec = load_spec(root)
@@ -165,11 +172,18 @@ def _read_campaign(campaign_dir: str | Path, method: str) -> _Campaign:
         raise InputError(
             f"{root / 'campaign.toml'}: kind = {spec.kind!r}: use 'stiffmap run' on vision campaigns"
         )
-    camera_path = root / spec.camera.file
-    camera = load_camera(camera_path)
+    camera_path = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
+    try:
+        camera = load_camera(camera_path)
+    except InputError as e:
+        raise InputError(
+            f"{e.detail} (the camera file that camera.file in {SPEC_NAME} names)", source=e.source
+        ) from None
     try:
         loads = spec.loads.resolve(spec.g)
-        tasks = plan(spec, root)
+        tasks = plan(spec, root, allow_outside=allow_outside)
+    except InputError:
+        raise
     except ValueError as e:
         raise InputError(str(e), source=str(root / "campaign.toml")) from None
     if tasks and all(len(t.missing) == len(t.images) for t in tasks):
@@ -289,6 +303,28 @@ def _derive_and_persist(
     return derived.problems
 
 
+def _persist_lost(store: Store, work: _Work, task: PositionTask, why: str) -> None:
+    """Record a position whose measurement failed as a whole: a failed ``stiffness`` row saying why.
+
+    Its stored ``measurements`` rows (if any) are kept: they are incomplete, so the next run
+    measures it again.
+    """
+    x, y, z = task.xyz
+    row = {
+        "position": task.index,
+        "x": x,
+        "y": y,
+        "z": z,
+        "status": "failed",
+        "error": why,
+        "inputs_hash": "lost",
+        "params_hash": work.derive_hash,
+        "version": __version__,
+    }
+    with store.transaction():
+        store.save_position(task.index, displacements=[], repeat_stats=[], stiffness=row)
+
+
 def _measurement_row(
     store: Store, campaign: _Campaign, work: _Work, task: PositionTask, r: ImageRow
 ) -> dict[str, Any]:
@@ -362,7 +398,11 @@ class _Tally:
             s.measured += 1
             s.images += len(measured)
             s.image_seconds += sum(r.seconds for r in measured)
-            s.failures.extend(f"{r.image}: {r.error}" for r in measured if not r.ok)
+            for r in measured:
+                if not r.ok:
+                    why = r.error or "not measured"
+                    named = why.split(": ", 1)[0].endswith(r.image)  # the error names the image already
+                    s.failures.append(why if named else f"{r.image}: {why}")
             self.measured_images += len(task.images)
         self.done += len(task.images)
         if self.progress is not None:
@@ -443,12 +483,15 @@ def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict,
         good = [r for r, v in zip(ok, mm.valid, strict=True) if v]
         if not good:
             raise InputError("no measured position lies inside the model's workspace")
+        K_std = np.array([from_json(r["K_std"]) for r in good])
         fit = fit_stiffness(
             model,
             np.array([[r["x"], r["y"], r["z"]] for r in good]),
             np.array([from_json(r["K"]) for r in good]),
             params=fit_names,
-            K_std=np.array([from_json(r["K_std"]) for r in good]),
+            # Without residual degrees of freedom a position's K has no standard errors: the
+            # fit then weighs every entry alike (and scales the covariance by its residuals).
+            K_std=K_std if np.all(np.isfinite(K_std)) and np.all(K_std > 0) else None,
         )
         fitted = fit.model
         fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))

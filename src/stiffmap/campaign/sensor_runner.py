@@ -26,10 +26,11 @@ from ..sensors.analysis import SensorConfig, analyse_recording
 from ..sensors.batch import direction_from
 from ..sensors.io import read_recording
 from ..sensors.recording import ChannelMap, parse_channel_map
-from .spec import CampaignSpec, SensorRecordingSpec
+from .paths import campaign_file
+from .spec import SPEC_NAME, CampaignSpec, SensorRecordingSpec
 from .store import Store, from_json, model_fit_columns, params_hash, to_json
 
-__all__ = ["run_sensor_campaign", "sensor_config", "SensorCampaignResult"]
+__all__ = ["run_sensor_campaign", "check_recording_paths", "sensor_config", "SensorCampaignResult"]
 
 
 def sensor_config(spec: CampaignSpec) -> tuple[SensorConfig, ChannelMap]:
@@ -67,25 +68,48 @@ class SensorCampaignResult:
     failures: list[str] | None = None
 
 
-def run_sensor_campaign(root: Path, spec: CampaignSpec, store: Store) -> SensorCampaignResult:
-    """Analyse every recording (reusing unchanged ones) and fit the model."""
+def run_sensor_campaign(
+    root: Path, spec: CampaignSpec, store: Store, *, allow_outside: bool = False
+) -> SensorCampaignResult:
+    """Analyse every recording (reusing unchanged ones) and fit the model.
+
+    Raises
+    ------
+    InputError
+        A recording's file name leads outside the campaign directory and not
+        ``allow_outside`` (:mod:`stiffmap.campaign.paths`).
+    """
     t0 = time.perf_counter()
-    cfg, cmap = sensor_config(spec)
+    check_recording_paths(root, spec, allow_outside=allow_outside)
+    try:
+        cfg, cmap = sensor_config(spec)
+    except ValueError as e:  # the spec checks these; a settings' check of the analysis says more
+        if isinstance(e, InputError) and e.source:
+            raise
+        raise InputError(f"key 'sensor': {e}", source=str(root / SPEC_NAME)) from None
     phash = params_hash({"config": dataclasses.asdict(cfg), "channels": dataclasses.asdict(cmap)})
     out = SensorCampaignResult(campaign=spec.name, recordings=len(spec.sensor.recordings), failures=[])
     # Recordings no longer in campaign.toml leave the results.
     store.delete_recordings_not_in([rec.file for rec in spec.sensor.recordings])
-    for rec in spec.sensor.recordings:
-        _analyse_or_reuse(root, store, rec, cfg, cmap, phash, out)
+    for i, rec in enumerate(spec.sensor.recordings):
+        _analyse_or_reuse(root, store, rec, i, cfg, cmap, phash, out)
     out.failures.extend(_fit_model(spec, store))
     out.wall_seconds = time.perf_counter() - t0
     return out
+
+
+def check_recording_paths(root: Path, spec: CampaignSpec, *, allow_outside: bool = False) -> None:
+    """InputError when a recording's file name leads outside the campaign directory (and not
+    ``allow_outside``), naming its key (:func:`stiffmap.campaign.paths.campaign_file`)."""
+    for i, rec in enumerate(spec.sensor.recordings):
+        campaign_file(root, rec.file, f"sensor.recordings[{i}].file", allow_outside=allow_outside)
 
 
 def _analyse_or_reuse(
     root: Path,
     store: Store,
     rec: SensorRecordingSpec,
+    index: int,
     cfg: SensorConfig,
     cmap: ChannelMap,
     phash: str,
@@ -103,8 +127,10 @@ def _analyse_or_reuse(
         "version": __version__,
     }
     if not path.is_file():
-        store.save_sensor_result({**row, "sha256": None, "status": "failed", "error": "file not found"})
-        out.failures.append(f"{key}: file not found")
+        why = "is a folder, not a recording" if path.is_dir() else "file not found"
+        why += f" (sensor.recordings[{index}].file in campaign.toml)"
+        store.save_sensor_result({**row, "sha256": None, "status": "failed", "error": why})
+        out.failures.append(f"{key}: {why}")
         return
     sha = store.sha256(path)
     prev = store.sensor_result(key)
@@ -116,11 +142,14 @@ def _analyse_or_reuse(
         if prev["status"] != "ok":
             out.failures.append(prev["error"])
         return
-    c = dataclasses.replace(
-        cfg,
-        axis_sign=rec.sign,
-        step_times_s=tuple(tuple(span) for span in rec.step_times) if rec.step_times else None,
-    )
+    try:
+        c = dataclasses.replace(
+            cfg,
+            axis_sign=rec.sign,
+            step_times_s=tuple(tuple(span) for span in rec.step_times) if rec.step_times else None,
+        )
+    except ValueError as e:  # the spec checks these; a settings' check of the analysis says more
+        raise InputError(f"key 'sensor.recordings[{index}]': {e}", source=str(root / SPEC_NAME)) from None
     try:
         res = analyse_recording(read_recording(path, cmap), c)
         result = res.to_dict()

@@ -15,17 +15,34 @@ This module holds the schema (pydantic models, one per table) and reading it:
 (:mod:`stiffmap.campaign.spec_errors`). Writing a spec, with every key
 explained, and the commented example ``stiffmap init DIR`` writes are in
 :mod:`stiffmap.campaign.spec_writer`.
+
+Values are taken for what TOML says they are: a number where a number belongs
+(``true`` or ``"9.81"`` is refused, not converted), an integer where a count
+belongs. Numbers must be finite and physically plausible (:data:`LIMITS`): a
+coordinate of 1e300 mm or a board square of 1e-300 mm is a typing mistake,
+reported with its key, not a computation that overflows later.
 """
 
 from __future__ import annotations
 
+import re
 import string
 import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    Strict,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from ..errors import InputError
 from ..geometry import as_transform
@@ -33,6 +50,7 @@ from ..loads import LoadCase, load_from_mass, with_friction
 from ..loads import preset as load_preset
 from ..models import MECHANISMS
 from ..models.presets import preset_points
+from ..sensors.recording import parse_channel_map
 from ..targets import parse_board_size
 from .spec_errors import validation_message
 
@@ -43,25 +61,120 @@ __all__ = [
     "SPEC_NAME",
     "DEFAULT_UNLOADED",
     "DEFAULT_LOADED",
+    "LIMITS",
+    "MAX_SPEC_BYTES",
 ]
 
 SPEC_NAME = "campaign.toml"
 DEFAULT_UNLOADED = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_unloaded.png"
 DEFAULT_LOADED = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png"
 
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: campaign.toml larger than this is refused (the reference study's spec is a few kB).
+MAX_SPEC_BYTES = 16 * 1024 * 1024
+
+#: What campaign.toml may hold (physical plausibility and sizes; docs/campaigns.md "Limits").
+LIMITS = {
+    "coordinate_mm": 1e6,  # 1 km: positions, points, translations of fixed2base and mobile2tcp
+    "force_n": 1e7,
+    "mass_kg": 1e6,
+    "g": (1.0, 100.0),  # m/s^2
+    "square_mm": (0.01, 1000.0),
+    "board_side": (3, 200),  # inner corners per side (the corner detector needs 3 or more)
+    "repeats": 1000,
+    "positions": 10_000,
+    "loads": 1000,
+    "images": 200_000,  # image files a campaign names
+    "recordings": 10_000,
+    "model_param": (1e-6, 1e12),  # |value| of a non-zero robot.params entry, in its own unit
+    "time_s": 1e7,
+    "scale_um_per_v": (1e-6, 1e9),
+    "range_v": (0.02, 1e4),
+    "load_n_per_v": (1e-9, 1e9),
+    "window_s": (1e-6, 1e6),
+    "threshold_sigma": (0.01, 1e6),
+    "text": 1000,  # characters of a name or a label
+    "path": 4096,  # characters of a file name or pattern
+    "name_component": 255,  # bytes of one folder or file name (the file systems' limit)
+    "format_width": 64,  # width or precision in a file-name pattern's {position:...}
+}
+
+
+def _number(v):
+    """Refuse a bool where a number belongs (TOML's ``true`` is not 1)."""
+    if isinstance(v, bool):
+        raise ValueError(f"expected a number, got {str(v).lower()}")
+    return v
+
+
+def _between(lo: float, hi: float, unit: str):
+    def check(v: float) -> float:
+        if not lo <= v <= hi:
+            raise ValueError(f"must be between {lo:g} and {hi:g} {unit}".rstrip())
+        return v
+
+    return AfterValidator(check)
+
+
+def _positive_up_to(hi: float, unit: str):
+    def check(v: float) -> float:
+        if not 0 < v <= hi:
+            raise ValueError(f"must be a positive number of {unit}, at most {hi:g}")
+        return v
+
+    return AfterValidator(check)
+
+
+Finite = Annotated[float, BeforeValidator(_number), Strict(), Field(allow_inf_nan=False)]
+Coord = Annotated[Finite, _between(-LIMITS["coordinate_mm"], LIMITS["coordinate_mm"], "mm")]
+ForceN = Annotated[Finite, _between(-LIMITS["force_n"], LIMITS["force_n"], "N")]
+MassKg = Annotated[Finite, _positive_up_to(LIMITS["mass_kg"], "kg")]
+NonNegMassKg = Annotated[Finite, _between(0.0, LIMITS["mass_kg"], "kg")]
+TimeS = Annotated[Finite, _between(0.0, LIMITS["time_s"], "s")]
+Count = Annotated[int, Strict()]
+Text = Annotated[str, Strict(), Field(max_length=LIMITS["text"])]
+
+
+def _check_path_text(v: str, what: str = "file name") -> str:
+    """A file name (or a pattern's fixed part) that the file system can hold."""
+    if not v.strip():
+        raise ValueError(f"empty {what}")
+    if len(v) > LIMITS["path"]:
+        raise ValueError(f"{what} of {len(v)} characters; at most {LIMITS['path']}")
+    bad = next((c for c in v if ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None:
+        raise ValueError(f"{what} {v[:60]!r} holds the control character {bad!r}")
+    for part in re.split(r"[\\/]", v):
+        try:
+            n = len(part.encode("utf-8"))
+        except UnicodeEncodeError:
+            raise ValueError(f"{what} {v[:60]!r} is not valid Unicode text") from None
+        if n > LIMITS["name_component"]:
+            raise ValueError(
+                f"{what} {v[:60]!r}...: one of its folder or file names is {n} bytes long; "
+                f"file systems allow {LIMITS['name_component']}"
+            )
+    return v
+
+
+FileName = Annotated[str, Strict(), AfterValidator(_check_path_text)]
 
 
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
     a = np.asarray(v, dtype=float)
     if a.shape != (4, 4):
         raise ValueError(f"must be a 4x4 matrix (4 rows of 4 numbers), got shape {a.shape}")
+    if np.abs(a[:3, 3]).max() > LIMITS["coordinate_mm"]:
+        raise ValueError(
+            f"its translation {a[:3, 3].tolist()} mm is beyond {LIMITS['coordinate_mm']:g} mm (1 km)"
+        )
+    if np.abs(a[:3, :3]).max() > 1.0 + 1e-4:
+        raise ValueError(
+            f"its rotation part {a[:3, :3].tolist()} has an entry beyond 1 in size: not a rotation matrix"
+        )
     try:
         as_transform(a, name, atol=1e-4)
     except ValueError as e:
@@ -75,7 +188,34 @@ class RobotSpec(_Spec):
     model: Literal["delta", "3prr", "none"] = "none"
     params: dict[str, Finite] = Field(default_factory=dict)
     #: Parameters fitted to the measurements (default: k_theta for the Delta, kj for the 3PRR).
-    fit: list[str] | None = None
+    fit: list[Text] | None = None
+
+    @model_validator(mode="after")
+    def _known(self):
+        if self.model == "none":
+            return self
+        cls = MECHANISMS[self.model]
+        names = cls.param_names()
+        lo, hi = LIMITS["model_param"]
+        for k, v in self.params.items():
+            if v != 0 and not lo <= abs(v) <= hi:
+                raise ValueError(
+                    f"robot.params.{k} = {v:g} is not between {lo:g} and {hi:g} in size (in the "
+                    "parameter's unit, docs/models.md): a typing mistake?"
+                )
+        try:
+            self.mechanism()
+        except ValueError as e:
+            raise ValueError(f"robot.params = {e}") from None
+        bad = [n for n in self.fit or () if n not in names]
+        if bad:
+            raise ValueError(
+                f"robot.fit = unknown {self.model} parameter(s) {', '.join(map(repr, bad))}; "
+                f"valid: {', '.join(names)}"
+            )
+        if self.fit is not None and len(set(self.fit)) != len(self.fit):
+            raise ValueError("robot.fit = a parameter is listed twice")
+        return self
 
     def mechanism(self, **overrides: float):
         """The model with ``params`` (then ``overrides``) applied; ValueError on a bad parameter."""
@@ -98,17 +238,23 @@ class RobotSpec(_Spec):
 class CameraSpec(_Spec):
     """The calibrated camera (``camera.json``, relative to the campaign directory)."""
 
-    file: str = "camera.json"
+    file: FileName = "camera.json"
 
 
 class BoardSpec(_Spec):
-    board: str
-    square_mm: PositiveFloat
+    board: Annotated[str, Strict(), Field(max_length=40)]
+    square_mm: Annotated[Finite, _between(*LIMITS["square_mm"], "mm")]
 
     @field_validator("board")
     @classmethod
     def _board(cls, v: str) -> str:
-        parse_board_size(v)
+        cols, rows = parse_board_size(v)
+        lo, hi = LIMITS["board_side"]
+        if not (lo <= cols <= hi and lo <= rows <= hi):
+            raise ValueError(
+                f"a board of {cols}x{rows} inner corners: each side must have {lo} to {hi} "
+                "(the corner detector needs 3 or more)"
+            )
         return v.strip().lower()
 
 
@@ -126,7 +272,7 @@ class FixedTargetSpec(BoardSpec):
 class MobileTargetSpec(BoardSpec):
     """The target on the platform; ``point_mm`` is the point whose displacement is measured."""
 
-    point_mm: tuple[Finite, Finite, Finite] = (0.0, 0.0, 0.0)
+    point_mm: Annotated[tuple[Coord, Coord, Coord], Field(strict=False)] = (0.0, 0.0, 0.0)
     mobile2tcp: list[list[Finite]] | None = None
 
     @field_validator("mobile2tcp")
@@ -150,18 +296,18 @@ class TargetsSpec(_Spec):
 
 
 class GridSpec(_Spec):
-    x: list[Finite]
-    y: list[Finite]
-    z: list[Finite] = Field(default_factory=lambda: [0.0])
+    x: list[Coord]
+    y: list[Coord]
+    z: list[Coord] = Field(default_factory=lambda: [0.0])
 
 
 class PositionsSpec(_Spec):
     """Exactly one of ``preset``, ``list`` or ``grid`` (mm, base frame)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, populate_by_name=True)
 
-    preset: str | None = None
-    points: list[list[Finite]] | None = Field(default=None, alias="list")
+    preset: Text | None = None
+    points: list[list[Coord]] | None = Field(default=None, alias="list")
     grid: GridSpec | None = None
 
     @model_validator(mode="after")
@@ -182,7 +328,25 @@ class PositionsSpec(_Spec):
             for i, p in enumerate(self.points):
                 if len(p) not in (2, 3):
                     raise ValueError(f"list[{i}] must be [x, y, z] (or [x, y] for a planar robot), got {p}")
+        if self.grid is not None and not (self.grid.x and self.grid.y and self.grid.z):
+            raise ValueError("grid: x, y and z must each hold at least one value")
+        if self.preset is not None:
+            try:
+                preset_points(self.preset)
+            except ValueError as e:
+                raise ValueError(f"positions.preset = {e}") from None
+        n = self.count()
+        if n > LIMITS["positions"]:
+            raise ValueError(f"{n} positions; a campaign may have at most {LIMITS['positions']}")
         return self
+
+    def count(self) -> int:
+        """The number of positions (without building them)."""
+        if self.points is not None:
+            return len(self.points)
+        if self.grid is not None:
+            return len(self.grid.x) * len(self.grid.y) * len(self.grid.z)
+        return len(preset_points(self.preset))
 
     def resolve(self) -> np.ndarray:
         """Positions, shape (n, 3) mm (z = 0 for planar points)."""
@@ -199,13 +363,16 @@ class PositionsSpec(_Spec):
         return pts
 
 
+_AXIS_NAMES = ("x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
+
+
 class LoadCaseSpec(_Spec):
     """A load: a mass along a direction, or a force vector in N (base frame)."""
 
-    mass_kg: PositiveFloat | None = None
-    direction: str | list[Finite] | None = None
-    force_n: tuple[Finite, Finite, Finite] | None = None
-    label: str = ""
+    mass_kg: MassKg | None = None
+    direction: Text | list[Coord] | None = None
+    force_n: Annotated[tuple[ForceN, ForceN, ForceN], Field(strict=False)] | None = None
+    label: Text = ""
 
     @model_validator(mode="after")
     def _one(self):
@@ -215,21 +382,26 @@ class LoadCaseSpec(_Spec):
             raise ValueError("give force_n = [fx, fy, fz] (N), or mass_kg with direction")
         if self.force_n is not None and not any(self.force_n):
             raise ValueError("force_n is zero")
+        d = self.direction
+        if isinstance(d, str) and d.strip().lower() not in _AXIS_NAMES:
+            raise ValueError(f"direction {d!r}: expected one of x, y, z, -x, -y, -z or a vector [x, y, z]")
+        if isinstance(d, list) and (len(d) != 3 or not any(d)):
+            raise ValueError(f"direction {d}: expected a non-zero vector [x, y, z]")
         return self
 
 
 class FrictionSpec(_Spec):
     """Friction subtracted from the loads applied through a pulley (the reference: X and Y)."""
 
-    mass_kg: NonNegFloat
-    std_kg: NonNegFloat = 0.0
+    mass_kg: NonNegMassKg
+    std_kg: NonNegMassKg = 0.0
     directions: list[Literal["x", "y", "z"]] = Field(default_factory=lambda: ["x", "y"])
 
 
 class LoadsSpec(_Spec):
     """Exactly one of ``preset`` (``paper9``) or ``cases``; optional friction."""
 
-    preset: str | None = None
+    preset: Text | None = None
     cases: list[LoadCaseSpec] | None = None
     friction: FrictionSpec | None = None
 
@@ -239,7 +411,18 @@ class LoadsSpec(_Spec):
             raise ValueError("give exactly one of 'preset' or 'cases'")
         if self.cases is not None and not self.cases:
             raise ValueError("'cases' is empty")
+        if self.cases is not None and len(self.cases) > LIMITS["loads"]:
+            raise ValueError(f"{len(self.cases)} load cases; a campaign may have at most {LIMITS['loads']}")
+        if self.preset is not None:
+            try:
+                load_preset(self.preset)
+            except ValueError as e:
+                raise ValueError(f"loads.preset = {e}") from None
         return self
+
+    def count(self) -> int:
+        """The number of load cases."""
+        return len(self.cases) if self.cases is not None else len(load_preset(self.preset))
 
     def resolve(self, g: float):
         """The load cases (:class:`stiffmap.loads.LoadCase`), friction applied."""
@@ -270,9 +453,10 @@ _FIELDS = {"position", "load", "repeat"}
 
 def _check_pattern(v: str, required: set[str]) -> str:
     try:
-        names = {f for _, f, _, _ in string.Formatter().parse(v) if f is not None}
+        parsed = list(string.Formatter().parse(v))
     except ValueError as e:
         raise ValueError(f"bad pattern {v!r}: {e}") from None
+    names = {f for _, f, _, _ in parsed if f is not None}
     unknown = {n.split("!")[0].split(":")[0] for n in names} - _FIELDS
     if unknown:
         raise ValueError(
@@ -281,10 +465,22 @@ def _check_pattern(v: str, required: set[str]) -> str:
     missing = required - names
     if missing:
         raise ValueError(f"pattern {v!r} must contain {', '.join('{' + m + '}' for m in sorted(missing))}")
+    for _, field, spec, _ in parsed:
+        if field is None:
+            continue
+        if "{" in spec or "}" in spec:
+            raise ValueError(f"bad pattern {v!r}: a placeholder inside {{{field}:{spec}}}")
+        widths = [int(d) for d in re.findall(r"\d+", spec)]
+        if any(w > LIMITS["format_width"] for w in widths):
+            raise ValueError(
+                f"bad pattern {v!r}: {{{field}:{spec}}} asks for {max(widths)} characters; "
+                f"at most {LIMITS['format_width']}"
+            )
     try:
-        v.format(position=1, load=1, repeat=1)
-    except (ValueError, KeyError, IndexError) as e:
+        sample = v.format(position=1, load=1, repeat=1)
+    except (ValueError, KeyError, IndexError, TypeError) as e:
         raise ValueError(f"bad pattern {v!r}: {e}") from None
+    _check_path_text(sample, "file name")
     return v
 
 
@@ -296,8 +492,8 @@ class ImagesSpec(_Spec):
     ``{load}`` when one unloaded image serves every load case of a repeat.
     """
 
-    unloaded: str = DEFAULT_UNLOADED
-    loaded: str = DEFAULT_LOADED
+    unloaded: Annotated[str, Strict(), Field(max_length=LIMITS["path"])] = DEFAULT_UNLOADED
+    loaded: Annotated[str, Strict(), Field(max_length=LIMITS["path"])] = DEFAULT_LOADED
     #: "pairs": each loaded image against its own unloaded image (the robot may move
     #: between measurements); "mean-reference": against the mean of all unloaded images
     #: of the position (the robot stays at the position during all its loads and
@@ -330,16 +526,29 @@ class MeasurementSpec(_Spec):
     refine: Literal["auto", "photometric", "corners"] = "auto"
 
 
+def _sign(v):
+    if isinstance(v, bool) or v not in (1, -1):
+        raise ValueError(f"sign must be 1 or -1 (-1 behind a mirror), got {v!r}")
+    return v
+
+
 class SensorRecordingSpec(_Spec):
     """One displacement-sensor recording: where, along which axis, which file."""
 
-    point: list[Finite]
+    point: list[Coord]
     direction: Literal["x", "y", "z", "-x", "-y", "-z"]
-    file: str
-    sign: Literal[1, -1] = 1
-    label: str | None = None  # e.g. the point's number on the workspace drawing
+    file: FileName
+    sign: Annotated[int, BeforeValidator(_sign)] = 1
+    label: Text | None = None  # e.g. the point's number on the workspace drawing
     #: Plateaus by hand, [[start, end], ...] in s, when the automatic detection fails.
-    step_times: list[tuple[NonNegFloat, NonNegFloat]] | None = None
+    step_times: list[Annotated[tuple[TimeS, TimeS], Field(strict=False)]] | None = None
+
+    @field_validator("point")
+    @classmethod
+    def _point(cls, v):
+        if len(v) not in (2, 3):
+            raise ValueError(f"a point is [x, y] (planar) or [x, y, z] (mm), got {len(v)} coordinate(s)")
+        return v
 
     @field_validator("step_times")
     @classmethod
@@ -347,29 +556,70 @@ class SensorRecordingSpec(_Spec):
         if v is not None:
             if len(v) < 2:
                 raise ValueError("give at least 2 plateaus [start, end] (s)")
+            if len(v) > 10_000:
+                raise ValueError(f"{len(v)} plateaus; at most 10000")
             for a, b in v:
                 if not b > a:
                     raise ValueError(f"a plateau [start, end] needs end > start, got [{a}, {b}]")
+            for (_, b0), (a1, b1) in zip(v, v[1:], strict=False):
+                if a1 < b0:
+                    raise ValueError(
+                        f"the plateaus must be in time order and not overlap; [{a1}, {b1}] starts before "
+                        f"the previous one ends ({b0} s)"
+                    )
         return v
+
+    @model_validator(mode="after")
+    def _direction_in_plane(self):
+        if self.direction.endswith("z") and len(self.point) < 3:
+            raise ValueError(
+                f"direction {self.direction!r} needs a point [x, y, z]; this point is planar [x, y]"
+            )
+        return self
+
+
+def _steps(v):
+    if v is not None:
+        if len(v) < 2:
+            raise ValueError(f"a table of steps holds at least 2 loads, got {len(v)}")
+        if len(v) > 10_000:
+            raise ValueError(f"{len(v)} steps; at most 10000")
+        if max(v) == min(v):
+            raise ValueError("every step has the same load: no slope can be fitted")
+    return v
 
 
 class SensorSpec(_Spec):
     """Sensor campaigns: the conversion, the step detector and the recordings."""
 
-    scale_um_per_v: PositiveFloat = 640.0
-    range_v: PositiveFloat = 8.0
-    channel_map: dict[str, str] = Field(default_factory=dict)
+    scale_um_per_v: Annotated[Finite, _between(*LIMITS["scale_um_per_v"], "um/V")] = 640.0
+    range_v: Annotated[Finite, _between(*LIMITS["range_v"], "V")] = 8.0
+    channel_map: dict[Text, Text] = Field(default_factory=dict)
     load_unit: Literal["kgf", "N", "V"] = "kgf"
-    load_n_per_v: PositiveFloat | None = None
-    steps_kgf: list[NonNegFloat] | None = None
-    steps_n: list[NonNegFloat] | None = None
-    reference_load_n: PositiveFloat = 490.5
-    window_s: PositiveFloat = 0.25
-    min_plateau_s: PositiveFloat = 0.5
-    threshold_sigma: PositiveFloat = 5.0
+    load_n_per_v: Annotated[Finite, _between(*LIMITS["load_n_per_v"], "N/V")] | None = None
+    steps_kgf: Annotated[list[NonNegMassKg], AfterValidator(_steps)] | None = None
+    steps_n: (
+        Annotated[list[Annotated[Finite, _between(0.0, LIMITS["force_n"], "N")]], AfterValidator(_steps)]
+        | None
+    ) = None
+    reference_load_n: Annotated[Finite, _between(1e-3, LIMITS["force_n"], "N")] = 490.5
+    window_s: Annotated[Finite, _between(*LIMITS["window_s"], "s")] = 0.25
+    min_plateau_s: Annotated[Finite, _between(*LIMITS["window_s"], "s")] = 0.5
+    threshold_sigma: Annotated[Finite, _between(*LIMITS["threshold_sigma"], "")] = 5.0
     remove_drift: bool = True
     exclude_bad_samples: bool = False
     recordings: list[SensorRecordingSpec]
+
+    @field_validator("channel_map")
+    @classmethod
+    def _channels(cls, v):
+        try:
+            parse_channel_map(",".join(f"{k}={c}" for k, c in v.items()) or None)
+        except ValueError as e:
+            raise ValueError(str(e).removeprefix("--channel-map: ")) from None
+        if any("," in k or "=" in k or "," in c or "=" in c for k, c in v.items()):
+            raise ValueError("a channel name holds ',' or '='")
+        return v
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -379,16 +629,31 @@ class SensorSpec(_Spec):
             raise ValueError("load_unit = 'V' needs load_n_per_v (the load cell's scale, N/V)")
         if self.load_n_per_v is not None and self.load_unit != "V":
             raise ValueError("load_n_per_v is the scale of a load channel in volts: set load_unit = 'V'")
+        if not self.recordings:
+            raise ValueError("sensor.recordings = the list is empty: name at least one recording")
+        if len(self.recordings) > LIMITS["recordings"]:
+            raise ValueError(f"{len(self.recordings)} recordings; at most {LIMITS['recordings']}")
+        seen: dict[str, int] = {}
+        for i, r in enumerate(self.recordings):
+            if r.file in seen:
+                raise ValueError(
+                    f"sensor.recordings[{i}] = file {r.file!r} is already recordings[{seen[r.file]}]: "
+                    "each recording is one file"
+                )
+            seen[r.file] = i
+        dims = {len(r.point) for r in self.recordings}
+        if len(dims) > 1:
+            raise ValueError("the recordings' points mix [x, y] and [x, y, z]: give every point the same way")
         return self
 
 
 class CampaignSpec(_Spec):
     """A whole campaign (every key, with comments: :data:`stiffmap.campaign.spec_writer.EXAMPLE_TOML`)."""
 
-    name: str = "campaign"
+    name: Text = "campaign"
     kind: Literal["vision", "sensor"] = "vision"
-    g: PositiveFloat = 9.80665
-    repeats: Annotated[int, Field(ge=1)] = 1
+    g: Annotated[Finite, _between(*LIMITS["g"], "m/s^2")] = 9.80665
+    repeats: Annotated[Count, Field(ge=1, le=LIMITS["repeats"])] = 1
     robot: RobotSpec = Field(default_factory=RobotSpec)
     camera: CameraSpec | None = None
     targets: TargetsSpec | None = None
@@ -413,8 +678,20 @@ class CampaignSpec(_Spec):
                     f"positions.list[{flat[0]}] = {pts[flat[0]]} has {len(pts[flat[0]])} coordinates; a "
                     "vision campaign measures 3-D displacements, so its positions are [x, y, z] (mm)"
                 )
+            try:
+                self.loads.resolve(self.g)
+            except ValueError as e:
+                key = "loads.friction" if "friction" in str(e) else "loads"
+                raise ValueError(f"{key} = {e}") from None
             if self.repeats > 1 and "{repeat" not in self.images.loaded:
                 raise ValueError("with repeats > 1 the images.loaded pattern must contain {repeat}")
+            n = self.positions.count() * self.loads.count() * self.repeats * 2
+            if n > LIMITS["images"]:
+                raise ValueError(
+                    f"repeats = {self.repeats} with {self.positions.count()} positions and "
+                    f"{self.loads.count()} load cases name {n} images; a campaign may name at most "
+                    f"{LIMITS['images']}"
+                )
         elif self.sensor is None:
             raise ValueError("a sensor campaign needs a [sensor] section")
         return self
@@ -426,19 +703,55 @@ class CampaignSpec(_Spec):
 def parse_spec(text: str, source: str = SPEC_NAME) -> CampaignSpec:
     """Validate the text of a ``campaign.toml``.
 
+    A leading byte-order mark (which some Windows editors write) is ignored.
+
     Raises
     ------
     InputError
         ``source: line N, key 'a.b': what is wrong`` for each problem (joined by "; ").
     """
+    text = text.removeprefix("\ufeff")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML: {e}", source=source) from None
+    except RecursionError:
+        raise InputError("not valid TOML here: arrays or tables nested too deeply", source=source) from None
+    except ValueError:  # an integer of thousands of digits
+        raise InputError("not a usable TOML file: a number has thousands of digits", source=source) from None
     try:
         return CampaignSpec.model_validate(data)
     except ValidationError as e:
         raise InputError(validation_message(e, text, CampaignSpec), source=source) from None
+    except RecursionError:
+        raise InputError("arrays or tables nested too deeply", source=source) from None
+
+
+def decode_spec(data: bytes, source: str = SPEC_NAME) -> str:
+    """The text of ``campaign.toml``'s bytes: UTF-8 (with or without a byte-order mark).
+
+    Raises
+    ------
+    InputError
+        UTF-16 or UTF-32 text, or bytes that are not UTF-8 (naming the line and column).
+    """
+    for bom, name in (
+        (b"\xff\xfe\x00\x00", "UTF-32"),
+        (b"\x00\x00\xfe\xff", "UTF-32"),
+        (b"\xff\xfe", "UTF-16"),
+        (b"\xfe\xff", "UTF-16"),
+    ):
+        if data.startswith(bom):
+            raise InputError(f"is {name} text; save it as UTF-8", source=source)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        col = e.start - (data.rfind(b"\n", 0, e.start) + 1) + 1
+        raise InputError(
+            f"line {line}, column {col}: not UTF-8 text (byte 0x{data[e.start]:02x}); save it as UTF-8",
+            source=source,
+        ) from None
 
 
 def load_spec(path: str | Path) -> CampaignSpec:
@@ -447,9 +760,17 @@ def load_spec(path: str | Path) -> CampaignSpec:
     if p.is_dir():
         p = p / SPEC_NAME
     if not p.is_file():
+        if p.is_dir():
+            raise InputError(f"is a folder; {SPEC_NAME} must be a file", source=str(p))
         raise InputError(f"no {SPEC_NAME} found (run 'stiffmap init' to write an example)", source=str(p))
     try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"cannot read: {e}", source=str(p)) from None
-    return parse_spec(text, source=str(p))
+        size = p.stat().st_size
+        if size > MAX_SPEC_BYTES:
+            raise InputError(
+                f"{size} bytes; a campaign.toml of more than {MAX_SPEC_BYTES} bytes is not a spec",
+                source=str(p),
+            )
+        data = p.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", source=str(p)) from None
+    return parse_spec(decode_spec(data, str(p)), source=str(p))

@@ -118,13 +118,24 @@ def validation_message(error: ValidationError, text: str, model: type[BaseModel]
     for err in error.errors():
         loc = tuple(x for x in err["loc"] if not (isinstance(x, str) and x.startswith("function-")))
         # pydantic adds union member names such as 'list[float]'; drop them.
-        loc = tuple(x for x in loc if not (isinstance(x, str) and ("[" in x or x in ("str", "float", "int"))))
+        loc = tuple(
+            x
+            for x in loc
+            if not (
+                isinstance(x, str)
+                and (
+                    "[" in x or x in ("str", "float", "int", "bool") or re.fullmatch(r"[a-z]+(?:-[a-z]+)+", x)
+                )
+            )
+        )
         text_msg = _describe(err, model)
-        if not loc:
-            # A check across sections names its key at the start of its message.
-            m = re.match(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)(?:\[(\d+)\])? = ", text_msg)
-            if m:
-                loc = tuple(m.group(1).split(".")) + ((int(m.group(2)),) if m.group(2) else ())
+        # A check across keys names its key at the start of its message ("a.b[2] = why"),
+        # in full (from the top of the file), under the table it was raised for.
+        m = re.match(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)+)(?:\[(\d+)\])? = ", text_msg)
+        if m:
+            named = tuple(m.group(1).split(".")) + ((int(m.group(2)),) if m.group(2) else ())
+            if [str(x) for x in named[: len(loc)]] == [str(x) for x in loc]:
+                loc = named
                 text_msg = text_msg[m.end() :]
         line = _line_of(paths, loc) if loc else None
         key = ".".join(str(x) for x in loc) if loc else "(top level)"

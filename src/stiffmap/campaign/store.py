@@ -16,6 +16,7 @@ client. :func:`dump_content` returns the content without run-dependent columns
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import os
@@ -28,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
+from ..errors import InputError
 from ..io import to_jsonable
 
 __all__ = [
@@ -120,7 +122,14 @@ def from_json(text: str | None, array: bool = True):
     """Inverse of :func:`to_json` (arrays as float64 ndarray; null entries as NaN)."""
     if text is None:
         return None
-    v = json.loads(text)
+    try:
+        v = json.loads(text)
+    except (ValueError, TypeError, RecursionError) as e:
+        raise InputError(
+            f"a stored value is not what stiffmap wrote ({type(e).__name__}: {str(e)[:80]}): the database "
+            "was edited or damaged; move it away (stiffmap never deletes it) and run again",
+            source=DB_NAME,
+        ) from None
     if array:
         return np.array(v, dtype=float) if v is not None else None
     return v
@@ -146,6 +155,12 @@ class Store:
     Use as a context manager. Each write method is one transaction; group several
     in :meth:`transaction` to make them one.
 
+    A file that is not a stiffmap database (not SQLite, damaged, truncated, another
+    program's tables, another schema version), or that cannot be written (read-only,
+    locked by another run, a full disk), is an :class:`~stiffmap.errors.InputError`
+    naming it and saying what to do, when it is opened or at the first method that meets
+    the problem. The file is never deleted or rewritten to "repair" it.
+
     Parameters
     ----------
     path : path
@@ -159,28 +174,90 @@ class Store:
 
     def __init__(self, path: str | Path, *, read_only: bool = False, timeout: float = 60) -> None:
         self.path = Path(path)
-        if read_only:
-            self.conn = sqlite3.connect(f"file:{os.fspath(self.path)}?mode=ro", uri=True, timeout=timeout)
+        self.conn = None
+        if self.path.is_dir():
+            raise InputError(
+                "is a folder; the results database must be a file (move it away)", source=str(path)
+            )
+        if read_only and not self.path.is_file():
+            raise InputError("no results database (run 'stiffmap run' first)", source=str(path))
+        try:
+            if read_only:
+                self.conn = sqlite3.connect(f"file:{os.fspath(self.path)}?mode=ro", uri=True, timeout=timeout)
+                self.conn.row_factory = sqlite3.Row
+                self._check_file()
+                return
+            existed = self.path.is_file() and self.path.stat().st_size > 0
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
             self.conn.row_factory = sqlite3.Row
-            return
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
-        self.conn.row_factory = sqlite3.Row
-        self.conn.execute("PRAGMA journal_mode=WAL")
-        self.conn.execute("PRAGMA synchronous=NORMAL")
-        self.conn.execute("PRAGMA foreign_keys=ON")
-        with self.transaction():
-            for stmt in _SCHEMA.strip().split(";"):
-                if stmt.strip():
-                    self.conn.execute(stmt)
-            row = self.conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-            if row is None:
-                self.conn.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-            elif int(row[0]) != SCHEMA_VERSION:
-                raise RuntimeError(
-                    f"{self.path}: database schema {row[0]} but this stiffmap uses {SCHEMA_VERSION}; "
-                    "move the old stiffmap.db away and run again"
+            if existed:
+                self._check_file()
+            self.conn.execute("PRAGMA journal_mode=WAL")
+            self.conn.execute("PRAGMA synchronous=NORMAL")
+            self.conn.execute("PRAGMA foreign_keys=ON")
+            with self.transaction():
+                for stmt in _SCHEMA.strip().split(";"):
+                    if stmt.strip():
+                        self.conn.execute(stmt)
+                row = self.conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                if row is None:
+                    self.conn.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+                elif str(row[0]) != str(SCHEMA_VERSION):
+                    raise InputError(
+                        f"database schema {str(row[0])[:20]!r} but this stiffmap uses {SCHEMA_VERSION}; "
+                        f"move the old {DB_NAME} away (nothing was changed in it) and run again",
+                        source=str(self.path),
+                    )
+            self._check_layout()
+        except InputError:
+            self.close()
+            raise
+        except sqlite3.DatabaseError as e:
+            self.close()
+            raise self._input_error(e) from None
+
+    def _check_file(self) -> None:
+        """InputError unless the file is an undamaged SQLite database (SQLite's quick check)."""
+        try:
+            rows = self.conn.execute("PRAGMA quick_check").fetchall()
+        except UnicodeDecodeError:  # the check's report quotes damaged bytes
+            rows = []
+        if not rows or rows[0][0] != "ok":
+            raise sqlite3.DatabaseError("database disk image is malformed")
+
+    def _check_layout(self) -> None:
+        """InputError when a table lacks a column of stiffmap's (another program's database)."""
+        for table, columns in _columns().items():
+            have = {r[1] for r in self.conn.execute(f"PRAGMA table_info({table})")}
+            lacking = [c for c in columns if c not in have]
+            if lacking:
+                raise InputError(
+                    f"not a stiffmap results database: table {table!r} lacks the column(s) "
+                    f"{', '.join(lacking)}; move it away (nothing was changed in it) and run again",
+                    source=str(self.path),
                 )
+
+    def _input_error(self, e: sqlite3.Error) -> InputError:
+        """The user's view of a database error: what is wrong with the file, and what to do."""
+        text = str(e)
+        low = text.lower()
+        if "not a database" in low or "malformed" in low or "corrupt" in low or "damaged" in low:
+            what = (
+                f"not a readable SQLite database (damaged, or another file named {DB_NAME}): {text}; "
+                "move it away (stiffmap never deletes it) and run again: the raw inputs are untouched"
+            )
+        elif "readonly" in low or "read-only" in low:
+            what = f"cannot write the results database: {text} (no permission, or a read-only disk)"
+        elif "unable to open" in low:
+            what = f"cannot open the results database: {text} (no permission, or the folder is missing)"
+        elif "locked" in low or "busy" in low:
+            what = f"the results database is in use ({text}): is another 'stiffmap run' working on it?"
+        elif "disk" in low or "full" in low or "i/o" in low:
+            what = f"cannot write the results database: {text}"
+        else:
+            what = f"results database error: {text}; move it away and run again if it persists"
+        return InputError(what, source=str(self.path))
 
     def __enter__(self) -> Store:
         return self
@@ -189,7 +266,9 @@ class Store:
         self.close()
 
     def close(self) -> None:
-        self.conn.close()
+        if self.conn is not None:
+            self.conn.close()
+            self.conn = None
 
     @contextlib.contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
@@ -200,14 +279,21 @@ class Store:
         if self.conn.in_transaction:
             yield self.conn
             return
-        self.conn.execute("BEGIN IMMEDIATE")
+        try:
+            self.conn.execute("BEGIN IMMEDIATE")
+        except sqlite3.DatabaseError as e:
+            raise self._input_error(e) from None
         try:
             yield self.conn
         except BaseException:
-            self.conn.execute("ROLLBACK")
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("ROLLBACK")
             raise
         else:
-            self.conn.execute("COMMIT")
+            try:
+                self.conn.execute("COMMIT")
+            except sqlite3.DatabaseError as e:
+                raise self._input_error(e) from None
 
     def _upsert(self, table: str, row: dict[str, Any]) -> None:
         """INSERT OR REPLACE one row (dict keys are column names)."""
@@ -377,6 +463,45 @@ class Store:
     def model_static_errors(self) -> dict[str, float | None]:
         """The model's static error per recording, mm (None where the model has none)."""
         return {r["recording"]: r["predicted_mm"] for r in self._rows("SELECT * FROM model_static_error")}
+
+
+def _guarded(method):
+    """A ``Store`` method whose SQLite errors about the file (damaged, locked, read-only, full)
+    are an InputError naming it; other SQLite errors (a wrong statement: a bug) pass."""
+
+    @functools.wraps(method)
+    def call(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except (sqlite3.OperationalError, sqlite3.DatabaseError) as e:
+            if type(e) not in (sqlite3.OperationalError, sqlite3.DatabaseError):
+                raise
+            raise self._input_error(e) from None
+        except UnicodeDecodeError as e:  # a text column holding bytes that are not UTF-8
+            raise self._input_error(sqlite3.DatabaseError(f"damaged text in a table ({e.reason})")) from None
+
+    return call
+
+
+for _name, _method in list(vars(Store).items()):
+    if not _name.startswith("_") and _name not in ("close", "transaction") and callable(_method):
+        setattr(Store, _name, _guarded(_method))
+
+
+@functools.cache
+def _columns() -> dict[str, tuple[str, ...]]:
+    """The columns of every table of the schema (from an in-memory database built with it)."""
+    conn = sqlite3.connect(":memory:")
+    try:
+        conn.executescript(_SCHEMA)
+        tables = [r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+        return {
+            t: tuple(r[1] for r in conn.execute(f"PRAGMA table_info({t})"))
+            for t in tables
+            if not t.startswith("sqlite_")
+        }
+    finally:
+        conn.close()
 
 
 def remove_database(directory: str | Path) -> None:

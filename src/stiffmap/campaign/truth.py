@@ -24,6 +24,7 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..errors import InputError
+from ..io import leaves_directory, read_json
 
 __all__ = [
     "TRUTH_NAME",
@@ -85,18 +86,30 @@ class SimTruth:
 
     def corners(self) -> dict[str, dict]:
         """Per image file: ``{"fixed": {"board2cam", "corners_px"}, "mobile": {...}}`` (arrays)."""
-        p = self.root / self.data.get("corners_file", CORNERS_NAME)
+        name = self.data.get("corners_file", CORNERS_NAME)
+        src = str(self.root / TRUTH_NAME)
+        if not isinstance(name, str) or not name.strip():
+            raise InputError(f"key 'corners_file': expected a file name, got {name!r}", source=src)
+        how = leaves_directory(self.root, name)
+        if how is not None:
+            raise InputError(
+                f"key 'corners_file': {name!r} {how}, outside the campaign directory", source=src
+            )
+        p = self.root / name
         try:
             raw = json.loads(gzip.decompress(p.read_bytes()).decode("utf-8"))
-        except (OSError, ValueError, EOFError) as e:
+        except (OSError, ValueError, EOFError, RecursionError, gzip.BadGzipFile) as e:
             raise InputError(f"cannot read the true corners: {e}", source=str(p)) from None
         out = {}
-        for im in raw["images"]:
-            out[im["file"]] = {
-                k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()}
-                for k, v in im.items()
-                if k != "file"
-            }
+        try:
+            for im in raw["images"]:
+                out[im["file"]] = {
+                    k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()}
+                    for k, v in im.items()
+                    if k != "file"
+                }
+        except (KeyError, TypeError, ValueError, AttributeError) as e:
+            raise InputError(f"malformed true corners: {type(e).__name__} {e}", source=str(p)) from None
         return out
 
 
@@ -114,10 +127,7 @@ def load_truth(path: str | os.PathLike) -> SimTruth:
     src = str(p)
     if not p.is_file():
         raise InputError("no truth.json (not a simulated campaign?)", source=src)
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(f"cannot read as JSON: {e}", source=src) from None
+    d = read_json(p, "truth.json")
     if not isinstance(d, dict) or d.get("format") != TRUTH_FORMAT:
         raise InputError(f"not a stiffmap simulation truth (expected format {TRUTH_FORMAT!r})", source=src)
     try:
@@ -126,12 +136,30 @@ def load_truth(path: str | os.PathLike) -> SimTruth:
             m = 2
         else:
             cam = CameraModel.from_dict(d["camera"], source=f"{src}: camera")
-            cam2base = np.asarray(d["cam2base"], dtype=np.float64)
+            cam2base = _finite(d["cam2base"], (4, 4), "cam2base", src)
             m = 3
-        pos = np.asarray([e["position"] for e in d["positions"]], dtype=np.float64).reshape(-1, m)
-        K = np.asarray([e["K"] for e in d["positions"]], dtype=np.float64).reshape(-1, m, m)
+        entries = d["positions"]
+        if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
+            raise InputError("key 'positions': expected a non-empty list of objects", source=src)
+        pos = np.stack(
+            [_finite(e["position"], (m,), f"positions[{i}].position", src) for i, e in enumerate(entries)]
+        )
+        K = np.stack([_finite(e["K"], (m, m), f"positions[{i}].K", src) for i, e in enumerate(entries)])
     except KeyError as e:
         raise InputError(f"missing key {e.args[0]!r}", source=src) from None
     except (TypeError, ValueError) as e:
+        if isinstance(e, InputError):
+            raise
         raise InputError(f"malformed truth: {e}", source=src) from None
     return SimTruth(root=p.parent, camera=cam, cam2base=cam2base, positions=pos, K=K, data=d)
+
+
+def _finite(value: Any, shape: tuple[int, ...], key: str, src: str) -> np.ndarray:
+    """``value`` as a finite float64 array of ``shape``; InputError naming ``key`` otherwise."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        a = None
+    if a is None or a.shape != shape or not np.all(np.isfinite(a)):
+        raise InputError(f"key {key!r}: expected finite numbers of shape {shape}", source=src)
+    return a

@@ -28,7 +28,8 @@ from rich.text import Text
 
 from ..campaign.demo import demo_config
 from ..campaign.export import summary_dict
-from ..campaign.run import CampaignRun, run_and_export
+from ..campaign.paths import ALLOW_OUTSIDE_OPTION
+from ..campaign.run import CampaignRun, campaign_root, run_and_export
 from ..campaign.runner import default_workers
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.simulated import check_output_dir, write_campaign
@@ -45,6 +46,10 @@ class MethodName(StrEnum):
     compliance = "compliance"
     paper = "paper"
     spd = "spd"
+
+
+#: Failures printed one per line; more are counted in one line (exports/summary.json lists all).
+MAX_WARNINGS = 50
 
 
 def init(
@@ -193,6 +198,12 @@ def run(
     as_json: bool = typer.Option(False, "--json", help="Print the JSON summary instead of tables."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bars."),
     report: bool = typer.Option(True, "--report/--no-report", help="Write CAMPAIGN/report/ (HTML + PNG)."),
+    allow_outside_paths: bool = typer.Option(
+        False,
+        ALLOW_OUTSIDE_OPTION,
+        help="Let campaign.toml name files outside CAMPAIGN (absolute paths, '..', symbolic links "
+        "leading out); without it such a name is refused.",
+    ),
 ) -> None:
     """Measure, identify, fit and export a campaign (resumable: a re-run does only what changed).
 
@@ -202,27 +213,46 @@ def run(
     Results go to CAMPAIGN/stiffmap.db, tables to CAMPAIGN/exports/ (CSV, Parquet, summary.json),
     the report to CAMPAIGN/report/index.html (self-contained, opens offline) with PNG figures.
 
-    Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done.
+    Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done (a bad
+    spec or camera file, or no position or recording could be measured).
     """
-    spec = load_spec(campaign)
+    root = campaign_root(campaign)
+    spec = load_spec(root)
     t0 = time.perf_counter()
     with _images_progress("measuring images", show=spec.kind == "vision" and not quiet) as hook:
         done = run_and_export(
-            campaign, spec=spec, workers=workers or default_workers(), method=method.value, progress=hook
+            root,
+            spec=spec,
+            workers=workers or default_workers(),
+            method=method.value,
+            progress=hook,
+            allow_outside=allow_outside_paths,
         )
+    nothing = done.nothing_measured()
     with Store(done.db) as store:
         if as_json:
             print_json(summary_dict(store, spec.name, done.failures))
+        elif nothing is not None:
+            pass
         elif spec.kind == "vision":
             out.print(_summary_table(store), width=max(out.width, 110))
         else:
             out.print(_sensor_table(spec, store))
-    page = write_campaign_report(done.root, done.failures) if report else None
+    if nothing is not None:  # one line with the first failures; summary.json lists them all
+        raise InputError(nothing + "; no report written", source=str(done.root))
+    page = (
+        write_campaign_report(done.root, done.failures, allow_outside=allow_outside_paths) if report else None
+    )
     if not as_json:
         _print_counts(done, page, time.perf_counter() - t0)
     if done.failures:
-        for f in done.failures:
+        for f in done.failures[:MAX_WARNINGS]:
             warn(f)
+        if len(done.failures) > MAX_WARNINGS:
+            warn(
+                f"... and {len(done.failures) - MAX_WARNINGS} more failures, all listed in "
+                f"{done.exports / 'summary.json'}"
+            )
         raise typer.Exit(EXIT_PARTIAL)
 
 

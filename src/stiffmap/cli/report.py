@@ -6,6 +6,7 @@ from pathlib import Path
 
 import typer
 
+from ..io import ALLOW_OUTSIDE_OPTION
 from ..report.browser import BrowserError, check_report
 from ..report.sources import write_report_from
 from ..report.writer import report_files
@@ -41,6 +42,12 @@ def report(
         1800, "--height", min=240, help="Browser viewport height for --check (CSS px)."
     ),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of text."),
+    allow_outside_paths: bool = typer.Option(
+        False,
+        ALLOW_OUTSIDE_OPTION,
+        help="Let a campaign's campaign.toml name files outside its directory (absolute paths, '..', "
+        "symbolic links leading out); without it such a name is refused.",
+    ),
 ) -> None:
     """Write a self-contained HTML report (works offline) and PNG figures.
 
@@ -52,7 +59,7 @@ def report(
     """
     if screenshot is not None and not check:
         raise fail("--screenshot needs --check (the screenshot is taken by the browser check)")
-    index = write_report_from(data, out_dir, example=example, png=png)
+    index = write_report_from(data, out_dir, example=example, png=png, allow_outside=allow_outside_paths)
     result: dict = {"index": str(index), "files": report_files(index)}
     pc = None
     if check:

@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from ..errors import InputError
+from ..io import ALLOW_OUTSIDE_OPTION
 from ..sensors import analyse_batch, config_from_options, read_measurement_index
 from ..textfmt import fmt, fmt_pm
 from .common import EXIT_INPUT, EXIT_PARTIAL, fail, out, print_json, warn
@@ -128,6 +129,12 @@ def sensor(
         "static error per point and direction.",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per recording."),
+    allow_outside_paths: bool = typer.Option(
+        False,
+        ALLOW_OUTSIDE_OPTION,
+        help="Let the --index file name recordings outside its folder (absolute paths, '..', symbolic "
+        "links leading out); without it such a name is refused.",
+    ),
 ) -> None:
     """Plateaus, load-displacement fit, stiffness and static error of stepped-load recordings.
 
@@ -161,7 +168,9 @@ def sensor(
         )
         if not recordings and index is None:
             raise InputError("give one or more recordings, or --index FILE")
-        entries = read_measurement_index(index) if index is not None else None
+        entries = (
+            read_measurement_index(index, allow_outside=allow_outside_paths) if index is not None else None
+        )
     except InputError as e:
         raise fail(str(e), EXIT_INPUT) from None
     batch = analyse_batch(recordings or [], entries, cmap, cfg)

@@ -7,16 +7,18 @@ spec and ``stiffmap.db`` and fills :class:`stiffmap.report.data.ReportData`;
 
 from __future__ import annotations
 
-import json
 from datetime import date
 from pathlib import Path
 
 import numpy as np
 
 from ..camera import load_camera
+from ..campaign.paths import campaign_file
+from ..campaign.run import EXPORTS_DIR
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
 from ..campaign.store import DB_NAME, Store, from_json
+from ..campaign.truth import load_truth
 from ..errors import InputError
 from . import data as contract
 from . import write_report
@@ -58,10 +60,10 @@ def _fitted_model(spec: CampaignSpec, store: Store, fit_name: str):
     return spec.robot.mechanism(**{p.name: p.value for p in _parameters(store, fit_name)})
 
 
-def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
+def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     rows = store.stiffness_rows()
     n = len(rows)
-    if n == 0:
+    if not any(r["status"] == "ok" for r in rows):
         return {}
     pos = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
     K = np.full((n, 3, 3), np.nan)
@@ -109,20 +111,31 @@ def _vision(root: Path, spec: CampaignSpec, store: Store) -> dict:
             g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
         )
         out["model"] = contract.ModelStiffness.from_K("delta", _parameters(store, "stiffness"), Km, map=dense)
-    truth = root / "truth.json"
-    if truth.is_file():
-        try:
-            t = json.loads(truth.read_text())
-            Kt = np.array([p["K"] for p in t["positions"]], dtype=float)
-            if Kt.shape == (n, 3, 3):
-                out["truth"] = contract.TruthStiffness(Kt)
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # truth.json is an optional extra of simulated campaigns
+    truth = _truth_K(root, n)
+    if truth is not None:
+        out["truth"] = contract.TruthStiffness(truth)
+    camera = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
     try:
-        out["calibration"] = contract.CalibrationData(load_camera(root / spec.camera.file).to_dict())
-    except InputError:
-        pass
+        out["calibration"] = contract.CalibrationData(load_camera(camera).to_dict())
+    except (InputError, ValueError):
+        pass  # the report goes without the calibration section
     return out
+
+
+def _truth_K(root: Path, n: int) -> np.ndarray | None:
+    """The true K of the ``n`` positions from a simulated campaign's ``truth.json``, if it has them.
+
+    ``truth.json`` is an optional extra of simulated campaigns: one that cannot be read, or
+    that holds something else than ``n`` finite 3x3 matrices, is left out of the report.
+    """
+    try:
+        t = load_truth(root)
+        Kt = np.asarray(t.K, dtype=float)
+    except (InputError, OSError, ValueError, KeyError, TypeError, RecursionError):
+        return None
+    if Kt.shape != (n, 3, 3) or not np.all(np.isfinite(Kt)):
+        return None
+    return Kt
 
 
 def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
@@ -183,12 +196,37 @@ def _unit(axis: str) -> np.ndarray:
     return u
 
 
-def report_data(root: Path, spec: CampaignSpec, store: Store, failures: list[str]):
-    """The :class:`~stiffmap.report.data.ReportData` of a campaign, from its database."""
+def report_data(
+    root: Path, spec: CampaignSpec, store: Store, failures: list[str], *, allow_outside: bool = False
+):
+    """The :class:`~stiffmap.report.data.ReportData` of a campaign, from its database.
+
+    Raises
+    ------
+    InputError
+        The database holds no result of the campaign yet (no position, or no recording).
+    """
     info = contract.CampaignInfo(
         name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root)
     )
-    parts = _vision(root, spec, store) if spec.kind == "vision" else _sensor(root, spec, store)
+    if spec.kind == "vision":
+        parts = _vision(root, spec, store, allow_outside)
+        if "measured" not in parts:
+            n_failed = len(store.stiffness_rows())
+            raise InputError(
+                f"no position has results in {DB_NAME} (none could be measured, {n_failed} "
+                f"failed: see {EXPORTS_DIR}/summary.json): nothing to report",
+                source=str(root),
+            )
+    else:
+        rows = store.sensor_result_rows()
+        if not any(r["status"] == "ok" for r in rows):
+            raise InputError(
+                f"no recording has results in {DB_NAME} (none could be analysed, {len(rows)} failed: see "
+                f"{EXPORTS_DIR}/summary.json): nothing to report",
+                source=str(root),
+            )
+        parts = _sensor(root, spec, store)
     return contract.ReportData(campaign=info, failures=failures_as_items(failures), **parts)
 
 
@@ -198,10 +236,13 @@ def write_campaign_report(
     out_dir: str | Path | None = None,
     *,
     png: bool = True,
+    allow_outside: bool = False,
 ) -> Path:
     """Write ``CAMPAIGN/report/`` (index.html, PNGs, data.json) from the campaign's database.
 
-    ``out_dir`` writes the report elsewhere; ``png=False`` leaves out the PNG figures.
+    ``out_dir`` writes the report elsewhere; ``png=False`` leaves out the PNG figures;
+    ``allow_outside`` lets ``camera.file`` (read for the calibration section) lead outside
+    the campaign directory (:mod:`stiffmap.campaign.paths`; refused otherwise).
 
     Returns
     -------
@@ -215,5 +256,5 @@ def write_campaign_report(
             f"no results yet ({DB_NAME} missing): run 'stiffmap run {campaign_dir}' first", source=str(root)
         )
     with Store(root / DB_NAME) as store:
-        data = report_data(root, spec, store, list(failures or []))
+        data = report_data(root, spec, store, list(failures or []), allow_outside=allow_outside)
     return write_report(data, Path(out_dir) if out_dir is not None else root / "report", png=png)

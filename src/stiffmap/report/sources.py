@@ -30,6 +30,7 @@ def write_report_from(
     *,
     example: bool = False,
     png: bool = True,
+    allow_outside: bool = False,
 ) -> Path:
     """Write the report of a campaign, a ``data.json`` or an example; return its ``index.html``.
 
@@ -43,6 +44,9 @@ def write_report_from(
         ``source`` names one of :data:`EXAMPLES`.
     png : bool
         Also write the PNG figures.
+    allow_outside : bool
+        A campaign's ``campaign.toml`` may name files outside its directory
+        (:mod:`stiffmap.campaign.paths`).
 
     Raises
     ------
@@ -55,9 +59,12 @@ def write_report_from(
             raise InputError(
                 f"{source}: a directory without {SPEC_NAME}; expected a campaign or a data.json file"
             )
-        return write_campaign_report(source, out_dir=out_dir, png=png)
+        return write_campaign_report(source, out_dir=out_dir, png=png, allow_outside=allow_outside)
     if out_dir is None:
-        raise InputError("give OUT_DIR, the directory to write the report to")
+        if not example and not Path(source).exists():
+            raise InputError("no such campaign directory or data.json file", source=str(source))
+        what = f"{source}: " if not example else ""
+        raise InputError(f"{what}give OUT_DIR, the directory to write the report to")
     if example:
         if source not in EXAMPLES:
             raise InputError(f"--example: unknown example {source!r}; expected one of {', '.join(EXAMPLES)}")

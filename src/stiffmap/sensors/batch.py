@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io import read_csv_columns
+from ..io import ALLOW_OUTSIDE_OPTION, leaves_directory, read_csv_columns
 from ..stiffness import MAX_POSITION_MM
 from .analysis import SensorConfig, SensorResult, analyse_recording
 from .io import format_from_path, read_recording
@@ -354,13 +354,18 @@ def analyse_batch(
     return SensorBatch(tuple(str(f) for f in files), tuple(results), ses)
 
 
-def read_measurement_index(path: str | os.PathLike) -> list[MeasurementEntry]:
+def read_measurement_index(path: str | os.PathLike, *, allow_outside: bool = False) -> list[MeasurementEntry]:
     """Read an index CSV of a sensor campaign (see the module docstring).
+
+    The recordings it names are relative to its folder and must stay inside it (after
+    resolving ``..``, absolute paths and symbolic links) unless ``allow_outside``
+    (``stiffmap sensor --allow-outside-paths``).
 
     Raises
     ------
     InputError
-        Naming the index file and the line of a bad row.
+        Naming the index file and the line of a bad row (a recording named outside the
+        index's folder: the line, the name and the option).
     """
     src = str(path)
     head = read_csv_columns(
@@ -403,6 +408,14 @@ def read_measurement_index(path: str | os.PathLike) -> list[MeasurementEntry]:
             if s not in ("1", "+1", "-1"):
                 raise InputError(f"line {line}, column 'axis_sign': {s!r}, expected 1 or -1", source=src)
             sign = -1 if s == "-1" else 1
+        how = None if allow_outside else leaves_directory(base, f)
+        if how is not None:
+            raise InputError(
+                f"line {line}, column 'file': {f!r} {how}, outside the index's folder {base}; the "
+                f"recordings an index names must stay inside it (give {ALLOW_OUTSIDE_OPTION} to read them "
+                "anyway)",
+                source=src,
+            )
         fp = Path(f)
         try:
             format_from_path(fp)
