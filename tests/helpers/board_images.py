@@ -17,6 +17,9 @@ Three ways to make one:
 - :func:`warped_board_image` and :func:`area_board_image`, boards drawn without
   stiffmap (OpenCV's warp of a raster; exact pixel-area coverage) and blurred after pixel
   integration: image formations that are not the test-bed's (pinhole cameras only).
+- :func:`bayer_board_image` and :func:`jpeg_image`: the test-bed's optics and pixel
+  integration, then a colour camera's Bayer mosaic demosaiced by OpenCV, or JPEG
+  compression (image formations that are not the test-bed's, for the photometric model).
 - :func:`brute_force_reflectance`, a slow reference of the test-bed's reflectance (point
   samples mapped exactly), independent of its coverage formulas.
 """
@@ -31,6 +34,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from stiffmap.camera import CameraModel
+from stiffmap.sim.photometry import Photometry, blurred_reflectance
 from stiffmap.sim.render import Target, render
 from stiffmap.targets import Chessboard
 
@@ -418,3 +422,76 @@ def area_board_image(
     rng = rng if rng is not None else np.random.default_rng(0)
     img = img + rng.normal(0.0, noise, img.shape)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+#: OpenCV's demosaicing of an RGGB mosaic (R at even rows and columns: OpenCV's "BayerBG").
+DEMOSAIC = {
+    "bilinear": cv2.COLOR_BayerBG2BGR,
+    "edge-aware": cv2.COLOR_BayerBG2BGR_EA,
+    "VNG": cv2.COLOR_BayerBG2BGR_VNG,
+}
+
+
+def bayer_board_image(
+    camera: CameraModel,
+    scene,
+    rng: np.random.Generator,
+    *,
+    demosaic: str = "bilinear",
+    photometry: Photometry | None = None,
+    colour: bool = False,
+) -> np.ndarray:
+    """The test-bed's scene through an RGGB Bayer sensor, demosaiced by OpenCV, in grey.
+
+    The test-bed's optics blur and pixel integration (``stiffmap.sim.photometry.blurred_reflectance``)
+    give each photosite's light; the photometry's gain and vignetting make it DN; each
+    photosite keeps one colour (R at even rows and columns, B at odd ones) with the
+    photometry's white balance; shot and read noise per photosite, black level, 8 bits;
+    ``cv2.cvtColor`` with :data:`DEMOSAIC` [``demosaic``] makes BGR, and ``COLOR_BGR2GRAY``
+    grey (``colour=True`` returns the BGR image). The scene is neutral grey, so the
+    colour planes differ only by the white balance: what the demosaicing does to an edge
+    is what is left.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    scene : sequence of (Chessboard, board2cam (4, 4) mm)
+    rng : numpy Generator
+    demosaic : {"bilinear", "edge-aware", "VNG"}
+    photometry : stiffmap.sim.render.Photometry, optional
+        Default ``Photometry()`` (its ``colour`` flag is not used).
+    colour : bool
+
+    Returns
+    -------
+    ndarray, shape (h, w) or (h, w, 3), uint8
+    """
+    ph = photometry or Photometry()
+    targets = [Target(b, T) for b, T in scene]
+    refl = blurred_reflectance(camera, targets, background=ph.background, blur_px=ph.blur_px)
+    w, h = camera.image_size
+    x = ((np.arange(w) - camera.cx) / camera.fx)[None, :]
+    y = ((np.arange(h) - camera.cy) / camera.fy)[:, None]
+    vignette = (1 - ph.vignetting) + ph.vignetting / (1 + x * x + y * y) ** 2
+    sig = refl * (255.0 * ph.gain) * vignette
+    b, g, r = ph.white_balance
+    sig[0::2, 0::2] *= r
+    sig[0::2, 1::2] *= g
+    sig[1::2, 0::2] *= g
+    sig[1::2, 1::2] *= b
+    sd = np.sqrt(ph.read_noise_dn**2 + ph.shot_dn_per_e * np.clip(sig, 0, None))
+    raw = np.clip(np.rint(sig + sd * rng.standard_normal(sig.shape) + ph.offset_dn), 0, 255).astype(np.uint8)
+    bgr = cv2.cvtColor(raw, DEMOSAIC[demosaic])
+    return bgr if colour else cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
+
+
+def jpeg_image(image: np.ndarray, quality: int) -> np.ndarray:
+    """``image`` (grey or BGR, uint8) through JPEG at ``quality`` (cv2.imencode / imdecode), in grey.
+
+    A BGR image is compressed in colour (OpenCV's default 4:2:0 chroma subsampling) and
+    decoded to grey; a grey one is compressed as grey.
+    """
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
+        raise RuntimeError("cv2.imencode failed")
+    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
