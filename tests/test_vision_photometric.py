@@ -16,7 +16,14 @@ import re
 import cv2
 import numpy as np
 import pytest
-from helpers.board_images import area_board_image, paint_polygon, warped_board_image
+from helpers.board_images import (
+    area_board_image,
+    bayer_board_image,
+    jpeg_image,
+    paint_polygon,
+    testbed_board_image,
+    warped_board_image,
+)
 from helpers.board_scenes import look_at_pose, small_camera
 from helpers.cli_process import assert_one_line_error, run_stiffmap
 from helpers.finite_difference import central_jacobian
@@ -457,3 +464,44 @@ def test_raster_and_exact_drawings_give_the_same_pose():
         along.append((pose.board2cam[:3, :3] @ [80.0, 60.0, 0.0] + pose.board2cam[:3, 3] - centre) @ los)
     assert abs(along[0] - along[1]) < 0.001, along  # mm
     assert max(map(abs, along)) < 0.003, along  # mm
+
+
+_FORMATIONS = {
+    "blur after integration": lambda cam, b, T, g: area_board_image(cam, b, T, rng=g),
+    "Bayer bilinear": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g),
+    "Bayer edge-aware": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g, demosaic="edge-aware"),
+    "Bayer VNG": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g, demosaic="VNG"),
+    "JPEG 95": lambda cam, b, T, g: jpeg_image(testbed_board_image(cam, [(b, T)], g), 95),
+    "JPEG 85": lambda cam, b, T, g: jpeg_image(testbed_board_image(cam, [(b, T)], g), 85),
+}
+
+
+@pytest.mark.parametrize("formation", list(_FORMATIONS))
+def test_photometric_pose_holds_or_says_why_under_other_image_formations(formation):
+    # Images whose edge is not the model's Gaussian: a blur after pixel integration, a Bayer
+    # mosaic demosaiced by OpenCV, JPEG (benchmarks/bench_vision_formations.py measures them
+    # over many cases). On one small case (9x7 board of 15 mm squares at 400 mm, 30 px
+    # squares) the photometric pose is accepted and, along the line of sight, within 3 of
+    # its sigmas of the truth and no worse than the corner pose (within 2 of its sigmas), or
+    # it falls back to the corner pose with a reason. Measured: accepted under each, 2-6 um
+    # off (0.4-1.8 sigma), the corner pose 1-16 um.
+    board = Chessboard(9, 7, 15.0)
+    cam = CameraModel((640, 480), 800.0, 800.0, 319.5, 239.5, (0.0, 0.0, 0.0, 0.0, 0.0))
+    T = look_at_pose(400.0, board, tilt_deg=(15.0, -10.0, 5.0))
+    q = np.array([60.0, 45.0, 0.0])  # the board's centre
+    centre = T[:3, :3] @ q + T[:3, 3]
+    los = centre / np.linalg.norm(centre)
+    img = _FORMATIONS[formation](cam, board, T, np.random.default_rng(5))
+    det = detect_board(img, board)
+    corner = estimate_pose(det, board, cam, image=img, refine="corners")
+    photo = estimate_pose(det, board, cam, image=img, refine="photometric")
+    if photo.method != "photometric":
+        assert photo.fallback and photo.fallback.endswith("corner pose kept"), photo.fallback
+        np.testing.assert_array_equal(photo.board2cam, corner.board2cam)
+        return
+    along = {}
+    for p in (corner, photo):
+        along[p.method] = float((p.board2cam[:3, :3] @ q + p.board2cam[:3, 3] - centre) @ los)
+    sigma = float(np.sqrt(los @ photo.cov[:3, :3] @ los))
+    assert abs(along["photometric"]) < 3 * sigma, (along, sigma)
+    assert abs(along["photometric"]) <= abs(along["corners"]) + 2 * sigma, (along, sigma)
