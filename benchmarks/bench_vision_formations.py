@@ -33,7 +33,11 @@ user gets): its case counts in the photometric column with the corner pose's err
 error / predicted: RMS over the cases of the along-axis error divided by the 1 sigma
 propagated from the two poses' covariances (1 = a calibrated covariance).
 
+A separate script from ``bench_vision_photometric.py``: its scenes need a pinhole camera
+(that one uses the distorted reference camera) and its table is one row per formation.
+
 Run:  .venv/bin/python benchmarks/bench_vision_formations.py [--quick] [--cases N]
+(40 cases: about 5 minutes on one free core, 7 on a shared one; --quick: 6 cases, about 1).
 Saves benchmarks/results/vision_formations.md.
 """
 
@@ -167,7 +171,7 @@ def one_case(cam, board, T0, T1, draw, rng):
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--quick", action="store_true", help="6 cases per formation (about 15 s)")
+    ap.add_argument("--quick", action="store_true", help="6 cases per formation (about a minute)")
     ap.add_argument("--cases", type=int, default=None, help="cases per formation (default 40)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "vision_formations.md"))
     args = ap.parse_args()
