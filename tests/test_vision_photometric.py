@@ -21,8 +21,10 @@ from helpers.board_images import (
     bayer_board_image,
     jpeg_image,
     paint_polygon,
-    testbed_board_image,
     warped_board_image,
+)
+from helpers.board_images import (
+    testbed_board_image as render_testbed,
 )
 from helpers.board_scenes import look_at_pose, small_camera
 from helpers.cli_process import assert_one_line_error, run_stiffmap
@@ -471,8 +473,8 @@ _FORMATIONS = {
     "Bayer bilinear": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g),
     "Bayer edge-aware": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g, demosaic="edge-aware"),
     "Bayer VNG": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g, demosaic="VNG"),
-    "JPEG 95": lambda cam, b, T, g: jpeg_image(testbed_board_image(cam, [(b, T)], g), 95),
-    "JPEG 85": lambda cam, b, T, g: jpeg_image(testbed_board_image(cam, [(b, T)], g), 85),
+    "JPEG 95": lambda cam, b, T, g: jpeg_image(render_testbed(cam, [(b, T)], g), 95),
+    "JPEG 85": lambda cam, b, T, g: jpeg_image(render_testbed(cam, [(b, T)], g), 85),
 }
 
 
