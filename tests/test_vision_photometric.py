@@ -16,7 +16,16 @@ import re
 import cv2
 import numpy as np
 import pytest
-from helpers.board_images import warped_board_image
+from helpers.board_images import (
+    area_board_image,
+    bayer_board_image,
+    jpeg_image,
+    paint_polygon,
+    warped_board_image,
+)
+from helpers.board_images import (
+    testbed_board_image as render_testbed,
+)
 from helpers.board_scenes import look_at_pose, small_camera
 from helpers.cli_process import assert_one_line_error, run_stiffmap
 from helpers.finite_difference import central_jacobian
@@ -412,7 +421,89 @@ def test_colour_phase_of_every_board_parity_on_an_independently_drawn_image(size
             T_est = T_est @ np.diag([-1.0, -1.0, 1.0, 1.0])
             T_est[:3, 3] = pose.board2cam[:3, :3] @ far + pose.board2cam[:3, 3]
         errors[refine] = np.linalg.norm(T_est[:3, 3] - T[:3, 3])
-    # At 520 mm the corner pose is off by 30-80 um along the line of sight on these drawings;
-    # the photometric pose must hold, not fall back, and be no worse.
-    assert errors["photometric"] < 0.06, errors
-    assert errors["photometric"] <= errors["corners"] + 0.005, errors
+    # The photometric pose must hold, not fall back, and be no worse. Measured: the board's
+    # origin within 3 um (photometric) and 14 um (corners) at 520 mm. (The drawing used to
+    # put its grid lines on the nearest raster pixel boundary, squares of the wrong size:
+    # both poses were then off by 25-80 um along the line of sight.)
+    assert errors["photometric"] < 0.008, errors
+    assert errors["photometric"] <= errors["corners"] + 0.003, errors
+
+
+def test_area_coverage_drawing_is_exact():
+    # area_board_image paints each square by its exact pixel-area coverage: the coverage of a
+    # polygon summed over the pixels is its area (shoelace), and a pixel cut by a straight
+    # line through its centre at any angle is half covered.
+    img = np.zeros((40, 50))
+    quad = np.array([[3.2, 4.7], [41.9, 2.15], [47.3, 33.8], [9.05, 36.6]])
+    paint_polygon(img, quad, 1.0)
+    x, y = quad[:, 0], quad[:, 1]
+    assert img.sum() == pytest.approx(0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)), abs=1e-9)
+    assert img.min() >= -1e-12 and img.max() <= 1 + 1e-12
+    for angle in np.radians([0.0, 17.0, 45.0, 71.0]):
+        img = np.zeros((21, 21))
+        d = np.array([np.cos(angle), np.sin(angle)])
+        n = np.array([-d[1], d[0]])
+        big = np.array([10, 10]) + 30 * np.array([-d, d, d + 2 * n, -d + 2 * n])
+        paint_polygon(img, big, 1.0)
+        assert img[10, 10] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_raster_and_exact_drawings_give_the_same_pose():
+    # warped_board_image (OpenCV's warp of a raster) against area_board_image (exact
+    # coverage): the same board, tilted so that its squares fall between raster pixels. The
+    # photometric poses agree within 1 um along the line of sight at 520 mm (0.5 sigma);
+    # before the raster's grid lines were put on its pixel boundaries they differed by 10-40 um.
+    board = Chessboard(9, 7, 20.0)
+    cam = CameraModel((1024, 768), 1300.0, 1300.0, 511.5, 383.5, (0.0, 0.0, 0.0, 0.0, 0.0))
+    T = look_at_pose(520.0, board, tilt_deg=(18.0, -12.0, 4.0))
+    centre = T[:3, :3] @ [80.0, 60.0, 0.0] + T[:3, 3]
+    los = centre / np.linalg.norm(centre)
+    along = []
+    for draw in (warped_board_image, area_board_image):
+        img = draw(cam, board, T, rng=np.random.default_rng(3))
+        pose = estimate_pose(detect_board(img, board), board, cam, image=img, refine="photometric")
+        assert pose.method == "photometric", pose.fallback
+        along.append((pose.board2cam[:3, :3] @ [80.0, 60.0, 0.0] + pose.board2cam[:3, 3] - centre) @ los)
+    assert abs(along[0] - along[1]) < 0.001, along  # mm
+    assert max(map(abs, along)) < 0.003, along  # mm
+
+
+_FORMATIONS = {
+    "blur after integration": lambda cam, b, T, g: area_board_image(cam, b, T, rng=g),
+    "Bayer bilinear": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g),
+    "Bayer edge-aware": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g, demosaic="edge-aware"),
+    "Bayer VNG": lambda cam, b, T, g: bayer_board_image(cam, [(b, T)], g, demosaic="VNG"),
+    "JPEG 95": lambda cam, b, T, g: jpeg_image(render_testbed(cam, [(b, T)], g), 95),
+    "JPEG 85": lambda cam, b, T, g: jpeg_image(render_testbed(cam, [(b, T)], g), 85),
+}
+
+
+@pytest.mark.parametrize("formation", list(_FORMATIONS))
+def test_photometric_pose_holds_or_says_why_under_other_image_formations(formation):
+    # Images whose edge is not the model's Gaussian: a blur after pixel integration, a Bayer
+    # mosaic demosaiced by OpenCV, JPEG (benchmarks/bench_vision_formations.py measures them
+    # over many cases). On one small case (9x7 board of 15 mm squares at 400 mm, 30 px
+    # squares) the photometric pose is accepted and, along the line of sight, within 3 of
+    # its sigmas of the truth and no worse than the corner pose (within 2 of its sigmas), or
+    # it falls back to the corner pose with a reason. Measured: accepted under each, 2-6 um
+    # off (0.4-1.8 sigma), the corner pose 1-16 um.
+    board = Chessboard(9, 7, 15.0)
+    cam = CameraModel((640, 480), 800.0, 800.0, 319.5, 239.5, (0.0, 0.0, 0.0, 0.0, 0.0))
+    T = look_at_pose(400.0, board, tilt_deg=(15.0, -10.0, 5.0))
+    q = np.array([60.0, 45.0, 0.0])  # the board's centre
+    centre = T[:3, :3] @ q + T[:3, 3]
+    los = centre / np.linalg.norm(centre)
+    img = _FORMATIONS[formation](cam, board, T, np.random.default_rng(5))
+    det = detect_board(img, board)
+    corner = estimate_pose(det, board, cam, image=img, refine="corners")
+    photo = estimate_pose(det, board, cam, image=img, refine="photometric")
+    if photo.method != "photometric":
+        assert photo.fallback and photo.fallback.endswith("corner pose kept"), photo.fallback
+        np.testing.assert_array_equal(photo.board2cam, corner.board2cam)
+        return
+    along = {}
+    for p in (corner, photo):
+        along[p.method] = float((p.board2cam[:3, :3] @ q + p.board2cam[:3, 3] - centre) @ los)
+    sigma = float(np.sqrt(los @ photo.cov[:3, :3] @ los))
+    assert abs(along["photometric"]) < 3 * sigma, (along, sigma)
+    assert abs(along["photometric"]) <= abs(along["corners"]) + 2 * sigma, (along, sigma)
