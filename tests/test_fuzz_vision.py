@@ -356,6 +356,9 @@ def test_displacement_point_of_1e308_mm_is_refused(lab):
         ),
         ("/etc/hostname,2", ("line 4, column 'image'", "outside the manifest's folder")),
         ("stage2.png,1e308", ("line 4, column 'nominal_mm'", "not a stage displacement")),
+        # The manifest's own folder (a name such as "."): calibrate and pose read folders as
+        # their images, a manifest row must be one image (found by the fuzzer: internal error).
+        (".,2", ("line 4, column 'image'", "is a folder, expected an image file")),
     ],
 )
 def test_a_stage_manifest_row_is_named(lab, row, needles):

@@ -207,6 +207,10 @@ def read_stage_manifest(path: str | os.PathLike, *, allow_outside: bool = False)
                 "list images inside it, or pass --allow-outside-paths to read them from elsewhere",
                 source=src,
             )
+        if image.is_dir():
+            raise InputError(
+                f"line {line}, column 'image': {name!r} is a folder, expected an image file", source=src
+            )
         out.append(StageRow(str(image) if not Path(name).is_absolute() else name, float(nom), int(line)))
     if not any(r.nominal_mm == 0 for r in out):
         raise InputError(
