@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import cv2
 import numpy as np
 import pytest
@@ -168,3 +170,63 @@ def test_ray_map_is_exact_inside_the_field_and_marked_invalid_beyond():
     # The corner pixels are beyond the fold: their rays are marked, not silently wrong.
     assert not valid[0, 0] and not valid[-1, -1]
     assert invertible_field(STRONG_LENS).contains_pixels(np.array([640.0, 360.0]))
+
+
+# ------------------------------------------------------------------ the calibration's covariance
+_COV_CAM = {"image_size": [640, 480], "fx": 657.5, "fy": 658.0, "cx": 303.0, "cy": 242.6}
+
+
+def _cov_json(cov, dist=(-0.25, 0.12, 0.0, 0.0, 0.0), **extra):
+    return {**_COV_CAM, "dist": list(dist), "cov": cov, **extra}
+
+
+def test_camera_json_cov_round_trip_and_fallbacks(tmp_path):
+    rng = np.random.default_rng(5)
+    M = rng.normal(size=(9, 9))
+    C = M @ M.T * 1e-4
+    cam = CameraModel.from_dict(
+        _cov_json({"params": list(CameraModel((640, 480), 1, 1, 1, 1).param_names), "matrix": C.tolist()})
+    )
+    np.testing.assert_array_equal(cam.calibration_cov, C)
+    assert cam.calibration_cov_source == "cov"
+    save_camera(cam, tmp_path / "camera.json")
+    np.testing.assert_array_equal(load_camera(tmp_path / "camera.json").cov, C)
+    # A subset, in another order: the others exact (0).
+    sub = CameraModel.from_dict(_cov_json({"params": ["fy", "fx"], "matrix": [[4.0, 1.0], [1.0, 9.0]]}))
+    assert sub.cov[0, 0] == 9.0 and sub.cov[1, 1] == 4.0 and sub.cov[0, 1] == 1.0 and sub.cov[2:].sum() == 0
+    # Without cov: std as a diagonal (correlations unknown), or nothing.
+    std = CameraModel(
+        (640, 480),
+        657.5,
+        658.0,
+        303.0,
+        242.6,
+        std={"fx": 0.1, "fy": 0.2, "cx": None, "cy": 0.3, "dist": [1e-3, 0, 0, 0, 0]},
+    )
+    np.testing.assert_allclose(np.diag(std.calibration_cov), [0.01, 0.04, 0, 0.09, 1e-6, 0, 0, 0, 0])
+    assert std.calibration_cov_source == "std"
+    assert CameraModel((640, 480), 657.5, 658.0, 303.0, 242.6).calibration_cov is None
+
+
+@pytest.mark.parametrize(
+    "cov, key, what",
+    [
+        ([[1.0]], "'cov'", "must be an object"),
+        ({"params": ["fx", "zz"], "matrix": [[1, 0], [0, 1]]}, "'cov.params'", "'zz' is not a parameter"),
+        ({"params": ["fx", "k4"], "matrix": [[1, 0], [0, 1]]}, "'cov.params'", "'k4' is not a parameter"),
+        ({"params": ["fx", "fx"], "matrix": [[1, 0], [0, 1]]}, "'cov.params'", "distinct"),
+        ({"params": ["fx", "fy"], "matrix": [[1, 0, 0], [0, 1, 0]]}, "'cov.matrix'", "square 2x2"),
+        ({"params": ["fx", "fy"], "matrix": [[1, 0], [0, "a"]]}, "'cov.matrix[1][1]'", "finite number"),
+        ({"params": ["fx", "fy"], "matrix": [[1, 0.5], [0.4, 1]]}, "'cov.matrix'", "not symmetric"),
+        ({"params": ["fx", "fy"], "matrix": [[-1, 0], [0, 1]]}, "'cov.matrix[0][0]'", "variance of fx"),
+        ({"params": ["fx", "fy"], "matrix": [[1, 2], [2, 1]]}, "'cov.matrix'", "not positive semi-definite"),
+        ({"params": ["fx", "fy"], "matrix": [[0, 1e-3], [1e-3, 1]]}, "'cov.matrix'", "zero variance"),
+    ],
+)
+def test_camera_json_cov_is_checked_naming_the_key(tmp_path, cov, key, what):
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(_cov_json(cov)))
+    with pytest.raises(InputError) as e:
+        load_camera(path)
+    msg = str(e.value)
+    assert "\n" not in msg and str(path) in msg and key in msg and what in msg, msg

@@ -19,7 +19,7 @@ from helpers.board_scenes import close_two_target_poses, moved_pose, small_camer
 from helpers.cli_process import run_stiffmap
 from helpers.shared_data import CALIB_DIR
 
-from stiffmap.camera import save_camera
+from stiffmap.camera import CameraModel, save_camera
 from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec
 from stiffmap.targets import Chessboard
 
@@ -275,3 +275,39 @@ def test_validate_table_json_and_plot(data):
     assert root.tag.endswith("svg") and len(root.findall(".//{http://www.w3.org/2000/svg}circle")) == 4
     r = _invoke([*_measure("validate", d), d / "stage.csv"])
     assert r.returncode == 0 and "nominal" in r.stdout and "RMS error" in r.stdout
+
+
+def test_pose_and_displacement_say_how_much_comes_from_the_calibration(data):
+    d, _ = data
+    # The test camera with a calibration covariance (fx, fy 0.5 px correlated +0.9, cx, cy 0.3 px, k1 1e-3).
+    C = np.zeros((9, 9))
+    C[:2, :2] = [[0.25, 0.225], [0.225, 0.25]]
+    C[2, 2] = C[3, 3] = 0.09
+    C[4, 4] = 1e-6
+    cam = CameraModel(CAM.image_size, CAM.fx, CAM.fy, CAM.cx, CAM.cy, CAM.dist, cov=C)
+    save_camera(cam, d / "camera_cov.json")
+    refs = ["--reference", d / "ref0.png", "--reference", d / "ref1.png"]
+    base = ["--fixed-board", "9x4", "--fixed-square-mm", "10", "--fixed2base", d / "fixed2base.json"]
+    rows = {}
+    for name in ("camera.json", "camera_cov.json"):
+        r = _invoke([*_measure("displacement", d, camera=name), *refs, d / "moved0.png", *base, "--json"])
+        assert r.returncode == 0, r.stderr
+        rows[name] = json.loads(r.stdout)
+    plain, with_cov = rows["camera.json"][0], rows["camera_cov.json"][0]
+    assert plain["d_std_calibration"] is None and plain["calibration_share"] is None
+    share = np.array(with_cov["calibration_share"])
+    assert share.shape == (6,) and np.all((share > 0) & (share < 1))
+    assert np.all(np.array(with_cov["d_std_calibration"]) < np.array(with_cov["d_std"]))
+    # The total is the noise (the plain camera's) plus the calibration's share.
+    np.testing.assert_allclose(
+        np.square(with_cov["d_std"]),
+        np.square(plain["d_std"]) + np.square(with_cov["d_std_calibration"]),
+        rtol=1e-3,
+    )
+    summary = rows["camera_cov.json"][-1]
+    assert summary["summary"] and len(summary["calibration_share"]) == 6
+    r = _invoke([*_measure("displacement", d, camera="camera_cov.json"), *refs, d / "moved0.png"])
+    assert "of which calibration" in r.stdout and "full covariance" in r.stdout
+    r = _invoke([*_measure("pose", d, camera="camera_cov.json"), "--json", d / "ref0.png"])
+    row = json.loads(r.stdout)[0]
+    assert np.array(row["cov_calibration"]).shape == (6, 6) and len(row["t_std_calibration_mm"]) == 3

@@ -22,10 +22,16 @@ coefficients) are not supported.
     {"image_size": [w, h], "fx": ..., "fy": ..., "cx": ..., "cy": ...,
      "dist": [k1, k2, p1, p2, k3],
      "std": {"fx": ..., "fy": ..., "cx": ..., "cy": ..., "dist": [...]},   # 1 sigma
+     "cov": {"params": ["fx", "fy", "cx", "cy", "k1", ...], "matrix": [[...], ...]},
      "rms_px": ..., "residual_std_px": [sx, sy],
      "views": [{"image": ..., "used": true, "rms_px": ..., "reason": ""}]}
 
-Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required. Reading one
+Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required. ``cov`` is the
+full covariance of the calibrated parameters (px and unitless, the order of ``params``, a
+subset of :meth:`CameraModel.param_names`; parameters it does not name are taken as exact):
+it must be square, symmetric and positive semi-definite. Without it, ``std`` gives a
+diagonal covariance (correlations unknown); without either the calibration's uncertainty is
+unknown (:attr:`CameraModel.calibration_cov` is None). Reading one
 (:meth:`CameraModel.from_dict`, :func:`load_camera`) also checks that it describes a
 physical camera (:func:`plausibility_problems`): an image of 1 to 100 000 px per side, focal
 lengths of 0.1 to 100 times the image diagonal, the principal point within the image widened
@@ -118,6 +124,9 @@ class CameraModel:
         Standard deviation of the calibration residuals per axis, px.
     views : tuple of dict
         Per calibration image: ``image``, ``used``, ``rms_px``, ``reason``.
+    cov : ndarray, shape (n, n) or None
+        Full covariance of the calibrated parameters, in the order of :attr:`param_names`
+        (px and unitless); see :attr:`calibration_cov`.
     """
 
     image_size: tuple[int, int]
@@ -130,6 +139,7 @@ class CameraModel:
     rms_px: float | None = None
     residual_std_px: tuple[float, float] | None = None
     views: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+    cov: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         w, h = (int(v) for v in self.image_size)
@@ -148,6 +158,80 @@ class CameraModel:
             raise ValueError(f"dist must hold 4, 5, 8 or 12 finite coefficients, got {list(self.dist)}")
         object.__setattr__(self, "dist", tuple(float(x) for x in d))
         object.__setattr__(self, "views", tuple(self.views))
+        if self.cov is not None:
+            C = np.array(self.cov, dtype=np.float64)
+            n = 4 + d.size
+            if C.shape != (n, n) or not np.all(np.isfinite(C)):
+                raise ValueError(
+                    f"cov must be a finite ({n}, {n}) matrix over {self.param_names}, got {C.shape}"
+                )
+            C = 0.5 * (C + C.T)
+            C.setflags(write=False)
+            object.__setattr__(self, "cov", C)
+
+    # ------------------------------------------------------------ parameters
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """Names of the calibrated parameters: ("fx", "fy", "cx", "cy", "k1", "k2", ...)."""
+        return ("fx", "fy", "cx", "cy", *DIST_NAMES[: len(self.dist)])
+
+    @property
+    def params(self) -> np.ndarray:
+        """The parameters of :attr:`param_names` as a vector (px and unitless)."""
+        return np.array([self.fx, self.fy, self.cx, self.cy, *self.dist])
+
+    def with_params(self, params) -> CameraModel:
+        """The same camera with other parameters (:attr:`param_names` order), without uncertainties."""
+        p = np.asarray(params, dtype=np.float64).ravel()
+        if p.size != 4 + len(self.dist):
+            raise ValueError(f"params must hold {4 + len(self.dist)} values {self.param_names}, got {p.size}")
+        return CameraModel(self.image_size, p[0], p[1], p[2], p[3], tuple(p[4:]))
+
+    @property
+    def calibration_cov(self) -> np.ndarray | None:
+        """Covariance of the calibrated parameters (:attr:`param_names` order), or None when unknown.
+
+        ``cov`` when the camera has it; else the squares of ``std`` on the diagonal (the
+        correlations unknown: a null std counts as 0); else None.
+        """
+        if self.cov is not None:
+            return self.cov
+        if self.std is None:
+            return None
+        s = [self.std.get(k) for k in ("fx", "fy", "cx", "cy")]
+        sd = self.std.get("dist") or [None] * len(self.dist)
+        v = np.array([0.0 if x is None else float(x) for x in [*s, *sd]]) ** 2
+        return np.diag(v)
+
+    @property
+    def calibration_cov_source(self) -> str:
+        """Where :attr:`calibration_cov` comes from: ``"cov"``, ``"std"`` (diagonal) or ``"none"``."""
+        return "cov" if self.cov is not None else "std" if self.std is not None else "none"
+
+    def projection_param_jacobian(self, xy) -> np.ndarray:
+        """Derivative of the pixel of ideal normalised coordinates with respect to the parameters.
+
+        Parameters
+        ----------
+        xy : array_like, shape (..., 2)
+            Ideal normalised coordinates (X/Z, Y/Z) of points (held fixed).
+
+        Returns
+        -------
+        ndarray, shape (..., 2, n)
+            d(u, v) / d(fx, fy, cx, cy, k1, k2, p1, p2[, k3...]), :attr:`param_names` order.
+        """
+        xy = np.asarray(xy, dtype=np.float64)
+        xd, _ = _distort(xy, _dist12(self.dist_array), jacobian=False)
+        Jd = _distort_coefficient_jacobian(xy, _dist12(self.dist_array))[..., : len(self.dist)]
+        J = np.zeros((*xy.shape[:-1], 2, 4 + len(self.dist)))
+        J[..., 0, 0] = xd[..., 0]
+        J[..., 1, 1] = xd[..., 1]
+        J[..., 0, 2] = 1.0
+        J[..., 1, 3] = 1.0
+        J[..., 0, 4:] = self.fx * Jd[..., 0, :]
+        J[..., 1, 4:] = self.fy * Jd[..., 1, :]
+        return J
 
     # ------------------------------------------------------------------ arrays
     @property
@@ -370,6 +454,8 @@ class CameraModel:
             d["rms_px"] = self.rms_px
         if self.residual_std_px is not None:
             d["residual_std_px"] = list(self.residual_std_px)
+        if self.cov is not None:
+            d["cov"] = {"params": list(self.param_names), "matrix": self.cov.tolist()}
         if self.views:
             d["views"] = list(self.views)
         return d
@@ -433,6 +519,9 @@ class CameraModel:
         std = data.get("std")
         if std is not None:
             std = _check_std(std, len(dist), bad)
+        cov = data.get("cov")
+        if cov is not None:
+            cov = _check_cov(cov, len(dist), bad)
         rms = data.get("rms_px")
         rms = number("rms_px", rms, nonnegative=True) if rms is not None else None
         rsd = data.get("residual_std_px")
@@ -453,6 +542,7 @@ class CameraModel:
             rms_px=rms,
             residual_std_px=rsd,
             views=tuple(views),
+            cov=cov,
             **vals,
         )
         problems = plausibility_problems(camera)
@@ -508,6 +598,90 @@ def _check_std(std: Any, n_dist: int, bad) -> dict[str, Any]:
         else:
             out[k] = v
     return out
+
+
+#: Tolerances of the ``cov`` checks, relative to the standard deviations: asymmetry, and the
+#: most negative eigenvalue of the correlation matrix (rounding in a hand-written file).
+COV_SYMMETRY_TOL = 1e-6
+COV_PSD_TOL = 1e-8
+
+
+def _check_cov(cov: Any, n_dist: int, bad) -> np.ndarray:
+    """Validate the ``cov`` object; the full covariance over the camera's parameters."""
+    names = ("fx", "fy", "cx", "cy", *DIST_NAMES[:n_dist])
+    if not isinstance(cov, dict) or set(cov) - {"params", "matrix"} or "matrix" not in cov:
+        raise bad("cov", f"must be an object {{'params': [...], 'matrix': [[...]]}}; got {_short(cov)}")
+    params = cov.get("params", list(names))
+    if (
+        not isinstance(params, list)
+        or not params
+        or not all(isinstance(p, str) for p in params)
+        or len(set(params)) != len(params)
+    ):
+        raise bad(
+            "cov.params",
+            f"must be a list of distinct parameter names from {list(names)}, got {_short(params)}",
+        )
+    unknown = [p for p in params if p not in names]
+    if unknown:
+        raise bad(
+            "cov.params",
+            f"{', '.join(repr(p) for p in unknown)} is not a parameter of this camera (expected names from "
+            f"{list(names)}: 'dist' has {n_dist} coefficients)",
+        )
+    m = len(params)
+    M = cov["matrix"]
+    if not isinstance(M, list) or len(M) != m or not all(isinstance(r, list) and len(r) == m for r in M):
+        raise bad(
+            "cov.matrix",
+            f"must be a square {m}x{m} list of lists (one row per entry of 'params'), got {_short(M)}",
+        )
+    C = np.empty((m, m))
+    for i, row in enumerate(M):
+        for j, v in enumerate(row):
+            x = _finite_float(v)
+            if x is None:
+                raise bad(f"cov.matrix[{i}][{j}]", f"must be a finite number, got {_short(v)}")
+            C[i, j] = x
+    d = np.diag(C)
+    if np.any(d < 0):
+        i = int(np.argmin(d))
+        raise bad(
+            f"cov.matrix[{i}][{i}]", f"the variance of {params[i]} must be zero or positive, got {d[i]:.6g}"
+        )
+    s = np.sqrt(d)
+    scale = np.outer(s, s)
+    asym = np.abs(C - C.T)
+    tol = COV_SYMMETRY_TOL * scale + 1e-300
+    if np.any(asym > tol):
+        i, j = np.unravel_index(int(np.argmax(asym / tol)), C.shape)
+        raise bad(
+            "cov.matrix",
+            f"is not symmetric: [{i}][{j}] = {C[i, j]:.6g} but [{j}][{i}] = {C[j, i]:.6g} "
+            f"({params[i]}, {params[j]})",
+        )
+    C = 0.5 * (C + C.T)
+    nz = s > 0
+    off = float(np.abs(C[~nz]).max()) if np.any(~nz) else 0.0
+    if off > 0:
+        i = int(np.flatnonzero(~nz)[0])
+        raise bad(
+            "cov.matrix",
+            f"{params[i]} has a zero variance but a non-zero covariance with another parameter "
+            "(not a covariance matrix)",
+        )
+    R = C[np.ix_(nz, nz)] / scale[np.ix_(nz, nz)]
+    lo = float(np.linalg.eigvalsh(R).min()) if R.size else 0.0
+    if lo < -COV_PSD_TOL:
+        raise bad(
+            "cov.matrix",
+            f"is not positive semi-definite (its correlation matrix has the eigenvalue {lo:.3g}; "
+            "correlations beyond +/-1, or rounded too coarsely?)",
+        )
+    full = np.zeros((len(names), len(names)))
+    idx = [names.index(p) for p in params]
+    full[np.ix_(idx, idx)] = C
+    return full
 
 
 #: The central disc where any lens's distortion is one to one: this fraction of the smaller
@@ -620,6 +794,36 @@ def _distort(xy: np.ndarray, d: np.ndarray, *, jacobian: bool):
     J[..., 1, 0] = 2 * x * y * drad + 2 * p1 * x + 2 * p2 * y + 2 * x * sy
     J[..., 1, 1] = rad + 2 * y * y * drad + 6 * p1 * y + 2 * p2 * x + 2 * y * sy
     return out, J
+
+
+def _distort_coefficient_jacobian(xy: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """d(x', y') / d(k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4) at ideal points: (..., 2, 12)."""
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = d
+    x = xy[..., 0]
+    y = xy[..., 1]
+    r2 = x * x + y * y
+    r4 = r2 * r2
+    r6 = r4 * r2
+    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+    J = np.zeros((*x.shape, 2, 12))
+    # Radial: rad = num / den; d rad / d k(1,2,3) = r^(2,4,6) / den, d rad / d k(4,5,6) = -num r^.. / den^2.
+    for col, rk in ((0, r2), (1, r4), (4, r6)):
+        J[..., 0, col] = x * rk / den
+        J[..., 1, col] = y * rk / den
+    for col, rk in ((5, r2), (6, r4), (7, r6)):
+        g = -num * rk / (den * den)
+        J[..., 0, col] = x * g
+        J[..., 1, col] = y * g
+    J[..., 0, 2] = 2 * x * y
+    J[..., 1, 2] = r2 + 2 * y * y
+    J[..., 0, 3] = r2 + 2 * x * x
+    J[..., 1, 3] = 2 * x * y
+    J[..., 0, 8] = r2
+    J[..., 0, 9] = r4
+    J[..., 1, 10] = r2
+    J[..., 1, 11] = r4
+    return J
 
 
 def _undistortion_message(target: np.ndarray, bad: np.ndarray) -> str:

@@ -13,7 +13,9 @@ uncertainty"):
 - the projection of board points and its Jacobian with respect to (dt, dr)
   (:func:`projection_jacobian`), and the homography from rays to the board plane
   (:func:`ray2board_homography`);
-- a measured pose with its covariance and quality is a :class:`BoardPose`.
+- a measured pose with its covariance and quality is a :class:`BoardPose`; the share of the
+  camera calibration in it comes from :func:`calibration_sensitivity` (how the fitted pose
+  follows an error of the camera's parameters).
 
 Why a module of its own, in the bottom layer beside ``geometry`` and ``camera``: a
 board's pose is a rigid transform (``geometry``) and its projection goes through the
@@ -34,6 +36,7 @@ from .geometry import as_transform, matrix_from_rotvec
 
 __all__ = [
     "BoardPose",
+    "calibration_sensitivity",
     "check_pose",
     "faces_camera",
     "perturb_pose",
@@ -51,7 +54,8 @@ class BoardPose:
     ----------
     board2cam : ndarray, shape (4, 4), mm
     cov : ndarray, shape (6, 6)
-        Covariance over (t (mm), r (rad)), the perturbation of :func:`perturb_pose`.
+        Covariance over (t (mm), r (rad)), the perturbation of :func:`perturb_pose`: the
+        total, the fit's own noise plus :attr:`cov_calibration`.
     rms_px : float
         Reprojection RMS over the corners, px (sqrt of the mean of ex^2 + ey^2).
     n_corners : int
@@ -75,6 +79,14 @@ class BoardPose:
     fallback : str or None
         Why a photometric refinement that was asked for was not used (the pose is
         then the corner-based one).
+    calibration_jacobian : ndarray, shape (6, n) or None
+        A = d(t, r) / d(camera parameters) (:func:`calibration_sensitivity`, the order of
+        :attr:`~stiffmap.camera.CameraModel.param_names`): how the pose follows an error of
+        the calibration. The error is common to every pose taken with the camera:
+        propagate it through A, never as independent noise.
+    cov_calibration : ndarray, shape (6, 6) or None
+        The calibration's share of ``cov``, A cov_c A^T; None when the camera's
+        uncertainty is unknown (no ``cov`` or ``std`` in its ``camera.json``).
     """
 
     board2cam: np.ndarray
@@ -88,6 +100,20 @@ class BoardPose:
     method: str = "corners"
     photometric: Any = None
     fallback: str | None = None
+    calibration_jacobian: np.ndarray | None = None
+    cov_calibration: np.ndarray | None = None
+
+    @property
+    def cov_noise(self) -> np.ndarray:
+        """The fit's own share of ``cov`` (independent from image to image), 6x6."""
+        return self.cov if self.cov_calibration is None else self.cov - self.cov_calibration
+
+    @property
+    def t_std_calibration_mm(self) -> np.ndarray:
+        """1-sigma of the translation due to the calibration alone, shape (3,), mm (NaN: unknown)."""
+        if self.cov_calibration is None:
+            return np.full(3, np.nan)
+        return np.sqrt(np.maximum(np.diag(self.cov_calibration)[:3], 0.0))
 
     @property
     def t_std_mm(self) -> np.ndarray:
@@ -223,3 +249,53 @@ def projection_jacobian(
     dX = np.concatenate([np.broadcast_to(np.eye(3), (len(q), 3, 3)), -skew(Rq)], axis=2)  # (m, 3, 6)
     J = f[None, :, None] * (Jd @ P @ dX)
     return uv, J
+
+
+def calibration_sensitivity(
+    board2cam, object_points, camera: CameraModel, weights=None, tangents=None
+) -> np.ndarray:
+    """How a pose fitted to board points follows an error of the camera's parameters.
+
+    The pose minimises sum w e^2 with e the reprojection error of the points; by implicit
+    differentiation of its optimality condition (first order, residuals neglected),
+    A = d(t, r) / dc = -(J_p^T W J_p)^-1 J_p^T W J_c, with J_p the projection Jacobian of
+    the pose (:func:`projection_jacobian`) and J_c that of the camera's parameters c
+    (:meth:`~stiffmap.camera.CameraModel.projection_param_jacobian`, points held fixed in
+    the camera frame).
+
+    Parameters
+    ----------
+    board2cam : array_like, shape (4, 4), mm
+    object_points : array_like, shape (m, 3), mm
+        The fitted points, board frame.
+    camera : CameraModel
+    weights : array_like, shape (m,), optional
+        Per-point weights (default equal).
+    tangents : array_like, shape (m, 3), optional
+        For points on edges (a photometric fit): the edge's direction in the board frame. Only
+        the residual across the edge's image counts then (an edge pins nothing along itself).
+
+    Returns
+    -------
+    ndarray, shape (6, n)
+        Rows (t (mm), r (rad)) as in :func:`perturb_pose`; columns
+        :attr:`~stiffmap.camera.CameraModel.param_names`.
+    """
+    T = check_pose(board2cam)
+    q = np.asarray(object_points, dtype=np.float64)
+    _, Jp = projection_jacobian(T, q, camera, validate=False)
+    X = q @ T[:3, :3].T + T[:3, 3]
+    Jc = camera.projection_param_jacobian(X[:, :2] / X[:, 2:3])
+    w = np.ones(len(q)) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
+    if tangents is not None:
+        # The edge's image direction (d uv / d q along it = the translation columns of J_p on
+        # R tangent) and its normal; residuals projected on the normal.
+        tg = np.asarray(tangents, dtype=np.float64) @ T[:3, :3].T
+        ti = np.einsum("mij,mj->mi", Jp[:, :, :3], tg)
+        ti /= np.linalg.norm(ti, axis=1, keepdims=True)
+        nrm = np.stack([-ti[:, 1], ti[:, 0]], axis=1)
+        Jp = np.einsum("mi,mij->mj", nrm, Jp)[:, None, :]
+        Jc = np.einsum("mi,mij->mj", nrm, Jc)[:, None, :]
+    Jp2 = (Jp * w[:, None, None]).reshape(-1, 6)
+    N = Jp2.T @ Jp.reshape(-1, 6)
+    return -np.linalg.solve(N, Jp2.T @ Jc.reshape(-1, Jc.shape[-1]))

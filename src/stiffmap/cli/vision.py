@@ -110,6 +110,9 @@ def _refine(value: str) -> str:
 def _pose_json(p) -> dict:
     """JSON fields of a BoardPose beyond board2cam and cov."""
     d = {"rms_px": p.rms_px, "n_corners": p.n_corners, "method": p.method}
+    # The calibration's share of cov (None: the camera.json gives no uncertainty).
+    d["cov_calibration"] = p.cov_calibration
+    d["t_std_calibration_mm"] = None if p.cov_calibration is None else p.t_std_calibration_mm
     if p.photometric is not None:
         f = p.photometric
         d["photometric"] = {
@@ -268,6 +271,7 @@ def pose(
         print_json([_pose_row(m) for m in ms])
     else:
         _print_poses(ms, f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
+        out.print(_calibration_note(cam, str(camera)))
     _warn_failures(ms)
     _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board))
 
@@ -279,14 +283,36 @@ def _pose_row(m: ImageMeasurement) -> dict:
     return {"image": m.image, "board2cam": m.mobile.board2cam, "cov": m.mobile.cov, **_pose_json(m.mobile)}
 
 
+def _calibration_note(cam, source: str) -> str:
+    """Where the calibration's share of the uncertainties comes from."""
+    src = cam.calibration_cov_source
+    if src == "cov":
+        return f"the 1 sigma include the calibration's ({source}: full covariance)"
+    if src == "std":
+        return (
+            f"the 1 sigma include the calibration's ({source}: its 'std' as a diagonal covariance, "
+            "correlations unknown; recalibrate to store 'cov')"
+        )
+    return f"the calibration's uncertainty is unknown ({source} has no 'cov' or 'std'): not included"
+
+
 def _print_poses(ms: list[ImageMeasurement], title: str) -> None:
     t = Table(title=title)
     t.add_column("image", overflow="fold")
-    for col in ("t (mm)", "1 sigma t (mm)", "rotation vector (rad)", "RMS (px)", "corners", "method", "ms"):
+    for col in (
+        "t (mm)",
+        "1 sigma t (mm)",
+        "of which calibration (mm)",
+        "rotation vector (rad)",
+        "RMS (px)",
+        "corners",
+        "method",
+        "ms",
+    ):
         t.add_column(col)
     for m in ms:
         if not m.ok:
-            t.add_row(m.image, "[red]failed[/]", "", "", "", "", "", "")
+            t.add_row(m.image, "[red]failed[/]", "", "", "", "", "", "", "")
             continue
         p = m.mobile
         method = p.method
@@ -296,6 +322,7 @@ def _print_poses(ms: list[ImageMeasurement], title: str) -> None:
             m.image,
             ", ".join(f"{x:.4f}" for x in p.board2cam[:3, 3]),
             ", ".join(f"{x:.4f}" for x in p.t_std_mm),
+            ", ".join(fmt(x, 4) for x in p.t_std_calibration_mm) if p.cov_calibration is not None else "-",
             ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2cam[:3, :3])),
             f"{p.rms_px:.3f}",
             str(p.n_corners),
@@ -352,6 +379,7 @@ def displacement(
         print_json(_displacement_rows(res))
     else:
         _print_displacements(res)
+        out.print(_calibration_note(cam, str(camera)))
     _exit_for(res.n_ok, res.n_images, _measured_with(camera, board))
 
 
@@ -370,6 +398,7 @@ def _displacement_rows(res: ImageDisplacements) -> list[dict]:
                 "r": dsp.r,
                 "d_std": dsp.d_sigma,
                 "r_std": dsp.r_sigma,
+                **_calibration_keys(dsp),
             }
         )
     s = res.summary
@@ -384,9 +413,27 @@ def _displacement_rows(res: ImageDisplacements) -> list[dict]:
                 "r": s.r,
                 "d_std": s.d_std,
                 "r_std": s.r_std,
+                "d_sigma": s.d_sigma,
+                "r_sigma": s.r_sigma,
+                **_calibration_keys(s),
             }
         )
     return rows
+
+
+def _calibration_keys(d) -> dict:
+    """The calibration's part of a displacement's propagated 1 sigma (None: unknown).
+
+    ``calibration_share`` is the share of each component's variance (dx..rz) from the camera's
+    calibration, an error common to every displacement measured with the camera.
+    """
+    if d.cov_calibration is None:
+        return {"d_std_calibration": None, "r_std_calibration": None, "calibration_share": None}
+    return {
+        "d_std_calibration": d.d_sigma_calibration,
+        "r_std_calibration": d.r_sigma_calibration,
+        "calibration_share": d.calibration_share,
+    }
 
 
 def _print_displacements(res: ImageDisplacements) -> None:
@@ -395,8 +442,24 @@ def _print_displacements(res: ImageDisplacements) -> None:
     n_ref = len(res.references)
     t = Table(title=f"displacement relative to {n_ref} reference image(s), {frame} frame (+/- 1 sigma)")
     t.add_column("image", overflow="fold")
-    for col in ("dx, dy, dz (mm)", "1 sigma (mm)", "rx, ry, rz (rad)", "|d| (mm)"):
+    for col in (
+        "dx, dy, dz (mm)",
+        "1 sigma (mm)",
+        "of which calibration (mm)",
+        "calibration share of variance",
+        "rx, ry, rz (rad)",
+        "|d| (mm)",
+    ):
         t.add_column(col)
+
+    def cal(d) -> tuple[str, str]:
+        if d.cov_calibration is None:
+            return "-", "-"
+        return (
+            ", ".join(fmt(x, 3) for x in d.d_sigma_calibration),
+            ", ".join(f"{100 * x:.0f} %" for x in d.calibration_share[:3]),
+        )
+
     for m, dsp in zip(res.images, res.displacements, strict=True):
         if dsp is None:
             continue
@@ -404,6 +467,7 @@ def _print_displacements(res: ImageDisplacements) -> None:
             m.image,
             ", ".join(f"{x:.4f}" for x in dsp.d),
             ", ".join(f"{x:.4f}" for x in dsp.d_sigma),
+            *cal(dsp),
             ", ".join(f"{x:.2e}" for x in dsp.r),
             f"{np.linalg.norm(dsp.d):.4f}",
         )
@@ -412,6 +476,7 @@ def _print_displacements(res: ImageDisplacements) -> None:
             f"mean of {summary.n}",
             ", ".join(f"{x:.4f}" for x in summary.d),
             "std " + ", ".join(fmt(x, 3) for x in summary.d_std),
+            *cal(summary),
             ", ".join(f"{x:.2e}" for x in summary.r),
             f"{np.linalg.norm(summary.d):.4f}",
         )

@@ -10,6 +10,16 @@ deviation per axis and the RMS of every view. Views whose RMS exceeds
 ``outlier_factor`` times the median (and ``outlier_min_px``) are left out one at
 a time, worst first, with the reason recorded.
 
+The full covariance of the intrinsics and distortion (:func:`calibration_covariance`,
+``camera.cov``): OpenCV gives only their standard deviations, so it is computed here from the
+reprojection Jacobian of every used view (``cv2.projectPoints``), each view's pose eliminated
+by its Schur complement, times the residual variance sum e^2 / (2 N - p) (N corners, p free
+parameters with 6 per view): its diagonal is OpenCV's ``stdDeviationsIntrinsics`` squared
+(to 1e-8 on Bouguet's views, k3 and fix-k3 models). For the rational and thin-prism models,
+whose coefficients the views often determine only in combination, OpenCV's pseudo-inverse
+drops the undetermined directions; this covariance keeps them (large variances of k4..k6
+along directions that move no corner of the calibrated field, so harmless for a pose).
+
 :meth:`CalibrationResult.matlab_text` prints the result the way the Camera
 Calibration Toolbox for Matlab does (values +/- three standard deviations), so
 its users can compare.
@@ -29,7 +39,7 @@ from ..errors import InputError
 from ..geometry import matrix_from_rotvec
 from .detection import Board, BoardDetection, grid_of
 
-__all__ = ["ViewResult", "CalibrationResult", "calibrate_camera", "DIST_MODELS"]
+__all__ = ["ViewResult", "CalibrationResult", "calibrate_camera", "calibration_covariance", "DIST_MODELS"]
 
 #: Distortion models: name -> number of coefficients.
 DIST_MODELS = {"k3": 5, "fix-k3": 5, "rational": 8, "thin-prism": 12}
@@ -78,7 +88,8 @@ class CalibrationResult:
     Attributes
     ----------
     camera : CameraModel
-        With ``std``, ``rms_px``, ``residual_std_px`` and ``views`` filled.
+        With ``std`` (OpenCV's), ``cov`` (:func:`calibration_covariance`), ``rms_px``,
+        ``residual_std_px`` and ``views`` filled.
     views : tuple of ViewResult
     residuals_px : ndarray, shape (N, 2)
         Observed minus projected corners of the used views, px.
@@ -159,6 +170,64 @@ def _run(obj, img, image_size, model):
         obj, img, image_size, None, np.zeros(nd), flags=_flags(model), criteria=crit
     )
     return K, np.asarray(dist, dtype=np.float64).ravel()[:nd], rvecs, tvecs, sd_int.ravel(), per_view.ravel()
+
+
+def _fixed_params(model: str) -> tuple[int, ...]:
+    """Indices (in the camera's parameter order) the model holds fixed."""
+    return (8,) if model == "fix-k3" else ()
+
+
+def calibration_covariance(object_points, image_points, camera_matrix, dist, rvecs, tvecs, fixed=()):
+    """Covariance of the intrinsics and distortion of a calibration, with the views' poses eliminated.
+
+    Parameters
+    ----------
+    object_points, image_points : sequence of ndarray, shapes (m_v, 3) mm and (m_v, 2) px
+        The used views' board points and detected corners.
+    camera_matrix : ndarray, shape (3, 3)
+    dist : ndarray, shape (n_d,)
+    rvecs, tvecs : sequence of ndarray, shape (3,)
+        The views' poses (OpenCV's).
+    fixed : sequence of int
+        Indices of parameters held fixed (0 variance).
+
+    Returns
+    -------
+    cov : ndarray, shape (4 + n_d, 4 + n_d)
+        Over (fx, fy, cx, cy, dist...) (px and unitless).
+
+    Notes
+    -----
+    With J_c, J_e the per-view Jacobians of the corners (px) with respect to the camera
+    parameters c and the view's pose e, the information of c is
+    S = sum_v J_c^T J_c - J_c^T J_e (J_e^T J_e)^-1 J_e^T J_c (the Schur complement of the
+    poses), and cov = s^2 S^-1 with s^2 = sum e^2 / (2 N - p), p = free parameters of c plus
+    6 per view. S is inverted after scaling to unit diagonal (it spans px and unitless terms).
+    """
+    dist = np.asarray(dist, dtype=np.float64).ravel()
+    n = 4 + dist.size
+    S = np.zeros((n, n))
+    sse = 0.0
+    n_res = 0
+    for o, im, rv, tv in zip(object_points, image_points, rvecs, tvecs, strict=True):
+        o = np.asarray(o, dtype=np.float64).reshape(-1, 3)
+        p, J = cv2.projectPoints(
+            o, np.asarray(rv, np.float64), np.asarray(tv, np.float64), camera_matrix, dist
+        )
+        e = np.asarray(im, dtype=np.float64).reshape(-1, 2) - p.reshape(-1, 2)
+        sse += float(np.sum(e**2))
+        n_res += e.size
+        Je, Jc = J[:, :6], J[:, 6 : 6 + n]
+        S += Jc.T @ Jc - Jc.T @ Je @ np.linalg.solve(Je.T @ Je, Je.T @ Jc)
+    free = [i for i in range(n) if i not in set(fixed)]
+    dof = n_res - len(free) - 6 * len(rvecs)
+    s2 = sse / dof if dof > 0 else float("nan")
+    Sf = S[np.ix_(free, free)]
+    d = np.sqrt(np.diag(Sf))
+    inv = np.linalg.pinv(Sf / np.outer(d, d), rcond=1e-15, hermitian=True) / np.outer(d, d)
+    C = np.zeros((n, n))
+    C[np.ix_(free, free)] = s2 * inv
+    return 0.5 * (C + C.T)
 
 
 def calibrate_camera(
@@ -284,6 +353,9 @@ def calibrate_camera(
         "cy": float(sd_int[3]),
         "dist": [float(x) for x in sd_int[4 : 4 + nd]],
     }
+    obj = [obj_all[detections[k].ids] for k in used]
+    img = [detections[k].corners for k in used]
+    cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, _fixed_params(model))
     camera = CameraModel(
         (w, h),
         cam.fx,
@@ -295,5 +367,6 @@ def calibrate_camera(
         rms_px=float(np.sqrt(np.mean(np.sum(R**2, axis=1)))),
         residual_std_px=(float(np.std(R[:, 0], ddof=1)), float(np.std(R[:, 1], ddof=1))),
         views=tuple(v.to_dict() for v in views),
+        cov=cov,
     )
     return CalibrationResult(camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used))

@@ -13,6 +13,17 @@ of the unloaded images. The result is the mean of the samples, their standard
 deviation and n, and the covariance of the mean propagated from the pose
 covariances.
 
+Calibration: the camera's calibration error is common to every image, so it is not noise
+that averages out or adds up from pose to pose. Each pose carries its sensitivity
+A = d pose / d c to the camera's parameters c (``BoardPose.calibration_jacobian``); a
+displacement's sensitivity is the difference G = P_loaded A_loaded - P_unloaded A_unloaded
+(P moving the pose's perturbation to the point's), averaged over the samples, and its
+calibration share is G cov_c G^T. A focal-length error is thus a scale error of the
+displacement (as it is of the distance), the share does not shrink with the number of
+repeats, and it is carried separately (``cov_calibration``, ``calibration_jacobian``) so
+that displacements measured with one camera can be combined with their common error
+(``cov`` is the total: the poses' own noise, ``cov_noise``, plus the calibration's share).
+
 Frame: the displacement is computed in the camera frame from the mobile
 target's poses only, and rotated into the robot base frame with ``cam2base``
 averaged over every image where the fixed target was seen (reference paper,
@@ -78,6 +89,12 @@ class Displacement:
         the mean loaded images, camera frame (should be zero).
     flags : tuple of str
         Warnings (fixed target moved, images left out).
+    cov_calibration : ndarray, shape (6, 6) or None
+        The calibration's share of ``cov``, G cov_c G^T (None: the camera's uncertainty is
+        unknown, not included).
+    calibration_jacobian : ndarray, shape (6, n) or None
+        G = d(d, r) / d(camera parameters), ``CameraModel.param_names`` order: the
+        displacement's part of the error common to every measurement with the camera.
     """
 
     d: np.ndarray
@@ -94,6 +111,37 @@ class Displacement:
     n_loaded: int
     fixed_shift: np.ndarray | None = None
     flags: tuple[str, ...] = ()
+    cov_calibration: np.ndarray | None = None
+    calibration_jacobian: np.ndarray | None = None
+
+    @property
+    def cov_noise(self) -> np.ndarray:
+        """The share of ``cov`` from the poses' own noise (independent between measurements)."""
+        return self.cov if self.cov_calibration is None else self.cov - self.cov_calibration
+
+    @property
+    def d_sigma_calibration(self) -> np.ndarray:
+        """1-sigma of d due to the calibration alone, shape (3,), mm (NaN: unknown)."""
+        return self._sigma_cal()[:3]
+
+    @property
+    def r_sigma_calibration(self) -> np.ndarray:
+        """1-sigma of r due to the calibration alone, shape (3,), rad (NaN: unknown)."""
+        return self._sigma_cal()[3:]
+
+    @property
+    def calibration_share(self) -> np.ndarray:
+        """Share of each component's variance from the calibration, shape (6,), 0..1 (NaN: unknown)."""
+        if self.cov_calibration is None:
+            return np.full(6, np.nan)
+        tot = np.diag(self.cov)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(tot > 0, np.diag(self.cov_calibration) / tot, 0.0)
+
+    def _sigma_cal(self) -> np.ndarray:
+        if self.cov_calibration is None:
+            return np.full(6, np.nan)
+        return np.sqrt(np.maximum(np.diag(self.cov_calibration), 0.0))
 
     @property
     def vector(self) -> np.ndarray:
@@ -130,6 +178,17 @@ def _point_jacobian(T: np.ndarray, point: np.ndarray) -> np.ndarray:
     A = np.eye(6)
     A[:3, 3:] = -skew(T[:3, :3] @ point)
     return A
+
+
+def _ref_rotation(T_ref: np.ndarray, T_moved: np.ndarray) -> np.ndarray:
+    """diag(I, Q), Q = R_moved R_ref^T: r = rotvec(Exp(dr1) Q Exp(-dr0)) moves by dr1 - Q dr0.
+
+    Matters for an error common to both poses (the calibration's): each pose's rotation error
+    is large beside their difference, and Q = I would leave [r]x dr0 in it.
+    """
+    M = np.eye(6)
+    M[3:, 3:] = T_moved[:3, :3] @ T_ref[:3, :3].T
+    return M
 
 
 def _usable(ms: Sequence[ImageMeasurement], what: str) -> list[ImageMeasurement]:
@@ -199,25 +258,41 @@ def compliant_displacement(
 
     samples = []
     cov_sum = np.zeros((6, 6))
+    # The poses' own noise is independent from image to image (cov_noise); the calibration's
+    # error is common: its sensitivity Gc is the difference of the poses' sensitivities.
+    with_A = all(m.mobile.calibration_jacobian is not None for m in u + lo)
+    Gc = None
     if pairing == "pairs":
+        G_sum = 0.0
         for a, b in zip(u, lo, strict=True):
             samples.append(displacement_from_poses(a.mobile2cam, b.mobile2cam, q))
-            A0 = _point_jacobian(a.mobile2cam, q)
+            A0 = _ref_rotation(a.mobile2cam, b.mobile2cam) @ _point_jacobian(a.mobile2cam, q)
             A1 = _point_jacobian(b.mobile2cam, q)
-            cov_sum += A0 @ a.mobile2cam_cov @ A0.T + A1 @ b.mobile2cam_cov @ A1.T
+            cov_sum += A0 @ a.mobile.cov_noise @ A0.T + A1 @ b.mobile.cov_noise @ A1.T
+            if with_A:
+                G_sum = G_sum + A1 @ b.mobile.calibration_jacobian - A0 @ a.mobile.calibration_jacobian
         cov = cov_sum / len(u) ** 2
+        if with_A:
+            Gc = G_sum / len(u)
     else:
         ref = mean_pose([m.mobile2cam for m in u])
         cov_ref = np.zeros((6, 6))
+        A0 = _point_jacobian(ref, q)
         for a in u:
-            A0 = _point_jacobian(a.mobile2cam, q)
-            cov_ref += A0 @ a.mobile2cam_cov @ A0.T
+            A0a = _point_jacobian(a.mobile2cam, q)
+            cov_ref += A0a @ a.mobile.cov_noise @ A0a.T
         cov_ref /= len(u) ** 2
+        G_ref = A0 @ np.mean([a.mobile.calibration_jacobian for a in u], axis=0) if with_A else None
+        G_sum = 0.0
         for b in lo:
             samples.append(displacement_from_poses(ref, b.mobile2cam, q))
             A1 = _point_jacobian(b.mobile2cam, q)
-            cov_sum += A1 @ b.mobile2cam_cov @ A1.T
+            cov_sum += A1 @ b.mobile.cov_noise @ A1.T
+            if with_A:
+                G_sum = G_sum + A1 @ b.mobile.calibration_jacobian - _ref_rotation(ref, b.mobile2cam) @ G_ref
         cov = cov_ref + cov_sum / len(lo) ** 2
+        if with_A:
+            Gc = G_sum / len(lo)
     S = np.array(samples)
 
     # Apparent motion of the fixed target (camera frame), when it was seen in both groups.
@@ -228,7 +303,11 @@ def compliant_displacement(
         F0 = mean_pose([m.fixed2cam for m in fu])
         F1 = mean_pose([m.fixed2cam for m in fl])
         fixed_shift = displacement_from_poses(F0, F1)
-        cf = sum(m.fixed2cam_cov for m in fu) / len(fu) ** 2 + sum(m.fixed2cam_cov for m in fl) / len(fl) ** 2
+        # The fixed target's own noise only: the calibration's error moves it alike in both groups.
+        cf = (
+            sum(m.fixed.cov_noise for m in fu) / len(fu) ** 2
+            + sum(m.fixed.cov_noise for m in fl) / len(fl) ** 2
+        )
         z = fixed_shift / np.sqrt(np.maximum(np.diag(cf), 1e-30))
         if np.max(np.abs(z)) > 5:
             flags.append(
@@ -250,15 +329,27 @@ def compliant_displacement(
         S = S @ Bm.T
         mean = S.mean(axis=0)
         # Uncertainty of the mean cam2base rotation (d r_G = -R_G d r_fixed), averaged.
-        Crf = sum(m.fixed2cam_cov[3:, 3:] for m in with_base) / len(with_base) ** 2
+        Crf = sum(m.fixed.cov_noise[3:, 3:] for m in with_base) / len(with_base) ** 2
         CG = RG @ Crf @ RG.T
         C = np.vstack([-skew(mean[:3]), -skew(mean[3:])])
         cov = Bm @ cov @ Bm.T + C @ CG @ C.T
+        if Gc is not None:
+            if all(m.fixed.calibration_jacobian is not None for m in with_base):
+                Af = np.mean([m.fixed.calibration_jacobian[3:] for m in with_base], axis=0)
+                Gc = Bm @ Gc - C @ RG @ Af
+            else:
+                Gc = None
         frame_name = "base"
     else:
         mean = S.mean(axis=0)
         frame_name = "cam"
     std = S.std(axis=0, ddof=1) if len(S) > 1 else np.full(6, np.nan)
+    Sc = _calibration_cov(u + lo) if Gc is not None else None
+    cov_cal = None
+    if Sc is not None:
+        cov_cal = Gc @ Sc @ Gc.T
+        cov_cal = 0.5 * (cov_cal + cov_cal.T)
+        cov = cov + cov_cal
     return Displacement(
         d=mean[:3],
         r=mean[3:],
@@ -274,7 +365,20 @@ def compliant_displacement(
         n_loaded=len(lo),
         fixed_shift=fixed_shift,
         flags=tuple(flags),
+        cov_calibration=cov_cal,
+        calibration_jacobian=Gc,
     )
+
+
+def _calibration_cov(ms: Sequence[ImageMeasurement]) -> np.ndarray | None:
+    """The camera's calibration covariance the measurements share (None: unknown in some)."""
+    covs = [m.calibration_cov for m in ms]
+    if not covs or any(c is None for c in covs):
+        return None
+    first = covs[0]
+    if any(c.shape != first.shape or not np.array_equal(c, first) for c in covs[1:]):
+        raise ValueError("the measurements were made with different cameras (calibration covariances differ)")
+    return first
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,14 @@ class ImageMeasurement:
         The mobile target in the robot base frame (fixed target and
         ``fixed2base`` given), mm.
     mobile2base_cov : ndarray, shape (6, 6) or None
-        Its covariance (t, r in the base frame; fixed and mobile target noise).
+        Its covariance (t, r in the base frame; fixed and mobile target noise, and the
+        calibration's share propagated through both poses at once).
+    mobile2base_calibration_jacobian : ndarray, shape (6, n) or None
+        d(t, r of mobile2base) / d(camera parameters): the calibration's error moves the
+        fixed and the mobile target's poses together.
+    calibration_cov : ndarray, shape (n, n) or None
+        The camera's calibration covariance (``CameraModel.calibration_cov``) the poses'
+        ``cov_calibration`` were propagated from (None: unknown).
     mobile_detection, fixed_detection : BoardDetection or None
     timings : dict of str to float
         Seconds spent: ``read``, ``detect``, ``pose``, ``total``.
@@ -57,6 +64,8 @@ class ImageMeasurement:
     fixed: BoardPose | None = None
     mobile2base: np.ndarray | None = None
     mobile2base_cov: np.ndarray | None = None
+    mobile2base_calibration_jacobian: np.ndarray | None = None
+    calibration_cov: np.ndarray | None = None
     mobile_detection: BoardDetection | None = None
     fixed_detection: BoardDetection | None = None
     timings: dict[str, float] = field(default_factory=dict)
@@ -125,6 +134,13 @@ def mobile2base_from_poses(mobile2cam, cov_mobile, fixed2cam, cov_fixed, fixed2b
     Cf = np.asarray(cov_fixed, dtype=np.float64)
     if Cm.shape != (6, 6) or Cf.shape != (6, 6):
         raise ValueError(f"covariances must be (6, 6), got {Cm.shape} and {Cf.shape}")
+    G, Jm, Jf = _mobile2base_jacobians(M, F, B)
+    cov = Jm @ Cm @ Jm.T + Jf @ Cf @ Jf.T
+    return G @ M, 0.5 * (cov + cov.T)
+
+
+def _mobile2base_jacobians(M: np.ndarray, F: np.ndarray, B: np.ndarray):
+    """cam2base and d(mobile2base)/d(mobile2cam), d(mobile2base)/d(fixed2cam) (see above)."""
     G = B @ invert_transform(F)
     RG = G[:3, :3]
     b = RG @ (F[:3, 3] - M[:3, 3])
@@ -135,8 +151,7 @@ def mobile2base_from_poses(mobile2cam, cov_mobile, fixed2cam, cov_fixed, fixed2b
     Jf[:3, :3] = -RG
     Jf[:3, 3:] = -skew(b) @ RG
     Jf[3:, 3:] = -RG
-    cov = Jm @ Cm @ Jm.T + Jf @ Cf @ Jf.T
-    return G @ M, 0.5 * (cov + cov.T)
+    return G, Jm, Jf
 
 
 class PoseTracker:
@@ -277,11 +292,18 @@ class PoseTracker:
         self._poses = [p.board2cam for p in poses]
         mobile = poses[0]
         fixed = poses[1] if len(poses) > 1 else None
-        m2b = m2b_cov = None
+        m2b = m2b_cov = m2b_A = None
         if fixed is not None and self.fixed2base is not None:
+            # The poses' own noise is independent; the calibration's error moves both at once.
             m2b, m2b_cov = mobile2base_from_poses(
-                mobile.board2cam, mobile.cov, fixed.board2cam, fixed.cov, self.fixed2base
+                mobile.board2cam, mobile.cov_noise, fixed.board2cam, fixed.cov_noise, self.fixed2base
             )
+            if mobile.calibration_jacobian is not None and fixed.calibration_jacobian is not None:
+                _, Jm, Jf = _mobile2base_jacobians(mobile.board2cam, fixed.board2cam, self.fixed2base)
+                m2b_A = Jm @ mobile.calibration_jacobian + Jf @ fixed.calibration_jacobian
+                Sc = self.camera.calibration_cov
+                if Sc is not None:
+                    m2b_cov = m2b_cov + m2b_A @ Sc @ m2b_A.T
         timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
         return ImageMeasurement(
             image=label,
@@ -289,6 +311,8 @@ class PoseTracker:
             fixed=fixed,
             mobile2base=m2b,
             mobile2base_cov=m2b_cov,
+            mobile2base_calibration_jacobian=m2b_A,
+            calibration_cov=self.camera.calibration_cov,
             mobile_detection=dets[0],
             fixed_detection=dets[1] if len(dets) > 1 else None,
             timings=timings,
