@@ -5,14 +5,15 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from helpers.board_images import quick_board_image
+from helpers.board_images import quick_board_image, warped_board_image
 from helpers.board_scenes import close_two_target_poses, exact_corners, look_at_pose, small_camera
 
-from stiffmap.camera import reference_camera
+from stiffmap.camera import CameraModel, reference_camera
 from stiffmap.errors import InputError
 from stiffmap.sim.render import Target, render
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import DetectionError, detect_board, detect_boards, track_board
+from stiffmap.vision.board_plane import trim_to_saddles
 
 CAM = small_camera()
 ODD = Chessboard(7, 6, 10.0)  # cols + rows odd: colours fix the origin
@@ -196,3 +197,20 @@ def test_one_board_tracked_the_other_searched_again():
     assert not d1[0].tracked and d1[1].tracked
     np.testing.assert_allclose(d1[0].corners, exact_corners(CAM, ODD, M1), atol=0.08)
     np.testing.assert_allclose(d1[1].corners, exact_corners(CAM, fixed, F), atol=0.08)
+
+
+def test_a_grid_followed_into_the_printed_margin_is_trimmed_back_to_the_board():
+    # OpenCV's "larger" search may follow a board one row into its white margin (the
+    # issue's "9x7 for a 9x6 board"): those "corners" sit on an edge, not where four squares
+    # meet, and must not make the diagnosis say "a bigger grid". Board drawn by OpenCV alone.
+    board = Chessboard(9, 6, 20.0)
+    cam = CameraModel((1024, 768), 1300.0, 1300.0, 511.5, 383.5, (0.0, 0.0, 0.0, 0.0, 0.0))
+    T = look_at_pose(600.0, board, tilt_deg=(15.0, -10.0, 3.0))
+    img = warped_board_image(cam, board, T, margin_sq=2.0, background=20.0)
+    grid = exact_corners(cam, board, T).reshape(board.rows, board.cols, 2)
+    assert trim_to_saddles(img, grid).shape == grid.shape  # the board itself is kept whole
+    for extended in (
+        np.concatenate([grid, 2 * grid[-1:] - grid[-2:-1]], axis=0),  # one row into the margin
+        np.concatenate([2 * grid[:, :1] - grid[:, 1:2], grid], axis=1),  # one column
+    ):
+        np.testing.assert_array_equal(trim_to_saddles(img, extended), grid)

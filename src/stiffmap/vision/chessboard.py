@@ -3,8 +3,9 @@
 1. **Coarse search** with OpenCV's detectors on the image reduced by an integer factor
    (:func:`~stiffmap.vision.images.coarse_scales`): ``findChessboardCornersSB`` first,
    then the classic ``findChessboardCorners`` (adaptive threshold, quads; it finds boards
-   seen at steep angles that SB misses; on images up to 1700 px), then SB's exhaustive search, and the same at
-   finer scales down to full resolution only when the coarser ones fail. Several boards
+   seen at steep angles that SB misses; on images up to 1700 px), then SB's exhaustive
+   search, and the same at finer scales down to full resolution only when the coarser
+   ones fail. Several boards
    in one image are told apart by their size (inner corners): the board with the most
    corners is searched first and each board found is masked before the next search,
    because the detectors return at most one board per call.
