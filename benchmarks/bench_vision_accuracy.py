@@ -38,10 +38,10 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from _table import write  # noqa: E402
 from helpers.board_images import TESTBED_RENDERER, testbed_board_image  # noqa: E402
-from helpers.board_scenes import look_at_pose  # noqa: E402
+from helpers.board_scenes import look_at_pose, moved_pose, random_displacement  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
-from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec  # noqa: E402
+from stiffmap.geometry import displacement_from_poses  # noqa: E402
 from stiffmap.targets import Chessboard  # noqa: E402
 from stiffmap.vision import PoseTracker  # noqa: E402
 
@@ -67,14 +67,8 @@ def draw_pose(rng, distance):
 def one_case(rng, distance, magnitude):
     cam = reference_camera()
     T0 = draw_pose(rng, distance)
-    u = rng.normal(size=3)
-    u /= np.linalg.norm(u)
-    rv = rng.normal(size=3)
-    rv *= rng.uniform(0, 1e-3) / np.linalg.norm(rv)
     # Rotation about the target origin, then the translation: the origin moves by exactly d.
-    T1 = T0.copy()
-    T1[:3, :3] = matrix_from_rotvec(rv) @ T0[:3, :3]
-    T1[:3, 3] = T0[:3, 3] + magnitude * u
+    T1 = moved_pose(T0, random_displacement(rng, magnitude))
     tr = PoseTracker(cam, BOARD)
     ims = [testbed_board_image(cam, [(BOARD, T)], rng) for T in (T0, T1)]
     m0 = tr.measure(ims[0], "unloaded")

@@ -57,6 +57,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from _table import write  # noqa: E402
 from bench_vision_photometric import board_symmetry, draw_pose, rms  # noqa: E402
 from helpers.board_images import (  # noqa: E402
     area_board_image,
@@ -65,9 +66,10 @@ from helpers.board_images import (  # noqa: E402
     testbed_board_image,
     warped_board_image,
 )
+from helpers.board_scenes import moved_pose, random_displacement  # noqa: E402
 
 from stiffmap.camera import CameraModel  # noqa: E402
-from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec  # noqa: E402
+from stiffmap.geometry import displacement_from_poses  # noqa: E402
 from stiffmap.targets import Chessboard  # noqa: E402
 from stiffmap.vision import PoseTracker  # noqa: E402
 
@@ -115,13 +117,7 @@ def draw_cases(n: int, seed: int):
         dist = float(np.exp(rng.uniform(*np.log(DISTANCE_MM))))
         T0 = draw_pose(rng, cam, board, dist)
         mag = float(np.exp(rng.uniform(np.log(0.05), np.log(2.0))))
-        u = rng.normal(size=3)
-        u /= np.linalg.norm(u)
-        rv = rng.normal(size=3)
-        rv *= rng.uniform(0, 1e-3) / np.linalg.norm(rv)
-        T1 = T0.copy()
-        T1[:3, :3] = matrix_from_rotvec(rv) @ T0[:3, :3]
-        T1[:3, 3] = T0[:3, 3] + mag * u
+        T1 = moved_pose(T0, random_displacement(rng, mag))
         cases.append((board, T0, T1))
     return cases
 
@@ -250,10 +246,7 @@ def main() -> None:
     ]
     lines += tail
     print("\n".join(tail))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text("\n".join(lines) + "\n")
-    print(f"saved {out}")
+    write(args.out, "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -36,10 +36,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from helpers.board_scenes import look_at_pose  # noqa: E402
+from helpers.board_scenes import look_at_pose, moved_pose, random_displacement  # noqa: E402
 
 from stiffmap.camera import reference_camera  # noqa: E402
-from stiffmap.geometry import displacement_from_poses, matrix_from_rotvec  # noqa: E402
+from stiffmap.geometry import displacement_from_poses  # noqa: E402
 from stiffmap.sim.render import Photometry, Target, render  # noqa: E402
 from stiffmap.targets import Chessboard  # noqa: E402
 from stiffmap.vision import PoseTracker  # noqa: E402
@@ -82,13 +82,7 @@ def board_symmetry(board, S_est):
 def one_case(rng, cam, board, distance):
     T0 = draw_pose(rng, cam, board, distance)
     mag = float(np.exp(rng.uniform(np.log(0.05), np.log(2.0))))
-    u = rng.normal(size=3)
-    u /= np.linalg.norm(u)
-    rv = rng.normal(size=3)
-    rv *= rng.uniform(0, 1e-3) / np.linalg.norm(rv)
-    T1 = T0.copy()
-    T1[:3, :3] = matrix_from_rotvec(rv) @ T0[:3, :3]
-    T1[:3, 3] = T0[:3, 3] + mag * u
+    T1 = moved_pose(T0, random_displacement(rng, mag))
     ph = Photometry()
     imgs = [render(cam, [Target(board, T)], photometry=ph, seed=rng).image for T in (T0, T1)]
     centre = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])

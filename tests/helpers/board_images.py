@@ -248,6 +248,18 @@ def brute_force_reflectance(camera: CameraModel, target, roi, n: int = 64, backg
     return (refl * alpha + (1 - alpha) * background).mean(axis=(2, 3))
 
 
+def _blur_noise_8bit(
+    img: np.ndarray, blur_after_px: float, noise: float, rng: np.random.Generator | None
+) -> np.ndarray:
+    """The last steps of the drawings: a Gaussian blur after pixel integration (sigma px),
+    additive Gaussian noise (grey levels) and 8-bit quantisation."""
+    if blur_after_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), blur_after_px)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    img = img + rng.normal(0.0, noise, img.shape)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
 def warped_board_image(
     camera: CameraModel,
     board: Chessboard,
@@ -322,11 +334,7 @@ def warped_board_image(
         raster, S @ Hb @ A, (w * ss, h * ss), flags=cv2.INTER_LINEAR, borderValue=float(background)
     )
     img = cv2.resize(fine, (w, h), interpolation=cv2.INTER_AREA)
-    if blur_after_px > 0:
-        img = cv2.GaussianBlur(img, (0, 0), blur_after_px)
-    rng = rng if rng is not None else np.random.default_rng(0)
-    img = img + rng.normal(0.0, noise, img.shape)
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    return _blur_noise_8bit(img, blur_after_px, noise, rng)
 
 
 def _quadrant_area(poly: np.ndarray, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
@@ -417,11 +425,7 @@ def area_board_image(
             if ((i + j) % 2 == 0) != white_first:
                 sq = s * np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], dtype=float)
                 paint_polygon(img, to_image(sq), black - white)
-    if blur_after_px > 0:
-        img = cv2.GaussianBlur(img, (0, 0), blur_after_px)
-    rng = rng if rng is not None else np.random.default_rng(0)
-    img = img + rng.normal(0.0, noise, img.shape)
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    return _blur_noise_8bit(img, blur_after_px, noise, rng)
 
 
 #: OpenCV's demosaicing of an RGGB mosaic (R at even rows and columns: OpenCV's "BayerBG").

@@ -96,6 +96,19 @@ def moved_pose(T: np.ndarray, delta) -> np.ndarray:
     return out
 
 
+def random_displacement(
+    rng: np.random.Generator, magnitude_mm: float, max_rotation_rad: float = 1e-3
+) -> np.ndarray:
+    """A small (dt (3, mm), dr (3, rad)) for :func:`moved_pose`: a translation of ``magnitude_mm``
+    along a random direction and a rotation of up to ``max_rotation_rad`` about a random axis
+    (camera frame; the benchmarks' "load" between an unloaded and a loaded image)."""
+    u = rng.normal(size=3)
+    u /= np.linalg.norm(u)
+    rv = rng.normal(size=3)
+    rv *= rng.uniform(0, max_rotation_rad) / np.linalg.norm(rv)
+    return np.concatenate([magnitude_mm * u, rv])
+
+
 def exact_corners(camera: CameraModel, board: Chessboard, board2cam: np.ndarray) -> np.ndarray:
     """Exact pixel positions of the inner corners, shape (n, 2), canonical order."""
     b2c = np.asarray(board2cam, dtype=np.float64)

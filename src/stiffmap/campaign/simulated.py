@@ -325,12 +325,7 @@ def write_campaign(
     if int(workers) < 1:
         raise InputError(f"workers must be >= 1, got {workers}")
     if plan is None:
-        try:
-            plan = plan_campaign(config)
-        except InputError:
-            raise
-        except ValueError as e:
-            raise InputError(str(e)) from None
+        plan = plan_campaign(config)
     prepare_output_dir(out, force)
     save_camera(config.scene.camera, out / "camera.json")
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))

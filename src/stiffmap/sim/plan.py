@@ -191,12 +191,7 @@ def plan_simulation(
         image (naming the position, load and repeat); or images that would take more
         than 95 % of the free disk space (naming ``out_dir``).
     """
-    try:
-        plan = plan_campaign(config)
-    except InputError:
-        raise
-    except ValueError as e:
-        raise InputError(str(e)) from None
+    plan = plan_campaign(config)
     n_images = len(plan.jobs) if render_images else 0
     need = image_bytes(config, n_images)
     out = Path(out_dir)

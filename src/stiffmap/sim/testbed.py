@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..errors import InputError
 from ..loads import LoadCase
 from ..models.base import PoseError
 from ..units import G_REFERENCE_PAPER
@@ -191,7 +192,7 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
 
     Raises
     ------
-    ValueError
+    InputError
         If the stiffness field is bad at a position, or a board leaves the image
         in some image (naming the position, load and repeat).
     """
@@ -203,7 +204,7 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
         if e.index is None:
             raise
         p = P[e.index]
-        raise ValueError(
+        raise InputError(
             f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the robot model has no "
             f"stiffness there ({e.reason or e.detail})"
         ) from None
@@ -226,7 +227,7 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
                     offset = max(ph.offset_dn + cfg.offset_jitter_dn * rng.standard_normal(), 0.0)
                     why = cfg.scene.visibility_problem(T, border_px=cfg.border_px)
                     if why:
-                        raise ValueError(
+                        raise InputError(
                             f"position {ip} ({', '.join(f'{v:g}' for v in p)}) mm, load {il}, repeat {ir}, "
                             f"{state}: {why}"
                         )
