@@ -31,6 +31,17 @@ residuals (multivariate regression, n - m degrees of freedom); it is carried to
 K by the first-order rule dK = -K dC K. Confidence intervals use Student's t
 with Welch-Satterthwaite effective degrees of freedom when Sigma is estimated.
 
+Common error: displacements measured with one instrument share its calibration's error (a
+camera whose focal length is off by 1e-3 makes every displacement 1e-3 too large). That error
+is not noise: it does not average out over load cases, the residuals do not show it (a scale
+error is absorbed by C) and it is not independent between load cases. Given each
+displacement's sensitivity G_i = d d_i / d c to the common parameters c and their covariance
+Sigma_c (``common_jacobian``, ``common_cov``), its share of K's covariance is
+(dK/dc) Sigma_c (dK/dc)^T, with dK/dc exact through the estimator (linear in D for the
+compliance estimators at fixed weights); it is added to the noise's share and kept apart
+(``K_cov_common``). The effective degrees of freedom then follow Welch-Satterthwaite with
+the common share taken as known.
+
 Shapes: m = 3 (forces, N, and translations, mm: K in N/mm) or m = 6 (wrenches
 N, N*mm and displacements mm, rad). Load cases are columns: F and D are m x n.
 Covariances of K are over ``K.ravel()`` (row-major).
@@ -167,6 +178,9 @@ class StiffnessFit:
         Design and physical warnings (see :func:`physical_flags`).
     offset : ndarray, shape (m,), or None
         The estimated common displacement offset b (mm; rad), when asked for.
+    K_cov_common : ndarray, shape (m*m, m*m), or None
+        The share of ``K_cov`` from the displacements' common error (``common_jacobian``,
+        ``common_cov``; e.g. the camera calibration's), None when none was given.
     """
 
     K: np.ndarray
@@ -184,10 +198,22 @@ class StiffnessFit:
     chi2_reduced: float | None
     flags: tuple[str, ...] = field(default_factory=tuple)
     offset: np.ndarray | None = None
+    K_cov_common: np.ndarray | None = None
 
     @property
     def indices(self) -> StiffnessIndices:
         return stiffness_indices(self.K)
+
+    @property
+    def common_share(self) -> np.ndarray:
+        """Share of each entry's variance from the common error, shape (m, m), 0..1 (NaN: not given)."""
+        m = self.K.shape[0]
+        if self.K_cov_common is None:
+            return np.full((m, m), np.nan)
+        tot = np.diag(self.K_cov)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.where(tot > 0, np.diag(self.K_cov_common) / tot, 0.0)
+        return share.reshape(m, m)
 
     def confidence_interval(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
         """Two-sided confidence interval of every entry of K.
@@ -263,6 +289,28 @@ def _check_cov(cov, m: int, n: int, name: str, *, semidefinite: bool = False) ->
             kind = "semi-definite" if semidefinite else "definite"
             raise ValueError(f"{name} of load case {i} is not positive {kind} (eigenvalue {w[0]:.3g})")
     return S
+
+
+def _check_common(G, S, m: int, n: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The common error's (Jacobian (n, m, p), covariance (p, p)), checked; None when not given."""
+    if G is None and S is None:
+        return None
+    if G is None or S is None:
+        raise ValueError("common_jacobian and common_cov go together: give both or neither")
+    G = np.asarray(G, dtype=np.float64)
+    S = np.asarray(S, dtype=np.float64)
+    if G.ndim != 3 or G.shape[:2] != (n, m):
+        raise ValueError(f"common_jacobian must have shape ({n}, {m}, p), got {G.shape}")
+    p = G.shape[2]
+    if S.shape != (p, p):
+        raise ValueError(f"common_cov must have shape ({p}, {p}) to match common_jacobian, got {S.shape}")
+    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(S))):
+        raise ValueError("common_jacobian and common_cov must be finite")
+    S = 0.5 * (S + S.T)
+    w = np.linalg.eigvalsh(S) if p else np.zeros(0)
+    if p and w[0] < -1e-12 * max(abs(w[-1]), np.finfo(float).tiny):
+        raise ValueError(f"common_cov is not positive semi-definite (eigenvalue {w[0]:.3g})")
+    return G, S
 
 
 def _gls_compliance(F: np.ndarray, D: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -381,6 +429,8 @@ def identify_stiffness(
     disp_cov=None,
     force_cov=None,
     offset: bool = False,
+    common_jacobian=None,
+    common_cov=None,
     names: tuple[str, str] = ("forces", "displacements"),
 ) -> StiffnessFit:
     """Identify a stiffness matrix from load cases.
@@ -413,6 +463,12 @@ def identify_stiffness(
         that reference's error is then common to all of them, and without the
         offset it would leak into C as a non-symmetric error that the residuals do
         not show. Costs one residual degree of freedom per component.
+    common_jacobian : array_like, shape (n, m, p), optional
+        Each displacement's sensitivity to p parameters whose error all displacements share
+        (the camera calibration's: ``Displacement.calibration_jacobian``); with
+        ``common_cov`` (p, p), their covariance. Their share of K's covariance is added to
+        ``K_cov`` and kept in ``K_cov_common`` (module docstring, "Common error").
+    common_cov : array_like, shape (p, p), optional
     names : (str, str)
         What to call F and D in error messages (file names from the CLI).
 
@@ -464,6 +520,7 @@ def identify_stiffness(
         )
     Sd = _check_cov(disp_cov, m, n, "disp_cov")
     Sf = _check_cov(force_cov, m, n, "force_cov", semidefinite=True)
+    common = _check_common(common_jacobian, common_cov, m, n)
     disp_source = names[1] if names[1] != "displacements" else None
     _check_displacements(D, m, disp_source)
     try:
@@ -471,7 +528,7 @@ def identify_stiffness(
         # RuntimeWarning followed by a NaN result.
         with np.errstate(over="raise", divide="raise", invalid="raise"):
             return _estimate(
-                F, D, Fa, Sd, Sf, method=method, offset=offset, rank=rank, cond=cond, flags=flags
+                F, D, Fa, Sd, Sf, common, method=method, offset=offset, rank=rank, cond=cond, flags=flags
             )
     except (np.linalg.LinAlgError, FloatingPointError):
         raise DesignError(_no_finite_stiffness(F, D), source=disp_source) from None
@@ -515,6 +572,7 @@ def _estimate(
     Fa: np.ndarray,
     Sd: np.ndarray | None,
     Sf: np.ndarray | None,
+    common: tuple[np.ndarray, np.ndarray] | None,
     *,
     method: str,
     offset: bool,
@@ -607,6 +665,18 @@ def _estimate(
             f"no residual degrees of freedom ({n} load cases for {q} unknowns per component): "
             "the uncertainty of K is unknown; add load cases or give displacement uncertainties"
         )
+    K_cov_common = None
+    if common is not None:
+        dK = _common_sensitivity(common[0], F, Fa, Dm, K, W, given, method=method, offset=offset)
+        K_cov_common = dK @ common[1] @ dK.T
+        K_cov_common = 0.5 * (K_cov_common + K_cov_common.T)
+        # Welch-Satterthwaite with the common share known: nu = (v_noise + v_common)^2 nu / v_noise^2.
+        vn = np.diag(K_cov).reshape(m, m)
+        vt = vn + np.diag(K_cov_common).reshape(m, m)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = (vt / np.where(vn > 0, vn, 1.0)) ** 2
+            dof_eff = np.where(np.isnan(vn), np.nan, np.where(vn > 0, dof_eff * ratio, np.inf))
+        K_cov = K_cov + K_cov_common
     K_std = np.sqrt(np.clip(np.diag(K_cov), 0, None)).reshape(m, m)
     flags.extend(physical_flags(K, K_cov if np.all(np.isfinite(K_cov)) else None))
     return StiffnessFit(
@@ -625,4 +695,54 @@ def _estimate(
         chi2_reduced=chi2_red,
         flags=tuple(flags),
         offset=b_off,
+        K_cov_common=K_cov_common,
     )
+
+
+def _common_sensitivity(
+    G: np.ndarray,
+    F: np.ndarray,
+    Fa: np.ndarray,
+    Dm: np.ndarray,
+    K: np.ndarray,
+    W: np.ndarray,
+    given: bool,
+    *,
+    method: str,
+    offset: bool,
+) -> np.ndarray:
+    """d K.ravel() / d c (m*m, p) when the displacements move by G[i] dc (exact at fixed weights).
+
+    Each estimator is differentiated as computed: the (weighted) compliance fit is linear in
+    D; the symmetric fit too while its positive-definite constraint is inactive (first order
+    otherwise); the paper's K = F Dm^T (Dm Dm^T)^-1 by the product rule. With an offset, Dm's
+    perturbation is the displacements' minus the offset's.
+    """
+    n, m, p = G.shape
+    J = _inverse_jacobian(K)
+    P = np.linalg.inv(Fa @ Fa.T)
+    if method == "spd":
+        B = _sym_basis(m)
+        eye = np.eye(m)
+        A = [np.kron(eye, F[:, i][None, :]) @ B for i in range(n)]
+        Hinv = np.linalg.inv(sum(A[i].T @ W[i] @ A[i] for i in range(n)))
+    else:
+        A, B, Hinv = [], None, None
+    DDinv = np.linalg.inv(Dm @ Dm.T) if method == "paper" else None
+    out = np.empty((m * m, p))
+    for k in range(p):
+        dD = G[:, :, k].T  # (m, n)
+        if given:
+            dCa = _gls_compliance(Fa, dD, W)[0]
+        else:
+            dCa = dD @ Fa.T @ P
+        dDm = dD - dCa[:, m][:, None] if offset else dD
+        if method == "compliance":
+            out[:, k] = J @ dCa[:, :m].ravel()
+        elif method == "paper":
+            dK = F @ dDm.T @ DDinv - K @ (dDm @ Dm.T + Dm @ dDm.T) @ DDinv
+            out[:, k] = dK.ravel()
+        else:
+            x = Hinv @ sum(A[i].T @ W[i] @ dDm[:, i] for i in range(n))
+            out[:, k] = J @ (B @ x)
+    return out

@@ -13,6 +13,14 @@
 4. repeat statistics per load case;
 5. K with standard errors, indices, flags and ISO 5725 repeatability.
 
+The camera calibration's error is common to every image of the campaign: each displacement
+carries its sensitivity G to the camera's parameters (from the poses' sensitivities, as
+:func:`stiffmap.vision.displacement.compliant_displacement` does) and, with the camera's
+covariance Sigma_c, its share G Sigma_c G^T of the displacement's covariance
+(``cov_calibration``); K's covariance gets the share of that common error through the
+identification (``identify_stiffness(common_jacobian=..., common_cov=...)``), not as
+independent noise.
+
 The results are rows of the results database (dicts of column values), ready
 for :meth:`stiffmap.campaign.store.Store.save_position`.
 """
@@ -31,6 +39,7 @@ from ..geometry import cam2base_from_fixed, displacement_from_poses, mean_transf
 from ..identify import identify_stiffness
 from ..loads import LoadCase
 from ..stats import describe, precision
+from ..vision.displacement import base_frame_calibration_jacobian, pair_calibration_jacobian
 from .measure import ImageRow
 from .positions import Pair, PositionTask
 from .spec import CampaignSpec, TargetsSpec
@@ -56,6 +65,9 @@ class _BaseFrame:
     cam2base: np.ndarray  # (4, 4); the identity when the campaign has no fixed target
     name: str  # "base", or "cam" without a fixed target
     missing: bool  # a fixed target is expected but was found in no image
+    # Mean sensitivity (3, n) of the fixed target's rotation to the camera's parameters (None:
+    # not in the base frame, or unknown in some image).
+    fixed_rotation_jacobian: np.ndarray | None = None
 
     @property
     def rotation6(self) -> np.ndarray:
@@ -75,6 +87,8 @@ def derive_position(
     method: str,
     inputs_hash: str,
     phash: str,
+    *,
+    calibration_cov: np.ndarray | None = None,
 ) -> PositionResult:
     """Displacements (base frame), repeat statistics and K of one position.
 
@@ -90,23 +104,34 @@ def derive_position(
         Identification method (:func:`stiffmap.identify.identify_stiffness`).
     inputs_hash, phash : str
         Stored with the rows: the hash of the position's inputs and of the parameters.
+    calibration_cov : ndarray, shape (n, n), optional
+        The camera's calibration covariance (``CameraModel.calibration_cov``); None: unknown,
+        the calibration's share is left out (and said nowhere to be included).
     """
     res = PositionResult()
     base = _base_frame(task, rows, spec.targets, res.problems)
     mean_ref = spec.images.pairing == "mean-reference"
     reference = _mean_reference(task, rows, res.problems) if mean_ref else None
     point = np.asarray(spec.targets.mobile.point_mm, dtype=float)
-    F_cols, D_cols = [], []
+    F_cols, D_cols, G_cols = [], [], []
     per_load: dict[int, list[np.ndarray]] = {}
     for pr in task.pairs:
-        row, d = _pair_displacement(task, pr, rows, base, mean_ref, reference, point, phash)
+        row, d, G = _pair_displacement(
+            task, pr, rows, base, mean_ref, reference, point, phash, calibration_cov
+        )
         res.displacements.append(row)
         if d is not None:
             F_cols.append(loads[pr.load - 1].force)
             D_cols.append(d[:3])
+            G_cols.append(G)
             per_load.setdefault(pr.load, []).append(d)
     res.repeat_stats = _repeat_stats(task.index, per_load)
-    res.stiffness, problem = _stiffness(task, F_cols, D_cols, per_load, method, mean_ref, inputs_hash, phash)
+    common = None
+    if calibration_cov is not None and G_cols and all(G is not None for G in G_cols):
+        common = (np.asarray([G[:3] for G in G_cols]), np.asarray(calibration_cov))
+    res.stiffness, problem = _stiffness(
+        task, F_cols, D_cols, per_load, method, mean_ref, inputs_hash, phash, common
+    )
     if problem is not None:
         res.problems.append(problem)
     return res
@@ -123,20 +148,25 @@ def _base_frame(
         problems.append(f"position {task.index}: the fixed target was not found in any image")
         return _BaseFrame(np.eye(4), "cam", missing=True)
     cam2base = cam2base_from_fixed(targets.fixed.fixed2base, mean_transform([r.fixed2cam for r in fixed_ok]))
-    return _BaseFrame(cam2base, "base", missing=False)
+    jac = [r.fixed_cal_jac for r in fixed_ok]
+    Af = None if any(a is None for a in jac) else np.mean([a[3:] for a in jac], axis=0)
+    return _BaseFrame(cam2base, "base", missing=False, fixed_rotation_jacobian=Af)
 
 
 def _mean_reference(
     task: PositionTask, rows: dict[str, ImageRow], problems: list[str]
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The mean unloaded pose of the position (camera frame) and its covariance, or None."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """The mean unloaded pose of the position (camera frame), its covariance and calibration
+    sensitivity (the mean of its images'; None when unknown in one), or None."""
     refs = [
         rows[rel] for rel in dict.fromkeys(pr.unloaded for pr in task.pairs) if rel in rows and rows[rel].ok
     ]
     if not refs:
         problems.append(f"position {task.index}: no usable unloaded image")
         return None
-    return mean_transform([r.mobile2cam for r in refs]), sum(r.mobile_cov for r in refs) / len(refs) ** 2
+    jac = [r.mobile_cal_jac for r in refs]
+    A = None if any(a is None for a in jac) else np.mean(jac, axis=0)
+    return mean_transform([r.mobile2cam for r in refs]), sum(r.mobile_cov for r in refs) / len(refs) ** 2, A
 
 
 def _pair_displacement(
@@ -145,11 +175,13 @@ def _pair_displacement(
     rows: dict[str, ImageRow],
     base: _BaseFrame,
     mean_ref: bool,
-    reference: tuple[np.ndarray, np.ndarray] | None,
+    reference: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None,
     point: np.ndarray,
     phash: str,
-) -> tuple[dict[str, Any], np.ndarray | None]:
-    """The ``displacements`` row of one pair, and its displacement (6,) when it could be measured."""
+    calibration_cov: np.ndarray | None,
+) -> tuple[dict[str, Any], np.ndarray | None, np.ndarray | None]:
+    """The ``displacements`` row of one pair, its displacement (6,) when it could be measured,
+    and the displacement's sensitivity (6, n) to the camera's parameters (None: unknown)."""
     u, lo = rows.get(pr.unloaded), rows.get(pr.loaded)
     row = {
         "position": task.index,
@@ -172,12 +204,32 @@ def _pair_displacement(
     if bad or base.missing:
         # Without the fixed target the displacement cannot be put in the base frame.
         row.update(status="failed", error="; ".join(bad) or "the fixed target was not found in any image")
-        return row, None
-    M0, cov0 = reference if mean_ref else (u.mobile2cam, u.mobile_cov)
+        return row, None, None
+    M0, cov0, A0 = reference if mean_ref else (u.mobile2cam, u.mobile_cov, u.mobile_cal_jac)
     d = displacement_from_poses(base.cam2base @ M0, base.cam2base @ lo.mobile2cam, point)
     cov = _displacement_covariance(M0, cov0, lo.mobile_cov, point, base.rotation6)
-    row.update(status="ok", error=None, d=to_json(d), cov=to_json(cov))
-    return row, d
+    G = _calibration_jacobian(M0, A0, lo, point, d, base)
+    cov_cal = None
+    if G is not None and calibration_cov is not None:
+        cov_cal = G @ calibration_cov @ G.T
+        cov_cal = 0.5 * (cov_cal + cov_cal.T)
+        cov = cov + cov_cal
+    row.update(status="ok", error=None, d=to_json(d), cov=to_json(cov), cov_calibration=to_json(cov_cal))
+    return row, d, G
+
+
+def _calibration_jacobian(
+    M0: np.ndarray, A0: np.ndarray | None, lo: ImageRow, point: np.ndarray, d: np.ndarray, base: _BaseFrame
+) -> np.ndarray | None:
+    """d(displacement, base frame) / d(camera parameters), (6, n); None when a sensitivity is unknown."""
+    if A0 is None or lo.mobile_cal_jac is None:
+        return None
+    G = pair_calibration_jacobian(M0, A0, lo.mobile2cam, lo.mobile_cal_jac, point)
+    if base.name != "base":
+        return G
+    if base.fixed_rotation_jacobian is None:
+        return None
+    return base_frame_calibration_jacobian(G, d, base.cam2base[:3, :3], base.fixed_rotation_jacobian)
 
 
 def _displacement_covariance(
@@ -220,8 +272,13 @@ def _stiffness(
     mean_ref: bool,
     inputs_hash: str,
     phash: str,
+    common: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[dict[str, Any], str | None]:
-    """The ``stiffness`` row of a position from its usable (force, displacement) pairs, and its problem."""
+    """The ``stiffness`` row of a position from its usable (force, displacement) pairs, and its problem.
+
+    ``common``: the displacements' sensitivities (n, 3, p) to the camera's parameters and
+    the camera's covariance (p, p), whose share K's covariance then includes.
+    """
     x, y, z = task.xyz
     st = {
         "position": task.index,
@@ -245,7 +302,14 @@ def _stiffness(
         with warnings.catch_warnings(record=True):
             warnings.simplefilter("always", StiffmapWarning)
             # Against a mean reference every displacement shares its error: estimate that offset.
-            fit = identify_stiffness(F, D, method=method, offset=mean_ref)
+            fit = identify_stiffness(
+                F,
+                D,
+                method=method,
+                offset=mean_ref,
+                common_jacobian=None if common is None else common[0],
+                common_cov=None if common is None else common[1],
+            )
     except (InputError, ValueError) as e:
         st.update(status="failed", error=str(e))
         return st, f"position {task.index}: {e}"
@@ -257,6 +321,7 @@ def _stiffness(
         K=to_json(fit.K),
         K_std=to_json(fit.K_std),
         K_cov=to_json(fit.K_cov),
+        K_cov_calibration=to_json(fit.K_cov_common),
         det=idx.det,
         eigenvalues=to_json(idx.eigenvalues),
         min_principal=idx.min_principal,

@@ -8,9 +8,12 @@ Tables (one row each):
 - ``stiffness``: per position x, y, z (mm), status, K entries ``k11..k33`` and
   standard errors ``s11..s33`` (N/mm), det (N/mm)^3, smallest principal
   stiffness and the three principal stiffnesses (N/mm), condition numbers,
-  flags (joined by " | ");
+  the camera calibration's share of the variance of k11, k22, k33 (``cal_share_k11``...,
+  0..1; empty when camera.json gives no uncertainty), flags (joined by " | ");
 - ``displacements``: per position, load case and repeat: dx, dy, dz (mm),
-  rx, ry, rz (rad) in the base frame, their propagated standard deviations;
+  rx, ry, rz (rad) in the base frame, their propagated standard deviations
+  (the calibration's share included) and the calibration's share of the variance
+  of dx, dy, dz (``cal_share_dx``...);
 - ``repeat_stats``: per position, load case and quantity: mean, std, n;
 - ``measurements``: per image: status, error, reprojection RMS (px), corners, tracked;
 - ``model_stiffness``: the model's K at every position (when a model is given);
@@ -31,9 +34,38 @@ from .. import __version__
 from ..io import atomic_write_bytes, atomic_write_text, dumps_json
 from .store import Store, from_json
 
-__all__ = ["export_tables", "summary_dict", "read_tables"]
+__all__ = ["export_tables", "summary_dict", "read_tables", "calibration_share_of_K"]
 
 _IJ = [(i, j) for i in range(3) for j in range(3)]
+
+
+def _share(cov_part: np.ndarray | None, cov: np.ndarray | None) -> np.ndarray:
+    """Share of each diagonal variance of ``cov`` that ``cov_part`` holds (NaN: unknown)."""
+    if cov_part is None or cov is None:
+        return np.full(36, np.nan)
+    tot = np.diag(cov)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(tot > 0, np.diag(cov_part) / tot, np.nan)
+
+
+def _std_matrix(cov: np.ndarray | None) -> np.ndarray | None:
+    """The (3, 3) standard deviations of a (9, 9) covariance of K.ravel(), or None."""
+    return None if cov is None else np.sqrt(np.clip(np.diag(cov), 0, None)).reshape(3, 3)
+
+
+def calibration_share_of_K(store: Store) -> tuple[float, float] | None:
+    """Median and largest share of the camera calibration in the variance of k11, k22, k33 over
+    the positions (0..1); None when no position carries it (camera.json without uncertainty)."""
+    shares = []
+    for r in store.stiffness_rows():
+        sh = _share(from_json(r["K_cov_calibration"]), from_json(r["K_cov"]))
+        if r["status"] == "ok" and np.all(np.isfinite(sh[[0, 4, 8]])):
+            shares.extend(sh[[0, 4, 8]])
+    return (float(np.median(shares)), float(np.max(shares))) if shares else None
+
+
+def _num(x: float) -> float | None:
+    return None if not np.isfinite(x) else float(x)
 
 
 def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
@@ -43,6 +75,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
     for r in store.stiffness_rows():
         K = from_json(r["K"])
         S = from_json(r["K_std"])
+        share_K = _share(from_json(r["K_cov_calibration"]), from_json(r["K_cov"]))
         eig = from_json(r["eigenvalues"])
         flags = from_json(r["flags"], array=False) or []
         row: dict[str, Any] = {
@@ -65,6 +98,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
             K_condition=r["K_condition"],
             design_condition=r["design_condition"],
             n_obs=r["n_obs"],
+            **{f"cal_share_k{k + 1}{k + 1}": _num(share_K[4 * k]) for k in range(3)},
             flags=" | ".join(flags),
         )
         rows.append(row)
@@ -74,11 +108,14 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
         d = from_json(r["d"]) if r["d"] is not None else np.full(6, np.nan)
         cov = from_json(r["cov"]) if r["cov"] is not None else np.full((6, 6), np.nan)
         s = np.sqrt(np.clip(np.diag(cov), 0, None))
+        share_d = _share(from_json(r["cov_calibration"]), cov)
         row = {"position": r["position"], "load": r["load"], "repeat": r["repeat"], "frame": r["frame"]}
         for k, name in enumerate(("dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad")):
             row[name] = None if np.isnan(d[k]) else float(d[k])
         for k, name in enumerate(("sx_mm", "sy_mm", "sz_mm", "srx_rad", "sry_rad", "srz_rad")):
             row[name] = None if np.isnan(s[k]) else float(s[k])
+        for k, name in enumerate(("cal_share_dx", "cal_share_dy", "cal_share_dz")):
+            row[name] = _num(share_d[k])
         row.update(status=r["status"], error=r["error"], unloaded=r["unloaded"], loaded=r["loaded"])
         rows.append(row)
     out["displacements"] = rows
@@ -166,6 +203,7 @@ def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]
                 "error": r["error"],
                 "K": from_json(r["K"]),
                 "K_std": from_json(r["K_std"]),
+                "K_std_calibration": _std_matrix(from_json(r["K_cov_calibration"])),
                 "det": r["det"],
                 "min_principal": r["min_principal"],
                 "flags": from_json(r["flags"], array=False) or [],

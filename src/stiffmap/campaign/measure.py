@@ -57,7 +57,14 @@ class MeasureContext:
 
 @dataclass
 class ImageRow:
-    """What one image gave: the board poses (camera frame, mm) with covariances, or an error."""
+    """What one image gave: the board poses (camera frame, mm) with covariances, or an error.
+
+    ``mobile_cov`` and ``fixed_cov`` are the poses' own noise (``BoardPose.cov_noise``),
+    independent from image to image; the camera calibration's error, common to every image,
+    is carried by the poses' sensitivities to the camera's parameters (``mobile_cal_jac``,
+    ``fixed_cal_jac``: ``BoardPose.calibration_jacobian``, (6, n)) and combined with the
+    camera's covariance when the position is derived.
+    """
 
     image: str
     ok: bool
@@ -66,6 +73,8 @@ class ImageRow:
     mobile_cov: np.ndarray | None = None
     fixed2cam: np.ndarray | None = None
     fixed_cov: np.ndarray | None = None
+    mobile_cal_jac: np.ndarray | None = None
+    fixed_cal_jac: np.ndarray | None = None
     rms_px: float | None = None
     n_corners: int | None = None
     tracked: bool = False
@@ -109,9 +118,11 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
             rel,
             True,
             mobile2cam=m.mobile.board2cam,
-            mobile_cov=m.mobile.cov,
+            mobile_cov=m.mobile.cov_noise,
             fixed2cam=None if m.fixed is None else m.fixed.board2cam,
-            fixed_cov=None if m.fixed is None else m.fixed.cov,
+            fixed_cov=None if m.fixed is None else m.fixed.cov_noise,
+            mobile_cal_jac=m.mobile.calibration_jacobian,
+            fixed_cal_jac=None if m.fixed is None else m.fixed.calibration_jacobian,
             rms_px=float(np.sqrt(np.mean(np.square(rms)))),
             n_corners=int(n),
             tracked=bool(m.tracked),

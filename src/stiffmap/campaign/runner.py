@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..camera import load_camera
+from ..camera import CameraModel, load_camera
 from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
 from ..models.fit import fit_stiffness
@@ -52,8 +52,8 @@ __all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model", "default_work
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
 #: recomputes it. MEASUREMENT: image -> board poses; DERIVATION: poses -> K.
-MEASUREMENT_REVISION = 2
-DERIVATION_REVISION = 2
+MEASUREMENT_REVISION = 3
+DERIVATION_REVISION = 3
 
 
 @dataclass
@@ -154,6 +154,7 @@ class _Campaign:
     root: Path
     spec: CampaignSpec
     camera_path: Path
+    camera: CameraModel
     loads: list[LoadCase]
     tasks: list[PositionTask]
     context: MeasureContext
@@ -194,7 +195,7 @@ def _read_campaign(campaign_dir: str | Path, method: str, allow_outside: bool = 
             source=str(root / "campaign.toml"),
         )
     context = MeasureContext.from_spec(spec, root, camera)
-    return _Campaign(root, spec, camera_path, loads, tasks, context, method)
+    return _Campaign(root, spec, camera_path, camera, loads, tasks, context, method)
 
 
 @dataclass
@@ -288,7 +289,14 @@ def _derive_and_persist(
         return None
     rows = work.stored[task.index] if measured is None else {r.image: r for r in measured}
     derived = derive_position(
-        task, rows, campaign.loads, campaign.spec, campaign.method, inputs_hash, work.derive_hash
+        task,
+        rows,
+        campaign.loads,
+        campaign.spec,
+        campaign.method,
+        inputs_hash,
+        work.derive_hash,
+        calibration_cov=campaign.camera.calibration_cov,
     )
     with store.transaction():
         store.save_position(
@@ -343,6 +351,8 @@ def _measurement_row(
         "mobile_cov": to_json(r.mobile_cov),
         "fixed2cam": to_json(r.fixed2cam),
         "fixed_cov": to_json(r.fixed_cov),
+        "mobile_cal_jac": to_json(r.mobile_cal_jac),
+        "fixed_cal_jac": to_json(r.fixed_cal_jac),
         "mobile2base": None,
         "base_cov": None,
         "rms_px": r.rms_px,
@@ -362,6 +372,8 @@ def _image_row_from_db(r) -> ImageRow:
         mobile_cov=from_json(r["mobile_cov"]),
         fixed2cam=from_json(r["fixed2cam"]),
         fixed_cov=from_json(r["fixed_cov"]),
+        mobile_cal_jac=from_json(r["mobile_cal_jac"]),
+        fixed_cal_jac=from_json(r["fixed_cal_jac"]),
         rms_px=r["rms_px"],
         n_corners=r["n_corners"],
         tracked=bool(r["tracked"]),

@@ -44,7 +44,18 @@ __all__ = [
 ]
 
 DB_NAME = "stiffmap.db"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+
+#: Columns added since schema 1, added in place to an older database (its rows are kept; the
+#: revisions in the parameter hashes make the next run recompute what they would hold).
+_ADDED_COLUMNS = {
+    2: (
+        ("measurements", "mobile_cal_jac"),
+        ("measurements", "fixed_cal_jac"),
+        ("displacements", "cov_calibration"),
+        ("stiffness", "K_cov_calibration"),
+    ),
+}
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -58,12 +69,13 @@ CREATE TABLE IF NOT EXISTS measurements (
     sha256 TEXT, params_hash TEXT NOT NULL, version TEXT NOT NULL,
     status TEXT NOT NULL, error TEXT,
     mobile2cam TEXT, mobile_cov TEXT, fixed2cam TEXT, fixed_cov TEXT, mobile2base TEXT, base_cov TEXT,
-    rms_px REAL, n_corners INTEGER, tracked INTEGER, seconds REAL);
+    rms_px REAL, n_corners INTEGER, tracked INTEGER, seconds REAL,
+    mobile_cal_jac TEXT, fixed_cal_jac TEXT);
 CREATE TABLE IF NOT EXISTS displacements (
     position INTEGER NOT NULL, load INTEGER NOT NULL, repeat INTEGER NOT NULL,
     unloaded TEXT NOT NULL, loaded TEXT NOT NULL, frame TEXT, d TEXT, cov TEXT,
     status TEXT NOT NULL, error TEXT, params_hash TEXT NOT NULL, version TEXT NOT NULL,
-    PRIMARY KEY (position, load, repeat));
+    cov_calibration TEXT, PRIMARY KEY (position, load, repeat));
 CREATE TABLE IF NOT EXISTS repeat_stats (
     position INTEGER NOT NULL, load INTEGER NOT NULL, quantity TEXT NOT NULL,
     mean REAL, std REAL, n INTEGER NOT NULL, PRIMARY KEY (position, load, quantity));
@@ -73,7 +85,7 @@ CREATE TABLE IF NOT EXISTS stiffness (
     K TEXT, K_std TEXT, K_cov TEXT, det REAL, eigenvalues TEXT, min_principal REAL,
     K_condition REAL, design_condition REAL, rank INTEGER, dof INTEGER, n_obs INTEGER,
     residual_rms TEXT, flags TEXT, precision TEXT,
-    inputs_hash TEXT NOT NULL, params_hash TEXT NOT NULL, version TEXT NOT NULL);
+    inputs_hash TEXT NOT NULL, params_hash TEXT NOT NULL, version TEXT NOT NULL, K_cov_calibration TEXT);
 CREATE TABLE IF NOT EXISTS model_fit (
     name TEXT PRIMARY KEY, model TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
     params TEXT, std TEXT, cov TEXT, residuals TEXT, condition REAL, dof INTEGER,
@@ -201,8 +213,13 @@ class Store:
                     if stmt.strip():
                         self.conn.execute(stmt)
                 row = self.conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                if row is not None and str(row[0]) in {str(v) for v in range(1, SCHEMA_VERSION)}:
+                    self._add_columns(int(row[0]))
+                    row = None
                 if row is None:
-                    self.conn.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+                    self.conn.execute(
+                        "INSERT OR REPLACE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),)
+                    )
                 elif str(row[0]) != str(SCHEMA_VERSION):
                     raise InputError(
                         f"database schema {str(row[0])[:20]!r} but this stiffmap uses {SCHEMA_VERSION}; "
@@ -216,6 +233,14 @@ class Store:
         except sqlite3.DatabaseError as e:
             self.close()
             raise self._input_error(e) from None
+
+    def _add_columns(self, old: int) -> None:
+        """Bring a database of schema ``old`` to this one: add the columns it lacks (rows kept)."""
+        for version in range(old + 1, SCHEMA_VERSION + 1):
+            for table, column in _ADDED_COLUMNS.get(version, ()):
+                have = {r[1] for r in self.conn.execute(f"PRAGMA table_info({table})")}
+                if column not in have:
+                    self.conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} TEXT")
 
     def _check_file(self) -> None:
         """InputError unless the file is an undamaged SQLite database (SQLite's quick check)."""

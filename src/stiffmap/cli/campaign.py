@@ -27,7 +27,7 @@ from rich.table import Table
 from rich.text import Text
 
 from ..campaign.demo import demo_config
-from ..campaign.export import summary_dict
+from ..campaign.export import calibration_share_of_K, summary_dict
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION
 from ..campaign.run import CampaignRun, campaign_root, run_and_export
 from ..campaign.runner import default_workers
@@ -236,6 +236,7 @@ def run(
             pass
         elif spec.kind == "vision":
             out.print(_summary_table(store), width=max(out.width, 110))
+            out.print(_calibration_line(calibration_share_of_K(store)))
         else:
             out.print(_sensor_table(spec, store))
     if nothing is not None:  # one line with the first failures; summary.json lists them all
@@ -254,6 +255,19 @@ def run(
                 f"{done.exports / 'summary.json'}"
             )
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _calibration_line(share: tuple[float, float] | None) -> str:
+    """How much of K's uncertainty is the camera calibration's (or that it is left out)."""
+    if share is None:
+        return (
+            "K's uncertainty leaves out the camera calibration's: camera.json gives no covariance "
+            "or std (calibrate with 'stiffmap calibrate' to include it)"
+        )
+    return (
+        f"camera calibration's share of the variance of k11, k22, k33: median {100 * share[0]:.1f} %, "
+        f"largest {100 * share[1]:.1f} % (common to every position: it does not average out)"
+    )
 
 
 def _print_counts(done: CampaignRun, page: Path | None, seconds: float) -> None:

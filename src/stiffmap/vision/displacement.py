@@ -52,6 +52,8 @@ from .sequence import ImageMeasurement
 __all__ = [
     "Displacement",
     "compliant_displacement",
+    "pair_calibration_jacobian",
+    "base_frame_calibration_jacobian",
     "mean_pose",
     "ImageDisplacements",
     "displacement_per_image",
@@ -191,6 +193,37 @@ def _ref_rotation(T_ref: np.ndarray, T_moved: np.ndarray) -> np.ndarray:
     return M
 
 
+def pair_calibration_jacobian(
+    T_ref: np.ndarray, A_ref: np.ndarray, T_moved: np.ndarray, A_moved: np.ndarray, point: np.ndarray
+) -> np.ndarray:
+    """Sensitivity (6, n) of the displacement of ``point`` between two poses to the camera's parameters.
+
+    G = P_moved A_moved - diag(I, Q) P_ref A_ref (camera frame), with A = d(t, r)/d(camera
+    parameters) of each pose (``BoardPose.calibration_jacobian``; for a mean reference pose the
+    mean of its images' A), P the point's Jacobian and Q = R_moved R_ref^T.
+    """
+    A0 = _ref_rotation(T_ref, T_moved) @ _point_jacobian(T_ref, point)
+    return _point_jacobian(T_moved, point) @ A_moved - A0 @ A_ref
+
+
+def base_frame_calibration_jacobian(
+    G_cam: np.ndarray, d_base: np.ndarray, R_cam2base: np.ndarray, A_fixed_rotation: np.ndarray
+) -> np.ndarray:
+    """A displacement's calibration sensitivity (6, n) once rotated into the base frame.
+
+    The displacement d_cam is turned into the base frame by R_G, the rotation of ``cam2base``
+    found from the fixed target's (mean) pose, whose rotation moves with the calibration too
+    (its sensitivity ``A_fixed_rotation``, rows 3: of the fixed target's A, averaged): d_base =
+    R_G d_cam moves by R_G G_cam dc + [d_base]x R_G A_fixed_rotation dc (per translation and
+    rotation block).
+    """
+    B = np.zeros((6, 6))
+    B[:3, :3] = R_cam2base
+    B[3:, 3:] = R_cam2base
+    C = np.vstack([skew(d_base[:3]), skew(d_base[3:])])
+    return B @ G_cam + C @ R_cam2base @ A_fixed_rotation
+
+
 def _usable(ms: Sequence[ImageMeasurement], what: str) -> list[ImageMeasurement]:
     good = [m for m in ms if m.ok and m.mobile is not None]
     if not good:
@@ -270,26 +303,27 @@ def compliant_displacement(
             A1 = _point_jacobian(b.mobile2cam, q)
             cov_sum += A0 @ a.mobile.cov_noise @ A0.T + A1 @ b.mobile.cov_noise @ A1.T
             if with_A:
-                G_sum = G_sum + A1 @ b.mobile.calibration_jacobian - A0 @ a.mobile.calibration_jacobian
+                Aa, Ab = a.mobile.calibration_jacobian, b.mobile.calibration_jacobian
+                G_sum = G_sum + pair_calibration_jacobian(a.mobile2cam, Aa, b.mobile2cam, Ab, q)
         cov = cov_sum / len(u) ** 2
         if with_A:
             Gc = G_sum / len(u)
     else:
         ref = mean_pose([m.mobile2cam for m in u])
         cov_ref = np.zeros((6, 6))
-        A0 = _point_jacobian(ref, q)
         for a in u:
             A0a = _point_jacobian(a.mobile2cam, q)
             cov_ref += A0a @ a.mobile.cov_noise @ A0a.T
         cov_ref /= len(u) ** 2
-        G_ref = A0 @ np.mean([a.mobile.calibration_jacobian for a in u], axis=0) if with_A else None
+        A_ref = np.mean([a.mobile.calibration_jacobian for a in u], axis=0) if with_A else None
         G_sum = 0.0
         for b in lo:
             samples.append(displacement_from_poses(ref, b.mobile2cam, q))
             A1 = _point_jacobian(b.mobile2cam, q)
             cov_sum += A1 @ b.mobile.cov_noise @ A1.T
             if with_A:
-                G_sum = G_sum + A1 @ b.mobile.calibration_jacobian - _ref_rotation(ref, b.mobile2cam) @ G_ref
+                Ab = b.mobile.calibration_jacobian
+                G_sum = G_sum + pair_calibration_jacobian(ref, A_ref, b.mobile2cam, Ab, q)
         cov = cov_ref + cov_sum / len(lo) ** 2
         if with_A:
             Gc = G_sum / len(lo)
@@ -336,7 +370,7 @@ def compliant_displacement(
         if Gc is not None:
             if all(m.fixed.calibration_jacobian is not None for m in with_base):
                 Af = np.mean([m.fixed.calibration_jacobian[3:] for m in with_base], axis=0)
-                Gc = Bm @ Gc - C @ RG @ Af
+                Gc = base_frame_calibration_jacobian(Gc, mean, RG, Af)
             else:
                 Gc = None
         frame_name = "base"
