@@ -24,6 +24,7 @@ from stiffmap.campaign.runner import run_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.report.campaign import write_campaign_report
 
 pytestmark = pytest.mark.slow
 
@@ -110,6 +111,9 @@ def test_run_stores_and_exports_the_calibration_share(one_position, tmp_path):
     assert all(0 < s < 1 for s in shares), shares
     for d in tables["displacements"]:
         assert all(0 < d[f"cal_share_d{c}"] < 1 for c in "xyz"), d
+    # The report says it too, beside the camera's table.
+    page = write_campaign_report(work, summary.failures).read_text(encoding="utf-8")
+    assert "share of the variance of k11, k22, k33: median" in page
 
 
 def test_a_schema_1_database_gets_the_new_columns(tmp_path):

@@ -68,10 +68,15 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     pos = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
     K = np.full((n, 3, 3), np.nan)
     S = np.full((n, 3, 3), np.nan)
+    share = np.full((n, 3), np.nan)
     for i, r in enumerate(rows):
         if r["status"] == "ok":
             K[i] = from_json(r["K"])
             S[i] = from_json(r["K_std"])
+            cal, cov = from_json(r["K_cov_calibration"]), from_json(r["K_cov"])
+            if cal is not None and cov is not None:
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    share[i] = np.clip(np.diag(cal)[[0, 4, 8]] / np.diag(cov)[[0, 4, 8]], 0.0, 1.0)
     measured = contract.MeasuredStiffness.from_K(
         pos,
         K,
@@ -116,7 +121,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         out["truth"] = contract.TruthStiffness(truth)
     camera = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
     try:
-        out["calibration"] = contract.CalibrationData(load_camera(camera).to_dict())
+        out["calibration"] = contract.CalibrationData(load_camera(camera).to_dict(), k_share=share)
     except (InputError, ValueError):
         pass  # the report goes without the calibration section
     return out

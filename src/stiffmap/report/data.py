@@ -431,10 +431,14 @@ class CalibrationData:
         ``rms_px``, ``residual_std_px``, ``views`` with a per-view ``rms_px``).
     corner_residuals_px : ndarray, shape (N, 2), px, or None
         Reprojection residual (observed - projected) of every corner used.
+    k_share : ndarray, shape (n, 3), or None
+        Per measured position, the calibration's share (0..1) of the variance of k11, k22,
+        k33 (NaN: unknown at that position); None when the campaign does not say.
     """
 
     camera: dict
     corner_residuals_px: np.ndarray | None = None
+    k_share: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.camera, Mapping):
@@ -447,6 +451,7 @@ class CalibrationData:
         set_optional_array(
             self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True, limit=PXLIM
         )
+        set_optional_array(self, "k_share", self.k_share, ("n", 3), {}, limit=1.0)
 
 
 @dataclass(frozen=True)
@@ -710,6 +715,7 @@ _ARRAY_FIELDS = {
     "norms",
     "points",
     "corner_residuals_px",
+    "k_share",
     "error_um",
     "error_std_um",
     "model_error_um",

@@ -156,6 +156,26 @@ def _camera_table(cam: dict) -> str:
     )
 
 
+def _calibration_share(share: np.ndarray | None) -> str:
+    """A sentence on how much of K's uncertainty the calibration's error makes."""
+    if share is None:
+        return ""
+    known = share[np.all(np.isfinite(share), axis=1)]
+    if known.size == 0:
+        text = (
+            "K's uncertainty leaves out the calibration's: this camera file gives no covariance "
+            "or standard deviations."
+        )
+    else:
+        text = (
+            "The calibration's share of the variance of k11, k22, k33: median "
+            f"{100 * np.median(known):.1f} %, largest {100 * known.max():.1f} % over {len(known)} "
+            "positions. It is included in every K standard error, as an error common to all "
+            "positions (it does not average out)."
+        )
+    return f"<p>{_e(text)}</p>"
+
+
 def _sensor_table(data: ReportData) -> str:
     s = data.sensor
     has_model = s.model_error_um is not None
@@ -295,6 +315,7 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
         sections.append(("truth", "Recovered vs true", body))
     if data.calibration is not None:
         body = _camera_table(data.calibration.camera)
+        body += _calibration_share(data.calibration.k_share)
         body += fig_div("fig-calibration", calibration_figure(data))
         sections.append(("calibration", "Camera calibration", body))
     if m is not None:
