@@ -47,7 +47,7 @@ from .spec import load_spec
 from .store import DB_NAME, Store, from_json, remove_database
 from .truth import TRUTH_NAME, CalibrationSummary, load_truth
 
-__all__ = ["DemoResult", "run_demo", "demo_config", "QUICK_POSITIONS"]
+__all__ = ["DemoResult", "run_demo", "demo_config", "demo_command", "QUICK_POSITIONS"]
 
 #: Positions (1-based, in ``paper48``) of the quick demo: a corner and a centre of each plane.
 QUICK_POSITIONS = (1, 6, 22, 27, 43, 48)
@@ -121,6 +121,18 @@ def demo_config(
     )
 
 
+def demo_command(config: SimConfig, quick: bool) -> str:
+    """What truth.json records as the demo's command: every setting the simulation depends on.
+
+    The calibration is part of what is simulated: a directory simulated with another
+    calibration setting (or before there were calibration views) is simulated again.
+    """
+    return (
+        f"stiffmap demo (quick={quick}, repeats={config.repeats}, seed={config.seed}, "
+        f"calibration_views={config.calibration_views})"
+    )
+
+
 def _same_simulation(out: Path, command: str) -> bool:
     t = out / TRUTH_NAME
     if not t.is_file():
@@ -172,12 +184,7 @@ def run_demo(
     """
     out = Path(out_dir)
     config = demo_config(quick=quick, repeats=repeats, seed=seed, calibration_views=calibration_views)
-    # The calibration is part of what is simulated: a directory simulated with another
-    # calibration setting (or before there were calibration views) is simulated again.
-    command = (
-        f"stiffmap demo (quick={quick}, repeats={config.repeats}, seed={seed}, "
-        f"calibration_views={config.calibration_views})"
-    )
+    command = demo_command(config, quick)
     simulated = False
     t0 = time.perf_counter()
     if fresh or not _same_simulation(out, command):

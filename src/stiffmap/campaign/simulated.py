@@ -47,6 +47,7 @@ from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
 from ..sim.calibration_views import (
     CALIBRATION_BOARD,
+    CALIBRATION_DIR,
     CALIBRATION_MARGIN_MM,
     CalibrationView,
     plan_calibration_views,
@@ -77,8 +78,6 @@ __all__ = [
 ]
 
 _OWN_FILES = ("campaign.toml", "camera.json", TRUTH_NAME, CORNERS_NAME)
-#: Folder of the calibration views.
-CALIBRATION_DIR = "calibration"
 #: The distortion model of the calibration (``stiffmap calibrate``'s default).
 CALIBRATION_MODEL = "k3"
 
@@ -319,8 +318,7 @@ _PARAMS = ("fx", "fy", "cx", "cy")
 
 
 def _true_camera(note: str) -> CalibrationSummary:
-    zero = dict.fromkeys(_PARAMS, 0.0)
-    return CalibrationSummary(False, note, 0, 0, float("nan"), zero, dict(zero))
+    return CalibrationSummary(False, note, 0, 0, float("nan"), {}, {})
 
 
 def calibrate_from_views(
@@ -391,7 +389,7 @@ def _calibration_truth(
     """truth.json's ``calibration`` (with ``camera``, popped into ``calibrated_camera``)."""
     if result is None:
         return {"camera_json": "true camera", "note": summary.note, "camera": None}
-    found = {v.image: v.to_dict() for v in result.views} if result is not None else {}
+    found = {v.image: v.to_dict() for v in result.views}
     return {
         "camera_json": "calibrated",
         "tool": f"stiffmap calibrate (stiffmap.vision.files.calibrate_files, model {CALIBRATION_MODEL})",

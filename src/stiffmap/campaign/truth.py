@@ -76,7 +76,7 @@ class CalibrationSummary:
     rms_px : float
         Reprojection RMS of the calibration, px (NaN with the true camera).
     relative_error : dict
-        ``fx``, ``fy``, ``cx``, ``cy``: (calibrated - true) / true (zeros with the true camera).
+        ``fx``, ``fy``, ``cx``, ``cy``: (calibrated - true) / true (empty with the true camera).
     error_px : dict
         The same as differences (calibrated - true), px.
     """

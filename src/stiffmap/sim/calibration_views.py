@@ -8,10 +8,12 @@ of squares with a 25 mm white margin, an A3 print on a flat plate) as the OpenCV
 Bouguet (Camera Calibration Toolbox for Matlab) advice has it:
 
 - the board covers roughly a quarter to a half of the image (three distances, from the
-  fraction of the image its squares cover when facing the camera: :data:`COVERAGES`);
-- its centre goes towards every part of the image in turn -- the four corners, the four
-  edges, the centre -- as far as the whole board stays inside the image, so that the
-  corners, where the distortion is strongest, are covered;
+  fraction of the image the printed board covers when facing the camera:
+  :data:`COVERAGES`; tilted, it covers 20-50 %);
+- its centre goes towards every part of the image in turn -- the four corners, the
+  centre, the four edges -- as far as the whole board stays inside the image (into a
+  corner until it touches both borders), so that the corners, where the distortion is
+  strongest, are covered;
 - it is tilted by up to :data:`MAX_TILT_DEG` about axes turning from view to view (the
   tilts are what fix the focal length), and spun a little;
 - every board is wholly inside the image, ``border_px`` from its border.
@@ -39,6 +41,7 @@ from .testbed import SimConfig, seeded_generator
 
 __all__ = [
     "CALIBRATION_BOARD",
+    "CALIBRATION_DIR",
     "CALIBRATION_MARGIN_MM",
     "COVERAGES",
     "MAX_TILT_DEG",
@@ -49,6 +52,8 @@ __all__ = [
     "calibration_view_file",
 ]
 
+#: Folder of the calibration views in a campaign directory.
+CALIBRATION_DIR = "calibration"
 #: The calibration board: 11x8 inner corners (12 x 9 squares) of 25 mm.
 CALIBRATION_BOARD = Chessboard(11, 8, 25.0)
 #: Its white margin, mm (350 x 275 mm printed: an A3 sheet).
@@ -237,7 +242,7 @@ def careful_poses(
 def calibration_view_file(index: int, image_format: str = "png") -> str:
     """``calibration/viewNN.png`` (or ``.jpg``), 1-based."""
     ext = "png" if image_format == "png" else "jpg"
-    return f"calibration/view{int(index):02d}.{ext}"
+    return f"{CALIBRATION_DIR}/view{int(index):02d}.{ext}"
 
 
 def plan_calibration_views(config: SimConfig, n_views: int | None = None) -> tuple[CalibrationView, ...]:
