@@ -95,10 +95,12 @@ def test_campaign_directory_images_and_determinism(tmp_path):
         repeats=1,
         border_px=4.0,
         photometry=Photometry(clutter=True),
+        calibration_views=4,  # few, to keep the test fast (a campaign takes 20 by default)
     )
     a = write_campaign(tmp_path / "a", cfg, workers=1)
     b = write_campaign(tmp_path / "b", cfg, workers=2)
     assert a.n_images == b.n_images == 2 * 3 * 1 * 2
+    assert a.calibration.calibrated and a.calibration.n_views == a.calibration.n_used == 4
     files_a = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*") if p.is_file())
     files_b = sorted(p.relative_to(tmp_path / "b") for p in (tmp_path / "b").rglob("*") if p.is_file())
     assert files_a == files_b
@@ -113,10 +115,43 @@ def test_campaign_directory_images_and_determinism(tmp_path):
     np.testing.assert_allclose(
         [ld.force for ld in spec.loads.resolve(spec.g)], [ld.force for ld in paper9()[:3]]
     )
-    assert load_camera(tmp_path / "a" / "camera.json").to_dict() == cam.to_dict()
-    # truth.json: the camera (same keys as camera.json) and K per position.
+    # camera.json: the camera calibrated from the rendered views (stiffmap calibrate's
+    # calibration), close to the true one but not it, with its covariance; truth.json keeps
+    # the true camera (same keys as camera.json) beside the calibrated one.
+    assert sorted(p.name for p in (tmp_path / "a" / "calibration").iterdir()) == [
+        f"view{k:02d}.png" for k in range(1, 5)
+    ]
+    on_disk = json.loads((tmp_path / "a" / "camera.json").read_text())
+    calibrated = load_camera(tmp_path / "a" / "camera.json")
+    assert calibrated.to_dict() != cam.to_dict() and "cov" in on_disk
+    assert [v["image"] for v in on_disk["views"]] == [f"calibration/view{k:02d}.png" for k in range(1, 5)]
+    # Measured at this quarter resolution (648x486, 4 views): fx, fy within 0.04 %, the
+    # principal point within 0.3 px, RMS 0.02 px.
+    for k in ("fx", "fy"):
+        assert getattr(calibrated, k) == pytest.approx(getattr(cam, k), rel=2e-3)  # 0.2 %
+    for k in ("cx", "cy"):
+        assert getattr(calibrated, k) == pytest.approx(getattr(cam, k), abs=1.5)  # px
+    assert calibrated.rms_px < 0.1  # px
     truth = load_truth(tmp_path / "a")
-    assert truth.data["camera"] == json.loads((tmp_path / "a" / "camera.json").read_text())
+    assert truth.data["camera"] == cam.to_dict() and truth.camera == cam
+    assert truth.data["calibrated_camera"] == on_disk and truth.calibrated_camera == calibrated
+    cal = truth.data["calibration"]
+    assert cal["camera_json"] == "calibrated" and cal["board"] == "11x8" and cal["n_used"] == 4
+    assert cal["relative_error"]["fx"] == pytest.approx(calibrated.fx / cam.fx - 1, rel=1e-9)
+    assert truth.calibration == a.calibration
+    assert [v["file"] for v in cal["views"]] == [f"calibration/view{k:02d}.png" for k in range(1, 5)]
+    # Each view's true pose is where its board is: the views' true corners (in the side
+    # file) are what the calibration's detection finds, to a tenth of a pixel.
+    views = json.loads(gzip.decompress((tmp_path / "a" / "truth_corners.json.gz").read_bytes()))
+    view = views["calibration"][0]
+    assert view["file"] == cal["views"][0]["file"]
+    np.testing.assert_allclose(view["calibration"]["board2cam"], cal["views"][0]["board2cam"], atol=1e-12)
+    img = cv2.imread(str(tmp_path / "a" / view["file"]), cv2.IMREAD_GRAYSCALE)
+    ok, found = cv2.findChessboardCornersSB(img, (11, 8))
+    assert ok
+    uv = np.asarray(view["calibration"]["corners_px"])
+    assert np.linalg.norm(found.reshape(-1, 1, 2) - uv[None], axis=2).min(axis=1).max() < 0.3  # px
+    # truth.json: K per position.
     np.testing.assert_allclose(truth.K, delta_robot().stiffness(HANDFUL[:2]), rtol=1e-12)
     assert [e["position"] for e in truth.data["positions"]] == HANDFUL[:2].tolist()
     # The true corners are where the boards are: a dark/light alternation around each corner.
@@ -155,8 +190,17 @@ def test_output_directory_rules(tmp_path):
     (out / "truth.json").unlink()
     (out / "images" / "p01").mkdir(parents=True)
     (out / "images" / "p01" / "half_written.png").write_bytes(b"...")
+    (out / "calibration").mkdir()
+    (out / "calibration" / "view01.png").write_bytes(b"...")
     write_campaign(out, cfg, render_images=False, force=True)
     assert not (out / "images").exists() and (out / "truth.json").is_file()
+    assert not (out / "calibration").exists()
+    # Without images there is nothing to calibrate from: camera.json is the true camera, and
+    # the truth says why.
+    assert load_camera(out / "camera.json") == cfg.scene.camera
+    t = load_truth(out)
+    assert t.calibrated_camera is None and not t.calibration.calibrated
+    assert "truth only" in t.calibration.note and t.data["calibrated_camera"] is None
     foreign = tmp_path / "real_campaign"
     (foreign / "images").mkdir(parents=True)
     (foreign / "images" / "img.png").write_bytes(b"raw")

@@ -9,7 +9,7 @@ import pytest
 from helpers.board_scenes import scaled_camera
 from helpers.cli_process import assert_one_line_error, run_stiffmap
 
-from stiffmap.camera import reference_camera, save_camera
+from stiffmap.camera import load_camera, reference_camera, save_camera
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.truth import load_truth
 from stiffmap.models.delta import DeltaRobot
@@ -32,6 +32,11 @@ def test_truth_only_json_summary(tmp_path):
     w = np.linalg.eigvalsh(truth.K)
     assert (lo, hi) == (w.min(), w.max())
     assert truth.data["generator"]["command"].startswith("stiffmap simulate")
+    # No images, nothing to calibrate from: camera.json is the true camera, and the summary says so.
+    assert info["calibration"]["camera_json"] == "true camera" and "truth only" in info["calibration"]["note"]
+    assert truth.calibrated_camera is None and load_camera(out / "camera.json") == truth.camera
+    table = run_stiffmap("simulate", tmp_path / "t", "--select", "1", "--truth-only")
+    assert table.returncode == 0 and "the true camera: truth only" in table.stdout
 
 
 def test_images_are_written_and_reproducible(tmp_path):
@@ -40,15 +45,19 @@ def test_images_are_written_and_reproducible(tmp_path):
     loads = tmp_path / "loads.csv"
     loads.write_text("fx,fy,fz,label\n0,0,-4.905,0.5 kg down\n-2,0,0,2 N -x\n0,3,0,3 N +y\n")
     args = ["--camera", cam, "--positions", "100,-50,-250", "--loads", loads, "--repeats", "1"]
-    args += ["--seed", "11", "--clutter", "--colour"]
+    args += ["--seed", "11", "--clutter", "--colour", "--calibration-views", "4"]
     a = run_stiffmap("simulate", tmp_path / "a", *args, "--workers", "1")
     b = run_stiffmap("simulate", tmp_path / "b", *args, "--workers", "2")
     assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
-    assert "6 png" in a.stdout and "rendering" in a.stderr
+    assert "6 png + 4 calibration views" in a.stdout and "rendering" in a.stderr
+    assert "calibrated from 4 of 4 views, RMS" in a.stdout and "calibration vs true camera" in a.stdout
     files = sorted(p.relative_to(tmp_path / "a") for p in (tmp_path / "a").rglob("*.png"))
-    assert len(files) == 6
+    assert len(files) == 6 + 4
     for rel in files:
         assert (tmp_path / "a" / rel).read_bytes() == (tmp_path / "b" / rel).read_bytes()
+    # The same seed, the same calibration: camera.json is byte-identical too.
+    assert (tmp_path / "a" / "camera.json").read_bytes() == (tmp_path / "b" / "camera.json").read_bytes()
+    assert load_camera(tmp_path / "a" / "camera.json") != load_camera(cam)
     spec = load_spec(tmp_path / "a")
     assert [ld.label for ld in spec.loads.resolve(spec.g)] == ["0.5 kg down", "2 N -x", "3 N +y"]
     truth_a = (tmp_path / "a" / "truth.json").read_text()
@@ -61,7 +70,19 @@ def test_images_are_written_and_reproducible(tmp_path):
     # --force overwrites a previous simulation.
     c = run_stiffmap("simulate", tmp_path / "a", *args, "--truth-only", "--force", "--json")
     assert c.returncode == 0, c.stderr
-    assert not (tmp_path / "a" / "images").exists()
+    assert not (tmp_path / "a" / "images").exists() and not (tmp_path / "a" / "calibration").exists()
+    # --true-camera: no calibration views, camera.json is the true camera exactly.
+    d = run_stiffmap("simulate", tmp_path / "d", *args[:-2], "--true-camera", "--json")
+    assert d.returncode == 0, d.stderr
+    info = json.loads(d.stdout)
+    assert info["calibration"]["camera_json"] == "true camera" and info["calibration"]["views"] == 0
+    assert (tmp_path / "d" / "camera.json").read_text() == cam.read_text()
+    assert not (tmp_path / "d" / "calibration").exists()
+    assert sorted(p.name for p in (tmp_path / "d" / "images").rglob("*.png")) == sorted(
+        p.name for p in (tmp_path / "b" / "images").rglob("*.png")
+    )  # the campaign's own images do not depend on the calibration
+    for rel in files[4:]:
+        assert (tmp_path / "d" / rel).read_bytes() == (tmp_path / "b" / rel).read_bytes()
 
 
 def test_six_by_six_option(tmp_path):
@@ -127,6 +148,32 @@ def test_user_errors_are_one_line(tmp_path):
         "not used",
     )
     assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--trace-format", "mat"), "--trace-format")
+    assert_one_line_error(
+        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--true-camera"),
+        "--true-camera",
+        "not used",
+    )
+    assert_one_line_error(
+        run_stiffmap("simulate", tmp_path / "n", "--calibration-views", "2"),
+        "--calibration-views 2",
+        "at least 3",
+    )
+    assert_one_line_error(
+        run_stiffmap("simulate", tmp_path / "n", "--true-camera", "--calibration-views", "5"), "choose one"
+    )
+    # A calibration that fails (8 px of blur: the board is found in too few views) stops the
+    # simulation with its reason, before any campaign image is rendered.
+    cam = tmp_path / "small_camera.json"
+    save_camera(scaled_camera(reference_camera(), 0.25), cam)
+    blurred = ["--camera", cam, "--select", "22", "--repeats", "1", "--blur-px", "8"]
+    blurred += ["--calibration-views", "3", "--json"]  # --json: no progress bar on stderr
+    assert_one_line_error(
+        run_stiffmap("simulate", tmp_path / "blur", *blurred),
+        str(tmp_path / "blur" / "calibration"),
+        "could not be calibrated from the 3 rendered calibration views",
+        "at least 3 views with the board found",
+    )
+    assert not (tmp_path / "blur" / "images").exists()
     flat = tmp_path / "flat.csv"
     flat.write_text("fx,fy,fz\n1,0,0\n2,0,0\n")
     assert_one_line_error(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections import namedtuple
 
 import numpy as np
@@ -48,16 +49,18 @@ def test_plan_counts_the_images_and_names_an_unreachable_position(tmp_path):
     cfg = vision_config(delta_robot(), paper48()[[0, 47]], paper9()[:3], repeats=2)
     sim = plan_simulation(cfg, tmp_path / "new" / "dir")  # need not exist yet
     assert sim.n_images == len(sim.plan.jobs) == 2 * 2 * 3 * 2  # unloaded + loaded per case
-    assert sim.bytes_needed == image_bytes(cfg, sim.n_images)
+    # The calibration views (20 by default) are images too.
+    assert sim.n_calibration_views == cfg.calibration_views == 20
+    assert sim.bytes_needed == image_bytes(cfg, sim.n_images + 20)
     truth_only = plan_simulation(cfg, tmp_path, render_images=False)
-    assert truth_only.n_images == 0 and truth_only.bytes_needed == 0
+    assert truth_only.n_images == 0 and truth_only.n_calibration_views == 0 and truth_only.bytes_needed == 0
     far = vision_config(delta_robot(), [[0.0, 0.0, -310.0], [0.0, 0.0, -900.0]], paper9())
     with pytest.raises(InputError, match=r"position 2 \(0, 0, -900\) mm: the robot model has no stiffness"):
         plan_simulation(far, tmp_path)
 
 
 def test_the_disk_check_refuses_before_writing(tmp_path, monkeypatch):
-    cfg = vision_config(delta_robot(), paper48()[[21]], paper9(), repeats=1)
+    cfg = vision_config(delta_robot(), paper48()[[21]], paper9(), repeats=1, calibration_views=0)
     need = image_bytes(cfg, 18)
     w, h = reference_camera().image_size
     assert need == pytest.approx(18 * w * h * BYTES_PER_PIXEL["png"], rel=1e-15)  # bytes
@@ -81,12 +84,23 @@ def test_the_disk_check_refuses_before_writing(tmp_path, monkeypatch):
     assert not out.exists()
     monkeypatch.setattr(sim_plan.shutil, "disk_usage", lambda path: Usage(0, 0, free + 2000))
     assert plan_simulation(cfg, out).n_images == 18
+    # With the calibration views, 18 + 5 images must fit.
+    with pytest.raises(InputError, match="23 images need about"):
+        plan_simulation(dataclasses.replace(cfg, calibration_views=5), out)
 
 
 @pytest.mark.parametrize("image_format", ["png", "jpeg"])
 def test_the_estimate_against_the_images_written(tmp_path, image_format):
-    # Two 2592x1944 images of the default scene (position 22, the 0.5 kg load along +y).
-    cfg = vision_config(delta_robot(), paper48()[[21]], paper9()[:1], repeats=1, image_format=image_format)
+    # Two 2592x1944 images of the default scene (position 22, the 0.5 kg load along +y), with
+    # the true camera (a calibration view, 2.3 MB as PNG, is within the same estimate).
+    cfg = vision_config(
+        delta_robot(),
+        paper48()[[21]],
+        paper9()[:1],
+        repeats=1,
+        image_format=image_format,
+        calibration_views=0,
+    )
     sim = plan_simulation(cfg, tmp_path / "sim")
     written = write_campaign(tmp_path / "sim", cfg, plan=sim.plan)
     on_disk = sum(p.stat().st_size for p in (tmp_path / "sim" / "images").rglob("*.*"))

@@ -6,11 +6,18 @@ import cv2
 import numpy as np
 import pytest
 from helpers.board_images import quick_board_image, warped_board_image
-from helpers.board_scenes import close_two_target_poses, exact_corners, look_at_pose, small_camera
+from helpers.board_scenes import (
+    close_two_target_poses,
+    exact_corners,
+    look_at_pose,
+    scaled_camera,
+    small_camera,
+)
 
 from stiffmap.camera import CameraModel, reference_camera
 from stiffmap.errors import InputError
-from stiffmap.sim.render import Target, render
+from stiffmap.sim.calibration_views import CALIBRATION_BOARD, CALIBRATION_MARGIN_MM, careful_poses
+from stiffmap.sim.render import Photometry, Target, render
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import DetectionError, detect_board, detect_boards, track_board
 from stiffmap.vision.board_plane import trim_to_saddles
@@ -214,3 +221,16 @@ def test_a_grid_followed_into_the_printed_margin_is_trimmed_back_to_the_board():
         np.concatenate([2 * grid[:, :1] - grid[:, 1:2], grid], axis=1),  # one column
     ):
         np.testing.assert_array_equal(trim_to_saddles(img, extended), grid)
+
+
+def test_a_board_too_blurred_for_the_corner_refinement_is_a_detection_error():
+    # A grid found by OpenCV whose corners the sub-pixel refinement nearly all drops (8 px
+    # of optics blur on 30 px squares): fewer than 4 corners are left for the board-plane
+    # fit, which is a detection error naming the blur, not an OpenCV exception (it was one).
+    cam = scaled_camera(reference_camera(), 0.25)
+    T = careful_poses(cam, 3, border_px=20.0)[1]
+    target = Target(CALIBRATION_BOARD, T, margin_mm=CALIBRATION_MARGIN_MM)
+    img = render(cam, [target], photometry=Photometry(blur_px=8.0), seed=1).image
+    with pytest.raises(DetectionError, match="sub-pixel precision .blur") as e:
+        detect_board(img, CALIBRATION_BOARD, source="blurred.png")
+    assert e.value.reason == "partial"

@@ -13,9 +13,15 @@ at each position while its loads are hung (one unloaded image per repeat, then
 one image per load), so each loaded image is compared with the mean unloaded
 pose of its position.
 
+As a lab would, the test-bed first renders views of a calibration board
+(:mod:`stiffmap.sim.calibration_views`, 20 by default) and the campaign is
+measured with the camera calibrated from them (``stiffmap calibrate``'s
+calibration), not with the true camera; ``calibration_views=0`` gives it the
+true camera instead.
+
 The report is written by the caller (``stiffmap demo`` does it). A directory
-that already holds the same simulation (same settings and seed) is reused: the
-images are not rendered again, and the run only does what is missing.
+that already holds the same simulation (same settings, calibration and seed) is
+reused: the images are not rendered again, and the run only does what is missing.
 """
 
 from __future__ import annotations
@@ -33,15 +39,15 @@ from ..loads import paper9
 from ..models.presets import paper48
 from ..sim.robot import delta_robot
 from ..sim.scene import demo_scene
-from ..sim.testbed import SimConfig
+from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS, SimConfig
 from .export import export_tables
 from .runner import run_campaign
 from .simulated import write_campaign
 from .spec import load_spec
 from .store import DB_NAME, Store, from_json, remove_database
-from .truth import TRUTH_NAME, load_truth
+from .truth import TRUTH_NAME, CalibrationSummary, load_truth
 
-__all__ = ["DemoResult", "run_demo", "demo_config", "QUICK_POSITIONS"]
+__all__ = ["DemoResult", "run_demo", "demo_config", "demo_command", "QUICK_POSITIONS"]
 
 #: Positions (1-based, in ``paper48``) of the quick demo: a corner and a centre of each plane.
 QUICK_POSITIONS = (1, 6, 22, 27, 43, 48)
@@ -62,6 +68,8 @@ class DemoResult:
         False when an earlier identical simulation was reused.
     images : int
     seconds_simulate, seconds_run : float
+    calibration : CalibrationSummary
+        How the campaign's camera.json was obtained (from truth.json).
     failures : list of str
     """
 
@@ -74,6 +82,7 @@ class DemoResult:
     images: int
     seconds_simulate: float
     seconds_run: float
+    calibration: CalibrationSummary
     failures: list[str] = field(default_factory=list)
 
     @property
@@ -83,8 +92,18 @@ class DemoResult:
         return float("inf") if np.any(~np.isfinite(e)) else float(100 * e.max())
 
 
-def demo_config(*, quick: bool = False, repeats: int | None = None, seed: int = 1) -> SimConfig:
-    """The :class:`~stiffmap.sim.testbed.SimConfig` of the demo."""
+def demo_config(
+    *,
+    quick: bool = False,
+    repeats: int | None = None,
+    seed: int = 1,
+    calibration_views: int = DEFAULT_CALIBRATION_VIEWS,
+) -> SimConfig:
+    """The :class:`~stiffmap.sim.testbed.SimConfig` of the demo.
+
+    ``calibration_views``: views of the calibration board from which the campaign's camera
+    is calibrated (0: the campaign gets the true camera).
+    """
     pos = paper48()
     if quick:
         pos = pos[np.asarray(QUICK_POSITIONS) - 1]
@@ -97,7 +116,20 @@ def demo_config(*, quick: bool = False, repeats: int | None = None, seed: int = 
         repeats=r,
         seed=seed,
         robot_stays=True,
+        calibration_views=calibration_views,
         name="demo: the reference experiment on the virtual test-bed" + (" (quick)" if quick else ""),
+    )
+
+
+def demo_command(config: SimConfig, quick: bool) -> str:
+    """What truth.json records as the demo's command: every setting the simulation depends on.
+
+    The calibration is part of what is simulated: a directory simulated with another
+    calibration setting (or before there were calibration views) is simulated again.
+    """
+    return (
+        f"stiffmap demo (quick={quick}, repeats={config.repeats}, seed={config.seed}, "
+        f"calibration_views={config.calibration_views})"
     )
 
 
@@ -118,6 +150,7 @@ def run_demo(
     quick: bool = False,
     repeats: int | None = None,
     seed: int = 1,
+    calibration_views: int = DEFAULT_CALIBRATION_VIEWS,
     workers: int = 1,
     fresh: bool = False,
     sim_progress: Callable[[int, int], None] | None = None,
@@ -137,6 +170,8 @@ def run_demo(
         Six positions and two repeats instead of 48 and three (for tests).
     repeats : int, optional
     seed : int
+    calibration_views : int
+        Views of the calibration board the camera is calibrated from (0: the true camera).
     workers : int
         Processes for rendering and for measuring.
     fresh : bool
@@ -148,8 +183,8 @@ def run_demo(
         When ``out_dir`` holds something else than a stiffmap simulation.
     """
     out = Path(out_dir)
-    config = demo_config(quick=quick, repeats=repeats, seed=seed)
-    command = f"stiffmap demo (quick={quick}, repeats={config.repeats}, seed={seed})"
+    config = demo_config(quick=quick, repeats=repeats, seed=seed, calibration_views=calibration_views)
+    command = demo_command(config, quick)
     simulated = False
     t0 = time.perf_counter()
     if fresh or not _same_simulation(out, command):
@@ -182,5 +217,6 @@ def run_demo(
         images=summary.images,
         seconds_simulate=t1 - t0,
         seconds_run=t2 - t1,
+        calibration=truth.calibration,
         failures=summary.failures,
     )

@@ -4,7 +4,8 @@ Layout (``docs/simulation.md``)::
 
     OUT_DIR/
       campaign.toml            # stiffmap's campaign spec (positions and loads as explicit lists)
-      camera.json              # the true camera
+      camera.json              # the camera calibrated from calibration/ (or the true one)
+      calibration/view01.png, ...   # views of the calibration board (SimConfig.calibration_views)
       images/p01/l01_r01_unloaded.png, images/p01/l01_r01_loaded.png, ...
       truth.json               # the ground truth (written last: its presence marks a finished run)
       truth_corners.json.gz    # every image's true board poses and corner pixels
@@ -12,10 +13,18 @@ Layout (``docs/simulation.md``)::
 
 The images and their truth come from the test-bed (:mod:`stiffmap.sim.testbed`,
 :mod:`stiffmap.sim.render_pool`); this module lays them out in the campaign
-format. Every file is written atomically. A directory that is not empty is
-refused unless ``force``, and ``force`` only overwrites a previous simulation (a
-directory whose ``truth.json`` or marker the simulator wrote): raw images of a
-real campaign are never deleted.
+format. As a lab does before a campaign, the camera is calibrated first: the
+test-bed renders views of a calibration board at the poses a careful user takes
+(:mod:`stiffmap.sim.calibration_views`), :func:`stiffmap.vision.files.calibrate_files`
+(what ``stiffmap calibrate`` runs: detection, then Zhang's method, model ``k3``)
+calibrates the camera from them, and that camera, with its covariance, is the
+campaign's camera.json; truth.json keeps the true camera beside it. With
+``calibration_views = 0``, or without images, camera.json is the true camera.
+
+Every file is written atomically. A directory that is not empty is refused unless
+``force``, and ``force`` only overwrites a previous simulation (a directory whose
+``truth.json`` or marker the simulator wrote): raw images of a real campaign are
+never deleted.
 """
 
 from __future__ import annotations
@@ -26,25 +35,42 @@ import os
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
-from ..camera import save_camera
+from ..camera import plausibility_problems, save_camera
 from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
-from ..sim.render_pool import render_campaign_images
+from ..sim.calibration_views import (
+    CALIBRATION_BOARD,
+    CALIBRATION_DIR,
+    CALIBRATION_MARGIN_MM,
+    CalibrationView,
+    plan_calibration_views,
+)
+from ..sim.render_pool import render_calibration_images, render_campaign_images
 from ..sim.testbed import CampaignPlan, SimConfig, plan_campaign
+from ..vision.calibrate import CalibrationResult
+from ..vision.files import calibrate_files
 from .spec import CampaignSpec
 from .spec_writer import dump_spec
 from .store import remove_database
-from .truth import CORNERS_NAME, MARKER_NAME, TRUTH_FORMAT, TRUTH_NAME, compact_json
+from .truth import (
+    CORNERS_NAME,
+    MARKER_NAME,
+    TRUTH_FORMAT,
+    TRUTH_NAME,
+    CalibrationSummary,
+    compact_json,
+)
 
 __all__ = [
     "SimSummary",
+    "calibrate_from_views",
     "write_campaign",
     "campaign_spec_dict",
     "check_output_dir",
@@ -52,6 +78,8 @@ __all__ = [
 ]
 
 _OWN_FILES = ("campaign.toml", "camera.json", TRUTH_NAME, CORNERS_NAME)
+#: The distortion model of the calibration (``stiffmap calibrate``'s default).
+CALIBRATION_MODEL = "k3"
 
 
 @dataclass(frozen=True)
@@ -65,13 +93,17 @@ class SimSummary:
     images_rendered : bool
         False when only the truth was written (``render_images=False``).
     bytes_written : int
-        Size of the images, bytes.
+        Size of the images (calibration views included), bytes.
     seconds : float
         Wall time.
     principal_range : (float, float)
         Smallest and largest principal stiffness over the positions, N/mm.
     files : tuple of str
         The campaign's own files (relative paths), images excluded.
+    calibration : CalibrationSummary
+        How camera.json was obtained (calibrated from views, or the true camera).
+    calibration_seconds : float
+        Wall time of rendering the calibration views and calibrating (0 without).
     """
 
     out_dir: Path
@@ -84,6 +116,8 @@ class SimSummary:
     seconds: float
     principal_range: tuple[float, float]
     files: tuple[str, ...]
+    calibration: CalibrationSummary
+    calibration_seconds: float = 0.0
 
 
 # ------------------------------------------------------------------ directory
@@ -148,7 +182,7 @@ def prepare_output_dir(out: Path, force: bool) -> None:
             p = out / name
             if p.is_file():
                 p.unlink()
-        for sub in ("images", "recordings"):  # a vision or a sensor simulation
+        for sub in ("images", CALIBRATION_DIR, "recordings"):  # a vision or a sensor simulation
             if (out / sub).is_dir():
                 shutil.rmtree(out / sub)
         # Results of 'stiffmap run' on the previous simulation: they describe images that are
@@ -202,7 +236,9 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
     }
 
 
-def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str, Any]:
+def _truth_dict(
+    config: SimConfig, plan: CampaignPlan, command: str, calibration: dict[str, Any]
+) -> dict[str, Any]:
     sc = config.scene
     rb = config.robot
     positions = []
@@ -234,6 +270,8 @@ def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str
             "seed": config.seed,
             "units": "mm, N, rad; K in N/mm (K_tcp: 6x6 at the tool point, blocks N/mm, N, N*mm/rad)",
             "camera": sc.camera.to_dict(),
+            "calibrated_camera": calibration.pop("camera"),
+            "calibration": calibration,
             "cam2base": sc.cam2base,
             "targets": {
                 "fixed": {
@@ -274,6 +312,111 @@ def _truth_dict(config: SimConfig, plan: CampaignPlan, command: str) -> dict[str
     )
 
 
+# ------------------------------------------------------------------ calibration
+
+_PARAMS = ("fx", "fy", "cx", "cy")
+
+
+def _true_camera(note: str) -> CalibrationSummary:
+    return CalibrationSummary(False, note, 0, 0, float("nan"), {}, {})
+
+
+def calibrate_from_views(
+    out: Path,
+    config: SimConfig,
+    views: tuple[CalibrationView, ...],
+    *,
+    workers: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[CalibrationSummary, CalibrationResult, dict[str, Any]]:
+    """Render the calibration views into ``out`` and calibrate the camera from them.
+
+    The calibration is ``stiffmap calibrate``'s (:func:`stiffmap.vision.files.calibrate_files`,
+    model ``k3``, views whose RMS is an outlier left out); the views are named relative to
+    ``out`` in the camera's ``views``, as ``stiffmap calibrate calibration/*.png`` run in the
+    campaign directory names them.
+
+    Returns
+    -------
+    summary : CalibrationSummary
+    result : CalibrationResult
+        Its camera (with ``cov``) is what camera.json is to hold; its views are named
+        relative to ``out``.
+    rendered : dict
+        Per view file: ``({"file", "calibration": {"board2cam", "corners_px"}}, bytes written)``
+        (the true pose and corners).
+
+    Raises
+    ------
+    InputError
+        The calibration failed (too few views with the board found), or its camera fails
+        camera.json's plausibility checks (naming the calibration folder).
+    """
+    rendered = render_calibration_images(out, config, views, workers=workers, progress=progress)
+    paths = [out / v.file for v in views]
+    try:
+        res = calibrate_files(paths, CALIBRATION_BOARD, model=CALIBRATION_MODEL)
+    except InputError as e:
+        raise InputError(
+            f"the camera could not be calibrated from the {len(views)} rendered calibration views: "
+            + e.detail,
+            source=str(out / CALIBRATION_DIR),
+        ) from None
+    names = {str(p): v.file for p, v in zip(paths, views, strict=True)}
+    cam = replace(
+        res.camera, views=tuple({**d, "image": names.get(d["image"], d["image"])} for d in res.camera.views)
+    )
+    problems = plausibility_problems(cam)
+    if problems:
+        raise InputError(
+            "the camera calibrated from the rendered views is implausible: "
+            + "; ".join(f"{k}: {what}" for k, what in problems),
+            source=str(out / CALIBRATION_DIR),
+        )
+    true = config.scene.camera
+    err = {k: float(getattr(cam, k) - getattr(true, k)) for k in _PARAMS}
+    rel = {k: err[k] / float(getattr(true, k)) for k in _PARAMS}
+    summary = CalibrationSummary(True, "", len(views), res.n_used, float(cam.rms_px), rel, err)
+    res = replace(
+        res, camera=cam, views=tuple(replace(v, image=names.get(v.image, v.image)) for v in res.views)
+    )
+    return summary, res, rendered
+
+
+def _calibration_truth(
+    summary: CalibrationSummary, result: CalibrationResult | None, views: tuple[CalibrationView, ...]
+) -> dict[str, Any]:
+    """truth.json's ``calibration`` (with ``camera``, popped into ``calibrated_camera``)."""
+    if result is None:
+        return {"camera_json": "true camera", "note": summary.note, "camera": None}
+    found = {v.image: v.to_dict() for v in result.views}
+    return {
+        "camera_json": "calibrated",
+        "tool": f"stiffmap calibrate (stiffmap.vision.files.calibrate_files, model {CALIBRATION_MODEL})",
+        "board": CALIBRATION_BOARD.size,
+        "square_mm": CALIBRATION_BOARD.square_mm,
+        "margin_mm": CALIBRATION_MARGIN_MM,
+        "n_views": summary.n_views,
+        "n_used": summary.n_used,
+        "rms_px": summary.rms_px,
+        "relative_error": summary.relative_error,
+        "error_px": summary.error_px,
+        "views": [
+            {
+                "file": v.file,
+                "board2cam": v.board2cam,
+                "used": found.get(v.file, {}).get("used", False),
+                "rms_px": found.get(v.file, {}).get("rms_px"),
+                "reason": found.get(v.file, {}).get("reason", "not calibrated"),
+                "gain": v.gain,
+                "offset_dn": v.offset_dn,
+            }
+            for v in views
+        ],
+        "camera": result.camera.to_dict(),
+    }
+
+
 # ------------------------------------------------------------------ writing
 
 
@@ -302,9 +445,11 @@ def write_campaign(
         Overwrite a previous simulation in ``out_dir``.
     render_images : bool
         False: write the spec, camera and truth but no images (for tests of the
-        measurement chain on the true corners).
+        measurement chain on the true corners); camera.json is then the true camera
+        (there is nothing to calibrate from).
     progress : callable, optional
-        Called as ``progress(done, total)`` after each finished image.
+        Called as ``progress(done, total)`` after each finished image (the calibration
+        views first, then the campaign's images).
     command : str
         The command line, recorded in truth.json.
     plan : CampaignPlan, optional
@@ -318,7 +463,8 @@ def write_campaign(
     ------
     InputError
         Output directory not usable; a position where the robot model has no
-        stiffness or a board leaves the image (naming it).
+        stiffness or a board leaves the image (naming it); the camera could not be
+        calibrated from the rendered views (naming the calibration folder).
     """
     t0 = time.perf_counter()
     out = Path(out_dir)
@@ -326,8 +472,26 @@ def write_campaign(
         raise InputError(f"workers must be >= 1, got {workers}")
     if plan is None:
         plan = plan_campaign(config)
+    views = plan_calibration_views(config) if render_images else ()
+    jobs = list(plan.jobs)
+    n_total = len(views) + (len(jobs) if render_images else 0)
     prepare_output_dir(out, force)
-    save_camera(config.scene.camera, out / "camera.json")
+    result = None
+    t_cal = time.perf_counter()
+    if views:
+        cal_progress = None if progress is None else (lambda done, _total: progress(done, n_total))
+        calibration, result, rendered_views = calibrate_from_views(
+            out, config, views, workers=workers, progress=cal_progress
+        )
+    else:
+        rendered_views = {}
+        if config.calibration_views:
+            note = "truth only: no images to calibrate from"
+        else:
+            note = "no calibration views (calibration_views = 0, --true-camera)"
+        calibration = _true_camera(note)
+    t_cal = time.perf_counter() - t_cal
+    save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
         f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "
@@ -336,14 +500,22 @@ def write_campaign(
     )
     atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
 
-    jobs = list(plan.jobs)
+    img_progress = None
+    if progress is not None:
+        img_progress = (
+            (lambda done, total: progress(len(views) + done, n_total)) if render_images else progress
+        )
     results = render_campaign_images(
-        out, config, jobs, workers=workers, render_images=render_images, progress=progress
+        out, config, jobs, workers=workers, render_images=render_images, progress=img_progress
     )
     corners = [results[j.file][0] for j in jobs]
-    data = json.dumps(to_jsonable({"format": TRUTH_FORMAT, "images": corners}), allow_nan=False)
+    gz = {"format": TRUTH_FORMAT, "images": corners}
+    if rendered_views:
+        gz["calibration"] = [rendered_views[v.file][0] for v in views]
+    data = json.dumps(to_jsonable(gz), allow_nan=False)
     atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
-    atomic_write_text(out / TRUTH_NAME, compact_json(_truth_dict(config, plan, command)) + "\n")
+    truth = _truth_dict(config, plan, command, _calibration_truth(calibration, result, views))
+    atomic_write_text(out / TRUTH_NAME, compact_json(truth) + "\n")
     eig = np.linalg.eigvalsh(0.5 * (plan.K3 + np.swapaxes(plan.K3, 1, 2)))
     return SimSummary(
         out_dir=out,
@@ -352,8 +524,10 @@ def write_campaign(
         repeats=config.repeats,
         n_images=len(jobs) if render_images else 0,
         images_rendered=bool(render_images),
-        bytes_written=int(sum(n for _, n in results.values())),
+        bytes_written=int(sum(n for _, n in results.values()) + sum(n for _, n in rendered_views.values())),
         seconds=time.perf_counter() - t0,
         principal_range=(float(eig.min()), float(eig.max())),
         files=_OWN_FILES,
+        calibration=calibration,
+        calibration_seconds=t_cal,
     )

@@ -61,7 +61,8 @@ def init(
         "--from-demo",
         help="Instead of the template, the demo's campaign, complete: the quick demo set-up (6 of "
         "the reference positions, nine loads, two repeats) simulated into DIRECTORY with its "
-        "images, camera.json and truth.json, ready for 'stiffmap run'. DIRECTORY must be new or empty.",
+        "images, the calibration views and the camera.json calibrated from them, and truth.json, "
+        "ready for 'stiffmap run'. DIRECTORY must be new or empty.",
     ),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing campaign.toml."),
 ) -> None:
@@ -74,7 +75,10 @@ def init(
     path = directory / SPEC_NAME
     if from_demo:
         _init_from_demo(directory, force)
-        out.print(f"wrote {path}, camera.json, images/ and truth.json (the true stiffness)")
+        out.print(
+            f"wrote {path}, calibration/ and the camera.json calibrated from it, images/ and "
+            "truth.json (the true stiffness and camera)"
+        )
         out.print("next: stiffmap run " + shlex.quote(str(directory)))
         return
     if path.exists() and not force:

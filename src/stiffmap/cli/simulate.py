@@ -35,6 +35,7 @@ from ..models.presets import positions_from_text, select_positions
 from ..models.prr3 import PRR3
 from ..sim.plan import SimulationPlan, plan_simulation, vision_config
 from ..sim.robot import delta_robot
+from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from ..units import G_REFERENCE_PAPER
 from .common import (
     err,
@@ -74,10 +75,29 @@ _VISION_ONLY = {
     "load_point": "--load-point-mm",
     "truth_only": "--truth-only",
     "workers": "--workers",
+    "calibration_views": "--calibration-views",
+    "true_camera": "--true-camera",
 }
 _SENSOR_ONLY = {"directions": "--directions", "trace_format": "--trace-format"}
 #: What a full disk's message suggests.
 _DISK_ADVICE = "use fewer --positions/--select/--repeats or --format jpeg"
+
+
+def _calibration_views(ctx: typer.Context, n: int, true_camera: bool) -> int:
+    """The number of calibration views of ``--calibration-views`` and ``--true-camera``."""
+    if true_camera:
+        if getattr(ctx.get_parameter_source("calibration_views"), "name", "") == "COMMANDLINE" and n:
+            raise InputError(
+                f"--true-camera and --calibration-views {n}: choose one (--true-camera means no "
+                "calibration views)"
+            )
+        return 0
+    if 0 < n < 3:
+        raise InputError(
+            f"--calibration-views {n}: a calibration needs at least 3 views (20 is what a careful "
+            "lab takes); 0 gives the true camera"
+        )
+    return n
 
 
 def _refuse_options_of_the_other_robot(ctx: typer.Context, robot: RobotName) -> None:
@@ -217,18 +237,37 @@ def simulate(
     camera_file: Path = typer.Option(
         None, "--camera", help="camera.json to simulate instead of the reference camera.", show_default=False
     ),
+    calibration_views: int = typer.Option(
+        DEFAULT_CALIBRATION_VIEWS,
+        "--calibration-views",
+        min=0,
+        help="Views of an 11x8 calibration board (25 mm squares) rendered first, at the poses a "
+        "careful user takes, from which camera.json is calibrated as `stiffmap calibrate` does "
+        "(0: the true camera; else at least 3).",
+    ),
+    true_camera: bool = typer.Option(
+        False,
+        "--true-camera",
+        help="Give the campaign the true camera in camera.json (no calibration views; "
+        "= --calibration-views 0).",
+    ),
     truth_only: bool = typer.Option(
-        False, "--truth-only", help="Write the spec, camera and truth but no images (fast; for tests)."
+        False,
+        "--truth-only",
+        help="Write the spec, camera and truth but no images (fast; for tests). Nothing to "
+        "calibrate from: camera.json is the true camera.",
     ),
     name: str = typer.Option("virtual test-bed", "--name", help="Campaign name."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary instead of a table."),
 ) -> None:
     """Simulate a vision campaign of a robot with known stiffness, seen by a known camera.
 
-    Writes OUT_DIR/campaign.toml, camera.json, images/ (an unloaded and a loaded image per
-    position, load case and repeat) and the ground truth truth.json (true K at every
-    position, every image's poses) with truth_corners.json.gz (true corner pixels).
-    The same --seed gives byte-identical files, whatever --workers.
+    Writes OUT_DIR/calibration/ (views of a calibration board) and camera.json (the camera
+    calibrated from them, as a lab would), campaign.toml, images/ (an unloaded and a loaded
+    image per position, load case and repeat) and the ground truth truth.json (true K at
+    every position, every image's poses, the true camera beside the calibrated one) with
+    truth_corners.json.gz (true corner pixels). The same --seed gives byte-identical files,
+    whatever --workers.
     """
     _refuse_options_of_the_other_robot(ctx, robot)
     check_output_dir(out_dir, force)
@@ -244,20 +283,22 @@ def simulate(
     lp = _load_point(load_point)
     base = from_option("--param:", delta_robot, values)
     _check_rotation_options(rot_stiffness, lp)
+    n_views = _calibration_views(ctx, calibration_views, true_camera)
     cfg = vision_config(
         base, P, load_cases, cam, rot_stiffness_nmm_per_rad=rot_stiffness, load_point_mm=lp,
         repeatability_mm=repeatability_mm, jitter_mm=jitter_mm, noise=noise, blur_px=blur_px,
         clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
-        jpeg_quality=jpeg_quality, name=name,
+        jpeg_quality=jpeg_quality, name=name, calibration_views=n_views,
     )  # fmt: skip
     with _naming_positions_file(positions, select, loads):
         sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
     n_workers = workers or default_workers()
     if not as_json:
+        views = f" + {sim.n_calibration_views} calibration views" if sim.n_calibration_views else ""
         err.print(
             f"simulating {len(P)} position(s) x {len(load_cases)} load case(s) x {repeats} repeat(s): "
-            f"{sim.n_images} images (~{sim.bytes_needed / 1e9:.2f} GB) with {n_workers} process(es) "
-            f"-> {out_dir}",
+            f"{sim.n_images} images{views} (~{sim.bytes_needed / 1e9:.2f} GB) with {n_workers} "
+            f"process(es) -> {out_dir}",
             highlight=False,
         )
     with _rendering_progress(sim, show=not (as_json or truth_only)) as progress:
@@ -285,7 +326,7 @@ def _rendering_progress(sim: SimulationPlan, show: bool):
         TimeRemainingColumn(),
         console=err,
     ) as bar:
-        task = bar.add_task("images", total=sim.n_images or 1, rate="")
+        task = bar.add_task("images", total=(sim.n_images + sim.n_calibration_views) or 1, rate="")
 
         def progress(done: int, total: int) -> None:
             dt = time.perf_counter() - t0
@@ -299,6 +340,8 @@ def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: boo
     cfg = sim.config
     vr = cfg.robot
     lo, hi = summary.principal_range
+    cal_dir = ", calibration/" if summary.calibration.calibrated else ""
+    views = f" + {summary.calibration.n_views} calibration views" if summary.calibration.calibrated else ""
     if as_json:
         print_json(
             {
@@ -315,6 +358,10 @@ def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: boo
                 "params": vr.params,
                 "field": "6x6" if sim.plan.K.shape[-1] == 6 else "3x3",
                 "principal_stiffness_range": [lo, hi],
+                "calibration": {
+                    **summary.calibration.to_dict(),
+                    "seconds": summary.calibration_seconds,
+                },
                 "files": list(summary.files),
             }
         )
@@ -322,15 +369,34 @@ def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: boo
     print_summary(
         f"simulated campaign in {summary.out_dir}",
         [
-            ("images", f"{summary.n_images} {cfg.image_format} ({summary.bytes_written / 1e6:.1f} MB)"),
+            (
+                "images",
+                f"{summary.n_images} {cfg.image_format}{views} ({summary.bytes_written / 1e6:.1f} MB)",
+            ),
             ("positions x loads x repeats", f"{summary.n_positions} x {summary.n_loads} x {summary.repeats}"),
             ("robot", f"{vr.model} ({', '.join(f'{k}={v:g}' for k, v in vr.params.items())})"),
             ("true principal stiffnesses", f"{fmt(lo, 4)} to {fmt(hi, 4)} N/mm"),
+            *_calibration_rows(summary),
             ("seed", str(cfg.seed)),
             ("time", f"{summary.seconds:.1f} s"),
-            ("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/"),
+            ("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/" + cal_dir),
         ],
     )
+
+
+def _calibration_rows(summary: SimSummary) -> list[tuple[str, str]]:
+    """The summary's rows on camera.json: calibrated (views, RMS, errors against the truth) or true."""
+    c = summary.calibration
+    if not c.calibrated:
+        return [("camera.json", f"the true camera: {c.note}")]
+    return [
+        (
+            "camera.json",
+            f"calibrated from {c.n_used} of {c.n_views} views, RMS {c.rms_px:.4f} px "
+            f"({summary.calibration_seconds:.1f} s)",
+        ),
+        ("calibration vs true camera", c.errors_text()),
+    ]
 
 
 def _simulate_sensor(

@@ -10,6 +10,9 @@
 - :mod:`stiffmap.sim.scene`: board poses, the default robot scene;
 - :mod:`stiffmap.sim.robot`: the virtual robot (stiffness field, repeatability);
 - :mod:`stiffmap.sim.testbed`: a campaign's images and their truth (no I/O);
+- :mod:`stiffmap.sim.calibration_views`: views of a calibration board at the poses a
+  careful user takes, rendered like the campaign's images (calibrated from by
+  :mod:`stiffmap.campaign.simulated`, through ``stiffmap.vision``);
 - :mod:`stiffmap.sim.plan`: a vision campaign's settings from a user's choices, its plan
   and the disk space its images need (what ``stiffmap simulate`` decides);
 - :mod:`stiffmap.sim.render_pool`: those images rendered to files in a pool of processes;

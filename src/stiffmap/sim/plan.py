@@ -24,7 +24,7 @@ from ..loads import LoadCase
 from .photometry import Photometry
 from .robot import VirtualRobot, with_rotational_compliance
 from .scene import default_scene
-from .testbed import CampaignPlan, SimConfig, plan_campaign
+from .testbed import DEFAULT_CALIBRATION_VIEWS, CampaignPlan, SimConfig, plan_campaign
 
 __all__ = ["BYTES_PER_PIXEL", "vision_config", "image_bytes", "SimulationPlan", "plan_simulation"]
 
@@ -51,6 +51,7 @@ def vision_config(
     image_format: str = "png",
     jpeg_quality: int = 95,
     name: str = "virtual test-bed",
+    calibration_views: int = DEFAULT_CALIBRATION_VIEWS,
 ) -> SimConfig:
     """The settings of a simulated vision campaign, as ``stiffmap simulate`` takes them.
 
@@ -79,8 +80,9 @@ def vision_config(
         black level 1 DN); False: only the optics blur and 8-bit rounding.
     blur_px, clutter, colour
         As :class:`~stiffmap.sim.photometry.Photometry`.
-    repeats, seed, image_format, jpeg_quality, name
-        As :class:`~stiffmap.sim.testbed.SimConfig`.
+    repeats, seed, image_format, jpeg_quality, name, calibration_views
+        As :class:`~stiffmap.sim.testbed.SimConfig` (``calibration_views``: views of the
+        calibration board the campaign's camera is calibrated from; 0: the true camera).
 
     Returns
     -------
@@ -118,6 +120,7 @@ def vision_config(
             image_format=image_format,
             jpeg_quality=jpeg_quality,
             name=name,
+            calibration_views=calibration_views,
             gain_jitter=0.03 if noise else 0.0,
             offset_jitter_dn=1.0 if noise else 0.0,
         )
@@ -149,15 +152,19 @@ class SimulationPlan:
         Every image's true poses and the true stiffness
         (:func:`~stiffmap.sim.testbed.plan_campaign`).
     n_images : int
-        Images to render (0 when only the truth is written).
+        Campaign images to render (0 when only the truth is written).
     bytes_needed : float
-        Their estimated size (:func:`image_bytes`), bytes.
+        Their estimated size with the calibration views' (:func:`image_bytes`), bytes.
+    n_calibration_views : int
+        Calibration views to render (0 when only the truth is written, or with the true
+        camera).
     """
 
     config: SimConfig
     plan: CampaignPlan
     n_images: int
     bytes_needed: float
+    n_calibration_views: int = 0
 
 
 def plan_simulation(
@@ -193,14 +200,17 @@ def plan_simulation(
     """
     plan = plan_campaign(config)
     n_images = len(plan.jobs) if render_images else 0
-    need = image_bytes(config, n_images)
+    n_views = config.calibration_views if render_images else 0
+    need = image_bytes(config, n_images + n_views)
     out = Path(out_dir)
     probe = out if out.exists() else next((p for p in out.resolve().parents if p.exists()), Path("."))
     free = shutil.disk_usage(probe).free
     if need > 0.95 * free:
         raise InputError(
-            f"{n_images} images need about {need / 1e9:.1f} GB but only {free / 1e9:.1f} GB are free; "
-            + advice,
+            f"{n_images + n_views} images need about {need / 1e9:.1f} GB but only "
+            f"{free / 1e9:.1f} GB are free; " + advice,
             source=str(out_dir),
         )
-    return SimulationPlan(config=config, plan=plan, n_images=n_images, bytes_needed=need)
+    return SimulationPlan(
+        config=config, plan=plan, n_images=n_images, bytes_needed=need, n_calibration_views=n_views
+    )

@@ -3,8 +3,9 @@
 :func:`render_campaign_images` renders every :class:`~stiffmap.sim.testbed.ImageJob`
 of a :class:`~stiffmap.sim.testbed.CampaignPlan` (:func:`~stiffmap.sim.testbed.render_job`),
 writes each image atomically to ``out_dir / job.file`` and returns every image's
-true board poses and corner pixels. The images do not depend on the number of
-processes. What else a simulated campaign directory holds (``campaign.toml``,
+true board poses and corner pixels; :func:`render_calibration_images` does the same for
+the calibration views (:mod:`stiffmap.sim.calibration_views`). The images do not depend
+on the number of processes. What else a simulated campaign directory holds (``campaign.toml``,
 ``truth.json``) is written by :mod:`stiffmap.campaign.simulated`.
 """
 
@@ -20,10 +21,11 @@ from typing import Any
 import cv2
 
 from ..io import atomic_write_bytes
+from .calibration_views import CalibrationView, render_calibration_view
 from .render import true_corners
 from .testbed import ImageJob, SimConfig, render_job
 
-__all__ = ["render_campaign_images"]
+__all__ = ["render_campaign_images", "render_calibration_images"]
 
 _CTX: dict[str, Any] = {}
 
@@ -49,8 +51,13 @@ def _image_truth(scene, job: ImageJob, rendering=None) -> dict[str, Any]:
     return out
 
 
-def _do_job(job: ImageJob) -> tuple[dict[str, Any], int]:
+def _do_job(job: ImageJob | CalibrationView) -> tuple[dict[str, Any], int]:
     c = _CTX
+    if isinstance(job, CalibrationView):
+        data, r = render_calibration_view(c["config"], job)
+        atomic_write_bytes(Path(c["out"]) / job.file, data)
+        t = r.targets[0]
+        return {"file": job.file, t.name: {"board2cam": t.board2cam, "corners_px": t.corners_px}}, len(data)
     scene = c["scene"]
     if not c["render"]:
         return _image_truth(scene, job), 0
@@ -59,7 +66,7 @@ def _do_job(job: ImageJob) -> tuple[dict[str, Any], int]:
     return _image_truth(scene, job, r), len(data)
 
 
-def _do_chunk(jobs: list[ImageJob]) -> list[tuple[dict[str, Any], int]]:
+def _do_chunk(jobs: list[ImageJob | CalibrationView]) -> list[tuple[dict[str, Any], int]]:
     return [_do_job(j) for j in jobs]
 
 
@@ -102,11 +109,52 @@ def render_campaign_images(
         "out": str(out_dir),
         "render": bool(render_images),
     }
+    return _render_all(ctx, jobs, workers, progress)
+
+
+def render_calibration_images(
+    out_dir: str | os.PathLike,
+    config: SimConfig,
+    views: Sequence[CalibrationView],
+    *,
+    workers: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, tuple[dict[str, Any], int]]:
+    """Render every calibration view to ``out_dir / view.file`` and collect its truth.
+
+    Parameters
+    ----------
+    out_dir : path-like
+    config : SimConfig
+        The camera, photometry, seed and image format.
+    views : sequence of CalibrationView
+        :func:`~stiffmap.sim.calibration_views.plan_calibration_views`.
+    workers : int
+        Processes rendering images (1: in this process).
+    progress : callable, optional
+        Called as ``progress(done, total)`` at the start and as images finish.
+
+    Returns
+    -------
+    dict
+        Per image file: ``({"file", "calibration": {"board2cam", "corners_px"}}, bytes written)``.
+    """
+    ctx = {"config": config, "out": str(out_dir), "render": True}
+    return _render_all(ctx, views, workers, progress)
+
+
+def _render_all(
+    ctx: dict[str, Any],
+    jobs: Sequence[ImageJob | CalibrationView],
+    workers: int,
+    progress: Callable[[int, int], None] | None,
+) -> dict[str, tuple[dict[str, Any], int]]:
+    """Run every job in this process (``workers == 1`` or no rendering) or in a pool."""
     results: dict[str, tuple[dict[str, Any], int]] = {}
     total = len(jobs)
     if progress:
         progress(0, total)
-    if workers == 1 or not render_images:
+    if workers == 1 or not ctx["render"]:
         _init_worker(ctx)
         for k, job in enumerate(jobs, start=1):
             results[job.file] = _do_job(job)

@@ -26,7 +26,19 @@ from .render import Photometry, Rendering, encode_image, render
 from .robot import VirtualRobot, translational_stiffness
 from .scene import Scene
 
-__all__ = ["SimConfig", "ImageJob", "CampaignPlan", "plan_campaign", "render_job", "DEFAULT_PATTERNS"]
+__all__ = [
+    "SimConfig",
+    "ImageJob",
+    "CampaignPlan",
+    "plan_campaign",
+    "render_job",
+    "seeded_generator",
+    "DEFAULT_PATTERNS",
+    "DEFAULT_CALIBRATION_VIEWS",
+]
+
+#: Calibration views rendered before a campaign, by default (a careful lab takes about 20).
+DEFAULT_CALIBRATION_VIEWS = 20
 
 #: The campaign spec's default image names (1-based indices).
 DEFAULT_PATTERNS = (
@@ -79,6 +91,10 @@ class SimConfig:
         stays during all its loads and repeats (only the per-image jitter remains);
         each repeat takes one unloaded image, then one image per load, and the
         campaign is written with ``pairing = "mean-reference"``.
+    calibration_views : int
+        Views of a calibration board rendered before the campaign
+        (:mod:`stiffmap.sim.calibration_views`), from which the campaign's camera.json is
+        calibrated as a lab would (default 20); 0: the campaign gets the true camera.
     """
 
     scene: Scene
@@ -96,6 +112,7 @@ class SimConfig:
     g: float = G_REFERENCE_PAPER
     border_px: float = 20.0
     robot_stays: bool = False
+    calibration_views: int = DEFAULT_CALIBRATION_VIEWS
 
     def __post_init__(self) -> None:
         P = np.array(self.positions, dtype=np.float64)
@@ -117,6 +134,13 @@ class SimConfig:
         if fmt not in ("png", "jpeg", "jpg"):
             raise ValueError(f"image_format must be png or jpeg, got {self.image_format!r}")
         object.__setattr__(self, "image_format", "jpeg" if fmt == "jpg" else fmt)
+        n_cal = int(self.calibration_views)
+        if n_cal != 0 and n_cal < 3:
+            raise ValueError(
+                f"calibration_views must be 0 (the true camera) or at least 3 (Zhang's method), "
+                f"got {self.calibration_views!r}"
+            )
+        object.__setattr__(self, "calibration_views", n_cal)
         for k in ("gain_jitter", "offset_jitter_dn"):
             v = float(getattr(self, k))
             if not (np.isfinite(v) and v >= 0):
@@ -183,7 +207,12 @@ class CampaignPlan:
     K3: np.ndarray
 
 
-def _seq(seed: int, *key: int) -> np.random.Generator:
+def seeded_generator(seed: int, *key: int) -> np.random.Generator:
+    """The random generator of one draw of a simulation: ``seed`` and the draw's key (ints).
+
+    Campaign images use 1-based (position, ...) keys; keys starting with 0 are free for
+    draws that belong to no position (the calibration views).
+    """
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(int(k) for k in key)))
 
 
@@ -213,10 +242,10 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
     jobs: list[ImageJob] = []
     ph = cfg.photometry
     for ip, p in enumerate(P, start=1):
-        stay = cfg.robot.reach(p, _seq(cfg.seed, ip)) if cfg.robot_stays else None
+        stay = cfg.robot.reach(p, seeded_generator(cfg.seed, ip)) if cfg.robot_stays else None
         for il, ld in enumerate(cfg.loads, start=1):
             for ir in range(1, cfg.repeats + 1):
-                rng = _seq(cfg.seed, ip, il, ir)
+                rng = seeded_generator(cfg.seed, ip, il, ir)
                 reached = cfg.robot.reach(p, rng) if stay is None else stay
                 T_u = cfg.robot.image_pose(reached, rng)
                 T_l = cfg.robot.image_pose(reached, rng, K[ip - 1], ld.force)
@@ -262,5 +291,7 @@ def render_job(
         ``mobile`` targets.
     """
     ph = replace(photometry, gain=job.gain, offset_dn=job.offset_dn)
-    r = render(scene.camera, scene.targets(job.tcp2base), photometry=ph, seed=_seq(seed, *job.spawn_key))
+    r = render(
+        scene.camera, scene.targets(job.tcp2base), photometry=ph, seed=seeded_generator(seed, *job.spawn_key)
+    )
     return encode_image(r.image, image_format, jpeg_quality=jpeg_quality), r

@@ -223,6 +223,12 @@ def reject_outliers(
     corners exceeds ``max(reject_px, 5 * 1.4826 * median residual)``; repeated
     until the kept set does not change (at most 4 rounds).
     """
+    if len(ids) < 4:  # a board too blurred for the corner refinement: no plane to fit
+        raise DetectionError(
+            f"only {len(ids)} corners of the board could be located to sub-pixel precision "
+            "(blur, glare or occlusion)",
+            reason="partial",
+        )
     keep = np.ones(len(ids), dtype=bool)
     for _ in range(4):
         res, _ = fit_residuals(corners, obj_xy, camera, keep)

@@ -166,9 +166,16 @@ def _flags(model: str) -> int:
 def _run(obj, img, image_size, model):
     nd = DIST_MODELS[model]
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
-    rms, K, dist, rvecs, tvecs, sd_int, _sd_ext, per_view = cv2.calibrateCameraExtended(
-        obj, img, image_size, None, np.zeros(nd), flags=_flags(model), criteria=crit
-    )
+    # On one thread: OpenCV's parallel sums make the result differ in the last digits from
+    # run to run (1e-10 of fx), and the same views must give the same camera.json.
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        rms, K, dist, rvecs, tvecs, sd_int, _sd_ext, per_view = cv2.calibrateCameraExtended(
+            obj, img, image_size, None, np.zeros(nd), flags=_flags(model), criteria=crit
+        )
+    finally:
+        cv2.setNumThreads(threads)
     return K, np.asarray(dist, dtype=np.float64).ravel()[:nd], rvecs, tvecs, sd_int.ravel(), per_view.ravel()
 
 
