@@ -75,6 +75,7 @@ __all__ = [
     "reference_camera",
     "load_camera",
     "save_camera",
+    "check_cov_object",
 ]
 
 _DIST_LENGTHS = (4, 5, 8, 12)
@@ -608,7 +609,34 @@ COV_PSD_TOL = 1e-8
 
 def _check_cov(cov: Any, n_dist: int, bad) -> np.ndarray:
     """Validate the ``cov`` object; the full covariance over the camera's parameters."""
-    names = ("fx", "fy", "cx", "cy", *DIST_NAMES[:n_dist])
+    return check_cov_object(
+        cov, ("fx", "fy", "cx", "cy", *DIST_NAMES[:n_dist]), bad, hint=f"'dist' has {n_dist} coefficients"
+    )
+
+
+def check_cov_object(
+    cov: Any, names: tuple[str, ...], bad, *, hint: str = "", of: str = "this camera"
+) -> np.ndarray:
+    """Validate a ``{"params": [...], "matrix": [[...]]}`` covariance over parameters ``names``.
+
+    Parameters
+    ----------
+    cov : object
+        The JSON value (``params`` optional: default ``names``; a subset names only those).
+    names : tuple of str
+        Every parameter the covariance may name, in the order of the returned matrix.
+    bad : callable (key, what) -> Exception
+        Builds the error naming the file and key.
+    hint : str
+        Said with an unknown parameter name.
+    of : str
+        What the parameters belong to, for the messages.
+
+    Returns
+    -------
+    ndarray, shape (len(names), len(names))
+        Symmetric, positive semi-definite; zero rows and columns for parameters not named.
+    """
     if not isinstance(cov, dict) or set(cov) - {"params", "matrix"} or "matrix" not in cov:
         raise bad("cov", f"must be an object {{'params': [...], 'matrix': [[...]]}}; got {_short(cov)}")
     params = cov.get("params", list(names))
@@ -626,8 +654,8 @@ def _check_cov(cov: Any, n_dist: int, bad) -> np.ndarray:
     if unknown:
         raise bad(
             "cov.params",
-            f"{', '.join(repr(p) for p in unknown)} is not a parameter of this camera (expected names from "
-            f"{list(names)}: 'dist' has {n_dist} coefficients)",
+            f"{', '.join(repr(p) for p in unknown)} is not a parameter of {of} (expected names from "
+            f"{list(names)}" + (f": {hint})" if hint else ")"),
         )
     m = len(params)
     M = cov["matrix"]

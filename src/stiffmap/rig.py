@@ -1,0 +1,290 @@
+"""Several calibrated cameras in one frame: the rig, and the ``rig.json`` file.
+
+A :class:`Rig` is a list of named cameras (each a :class:`~stiffmap.camera.CameraModel`)
+with the pose of each in the rig frame, ``cam2rig`` (mm). The first camera's frame is the
+rig frame (its ``cam2rig`` is the identity), so a rig of one camera is that camera: a pose
+in its rig frame is a pose in its camera frame.
+
+Parameters and their covariance (``docs/conventions.md``, "Rigs"): the rig's calibrated
+parameters are, camera after camera, the camera's own (:attr:`CameraModel.param_names`,
+named ``"NAME.fx"``...) followed, for every camera but the first, by the perturbation of its
+``cam2rig``: ``"NAME.tx"``, ``"NAME.ty"``, ``"NAME.tz"`` (mm, added to the translation, rig
+frame) and ``"NAME.rx"``, ``"NAME.ry"``, ``"NAME.rz"`` (rad, a small rotation applied on the
+left, R = Exp(r) R_hat, rig frame): the (t, r) perturbation of every pose in stiffmap
+(:func:`~stiffmap.posemath.perturb_pose`). :attr:`Rig.calibration_cov` is the joint
+covariance over them (a rig calibration's errors are correlated across cameras).
+
+``rig.json``::
+
+    {"cameras": [
+        {"name": "left", "image_size": [w, h], "fx": ..., ..., "dist": [...],
+         "cam2rig": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+        {"name": "right", ..., "cam2rig": [[...], ...]}],
+     "cov": {"params": ["left.fx", ..., "right.rz"], "matrix": [[...], ...]},
+     ...}
+
+Each camera object holds every ``camera.json`` key (its own ``cov`` and ``std`` are its
+intrinsics' marginal uncertainty) and ``cam2rig``; the top-level ``cov`` is the joint
+covariance (optional: without it, the cameras' own covariances are taken as independent and
+the poses between them as exact, :attr:`Rig.calibration_cov`). Other top-level keys (the
+calibration's residuals and views) are kept as they are. :func:`load_rig` also reads a
+``camera.json``: a rig of that one camera.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .camera import CameraModel, check_cov_object
+from .errors import InputError
+from .geometry import as_transform
+from .io import dumps_json, read_json, replace_keeping_previous
+
+__all__ = ["RigCamera", "Rig", "load_rig", "save_rig", "EXTRINSIC_NAMES"]
+
+#: The perturbation of a camera's ``cam2rig``: translation (mm) and left rotation (rad), rig frame.
+EXTRINSIC_NAMES = ("tx", "ty", "tz", "rx", "ry", "rz")
+#: Tolerance on the first camera's ``cam2rig`` being the identity, and on rotations.
+_IDENTITY_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class RigCamera:
+    """One camera of a rig.
+
+    Attributes
+    ----------
+    name : str
+        Its name (in file patterns ``{camera}``, campaign files and reports).
+    camera : CameraModel
+    cam2rig : ndarray, shape (4, 4), mm
+        The camera's pose in the rig frame.
+    """
+
+    name: str
+    camera: CameraModel
+    cam2rig: np.ndarray
+
+    def __post_init__(self) -> None:
+        T = as_transform(self.cam2rig, f"{self.name}.cam2rig").copy()
+        T.setflags(write=False)
+        object.__setattr__(self, "cam2rig", T)
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Cameras in one frame (see the module docstring).
+
+    Attributes
+    ----------
+    cameras : tuple of RigCamera
+        The first one's frame is the rig frame.
+    cov : ndarray, shape (n, n) or None
+        Joint covariance over :attr:`param_names` (None: see :attr:`calibration_cov`).
+    info : dict
+        Other ``rig.json`` keys (residuals, views), kept as they came.
+    """
+
+    cameras: tuple[RigCamera, ...]
+    cov: np.ndarray | None = None
+    info: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        cams = tuple(self.cameras)
+        object.__setattr__(self, "cameras", cams)
+        if not cams:
+            raise ValueError("a rig needs at least one camera")
+        names = [c.name for c in cams]
+        for n in names:
+            if not isinstance(n, str) or not n.strip():
+                raise ValueError(f"camera names must be non-empty strings, got {names!r}")
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"camera names must differ, {dup[0]!r} is used twice")
+        if np.abs(cams[0].cam2rig - np.eye(4)).max() > _IDENTITY_TOL:
+            raise ValueError(
+                f"the first camera ({cams[0].name}) is the rig frame: its cam2rig must be the identity"
+            )
+        if self.cov is not None:
+            C = np.asarray(self.cov, dtype=np.float64)
+            n = len(self.param_names)
+            if C.shape != (n, n) or not np.all(np.isfinite(C)):
+                raise ValueError(f"cov must be a finite ({n}, {n}) matrix over param_names, got {C.shape}")
+            C = 0.5 * (C + C.T)
+            C.setflags(write=False)
+            object.__setattr__(self, "cov", C)
+
+    # ------------------------------------------------------------------ access
+    @classmethod
+    def single(cls, camera: CameraModel, name: str = "camera") -> Rig:
+        """The rig of one camera (its frame is the rig frame)."""
+        return cls((RigCamera(name, camera, np.eye(4)),))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self.cameras)
+
+    def __len__(self) -> int:
+        return len(self.cameras)
+
+    def index(self, name: str) -> int:
+        """Position of the camera called ``name`` (ValueError naming the rig's cameras)."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise ValueError(f"no camera {name!r} in the rig (cameras: {', '.join(self.names)})") from None
+
+    def camera(self, name: str) -> CameraModel:
+        return self.cameras[self.index(name)].camera
+
+    # -------------------------------------------------------------- parameters
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        """The rig's parameters, camera after camera (see the module docstring)."""
+        out: list[str] = []
+        for k, c in enumerate(self.cameras):
+            out += [f"{c.name}.{p}" for p in c.camera.param_names]
+            if k > 0:
+                out += [f"{c.name}.{p}" for p in EXTRINSIC_NAMES]
+        return tuple(out)
+
+    def intrinsic_slice(self, k: int) -> slice:
+        """Where camera ``k``'s own parameters are in :attr:`param_names`."""
+        start = 0
+        for j, c in enumerate(self.cameras):
+            n = len(c.camera.param_names)
+            if j == k:
+                return slice(start, start + n)
+            start += n + (6 if j > 0 else 0)
+        raise IndexError(f"camera {k} out of range ({len(self)} cameras)")
+
+    def extrinsic_slice(self, k: int) -> slice | None:
+        """Where camera ``k``'s ``cam2rig`` perturbation is (None for the first camera)."""
+        if k == 0:
+            return None
+        s = self.intrinsic_slice(k)
+        return slice(s.stop, s.stop + 6)
+
+    @property
+    def calibration_cov(self) -> np.ndarray | None:
+        """Covariance of :attr:`param_names`, or None when no camera's uncertainty is known.
+
+        ``cov`` when the rig has one; else the cameras' own calibration covariances
+        (:attr:`CameraModel.calibration_cov`) as independent blocks, the ``cam2rig`` poses
+        taken as exact (zero variance); None when no camera has one.
+        """
+        if self.cov is not None:
+            return self.cov
+        blocks = [c.camera.calibration_cov for c in self.cameras]
+        if all(b is None for b in blocks):
+            return None
+        n = len(self.param_names)
+        C = np.zeros((n, n))
+        for k, b in enumerate(blocks):
+            if b is not None:
+                s = self.intrinsic_slice(k)
+                C[s, s] = b
+        return C
+
+    # -------------------------------------------------------------------- json
+    def to_dict(self) -> dict[str, Any]:
+        """The ``rig.json`` object."""
+        cams = []
+        for c in self.cameras:
+            d = {"name": c.name}
+            d.update(c.camera.to_dict())
+            d["cam2rig"] = c.cam2rig.tolist()
+            cams.append(d)
+        out: dict[str, Any] = {"cameras": cams}
+        if self.cov is not None:
+            out["cov"] = {"params": list(self.param_names), "matrix": self.cov.tolist()}
+        for k, v in self.info.items():
+            if k not in out:
+                out[k] = v
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "rig.json") -> Rig:
+        """Validate a ``rig.json`` object (or a ``camera.json`` one: a rig of that camera).
+
+        Raises
+        ------
+        InputError
+            Naming ``source`` and the key (``cameras[1].cam2rig``...) that is wrong.
+        """
+        if isinstance(data, dict) and "cameras" not in data and "fx" in data:
+            return cls.single(CameraModel.from_dict(data, source=source))
+        if not isinstance(data, dict) or "cameras" not in data:
+            raise InputError(
+                "expected a JSON object with the key 'cameras' (a list of cameras with a 'name', "
+                "the camera.json keys and 'cam2rig'), or a camera.json object",
+                source=source,
+            )
+
+        def bad(key: str, what: str) -> InputError:
+            return InputError(f"key {key!r}: {what}", source=source)
+
+        items = data["cameras"]
+        if not isinstance(items, list) or not items:
+            raise bad("cameras", "must be a non-empty list of camera objects")
+        cams: list[RigCamera] = []
+        seen: set[str] = set()
+        for i, item in enumerate(items):
+            key = f"cameras[{i}]"
+            if not isinstance(item, dict):
+                raise bad(key, f"must be an object, got {type(item).__name__}")
+            name = item.get("name")
+            if not isinstance(name, str) or not name.strip() or name != name.strip():
+                raise bad(f"{key}.name", f"must be a non-empty name without outer spaces, got {name!r}")
+            if name in seen:
+                raise bad(f"{key}.name", f"{name!r} is the name of an earlier camera: names must differ")
+            seen.add(name)
+            if "cam2rig" not in item:
+                if i == 0:
+                    T = np.eye(4)
+                else:
+                    raise bad(f"{key}.cam2rig", "missing (the camera's pose in the rig frame, 4x4, mm)")
+            else:
+                T = _transform(item["cam2rig"], f"{key}.cam2rig", bad)
+            if i == 0 and np.abs(T - np.eye(4)).max() > _IDENTITY_TOL:
+                raise bad(f"{key}.cam2rig", "the first camera's frame is the rig frame: must be the identity")
+            body = {k: v for k, v in item.items() if k not in ("name", "cam2rig")}
+            camera = CameraModel.from_dict(body, source=f"{source}: {key} ({name})")
+            cams.append(RigCamera(name, camera, T))
+        rig = cls(tuple(cams))
+        cov = None
+        if data.get("cov") is not None:
+            cov = check_cov_object(data["cov"], rig.param_names, bad, of="this rig")
+        info = {k: v for k, v in data.items() if k not in ("cameras", "cov")}
+        return cls(rig.cameras, cov=cov, info=info)
+
+
+def _transform(v: Any, key: str, bad) -> np.ndarray:
+    if (
+        not isinstance(v, list)
+        or len(v) != 4
+        or not all(isinstance(r, list) and len(r) == 4 for r in v)
+        or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for r in v for x in r
+        )
+    ):
+        raise bad(key, "must be a 4x4 list of finite numbers (a rigid transform, mm)")
+    try:
+        return as_transform(np.array(v, dtype=np.float64), key)
+    except ValueError as e:
+        raise bad(key, str(e).split(": ", 1)[-1]) from None
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Read and validate a ``rig.json`` (or a ``camera.json``: a rig of one camera)."""
+    return Rig.from_dict(read_json(path, "rig file"), source=str(path))
+
+
+def save_rig(rig: Rig, path: str | Path) -> Path | None:
+    """Write ``rig.json`` atomically; a different earlier file is kept as ``rig.json.bak``."""
+    return replace_keeping_previous(path, dumps_json(rig.to_dict()) + "\n")
