@@ -141,3 +141,72 @@ def test_sensor_section_takes_the_step_detector_and_hand_plateaus():
         parse_spec(SENSOR_TOML.replace("load_n_per_v = 98.1\n", ""))
     with pytest.raises(InputError, match=r"line 6, key 'sensor.recordings.0.step_times'.*end > start"):
         parse_spec(SENSOR_TOML.replace("[3.0, 4.5]", "[4.5, 3.0]"))
+
+
+def _rig_spec_text() -> str:
+    """The example with [cameras] and {camera} in the image patterns."""
+    text = "\n".join(
+        ln for ln in EXAMPLE_TOML.splitlines() if not ln.startswith("# ") or "{camera}" not in ln
+    )
+    text = "\n".join(
+        ln for ln in text.splitlines() if not ln.startswith(("#   [cameras]", "#   rig", "# Several"))
+    )
+    text = text.replace('[camera]\nfile = "camera.json"', '[cameras]\nrig = "rig.json"')
+    for state in ("unloaded", "loaded"):
+        text = text.replace(f"_{state}.png", f"_{state}_{{camera}}.png")
+    return text
+
+
+def test_cameras_section_takes_a_rig_and_patterns_with_camera():
+    spec = parse_spec(_rig_spec_text())
+    assert spec.camera is None and spec.cameras.rig == "rig.json"
+    assert spec.images.per_camera
+    # The image set's name keeps {camera}; stiffmap.rig.camera_path gives each camera's file.
+    from stiffmap.rig import camera_path
+
+    rel = spec.images.path("loaded", 3, 2, 1)
+    assert "{camera}" in rel and camera_path(rel, "left").endswith("_loaded_left.png")
+    spec = parse_spec(_rig_spec_text().replace('rig = "rig.json"', 'rig = "rig.json"\nnames = ["l", "r"]'))
+    assert spec.cameras.names == ["l", "r"]
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda t: t.replace("[cameras]", '[camera]\nfile = "camera.json"\n\n[cameras]'), "not both"),
+        (lambda t: t.replace("_loaded_{camera}.png", "_loaded.png"), "must hold {camera}"),
+        (lambda t: t.replace("{camera}", "{camera:>4}", 1), "without a format"),
+        (
+            lambda t: t.replace('rig = "rig.json"', 'rig = "rig.json"\nnames = ["a/b"]'),
+            "usable in a file name",
+        ),
+        (lambda t: t.replace('rig = "rig.json"', 'rig = "rig.json"\nnames = ["a", "a"]'), "listed twice"),
+        (lambda t: t.replace('rig = "rig.json"', 'rig = "rig.json"\nnames = []'), "at least one camera"),
+    ],
+)
+def test_cameras_mistakes_are_named(edit, message):
+    with pytest.raises(InputError, match=message):
+        parse_spec(edit(_rig_spec_text()))
+
+
+def test_camera_placeholder_needs_a_cameras_section():
+    text = EXAMPLE_TOML.replace("_loaded.png", "_loaded_{camera}.png")
+    with pytest.raises(InputError, match=r"needs a \[cameras\] section"):
+        parse_spec(text)
+
+
+def test_plan_names_each_cameras_file_and_misses_only_empty_sets(tmp_path):
+    from stiffmap.campaign.positions import plan
+
+    text = _rig_spec_text().replace('preset = "paper48"', "list = [[0, 0, -300]]")
+    spec = parse_spec(text)
+    tasks = plan(spec, tmp_path, cameras=("left", "right"))
+    (t,) = tasks
+    assert len(t.missing) == len(t.images)  # nothing on disk
+    first = t.images[0]
+    files = t.files(first)
+    assert [f.rsplit("_", 1)[1] for f in files] == ["left.png", "right.png"]
+    (tmp_path / files[1]).parent.mkdir(parents=True, exist_ok=True)
+    (tmp_path / files[1]).write_bytes(b"x")  # one camera's file: the set is there, measured with it
+    (t,) = plan(spec, tmp_path, cameras=("left", "right"))
+    assert first not in t.missing and len(t.missing) == len(t.images) - 1

@@ -45,10 +45,19 @@ from .errors import InputError
 from .geometry import as_transform
 from .io import dumps_json, read_json, replace_keeping_previous
 
-__all__ = ["RigCamera", "Rig", "load_rig", "save_rig", "EXTRINSIC_NAMES"]
+__all__ = ["RigCamera", "Rig", "load_rig", "save_rig", "EXTRINSIC_NAMES", "CAMERA_FIELD", "camera_path"]
 
 #: The perturbation of a camera's ``cam2rig``: translation (mm) and left rotation (rad), rig frame.
 EXTRINSIC_NAMES = ("tx", "ty", "tz", "rx", "ry", "rz")
+#: How the name of an image set (one image per camera) holds the camera's name.
+CAMERA_FIELD = "{camera}"
+
+
+def camera_path(image_set: str, camera: str) -> str:
+    """The file of ``camera`` in the image set ``image_set`` (a path holding ``{camera}``)."""
+    return image_set.replace(CAMERA_FIELD, camera)
+
+
 #: Tolerance on the first camera's ``cam2rig`` being the identity, and on rotations.
 _IDENTITY_TOL = 1e-6
 

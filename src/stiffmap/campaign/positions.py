@@ -4,6 +4,11 @@
 position (1-based indices, acquisition order): the images to measure, the
 unloaded/loaded pairs of every load case and repeat, and the images that are
 missing on disk (the run names them and goes on).
+
+With several cameras (``[cameras]``) an "image" is an image set, one file per camera: its
+name is the pattern's path with ``{camera}`` kept (:meth:`PositionTask.files` gives the
+files); a set is missing when none of its cameras' files is on disk (a set missing for some
+cameras only is measured with the others, and the missing ones named).
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
+from ..rig import camera_path
 from .paths import campaign_file
 from .spec import SPEC_NAME, CampaignSpec
 
@@ -38,10 +44,20 @@ class PositionTask:
     images: tuple[str, ...]
     pairs: tuple[Pair, ...]
     missing: tuple[str, ...] = ()
+    cameras: tuple[str, ...] = ()
+
+    def files(self, image: str) -> tuple[str, ...]:
+        """The files of an image (one per camera of a rig; the image itself with one camera)."""
+        return tuple(camera_path(image, c) for c in self.cameras) if self.cameras else (image,)
 
 
-def plan(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> list[PositionTask]:
+def plan(
+    spec: CampaignSpec, root: Path, *, allow_outside: bool = False, cameras: tuple[str, ...] = ()
+) -> list[PositionTask]:
     """The positions of a vision campaign with their image files (missing ones listed).
+
+    ``cameras``: the rig's camera names when the campaign has ``[cameras]`` (each image is
+    then a set of one file per camera, see the module docstring).
 
     Raises
     ------
@@ -68,21 +84,28 @@ def plan(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> list
                 pairs.append(Pair(ld, r, u, lo))
                 for state, rel in (("unloaded", u), ("loaded", lo)):
                     if rel not in seen:
-                        campaign_file(
-                            root,
-                            rel,
-                            f"images.{state}",
-                            f"position {p}, load {ld}, repeat {r}",
-                            allow_outside=allow_outside,
-                            cache=resolved,
-                        )
+                        files = [camera_path(rel, c) for c in cameras] if cameras else [rel]
+                        for f, c in zip(files, cameras or ("",), strict=True):
+                            campaign_file(
+                                root,
+                                f,
+                                f"images.{state}",
+                                f"position {p}, load {ld}, repeat {r}" + (f", camera {c}" if c else ""),
+                                allow_outside=allow_outside,
+                                cache=resolved,
+                            )
                         images.append(rel)
                         seen.add(rel)
-                        if not (root / rel).is_file():
+                        if not any((root / f).is_file() for f in files):
                             missing.append(rel)
         tasks.append(
             PositionTask(
-                p, (float(xyz[0]), float(xyz[1]), float(xyz[2])), tuple(images), tuple(pairs), tuple(missing)
+                p,
+                (float(xyz[0]), float(xyz[1]), float(xyz[2])),
+                tuple(images),
+                tuple(pairs),
+                tuple(missing),
+                tuple(cameras),
             )
         )
     return tasks

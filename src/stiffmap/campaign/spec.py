@@ -4,7 +4,8 @@ A campaign is a directory (DESIGN.md section 4)::
 
     CAMPAIGN/
       campaign.toml        # this spec
-      camera.json          # calibrated camera (vision campaigns)
+      camera.json          # calibrated camera (vision campaigns), or
+      rig.json             # several calibrated cameras ([cameras], stiffmap calibrate-rig)
       images/...           # raw images, never modified
       stiffmap.db          # results (written by ``stiffmap run``)
       report/              # derived report
@@ -50,6 +51,7 @@ from ..loads import LoadCase, load_from_mass, with_friction
 from ..loads import preset as load_preset
 from ..models import MECHANISMS
 from ..models.presets import preset_points
+from ..rig import CAMERA_FIELD
 from ..sensors.recording import parse_channel_map
 from ..targets import parse_board_size
 from .spec_errors import validation_message
@@ -239,6 +241,38 @@ class CameraSpec(_Spec):
     """The calibrated camera (``camera.json``, relative to the campaign directory)."""
 
     file: FileName = "camera.json"
+
+
+class CamerasSpec(_Spec):
+    """Several calibrated cameras (``rig.json`` from ``stiffmap calibrate-rig``).
+
+    Every image of the campaign is then a set of one image per camera: the ``[images]``
+    patterns hold ``{camera}``, replaced by each camera's name.
+    """
+
+    rig: FileName = "rig.json"
+    #: The cameras' names, as in the rig file (optional: a check that the file is the one meant).
+    names: list[Annotated[str, Strict(), Field(min_length=1, max_length=LIMITS["name_component"])]] | None = (
+        None
+    )
+
+    @field_validator("names")
+    @classmethod
+    def _names(cls, v):
+        if v is None:
+            return v
+        if not v:
+            raise ValueError("must name at least one camera")
+        for n in v:
+            if n != n.strip() or not re.fullmatch(r"[^/\\{}\x00-\x1f]+", n):
+                raise ValueError(
+                    f"{n!r} is not a camera name usable in a file name (no slash, brace, control character "
+                    "or outer space)"
+                )
+        dup = sorted({n for n in v if v.count(n) > 1})
+        if dup:
+            raise ValueError(f"{dup[0]!r} is listed twice")
+        return v
 
 
 class BoardSpec(_Spec):
@@ -448,7 +482,7 @@ class LoadsSpec(_Spec):
         return loads
 
 
-_FIELDS = {"position", "load", "repeat"}
+_FIELDS = {"position", "load", "repeat", "camera"}
 
 
 def _check_pattern(v: str, required: set[str]) -> str:
@@ -460,7 +494,8 @@ def _check_pattern(v: str, required: set[str]) -> str:
     unknown = {n.split("!")[0].split(":")[0] for n in names} - _FIELDS
     if unknown:
         raise ValueError(
-            f"unknown placeholder(s) {sorted(unknown)} in {v!r}; use {{position}}, {{load}}, {{repeat}}"
+            f"unknown placeholder(s) {sorted(unknown)} in {v!r}; use {{position}}, {{load}}, {{repeat}} "
+            "(and {camera} with several cameras)"
         )
     missing = required - names
     if missing:
@@ -468,6 +503,8 @@ def _check_pattern(v: str, required: set[str]) -> str:
     for _, field, spec, _ in parsed:
         if field is None:
             continue
+        if field.split("!")[0].split(":")[0] == "camera" and (spec or "!" in field):
+            raise ValueError(f"bad pattern {v!r}: write {{camera}} as it is, without a format")
         if "{" in spec or "}" in spec:
             raise ValueError(f"bad pattern {v!r}: a placeholder inside {{{field}:{spec}}}")
         widths = [int(d) for d in re.findall(r"\d+", spec)]
@@ -477,7 +514,7 @@ def _check_pattern(v: str, required: set[str]) -> str:
                 f"at most {LIMITS['format_width']}"
             )
     try:
-        sample = v.format(position=1, load=1, repeat=1)
+        sample = v.format(position=1, load=1, repeat=1, camera="left")
     except (ValueError, KeyError, IndexError, TypeError) as e:
         raise ValueError(f"bad pattern {v!r}: {e}") from None
     _check_path_text(sample, "file name")
@@ -511,9 +548,18 @@ class ImagesSpec(_Spec):
         return _check_pattern(v, {"position", "load"})
 
     def path(self, state: Literal["unloaded", "loaded"], position: int, load: int, repeat: int) -> str:
-        """Relative path of one image (1-based indices)."""
+        """Relative path of one image (1-based indices).
+
+        With several cameras, the path of the image set: ``{camera}`` is kept as it is
+        (:func:`stiffmap.rig.camera_path` gives each camera's file).
+        """
         pat = self.unloaded if state == "unloaded" else self.loaded
-        return pat.format(position=position, load=load, repeat=repeat)
+        return pat.format(position=position, load=load, repeat=repeat, camera=CAMERA_FIELD)
+
+    @property
+    def per_camera(self) -> bool:
+        """True when the patterns name one image per camera (``{camera}``)."""
+        return CAMERA_FIELD in self.unloaded or CAMERA_FIELD in self.loaded
 
 
 class MeasurementSpec(_Spec):
@@ -656,6 +702,7 @@ class CampaignSpec(_Spec):
     repeats: Annotated[Count, Field(ge=1, le=LIMITS["repeats"])] = 1
     robot: RobotSpec = Field(default_factory=RobotSpec)
     camera: CameraSpec | None = None
+    cameras: CamerasSpec | None = None
     targets: TargetsSpec | None = None
     positions: PositionsSpec | None = None
     loads: LoadsSpec | None = None
@@ -666,7 +713,23 @@ class CampaignSpec(_Spec):
     @model_validator(mode="after")
     def _complete(self):
         if self.kind == "vision":
+            if self.camera is not None and self.cameras is not None:
+                raise ValueError("give [camera] (one camera) or [cameras] (a rig of several), not both")
+            if self.cameras is not None:
+                for key in ("unloaded", "loaded"):
+                    if CAMERA_FIELD not in getattr(self.images, key):
+                        raise ValueError(
+                            f"images.{key} = {getattr(self.images, key)!r}: with [cameras] each image is "
+                            "a set of one image per camera, so the pattern must hold {camera}"
+                        )
+            elif self.images.per_camera:
+                raise ValueError(
+                    "the [images] patterns hold {camera}: that needs a [cameras] section (a rig file from "
+                    "stiffmap calibrate-rig)"
+                )
             missing = [k for k in ("camera", "targets", "positions", "loads") if getattr(self, k) is None]
+            if self.cameras is not None:
+                missing.remove("camera")
             if missing:
                 raise ValueError(
                     f"a vision campaign needs the section(s) {', '.join('[' + m + ']' for m in missing)}"

@@ -62,6 +62,8 @@ KEY_COMMENTS = {
     "robot.params": "model parameters to start from (the model's defaults for the others)",
     "robot.fit": "parameters fitted to the measurements",
     "camera.file": "from: stiffmap calibrate IMAGES... --board COLSxROWS --square-mm S --out camera.json",
+    "cameras.rig": "several cameras, from: stiffmap calibrate-rig --camera NAME=GLOB ... --out rig.json",
+    "cameras.names": "the rig's cameras (a check); [images] patterns hold {camera}",
     "targets.fixed.board": "the board fixed to the robot base: inner corners COLSxROWS",
     "targets.fixed.fixed2base": "its pose in the robot base frame (4x4, mm)",
     "targets.mobile.board": "the board on the moving platform (a different size from the fixed one)",
@@ -72,8 +74,8 @@ KEY_COMMENTS = {
     "loads.preset": "paper9: 0.5, 0.2, 0.1 kg along +y, -x, -z",
     "loads.cases": "{mass_kg, direction} or {force_n = [fx, fy, fz]} (N, base frame)",
     "loads.friction": "pulley friction, subtracted from the loads along these directions",
-    "images.unloaded": "file pattern, 1-based {position}, {load}, {repeat}",
-    "images.loaded": "file pattern, 1-based {position}, {load}, {repeat}",
+    "images.unloaded": "file pattern, 1-based {position}, {load}, {repeat} (and {camera} with [cameras])",
+    "images.loaded": "file pattern, 1-based {position}, {load}, {repeat} (and {camera} with [cameras])",
     "images.pairing": '"pairs", or "mean-reference" when the robot stays at each position for all its loads',
     "measurement.refine": '"auto" (photometric poses, corner poses as fallback) or "corners" (faster)',
     "sensor.scale_um_per_v": "displacement sensor scale, um/V",
@@ -140,6 +142,10 @@ params = {}                # model parameters to start from, e.g. {k_theta = 450
 
 [camera]
 file = "camera.json"       # from: stiffmap calibrate IMAGES... --board 13x12 --square-mm 30 --out camera.json
+# Several cameras instead (a rig): replace [camera] by
+#   [cameras]
+#   rig = "rig.json"  # from: stiffmap calibrate-rig --camera left='cal/l*.png' ... --out rig.json
+# and put {camera} in the [images] patterns (e.g. images/p{position:02d}/..._loaded_{camera}.png).
 
 [targets.fixed]            # the board fixed to the robot base
 board = "9x6"              # inner corners COLSxROWS
