@@ -23,7 +23,7 @@ from stiffmap.campaign.positions import plan
 from stiffmap.campaign.runner import run_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.spec import load_spec
-from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.campaign.store import DB_NAME, SCHEMA_VERSION, Store, from_json
 from stiffmap.report.campaign import write_campaign_report
 
 pytestmark = pytest.mark.slow
@@ -126,6 +126,7 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     conn = sqlite3.connect(db)
     conn.execute("ALTER TABLE stiffness DROP COLUMN K_cov_calibration")
     conn.execute("ALTER TABLE measurements DROP COLUMN mobile_cal_jac")
+    conn.execute("ALTER TABLE measurements DROP COLUMN per_camera")  # schema 3
     conn.execute(
         "INSERT INTO stiffness (position, x, y, z, status, inputs_hash, params_hash, version) "
         "VALUES (1, 0, 0, 0, 'ok', 'h', 'p', 'v')"
@@ -136,6 +137,11 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     with Store(db) as store:
         (row,) = store.stiffness_rows()
         assert row["K_cov_calibration"] is None and row["status"] == "ok"
+        assert store.measurement_rows() == []
     conn = sqlite3.connect(db)
-    assert conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()[0] == "2"
+    cols = {r[1] for r in conn.execute("PRAGMA table_info(measurements)")}
+    assert {"mobile_cal_jac", "per_camera"} <= cols
+    assert conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()[0] == str(
+        SCHEMA_VERSION
+    )
     conn.close()

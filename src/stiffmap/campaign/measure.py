@@ -5,6 +5,10 @@ A position's images are measured in acquisition order by
 tracked from image to image), in this process or in a worker process
 (:func:`measure_positions`). An image that cannot be measured gives an
 :class:`ImageRow` with its error; it never stops the position.
+
+With several cameras (``[cameras]``) each "image" is a set of one image per camera: its poses
+are the boards' fused poses in the rig frame (the rig frame plays the camera frame downstream),
+and the row keeps what each camera gave (``ImageRow.cameras``).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..errors import StiffmapWarning
+from ..rig import Rig
 from ..targets import Chessboard
 from ..vision.sequence import measure_sequence
 from .positions import PositionTask
@@ -38,16 +43,21 @@ class MeasureContext:
     fixed: tuple[int, int, float] | None
     fixed2base: list | None
     refine: str = "auto"
+    #: The ``rig.json`` object of a campaign with ``[cameras]`` (None: one camera, ``camera``).
+    rig: dict | None = None
 
     @classmethod
-    def from_spec(cls, spec: CampaignSpec, root: Path, camera: CameraModel) -> MeasureContext:
-        """The context of a vision campaign: its camera, boards and refinement."""
+    def from_spec(cls, spec: CampaignSpec, root: Path, rig: Rig | CameraModel) -> MeasureContext:
+        """The context of a vision campaign: its camera (or rig of cameras), boards and refinement."""
+        if isinstance(rig, CameraModel):
+            rig = Rig.single(rig)
         t = spec.targets
         mob = Chessboard.parse(t.mobile.board, t.mobile.square_mm)
         fix = Chessboard.parse(t.fixed.board, t.fixed.square_mm) if t.fixed is not None else None
         return cls(
             root=str(root),
-            camera=camera.to_dict(),
+            camera=rig.cameras[0].camera.to_dict(),
+            rig=rig.to_dict() if spec.cameras is not None else None,
             mobile=(mob.cols, mob.rows, mob.square_mm),
             fixed=None if fix is None else (fix.cols, fix.rows, fix.square_mm),
             fixed2base=t.fixed.fixed2base if t.fixed is not None else None,
@@ -79,20 +89,33 @@ class ImageRow:
     n_corners: int | None = None
     tracked: bool = False
     seconds: float = 0.0
+    #: With several cameras: per camera, what it gave (``name``, ``ok``, ``error``, ``rms_px``,
+    #: ``n_corners``, ``boards``: which boards it saw).
+    cameras: list[dict] | None = None
 
 
 def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
     """Measure every existing image of a position (worker process). Never raises for an image."""
-    camera = CameraModel.from_dict(ctx.camera)
+    camera: CameraModel | Rig
+    if ctx.rig is None:
+        camera = CameraModel.from_dict(ctx.camera)
+    else:
+        camera = Rig.from_dict(ctx.rig)
     mobile = Chessboard(*ctx.mobile)
     fixed = Chessboard(*ctx.fixed) if ctx.fixed is not None else None
     root = Path(ctx.root)
     missing = set(task.missing)
     present = [rel for rel in task.images if rel not in missing]
+    if isinstance(camera, Rig):
+        images = [
+            {c: root / f for c, f in zip(task.cameras, task.files(rel), strict=True)} for rel in present
+        ]
+    else:
+        images = [root / rel for rel in present]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StiffmapWarning)
         ms = measure_sequence(
-            [root / rel for rel in present],
+            images,
             camera,
             mobile,
             fixed,
@@ -105,10 +128,15 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
         )
     rows = []
     for rel, m in zip(present, ms, strict=True):
+        per_camera = _per_camera(m) if ctx.rig is not None else None
         if m.error is not None or m.mobile is None:
             rows.append(
                 ImageRow(
-                    rel, False, m.error or "mobile target not measured", seconds=m.timings.get("total", 0)
+                    rel,
+                    False,
+                    m.error or "mobile target not measured",
+                    seconds=m.timings.get("total", 0),
+                    cameras=per_camera,
                 )
             )
             continue
@@ -127,12 +155,31 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
             n_corners=int(n),
             tracked=bool(m.tracked),
             seconds=float(m.timings.get("total", 0.0)),
+            cameras=per_camera,
         )
         if fixed is not None and m.fixed is None:
             row.ok = False
             row.error = "fixed target not found"
         rows.append(row)
     return rows
+
+
+def _per_camera(m) -> list[dict]:
+    """What each camera of a rig gave for one image set (``ImageMeasurement.views``)."""
+    out = []
+    for v in m.views:
+        poses = [p for p in (v.mobile, v.fixed) if p is not None]
+        out.append(
+            {
+                "name": v.camera,
+                "ok": v.error is None,
+                "error": v.error,
+                "rms_px": float(np.sqrt(np.mean([p.rms_px**2 for p in poses]))) if poses else None,
+                "n_corners": int(sum(p.n_corners for p in poses)),
+                "boards": [b for b, p in (("mobile", v.mobile), ("fixed", v.fixed)) if p is not None],
+            }
+        )
+    return out
 
 
 def _measure_worker(ctx: MeasureContext, task: PositionTask) -> tuple[int, list[ImageRow] | str]:

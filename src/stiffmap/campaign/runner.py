@@ -26,6 +26,8 @@ positions in flight, and the next run finishes them.
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import os
 import time
 from collections.abc import Callable
@@ -36,10 +38,11 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..camera import CameraModel, load_camera
+from ..camera import load_camera
 from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
 from ..models.fit import fit_stiffness
+from ..rig import Rig, load_rig
 from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions
 from .paths import campaign_file
@@ -154,7 +157,7 @@ class _Campaign:
     root: Path
     spec: CampaignSpec
     camera_path: Path
-    camera: CameraModel
+    rig: Rig
     loads: list[LoadCase]
     tasks: list[PositionTask]
     context: MeasureContext
@@ -173,16 +176,10 @@ def _read_campaign(campaign_dir: str | Path, method: str, allow_outside: bool = 
         raise InputError(
             f"{root / 'campaign.toml'}: kind = {spec.kind!r}: use 'stiffmap run' on vision campaigns"
         )
-    camera_path = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
-    try:
-        camera = load_camera(camera_path)
-    except InputError as e:
-        raise InputError(
-            f"{e.detail} (the camera file that camera.file in {SPEC_NAME} names)", source=e.source
-        ) from None
+    camera_path, rig = read_cameras(spec, root, allow_outside=allow_outside)
     try:
         loads = spec.loads.resolve(spec.g)
-        tasks = plan(spec, root, allow_outside=allow_outside)
+        tasks = plan(spec, root, allow_outside=allow_outside, cameras=rig.names if spec.cameras else ())
     except InputError:
         raise
     except ValueError as e:
@@ -194,8 +191,35 @@ def _read_campaign(campaign_dir: str | Path, method: str, allow_outside: bool = 
             "check the patterns and the image folder",
             source=str(root / "campaign.toml"),
         )
-    context = MeasureContext.from_spec(spec, root, camera)
-    return _Campaign(root, spec, camera_path, camera, loads, tasks, context, method)
+    context = MeasureContext.from_spec(spec, root, rig)
+    return _Campaign(root, spec, camera_path, rig, loads, tasks, context, method)
+
+
+def read_cameras(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> tuple[Path, Rig]:
+    """The campaign's camera file and its cameras: ``[camera]``'s camera (a rig of one camera) or
+    ``[cameras]``'s rig. InputError naming the file, or the key of ``campaign.toml``."""
+    if spec.cameras is None:
+        path = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
+        try:
+            return path, Rig.single(load_camera(path))
+        except InputError as e:
+            raise InputError(
+                f"{e.detail} (the camera file that camera.file in {SPEC_NAME} names)", source=e.source
+            ) from None
+    path = campaign_file(root, spec.cameras.rig, "cameras.rig", allow_outside=allow_outside)
+    try:
+        rig = load_rig(path)
+    except InputError as e:
+        raise InputError(
+            f"{e.detail} (the rig file that cameras.rig in {SPEC_NAME} names)", source=e.source
+        ) from None
+    names = spec.cameras.names
+    if names is not None and sorted(names) != sorted(rig.names):
+        raise InputError(
+            f"key 'cameras.names': {names} are not the cameras of {path.name} ({list(rig.names)})",
+            source=str(root / SPEC_NAME),
+        )
+    return path, rig
 
 
 @dataclass
@@ -252,7 +276,7 @@ def _plan_work(store: Store, campaign: _Campaign) -> _Work:
         # Positions no longer in campaign.toml leave the results (indices run 1..n).
         store.delete_positions_after(len(campaign.tasks))
         for t in campaign.tasks:
-            shas = {rel: store.sha256(campaign.root / rel) for rel in t.images if rel not in t.missing}
+            shas = {rel: _image_sha(store, campaign, t, rel) for rel in t.images if rel not in t.missing}
             work.inputs_hash[t.index] = params_hash(
                 {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
             )
@@ -296,7 +320,7 @@ def _derive_and_persist(
         campaign.method,
         inputs_hash,
         work.derive_hash,
-        calibration_cov=campaign.camera.calibration_cov,
+        calibration_cov=campaign.rig.calibration_cov,
     )
     with store.transaction():
         store.save_position(
@@ -342,7 +366,7 @@ def _measurement_row(
         "image": r.image,
         "position": task.index,
         "board_set": f"{ctx.mobile}|{ctx.fixed}",
-        "sha256": store.sha256(campaign.root / r.image),
+        "sha256": _image_sha(store, campaign, task, r.image),
         "params_hash": work.measure_hash,
         "version": __version__,
         "status": "ok" if r.ok else "failed",
@@ -359,7 +383,20 @@ def _measurement_row(
         "n_corners": r.n_corners,
         "tracked": int(r.tracked),
         "seconds": r.seconds,
+        "per_camera": None if r.cameras is None else json.dumps(r.cameras),
     }
+
+
+def _image_sha(store: Store, campaign: _Campaign, task: PositionTask, image: str) -> str:
+    """SHA-256 of an image, or of an image set's files (one per camera; a missing one said)."""
+    files = task.files(image)
+    if len(files) == 1 and not task.cameras:
+        return store.sha256(campaign.root / image)
+    parts = []
+    for c, f in zip(task.cameras, files, strict=True):
+        p = campaign.root / f
+        parts.append(f"{c}:{store.sha256(p) if p.is_file() else 'missing'}")
+    return hashlib.sha256("|".join(parts).encode()).hexdigest()
 
 
 def _image_row_from_db(r) -> ImageRow:
@@ -378,6 +415,7 @@ def _image_row_from_db(r) -> ImageRow:
         n_corners=r["n_corners"],
         tracked=bool(r["tracked"]),
         seconds=r["seconds"] or 0.0,
+        cameras=json.loads(r["per_camera"]) if r["per_camera"] else None,
     )
 
 

@@ -44,7 +44,7 @@ __all__ = [
 ]
 
 DB_NAME = "stiffmap.db"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 #: Columns added since schema 1, added in place to an older database (its rows are kept; the
 #: revisions in the parameter hashes make the next run recompute what they would hold).
@@ -55,6 +55,7 @@ _ADDED_COLUMNS = {
         ("displacements", "cov_calibration"),
         ("stiffness", "K_cov_calibration"),
     ),
+    3: (("measurements", "per_camera"),),
 }
 
 _SCHEMA = """
@@ -70,7 +71,7 @@ CREATE TABLE IF NOT EXISTS measurements (
     status TEXT NOT NULL, error TEXT,
     mobile2cam TEXT, mobile_cov TEXT, fixed2cam TEXT, fixed_cov TEXT, mobile2base TEXT, base_cov TEXT,
     rms_px REAL, n_corners INTEGER, tracked INTEGER, seconds REAL,
-    mobile_cal_jac TEXT, fixed_cal_jac TEXT);
+    mobile_cal_jac TEXT, fixed_cal_jac TEXT, per_camera TEXT);
 CREATE TABLE IF NOT EXISTS displacements (
     position INTEGER NOT NULL, load INTEGER NOT NULL, repeat INTEGER NOT NULL,
     unloaded TEXT NOT NULL, loaded TEXT NOT NULL, frame TEXT, d TEXT, cov TEXT,
