@@ -45,6 +45,7 @@ from .. import __version__
 from ..camera import plausibility_problems, save_camera
 from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
+from ..rig import save_rig
 from ..sim.calibration_views import (
     CALIBRATION_BOARD,
     CALIBRATION_DIR,
@@ -77,7 +78,8 @@ __all__ = [
     "prepare_output_dir",
 ]
 
-_OWN_FILES = ("campaign.toml", "camera.json", TRUTH_NAME, CORNERS_NAME)
+RIG_NAME = "rig.json"
+_OWN_FILES = ("campaign.toml", "camera.json", RIG_NAME, TRUTH_NAME, CORNERS_NAME)
 #: The distortion model of the calibration (``stiffmap calibrate``'s default).
 CALIBRATION_MODEL = "k3"
 
@@ -207,7 +209,7 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
         "g": float(config.g),
         "repeats": config.repeats,
         "robot": {"model": config.robot.model, "params": dict(config.robot.params)},
-        "camera": {"file": "camera.json"},
+        **({"camera": {"file": "camera.json"}} if sc.rig is None else {"cameras": {"rig": RIG_NAME}}),
         "targets": {
             "fixed": {
                 "board": sc.fixed_board.size,
@@ -273,6 +275,11 @@ def _truth_dict(
             "calibrated_camera": calibration.pop("camera"),
             "calibration": calibration,
             "cam2base": sc.cam2base,
+            **(
+                {}
+                if sc.rig is None
+                else {"rig": sc.rig.to_dict(), "calibrated_rig": calibration.pop("rig", None)}
+            ),
             "targets": {
                 "fixed": {
                     "board": sc.fixed_board.size,
@@ -472,7 +479,7 @@ def write_campaign(
         raise InputError(f"workers must be >= 1, got {workers}")
     if plan is None:
         plan = plan_campaign(config)
-    views = plan_calibration_views(config) if render_images else ()
+    views = plan_calibration_views(config) if render_images and config.scene.rig is None else ()
     jobs = list(plan.jobs)
     n_total = len(views) + (len(jobs) if render_images else 0)
     prepare_output_dir(out, force)
@@ -485,13 +492,18 @@ def write_campaign(
         )
     else:
         rendered_views = {}
-        if config.calibration_views:
+        if config.scene.rig is not None:
+            note = "a rig of cameras: rig.json holds the true cameras"
+        elif config.calibration_views:
             note = "truth only: no images to calibrate from"
         else:
             note = "no calibration views (calibration_views = 0, --true-camera)"
         calibration = _true_camera(note)
     t_cal = time.perf_counter() - t_cal
-    save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
+    if config.scene.rig is None:
+        save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
+    else:
+        save_rig(config.scene.rig, out / RIG_NAME)
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
         f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "
@@ -527,7 +539,7 @@ def write_campaign(
         bytes_written=int(sum(n for _, n in results.values()) + sum(n for _, n in rendered_views.values())),
         seconds=time.perf_counter() - t0,
         principal_range=(float(eig.min()), float(eig.max())),
-        files=_OWN_FILES,
+        files=tuple(f for f in _OWN_FILES if (out / f).is_file()),
         calibration=calibration,
         calibration_seconds=t_cal,
     )

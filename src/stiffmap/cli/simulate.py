@@ -257,6 +257,21 @@ def simulate(
         help="Write the spec, camera and truth but no images (fast; for tests). Nothing to "
         "calibrate from: camera.json is the true camera.",
     ),
+    cameras: int = typer.Option(
+        1,
+        "--cameras",
+        min=1,
+        max=8,
+        help="Cameras looking at the robot: 2 or more make a rig (rig.json), about --camera-angle-deg "
+        "apart about the vertical, each image a set of one image per camera.",
+    ),
+    camera_angle_deg: float = typer.Option(
+        60.0,
+        "--camera-angle-deg",
+        min=1.0,
+        max=120.0,
+        help="Angle between the first and last camera, degrees.",
+    ),
     name: str = typer.Option("virtual test-bed", "--name", help="Campaign name."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary instead of a table."),
 ) -> None:
@@ -288,7 +303,8 @@ def simulate(
         base, P, load_cases, cam, rot_stiffness_nmm_per_rad=rot_stiffness, load_point_mm=lp,
         repeatability_mm=repeatability_mm, jitter_mm=jitter_mm, noise=noise, blur_px=blur_px,
         clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
-        jpeg_quality=jpeg_quality, name=name, calibration_views=n_views,
+        jpeg_quality=jpeg_quality, name=name, calibration_views=n_views, cameras=cameras,
+        camera_angle_deg=camera_angle_deg,
     )  # fmt: skip
     with _naming_positions_file(positions, select, loads):
         sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
@@ -379,7 +395,7 @@ def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: boo
             *_calibration_rows(summary),
             ("seed", str(cfg.seed)),
             ("time", f"{summary.seconds:.1f} s"),
-            ("files", "campaign.toml, camera.json, truth.json, truth_corners.json.gz, images/" + cal_dir),
+            ("files", ", ".join(summary.files) + ", images/" + cal_dir),
         ],
     )
 
@@ -388,6 +404,8 @@ def _calibration_rows(summary: SimSummary) -> list[tuple[str, str]]:
     """The summary's rows on camera.json: calibrated (views, RMS, errors against the truth) or true."""
     c = summary.calibration
     if not c.calibrated:
+        if "rig.json" in summary.files:
+            return [("rig.json", f"the true cameras: {c.note}")]
         return [("camera.json", f"the true camera: {c.note}")]
     return [
         (

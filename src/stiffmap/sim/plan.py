@@ -18,15 +18,24 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..camera import CameraModel
 from ..errors import InputError
 from ..loads import LoadCase
 from .photometry import Photometry
 from .robot import VirtualRobot, with_rotational_compliance
-from .scene import default_scene
+from .scene import Scene, default_scene, with_cameras
 from .testbed import DEFAULT_CALIBRATION_VIEWS, CampaignPlan, SimConfig, plan_campaign
 
-__all__ = ["BYTES_PER_PIXEL", "vision_config", "image_bytes", "SimulationPlan", "plan_simulation"]
+__all__ = [
+    "BYTES_PER_PIXEL",
+    "vision_config",
+    "rig_scene",
+    "image_bytes",
+    "SimulationPlan",
+    "plan_simulation",
+]
 
 #: Bytes per pixel of a noisy 8-bit image (measured on the default scene: PNG ~0.50, JPEG q95 ~0.18).
 BYTES_PER_PIXEL = {"png": 0.55, "jpeg": 0.2}
@@ -52,6 +61,8 @@ def vision_config(
     jpeg_quality: int = 95,
     name: str = "virtual test-bed",
     calibration_views: int = DEFAULT_CALIBRATION_VIEWS,
+    cameras: int = 1,
+    camera_angle_deg: float = 60.0,
 ) -> SimConfig:
     """The settings of a simulated vision campaign, as ``stiffmap simulate`` takes them.
 
@@ -83,6 +94,10 @@ def vision_config(
     repeats, seed, image_format, jpeg_quality, name, calibration_views
         As :class:`~stiffmap.sim.testbed.SimConfig` (``calibration_views``: views of the
         calibration board the campaign's camera is calibrated from; 0: the true camera).
+    cameras : int
+        Cameras looking at the robot (:func:`rig_scene`): 1, or a rig of several.
+    camera_angle_deg : float
+        With several cameras, the angle between the first and the last about the vertical.
 
     Returns
     -------
@@ -109,8 +124,11 @@ def vision_config(
             ph = Photometry(blur_px=blur_px, clutter=clutter, colour=colour)
         else:
             ph = Photometry.noise_free(blur_px=blur_px, clutter=clutter, colour=colour)
+        scene = default_scene(camera)
+        if int(cameras) != 1:
+            scene = rig_scene(scene, int(cameras), positions, angle_deg=camera_angle_deg)
         return SimConfig(
-            scene=default_scene(camera),
+            scene=scene,
             robot=vr,
             positions=positions,
             loads=tuple(loads),
@@ -130,15 +148,54 @@ def vision_config(
         raise InputError(str(e)) from None
 
 
+#: Margin beyond ``SimConfig.border_px`` that :func:`rig_scene` keeps between each board and
+#: the image border (room for the displacements and the robot's repeatability), px.
+RIG_MARGIN_PX = 40.0
+
+
+def rig_scene(scene: Scene, n: int, positions, *, angle_deg: float = 60.0, border_px: float = 20.0) -> Scene:
+    """``scene`` seen by ``n`` cameras ``angle_deg`` apart (:func:`~stiffmap.sim.scene.with_cameras`),
+    as close as keeps both boards in every camera's view at every position.
+
+    The cameras turned about the vertical see the workspace's depth across: they step back from
+    the scene camera's distance (by 5 % steps, up to twice) until every board stays
+    ``border_px`` + :data:`RIG_MARGIN_PX` inside each image at every position.
+
+    Raises
+    ------
+    ValueError
+        ``n`` < 1, or no distance up to twice the scene camera's keeps the boards in view.
+    """
+    if n < 1 or n > 8:
+        raise ValueError(f"cameras must be 1 to 8, got {n}")
+    if n == 1:
+        return scene
+    if not 0.0 < float(angle_deg) <= 120.0:
+        raise ValueError(f"the angle between the cameras must be in (0, 120] degrees, got {angle_deg}")
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    why = ""
+    for f in np.arange(1.0, 2.0001, 0.05):
+        sc = with_cameras(scene, n, angle_deg=angle_deg, distance_scale=float(f))
+        try:
+            sc.check_visible(P, border_px=border_px + RIG_MARGIN_PX)
+            return sc
+        except ValueError as e:
+            why = str(e)
+    raise ValueError(
+        f"{n} cameras {angle_deg:g} degrees apart cannot see both boards at every position ({why})"
+    )
+
+
 def image_bytes(config: SimConfig, n_images: int) -> float:
-    """Estimated size of ``n_images`` images of ``config`` (its camera, colour and format), bytes.
+    """Estimated size of ``n_images`` images of ``config`` (its camera, colour and format), bytes
+    (with a rig, ``n_images`` image sets of one image per camera).
 
     ``n w h sqrt(channels) b`` with ``b`` from :data:`BYTES_PER_PIXEL` (an estimate: the
     size depends on the noise and on what the image shows).
     """
-    w, h = config.scene.camera.image_size
     colour = config.photometry.colour
-    return n_images * w * h * (3 if colour else 1) ** 0.5 * BYTES_PER_PIXEL[config.image_format]
+    px = sum(c.image_size[0] * c.image_size[1] for _, c, _ in config.scene.cameras)
+    return n_images * px * (3 if colour else 1) ** 0.5 * BYTES_PER_PIXEL[config.image_format]
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from typing import Any
 import cv2
 
 from ..io import atomic_write_bytes
+from ..rig import camera_path
 from .calibration_views import CalibrationView, render_calibration_view
 from .render import true_corners
 from .testbed import ImageJob, SimConfig, render_job
@@ -36,22 +37,25 @@ def _init_worker(ctx: dict[str, Any]) -> None:
     _CTX.update(ctx)
 
 
-def _image_truth(scene, job: ImageJob, rendering=None) -> dict[str, Any]:
-    targets = scene.targets(job.tcp2base) if rendering is None else None
-    out: dict[str, Any] = {"file": job.file}
+def _boards_truth(scene, job: ImageJob, camera: int, rendering=None) -> dict[str, Any]:
+    """Per board of one camera's image: its true board2cam and corner pixels."""
+    out: dict[str, Any] = {}
     if rendering is not None:
         for t in rendering.targets:
             out[t.name] = {"board2cam": t.board2cam, "corners_px": t.corners_px}
     else:
-        for tg in targets:
+        cam = scene.cameras[camera][1]
+        for tg in scene.targets(job.tcp2base, camera):
             out[tg.name] = {
                 "board2cam": tg.board2cam,
-                "corners_px": true_corners(scene.camera, tg.board, tg.board2cam),
+                "corners_px": true_corners(cam, tg.board, tg.board2cam),
             }
     return out
 
 
 def _do_job(job: ImageJob | CalibrationView) -> tuple[dict[str, Any], int]:
+    """Render one job: its truth (with a rig, the first camera's boards and ``cameras``: every
+    camera's, by name) and the bytes written."""
     c = _CTX
     if isinstance(job, CalibrationView):
         data, r = render_calibration_view(c["config"], job)
@@ -59,11 +63,19 @@ def _do_job(job: ImageJob | CalibrationView) -> tuple[dict[str, Any], int]:
         t = r.targets[0]
         return {"file": job.file, t.name: {"board2cam": t.board2cam, "corners_px": t.corners_px}}, len(data)
     scene = c["scene"]
-    if not c["render"]:
-        return _image_truth(scene, job), 0
-    data, r = render_job(scene, c["photometry"], c["seed"], job, c["format"], c["quality"])
-    atomic_write_bytes(Path(c["out"]) / job.file, data)
-    return _image_truth(scene, job, r), len(data)
+    per_camera: dict[str, Any] = {}
+    nbytes = 0
+    for k, (name, _, _) in enumerate(scene.cameras):
+        r = None
+        if c["render"]:
+            data, r = render_job(scene, c["photometry"], c["seed"], job, c["format"], c["quality"], camera=k)
+            atomic_write_bytes(Path(c["out"]) / camera_path(job.file, name), data)
+            nbytes += len(data)
+        per_camera[name] = _boards_truth(scene, job, k, r)
+    out: dict[str, Any] = {"file": job.file, **next(iter(per_camera.values()))}
+    if scene.rig is not None:
+        out["cameras"] = per_camera
+    return out, nbytes
 
 
 def _do_chunk(jobs: list[ImageJob | CalibrationView]) -> list[tuple[dict[str, Any], int]]:

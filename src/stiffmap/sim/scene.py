@@ -13,13 +13,14 @@ every position of the ``paper48`` grid.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..camera import CameraModel, reference_camera
 from ..geometry import as_transform, concat, invert_transform, transform_from
+from ..rig import Rig, RigCamera
 from ..targets import Chessboard
 from .reflectance import Target
 
@@ -29,6 +30,7 @@ __all__ = [
     "Scene",
     "default_scene",
     "demo_scene",
+    "with_cameras",
     "FIXED2BASE_REFERENCE",
 ]
 
@@ -55,6 +57,9 @@ class Scene:
         Mobile board on the platform (tcp frame), mm.
     margin_mm : float
         White border printed around each board's squares, mm.
+    rig : Rig or None
+        Several cameras: the rig (its first camera is ``camera``, and ``cam2base`` is then the
+        rig frame's pose in the base frame, the first camera's). None: ``camera`` alone.
     """
 
     camera: CameraModel
@@ -64,12 +69,15 @@ class Scene:
     mobile_board: Chessboard
     mobile2tcp: np.ndarray
     margin_mm: float = 10.0
+    rig: Rig | None = None
 
     def __post_init__(self) -> None:
         for k in ("cam2base", "fixed2base", "mobile2tcp"):
             T = as_transform(getattr(self, k), k).copy()
             T.setflags(write=False)
             object.__setattr__(self, k, T)
+        if self.rig is not None and self.rig.cameras[0].camera.key != self.camera.key:
+            raise ValueError("a scene's camera must be its rig's first camera")
         if self.fixed_board.size == self.mobile_board.size:
             raise ValueError(
                 f"the fixed and mobile boards are both {self.fixed_board.size}: "
@@ -81,9 +89,17 @@ class Scene:
         """The tool point (tcp origin) in the mobile board frame, mm, shape (3,)."""
         return invert_transform(self.mobile2tcp)[:3, 3]
 
-    def targets(self, tcp2base) -> list[Target]:
-        """The fixed and the mobile board as render targets, for the platform at ``tcp2base``."""
-        base2cam = invert_transform(self.cam2base)
+    @property
+    def cameras(self) -> tuple[tuple[str, CameraModel, np.ndarray], ...]:
+        """Every camera: (name, camera, cam2base); one (``"camera"``) without a rig."""
+        if self.rig is None:
+            return (("camera", self.camera, self.cam2base),)
+        return tuple((c.name, c.camera, self.cam2base @ c.cam2rig) for c in self.rig.cameras)
+
+    def targets(self, tcp2base, camera: int = 0) -> list[Target]:
+        """The fixed and the mobile board as render targets of camera ``camera`` (index), for the
+        platform at ``tcp2base``."""
+        base2cam = invert_transform(self.cameras[camera][2])
         fixed2cam = concat(self.fixed2base, base2cam)
         mobile2cam = concat(concat(self.mobile2tcp, as_transform(tcp2base, "tcp2base")), base2cam)
         return [
@@ -91,36 +107,43 @@ class Scene:
             Target(self.mobile_board, mobile2cam, name="mobile", margin_mm=self.margin_mm),
         ]
 
-    def outline_pixels(self, tcp2base) -> dict[str, np.ndarray]:
-        """Pixels of each board's printed outline (corners of the margin), shape (4, 2) each."""
+    def outline_pixels(self, tcp2base, camera: int = 0) -> dict[str, np.ndarray]:
+        """Pixels of each board's printed outline (corners of the margin) in camera ``camera``'s
+        image, shape (4, 2) each."""
         out = {}
-        for tg in self.targets(tcp2base):
+        cam = self.cameras[camera][1]
+        for tg in self.targets(tcp2base, camera):
             x0, y0, x1, y1 = tg.texture().extent
             q = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
             P = q @ tg.board2cam[:3, :3].T + tg.board2cam[:3, 3]
             if np.any(P[:, 2] <= 0):
                 out[tg.name] = np.full((4, 2), np.nan)
             else:
-                out[tg.name] = self.camera.project(P)
+                out[tg.name] = cam.project(P)
         return out
 
     def visibility_problem(self, tcp2base, *, border_px: float = 20.0) -> str | None:
         """Why a board is not fully visible with the platform at ``tcp2base`` (None if it is).
 
-        A board must lie in front of the camera, its printed outline at least
+        A board must lie in front of every camera, its printed outline at least
         ``border_px`` from the image border.
         """
-        w, h = self.camera.image_size
-        for name, uv in self.outline_pixels(tcp2base).items():
-            if not np.all(np.isfinite(uv)):
-                return f"the {name} board reaches behind the camera"
-            if (
-                uv[:, 0].min() < border_px
-                or uv[:, 1].min() < border_px
-                or uv[:, 0].max() > w - 1 - border_px
-                or uv[:, 1].max() > h - 1 - border_px
-            ):
-                return f"the {name} board leaves the image (or comes within {border_px:g} px of its border)"
+        for k, (cname, cam, _) in enumerate(self.cameras):
+            w, h = cam.image_size
+            of = f" of camera {cname}" if self.rig is not None else ""
+            for name, uv in self.outline_pixels(tcp2base, k).items():
+                if not np.all(np.isfinite(uv)):
+                    return f"the {name} board reaches behind the camera{of.replace(' of camera', '')}"
+                if (
+                    uv[:, 0].min() < border_px
+                    or uv[:, 1].min() < border_px
+                    or uv[:, 0].max() > w - 1 - border_px
+                    or uv[:, 1].max() > h - 1 - border_px
+                ):
+                    return (
+                        f"the {name} board leaves the image{of} (or comes within {border_px:g} px of its "
+                        "border)"
+                    )
         return None
 
     def check_visible(self, positions, *, border_px: float = 20.0, slack_mm: float = 0.0) -> None:
@@ -206,6 +229,73 @@ def demo_scene(camera: CameraModel | None = None) -> Scene:
         mobile2tcp=mobile2tcp,
         margin_mm=10.0,
     )
+
+
+def with_cameras(
+    scene: Scene,
+    n: int,
+    *,
+    angle_deg: float = 60.0,
+    pivot_mm=(0.0, 0.0, -310.0),
+    distance_scale: float = 1.0,
+    names=None,
+) -> Scene:
+    """The scene seen by ``n`` copies of its camera spread about the vertical (a rig).
+
+    The cameras turn about the base frame's z axis through the point of the scene camera's
+    optical axis nearest ``pivot_mm`` (base frame; default the middle of the ``paper48`` grid),
+    from -angle/2 to +angle/2 relative to the scene's camera, at ``distance_scale`` times the
+    scene camera's distance from that point; each keeps its downward look, and all look at that
+    point. The first camera's frame is the rig frame.
+
+    Parameters
+    ----------
+    scene : Scene
+        One camera.
+    n : int
+        Cameras (1: the scene itself).
+    angle_deg : float
+        Angle between the first and the last camera about the vertical, degrees.
+    pivot_mm : array_like, shape (3,)
+    distance_scale : float
+        The cameras' distance from the pivot, relative to the scene camera's.
+    names : sequence of str, optional
+        Default ``cam1``, ``cam2``...
+
+    Returns
+    -------
+    Scene
+        With ``rig`` set (exact ``cam2rig``: the test-bed's truth) and ``camera``,
+        ``cam2base`` those of the first camera.
+    """
+    n = int(n)
+    if n < 1:
+        raise ValueError(f"a scene needs at least one camera, got {n}")
+    if n == 1:
+        return scene
+    names = [f"cam{k + 1}" for k in range(n)] if names is None else [str(x) for x in names]
+    if len(names) != n:
+        raise ValueError(f"{len(names)} names for {n} cameras")
+    C = scene.cam2base
+    axis = C[:3, 2]
+    c0 = C[:3, 3]
+    t = float(np.dot(np.asarray(pivot_mm, dtype=np.float64) - c0, axis))
+    pivot = c0 + t * axis
+    angles = np.linspace(-angle_deg / 2.0, angle_deg / 2.0, n)
+    poses = []
+    for a in angles:
+        Rz = Rotation.from_euler("z", float(a), degrees=True).as_matrix()
+        poses.append(transform_from(Rz @ C[:3, :3], pivot + distance_scale * (Rz @ (c0 - pivot))))
+    base2rig = invert_transform(poses[0])
+    rig = Rig(
+        tuple(
+            RigCamera(name, scene.camera, concat(P, base2rig))
+            if k
+            else RigCamera(name, scene.camera, np.eye(4))
+            for k, (name, P) in enumerate(zip(names, poses, strict=True))
+        )
+    )
+    return replace(scene, cam2base=poses[0], rig=rig)
 
 
 def board_pose_at_pixel(

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import InputError
 from ..loads import LoadCase
 from ..models.base import PoseError
+from ..rig import CAMERA_FIELD
 from ..units import G_REFERENCE_PAPER
 from .render import Photometry, Rendering, encode_image, render
 from .robot import VirtualRobot, translational_stiffness
@@ -148,8 +149,11 @@ class SimConfig:
 
     @property
     def patterns(self) -> tuple[str, str]:
-        """(unloaded, loaded) image-name patterns, with the format's extension."""
+        """(unloaded, loaded) image-name patterns, with the format's extension (and ``{camera}``
+        with a rig: an :class:`ImageJob`'s ``file`` is then the name of its image set)."""
         pats = STAYING_PATTERNS if self.robot_stays else DEFAULT_PATTERNS
+        if self.scene.rig is not None:  # one image per camera: ..._unloaded_{camera}.png
+            pats = tuple(p[: -len(".png")] + "_" + CAMERA_FIELD + ".png" for p in pats)
         if self.image_format == "png":
             return pats
         return tuple(p[: -len(".png")] + ".jpg" for p in pats)
@@ -263,7 +267,7 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
                     T.setflags(write=False)
                     jobs.append(
                         ImageJob(
-                            file=pat.format(position=ip, load=il, repeat=ir),
+                            file=pat.format(position=ip, load=il, repeat=ir, camera=CAMERA_FIELD),
                             position=ip,
                             load=il,
                             repeat=ir,
@@ -278,9 +282,17 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
 
 
 def render_job(
-    scene: Scene, photometry: Photometry, seed: int, job: ImageJob, image_format: str = "png", jpeg_quality=95
+    scene: Scene,
+    photometry: Photometry,
+    seed: int,
+    job: ImageJob,
+    image_format: str = "png",
+    jpeg_quality=95,
+    camera: int = 0,
 ) -> tuple[bytes, Rendering]:
-    """Render and encode one planned image.
+    """Render and encode one planned image (camera ``camera``'s, index, with a rig).
+
+    Each camera of a rig has its own noise (the draw's key ends with the camera's index).
 
     Returns
     -------
@@ -291,7 +303,11 @@ def render_job(
         ``mobile`` targets.
     """
     ph = replace(photometry, gain=job.gain, offset_dn=job.offset_dn)
+    key = job.spawn_key if scene.rig is None else (*job.spawn_key, camera)
     r = render(
-        scene.camera, scene.targets(job.tcp2base), photometry=ph, seed=seeded_generator(seed, *job.spawn_key)
+        scene.cameras[camera][1],
+        scene.targets(job.tcp2base, camera),
+        photometry=ph,
+        seed=seeded_generator(seed, *key),
     )
     return encode_image(r.image, image_format, jpeg_quality=jpeg_quality), r
