@@ -12,14 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import load_camera
-from ..campaign.paths import campaign_file
 from ..campaign.run import EXPORTS_DIR
+from ..campaign.runner import read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
 from ..campaign.store import DB_NAME, Store, from_json
 from ..campaign.truth import load_truth
 from ..errors import InputError
+from ..rig import Rig
 from . import data as contract
 from . import write_report
 
@@ -119,12 +119,54 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     truth = _truth_K(root, n)
     if truth is not None:
         out["truth"] = contract.TruthStiffness(truth)
-    camera = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
     try:
-        out["calibration"] = contract.CalibrationData(load_camera(camera).to_dict(), k_share=share)
+        _, rig = read_cameras(spec, root, allow_outside=allow_outside)
+        cameras = _per_camera(rig, store) if spec.cameras is not None else ()
+        out["calibration"] = contract.CalibrationData(
+            rig.cameras[0].camera.to_dict(), k_share=share, cameras=cameras
+        )
     except (InputError, ValueError):
         pass  # the report goes without the calibration section
     return out
+
+
+def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:
+    """What each camera of a rig gave over the campaign's image sets (``measurements.per_camera``)."""
+    seen: dict[str, list[float]] = {n: [] for n in rig.names}
+    found = dict.fromkeys(rig.names, 0)
+    errors: dict[str, list[str]] = {n: [] for n in rig.names}
+    n_sets = 0
+    for r in store.measurement_rows():
+        per = from_json(r["per_camera"], array=False) if r["per_camera"] else None
+        if not isinstance(per, list):
+            continue
+        n_sets += 1
+        for c in per:
+            name = c.get("name") if isinstance(c, dict) else None
+            if name not in seen:
+                continue
+            if c.get("boards"):
+                found[name] += 1
+                if isinstance(c.get("rms_px"), (int, float)):
+                    seen[name].append(float(c["rms_px"]))
+            if c.get("error") and len(errors[name]) < 3:
+                errors[name].append(str(c["error"]))
+    out = []
+    for rc in rig.cameras:
+        v = np.asarray(seen[rc.name])
+        out.append(
+            {
+                "name": rc.name,
+                "camera": rc.camera.to_dict(),
+                "cam2rig": rc.cam2rig.tolist(),
+                "sets": n_sets,
+                "seen": found[rc.name],
+                "rms_px": float(np.median(v)) if v.size else None,
+                "rms_px_p95": float(np.percentile(v, 95)) if v.size else None,
+                "errors": errors[rc.name],
+            }
+        )
+    return tuple(out)
 
 
 def _truth_K(root: Path, n: int) -> np.ndarray | None:

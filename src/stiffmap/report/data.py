@@ -434,11 +434,18 @@ class CalibrationData:
     k_share : ndarray, shape (n, 3), or None
         Per measured position, the calibration's share (0..1) of the variance of k11, k22,
         k33 (NaN: unknown at that position); None when the campaign does not say.
+    cameras : tuple of dict
+        With several cameras (a rig): per camera, ``name``, ``camera`` (its ``camera.json``
+        object), ``cam2rig`` (4x4, mm), and what it gave over the campaign's image sets:
+        ``sets`` (image sets measured), ``seen`` (sets in which it saw a board), ``rms_px``
+        (median reprojection RMS over those, px, or None), ``rms_px_p95`` and ``errors`` (a
+        few of its error messages). Empty with one camera (``camera`` is then the one).
     """
 
     camera: dict
     corner_residuals_px: np.ndarray | None = None
     k_share: np.ndarray | None = None
+    cameras: tuple[dict, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.camera, Mapping):
@@ -452,6 +459,15 @@ class CalibrationData:
             self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True, limit=PXLIM
         )
         set_optional_array(self, "k_share", self.k_share, ("n", 3), {}, limit=1.0)
+        cams = tuple(self.cameras)
+        for i, c in enumerate(cams):
+            if not isinstance(c, Mapping) or not isinstance(c.get("name"), str):
+                raise ValueError(f"cameras[{i}]: expected an object with a 'name'")
+            try:
+                CameraModel.from_dict(dict(c.get("camera") or {}), source=f"cameras[{i}]")
+            except InputError as e:
+                raise ValueError(e.detail) from None
+        object.__setattr__(self, "cameras", tuple(dict(c) for c in cams))
 
 
 @dataclass(frozen=True)

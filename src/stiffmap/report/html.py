@@ -156,6 +156,51 @@ def _camera_table(cam: dict) -> str:
     )
 
 
+def _rig_table(cameras: tuple[dict, ...]) -> str:
+    """Per camera of a rig: its pose relative to the first, its intrinsics and its residuals."""
+    if not cameras:
+        return ""
+    rows = []
+    for c in cameras:
+        cam = c["camera"]
+        T = np.asarray(c.get("cam2rig", np.eye(4)), dtype=float)
+        angle = float(np.degrees(np.arccos(np.clip((np.trace(T[:3, :3]) - 1) / 2, -1.0, 1.0))))
+        rms = c.get("rms_px")
+        p95 = c.get("rms_px_p95")
+        rows.append(
+            (
+                c["name"],
+                f"{np.linalg.norm(T[:3, 3]):.1f}",
+                f"{angle:.1f}",
+                f"{cam['fx']:.1f}, {cam['fy']:.1f}",
+                f"{cam['cx']:.1f}, {cam['cy']:.1f}",
+                f"{c.get('seen', 0)} of {c.get('sets', 0)}",
+                "—" if rms is None else f"{rms:.3f}" + ("" if p95 is None else f" ({p95:.3f})"),
+            )
+        )
+    head = (
+        "camera",
+        "distance from the first (mm)",
+        "angle to the first (°)",
+        "fx, fy (px)",
+        "cx, cy (px)",
+        "image sets with a board",
+        "median RMS (95th percentile), px",
+    )
+    errors = [f"{c['name']}: {e}" for c in cameras for e in (c.get("errors") or [])[:2]]
+    out = (
+        "<p>Several cameras: each image set was measured by every camera that saw a board, its "
+        "poses fused in the rig frame (the first camera's).</p><table><thead><tr>"
+        + "".join(f"<th>{_e(h)}</th>" for h in head)
+        + "</tr></thead><tbody>"
+        + "".join("<tr>" + "".join(f"<td>{_e(v)}</td>" for v in r) + "</tr>" for r in rows)
+        + "</tbody></table>"
+    )
+    if errors:
+        out += "<p>" + _e("Some of the cameras' problems: " + "; ".join(errors)) + "</p>"
+    return out
+
+
 def _calibration_share(share: np.ndarray | None) -> str:
     """A sentence on how much of K's uncertainty the calibration's error makes."""
     if share is None:
@@ -314,7 +359,8 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
         )
         sections.append(("truth", "Recovered vs true", body))
     if data.calibration is not None:
-        body = _camera_table(data.calibration.camera)
+        body = _rig_table(data.calibration.cameras)
+        body += _camera_table(data.calibration.camera)
         body += _calibration_share(data.calibration.k_share)
         body += fig_div("fig-calibration", calibration_figure(data))
         sections.append(("calibration", "Camera calibration", body))
