@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 
 from ..camera import CameraModel, reference_camera
 from ..geometry import as_transform, concat, invert_transform, transform_from
+from ..rig import Rig, RigCamera
 from ..targets import Chessboard
 from .reflectance import Target
 
@@ -29,6 +30,7 @@ __all__ = [
     "Scene",
     "default_scene",
     "demo_scene",
+    "two_camera_rig",
     "FIXED2BASE_REFERENCE",
 ]
 
@@ -205,6 +207,55 @@ def demo_scene(camera: CameraModel | None = None) -> Scene:
         mobile_board=mobile,
         mobile2tcp=mobile2tcp,
         margin_mm=10.0,
+    )
+
+
+def two_camera_rig(
+    camera: CameraModel | None = None,
+    distance_mm: float = 650.0,
+    angle_deg: float = 60.0,
+    *,
+    right_camera: CameraModel | None = None,
+) -> Rig:
+    """The test-bed's default rig: two cameras ``angle_deg`` apart, looking at one point.
+
+    The first camera, ``"left"``, is the rig frame; it looks along its z axis at the point
+    (0, 0, ``distance_mm``). The second, ``"right"``, is at the same distance from that
+    point, turned about the rig's y axis (down in the images) so that it stands to the
+    left camera's right (+x) and looks at the point too: its optical axis makes
+    ``angle_deg`` with the left one's, the baseline is 2 d sin(angle / 2) (650 mm at the
+    defaults). The ``cam2rig`` are exact (the truth of a simulated rig).
+
+    Parameters
+    ----------
+    camera : CameraModel, optional
+        Both cameras' model (default the reference camera).
+    distance_mm : float
+        Distance of each camera from the point both look at, mm.
+    angle_deg : float
+        Angle between the optical axes, degrees, in (0, 180).
+    right_camera : CameraModel, optional
+        Another model for the right camera.
+
+    Returns
+    -------
+    Rig
+    """
+    d = float(distance_mm)
+    a = float(angle_deg)
+    if not (np.isfinite(d) and d > 0):
+        raise ValueError(f"distance_mm must be a positive number of mm, got {distance_mm!r}")
+    if not (np.isfinite(a) and 0 < a < 180):
+        raise ValueError(f"angle_deg must be in (0, 180) degrees, got {angle_deg!r}")
+    left = reference_camera() if camera is None else camera
+    right = left if right_camera is None else right_camera
+    R = Rotation.from_euler("y", -a, degrees=True).as_matrix()
+    target = np.array([0.0, 0.0, d])
+    return Rig(
+        (
+            RigCamera("left", left, np.eye(4)),
+            RigCamera("right", right, transform_from(R, target - d * R[:, 2])),
+        )
     )
 
 
