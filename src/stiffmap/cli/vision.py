@@ -265,8 +265,12 @@ def parse_camera_option(text: str) -> tuple[str, str]:
     example = "(e.g. --camera 'left=img/left*.png')"
     if not sep:
         raise InputError(f"--camera {text!r}: expected NAME=GLOB, a camera's name and its images {example}")
-    if not name or not name.isprintable():
+    if not name:
         raise InputError(f"--camera {text!r}: the camera's name before '=' is missing {example}")
+    if not name.isprintable():
+        raise InputError(
+            f"--camera {text!r}: the camera's name {name!r} holds characters that cannot be printed"
+        )
     if not pattern.strip():
         raise InputError(f"--camera {text!r}: the images after '=' are missing {example}")
     return name, pattern
