@@ -25,6 +25,7 @@ from stiffmap.rig import Rig
 from stiffmap.sim.calibration_views import RIG_MAX_INCIDENCE_DEG, rig_calibration_views
 from stiffmap.sim.render import true_corners
 from stiffmap.sim.scene import two_camera_rig
+from stiffmap.targets import Chessboard
 from stiffmap.vision import BoardDetection, calibrate_camera
 from stiffmap.vision.rig_calibration import (
     NO_IMAGE,
@@ -340,6 +341,24 @@ def test_a_view_missing_for_one_camera_still_serves_the_other():
     assert res.board2rig[2] is not None
     e, s = _extrinsic_errors(res, r.rig)
     assert np.all(np.abs(e / s) < 4.0)
+
+
+@pytest.mark.parametrize("turned", ["two views", "every view"])
+def test_a_symmetric_board_numbered_from_the_other_end_in_one_camera_is_renumbered(turned):
+    """An 8x6 board looks the same turned by 180 degrees: its numbering may differ between cameras."""
+    board = Chessboard(8, 6, 30.0)
+    rig = true_rig("60deg")
+    views = rig_calibration_views(rig, 12, board=board, margin_mm=20.0, rng=np.random.default_rng(4))
+    dets = noisy_detections(rig, views, 0.05, np.random.default_rng(5), board=board)
+    n = board.n_corners
+    for v in (1, 4) if turned == "two views" else [v for v in range(12) if dets[1][v] is not None]:
+        d = dets[1][v]  # as a camera turned upside down would number them
+        dets[1][v] = BoardDetection(board, d.corners[::-1], np.arange(n), d.residual_px)
+    res = calibrate_rig(dets, board, SIZES, camera_names=NAMES)
+    assert res.outliers == () and res.n_used == (11, 11)
+    e, s = _extrinsic_errors(res, rig)
+    assert np.all(np.abs(e / s) < 4.0), e / s
+    assert max(c.camera.rms_px for c in res.rig.cameras) < 0.1  # px: the corners' noise, 0.07
 
 
 def test_bad_input_is_named():

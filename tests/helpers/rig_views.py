@@ -92,14 +92,14 @@ def rendered_rig(kind: str, seed: int, n_views: int = 15) -> RenderedRig:
     return RenderedRig(rig, views, tuple(map(tuple, images)), tuple(map(tuple, dets)))
 
 
-def noisy_detections(rig: Rig, views, sigma_px: float, rng: np.random.Generator) -> list[list]:
+def noisy_detections(rig: Rig, views, sigma_px: float, rng: np.random.Generator, board=BOARD) -> list[list]:
     """Exact corners of every view in every camera that takes it, plus Gaussian noise (px per axis)."""
-    q = BOARD.object_points()
+    q = board.object_points()
     out: list[list] = [[None] * len(views) for _ in rig.cameras]
     for i, v in enumerate(views):
         for k in v.cameras:
             T = v.board2cam(rig, k)
             uv = rig.cameras[k].camera.project(q @ T[:3, :3].T + T[:3, 3])
             uv = uv + sigma_px * rng.standard_normal(uv.shape)
-            out[k][i] = BoardDetection(BOARD, uv, np.arange(len(q)), np.zeros(len(q)))
+            out[k][i] = BoardDetection(board, uv, np.arange(len(q)), np.zeros(len(q)))
     return out

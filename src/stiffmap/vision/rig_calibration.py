@@ -17,7 +17,11 @@ Method:
    placed (the first camera, or one placed through it): cam_k2cam_j =
    board2cam_j . inv(board2cam_k) per shared view, their robust mean (views whose
    transform lies far from the others' median are left out of the mean); each view's
-   board pose in the rig frame, ``board2rig``, is the mean over the cameras that see it;
+   board pose in the rig frame, ``board2rig``, is the mean over the cameras that see it.
+   A chessboard that looks the same turned by 180 degrees (cols + rows even) may be
+   numbered from the other end in one camera (a camera mounted upside down, a board held
+   on end): each of camera k's views is taken as numbered or turned, whichever agrees with
+   the others, and renumbered before anything else;
 3. a bundle adjustment refines everything together: SciPy's ``least_squares`` (trust
    region, analytic sparse Jacobian) over every camera's intrinsics, every ``cam2rig``
    after the first (its (t, r) perturbation, ``docs/conventions.md``) and every view's
@@ -55,7 +59,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -447,6 +451,64 @@ def _placement(used: list[set[int]]) -> tuple[dict[int, int], list[int]]:
         placed.add(best[0])
 
 
+def _symmetric(board: Board) -> bool:
+    """Does the board look the same turned by 180 degrees (a chessboard of cols + rows even)?"""
+    grid = grid_of(board)
+    return board is grid and (grid.cols + grid.rows) % 2 == 0
+
+
+def _half_turn(grid) -> np.ndarray:
+    """The board-frame map of a half turn about the grid's centre: corner id -> n - 1 - id (4x4)."""
+    F = np.diag([-1.0, -1.0, 1.0, 1.0])
+    F[:3, 3] = [(grid.cols - 1) * grid.square_mm, (grid.rows - 1) * grid.square_mm, 0.0]  # twice the centre
+    return F
+
+
+def _turned(d: BoardDetection, grid) -> BoardDetection:
+    """The detection numbered from the other end (a half turn of the board)."""
+    n = grid.cols * grid.rows
+    ids = n - 1 - np.asarray(d.ids)
+    order = np.argsort(ids)
+    return replace(
+        d,
+        corners=np.asarray(d.corners)[order],
+        ids=ids[order],
+        residual_px=np.asarray(d.residual_px)[order],
+        rejected=np.sort(n - 1 - np.asarray(d.rejected, dtype=int)),
+    )
+
+
+def _views_to_turn(b2c_j, b2c_k, shared: list[int], F: np.ndarray) -> list[int]:
+    """Views of camera k whose numbering, turned by half a turn, agrees with camera j's.
+
+    Each shared view gives camera k's pose relative to j two ways (k's numbering as it is, or
+    turned); only the right ones agree with each other (the turned ones differ by a half turn
+    about each view's own board centre). The hypothesis of one view that most others agree
+    with (within 5 degrees and 5 % of the distance between the cameras, or 10 mm) fixes which
+    way each view goes; of equally good ones, the fewest turns.
+    """
+    rel = {
+        v: [b2c_j[v] @ invert_transform(b2c_k[v]), b2c_j[v] @ F @ invert_transform(b2c_k[v])] for v in shared
+    }
+
+    def distance(A: np.ndarray, ref: np.ndarray) -> float:
+        c = (np.trace(A[:3, :3] @ ref[:3, :3].T) - 1.0) / 2.0
+        angle = float(np.arccos(np.clip(c, -1.0, 1.0)))
+        tol = max(10.0, 0.05 * float(np.linalg.norm(ref[:3, 3])))
+        return max(angle / np.radians(5.0), float(np.linalg.norm(A[:3, 3] - ref[:3, 3])) / tol)
+
+    best: tuple[int, int, list[int]] | None = None
+    for v0 in shared:
+        for h in (0, 1):
+            ref = rel[v0][h]
+            d = {v: (distance(rel[v][0], ref), distance(rel[v][1], ref)) for v in shared}
+            turn = [v for v in shared if d[v][1] < d[v][0]]
+            key = (sum(min(d[v]) < 1.0 for v in shared), -len(turn))
+            if best is None or key > best[:2]:
+                best = (*key, turn)
+    return best[2] if best is not None else []
+
+
 def _unplaced_message(names: Sequence[str], used: list[set[int]], placed: list[int]) -> str:
     k = next(i for i in range(len(names)) if i not in placed)
     shared = [(len(used[k] & used[j]), names[j]) for j in placed]
@@ -576,9 +638,17 @@ def calibrate_rig(
     ]
     b2c = [[singles[k].views[v].board2cam for v in range(n_views)] for k in range(n_cam)]
     cam2rig = [np.eye(4) for _ in range(n_cam)]
+    F = _half_turn(grid) if _symmetric(board) else None
     for k in order[1:]:
         j = parent[k]
-        rel = [b2c[j][v] @ invert_transform(b2c[k][v]) for v in sorted(used[k] & used[j])]
+        shared = sorted(used[k] & used[j])
+        if F is not None:
+            # A board that looks the same turned by 180 degrees may be numbered from the
+            # other end in one camera: renumber camera k's views to agree with camera j's.
+            for v in _views_to_turn(b2c[j], b2c[k], shared, F):
+                dets[k][v] = _turned(dets[k][v], grid)
+                b2c[k][v] = b2c[k][v] @ F
+        rel = [b2c[j][v] @ invert_transform(b2c[k][v]) for v in shared]
         cam2rig[k] = cam2rig[j] @ _robust_mean(rel)
     points = {
         (k, v): (obj_all[dets[k][v].ids], np.asarray(dets[k][v].corners, dtype=np.float64))
