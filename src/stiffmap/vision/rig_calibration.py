@@ -373,18 +373,23 @@ def _evaluate(p: _Problem, x: np.ndarray, layout, jacobian: bool = True):
 def _bundle_adjust(p: _Problem) -> _Problem:
     """Refine cameras, ``cam2rig`` and ``board2rig`` together; the problem re-based at the optimum."""
     layout = _layout(p)
-    cache: dict = {}
+    x0 = _x0(p, layout)
+    cache: dict = {"key": x0.tobytes(), "value": _evaluate(p, x0, layout)}
+    n_res = cache["value"][0].size
 
     def evaluate(x):
         key = x.tobytes()
         if cache.get("key") != key:
             cache["key"] = key
-            cache["value"] = _evaluate(p, x, layout)
+            try:
+                cache["value"] = _evaluate(p, x, layout)
+            except ValueError:  # a trial step put a board behind a camera: a step too far
+                cache["value"] = (np.full(n_res, 1e6), None)
         return cache["value"]
 
     sol = least_squares(
         lambda x: evaluate(x)[0],
-        _x0(p, layout),
+        x0,
         jac=lambda x: evaluate(x)[1],
         method="trf",
         x_scale="jac",
