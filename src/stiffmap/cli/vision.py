@@ -8,12 +8,10 @@ command runs in-process without :func:`stiffmap.cli.main.run` (typer's ``CliRunn
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 import typer
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from ..camera import invertible_field, load_camera, plausibility_problems, save_camera
@@ -36,7 +34,7 @@ from ..vision.files import (
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
 from ..vision.sequence import ImageMeasurement
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
-from .common import EXIT_PARTIAL, err, fail, fmt, out, print_json, three_numbers, warn
+from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, three_numbers, warn
 
 _BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
 _CHARUCO_HELP = (
@@ -305,7 +303,8 @@ def calibrate_rig(
         if model not in DIST_MODELS:
             raise InputError(f"--model must be one of {', '.join(DIST_MODELS)}, got {model!r}")
         cameras = [parse_camera_option(c) for c in camera]
-        with _images_bar("finding the board") as progress:
+        # A bar on a terminal only (it would be a blank line in a log), gone once done.
+        with images_progress("finding the board", show=err.is_terminal, transient=True) as progress:
             res = calibrate_rig_files(
                 cameras, b, model=model, outlier_factor=outlier_factor, progress=progress
             )
@@ -333,28 +332,6 @@ def calibrate_rig(
         _print_rig_calibration(res, out_path)
     if left_out or implausible:
         raise typer.Exit(EXIT_PARTIAL)
-
-
-@contextmanager
-def _images_bar(description: str):
-    """A progress bar over the images on stderr (a terminal only); yields its hook ``(done, total)``."""
-    if not err.is_terminal:
-        yield None
-        return
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeRemainingColumn(),
-        console=err,
-        transient=True,
-    ) as bar:
-        task = bar.add_task(description, total=None)
-
-        def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield update
 
 
 def _print_rig_calibration(res: RigCalibrationResult, out_path: Path) -> None:
