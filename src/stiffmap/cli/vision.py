@@ -197,19 +197,25 @@ def calibrate(
     for v in res.views:
         if not v.used:
             warn(f"{v.image}: not used: {v.reason}")
-    implausible = plausibility_problems(res.camera)
-    for key, what in implausible:
-        # The other commands refuse this camera.json: say so now, with the views to blame.
-        warn(f"{out_path}: key {key!r}: {what} (the views may not constrain the calibration)")
-    field = invertible_field(res.camera)
-    if not implausible and field.image_share() < 1.0:
-        warn(f"{out_path}: {field.describe()}; pose measurements use no pixel beyond it")
+    implausible = _warn_calibrated(res.camera, out_path)
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
     if res.n_used < len(res.views) or implausible:
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _warn_calibrated(camera, out_path: Path, label: str = "") -> bool:
+    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model folds."""
+    implausible = plausibility_problems(camera)
+    for key, what in implausible:
+        # The other commands refuse this camera.json: say so now, with the views to blame.
+        warn(f"{out_path}: {label}key {key!r}: {what} (the views may not constrain the calibration)")
+    field = invertible_field(camera)
+    if not implausible and field.image_share() < 1.0:
+        warn(f"{out_path}: {label}{field.describe()}; pose measurements use no pixel beyond it")
+    return bool(implausible)
 
 
 def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
@@ -319,18 +325,12 @@ def calibrate_rig(
             if not v.used and v.reason != NO_IMAGE:
                 left_out += 1
                 warn(f"{v.image}: not used by camera {c.name}: {v.reason}")
-    implausible = [(c.name, p) for c in res.rig.cameras for p in plausibility_problems(c.camera)]
-    for name, (key, what) in implausible:
-        warn(f"{out_path}: camera {name}: key {key!r}: {what} (the views may not constrain the calibration)")
-    for c in res.rig.cameras:
-        field = invertible_field(c.camera)
-        if not implausible and field.image_share() < 1.0:
-            warn(f"{out_path}: camera {c.name}: {field.describe()}; pose measurements use no pixel beyond it")
+    implausible = [_warn_calibrated(c.camera, out_path, f"camera {c.name}: ") for c in res.rig.cameras]
     if as_json:
         print_json(res.to_dict())
     else:
         _print_rig_calibration(res, out_path)
-    if left_out or implausible:
+    if left_out or any(implausible):
         raise typer.Exit(EXIT_PARTIAL)
 
 
