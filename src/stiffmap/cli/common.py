@@ -9,11 +9,21 @@ import math
 import os
 import sys
 from collections.abc import Sequence
+from contextlib import contextmanager
 
 import typer
 from rich.console import Console
 from rich.markup import escape
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
+from rich.text import Text
 
 from ..errors import InputError
 from ..io import dumps_json
@@ -121,3 +131,40 @@ def print_summary(title: str, rows: Sequence[tuple[str, str]]) -> None:
     for row in rows:
         t.add_row(*row)
     out.print(t)
+
+
+class _Rate(ProgressColumn):
+    """Images measured (or rendered) per second."""
+
+    def render(self, task) -> Text:
+        measured = task.fields.get("measured", 0)
+        elapsed = task.elapsed or 0.0
+        if not measured or elapsed <= 0:
+            return Text("-- images/s")
+        return Text(f"{measured / elapsed:.1f} images/s")
+
+
+@contextmanager
+def images_progress(description: str, show: bool = True, *, transient: bool = False):
+    """A progress bar over images on stderr; yields its hook ``update(done, total, measured=done)``.
+
+    Yields None (no bar) when ``show`` is false.
+    """
+    if not show:
+        yield None
+        return
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        _Rate(),
+        TimeRemainingColumn(),
+        console=err,
+        transient=transient,
+    ) as prog:
+        task = prog.add_task(description, total=None, measured=0)
+
+        def update(done: int, total: int, measured: int | None = None) -> None:
+            prog.update(task, completed=done, total=total, measured=done if measured is None else measured)
+
+        yield update

@@ -50,6 +50,10 @@ COMMANDS: dict[str, CommandEntry] = {
         "vision",
         "Calibrate a camera from images of a board (Zhang's method): intrinsics, distortion, 1-sigma.",
     ),
+    "calibrate-rig": CommandEntry(
+        "vision",
+        "Calibrate a rig of cameras from views of a board seen at once: intrinsics, poses, covariance.",
+    ),
     "pose": CommandEntry(
         "vision", "Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS."
     ),

@@ -19,19 +19,22 @@ from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..io import atomic_write_text
 from ..report.validation import stage_plot_svg
+from ..rig import save_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
-from ..vision.calibrate import CalibrationResult
+from ..vision.calibrate import DIST_MODELS, CalibrationResult
 from ..vision.displacement import ImageDisplacements, displacement_per_image
 from ..vision.files import (
     MAX_TRANSLATION_MM,
     calibrate_files,
+    calibrate_rig_files,
     measure_files,
     read_stage_manifest,
     read_transform,
 )
+from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
 from ..vision.sequence import ImageMeasurement
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
-from .common import EXIT_PARTIAL, fail, fmt, out, print_json, three_numbers, warn
+from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, three_numbers, warn
 
 _BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
 _CHARUCO_HELP = (
@@ -194,19 +197,25 @@ def calibrate(
     for v in res.views:
         if not v.used:
             warn(f"{v.image}: not used: {v.reason}")
-    implausible = plausibility_problems(res.camera)
-    for key, what in implausible:
-        # The other commands refuse this camera.json: say so now, with the views to blame.
-        warn(f"{out_path}: key {key!r}: {what} (the views may not constrain the calibration)")
-    field = invertible_field(res.camera)
-    if not implausible and field.image_share() < 1.0:
-        warn(f"{out_path}: {field.describe()}; pose measurements use no pixel beyond it")
+    implausible = _warn_calibrated(res.camera, out_path)
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
     if res.n_used < len(res.views) or implausible:
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _warn_calibrated(camera, out_path: Path, label: str = "") -> bool:
+    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model folds."""
+    implausible = plausibility_problems(camera)
+    for key, what in implausible:
+        # The other commands refuse this camera.json: say so now, with the views to blame.
+        warn(f"{out_path}: {label}key {key!r}: {what} (the views may not constrain the calibration)")
+    field = invertible_field(camera)
+    if not implausible and field.image_share() < 1.0:
+        warn(f"{out_path}: {label}{field.describe()}; pose measurements use no pixel beyond it")
+    return bool(implausible)
 
 
 def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
@@ -236,6 +245,164 @@ def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
     v.add_column("reason", overflow="fold")
     for vr in res.views:
         v.add_row(vr.image, "yes" if vr.used else "no", str(vr.n_corners), fmt(vr.rms_px, 3), vr.reason)
+    out.print(v)
+    out.print("\nAs the Camera Calibration Toolbox for Matlab prints it:\n")
+    out.print(res.matlab_text(), markup=False)
+    out.print(f"\nwrote {out_path}")
+
+
+# ------------------------------------------------------------------------- calibrate-rig
+_CAMERA_HELP = (
+    "NAME=GLOB: a camera's name and its images, a quoted file pattern such as 'img/left*.jpg' "
+    "or a folder. Repeat for every camera; the first one's frame is the rig frame."
+)
+_MODEL_HELP = (
+    "Distortion model of every camera: k3 (k1, k2, p1, p2, k3), fix-k3 (k3 = 0, the Matlab "
+    "toolbox's default), rational (+ k4, k5, k6) or thin-prism (rational + s1..s4)."
+)
+
+
+def parse_camera_option(text: str) -> tuple[str, str]:
+    """``NAME=GLOB`` -> (name, pattern); an InputError saying what a ``--camera`` looks like."""
+    name, sep, pattern = text.partition("=")
+    name = name.strip()
+    example = "(e.g. --camera 'left=img/left*.png')"
+    if not sep:
+        raise InputError(f"--camera {text!r}: expected NAME=GLOB, a camera's name and its images {example}")
+    if not name:
+        raise InputError(f"--camera {text!r}: the camera's name before '=' is missing {example}")
+    if not name.isprintable():
+        raise InputError(
+            f"--camera {text!r}: the camera's name {name!r} holds characters that cannot be printed"
+        )
+    if not pattern.strip():
+        raise InputError(f"--camera {text!r}: the images after '=' are missing {example}")
+    return name, pattern
+
+
+def calibrate_rig(
+    camera: list[str] = typer.Option(..., "--camera", help=_CAMERA_HELP),
+    board: str = typer.Option(..., "--board", help=_BOARD_HELP),
+    square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
+    model: str = typer.Option("k3", "--model", help=_MODEL_HELP),
+    out_path: Path = typer.Option(Path("rig.json"), "--out", help="Where to write rig.json."),
+    outlier_factor: float = typer.Option(
+        3.0, "--outlier-factor", min=1.0, help="Leave out views whose RMS exceeds this times the median."
+    ),
+    charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
+    marker_mm: float = typer.Option(None, "--marker-mm", help="ChArUco marker side, mm."),
+    as_json: bool = typer.Option(False, "--json", help="Print the rig.json object instead of tables."),
+) -> None:
+    """Calibrate a rig of cameras from views of a board seen at once: intrinsics, poses, covariance.
+
+    Views are matched across cameras by the number in their file names (left07.png with
+    right07.png), else by sorted order; a view some cameras miss still helps the others'
+    intrinsics. Each camera's intrinsics and distortion and its pose in the rig frame (the
+    first camera's) are refined together (bundle adjustment) with their joint covariance,
+    and printed also the way the Camera Calibration Toolbox for Matlab prints a stereo
+    calibration (om, T +/- 3 sigma). Exit status 1 when some images were left out (each
+    named) or a camera fails camera.json's plausibility checks, 2 when no calibration was
+    possible.
+    """
+    try:
+        b = _board(board, square_mm, charuco, marker_mm)
+        if model not in DIST_MODELS:
+            raise InputError(f"--model must be one of {', '.join(DIST_MODELS)}, got {model!r}")
+        cameras = [parse_camera_option(c) for c in camera]
+        # A bar on a terminal only (it would be a blank line in a log), gone once done.
+        with images_progress("finding the board", show=err.is_terminal, transient=True) as progress:
+            res = calibrate_rig_files(
+                cameras, b, model=model, outlier_factor=outlier_factor, progress=progress
+            )
+        backup = save_rig(res.rig, out_path)
+    except InputError as e:
+        raise fail(str(e)) from None
+    if backup is not None:
+        warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
+    left_out = 0
+    for c, views in zip(res.rig.cameras, res.views, strict=True):
+        for v in views:
+            if not v.used and v.reason != NO_IMAGE:
+                left_out += 1
+                warn(f"{v.image}: not used by camera {c.name}: {v.reason}")
+    implausible = [_warn_calibrated(c.camera, out_path, f"camera {c.name}: ") for c in res.rig.cameras]
+    if as_json:
+        print_json(res.to_dict())
+    else:
+        _print_rig_calibration(res, out_path)
+    if left_out or any(implausible):
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_rig_calibration(res: RigCalibrationResult, out_path: Path) -> None:
+    """Each camera's parameters, the cameras' poses, the views, and the Matlab toolbox's text."""
+    rig = res.rig
+    names = rig.names
+    t = Table(title=f"cameras (model {res.model}), value +/- 1 sigma")
+    t.add_column("parameter")
+    for c in rig.cameras:
+        w, h = c.camera.image_size
+        t.add_column(f"{c.name} ({w}x{h} px)")
+    cams = [c.camera for c in rig.cameras]
+    for i, p in enumerate(cams[0].param_names):
+        unit = " (px)" if i < 4 else ""
+        digits = 4 if i < 4 else 6
+        t.add_row(
+            p + unit,
+            *(f"{c.params[i]:.{digits}f} ± {fmt(np.sqrt(c.cov[i, i]), 2)}" for c in cams),
+        )
+    t.add_row("RMS (px)", *(f"{c.rms_px:.4f}" for c in cams))
+    t.add_row(
+        "residual std x, y (px)", *(f"{c.residual_std_px[0]:.4f}, {c.residual_std_px[1]:.4f}" for c in cams)
+    )
+    t.add_row(
+        "views used",
+        *(
+            f"{n} of {sum(v.reason != NO_IMAGE for v in vs)}"
+            for n, vs in zip(res.n_used, res.views, strict=True)
+        ),
+    )
+    out.print(t)
+    if len(rig) > 1:
+        p = Table(title=f"camera poses in the rig frame ({names[0]}'s), +/- 1 sigma")
+        for col in (
+            "camera",
+            "position t (mm)",
+            "1 sigma t (mm)",
+            "rotation vector (deg)",
+            "1 sigma r (deg)",
+            "distance (mm)",
+        ):
+            p.add_column(col)
+        C = rig.cov
+        for k in range(1, len(rig)):
+            T = rig.cameras[k].cam2rig
+            s = rig.extrinsic_slice(k)
+            sd = np.sqrt(np.maximum(np.diag(C[s, s]), 0.0))
+            p.add_row(
+                names[k],
+                ", ".join(f"{x:.3f}" for x in T[:3, 3]),
+                ", ".join(fmt(x, 2) for x in sd[:3]),
+                ", ".join(f"{x:.4f}" for x in np.degrees(rotvec_from_matrix(T[:3, :3]))),
+                ", ".join(fmt(x, 2) for x in np.degrees(sd[3:])),
+                f"{np.linalg.norm(T[:3, 3]):.3f}",
+            )
+        out.print(p)
+    v = Table(title="views: RMS (px) per camera")
+    v.add_column("view")
+    for n in names:
+        v.add_column(n, overflow="fold")
+    for i, name in enumerate(res.view_names):
+        cells = []
+        for k in range(len(rig)):
+            vr = res.views[k][i]
+            if vr.used:
+                cells.append(f"{vr.rms_px:.3f}")
+            elif vr.reason == NO_IMAGE:
+                cells.append("-")
+            else:
+                cells.append(f"[yellow]not used[/]: {vr.reason}")
+        v.add_row(name, *cells)
     out.print(v)
     out.print("\nAs the Camera Calibration Toolbox for Matlab prints it:\n")
     out.print(res.matlab_text(), markup=False)
@@ -583,6 +750,7 @@ def _print_validation(res: StageValidation, plot: Path | None) -> None:
 
 def register(app: typer.Typer) -> None:
     app.command("calibrate")(calibrate)
+    app.command("calibrate-rig")(calibrate_rig)
     app.command("pose")(pose)
     app.command("displacement")(displacement)
     app.command("validate")(validate)

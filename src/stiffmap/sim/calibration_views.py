@@ -29,12 +29,16 @@ see. The calibration itself (detection, Zhang's method) is ``stiffmap.vision``'s
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..camera import CameraModel
+from ..geometry import invert_transform, mean_transform
+from ..rig import Rig
 from ..targets import Chessboard
+from .photometry import Photometry
 from .render import Rendering, Target, encode_image, render
 from .scene import board_pose_at_pixel
 from .testbed import SimConfig, seeded_generator
@@ -50,6 +54,9 @@ __all__ = [
     "plan_calibration_views",
     "render_calibration_view",
     "calibration_view_file",
+    "RigView",
+    "rig_calibration_views",
+    "render_rig_view",
 ]
 
 #: Folder of the calibration views in a campaign directory.
@@ -144,6 +151,7 @@ def careful_poses(
     max_tilt_deg: float = MAX_TILT_DEG,
     border_px: float = 20.0,
     rng: np.random.Generator | None = None,
+    fits: Callable[[np.ndarray], bool] | None = None,
 ) -> list[np.ndarray]:
     """Poses of a calibration board that a careful user takes (see the module docstring).
 
@@ -173,6 +181,10 @@ def careful_poses(
     rng : numpy Generator, optional
         A small jitter of each pose (tilt +/- 2 degrees, axis and spin +/- 8 degrees,
         distance +/- 4 %); None: none.
+    fits : callable, optional
+        ``fits(board2cam) -> bool``: a further condition every pose meets (e.g. the board
+        seen by the other cameras of a rig, :func:`rig_calibration_views`); the board
+        slides only as far as it holds, and is moved away until it holds at the centre.
 
     Returns
     -------
@@ -217,7 +229,7 @@ def careful_poses(
             )
 
         def inside(T: np.ndarray) -> bool:
-            return _outline_inside(camera, T, extent, border_px)
+            return _outline_inside(camera, T, extent, border_px) and (fits is None or fits(T))
 
         for _ in range(60):  # farther until the board fits at the image centre
             if inside(pose(mid, dist)):
@@ -292,3 +304,179 @@ def render_calibration_view(config: SimConfig, view: CalibrationView) -> tuple[b
         config.scene.camera, [target], photometry=ph, seed=seeded_generator(config.seed, *view.spawn_key)
     )
     return encode_image(r.image, config.image_format, jpeg_quality=config.jpeg_quality), r
+
+
+# ----------------------------------------------------------------------------------- rigs
+#: Largest angle between a board's normal and a camera's line of sight to it in a rig's
+#: shared views, degrees (beyond, the corners are too foreshortened to be worth a view).
+RIG_MAX_INCIDENCE_DEG = 65.0
+
+
+@dataclass(frozen=True)
+class RigView:
+    """One calibration view of a rig: the board's pose and the cameras that take an image of it.
+
+    Attributes
+    ----------
+    index : int
+        1-based.
+    board2rig : ndarray, shape (4, 4)
+        True pose of the board in the rig frame, mm.
+    cameras : tuple of int
+        Indices of the cameras that take an image of this view (every camera for a shared
+        view, one for a view of one camera).
+    """
+
+    index: int
+    board2rig: np.ndarray
+    cameras: tuple[int, ...]
+
+    def board2cam(self, rig: Rig, k: int) -> np.ndarray:
+        """The board's true pose in camera ``k``'s frame, mm."""
+        return invert_transform(rig.cameras[k].cam2rig) @ self.board2rig
+
+
+def _incidence_ok(T: np.ndarray, centre_mm, max_deg: float) -> bool:
+    """Does the camera see the board's front within ``max_deg`` of its normal (board2cam ``T``)?"""
+    c = T[:3, :3] @ np.array([centre_mm[0], centre_mm[1], 0.0]) + T[:3, 3]
+    return float(T[:3, 2] @ c) > np.cos(np.radians(max_deg)) * float(np.linalg.norm(c))
+
+
+def rig_calibration_views(
+    rig: Rig,
+    n_views: int = 15,
+    *,
+    n_single: int = 1,
+    board: Chessboard = CALIBRATION_BOARD,
+    margin_mm: float = CALIBRATION_MARGIN_MM,
+    max_tilt_deg: float | None = None,
+    max_incidence_deg: float = RIG_MAX_INCIDENCE_DEG,
+    border_px: float = 20.0,
+    rng: np.random.Generator | None = None,
+) -> list[RigView]:
+    """Calibration views of a rig at the poses a careful user takes (:func:`careful_poses`).
+
+    Most views are shared: the board seen whole by every camera at once, each camera
+    ``border_px`` inside its image and within ``max_incidence_deg`` of facing it. They are
+    :func:`careful_poses` of a virtual camera (the first camera's model) at the mean of the
+    cameras' poses, slid towards every part of that camera's image as far as every real
+    camera still sees the board. Shared views cannot reach the corners of each camera's
+    image when the cameras look from different directions: a careful user then adds a few
+    views for each camera alone, the board in that camera's image corners (``n_single``
+    per camera: the first :func:`careful_poses` of that camera, into its corners).
+
+    Parameters
+    ----------
+    rig : Rig
+        The true rig.
+    n_views : int
+        Number of views in all: shared views, then ``n_single`` per camera.
+    n_single : int
+        Views per camera seen by that camera only (>= 0).
+    board : Chessboard
+    margin_mm : float
+        White margin printed around the squares, mm.
+    max_tilt_deg : float, optional
+        Largest tilt of a shared view from facing the virtual camera (default 42 degrees,
+        less when the cameras look from directions so different that a tilted board would
+        be seen beyond ``max_incidence_deg`` by one of them).
+    max_incidence_deg : float
+        See above, degrees.
+    border_px : float
+        Distance of every board's outline from the image border, px.
+    rng : numpy Generator, optional
+        Jitter of the poses (:func:`careful_poses`).
+
+    Returns
+    -------
+    list of RigView
+        The shared views first (every camera), then each camera's own.
+
+    Raises
+    ------
+    ValueError
+        Fewer views than the single ones plus two shared, or no pose seen by every camera.
+    """
+    n_cam = len(rig)
+    n_single = int(n_single)
+    n_shared = int(n_views) - n_cam * n_single
+    if n_single < 0 or n_shared < 2:
+        raise ValueError(
+            f"{n_views} views with {n_single} per camera alone for {n_cam} cameras leave "
+            f"{n_shared} shared views; a rig calibration needs at least 2"
+        )
+    x0, y0, x1, y1 = board.extent_mm()
+    m = float(margin_mm)
+    extent = (x0 - m, y0 - m, x1 + m, y1 + m)
+    centre = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+    c2r = [c.cam2rig for c in rig.cameras]
+    virt2rig = mean_transform(c2r)
+    virt2cam = [invert_transform(T) @ virt2rig for T in c2r]
+    spread = max(
+        float(np.degrees(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))) for T in virt2cam
+    )  # angle between the virtual and each camera's optical axis
+    tilt = (
+        min(MAX_TILT_DEG, max(max_incidence_deg - spread - 5.0, 5.0))
+        if max_tilt_deg is None
+        else max_tilt_deg
+    )
+
+    def seen_by_all(board2virt: np.ndarray) -> bool:
+        for k, c in enumerate(rig.cameras):
+            T = virt2cam[k] @ board2virt
+            if not (
+                _incidence_ok(T, centre, max_incidence_deg)
+                and _outline_inside(c.camera, T, extent, border_px)
+            ):
+                return False
+        return True
+
+    shared = careful_poses(
+        rig.cameras[0].camera,
+        n_shared,
+        board=board,
+        margin_mm=margin_mm,
+        max_tilt_deg=tilt,
+        border_px=border_px,
+        rng=rng,
+        fits=seen_by_all,
+    )
+    views = [RigView(i + 1, virt2rig @ T, tuple(range(n_cam))) for i, T in enumerate(shared)]
+    for k, c in enumerate(rig.cameras):
+        if n_single == 0:
+            break
+        own = careful_poses(
+            c.camera, n_single, board=board, margin_mm=margin_mm, border_px=border_px, rng=rng
+        )
+        views += [RigView(len(views) + 1, c.cam2rig @ T, (k,)) for T in own]
+    for v in views:
+        v.board2rig.setflags(write=False)
+    return views
+
+
+def render_rig_view(
+    rig: Rig,
+    view: RigView,
+    *,
+    board: Chessboard = CALIBRATION_BOARD,
+    margin_mm: float = CALIBRATION_MARGIN_MM,
+    photometry: Photometry | None = None,
+    seed: int = 0,
+) -> tuple[Rendering | None, ...]:
+    """Render one rig view through each camera that takes it (None for the others).
+
+    Camera k's image is ``render(camera_k, [Target(board, board2cam_k)])`` with the noise of
+    seed (``seed``, view index, k).
+    """
+    out: list[Rendering | None] = []
+    for k, c in enumerate(rig.cameras):
+        if k not in view.cameras:
+            out.append(None)
+            continue
+        target = Target(board, view.board2cam(rig, k), name="calibration", margin_mm=margin_mm)
+        out.append(
+            render(
+                c.camera, [target], photometry=photometry, seed=seeded_generator(seed, 0, view.index, k + 1)
+            )
+        )
+    return tuple(out)

@@ -31,6 +31,7 @@ __all__ = [
     "default_scene",
     "demo_scene",
     "with_cameras",
+    "two_camera_rig",
     "FIXED2BASE_REFERENCE",
 ]
 
@@ -296,6 +297,55 @@ def with_cameras(
         )
     )
     return replace(scene, cam2base=poses[0], rig=rig)
+
+
+def two_camera_rig(
+    camera: CameraModel | None = None,
+    distance_mm: float = 650.0,
+    angle_deg: float = 60.0,
+    *,
+    right_camera: CameraModel | None = None,
+) -> Rig:
+    """The test-bed's default rig: two cameras ``angle_deg`` apart, looking at one point.
+
+    The first camera, ``"left"``, is the rig frame; it looks along its z axis at the point
+    (0, 0, ``distance_mm``). The second, ``"right"``, is at the same distance from that
+    point, turned about the rig's y axis (down in the images) so that it stands to the
+    left camera's right (+x) and looks at the point too: its optical axis makes
+    ``angle_deg`` with the left one's, the baseline is 2 d sin(angle / 2) (650 mm at the
+    defaults). The ``cam2rig`` are exact (the truth of a simulated rig).
+
+    Parameters
+    ----------
+    camera : CameraModel, optional
+        Both cameras' model (default the reference camera).
+    distance_mm : float
+        Distance of each camera from the point both look at, mm.
+    angle_deg : float
+        Angle between the optical axes, degrees, in (0, 180).
+    right_camera : CameraModel, optional
+        Another model for the right camera.
+
+    Returns
+    -------
+    Rig
+    """
+    d = float(distance_mm)
+    a = float(angle_deg)
+    if not (np.isfinite(d) and d > 0):
+        raise ValueError(f"distance_mm must be a positive number of mm, got {distance_mm!r}")
+    if not (np.isfinite(a) and 0 < a < 180):
+        raise ValueError(f"angle_deg must be in (0, 180) degrees, got {angle_deg!r}")
+    left = reference_camera() if camera is None else camera
+    right = left if right_camera is None else right_camera
+    R = Rotation.from_euler("y", -a, degrees=True).as_matrix()
+    target = np.array([0.0, 0.0, d])
+    return Rig(
+        (
+            RigCamera("left", left, np.eye(4)),
+            RigCamera("right", right, transform_from(R, target - d * R[:, 2])),
+        )
+    )
 
 
 def board_pose_at_pixel(

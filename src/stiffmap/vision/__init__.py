@@ -6,7 +6,8 @@ Main entry points:
 
 - :func:`read_image` (file -> uint8 grey), :func:`check_image_size`
 - :func:`detect_board`, :func:`detect_boards`, :func:`track_board` -> :class:`BoardDetection`
-- :func:`calibrate_camera` -> :class:`CalibrationResult`
+- :func:`calibrate_camera` -> :class:`CalibrationResult`; :func:`calibrate_rig` (several cameras
+  together) -> :class:`RigCalibrationResult`
 - :func:`estimate_pose` -> :class:`BoardPose` (corner-based, or refined by
   :func:`refine_pose_photometric`: a model of the blurred board fitted to its pixels)
 - :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement`
@@ -31,10 +32,11 @@ from .displacement import (
     displacement_per_image,
     mean_pose,
 )
-from .files import calibrate_files, measure_files, read_stage_manifest, read_transform
+from .files import calibrate_files, calibrate_rig_files, measure_files, read_stage_manifest, read_transform
 from .images import ImageError, check_image_size, read_image
 from .photometric import PhotometricError, PhotometricFit, refine_pose_photometric
 from .pose import estimate_pose, pose_shift_sigma
+from .rig_calibration import RigCalibrationResult, calibrate_rig
 from .sequence import ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
 from .validate import StageStep, StageValidation, validate_stage, validate_stage_series
 
@@ -51,12 +53,15 @@ __all__ = [
     "PhotometricError",
     "PhotometricFit",
     "PoseTracker",
+    "RigCalibrationResult",
     "StageStep",
     "StageValidation",
     "ViewResult",
     "board_label",
     "calibrate_camera",
     "calibrate_files",
+    "calibrate_rig",
+    "calibrate_rig_files",
     "check_image_size",
     "compliant_displacement",
     "detect_board",

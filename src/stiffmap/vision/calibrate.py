@@ -39,7 +39,18 @@ from ..errors import InputError
 from ..geometry import matrix_from_rotvec
 from .detection import Board, BoardDetection, grid_of
 
-__all__ = ["ViewResult", "CalibrationResult", "calibrate_camera", "calibration_covariance", "DIST_MODELS"]
+__all__ = [
+    "ViewResult",
+    "CalibrationResult",
+    "calibrate_camera",
+    "calibration_covariance",
+    "covariance_from_information",
+    "fixed_params",
+    "matlab_camera_lines",
+    "usable_views",
+    "DIST_MODELS",
+    "MATLAB_NOTE",
+]
 
 #: Distortion models: name -> number of coefficients.
 DIST_MODELS = {"k3": 5, "fix-k3": 5, "rational": 8, "thin-prism": 12}
@@ -110,45 +121,77 @@ class CalibrationResult:
 
     def matlab_text(self) -> str:
         """The result as the Camera Calibration Toolbox for Matlab prints it (+/- 3 sigma)."""
-        c = self.camera
-        s = c.std or {}
-        sd = list(s.get("dist", [0.0] * len(c.dist)))
+        return "\n".join(
+            [
+                "Calibration results after optimization (with uncertainties):",
+                "",
+                *matlab_camera_lines(self.camera),
+                "",
+                MATLAB_NOTE,
+            ]
+        )
 
-        def f(x: float) -> str:
-            return f"{x:.5f}"
 
-        kc = list(c.dist[:5]) + [0.0] * (5 - min(5, len(c.dist)))
-        skc = (sd[:5] + [0.0] * 5)[:5]
-        rs = c.residual_std_px or (float("nan"), float("nan"))
-        lines = [
-            "Calibration results after optimization (with uncertainties):",
-            "",
-            f"Focal Length:          fc = [ {f(c.fx)}   {f(c.fy)} ] +/- "
-            f"[ {f(3 * s.get('fx', 0))}   {f(3 * s.get('fy', 0))} ]",
-            f"Principal point:       cc = [ {f(c.cx)}   {f(c.cy)} ] +/- "
-            f"[ {f(3 * s.get('cx', 0))}   {f(3 * s.get('cy', 0))} ]",
-            "Skew:             alpha_c = [ 0.00000 ] +/- [ 0.00000  ]   "
-            "=> angle of pixel axes = 90.00000 +/- 0.00000 degrees",
-            "Distortion:            kc = [ "
-            + "   ".join(f(k) for k in kc)
+#: The last line of the Matlab toolbox's printout.
+MATLAB_NOTE = (
+    "Note: The numerical errors are approximately three times the standard deviations (for reference)."
+)
+
+
+def matlab_camera_lines(camera: CameraModel, suffix: str = "") -> list[str]:
+    """A camera's intrinsics as the Camera Calibration Toolbox for Matlab prints them (+/- 3 sigma).
+
+    Parameters
+    ----------
+    camera : CameraModel
+        Its ``std`` gives the +/- (0 where unknown), its ``residual_std_px`` the pixel error.
+    suffix : str
+        Appended to the toolbox's names (``fc_left``...), as its stereo printout does.
+
+    Returns
+    -------
+    list of str
+        The lines ``Focal Length: fc = [...]`` to ``Pixel error: err = [...]``.
+    """
+    c = camera
+    s = c.std or {}
+    sd = list(s.get("dist", [0.0] * len(c.dist)))
+
+    def f(x: float) -> str:
+        return f"{x:.5f}"
+
+    def label(title: str, name: str) -> str:
+        # The toolbox right-aligns its names at column 25 (plus the suffix).
+        name += suffix
+        return title + " " * max(1, 25 + len(suffix) - len(title) - len(name)) + name
+
+    kc = list(c.dist[:5]) + [0.0] * (5 - min(5, len(c.dist)))
+    skc = (sd[:5] + [0.0] * 5)[:5]
+    rs = c.residual_std_px or (float("nan"), float("nan"))
+    lines = [
+        f"{label('Focal Length:', 'fc')} = [ {f(c.fx)}   {f(c.fy)} ] +/- "
+        f"[ {f(3 * s.get('fx', 0))}   {f(3 * s.get('fy', 0))} ]",
+        f"{label('Principal point:', 'cc')} = [ {f(c.cx)}   {f(c.cy)} ] +/- "
+        f"[ {f(3 * s.get('cx', 0))}   {f(3 * s.get('cy', 0))} ]",
+        f"{label('Skew:', 'alpha_c')} = [ 0.00000 ] +/- [ 0.00000  ]   "
+        "=> angle of pixel axes = 90.00000 +/- 0.00000 degrees",
+        f"{label('Distortion:', 'kc')} = [ "
+        + "   ".join(f(k) for k in kc)
+        + " ] +/- [ "
+        + "   ".join(f(3 * k) for k in skc)
+        + " ]",
+        f"{label('Pixel error:', 'err')} = [ {f(rs[0])}   {f(rs[1])} ]",
+    ]
+    if len(c.dist) > 5:
+        lines.insert(
+            4,
+            "Higher-order terms (k4, k5, k6[, s1..s4]) = [ "
+            + "   ".join(f(k) for k in c.dist[5:])
             + " ] +/- [ "
-            + "   ".join(f(3 * k) for k in skc)
+            + "   ".join(f(3 * k) for k in sd[5:])
             + " ]",
-            f"Pixel error:          err = [ {f(rs[0])}   {f(rs[1])} ]",
-            "",
-            "Note: The numerical errors are approximately three times the standard deviations "
-            "(for reference).",
-        ]
-        if len(c.dist) > 5:
-            lines.insert(
-                6,
-                "Higher-order terms (k4, k5, k6[, s1..s4]) = [ "
-                + "   ".join(f(k) for k in c.dist[5:])
-                + " ] +/- [ "
-                + "   ".join(f(3 * k) for k in sd[5:])
-                + " ]",
-            )
-        return "\n".join(lines)
+        )
+    return lines
 
 
 def _flags(model: str) -> int:
@@ -179,7 +222,7 @@ def _run(obj, img, image_size, model):
     return K, np.asarray(dist, dtype=np.float64).ravel()[:nd], rvecs, tvecs, sd_int.ravel(), per_view.ravel()
 
 
-def _fixed_params(model: str) -> tuple[int, ...]:
+def fixed_params(model: str) -> tuple[int, ...]:
     """Indices (in the camera's parameter order) the model holds fixed."""
     return (8,) if model == "fix-k3" else ()
 
@@ -229,12 +272,64 @@ def calibration_covariance(object_points, image_points, camera_matrix, dist, rve
     free = [i for i in range(n) if i not in set(fixed)]
     dof = n_res - len(free) - 6 * len(rvecs)
     s2 = sse / dof if dof > 0 else float("nan")
+    return covariance_from_information(S, s2, free)
+
+
+def covariance_from_information(S: np.ndarray, s2: float, free) -> np.ndarray:
+    """s^2 S^-1 over the free parameters (zero rows and columns for the fixed ones).
+
+    Parameters
+    ----------
+    S : ndarray, shape (n, n)
+        Information matrix J^T J (nuisance parameters eliminated), of parameters of mixed
+        units: inverted after scaling to unit diagonal (pseudo-inverse, so that a direction
+        the data leave undetermined gets a large variance rather than an error).
+    s2 : float
+        Residual variance, px^2.
+    free : sequence of int
+        Indices of the free parameters.
+
+    Returns
+    -------
+    ndarray, shape (n, n), symmetric
+    """
+    free = list(free)
+    n = S.shape[0]
     Sf = S[np.ix_(free, free)]
     d = np.sqrt(np.diag(Sf))
     inv = np.linalg.pinv(Sf / np.outer(d, d), rcond=1e-15, hermitian=True) / np.outer(d, d)
     C = np.zeros((n, n))
     C[np.ix_(free, free)] = s2 * inv
     return 0.5 * (C + C.T)
+
+
+def usable_views(detections: Sequence[BoardDetection | str], board: Board) -> tuple[list[str], list[int]]:
+    """Which views can enter a calibration, and why the others cannot.
+
+    A view is usable when it has a detection of ``board``'s grid with at least 6 corners.
+
+    Returns
+    -------
+    reasons : list of str
+        Per view, "" when usable, else why not (a string given instead of a detection is
+        the reason).
+    usable : list of int
+        Indices of the usable views.
+    """
+    grid = grid_of(board)
+    reasons = [""] * len(detections)
+    usable = []
+    for k, d in enumerate(detections):
+        if isinstance(d, BoardDetection):
+            if grid_of(d.board) != grid:
+                reasons[k] = f"detection is of a different board ({d.board})"
+            elif d.n_corners < _MIN_VIEW_CORNERS:
+                reasons[k] = f"only {d.n_corners} corners"
+            else:
+                usable.append(k)
+        else:
+            reasons[k] = str(d) or "no detection"
+    return reasons, usable
 
 
 def calibrate_camera(
@@ -290,18 +385,7 @@ def calibrate_camera(
         raise ValueError(f"names has {len(names)} entries for {n_views} detections")
     w, h = (int(v) for v in image_size)
     grid = grid_of(board)
-    reasons = [""] * n_views
-    usable = []
-    for k, d in enumerate(detections):
-        if isinstance(d, BoardDetection):
-            if grid_of(d.board) != grid:
-                reasons[k] = f"detection is of a different board ({d.board})"
-            elif d.n_corners < _MIN_VIEW_CORNERS:
-                reasons[k] = f"only {d.n_corners} corners"
-            else:
-                usable.append(k)
-        else:
-            reasons[k] = str(d) or "no detection"
+    reasons, usable = usable_views(detections, board)
     if len(usable) < min_views:
         detail = "; ".join(f"{names[k]}: {reasons[k]}" for k in range(n_views) if reasons[k])
         raise InputError(
@@ -362,7 +446,7 @@ def calibrate_camera(
     }
     obj = [obj_all[detections[k].ids] for k in used]
     img = [detections[k].corners for k in used]
-    cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, _fixed_params(model))
+    cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model))
     camera = CameraModel(
         (w, h),
         cam.fx,

@@ -9,9 +9,10 @@ turning each bad file into a recorded error while the others go on.
 from __future__ import annotations
 
 import csv
+import glob
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -24,6 +25,7 @@ from ..io import read_csv_columns, read_json
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, detect_board
 from .images import read_image
+from .rig_calibration import RigCalibrationResult, calibrate_rig
 from .sequence import ImageMeasurement, measure_sequence
 
 __all__ = [
@@ -33,6 +35,9 @@ __all__ = [
     "read_stage_manifest",
     "StageRow",
     "calibrate_files",
+    "calibrate_rig_files",
+    "camera_images",
+    "match_views",
     "measure_files",
 ]
 
@@ -235,12 +240,14 @@ def calibrate_files(
     model: str = "k3",
     outlier_factor: float = 3.0,
     scale: int | None = None,
+    progress: Callable[[], None] | None = None,
 ) -> CalibrationResult:
     """Calibrate a camera from image files of a board (a folder stands for its images).
 
     Every image is read and searched; an unreadable image, one of another size
     or one without the board becomes a view with ``used = False`` and the
-    reason, and calibration goes on with the others.
+    reason, and calibration goes on with the others. ``progress()`` is called after
+    each image.
 
     Raises
     ------
@@ -250,22 +257,7 @@ def calibrate_files(
     if not paths:
         raise InputError("no calibration images given")
     paths = image_files(paths)
-    dets: list[BoardDetection | str] = []
-    sizes: list[tuple[int, int] | None] = []
-    for p in paths:
-        src = str(p)
-        try:
-            img = read_image(p)
-        except InputError as e:
-            dets.append(e.detail)
-            sizes.append(None)
-            continue
-        h, w = img.shape
-        sizes.append((w, h))
-        try:
-            dets.append(detect_board(img, board, scale=scale, source=src))
-        except InputError as e:
-            dets.append(e.detail)
+    dets, sizes = _detect_files(paths, board, scale, progress)
     if all(sz is None for sz in sizes):
         raise InputError(
             f"none of the {len(paths)} images could be read: "
@@ -285,6 +277,229 @@ def calibrate_files(
             )
     return calibrate_camera(
         dets, board, size, names=[str(p) for p in paths], model=model, outlier_factor=outlier_factor
+    )
+
+
+def _detect_files(
+    paths: Sequence[Path], board: Board, scale: int | None, progress: Callable[[], None] | None = None
+) -> tuple[list[BoardDetection | str], list[tuple[int, int] | None]]:
+    """Read each image and find the board: its detection or why not, and its size (None: unreadable)."""
+    dets: list[BoardDetection | str] = []
+    sizes: list[tuple[int, int] | None] = []
+    for p in paths:
+        src = str(p)
+        try:
+            img = read_image(p)
+        except InputError as e:
+            dets.append(e.detail)
+            sizes.append(None)
+        else:
+            h, w = img.shape
+            sizes.append((w, h))
+            try:
+                dets.append(detect_board(img, board, scale=scale, source=src))
+            except InputError as e:
+                dets.append(e.detail)
+        if progress is not None:
+            progress()
+    return dets, sizes
+
+
+_GLOB_CHARS = re.compile(r"[*?\[]")
+
+
+def camera_images(name: str, pattern: str | os.PathLike) -> list[Path]:
+    """The image files of one camera of a rig: a file pattern (``img/left*.jpg``), a folder or a file.
+
+    A pattern gives the files it matches, a folder its images (:func:`image_files`), in
+    natural order (``left2`` before ``left10``).
+
+    Raises
+    ------
+    InputError
+        Naming the camera and the pattern that matches no file.
+    """
+    text = str(pattern)
+    if not text.strip():
+        raise InputError(
+            f"camera {name}: empty file pattern (give a pattern such as 'img/{name}*.png' or a folder)"
+        )
+    p = Path(text)
+    if p.is_dir():
+        return image_files([p])
+    if _GLOB_CHARS.search(text):
+        found = sorted(
+            (Path(f) for f in glob.glob(text) if Path(f).is_file()), key=lambda f: (_natural_key(f), str(f))
+        )
+        if not found:
+            raise InputError(f"camera {name}: no file matches the pattern {text!r}")
+        return found
+    if p.is_file():
+        return [p]
+    raise InputError(f"camera {name}: {text!r} is no file, folder or file pattern that matches anything")
+
+
+def _view_number(path: Path) -> int | None:
+    """The last group of digits in a file's name (without its suffix), or None."""
+    groups = re.findall(r"\d+", path.stem)
+    return int(groups[-1]) if groups else None
+
+
+def match_views(
+    names: Sequence[str], files: Sequence[Sequence[Path]]
+) -> tuple[list[str], list[list[Path | None]]]:
+    """Match the images of several cameras into views (one pose of the board each).
+
+    By the number in their file names (the last group of digits: ``left07.jpg`` with
+    ``right07.jpg``) when every file carries one and no camera has two files of one number;
+    a view missing for a camera is then simply not seen by it. Otherwise by sorted order,
+    when the cameras have as many images each.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The cameras' names.
+    files : sequence of sequence of Path
+        Each camera's images, in natural order.
+
+    Returns
+    -------
+    view_names : list of str
+        The views' numbers (or positions, ``"1"``...), in order.
+    table : list of list of Path or None
+        ``table[k][v]``: camera k's image of view v (None: it has none).
+
+    Raises
+    ------
+    InputError
+        When neither rule applies (naming the cameras, their numbers of images, and the
+        file that has no number or shares it).
+    """
+    numbers = [[_view_number(f) for f in fs] for fs in files]
+    problem = None
+    for name, fs, ns in zip(names, files, numbers, strict=True):
+        for f, n in zip(fs, ns, strict=True):
+            if n is None:
+                problem = f"{f} (camera {name}) has no number in its name"
+                break
+            if ns.count(n) > 1:
+                other = next(g for g, m in zip(fs, ns, strict=True) if m == n and g != f)
+                problem = f"{f} and {other} (camera {name}) carry the same number {n}"
+                break
+        if problem:
+            break
+    if problem is None:
+        views = sorted(set().union(*map(set, numbers)))
+        table = [
+            [dict(zip(ns, fs, strict=True)).get(n) for n in views]
+            for fs, ns in zip(files, numbers, strict=True)
+        ]
+        return [str(n) for n in views], table
+    counts = [len(fs) for fs in files]
+    if len(set(counts)) == 1:
+        return [str(i + 1) for i in range(counts[0])], [list(fs) for fs in files]
+    raise InputError(
+        "cannot match the images into views: "
+        + problem
+        + ", and the cameras have different numbers of images ("
+        + ", ".join(f"{n}: {c}" for n, c in zip(names, counts, strict=True))
+        + "); give the images of one view the same number (left07.png, right07.png), or as many "
+        "images per camera in the same order"
+    )
+
+
+def calibrate_rig_files(
+    cameras: Sequence[tuple[str, str | os.PathLike]],
+    board: Board,
+    *,
+    model: str = "k3",
+    outlier_factor: float = 3.0,
+    scale: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RigCalibrationResult:
+    """Calibrate a rig of cameras from their image files of one board (see :func:`calibrate_rig`).
+
+    Parameters
+    ----------
+    cameras : sequence of (str, str or PathLike)
+        Each camera's name and its images: a file pattern (``img/left*.jpg``), a folder, or
+        one file. The first camera's frame is the rig frame.
+    board : Chessboard or CharucoBoard
+    model, outlier_factor
+        As in :func:`~stiffmap.vision.rig_calibration.calibrate_rig`.
+    scale : int, optional
+        Detection's reduction factor (as :func:`calibrate_files`).
+    progress : callable, optional
+        ``progress(done, total)`` after each image read and searched.
+
+    Returns
+    -------
+    RigCalibrationResult
+
+    Notes
+    -----
+    The views are matched across cameras by :func:`match_views`. Every image is read and
+    searched as :func:`calibrate_files` does; an unreadable image or one without the board
+    is a view that camera does not have (with the reason), and calibration goes on.
+
+    Raises
+    ------
+    InputError
+        No camera, two cameras of one name, a pattern that matches nothing, images that
+        cannot be matched into views, a camera whose images differ in size, a camera with
+        fewer than 3 usable views or fewer than 2 shared with the others.
+    """
+    if not cameras:
+        raise InputError("no cameras given")
+    names = [str(n) for n, _ in cameras]
+    for n in names:
+        if not n.strip() or n != n.strip():
+            raise InputError(f"camera name {n!r}: a camera needs a name without outer spaces")
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        raise InputError(f"camera {dup} is given twice: cameras need different names")
+    files = [camera_images(n, pat) for n, pat in cameras]
+    view_names, table = match_views(names, files)
+    total = sum(len(fs) for fs in files)
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    dets: list[list[BoardDetection | str | None]] = []
+    sizes: list[tuple[int, int]] = []
+    for name, row in zip(names, table, strict=True):
+        paths = [p for p in row if p is not None]
+        d, sz = _detect_files(paths, board, scale, tick)
+        seen = [s for s in sz if s is not None]
+        if not seen:
+            raise InputError(
+                f"camera {name}: none of its {len(paths)} images could be read: "
+                + "; ".join(f"{p}: {x}" for p, x in zip(paths, d, strict=True))
+            )
+        if len(set(seen)) > 1:
+            common = max(dict.fromkeys(seen), key=seen.count)
+            odd = next(p for p, s in zip(paths, sz, strict=True) if s is not None and s != common)
+            w, h = next(s for s in sz if s is not None and s != common)
+            raise InputError(
+                f"camera {name}: its images are not all of one size: {odd} is {w}x{h} px, "
+                f"{seen.count(common)} others are {common[0]}x{common[1]} px (an image of another camera?)"
+            )
+        sizes.append(seen[0])
+        it = iter(d)
+        dets.append([None if p is None else next(it) for p in row])
+    return calibrate_rig(
+        dets,
+        board,
+        sizes,
+        camera_names=names,
+        view_names=view_names,
+        image_names=[[None if p is None else str(p) for p in row] for row in table],
+        model=model,
+        outlier_factor=outlier_factor,
     )
 
 
