@@ -44,19 +44,25 @@ import numpy as np
 from .. import __version__
 from ..camera import plausibility_problems, save_camera
 from ..errors import InputError
+from ..geometry import invert_transform, rotvec_from_matrix
 from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
-from ..rig import save_rig
+from ..rig import Rig, save_rig
 from ..sim.calibration_views import (
     CALIBRATION_BOARD,
     CALIBRATION_DIR,
     CALIBRATION_MARGIN_MM,
+    RIG_POSE_KEY,
     CalibrationView,
     plan_calibration_views,
+    render_rig_view,
+    rig_calibration_views,
 )
+from ..sim.render import encode_image
 from ..sim.render_pool import render_calibration_images, render_campaign_images
-from ..sim.testbed import CampaignPlan, SimConfig, plan_campaign
+from ..sim.testbed import CampaignPlan, SimConfig, plan_campaign, seeded_generator
 from ..vision.calibrate import CalibrationResult
-from ..vision.files import calibrate_files
+from ..vision.files import calibrate_files, calibrate_rig_files
+from ..vision.rig_calibration import RigCalibrationResult
 from .spec import CampaignSpec
 from .spec_writer import dump_spec
 from .store import remove_database
@@ -390,6 +396,112 @@ def calibrate_from_views(
     return summary, res, rendered
 
 
+def calibrate_rig_from_views(
+    out: Path,
+    config: SimConfig,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[CalibrationSummary, RigCalibrationResult, dict[str, Any]]:
+    """Render a rig's calibration views into ``out/calibration/CAMERA/`` and calibrate the rig.
+
+    The views are :func:`~stiffmap.sim.calibration_views.rig_calibration_views` of the scene's
+    true rig (``config.calibration_views`` in all: the board seen by every camera at once, and
+    one view per camera alone), rendered with the campaign's photometry and format; the
+    calibration is ``stiffmap calibrate-rig``'s (:func:`stiffmap.vision.files.calibrate_rig_files`,
+    model ``k3``, views matched by their number).
+
+    Returns
+    -------
+    summary : CalibrationSummary
+        Against the first camera (its fx, fy, cx, cy).
+    result : RigCalibrationResult
+    rendered : dict
+        Per view file ``({"file", "calibration": {"board2cam", "corners_px"}}, bytes)``.
+
+    Raises
+    ------
+    InputError
+        The rig could not be calibrated from the rendered views (naming the folder).
+    """
+    rig = config.scene.rig
+    views = rig_calibration_views(
+        rig, config.calibration_views, rng=seeded_generator(config.seed, *RIG_POSE_KEY)
+    )
+    ext = "png" if config.image_format == "png" else "jpg"
+    rendered: dict[str, Any] = {}
+    total = sum(len(v.cameras) for v in views)
+    if progress:
+        progress(0, total)
+    for v in views:
+        for k, r in enumerate(render_rig_view(rig, v, photometry=config.photometry, seed=config.seed)):
+            if r is None:
+                continue
+            name = rig.cameras[k].name
+            rel = f"{CALIBRATION_DIR}/{name}/view{v.index:02d}.{ext}"
+            data = encode_image(r.image, config.image_format, jpeg_quality=config.jpeg_quality)
+            atomic_write_bytes(out / rel, data)
+            t = r.targets[0]
+            rendered[rel] = (
+                {"file": rel, "calibration": {"board2cam": t.board2cam, "corners_px": t.corners_px}},
+                len(data),
+            )
+            if progress:
+                progress(len(rendered), total)
+    try:
+        res = calibrate_rig_files(
+            [(c.name, out / CALIBRATION_DIR / c.name) for c in rig.cameras],
+            CALIBRATION_BOARD,
+            model=CALIBRATION_MODEL,
+        )
+    except InputError as e:
+        raise InputError(
+            f"the rig could not be calibrated from the {len(views)} rendered calibration views: " + e.detail,
+            source=str(out / CALIBRATION_DIR),
+        ) from None
+    cam, true = res.rig.cameras[0].camera, rig.cameras[0].camera
+    err = {k: float(getattr(cam, k) - getattr(true, k)) for k in _PARAMS}
+    rel = {k: err[k] / float(getattr(true, k)) for k in _PARAMS}
+    rms = float(np.sqrt(np.mean([c.camera.rms_px**2 for c in res.rig.cameras])))
+    summary = CalibrationSummary(True, "", len(views), int(min(res.n_used)), rms, rel, err)
+    return summary, res, rendered
+
+
+def _rig_calibration_truth(
+    summary: CalibrationSummary, result: RigCalibrationResult, true: Rig
+) -> dict[str, Any]:
+    """truth.json's ``calibration`` for a rig (with ``camera`` and ``rig`` popped out)."""
+    per_camera = []
+    for t, c in zip(true.cameras, result.rig.cameras, strict=True):
+        d = invert_transform(t.cam2rig) @ c.cam2rig
+        per_camera.append(
+            {
+                "name": t.name,
+                "relative_error": {
+                    k: (getattr(c.camera, k) - getattr(t.camera, k)) / getattr(t.camera, k) for k in _PARAMS
+                },
+                "cam2rig_translation_error_mm": float(np.linalg.norm(d[:3, 3])),
+                "cam2rig_rotation_error_deg": float(
+                    np.degrees(np.linalg.norm(rotvec_from_matrix(d[:3, :3])))
+                ),
+            }
+        )
+    return {
+        "camera_json": "calibrated rig",
+        "tool": f"stiffmap calibrate-rig (vision.files.calibrate_rig_files, model {CALIBRATION_MODEL})",
+        "board": CALIBRATION_BOARD.size,
+        "square_mm": CALIBRATION_BOARD.square_mm,
+        "margin_mm": CALIBRATION_MARGIN_MM,
+        "n_views": summary.n_views,
+        "n_used": list(result.n_used),
+        "rms_px": summary.rms_px,
+        "relative_error": summary.relative_error,
+        "error_px": summary.error_px,
+        "cameras": per_camera,
+        "camera": result.rig.cameras[0].camera.to_dict(),
+        "rig": result.rig.to_dict(),
+    }
+
+
 def _calibration_truth(
     summary: CalibrationSummary, result: CalibrationResult | None, views: tuple[CalibrationView, ...]
 ) -> dict[str, Any]:
@@ -479,7 +591,9 @@ def write_campaign(
         raise InputError(f"workers must be >= 1, got {workers}")
     if plan is None:
         plan = plan_campaign(config)
-    views = plan_calibration_views(config) if render_images and config.scene.rig is None else ()
+    rig = config.scene.rig
+    views = plan_calibration_views(config) if render_images and rig is None else ()
+    rig_result = None
     jobs = list(plan.jobs)
     n_total = len(views) + (len(jobs) if render_images else 0)
     prepare_output_dir(out, force)
@@ -490,20 +604,26 @@ def write_campaign(
         calibration, result, rendered_views = calibrate_from_views(
             out, config, views, workers=workers, progress=cal_progress
         )
+    elif rig is not None and render_images and config.calibration_views:
+        cal_progress = None if progress is None else (lambda done, total: progress(done, total + len(jobs)))
+        calibration, rig_result, rendered_views = calibrate_rig_from_views(out, config, progress=cal_progress)
+        n_total = len(rendered_views) + len(jobs)
     else:
         rendered_views = {}
-        if config.scene.rig is not None:
-            note = "a rig of cameras: rig.json holds the true cameras"
+        if rig is not None and not config.calibration_views:
+            note = (
+                "no calibration views (calibration_views = 0, --true-camera): rig.json holds the true cameras"
+            )
         elif config.calibration_views:
             note = "truth only: no images to calibrate from"
         else:
             note = "no calibration views (calibration_views = 0, --true-camera)"
         calibration = _true_camera(note)
     t_cal = time.perf_counter() - t_cal
-    if config.scene.rig is None:
+    if rig is None:
         save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
     else:
-        save_rig(config.scene.rig, out / RIG_NAME)
+        save_rig(rig if rig_result is None else rig_result.rig, out / RIG_NAME)
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
         f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "
@@ -515,7 +635,7 @@ def write_campaign(
     img_progress = None
     if progress is not None:
         img_progress = (
-            (lambda done, total: progress(len(views) + done, n_total)) if render_images else progress
+            (lambda done, total: progress(len(rendered_views) + done, n_total)) if render_images else progress
         )
     results = render_campaign_images(
         out, config, jobs, workers=workers, render_images=render_images, progress=img_progress
@@ -523,10 +643,14 @@ def write_campaign(
     corners = [results[j.file][0] for j in jobs]
     gz = {"format": TRUTH_FORMAT, "images": corners}
     if rendered_views:
-        gz["calibration"] = [rendered_views[v.file][0] for v in views]
+        gz["calibration"] = [v[0] for v in rendered_views.values()]
     data = json.dumps(to_jsonable(gz), allow_nan=False)
     atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
-    truth = _truth_dict(config, plan, command, _calibration_truth(calibration, result, views))
+    if rig_result is not None:
+        cal_truth = _rig_calibration_truth(calibration, rig_result, rig)
+    else:
+        cal_truth = _calibration_truth(calibration, result, views)
+    truth = _truth_dict(config, plan, command, cal_truth)
     atomic_write_text(out / TRUTH_NAME, compact_json(truth) + "\n")
     eig = np.linalg.eigvalsh(0.5 * (plan.K3 + np.swapaxes(plan.K3, 1, 2)))
     return SimSummary(

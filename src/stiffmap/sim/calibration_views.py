@@ -55,6 +55,7 @@ __all__ = [
     "render_calibration_view",
     "calibration_view_file",
     "RigView",
+    "RIG_POSE_KEY",
     "rig_calibration_views",
     "render_rig_view",
 ]
@@ -78,6 +79,8 @@ _DIRECTIONS = ((-1, -1), (1, 1), (1, -1), (-1, 1), (0, 0), (0, -1), (1, 0), (0, 
 _TILTS = (1.0, 0.55, 0.85, 0.3, 1.0, 0.7, 0.9)
 #: Spawn keys of the calibration's random draws (position 0: never a campaign image's).
 _POSE_KEY = (0, 0, 0, 3)
+#: The draw of a rig's calibration poses (beside ``_POSE_KEY``, a single camera's).
+RIG_POSE_KEY = (0, 0, 0, 4)
 _VIEW_STATE = 2
 
 

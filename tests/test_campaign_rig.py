@@ -1,0 +1,85 @@
+"""A campaign measured by two cameras: simulated by the test-bed (a rig), run, against the truth."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from helpers.board_scenes import scaled_camera
+
+from stiffmap.camera import reference_camera
+from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.simulated import write_campaign
+from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.campaign.truth import load_truth
+from stiffmap.loads import paper9
+from stiffmap.rig import camera_path, load_rig
+from stiffmap.sim.robot import delta_robot
+from stiffmap.sim.scene import default_scene, with_cameras
+from stiffmap.sim.testbed import SimConfig
+
+POSITIONS = np.array([[-66.67, 66.67, -310.0], [200.0, -200.0, -200.0]])
+
+
+@pytest.fixture(scope="module")
+def rig_campaign(tmp_path_factory):
+    """Two half-resolution cameras 60 degrees apart (the true rig), 2 positions x 6 loads."""
+    scene = with_cameras(default_scene(scaled_camera(reference_camera(), 0.5)), 2, distance_scale=1.2)
+    cfg = SimConfig(
+        scene=scene,
+        robot=delta_robot(),
+        positions=POSITIONS,
+        loads=tuple(paper9())[:6],
+        repeats=1,
+        seed=11,
+        robot_stays=True,
+        calibration_views=0,
+    )
+    out = tmp_path_factory.mktemp("rig") / "c"
+    write_campaign(out, cfg)
+    return out
+
+
+def _K(out):
+    with Store(out / DB_NAME) as store:
+        rows = store.stiffness_rows()
+        meas = store.measurement_rows()
+    return rows, meas
+
+
+def test_a_two_camera_campaign_recovers_K_and_keeps_each_cameras_outcome(rig_campaign):
+    out = rig_campaign
+    rig = load_rig(out / "rig.json")
+    summary = run_campaign(out)
+    assert not summary.failures
+    rows, meas = _K(out)
+    truth = load_truth(out)
+    for r, K_true in zip(rows, truth.K, strict=True):
+        assert r["status"] == "ok"
+        K = from_json(r["K"])
+        # Both cameras see each board; depth comes from the other camera's side view.
+        assert np.linalg.norm(K - K_true) / np.linalg.norm(K_true) < 0.03
+    for m in meas:
+        per = json.loads(m["per_camera"])
+        assert [c["name"] for c in per] == list(rig.names)
+        assert all(c["ok"] and set(c["boards"]) == {"mobile", "fixed"} for c in per)
+        # The stored calibration sensitivity spans the rig's parameters (both cameras and cam2rig).
+        assert from_json(m["mobile_cal_jac"]).shape == (6, len(rig.param_names))
+
+
+def test_an_image_missing_for_one_camera_is_named_and_the_set_measured_by_the_other(rig_campaign):
+    out = rig_campaign
+    run_campaign(out)
+    _, meas = _K(out)
+    victim = next(m["image"] for m in meas if "loaded" in m["image"] and "unloaded" not in m["image"])
+    (out / camera_path(victim, "cam2")).unlink()
+    summary = run_campaign(out)
+    assert not summary.failures
+    rows, meas = _K(out)
+    assert all(r["status"] == "ok" for r in rows)
+    m = next(m for m in meas if m["image"] == victim)
+    assert m["status"] == "ok"
+    per = {c["name"]: c for c in json.loads(m["per_camera"])}
+    assert per["cam1"]["ok"] and not per["cam2"]["ok"]
+    assert camera_path(victim, "cam2").split("/")[-1] in per["cam2"]["error"]
