@@ -9,9 +9,10 @@ turning each bad file into a recorded error while the others go on.
 from __future__ import annotations
 
 import csv
+import glob
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -21,6 +22,7 @@ from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform
 from ..io import read_csv_columns, read_json
+from ..rig import Rig
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, detect_board
 from .images import read_image
@@ -34,6 +36,9 @@ __all__ = [
     "StageRow",
     "calibrate_files",
     "measure_files",
+    "match_views",
+    "rig_image_sets",
+    "measure_image_sets",
 ]
 
 #: Largest translation of a transform read from a file, mm (a robot cell is metres wide).
@@ -313,5 +318,208 @@ def measure_files(
         fixed2base,
         scale=scale,
         camera_source=camera_source,
+        refine=refine,
+    )
+
+
+# ------------------------------------------------------------------ several cameras
+#: Characters that make an image name a file pattern (``glob``).
+_GLOB_CHARS = re.compile(r"[*?\[]")
+
+
+def _view_numbers(paths: Sequence[Path]) -> list[int] | None:
+    """The number that tells a camera's views apart, one per file (None: no such number).
+
+    The digit runs of each file's stem are compared across the camera's files: the one
+    position where they differ is the view number (``left07.png``, ``cam1_07.png``,
+    ``img07_cam1.png`` all give 7); a single file gives its last digit run. None when the
+    files' names carry no such distinct number.
+    """
+    runs = [re.findall(r"\d+", p.stem) for p in paths]
+    if not runs or any(not r for r in runs):
+        return None
+    if len(paths) == 1:
+        return [int(runs[0][-1])]
+    if len({len(r) for r in runs}) != 1:
+        nums = [int(r[-1]) for r in runs]
+    else:
+        varying = [i for i in range(len(runs[0])) if len({r[i] for r in runs}) > 1]
+        if len(varying) != 1:
+            return None
+        nums = [int(r[varying[0]]) for r in runs]
+    return nums if len(set(nums)) == len(nums) else None
+
+
+def match_views(per_camera_paths: Mapping[str, Sequence[str | os.PathLike]]) -> list[dict[str, Path | None]]:
+    """Image sets, one image per camera, from each camera's list of image files.
+
+    Views are matched by the number in their file names (``left07.jpg`` with ``right07.jpg``;
+    see :func:`_view_numbers`) when every camera's files carry one; a number that some camera
+    lacks gives that camera ``None`` in the set (its image is missing). Otherwise they are
+    matched in order (each list as given: :func:`image_files` sorts folders naturally), which
+    needs as many images for every camera.
+
+    Parameters
+    ----------
+    per_camera_paths : mapping of camera name to sequence of paths
+
+    Returns
+    -------
+    list of dict camera name -> Path or None
+        One per view, in increasing number (or in order), every camera a key.
+
+    Raises
+    ------
+    InputError
+        When the views can be matched neither by number nor in order (naming the counts).
+    """
+    lists = {c: [Path(p) for p in ps] for c, ps in per_camera_paths.items()}
+    if not lists:
+        return []
+    numbers = {c: _view_numbers(ps) for c, ps in lists.items() if ps}
+    if numbers and all(v is not None for v in numbers.values()):
+        keys = sorted({k for v in numbers.values() for k in v})
+        by_number = {c: dict(zip(numbers.get(c) or [], ps, strict=True)) for c, ps in lists.items()}
+        return [{c: by_number[c].get(k) for c in lists} for k in keys]
+    counts = {c: len(ps) for c, ps in lists.items()}
+    if len(set(counts.values())) != 1:
+        raise InputError(
+            "cannot match the cameras' images into sets: their file names do not all carry a distinct "
+            "view number (e.g. left07.png with right07.png) and the cameras have different numbers of "
+            "images (" + ", ".join(f"{c}: {n}" for c, n in counts.items()) + ")"
+        )
+    n = next(iter(counts.values()))
+    return [{c: lists[c][i] for c in lists} for i in range(n)]
+
+
+def _camera_files(text: str, camera: str, what: str) -> tuple[list[Path], bool]:
+    """A camera's files named by ``text``: a pattern, a folder or a file (kept when missing).
+
+    Returns the paths and whether ``text`` named several (a pattern or a folder).
+    """
+    p = Path(text)
+    if _GLOB_CHARS.search(text):
+        found = sorted((Path(q) for q in glob.glob(text) if Path(q).is_file()), key=_natural_key)
+        if not found:
+            raise InputError(f"{what} {text!r} (camera {camera!r}) matches no file")
+        return found, True
+    if p.is_dir():
+        try:
+            return image_files([p]), True
+        except InputError as e:
+            raise InputError(f"{what} {text!r} (camera {camera!r}): {e}") from None
+    return [p], False
+
+
+def _set_label(views: Mapping[str, Path | None]) -> str:
+    return " + ".join(str(p) if p is not None else f"({c}: none)" for c, p in views.items())
+
+
+def rig_image_sets(
+    rig: Rig,
+    patterns: Sequence[str] = (),
+    per_camera: Sequence[str] = (),
+    *,
+    what: str = "image",
+) -> list[tuple[str, dict[str, Path | None]]]:
+    """The image sets named on a command line for a rig: one image per camera in each set.
+
+    Parameters
+    ----------
+    rig : Rig
+    patterns : sequence of str
+        Names holding ``{camera}``, replaced by each camera's name: a file (one set, labelled by
+        the pattern: ``shots/{camera}_07.png``), or a file pattern or a folder per camera (its
+        files matched into sets by :func:`match_views`). Without ``{camera}``, for a rig of one
+        camera only: that camera's file, pattern or folder.
+    per_camera : sequence of str
+        ``NAME=GLOB`` items (a camera's file pattern, folder or file; several items for one
+        camera add up); every camera of the rig needs one; matched by :func:`match_views`.
+    what : str
+        The option's name in messages.
+
+    Returns
+    -------
+    list of (label, dict camera name -> Path or None)
+        A missing file stays in its set (its camera's view will say so); a camera without an
+        image in a matched set has None.
+
+    Raises
+    ------
+    InputError
+        Naming the item: ``{camera}`` missing for a rig of several cameras, an unknown camera,
+        a pattern that matches nothing, a camera without images, sets that cannot be matched.
+    """
+    names = rig.names
+    out: list[tuple[str, dict[str, Path | None]]] = []
+    for text in patterns:
+        text = str(text)
+        if "{camera}" not in text:
+            if len(rig) > 1:
+                raise InputError(
+                    f"{what} {text!r}: with a rig of {len(rig)} cameras ({', '.join(names)}), name each "
+                    "image set by a pattern holding {camera} (e.g. 'shots/{camera}_07.png'), or give "
+                    "each camera's images with --images NAME=GLOB"
+                )
+            files, several = _camera_files(text, names[0], what)
+            out += [(str(f), {names[0]: f}) for f in files]
+            continue
+        expanded = {c: _camera_files(text.replace("{camera}", c), c, what) for c in names}
+        if not any(several for _, several in expanded.values()):
+            out.append((text, {c: files[0] for c, (files, _) in expanded.items()}))
+            continue
+        for views in match_views({c: files for c, (files, _) in expanded.items()}):
+            out.append((_set_label(views), views))
+    if per_camera:
+        given: dict[str, list[Path]] = {}
+        for item in per_camera:
+            name, sep, text = str(item).partition("=")
+            name = name.strip()
+            if not sep or not text.strip():
+                raise InputError(
+                    f"--images {item!r}: expected NAME=GLOB (a camera of the rig, then its images)"
+                )
+            if name not in names:
+                raise InputError(
+                    f"--images {item!r}: no camera {name!r} in the rig (cameras: {', '.join(names)})"
+                )
+            given.setdefault(name, []).extend(_camera_files(text.strip(), name, "--images")[0])
+        lacking = [c for c in names if c not in given]
+        if lacking:
+            raise InputError(
+                f"--images: no images given for camera(s) {', '.join(map(repr, lacking))} (the rig's "
+                f"cameras: {', '.join(names)}); give --images NAME=GLOB for each"
+            )
+        for views in match_views({c: given[c] for c in names}):
+            out.append((_set_label(views), views))
+    return out
+
+
+def measure_image_sets(
+    sets: Sequence[tuple[str, Mapping[str, str | os.PathLike | None]]],
+    rig: Rig,
+    board: Board,
+    fixed_board: Board | None = None,
+    fixed2base=None,
+    *,
+    scale: int | None = None,
+    rig_source: str = "rig.json",
+    refine: str = "auto",
+) -> list[ImageMeasurement]:
+    """Fused poses in each image set of a rig (tracking along the list in every camera).
+
+    ``sets`` as :func:`rig_image_sets` gives them; a camera's missing, unreadable or
+    wrong-sized image is named in its view and the others go on; a set where no camera saw a
+    target gives an ``error`` entry (:class:`~stiffmap.vision.sequence.PoseTracker`).
+    """
+    return measure_sequence(
+        [dict(views) for _, views in sets],
+        rig,
+        board,
+        fixed_board,
+        fixed2base,
+        names=[label for label, _ in sets],
+        scale=scale,
+        camera_source=rig_source,
         refine=refine,
     )
