@@ -351,8 +351,8 @@ class PoseTracker:
                     f"(cameras: {', '.join(rig.names)})"
                 )
             items = [images.get(c) for c in rig.names]
-        elif is_image(images) and n == 1:
-            items = [images]
+        elif n == 1 and not (isinstance(images, (list, tuple)) and len(images) == 1 and is_image(images[0])):
+            items = [images]  # one camera: the image itself (a path or anything array-like)
         elif isinstance(images, Sequence) and not is_image(images) and len(images) == n:
             items = list(images)
         else:
