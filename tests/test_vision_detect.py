@@ -97,6 +97,24 @@ def test_tracking_refines_small_motions_and_hands_over_large_ones():
     np.testing.assert_allclose(d2.corners, exact_corners(CAM, ODD, T2), atol=0.08)
 
 
+@pytest.mark.parametrize("shift", [(1, 0), (0, 1), (1, 1)])
+def test_a_board_moved_by_a_whole_square_is_not_tracked_one_square_off(shift):
+    """Moved by a square (along its rows, columns or both), the previous corners each land on
+    the neighbouring corner and the grid fits: tracking must refuse it (found with two cameras,
+    where one camera's loaded pose came out a square off), and the full search numbers it."""
+    for board in (ODD, SYM):
+        T0 = look_at_pose(250, board, tilt_deg=(10, -10, 3))
+        d0 = detect_board(_img([(board, T0)]), board, camera=CAM)
+        T1 = T0.copy()
+        T1[:3, 3] += T0[:3, :3] @ [shift[0] * board.square_mm, shift[1] * board.square_mm, 0.0]
+        T1[:3, 3] += [0.05, -0.04, 0.0]  # and a little more
+        img1 = _img([(board, T1)], seed=5)
+        assert track_board(img1, d0, camera=CAM) is None
+        d1 = detect_board(img1, board, previous=d0, camera=CAM)
+        assert not d1.tracked
+        np.testing.assert_allclose(d1.corners, exact_corners(CAM, board, T1), atol=0.1)
+
+
 def test_wrong_board_size_is_reported():
     T = look_at_pose(250, SYM, tilt_deg=(10, -10, 5))
     img = _img([(SYM, T)])

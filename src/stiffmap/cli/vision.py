@@ -1,5 +1,9 @@
 """Vision commands: ``calibrate``, ``pose``, ``displacement``, ``validate`` (see docs/vision.md).
 
+``pose`` and ``displacement`` measure with one camera (``--camera camera.json``) or with a rig
+of several (``--rig rig.json``, one image per camera in each image set: a name holding
+``{camera}``, or ``--images NAME=GLOB`` per camera, matched by the number in their names).
+
 Each command reads its options, calls :mod:`stiffmap.vision` (through the file-level
 entry points of :mod:`stiffmap.vision.files`) and prints. An input error becomes its
 ``error:`` line and exit status here (:func:`~stiffmap.cli.common.fail`), also when a
@@ -19,7 +23,7 @@ from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..io import atomic_write_text
 from ..report.validation import stage_plot_svg
-from ..rig import save_rig
+from ..rig import Rig, load_rig, save_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
 from ..vision.calibrate import DIST_MODELS, CalibrationResult
 from ..vision.displacement import ImageDisplacements, displacement_per_image
@@ -28,9 +32,12 @@ from ..vision.files import (
     calibrate_files,
     calibrate_rig_files,
     measure_files,
+    measure_image_sets,
     read_stage_manifest,
     read_transform,
+    rig_image_sets,
 )
+from ..vision.fuse import FusedPose
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
 from ..vision.sequence import ImageMeasurement
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
@@ -130,31 +137,167 @@ def _pose_json(p) -> dict:
     return d
 
 
-def _warn_failures(ms: list[ImageMeasurement]) -> None:
-    """One warning per image that failed, or whose pose fell back to the corners (with why)."""
+def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
+    """One warning per image (set) that failed, or whose pose fell back to the corners (with why).
+
+    With a rig, also one per camera whose image of a measured set could not be used, and one
+    per fused pose whose cameras disagree (a wrong rig file, a moved camera).
+    """
     for m in ms:
         if not m.ok:
             warn(m.error)
-        else:
-            for p in (m.mobile, m.fixed):
-                if p is not None and p.fallback:
-                    warn(f"{m.image}: {p.fallback}")
+            continue
+        if rig is not None:
+            for v in m.views:
+                if v.error:
+                    warn(f"camera {v.camera}: {v.error}")
+            for w in m.consistency_warnings:
+                warn(f"{m.image}: {w}")
+        for p in (m.mobile, m.fixed):
+            if p is not None and p.fallback:
+                warn(f"{m.image}: {p.fallback}")
 
 
-def _exit_for(n_ok: int, n_total: int, inputs: str = "") -> None:
+def _camera_failures(ms: list[ImageMeasurement]) -> int:
+    """Cameras whose image of a measured set could not be used."""
+    return sum(1 for m in ms if m.ok for v in m.views if v.error)
+
+
+def _exit_for(n_ok: int, n_total: int, inputs: str = "", partial: bool = False) -> None:
     """Exit 2 (with an ``error:`` line) when nothing was measured, 1 when some items failed.
 
     ``inputs`` names what every image was measured with (the camera file, the board), the
-    suspects when none could be.
+    suspects when none could be; ``partial`` says some camera's image of a measured set failed.
     """
     if n_ok == 0:
         raise fail(f"none of the {n_total} image(s) could be measured{inputs} (see the warnings above)")
-    if n_ok < n_total:
+    if n_ok < n_total or partial:
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _measured_with(camera: Path, board: str) -> str:
+def _measured_with(camera: Path | None, board: str, rig: Path | None = None) -> str:
+    if rig is not None:
+        return f" with --rig {rig} and --board {board}"
     return f" with --camera {camera} and --board {board}"
+
+
+_RIG_HELP = (
+    "rig.json (several calibrated cameras, instead of --camera): each image set is then one image "
+    "per camera, named with {camera} (e.g. 'shots/{camera}_07.png') or given by --images."
+)
+_IMAGES_HELP = (
+    "With --rig: NAME=GLOB, one camera's images (a quoted file pattern, a folder or a file); repeat "
+    "for every camera. Views are matched by the number in their file names (left07.png with "
+    "right07.png), else in order."
+)
+
+
+def _camera_or_rig(camera: Path | None, rig: Path | None):
+    """The camera model (with --camera) or the rig (with --rig): exactly one of them."""
+    if camera is not None and rig is not None:
+        raise InputError("--camera and --rig: give one (a rig.json holds every camera of the rig)")
+    if camera is None and rig is None:
+        raise InputError("give --camera camera.json (one camera) or --rig rig.json (several)")
+    if rig is not None:
+        return None, load_rig(rig)
+    return load_camera(camera), None
+
+
+def _image_sets(images: list[str], per_camera: list[str], rig: Rig | None, what: str = "image") -> list:
+    """The image sets of a rig (label, camera -> path), or the image paths of one camera."""
+    if rig is not None:
+        return rig_image_sets(rig, images, per_camera, what=what)
+    if per_camera:
+        raise InputError("--images NAME=GLOB goes with --rig (one camera's images in a rig)")
+    templated = [i for i in images if "{camera}" in str(i)]
+    if templated:
+        raise InputError(f"{templated[0]!r}: an image name holding {{camera}} needs --rig rig.json")
+    return [Path(i) for i in images]
+
+
+def _measure(
+    items: list,
+    cam,
+    rig: Rig | None,
+    camera: Path | None,
+    rig_path: Path | None,
+    board,
+    fixed_board=None,
+    fixed2base=None,
+    *,
+    refine: str,
+) -> list[ImageMeasurement]:
+    """Measure the image sets of a rig, or the images of one camera, as one tracked sequence."""
+    if not items:
+        raise InputError("no images given")
+    if rig is not None:
+        return measure_image_sets(
+            items, rig, board, fixed_board, fixed2base, rig_source=str(rig_path), refine=refine
+        )
+    return measure_files(items, cam, board, fixed_board, fixed2base, camera_source=str(camera), refine=refine)
+
+
+def _cameras_json(m: ImageMeasurement) -> list[dict]:
+    """Per camera of a rig: its image, error, and the poses it measured (camera frame)."""
+
+    def one(p):
+        if p is None:
+            return None
+        d = {"board2cam": p.board2cam, "rms_px": p.rms_px, "n_corners": p.n_corners, "method": p.method}
+        if p.fallback:
+            d["fallback"] = p.fallback
+        return d
+
+    return [
+        {"name": v.camera, "image": v.image, "error": v.error, "mobile": one(v.mobile), "fixed": one(v.fixed)}
+        for v in m.views
+    ]
+
+
+def _consistency_json(p) -> dict | None:
+    if not isinstance(p, FusedPose):
+        return None
+    return {"cameras": list(p.cameras), "chi2": p.chi2, "dof": p.dof, "warning": p.consistency_warning}
+
+
+def _print_cameras(ms: list[ImageMeasurement], rig: Rig) -> None:
+    """Which camera saw which target in each image set, with its RMS."""
+    t = Table(title=f"per camera ({', '.join(rig.names)})")
+    t.add_column("image set", overflow="fold")
+    t.add_column("camera")
+    t.add_column("image", overflow="fold")
+    t.add_column("mobile target")
+    t.add_column("fixed target")
+    t.add_column("error", overflow="fold")
+
+    def seen(p) -> str:
+        if p is None:
+            return "-"
+        return f"{p.method}, {p.rms_px:.3f} px RMS, {p.n_corners} corners"
+
+    fixed = any(v.fixed is not None for m in ms for v in m.views)
+    for m in ms:
+        for v in m.views:
+            t.add_row(
+                m.image, v.camera, v.image, seen(v.mobile), seen(v.fixed) if fixed else "", v.error or ""
+            )
+    out.print(t)
+
+
+def _rig_calibration_note(rig: Rig, source: str) -> str:
+    """Where the rig's calibration share of the uncertainties comes from."""
+    if rig.cov is not None:
+        return f"the 1 sigma include the calibration's ({source}: the rig's joint covariance)"
+    have = [c.name for c in rig.cameras if c.camera.calibration_cov is not None]
+    if not have:
+        return (
+            f"the calibration's uncertainty is unknown ({source} holds no 'cov', nor do its cameras): "
+            "not included"
+        )
+    return (
+        f"the 1 sigma include the calibration's ({source}: the cameras' own covariances ({', '.join(have)}), "
+        "the cameras' poses in the rig taken as exact)"
+    )
 
 
 # ----------------------------------------------------------------------------- calibrate
@@ -411,10 +554,14 @@ def _print_rig_calibration(res: RigCalibrationResult, out_path: Path) -> None:
 
 # ---------------------------------------------------------------------------------- pose
 def pose(
-    images: list[Path] = typer.Argument(
-        ..., help="Images of the board, or folders of them (in natural order)."
+    images: list[str] = typer.Argument(
+        None,
+        help="Images of the board, or folders of them (in natural order); with --rig, image sets "
+        "named with {camera}.",
     ),
-    camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
+    camera: Path = typer.Option(None, "--camera", help="camera.json from `stiffmap calibrate`."),
+    rig: Path = typer.Option(None, "--rig", help=_RIG_HELP),
+    per_camera: list[str] = typer.Option(None, "--images", help=_IMAGES_HELP),
     board: str = typer.Option(..., "--board", help=_BOARD_HELP),
     square_mm: float = typer.Option(..., "--square-mm", help="Side of a square, mm."),
     charuco: str = typer.Option(None, "--charuco", help=_CHARUCO_HELP),
@@ -424,30 +571,42 @@ def pose(
 ) -> None:
     """Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS.
 
-    An image that fails gives an entry with its error; the others go on. Exit status 1 when
-    some images failed, 2 when all did.
+    With --rig, one pose per image set in the rig frame (the first camera's), fused from every
+    camera that saw the board, and what each camera saw. An image (set) that fails gives an
+    entry with its error; the others go on. Exit status 1 when some images failed, 2 when all did.
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        cam = load_camera(camera)
+        cam, the_rig = _camera_or_rig(camera, rig)
         refine = _refine(refine)
+        items = _image_sets(images or [], per_camera or [], the_rig)
+        ms = _measure(items, cam, the_rig, camera, rig, b, refine=refine)
     except InputError as e:
         raise fail(str(e)) from None
-    ms = measure_files(images, cam, b, camera_source=str(camera), refine=refine)
+    size = b.size if hasattr(b, "size") else board
     if as_json:
-        print_json([_pose_row(m) for m in ms])
-    else:
-        _print_poses(ms, f"board2cam of the {b.size if hasattr(b, 'size') else board} board (camera frame)")
+        print_json([_pose_row(m, the_rig is not None) for m in ms])
+    elif the_rig is None:
+        _print_poses(ms, f"board2cam of the {size} board (camera frame)")
         out.print(_calibration_note(cam, str(camera)))
-    _warn_failures(ms)
-    _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board))
+    else:
+        _print_poses(ms, f"board2rig of the {size} board (rig frame: camera {the_rig.names[0]}'s), fused")
+        _print_cameras(ms, the_rig)
+        out.print(_rig_calibration_note(the_rig, str(rig)))
+    _warn_failures(ms, the_rig)
+    _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board, rig), _camera_failures(ms) > 0)
 
 
-def _pose_row(m: ImageMeasurement) -> dict:
-    """The JSON object of one image: its pose, or its error."""
+def _pose_row(m: ImageMeasurement, with_cameras: bool = False) -> dict:
+    """The JSON object of one image (set): its pose, or its error; with a rig, each camera's."""
+    cams = {"cameras": _cameras_json(m)} if with_cameras else {}
     if not m.ok:
-        return {"image": m.image, "error": m.error}
-    return {"image": m.image, "board2cam": m.mobile.board2cam, "cov": m.mobile.cov, **_pose_json(m.mobile)}
+        return {"image": m.image, "error": m.error, **cams}
+    row = {"image": m.image, "board2cam": m.mobile.board2cam, "cov": m.mobile.cov, **_pose_json(m.mobile)}
+    if with_cameras:
+        row["frame"] = "rig"
+        row["consistency"] = _consistency_json(m.mobile)
+    return {**row, **cams}
 
 
 def _calibration_note(cam, source: str) -> str:
@@ -501,12 +660,19 @@ def _print_poses(ms: list[ImageMeasurement], title: str) -> None:
 
 # -------------------------------------------------------------------------- displacement
 def displacement(
-    images: list[Path] = typer.Argument(..., help="Images after the load (or any moved state)."),
-    camera: Path = typer.Option(..., "--camera", help="camera.json from `stiffmap calibrate`."),
+    images: list[str] = typer.Argument(
+        None, help="Images after the load (or any moved state); with --rig, image sets named with {camera}."
+    ),
+    camera: Path = typer.Option(None, "--camera", help="camera.json from `stiffmap calibrate`."),
+    rig: Path = typer.Option(None, "--rig", help=_RIG_HELP),
+    per_camera: list[str] = typer.Option(None, "--images", help=_IMAGES_HELP),
     board: str = typer.Option(..., "--board", help="Mobile target size COLSxROWS (inner corners)."),
     square_mm: float = typer.Option(..., "--square-mm", help="Mobile target square side, mm."),
-    reference: list[Path] = typer.Option(
-        ..., "--reference", help="Reference (unloaded) image; repeat the option for several (averaged)."
+    reference: list[str] = typer.Option(
+        ...,
+        "--reference",
+        help="Reference (unloaded) image; repeat the option for several (averaged). With --rig, an "
+        "image set named with {camera}, or NAME=GLOB for each camera.",
     ),
     fixed_board: str = typer.Option(None, "--fixed-board", help="Fixed target size COLSxROWS (on the base)."),
     fixed_square_mm: float = typer.Option(None, "--fixed-square-mm", help="Fixed target square side, mm."),
@@ -521,51 +687,83 @@ def displacement(
 ) -> None:
     """Displacement of the target in each image relative to the reference image(s).
 
-    d = [dx, dy, dz] (mm) and r = rotation vector (rad), in the camera frame, or in the robot
-    base frame with --fixed-board/--fixed-square-mm/--fixed2base. The mean, standard deviation
-    and n over the images are printed at the end. Exit status 1 when some images failed.
+    d = [dx, dy, dz] (mm) and r = rotation vector (rad), in the camera frame (with --rig, the rig
+    frame: the first camera's), or in the robot base frame with
+    --fixed-board/--fixed-square-mm/--fixed2base. The mean, standard deviation and n over the
+    images are printed at the end. Exit status 1 when some images (or cameras) failed.
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        cam = load_camera(camera)
+        cam, the_rig = _camera_or_rig(camera, rig)
         fb, T_fb = _fixed_target(fixed_board, fixed_square_mm, fixed2base)
         q = _point(point)
         refine = _refine(refine)
+        ref_items = list(reference)
+        ref_cams = []
+        if the_rig is not None:
+            # --reference NAME=GLOB gives one camera's reference images; other entries are sets.
+            names = set(the_rig.names)
+            ref_cams = [r for r in reference if "=" in r and r.partition("=")[0].strip() in names]
+            ref_items = [r for r in reference if r not in ref_cams]
+        refs = _image_sets(ref_items, ref_cams, the_rig, what="--reference")
+        moved = _image_sets(images or [], per_camera or [], the_rig)
+        if not refs or not moved:
+            raise InputError(
+                "give the reference (unloaded) images with --reference and the images to compare with "
+                "them" + (" (names holding {camera}, or --images NAME=GLOB)" if the_rig is not None else "")
+            )
+        # One tracked sequence: a symmetric board keeps its numbering from the references on.
+        ms = _measure(refs + moved, cam, the_rig, camera, rig, b, fb, T_fb, refine=refine)
+        n_ref = len(refs)
     except InputError as e:
         raise fail(str(e)) from None
-    paths = list(reference) + list(images)
-    ms = measure_files(paths, cam, b, fb, T_fb, camera_source=str(camera), refine=refine)
-    _warn_failures(ms)
+    _warn_failures(ms, the_rig)
     try:
-        res = displacement_per_image(ms[: len(reference)], ms[len(reference) :], q)
+        res = displacement_per_image(ms[:n_ref], ms[n_ref:], q)
     except InputError as e:
         raise fail(str(e)) from None
     for f in res.summary.flags if res.summary is not None else ():
         warn(f)
+    frame_names = {"cam": "rig"} if the_rig is not None else {}
     if as_json:
-        print_json(_displacement_rows(res))
+        print_json(_displacement_rows(res, frame_names, the_rig is not None))
     else:
-        _print_displacements(res)
-        out.print(_calibration_note(cam, str(camera)))
-    _exit_for(res.n_ok, res.n_images, _measured_with(camera, board))
+        _print_displacements(res, frame_names)
+        if the_rig is None:
+            out.print(_calibration_note(cam, str(camera)))
+        else:
+            _print_cameras(list(res.references) + list(res.images), the_rig)
+            out.print(_rig_calibration_note(the_rig, str(rig)))
+    _exit_for(res.n_ok, res.n_images, _measured_with(camera, board, rig), _camera_failures(ms) > 0)
 
 
-def _displacement_rows(res: ImageDisplacements) -> list[dict]:
-    """The JSON list: one object per image (its displacement or its error), then the mean."""
+def _displacement_rows(res: ImageDisplacements, frame_names=None, with_cameras: bool = False) -> list[dict]:
+    """The JSON list: one object per image (its displacement or its error), then the mean.
+
+    With a rig, each image set's object also holds ``cameras`` (what each camera saw) and the
+    references come first, marked ``"reference": true``.
+    """
+    frame_names = frame_names or {}
     rows = []
+    if with_cameras:
+        for m in res.references:
+            row = {"image": m.image, "reference": True, "error": m.error, "cameras": _cameras_json(m)}
+            rows.append(row)
     for m, dsp in zip(res.images, res.displacements, strict=True):
+        cams = {"cameras": _cameras_json(m)} if with_cameras else {}
         if dsp is None:
-            rows.append({"image": m.image, "error": m.error})
+            rows.append({"image": m.image, "error": m.error, **cams})
             continue
         rows.append(
             {
                 "image": m.image,
-                "frame": dsp.frame,
+                "frame": frame_names.get(dsp.frame, dsp.frame),
                 "d": dsp.d,
                 "r": dsp.r,
                 "d_std": dsp.d_sigma,
                 "r_std": dsp.r_sigma,
                 **_calibration_keys(dsp),
+                **cams,
             }
         )
     s = res.summary
@@ -574,7 +772,7 @@ def _displacement_rows(res: ImageDisplacements) -> list[dict]:
             {
                 "image": None,
                 "summary": "mean over images",
-                "frame": s.frame,
+                "frame": frame_names.get(s.frame, s.frame),
                 "n": s.n,
                 "d": s.d,
                 "r": s.r,
@@ -603,9 +801,10 @@ def _calibration_keys(d) -> dict:
     }
 
 
-def _print_displacements(res: ImageDisplacements) -> None:
+def _print_displacements(res: ImageDisplacements, frame_names=None) -> None:
     summary = res.summary
     frame = summary.frame if summary else "cam"
+    frame = (frame_names or {}).get(frame, frame)
     n_ref = len(res.references)
     t = Table(title=f"displacement relative to {n_ref} reference image(s), {frame} frame (+/- 1 sigma)")
     t.add_column("image", overflow="fold")

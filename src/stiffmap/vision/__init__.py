@@ -10,7 +10,9 @@ Main entry points:
   together) -> :class:`RigCalibrationResult`
 - :func:`estimate_pose` -> :class:`BoardPose` (corner-based, or refined by
   :func:`refine_pose_photometric`: a model of the blurred board fitted to its pixels)
-- :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement`
+- :class:`PoseTracker`, :func:`measure_sequence` -> list of :class:`ImageMeasurement` (one
+  camera, or a :class:`~stiffmap.rig.Rig` of several: :func:`fuse_poses` -> :class:`FusedPose`,
+  one pose in the rig frame from every camera that saw the board)
 - :func:`compliant_displacement` -> :class:`Displacement`; :func:`displacement_per_image`
   -> :class:`ImageDisplacements` (each image of a series against the same reference)
 - :func:`validate_stage`, :func:`validate_stage_series` -> :class:`StageValidation` (drawn by
@@ -33,20 +35,23 @@ from .displacement import (
     mean_pose,
 )
 from .files import calibrate_files, calibrate_rig_files, measure_files, read_stage_manifest, read_transform
+from .fuse import FusedPose, fuse_poses
 from .images import ImageError, check_image_size, read_image
 from .photometric import PhotometricError, PhotometricFit, refine_pose_photometric
 from .pose import estimate_pose, pose_shift_sigma
 from .rig_calibration import RigCalibrationResult, calibrate_rig
-from .sequence import ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
+from .sequence import CameraView, ImageMeasurement, PoseTracker, measure_sequence, mobile2base_from_poses
 from .validate import StageStep, StageValidation, validate_stage, validate_stage_series
 
 __all__ = [
     "BoardDetection",
     "BoardPose",
     "CalibrationResult",
+    "CameraView",
     "DIST_MODELS",
     "DetectionError",
     "Displacement",
+    "FusedPose",
     "ImageDisplacements",
     "ImageError",
     "ImageMeasurement",
@@ -68,6 +73,7 @@ __all__ = [
     "detect_boards",
     "displacement_per_image",
     "estimate_pose",
+    "fuse_poses",
     "mean_pose",
     "measure_files",
     "measure_sequence",

@@ -21,6 +21,7 @@ __all__ = [
     "WINDOW_FRACTION",
     "apply_homography",
     "board_continues",
+    "side_with_corners",
     "detection_mask",
     "fit_homography",
     "fit_residuals",
@@ -104,7 +105,12 @@ def board_continues(image: np.ndarray, grid: np.ndarray, contrast: float) -> str
     """Which side (if any) of the grid has a row of chessboard corners just outside it."""
     rows, cols = grid.shape[:2]
     obj = np.stack(np.meshgrid(np.arange(cols), np.arange(rows)), axis=-1).reshape(-1, 2).astype(float)
-    H = fit_homography(obj, grid.reshape(-1, 2))
+    return side_with_corners(image, fit_homography(obj, grid.reshape(-1, 2)), cols, rows, contrast)
+
+
+def side_with_corners(image: np.ndarray, H: np.ndarray, cols: int, rows: int, contrast: float) -> str | None:
+    """Which side (if any) of a cols x rows grid of corners, mapped by H (square units -> px),
+    has a row of chessboard corners (saddles of at least half ``contrast``) one step outside it."""
     sides = {
         "left": np.c_[np.full(rows, -1.0), np.arange(rows)],
         "right": np.c_[np.full(rows, float(cols)), np.arange(rows)],

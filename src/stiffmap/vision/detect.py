@@ -106,7 +106,8 @@ def detect_boards(
     Raises
     ------
     DetectionError
-        Naming the first board that could not be found and why.
+        Naming the boards that could not be found and why; its ``found`` holds, in the order of
+        ``boards``, the detections of those that were (None for the others).
     """
     img = check_image(image)
     boards = list(boards)
@@ -155,9 +156,10 @@ def detect_boards(
                     raise errs[0]
                 raise DetectionError("; ".join(e.detail for e in errs), reason=errs[0].reason)
     except DetectionError as e:
-        if source:
-            raise e.with_source(source) from None
-        raise
+        err = e.with_source(source) if source else e
+        # The boards that were found before the failure (a rig's other cameras may see the rest).
+        err.found = list(out)
+        raise err from None
     return [d for d in out if d is not None]
 
 

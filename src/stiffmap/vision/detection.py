@@ -28,11 +28,15 @@ class DetectionError(InputError):
         board has more corners than the size given), ``"partial"`` (only part of
         the board is visible or usable), ``"ambiguous"`` (boards that cannot be
         told apart).
+    found : list of (BoardDetection or None) or None
+        Set by :func:`~stiffmap.vision.detect.detect_boards`: the boards of the call that were
+        found before it failed (None where not), in the order they were asked for.
     """
 
     def __init__(self, message: str, *, source: str | None = None, reason: str = "not_found") -> None:
         super().__init__(message, source=source)
         self.reason = reason
+        self.found: list | None = None
 
     def with_source(self, source: str) -> DetectionError:
         if self.source:

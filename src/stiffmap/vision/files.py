@@ -12,7 +12,7 @@ import csv
 import glob
 import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import NamedTuple
 
@@ -22,6 +22,7 @@ from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform
 from ..io import read_csv_columns, read_json
+from ..rig import Rig
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, detect_board
 from .images import read_image
@@ -39,6 +40,9 @@ __all__ = [
     "camera_images",
     "match_views",
     "measure_files",
+    "match_views",
+    "rig_image_sets",
+    "measure_image_sets",
 ]
 
 #: Largest translation of a transform read from a file, mm (a robot cell is metres wide).
@@ -350,8 +354,9 @@ def match_views(
 ) -> tuple[list[str], list[list[Path | None]]]:
     """Match the images of several cameras into views (one pose of the board each).
 
-    By the number in their file names (the last group of digits: ``left07.jpg`` with
-    ``right07.jpg``) when every file carries one and no camera has two files of one number;
+    By the number in their file names (the group of digits that tells a camera's files apart,
+    :func:`_view_numbers`: ``left07.jpg`` with ``right07.jpg`` or ``img07_cam2.jpg``) when every
+    camera's files carry one and no camera has two files of one number;
     a view missing for a camera is then simply not seen by it. Otherwise by sorted order,
     when the cameras have as many images each.
 
@@ -375,9 +380,13 @@ def match_views(
         When neither rule applies (naming the cameras, their numbers of images, and the
         file that has no number or shares it).
     """
-    numbers = [[_view_number(f) for f in fs] for fs in files]
+    numbers = [_view_numbers(list(fs)) for fs in files]
     problem = None
     for name, fs, ns in zip(names, files, numbers, strict=True):
+        if ns is not None or not fs:
+            continue
+        ns = [_view_number(f) for f in fs]  # why the camera's files carry no view number
+        problem = f"the names of camera {name}'s images carry no view number that tells them apart"
         for f, n in zip(fs, ns, strict=True):
             if n is None:
                 problem = f"{f} (camera {name}) has no number in its name"
@@ -389,6 +398,7 @@ def match_views(
         if problem:
             break
     if problem is None:
+        numbers = [ns or [] for ns in numbers]
         views = sorted(set().union(*map(set, numbers)))
         table = [
             [dict(zip(ns, fs, strict=True)).get(n) for n in views]
@@ -528,5 +538,172 @@ def measure_files(
         fixed2base,
         scale=scale,
         camera_source=camera_source,
+        refine=refine,
+    )
+
+
+# ------------------------------------------------------------------ several cameras
+#: Characters that make an image name a file pattern (``glob``).
+_GLOB_CHARS = re.compile(r"[*?\[]")
+
+
+def _view_numbers(paths: Sequence[Path]) -> list[int] | None:
+    """The number that tells a camera's views apart, one per file (None: no such number).
+
+    The digit runs of each file's stem are compared across the camera's files: the one
+    position where they differ is the view number (``left07.png``, ``cam1_07.png``,
+    ``img07_cam1.png`` all give 7); a single file gives its last digit run. None when the
+    files' names carry no such distinct number.
+    """
+    runs = [re.findall(r"\d+", p.stem) for p in paths]
+    if not runs or any(not r for r in runs):
+        return None
+    if len(paths) == 1:
+        return [int(runs[0][-1])]
+    if len({len(r) for r in runs}) != 1:
+        nums = [int(r[-1]) for r in runs]
+    else:
+        varying = [i for i in range(len(runs[0])) if len({r[i] for r in runs}) > 1]
+        if len(varying) != 1:
+            return None
+        nums = [int(r[varying[0]]) for r in runs]
+    return nums if len(set(nums)) == len(nums) else None
+
+
+def _camera_files(text: str, camera: str, what: str) -> tuple[list[Path], bool]:
+    """A camera's files named by ``text``: a pattern, a folder or a file (kept when missing).
+
+    Returns the paths and whether ``text`` named several (a pattern or a folder).
+    """
+    p = Path(text)
+    if _GLOB_CHARS.search(text):
+        found = sorted((Path(q) for q in glob.glob(text) if Path(q).is_file()), key=_natural_key)
+        if not found:
+            raise InputError(f"{what} {text!r} (camera {camera!r}) matches no file")
+        return found, True
+    if p.is_dir():
+        try:
+            return image_files([p]), True
+        except InputError as e:
+            raise InputError(f"{what} {text!r} (camera {camera!r}): {e}") from None
+    return [p], False
+
+
+def _set_label(views: Mapping[str, Path | None]) -> str:
+    return " + ".join(str(p) if p is not None else f"({c}: none)" for c, p in views.items())
+
+
+def rig_image_sets(
+    rig: Rig,
+    patterns: Sequence[str] = (),
+    per_camera: Sequence[str] = (),
+    *,
+    what: str = "image",
+) -> list[tuple[str, dict[str, Path | None]]]:
+    """The image sets named on a command line for a rig: one image per camera in each set.
+
+    Parameters
+    ----------
+    rig : Rig
+    patterns : sequence of str
+        Names holding ``{camera}``, replaced by each camera's name: a file (one set, labelled by
+        the pattern: ``shots/{camera}_07.png``), or a file pattern or a folder per camera (its
+        files matched into sets by :func:`match_views`). Without ``{camera}``, for a rig of one
+        camera only: that camera's file, pattern or folder.
+    per_camera : sequence of str
+        ``NAME=GLOB`` items (a camera's file pattern, folder or file; several items for one
+        camera add up); every camera of the rig needs one; matched by :func:`match_views`.
+    what : str
+        The option's name in messages.
+
+    Returns
+    -------
+    list of (label, dict camera name -> Path or None)
+        A missing file stays in its set (its camera's view will say so); a camera without an
+        image in a matched set has None.
+
+    Raises
+    ------
+    InputError
+        Naming the item: ``{camera}`` missing for a rig of several cameras, an unknown camera,
+        a pattern that matches nothing, a camera without images, sets that cannot be matched.
+    """
+    names = rig.names
+    out: list[tuple[str, dict[str, Path | None]]] = []
+    for text in patterns:
+        text = str(text)
+        if "{camera}" not in text:
+            if len(rig) > 1:
+                raise InputError(
+                    f"{what} {text!r}: with a rig of {len(rig)} cameras ({', '.join(names)}), name each "
+                    "image set by a pattern holding {camera} (e.g. 'shots/{camera}_07.png'), or give "
+                    "each camera's images with --images NAME=GLOB"
+                )
+            files, several = _camera_files(text, names[0], what)
+            out += [(str(f), {names[0]: f}) for f in files]
+            continue
+        expanded = {c: _camera_files(text.replace("{camera}", c), c, what) for c in names}
+        if not any(several for _, several in expanded.values()):
+            out.append((text, {c: files[0] for c, (files, _) in expanded.items()}))
+            continue
+        for views in _sets_of(names, [expanded[c][0] for c in names]):
+            out.append((_set_label(views), views))
+    if per_camera:
+        given: dict[str, list[Path]] = {}
+        for item in per_camera:
+            name, sep, text = str(item).partition("=")
+            name = name.strip()
+            if not sep or not text.strip():
+                raise InputError(
+                    f"--images {item!r}: expected NAME=GLOB (a camera of the rig, then its images)"
+                )
+            if name not in names:
+                raise InputError(
+                    f"--images {item!r}: no camera {name!r} in the rig (cameras: {', '.join(names)})"
+                )
+            given.setdefault(name, []).extend(_camera_files(text.strip(), name, "--images")[0])
+        lacking = [c for c in names if c not in given]
+        if lacking:
+            raise InputError(
+                f"--images: no images given for camera(s) {', '.join(map(repr, lacking))} (the rig's "
+                f"cameras: {', '.join(names)}); give --images NAME=GLOB for each"
+            )
+        for views in _sets_of(names, [given[c] for c in names]):
+            out.append((_set_label(views), views))
+    return out
+
+
+def _sets_of(names: Sequence[str], files: Sequence[Sequence[Path]]) -> list[dict[str, Path | None]]:
+    """:func:`match_views` as one mapping camera name -> image (or None) per view."""
+    _, table = match_views(names, files)
+    return [{c: table[k][v] for k, c in enumerate(names)} for v in range(len(table[0]) if table else 0)]
+
+
+def measure_image_sets(
+    sets: Sequence[tuple[str, Mapping[str, str | os.PathLike | None]]],
+    rig: Rig,
+    board: Board,
+    fixed_board: Board | None = None,
+    fixed2base=None,
+    *,
+    scale: int | None = None,
+    rig_source: str = "rig.json",
+    refine: str = "auto",
+) -> list[ImageMeasurement]:
+    """Fused poses in each image set of a rig (tracking along the list in every camera).
+
+    ``sets`` as :func:`rig_image_sets` gives them; a camera's missing, unreadable or
+    wrong-sized image is named in its view and the others go on; a set where no camera saw a
+    target gives an ``error`` entry (:class:`~stiffmap.vision.sequence.PoseTracker`).
+    """
+    return measure_sequence(
+        [dict(views) for _, views in sets],
+        rig,
+        board,
+        fixed_board,
+        fixed2base,
+        names=[label for label, _ in sets],
+        scale=scale,
+        camera_source=rig_source,
         refine=refine,
     )

@@ -7,13 +7,26 @@ consistency check. With a fixed target and its known pose on the robot base,
 each image also gives ``mobile2base`` (reference paper, eq. 1) with its
 covariance. An image that fails (unreadable, wrong size, board not found) gives
 an :class:`ImageMeasurement` with ``error`` set, and the sequence goes on.
+
+Several cameras (a :class:`~stiffmap.rig.Rig`): each item of the sequence is then an image
+set, one image per camera (a mapping camera name -> path or array, or a sequence in the rig's
+order). Each camera is tracked on its own images; each board's poses from the cameras that
+saw it are fused into one pose in the rig frame (:func:`~stiffmap.vision.fuse.fuse_poses`),
+so ``ImageMeasurement.mobile`` and ``fixed`` are poses in the rig frame (``board2cam`` holds
+board2rig, ``cam2base`` reads rig2base) and the calibration sensitivities are over
+``rig.param_names``; ``ImageMeasurement.views`` keeps what each camera gave. A camera whose
+image is missing, unreadable, of another size than that camera's, or without the board, is
+named in its view's ``error`` and the others go on; a board that no camera saw makes the
+measurement's ``error`` (naming each camera's reason). A :class:`~stiffmap.camera.CameraModel`
+is measured as the rig of that one camera, through the same code: its poses, errors and
+covariances are those of the camera alone.
 """
 
 from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,24 +35,63 @@ from ..camera import CameraModel, UndistortionError
 from ..errors import InputError
 from ..geometry import as_transform, invert_transform
 from ..posemath import BoardPose, skew
+from ..rig import Rig
 from .board_plane import detection_mask
-from .detect import Board, BoardDetection, detect_boards
+from .detect import Board, BoardDetection, DetectionError, board_label, detect_boards
+from .fuse import FusedPose, fuse_poses
 from .images import check_image_size, read_image
 from .pose import check_refine, estimate_pose
 
-__all__ = ["ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
+__all__ = ["CameraView", "ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """What one camera of a rig gave for one image set.
+
+    Attributes
+    ----------
+    camera : str
+        The camera's name in the rig.
+    image : str
+        Its image's file name (or a label for arrays).
+    mobile, fixed : BoardPose or None
+        The targets' poses in this camera's frame (its own corner numbering), None where it
+        did not see them.
+    mobile_detection, fixed_detection : BoardDetection or None
+    timings : dict of str to float
+        Seconds spent on this camera's image: ``read``, ``detect``, ``pose``, ``total``.
+    error : str or None
+        Why this camera gave no pose of a target (its image missing, unreadable, of another
+        size than the camera's, a target not found...); None when it gave every target's.
+    """
+
+    camera: str
+    image: str
+    mobile: BoardPose | None = None
+    fixed: BoardPose | None = None
+    mobile_detection: BoardDetection | None = None
+    fixed_detection: BoardDetection | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
 
 
 @dataclass(frozen=True)
 class ImageMeasurement:
-    """What one image gave.
+    """What one image (or, with a rig, one image set) gave.
 
     Attributes
     ----------
     image : str
-        File name (or a label for arrays).
+        File name (or a label for arrays; for a rig, the set's label).
     mobile, fixed : BoardPose or None
-        Poses of the mobile and fixed targets in the camera frame.
+        Poses of the mobile and fixed targets in the camera frame; with a rig, in the rig
+        frame, fused from every camera that saw them (:class:`~stiffmap.vision.fuse.FusedPose`,
+        ``board2cam`` holding board2rig).
     mobile2base : ndarray, shape (4, 4) or None
         The mobile target in the robot base frame (fixed target and
         ``fixed2base`` given), mm.
@@ -47,16 +99,21 @@ class ImageMeasurement:
         Its covariance (t, r in the base frame; fixed and mobile target noise, and the
         calibration's share propagated through both poses at once).
     mobile2base_calibration_jacobian : ndarray, shape (6, n) or None
-        d(t, r of mobile2base) / d(camera parameters): the calibration's error moves the
-        fixed and the mobile target's poses together.
+        d(t, r of mobile2base) / d(camera parameters) (with a rig, ``rig.param_names``): the
+        calibration's error moves the fixed and the mobile target's poses together.
     calibration_cov : ndarray, shape (n, n) or None
-        The camera's calibration covariance (``CameraModel.calibration_cov``) the poses'
-        ``cov_calibration`` were propagated from (None: unknown).
+        The calibration covariance the poses' ``cov_calibration`` were propagated from
+        (``CameraModel.calibration_cov``, or ``Rig.calibration_cov``; None: unknown).
     mobile_detection, fixed_detection : BoardDetection or None
+        With a rig, those of the first camera (in the rig's order) that saw the target; every
+        camera's are in ``views``.
     timings : dict of str to float
-        Seconds spent: ``read``, ``detect``, ``pose``, ``total``.
+        Seconds spent: ``read``, ``detect``, ``pose``, ``total`` (with a rig, summed over the
+        cameras, plus ``fuse``).
     error : str or None
         Why the image gave no measurement (then the poses are None).
+    views : tuple of CameraView
+        What each camera gave (one entry for a single camera).
     """
 
     image: str
@@ -70,6 +127,7 @@ class ImageMeasurement:
     fixed_detection: BoardDetection | None = None
     timings: dict[str, float] = field(default_factory=dict)
     error: str | None = None
+    views: tuple[CameraView, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -93,16 +151,35 @@ class ImageMeasurement:
 
     @property
     def cam2base(self) -> np.ndarray | None:
-        """cam2base through this image's fixed target (None without one)."""
+        """cam2base (with a rig: rig2base) through this image's fixed target (None without one)."""
         if self.mobile2base is None or self.mobile is None:
             return None
         return self.mobile2base @ invert_transform(self.mobile.board2cam)
 
     @property
+    def rig2base(self) -> np.ndarray | None:
+        """The rig frame in the base frame (:attr:`cam2base`; the first camera's frame)."""
+        return self.cam2base
+
+    @property
     def tracked(self) -> bool:
-        """True when every target was tracked (no full detection)."""
-        dets = [d for d in (self.mobile_detection, self.fixed_detection) if d is not None]
+        """True when every target was tracked (no full detection) in every camera that saw it."""
+        dets = [
+            d
+            for v in (self.views or (self,))
+            for d in (v.mobile_detection, v.fixed_detection)
+            if d is not None
+        ]
         return bool(dets) and all(d.tracked for d in dets)
+
+    @property
+    def consistency_warnings(self) -> tuple[str, ...]:
+        """The fused poses' warnings that the cameras disagree (a wrong rig file, a moved camera)."""
+        return tuple(
+            p.consistency_warning
+            for p in (self.mobile, self.fixed)
+            if isinstance(p, FusedPose) and p.consistency_warning
+        )
 
 
 def mobile2base_from_poses(mobile2cam, cov_mobile, fixed2cam, cov_fixed, fixed2base):
@@ -154,12 +231,33 @@ def _mobile2base_jacobians(M: np.ndarray, F: np.ndarray, B: np.ndarray):
     return G, Jm, Jf
 
 
+class _ViewResult:
+    """One camera's outcome inside :meth:`PoseTracker.measure` (poses per board, or why not)."""
+
+    __slots__ = ("label", "poses", "dets", "errors", "timings", "error")
+
+    def __init__(self, label: str, n_boards: int) -> None:
+        self.label = label
+        self.poses: list[BoardPose | None] = [None] * n_boards
+        self.dets: list[BoardDetection | None] = [None] * n_boards
+        self.errors: list[str | None] = [None] * n_boards
+        self.timings: dict[str, float] = {}
+        self.error: str | None = None
+
+    def fail(self, message: str) -> _ViewResult:
+        self.error = message
+        self.errors = [message] * len(self.errors)
+        return self
+
+
 class PoseTracker:
     """Measure target poses image after image for one robot position.
 
     Parameters
     ----------
-    camera : CameraModel
+    camera : CameraModel or Rig
+        One camera, or several (each image is then an image set, one image per camera: see
+        :meth:`measure`). A camera is measured as the rig of that one camera.
     mobile_board : Chessboard or CharucoBoard
         The target on the moving platform.
     fixed_board : Chessboard or CharucoBoard, optional
@@ -171,7 +269,7 @@ class PoseTracker:
     track : bool
         Refine the previous image's corners before any full detection (default True).
     camera_source : str
-        Name of the camera file, for the image-size message.
+        Name of the camera (or rig) file, for the image-size message.
     refine : {"auto", "photometric", "corners"}
         Pose refinement (:func:`~stiffmap.vision.pose.estimate_pose`): ``"auto"``
         (default) is ``"photometric"`` for chessboards (a model of the blurred board
@@ -186,7 +284,7 @@ class PoseTracker:
 
     def __init__(
         self,
-        camera: CameraModel,
+        camera: CameraModel | Rig,
         mobile_board: Board,
         fixed_board: Board | None = None,
         fixed2base=None,
@@ -202,7 +300,13 @@ class PoseTracker:
             check_refine(refine_fixed)
         if fixed2base is not None and fixed_board is None:
             raise ValueError("fixed2base needs fixed_board (the target whose pose on the base it gives)")
-        self.camera = camera
+        if isinstance(camera, Rig):
+            self.rig = camera
+        elif isinstance(camera, CameraModel):
+            self.rig = Rig.single(camera)
+        else:
+            raise TypeError(f"camera must be a CameraModel or a Rig, got {type(camera).__name__}")
+        self.camera = self.rig.cameras[0].camera
         self.boards: list[Board] = [mobile_board] + ([fixed_board] if fixed_board is not None else [])
         self.fixed2base = None if fixed2base is None else as_transform(fixed2base, "fixed2base")
         self.scale = scale
@@ -210,88 +314,139 @@ class PoseTracker:
         self.camera_source = camera_source
         self.refine = refine
         self.refine_fixed = refine if refine_fixed is None else refine_fixed
-        self._prev: list[BoardDetection | None] = [None] * len(self.boards)
-        self._ref: list[BoardDetection | None] = [None] * len(self.boards)
-        self._poses: list[np.ndarray | None] = [None] * len(self.boards)
+        nc, nb = len(self.rig), len(self.boards)
+        self._prev: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
+        self._ref: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
+        self._poses: list[list[np.ndarray | None]] = [[None] * nb for _ in range(nc)]
+        self._fused: list[np.ndarray | None] = [None] * nb
 
     def reset(self) -> None:
-        """Forget the previous image (the next one gets a full detection)."""
-        self._prev = [None] * len(self.boards)
-        self._poses = [None] * len(self.boards)
+        """Forget the previous image (the next one gets a full detection in every camera)."""
+        for k in range(len(self.rig)):
+            self._reset_camera(k)
+
+    def _reset_camera(self, k: int) -> None:
+        self._prev[k] = [None] * len(self.boards)
+        self._poses[k] = [None] * len(self.boards)
+
+    def _camera_source(self, k: int) -> str:
+        """The camera's file for messages: the camera file, or the rig file and the camera's name."""
+        if len(self.rig) == 1:
+            return self.camera_source
+        return f"{self.camera_source} (camera {self.rig.names[k]!r})"
+
+    def _split(self, images, name: str | None) -> tuple[list, list[str], str]:
+        """The image of each camera (None: not given), their labels and the set's label."""
+        rig = self.rig
+        n = len(rig)
+
+        def is_image(x) -> bool:
+            return isinstance(x, (str, os.PathLike, np.ndarray))
+
+        if isinstance(images, Mapping):
+            unknown = [str(c) for c in images if c not in rig.names]
+            if unknown:
+                raise ValueError(
+                    f"image set names camera(s) {', '.join(map(repr, unknown))} not in the rig "
+                    f"(cameras: {', '.join(rig.names)})"
+                )
+            items = [images.get(c) for c in rig.names]
+        elif n == 1 and not (isinstance(images, (list, tuple)) and len(images) == 1 and is_image(images[0])):
+            items = [images]  # one camera: the image itself (a path or anything array-like)
+        elif isinstance(images, Sequence) and not is_image(images) and len(images) == n:
+            items = list(images)
+        else:
+            raise ValueError(
+                f"a rig of {n} camera(s) needs one image per camera: a mapping camera name -> image, "
+                f"or a sequence of {n} in the rig's order ({', '.join(rig.names)})"
+            )
+
+        def own(x) -> str | None:
+            if isinstance(x, (str, os.PathLike)):
+                return str(x)
+            return None
+
+        if n == 1:
+            x = items[0]
+            label = name if name is not None else (own(x) or "<array>")
+            return items, [label], label
+        present = [own(x) for x in items]
+        if name is not None:
+            set_label = name
+        else:
+            set_label = " + ".join(
+                p if p is not None else f"{'<array>' if x is not None else '<none>'} ({c})"
+                for p, x, c in zip(present, items, rig.names, strict=True)
+            )
+        labels = [
+            p if p is not None else (f"{set_label} ({c})" if x is not None else set_label)
+            for p, x, c in zip(present, items, rig.names, strict=True)
+        ]
+        return items, labels, set_label
 
     def measure(self, image, name: str | None = None) -> ImageMeasurement:
-        """Measure one image (a path or a uint8 array).
+        """Measure one image (a path or a uint8 array), or, with a rig, one image set.
+
+        Parameters
+        ----------
+        image : path, ndarray (h, w) uint8, mapping or sequence
+            One camera: a path or an array. A rig: a mapping camera name -> path or array
+            (a camera left out or given None has no image in this set), or a sequence of one
+            per camera in the rig's order.
+        name : str, optional
+            Label of the image (set) in the result and the messages.
 
         Returns
         -------
         ImageMeasurement
-            With ``error`` set (and the tracker reset) when the image could not
-            be used (unreadable, another size, no board, or the lens model of the camera
-            cannot be inverted where the board is); never raises for a bad image.
+            With ``error`` set when no camera gave the pose of some target (each camera's
+            reason named); a camera whose image could not be used (unreadable, another size,
+            no board, or the lens model of the camera cannot be inverted where the board is)
+            is reset and named in its view's ``error``. Never raises for a bad image.
         """
         t0 = time.perf_counter()
-        if isinstance(image, (str, os.PathLike)):
-            label = str(image) if name is None else name
-        else:
-            label = "<array>" if name is None else name
-        timings: dict[str, float] = {}
-        try:
-            if isinstance(image, (str, os.PathLike)):
-                img = read_image(image)
+        items, labels, set_label = self._split(image, name)
+        results = [self._measure_view(k, items[k], labels[k]) for k in range(len(self.rig))]
+        views = tuple(
+            CameraView(
+                camera=self.rig.names[k],
+                image=r.label,
+                mobile=r.poses[0],
+                fixed=r.poses[1] if len(self.boards) > 1 else None,
+                mobile_detection=r.dets[0],
+                fixed_detection=r.dets[1] if len(self.boards) > 1 else None,
+                timings=r.timings,
+                error=r.error or ("; ".join(e for e in r.errors if e) or None),
+            )
+            for k, r in enumerate(results)
+        )
+        timings = {key: sum(r.timings.get(key, 0.0) for r in results) for key in ("read", "detect", "pose")}
+        missing = [b for b in range(len(self.boards)) if all(r.poses[b] is None for r in results)]
+        if missing:
+            timings["total"] = time.perf_counter() - t0
+            if len(self.rig) == 1:
+                error = results[0].error or next(e for e in results[0].errors if e)
             else:
-                img = np.asarray(image)
-            timings["read"] = time.perf_counter() - t0
-            check_image_size(img, self.camera.image_size, source=label, camera_source=self.camera_source)
-            t1 = time.perf_counter()
-            dets = detect_boards(
-                img,
-                self.boards,
-                previous=self._prev if self.track else None,
-                reference=self._ref,
-                camera=self.camera,
-                scale=self.scale,
-                source=label,
-            )
-            t2 = time.perf_counter()
-            poses = []
-            for k, (d, b) in enumerate(zip(dets, self.boards, strict=True)):
-                init = self._poses[k] if d.tracked else None
-                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
-                # left out of a photometric fit.
-                others = [
-                    detection_mask(o, margin_sq=2.2)
-                    for j, o in enumerate(dets)
-                    if j != k and o.n_corners >= 4
-                ]
-                poses.append(
-                    estimate_pose(
-                        d,
-                        b,
-                        self.camera,
-                        initial=init,
-                        source=label,
-                        image=img,
-                        refine=self.refine if k == 0 else self.refine_fixed,
-                        exclude=others,
-                    )
+                error = f"{set_label}: " + "; ".join(
+                    f"no camera saw the {self._what(b)}: "
+                    + "; ".join(f"{c}: {r.errors[b]}" for c, r in zip(self.rig.names, results, strict=True))
+                    for b in missing
                 )
-            t3 = time.perf_counter()
-        except InputError as e:
-            self.reset()
-            timings["total"] = time.perf_counter() - t0
-            return ImageMeasurement(image=label, timings=timings, error=str(e.with_source(label)))
-        except UndistortionError as e:
-            # The lens model of camera.json cannot be inverted where this image needs it.
-            self.reset()
-            timings["total"] = time.perf_counter() - t0
-            return ImageMeasurement(
-                image=label, timings=timings, error=f"{label}: with {self.camera_source}: {e}"
+            return ImageMeasurement(image=set_label, timings=timings, error=error, views=views)
+
+        t1 = time.perf_counter()
+        fused = []
+        for b in range(len(self.boards)):
+            seen = {k: r.poses[b] for k, r in enumerate(results) if r.poses[b] is not None}
+            f = fuse_poses(
+                self.rig, seen, board=self.boards[b], reference=self._fused[b], label=self._what(b)
             )
-        self._prev = list(dets)
-        self._ref = list(dets)
-        self._poses = [p.board2cam for p in poses]
-        mobile = poses[0]
-        fixed = poses[1] if len(poses) > 1 else None
+            self._fused[b] = f.board2cam
+            fused.append(f)
+        timings["fuse"] = time.perf_counter() - t1
+        mobile = fused[0]
+        fixed = fused[1] if len(fused) > 1 else None
+        Sc = self.rig.calibration_cov
         m2b = m2b_cov = m2b_A = None
         if fixed is not None and self.fixed2base is not None:
             # The poses' own noise is independent; the calibration's error moves both at once.
@@ -301,27 +456,120 @@ class PoseTracker:
             if mobile.calibration_jacobian is not None and fixed.calibration_jacobian is not None:
                 _, Jm, Jf = _mobile2base_jacobians(mobile.board2cam, fixed.board2cam, self.fixed2base)
                 m2b_A = Jm @ mobile.calibration_jacobian + Jf @ fixed.calibration_jacobian
-                Sc = self.camera.calibration_cov
                 if Sc is not None:
                     m2b_cov = m2b_cov + m2b_A @ Sc @ m2b_A.T
-        timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
+
+        def first_detection(b: int) -> BoardDetection | None:
+            return next((r.dets[b] for r in results if r.poses[b] is not None), None)
+
+        timings["total"] = time.perf_counter() - t0
         return ImageMeasurement(
-            image=label,
+            image=set_label,
             mobile=mobile,
             fixed=fixed,
             mobile2base=m2b,
             mobile2base_cov=m2b_cov,
             mobile2base_calibration_jacobian=m2b_A,
-            calibration_cov=self.camera.calibration_cov,
-            mobile_detection=dets[0],
-            fixed_detection=dets[1] if len(dets) > 1 else None,
+            calibration_cov=Sc,
+            mobile_detection=first_detection(0),
+            fixed_detection=first_detection(1) if len(self.boards) > 1 else None,
             timings=timings,
+            views=views,
+        )
+
+    def _what(self, b: int) -> str:
+        return f"{'mobile' if b == 0 else 'fixed'} target ({board_label(self.boards[b])})"
+
+    def _measure_view(self, k: int, image, label: str) -> _ViewResult:
+        """Detect and pose every board in camera ``k``'s image; never raises for a bad image."""
+        camera = self.rig.cameras[k].camera
+        nb = len(self.boards)
+        res = _ViewResult(label, nb)
+        t0 = time.perf_counter()
+        if image is None:
+            self._reset_camera(k)
+            res.timings["total"] = 0.0
+            return res.fail(f"{label}: no image of camera {self.rig.names[k]!r} in this set")
+        try:
+            img = read_image(image) if isinstance(image, (str, os.PathLike)) else np.asarray(image)
+            res.timings["read"] = time.perf_counter() - t0
+            check_image_size(img, camera.image_size, source=label, camera_source=self._camera_source(k))
+            t1 = time.perf_counter()
+            try:
+                dets: list[BoardDetection | None] = list(self._detect(k, img, list(range(nb)), label))
+            except DetectionError as e:
+                found = e.found or []
+                if len(self.rig) == 1 or not any(d is not None for d in found):
+                    raise
+                # Several cameras: the boards missing here may be seen by another camera; this
+                # one goes on with those it found (the search's error names the missing ones).
+                dets = list(found) + [None] * (nb - len(found))
+                for b in range(nb):
+                    if dets[b] is None:
+                        res.errors[b] = str(e.with_source(label))
+            t2 = time.perf_counter()
+            for b, d in enumerate(dets):
+                if d is None:
+                    continue
+                init = self._poses[k][b] if d.tracked else None
+                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
+                # left out of a photometric fit.
+                others = [
+                    detection_mask(o, margin_sq=2.2)
+                    for j, o in enumerate(dets)
+                    if j != b and o is not None and o.n_corners >= 4
+                ]
+                res.poses[b] = estimate_pose(
+                    d,
+                    self.boards[b],
+                    camera,
+                    initial=init,
+                    source=label,
+                    image=img,
+                    refine=self.refine if b == 0 else self.refine_fixed,
+                    exclude=others,
+                )
+                res.dets[b] = d
+            t3 = time.perf_counter()
+        except InputError as e:
+            self._reset_camera(k)
+            res.timings["total"] = time.perf_counter() - t0
+            res.poses = [None] * nb
+            res.dets = [None] * nb
+            return res.fail(str(e.with_source(label)))
+        except UndistortionError as e:
+            # The lens model of the camera file cannot be inverted where this image needs it.
+            self._reset_camera(k)
+            res.timings["total"] = time.perf_counter() - t0
+            res.poses = [None] * nb
+            res.dets = [None] * nb
+            return res.fail(f"{label}: with {self._camera_source(k)}: {e}")
+        for b in range(nb):
+            if res.dets[b] is not None:
+                self._prev[k][b] = res.dets[b]
+                self._ref[k][b] = res.dets[b]
+                self._poses[k][b] = res.poses[b].board2cam
+            else:
+                self._prev[k][b] = None
+                self._poses[k][b] = None
+        res.timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
+        return res
+
+    def _detect(self, k: int, img: np.ndarray, which: list[int], label: str) -> list[BoardDetection]:
+        return detect_boards(
+            img,
+            [self.boards[b] for b in which],
+            previous=[self._prev[k][b] for b in which] if self.track else None,
+            reference=[self._ref[k][b] for b in which],
+            camera=self.rig.cameras[k].camera,
+            scale=self.scale,
+            source=label,
         )
 
 
 def measure_sequence(
     images: Iterable,
-    camera: CameraModel,
+    camera: CameraModel | Rig,
     mobile_board: Board,
     fixed_board: Board | None = None,
     fixed2base=None,
@@ -337,23 +585,25 @@ def measure_sequence(
 
     Parameters
     ----------
-    images : iterable of path or ndarray (h, w) uint8
-    camera : CameraModel
+    images : iterable of path or ndarray (h, w) uint8 (a rig: of image sets)
+        With a rig, each item is a mapping camera name -> path or array, or a sequence of
+        one per camera in the rig's order (:meth:`PoseTracker.measure`).
+    camera : CameraModel or Rig
     mobile_board, fixed_board : Chessboard or CharucoBoard
     fixed2base : array_like, shape (4, 4), optional
     names : sequence of str, optional
-        Labels of array images.
+        Labels of array images (of image sets).
     scale : int, optional
     track : bool
     camera_source : str
-        Name of the camera file, for the image-size message.
+        Name of the camera (or rig) file, for the image-size message.
     refine, refine_fixed : {"auto", "photometric", "corners"}
         Pose refinement of the mobile and of the fixed target (see :class:`PoseTracker`).
 
     Returns
     -------
     list of ImageMeasurement
-        One per image, in order; failed images have ``error`` set.
+        One per image (set), in order; failed ones have ``error`` set.
     """
     tracker = PoseTracker(
         camera,

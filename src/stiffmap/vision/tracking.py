@@ -2,8 +2,12 @@
 
 In a sequence the previous image's corners seed the sub-pixel refinement directly; the
 result is accepted only when every corner converged, none moved more than a quarter of a
-square from its seed and every corner fits the homography; otherwise the caller runs the
-full detection (:func:`~stiffmap.vision.detect.detect_boards`).
+square from its seed, every corner fits the homography, and the board does not continue one
+step outside the tracked grid; otherwise the caller runs the full detection
+(:func:`~stiffmap.vision.detect.detect_boards`). The last check catches a board that moved by
+about a whole square between the images: every seed then lands near the neighbouring corner
+and the grid fits perfectly, numbered one square off (the board's outer corners meet its
+margin in junctions that refine like corners).
 """
 
 from __future__ import annotations
@@ -13,7 +17,14 @@ import time
 import numpy as np
 
 from ..camera import CameraModel
-from .board_plane import REJECT_PX, apply_homography, fit_homography, fit_residuals
+from .board_plane import (
+    REJECT_PX,
+    apply_homography,
+    fit_homography,
+    fit_residuals,
+    saddle_score,
+    side_with_corners,
+)
 from .corners import refine_corners
 from .detection import BoardDetection, grid_of
 from .images import check_image
@@ -47,8 +58,8 @@ def track_board(
     -------
     BoardDetection or None
         None when a corner moved more than ``max_shift`` squares, a corner does not
-        fit the homography, or the corners leave the image: the caller then runs
-        the full detection.
+        fit the homography, the board continues outside the grid, or the corners leave the
+        image: the caller then runs the full detection.
     """
     t0 = time.perf_counter()
     img = check_image(image)
@@ -76,6 +87,11 @@ def track_board(
     res, _ = fit_residuals(new, obj_xy, camera)
     sigma = 1.4826 * np.median(res)
     if np.any(res > max(reject_px, 5.0 * sigma)):
+        return None
+    # Numbered one square off (the board moved by about a square): corners just outside the grid.
+    H_new = fit_homography(obj_xy / cb.square_mm, new)
+    contrast = float(np.median(saddle_score(img, H_new, obj_xy / cb.square_mm)))
+    if side_with_corners(img, H_new, cb.cols, cb.rows, contrast) is not None:
         return None
     return BoardDetection(
         board=previous.board,
