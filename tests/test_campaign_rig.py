@@ -19,13 +19,15 @@ from stiffmap.sim.robot import delta_robot
 from stiffmap.sim.scene import default_scene, with_cameras
 from stiffmap.sim.testbed import SimConfig
 
-POSITIONS = np.array([[-66.67, 66.67, -310.0], [200.0, -200.0, -200.0]])
+POSITIONS = np.array([[-66.67, 66.67, -310.0]])
 
 
 @pytest.fixture(scope="module")
 def rig_campaign(tmp_path_factory):
-    """Two half-resolution cameras 60 degrees apart (the true rig), 2 positions x 6 loads."""
-    scene = with_cameras(default_scene(scaled_camera(reference_camera(), 0.5)), 2, distance_scale=1.2)
+    """Two cameras 60 degrees apart (the true rig, 3/4 of the reference camera's pixels per side:
+    at half, the 10 mm squares seen 35 degrees obliquely are too small for the second camera to
+    find the boards), one position x 6 loads."""
+    scene = with_cameras(default_scene(scaled_camera(reference_camera(), 0.75)), 2, distance_scale=1.2)
     cfg = SimConfig(
         scene=scene,
         robot=delta_robot(),
@@ -59,7 +61,8 @@ def test_a_two_camera_campaign_recovers_K_and_keeps_each_cameras_outcome(rig_cam
         assert r["status"] == "ok"
         K = from_json(r["K"])
         # Both cameras see each board; depth comes from the other camera's side view.
-        assert np.linalg.norm(K - K_true) / np.linalg.norm(K_true) < 0.03
+        # Measured 0.4 % (seed 11); 1.5 % leaves room for other seeds' noise, not for a wrong frame.
+        assert np.linalg.norm(K - K_true) / np.linalg.norm(K_true) < 0.015
     for m in meas:
         per = json.loads(m["per_camera"])
         assert [c["name"] for c in per] == list(rig.names)
