@@ -9,22 +9,12 @@ from __future__ import annotations
 
 import shlex
 import time
-from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 
 import typer
 from rich.markup import escape
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    ProgressColumn,
-    TextColumn,
-    TimeRemainingColumn,
-)
 from rich.table import Table
-from rich.text import Text
 
 from ..campaign.demo import demo_config
 from ..campaign.export import calibration_share_of_K, summary_dict
@@ -39,7 +29,7 @@ from ..campaign.store import Store, from_json
 from ..errors import InputError
 from ..io import atomic_write_text
 from ..report.campaign import write_campaign_report
-from .common import EXIT_PARTIAL, err, fmt, out, print_json, warn
+from .common import EXIT_PARTIAL, fmt, images_progress, out, print_json, warn
 
 
 class MethodName(StrEnum):
@@ -93,7 +83,7 @@ def init(
 def _init_from_demo(directory: Path, force: bool) -> None:
     """Simulate the quick demo campaign into ``directory`` (progress on stderr)."""
     check_output_dir(directory, force)
-    with _images_progress("rendering images") as update:
+    with images_progress("rendering images") as update:
         write_campaign(
             directory,
             demo_config(quick=True),
@@ -102,40 +92,6 @@ def _init_from_demo(directory: Path, force: bool) -> None:
             progress=lambda done, total: update(done, total, done),
             command=f"stiffmap init {directory} --from-demo",
         )
-
-
-class _Rate(ProgressColumn):
-    """Images measured (or rendered) per second."""
-
-    def render(self, task) -> Text:
-        measured = task.fields.get("measured", 0)
-        elapsed = task.elapsed or 0.0
-        if not measured or elapsed <= 0:
-            return Text("-- images/s")
-        return Text(f"{measured / elapsed:.1f} images/s")
-
-
-@contextmanager
-def _images_progress(description: str, show: bool = True):
-    """A progress bar on stderr; yields its hook ``update(done, total, measured)`` (None: no bar)."""
-    if not show:
-        yield None
-        return
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        _Rate(),
-        TimeRemainingColumn(),
-        console=err,
-        transient=False,
-    ) as prog:
-        task = prog.add_task(description, total=None, measured=0)
-
-        def update(done: int, total: int, measured: int) -> None:
-            prog.update(task, completed=done, total=total, measured=measured)
-
-        yield update
 
 
 def _summary_table(store: Store) -> Table:
@@ -223,7 +179,7 @@ def run(
     root = campaign_root(campaign)
     spec = load_spec(root)
     t0 = time.perf_counter()
-    with _images_progress("measuring images", show=spec.kind == "vision" and not quiet) as hook:
+    with images_progress("measuring images", show=spec.kind == "vision" and not quiet) as hook:
         done = run_and_export(
             root,
             spec=spec,
