@@ -86,3 +86,21 @@ def test_an_image_missing_for_one_camera_is_named_and_the_set_measured_by_the_ot
     per = {c["name"]: c for c in json.loads(m["per_camera"])}
     assert per["cam1"]["ok"] and not per["cam2"]["ok"]
     assert camera_path(victim, "cam2").split("/")[-1] in per["cam2"]["error"]
+
+
+def test_the_report_shows_each_cameras_residuals(rig_campaign):
+    from stiffmap.campaign.spec import load_spec
+    from stiffmap.report.campaign import report_data
+
+    out = rig_campaign
+    run_campaign(out)
+    with Store(out / DB_NAME) as store:
+        data = report_data(out, load_spec(out), store, [])
+    cams = data.calibration.cameras
+    assert [c["name"] for c in cams] == ["cam1", "cam2"]
+    for c in cams:
+        assert c["seen"] >= c["sets"] - 1 > 0  # every set, but the one a test may have cut
+        assert 0 < c["rms_px"] < 0.2
+    # cam2's pose: 60 degrees about the vertical from cam1.
+    T = np.asarray(cams[1]["cam2rig"])
+    assert np.degrees(np.arccos((np.trace(T[:3, :3]) - 1) / 2)) == pytest.approx(60.0, abs=1e-6)
