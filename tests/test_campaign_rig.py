@@ -104,3 +104,13 @@ def test_the_report_shows_each_cameras_residuals(rig_campaign):
     # cam2's pose: 60 degrees about the vertical from cam1.
     T = np.asarray(cams[1]["cam2rig"])
     assert np.degrees(np.arccos((np.trace(T[:3, :3]) - 1) / 2)) == pytest.approx(60.0, abs=1e-6)
+
+
+def test_the_exported_measurements_say_what_each_camera_gave(rig_campaign):
+    from stiffmap.campaign.export import read_tables
+
+    out = rig_campaign
+    run_campaign(out)
+    with Store(out / DB_NAME) as store:
+        rows = read_tables(store)["measurements"]
+    assert rows and all(r["cameras"].startswith("cam1: ") and "; cam2: " in r["cameras"] for r in rows)

@@ -15,7 +15,8 @@ Tables (one row each):
   (the calibration's share included) and the calibration's share of the variance
   of dx, dy, dz (``cal_share_dx``...);
 - ``repeat_stats``: per position, load case and quantity: mean, std, n;
-- ``measurements``: per image: status, error, reprojection RMS (px), corners, tracked;
+- ``measurements``: per image: status, error, reprojection RMS (px), corners, tracked, and with
+  several cameras what each gave (``cameras``: its RMS or its error);
 - ``model_stiffness``: the model's K at every position (when a model is given);
 - ``sensor_results``: per recording the point (mm), direction, static error and its
   standard error (um), stiffness (N/mm), the model's static error (um), flags.
@@ -129,6 +130,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
             "rms_px": r["rms_px"],
             "n_corners": r["n_corners"],
             "tracked": bool(r["tracked"]) if r["tracked"] is not None else None,
+            "cameras": _cameras_text(r["per_camera"]),
         }
         for r in store.measurement_rows()
     ]
@@ -248,3 +250,20 @@ def export_tables(store: Store, out_dir: str | Path, name: str, failures: list[s
     atomic_write_text(p, dumps_json(summary_dict(store, name, failures)) + "\n")
     written.append(p)
     return written
+
+
+def _cameras_text(per_camera: str | None) -> str | None:
+    """With several cameras, what each gave for an image set: ``cam1: 0.031 px; cam2: <its error>``."""
+    per = from_json(per_camera, array=False) if per_camera else None
+    if not isinstance(per, list):
+        return None
+    parts = []
+    for c in per:
+        if not isinstance(c, dict):
+            continue
+        rms = c.get("rms_px")
+        what = f"{rms:.3f} px" if isinstance(rms, (int, float)) else "no board"
+        if c.get("error"):
+            what += f" ({c['error']})"
+        parts.append(f"{c.get('name')}: {what}")
+    return "; ".join(parts)
