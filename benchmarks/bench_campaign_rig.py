@@ -32,8 +32,9 @@ from stiffmap.campaign.truth import load_truth  # noqa: E402
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
 
 OUT = HERE / "results" / "campaign_rig.md"
-#: Every fourth position of paper48: 12 spread over the three planes.
-DEFAULT_SELECT = ",".join(str(k) for k in range(1, 49, 4))
+#: 12 positions of paper48 (index 1 + 16 z + 4 y + x over its 4 x 4 x 3 grid): on each plane a
+#: diagonal of the 4 x 4 grid (a different one per plane), so every x and y value is on every plane.
+DEFAULT_SELECT = "1,6,11,16,20,23,26,29,35,37,44,46"
 
 
 def campaign(root: Path, cameras: int, select: str, seed: int, workers: int) -> dict:

@@ -195,18 +195,25 @@ def _read_campaign(campaign_dir: str | Path, method: str, allow_outside: bool = 
     return _Campaign(root, spec, camera_path, rig, loads, tasks, context, method)
 
 
+def cameras_path(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> Path:
+    """The campaign's camera file (``camera.file``) or rig file (``cameras.rig``); InputError when
+    it leads outside the campaign directory (unless ``allow_outside``)."""
+    if spec.cameras is None:
+        return campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
+    return campaign_file(root, spec.cameras.rig, "cameras.rig", allow_outside=allow_outside)
+
+
 def read_cameras(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> tuple[Path, Rig]:
     """The campaign's camera file and its cameras: ``[camera]``'s camera (a rig of one camera) or
     ``[cameras]``'s rig. InputError naming the file, or the key of ``campaign.toml``."""
+    path = cameras_path(spec, root, allow_outside=allow_outside)
     if spec.cameras is None:
-        path = campaign_file(root, spec.camera.file, "camera.file", allow_outside=allow_outside)
         try:
             return path, Rig.single(load_camera(path))
         except InputError as e:
             raise InputError(
                 f"{e.detail} (the camera file that camera.file in {SPEC_NAME} names)", source=e.source
             ) from None
-    path = campaign_file(root, spec.cameras.rig, "cameras.rig", allow_outside=allow_outside)
     try:
         rig = load_rig(path)
     except InputError as e:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..campaign.run import EXPORTS_DIR
-from ..campaign.runner import read_cameras
+from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
 from ..campaign.store import DB_NAME, Store, from_json
@@ -119,6 +119,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     truth = _truth_K(root, n)
     if truth is not None:
         out["truth"] = contract.TruthStiffness(truth)
+    cameras_path(spec, root, allow_outside=allow_outside)  # a file outside the directory: refused
     try:
         _, rig = read_cameras(spec, root, allow_outside=allow_outside)
         cameras = _per_camera(rig, store) if spec.cameras is not None else ()
