@@ -176,11 +176,28 @@ def _literal_brackets(app: typer.Typer) -> None:
         if info.help:
             info.help = escape(info.help)
         if cb.__doc__:
-            cb.__doc__ = escape(cb.__doc__)
+            cb.__doc__ = escape(_unwrapped(cb.__doc__))
         for prm in inspect.signature(cb).parameters.values():
             d = prm.default
             if isinstance(d, ParameterInfo) and isinstance(d.help, str):
                 d.help = escape(d.help)
+
+
+def _unwrapped(doc: str) -> str:
+    """A docstring with each paragraph on one line, for rich to wrap to the terminal's width.
+
+    rich keeps the docstring's own line breaks, so a paragraph wrapped at the source's 100
+    columns would come out ragged on an 80-column terminal. Paragraphs holding indented or
+    bulleted lines (lists, examples) are kept as written.
+    """
+    out = []
+    for para in inspect.cleandoc(doc).split("\n\n"):
+        lines = para.split("\n")
+        if any(ln.startswith((" ", "-", "*", "|")) for ln in lines):
+            out.append(para)
+        else:
+            out.append(" ".join(ln.strip() for ln in lines))
+    return "\n\n".join(out)
 
 
 def _one_line_warnings(message, category, filename, lineno, file=None, line=None) -> None:

@@ -282,7 +282,9 @@ def simulate(
     image per position, load case and repeat) and the ground truth truth.json (true K at
     every position, every image's poses, the true camera beside the calibrated one) with
     truth_corners.json.gz (true corner pixels). The same --seed gives byte-identical files,
-    whatever --workers.
+    whatever --workers. With --cameras N (2 or more), a rig of N cameras: rig.json calibrated
+    from views of the board seen by the cameras together, and one image per camera in each
+    image set (campaign.toml's [cameras]).
     """
     _refuse_options_of_the_other_robot(ctx, robot)
     check_output_dir(out_dir, force)
