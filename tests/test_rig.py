@@ -124,7 +124,7 @@ def test_calibration_cov_without_a_joint_one_is_the_cameras_blocks(rng):
         (
             lambda o: o["cameras"][1].update(cam2rig=(2 * np.eye(4)).tolist()),
             "'cameras[1].cam2rig'",
-            "",
+            "last row must be [0, 0, 0, 1]",
         ),
         (
             lambda o: o["cameras"][0].update(cam2rig=transform_from(np.eye(3), [1, 0, 0]).tolist()),

@@ -258,8 +258,12 @@ def test_a_rig_file_that_does_not_match_the_images_is_named(files):
     line = next(w for w in p.stderr.splitlines() if "right_00.png" in w)
     for needle in ("camera right", "1280x960", "1024x960", "rig_wrong.json (camera 'right')"):
         assert needle in line, line
-    # The left camera's pose goes on (one camera: its own method, not "fused").
-    assert "board2rig" in p.stdout and "corners" in p.stdout and "| fused" not in p.stdout.replace("│", "|")
+    # The left camera's pose goes on, from the left camera alone.
+    assert "board2rig" in p.stdout
+    p = run_stiffmap("pose", "--rig", "rig_wrong.json", "{camera}_00.png", *BOARD_ARGS, "--json", cwd=files)
+    (row,) = json.loads(p.stdout)
+    assert row["consistency"]["cameras"] == ["left"] and row["frame"] == "rig"
+    assert np.isfinite(np.asarray(row["board2cam"], dtype=float)).all()
 
 
 def test_displacement_with_a_rig_per_camera_lists(files):

@@ -40,6 +40,7 @@ __all__ = [
     "check_pose",
     "faces_camera",
     "perturb_pose",
+    "point_jacobian",
     "projection_jacobian",
     "ray2board_homography",
     "skew",
@@ -166,6 +167,18 @@ def skew(v: np.ndarray) -> np.ndarray:
     S[..., 2, 0] = -v[..., 1]
     S[..., 2, 1] = v[..., 0]
     return S
+
+
+def point_jacobian(T: np.ndarray, point) -> np.ndarray:
+    """How a point moved by a pose follows the pose's (t, r) left perturbation.
+
+    For p = R q + t (``T`` = (R, t), ``point`` q in T's source frame, mm), returns
+    d(p, r) / d(t, r) = [[I, -[R q]x], [0, I]], shape (6, 6): the translation of the point (mm)
+    and the rotation (rad), both in T's target frame (:func:`perturb_pose`).
+    """
+    A = np.eye(6)
+    A[:3, 3:] = -skew(np.asarray(T, dtype=np.float64)[:3, :3] @ np.asarray(point, dtype=np.float64))
+    return A
 
 
 def perturb_pose(board2cam: np.ndarray, delta) -> np.ndarray:

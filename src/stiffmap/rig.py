@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -152,7 +153,7 @@ class Rig:
         return self.cameras[self.index(name)].camera
 
     # -------------------------------------------------------------- parameters
-    @property
+    @cached_property
     def param_names(self) -> tuple[str, ...]:
         """The rig's parameters, camera after camera (see the module docstring)."""
         out: list[str] = []
@@ -179,7 +180,7 @@ class Rig:
         s = self.intrinsic_slice(k)
         return slice(s.stop, s.stop + 6)
 
-    @property
+    @cached_property
     def calibration_cov(self) -> np.ndarray | None:
         """Covariance of :attr:`param_names`, or None when no camera's uncertainty is known.
 
@@ -198,7 +199,16 @@ class Rig:
             if b is not None:
                 s = self.intrinsic_slice(k)
                 C[s, s] = b
+        C.setflags(write=False)  # computed once per rig (read for every pose of a campaign)
         return C
+
+    @property
+    def calibration_cov_source(self) -> str:
+        """Where :attr:`calibration_cov` comes from: ``"cov"`` (the rig's joint covariance),
+        ``"cameras"`` (the cameras' own, the poses in the rig exact) or ``"none"``."""
+        if self.cov is not None:
+            return "cov"
+        return "cameras" if any(c.camera.calibration_cov is not None for c in self.cameras) else "none"
 
     # -------------------------------------------------------------------- json
     def to_dict(self) -> dict[str, Any]:

@@ -53,6 +53,7 @@ from ..sim.calibration_views import (
     CALIBRATION_MARGIN_MM,
     RIG_POSE_KEY,
     CalibrationView,
+    calibration_view_file,
     plan_calibration_views,
     render_rig_view,
     rig_calibration_views,
@@ -427,7 +428,6 @@ def calibrate_rig_from_views(
     views = rig_calibration_views(
         rig, config.calibration_views, rng=seeded_generator(config.seed, *RIG_POSE_KEY)
     )
-    ext = "png" if config.image_format == "png" else "jpg"
     rendered: dict[str, Any] = {}
     total = sum(len(v.cameras) for v in views)
     if progress:
@@ -437,7 +437,7 @@ def calibrate_rig_from_views(
             if r is None:
                 continue
             name = rig.cameras[k].name
-            rel = f"{CALIBRATION_DIR}/{name}/view{v.index:02d}.{ext}"
+            rel = calibration_view_file(v.index, config.image_format, camera=name)
             data = encode_image(r.image, config.image_format, jpeg_quality=config.jpeg_quality)
             atomic_write_bytes(out / rel, data)
             t = r.targets[0]
@@ -643,7 +643,8 @@ def write_campaign(
     corners = [results[j.file][0] for j in jobs]
     gz = {"format": TRUTH_FORMAT, "images": corners}
     if rendered_views:
-        gz["calibration"] = [v[0] for v in rendered_views.values()]
+        # In file order (viewNN, per camera folder): the pool finishes views in any order.
+        gz["calibration"] = [rendered_views[f][0] for f in sorted(rendered_views)]
     data = json.dumps(to_jsonable(gz), allow_nan=False)
     atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
     if rig_result is not None:

@@ -286,10 +286,11 @@ def _print_cameras(ms: list[ImageMeasurement], rig: Rig) -> None:
 
 def _rig_calibration_note(rig: Rig, source: str) -> str:
     """Where the rig's calibration share of the uncertainties comes from."""
-    if rig.cov is not None:
+    src = rig.calibration_cov_source
+    if src == "cov":
         return f"the 1 sigma include the calibration's ({source}: the rig's joint covariance)"
     have = [c.name for c in rig.cameras if c.camera.calibration_cov is not None]
-    if not have:
+    if src == "none":
         return (
             f"the calibration's uncertainty is unknown ({source} holds no 'cov', nor do its cameras): "
             "not included"

@@ -254,10 +254,12 @@ def careful_poses(
     return poses
 
 
-def calibration_view_file(index: int, image_format: str = "png") -> str:
-    """``calibration/viewNN.png`` (or ``.jpg``), 1-based."""
+def calibration_view_file(index: int, image_format: str = "png", camera: str | None = None) -> str:
+    """``calibration/viewNN.png`` (or ``.jpg``), 1-based; a rig camera's: ``calibration/CAMERA/viewNN.png``
+    (a folder per camera, the view's number in the name: how ``calibrate-rig`` matches them)."""
     ext = "png" if image_format == "png" else "jpg"
-    return f"{CALIBRATION_DIR}/view{int(index):02d}.{ext}"
+    folder = CALIBRATION_DIR if camera is None else f"{CALIBRATION_DIR}/{camera}"
+    return f"{folder}/view{int(index):02d}.{ext}"
 
 
 def plan_calibration_views(config: SimConfig, n_views: int | None = None) -> tuple[CalibrationView, ...]:

@@ -332,6 +332,63 @@ def usable_views(detections: Sequence[BoardDetection | str], board: Board) -> tu
     return reasons, usable
 
 
+def solve_view_pose(camera: CameraModel, object_points, corners) -> np.ndarray | None:
+    """A view's board2cam (4x4, mm) from its corners with a calibrated camera (``cv2.solvePnP``).
+
+    ``object_points`` (m, 3) mm in the board frame, ``corners`` (m, 2) px; None when OpenCV finds
+    no pose (a detection always has one).
+    """
+    ok, rv, tv = cv2.solvePnP(object_points, corners, camera.matrix, camera.dist_array)
+    if not ok:  # pragma: no cover - a detection always has a pose
+        return None
+    T = np.eye(4)
+    T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
+    T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
+    return T
+
+
+def with_calibration_results(
+    camera: CameraModel, sd: np.ndarray, residuals_px: np.ndarray, views: Sequence[dict], cov: np.ndarray
+) -> CameraModel:
+    """``camera`` with what ``camera.json`` says of its calibration.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The calibrated parameters.
+    sd : ndarray, shape (4 + n_d,)
+        1-sigma of (fx, fy, cx, cy) in px and of the distortion coefficients (unitless).
+    residuals_px : ndarray, shape (N, 2)
+        Observed minus projected corners of the used views, px (their RMS and per-axis std).
+    views : sequence of dict
+        The ``views`` entries (:meth:`ViewResult.to_dict`).
+    cov : ndarray, shape (4 + n_d, 4 + n_d)
+        Covariance of the parameters.
+    """
+    sd = np.asarray(sd, dtype=np.float64).ravel()
+    R = np.asarray(residuals_px, dtype=np.float64)
+    std = {
+        "fx": float(sd[0]),
+        "fy": float(sd[1]),
+        "cx": float(sd[2]),
+        "cy": float(sd[3]),
+        "dist": [float(x) for x in sd[4 : 4 + len(camera.dist)]],
+    }
+    return CameraModel(
+        camera.image_size,
+        camera.fx,
+        camera.fy,
+        camera.cx,
+        camera.cy,
+        camera.dist,
+        std=std,
+        rms_px=float(np.sqrt(np.mean(np.sum(R**2, axis=1)))),
+        residual_std_px=(float(np.std(R[:, 0], ddof=1)), float(np.std(R[:, 1], ddof=1))),
+        views=tuple(views),
+        cov=cov,
+    )
+
+
 def calibrate_camera(
     detections: Sequence[BoardDetection | str],
     board: Board,
@@ -422,42 +479,24 @@ def calibrate_camera(
             continue
         if k in pose_of:
             rv, tv = pose_of[k]
+            T = np.eye(4)
+            T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
+            T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
         else:
-            ok, rv, tv = cv2.solvePnP(obj_all[d.ids], d.corners, cam.matrix, cam.dist_array)
-            if not ok:  # pragma: no cover - a detection always has a pose
+            T = solve_view_pose(cam, obj_all[d.ids], d.corners)
+            if T is None:  # pragma: no cover - a detection always has a pose
                 views.append(ViewResult(names[k], False, float("nan"), reasons[k], d.n_corners))
                 continue
+            rv, tv = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
         proj, _ = cv2.projectPoints(obj_all[d.ids], rv, tv, cam.matrix, cam.dist_array)
         e = d.corners - proj.reshape(-1, 2)
-        T = np.eye(4)
-        T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
-        T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
         rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
         if k in pose_of:
             res_used.append(e)
         views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T))
     R = np.concatenate(res_used)
-    std = {
-        "fx": float(sd_int[0]),
-        "fy": float(sd_int[1]),
-        "cx": float(sd_int[2]),
-        "cy": float(sd_int[3]),
-        "dist": [float(x) for x in sd_int[4 : 4 + nd]],
-    }
     obj = [obj_all[detections[k].ids] for k in used]
     img = [detections[k].corners for k in used]
     cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model))
-    camera = CameraModel(
-        (w, h),
-        cam.fx,
-        cam.fy,
-        cam.cx,
-        cam.cy,
-        cam.dist,
-        std=std,
-        rms_px=float(np.sqrt(np.mean(np.sum(R**2, axis=1)))),
-        residual_std_px=(float(np.std(R[:, 0], ddof=1)), float(np.std(R[:, 1], ddof=1))),
-        views=tuple(v.to_dict() for v in views),
-        cov=cov,
-    )
+    camera = with_calibration_results(cam, sd_int[: 4 + nd], R, [v.to_dict() for v in views], cov)
     return CalibrationResult(camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used))

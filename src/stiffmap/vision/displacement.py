@@ -46,7 +46,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import displacement_from_poses, mean_transform
-from ..posemath import skew
+from ..posemath import point_jacobian, skew
 from .sequence import ImageMeasurement
 
 __all__ = [
@@ -175,13 +175,6 @@ def mean_pose(poses) -> np.ndarray:
     return mean_transform(poses)
 
 
-def _point_jacobian(T: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """d(p, r)/d(t, r) for the point p = R q + t of a pose with (t, r) left perturbations."""
-    A = np.eye(6)
-    A[:3, 3:] = -skew(T[:3, :3] @ point)
-    return A
-
-
 def _ref_rotation(T_ref: np.ndarray, T_moved: np.ndarray) -> np.ndarray:
     """diag(I, Q), Q = R_moved R_ref^T: r = rotvec(Exp(dr1) Q Exp(-dr0)) moves by dr1 - Q dr0.
 
@@ -202,8 +195,8 @@ def pair_calibration_jacobian(
     parameters) of each pose (``BoardPose.calibration_jacobian``; for a mean reference pose the
     mean of its images' A), P the point's Jacobian and Q = R_moved R_ref^T.
     """
-    A0 = _ref_rotation(T_ref, T_moved) @ _point_jacobian(T_ref, point)
-    return _point_jacobian(T_moved, point) @ A_moved - A0 @ A_ref
+    A0 = _ref_rotation(T_ref, T_moved) @ point_jacobian(T_ref, point)
+    return point_jacobian(T_moved, point) @ A_moved - A0 @ A_ref
 
 
 def base_frame_calibration_jacobian(
@@ -299,8 +292,8 @@ def compliant_displacement(
         G_sum = 0.0
         for a, b in zip(u, lo, strict=True):
             samples.append(displacement_from_poses(a.mobile2cam, b.mobile2cam, q))
-            A0 = _ref_rotation(a.mobile2cam, b.mobile2cam) @ _point_jacobian(a.mobile2cam, q)
-            A1 = _point_jacobian(b.mobile2cam, q)
+            A0 = _ref_rotation(a.mobile2cam, b.mobile2cam) @ point_jacobian(a.mobile2cam, q)
+            A1 = point_jacobian(b.mobile2cam, q)
             cov_sum += A0 @ a.mobile.cov_noise @ A0.T + A1 @ b.mobile.cov_noise @ A1.T
             if with_A:
                 Aa, Ab = a.mobile.calibration_jacobian, b.mobile.calibration_jacobian
@@ -312,14 +305,14 @@ def compliant_displacement(
         ref = mean_pose([m.mobile2cam for m in u])
         cov_ref = np.zeros((6, 6))
         for a in u:
-            A0a = _point_jacobian(a.mobile2cam, q)
+            A0a = point_jacobian(a.mobile2cam, q)
             cov_ref += A0a @ a.mobile.cov_noise @ A0a.T
         cov_ref /= len(u) ** 2
         A_ref = np.mean([a.mobile.calibration_jacobian for a in u], axis=0) if with_A else None
         G_sum = 0.0
         for b in lo:
             samples.append(displacement_from_poses(ref, b.mobile2cam, q))
-            A1 = _point_jacobian(b.mobile2cam, q)
+            A1 = point_jacobian(b.mobile2cam, q)
             cov_sum += A1 @ b.mobile.cov_noise @ A1.T
             if with_A:
                 Ab = b.mobile.calibration_jacobian

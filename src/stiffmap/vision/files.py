@@ -40,7 +40,6 @@ __all__ = [
     "camera_images",
     "match_views",
     "measure_files",
-    "match_views",
     "rig_image_sets",
     "measure_image_sets",
 ]
@@ -328,19 +327,25 @@ def camera_images(name: str, pattern: str | os.PathLike) -> list[Path]:
         raise InputError(
             f"camera {name}: empty file pattern (give a pattern such as 'img/{name}*.png' or a folder)"
         )
+    files, several = _named_files(text)
+    if several and not files:
+        raise InputError(f"camera {name}: no file matches the pattern {text!r}")
+    if not several and not files[0].is_file():
+        raise InputError(f"camera {name}: {text!r} is no file, folder or file pattern that matches anything")
+    return files
+
+
+def _named_files(text: str) -> tuple[list[Path], bool]:
+    """The files ``text`` names and whether it names several: a file pattern (its matches, maybe
+    none), a folder (its images, :func:`image_files`), or one file (which may not exist);
+    natural order (``left2`` before ``left10``)."""
     p = Path(text)
-    if p.is_dir():
-        return image_files([p])
     if _GLOB_CHARS.search(text):
-        found = sorted(
-            (Path(f) for f in glob.glob(text) if Path(f).is_file()), key=lambda f: (_natural_key(f), str(f))
-        )
-        if not found:
-            raise InputError(f"camera {name}: no file matches the pattern {text!r}")
-        return found
-    if p.is_file():
-        return [p]
-    raise InputError(f"camera {name}: {text!r} is no file, folder or file pattern that matches anything")
+        found = (Path(f) for f in glob.glob(text) if Path(f).is_file())
+        return sorted(found, key=lambda f: (_natural_key(f), str(f))), True
+    if p.is_dir():
+        return image_files([p]), True
+    return [p], False
 
 
 def _view_number(path: Path) -> int | None:
@@ -543,8 +548,6 @@ def measure_files(
 
 
 # ------------------------------------------------------------------ several cameras
-#: Characters that make an image name a file pattern (``glob``).
-_GLOB_CHARS = re.compile(r"[*?\[]")
 
 
 def _view_numbers(paths: Sequence[Path]) -> list[int] | None:
@@ -575,18 +578,13 @@ def _camera_files(text: str, camera: str, what: str) -> tuple[list[Path], bool]:
 
     Returns the paths and whether ``text`` named several (a pattern or a folder).
     """
-    p = Path(text)
-    if _GLOB_CHARS.search(text):
-        found = sorted((Path(q) for q in glob.glob(text) if Path(q).is_file()), key=_natural_key)
-        if not found:
-            raise InputError(f"{what} {text!r} (camera {camera!r}) matches no file")
-        return found, True
-    if p.is_dir():
-        try:
-            return image_files([p]), True
-        except InputError as e:
-            raise InputError(f"{what} {text!r} (camera {camera!r}): {e}") from None
-    return [p], False
+    try:
+        files, several = _named_files(text)
+    except InputError as e:  # a folder without images
+        raise InputError(f"{what} {text!r} (camera {camera!r}): {e}") from None
+    if several and not files:
+        raise InputError(f"{what} {text!r} (camera {camera!r}) matches no file")
+    return files, several
 
 
 def _set_label(views: Mapping[str, Path | None]) -> str:

@@ -69,8 +69,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.stats import chi2 as chi2_law
 
-from ..geometry import rotvec_from_matrix
-from ..posemath import BoardPose, check_pose, perturb_pose, skew
+from ..geometry import displacement_from_poses, rotvec_from_matrix
+from ..posemath import BoardPose, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
 from ..targets import CharucoBoard, Chessboard
 
@@ -196,11 +196,13 @@ def to_rig_frame(board2cam: np.ndarray, cam2rig: np.ndarray) -> tuple[np.ndarray
 
 
 def extrinsic_jacobian(board2cam: np.ndarray, cam2rig: np.ndarray) -> np.ndarray:
-    """E = d(t, r of board2rig) / d(t, r of cam2rig): [[I, -[R_c t_b]x], [0, I]], shape (6, 6)."""
-    C = np.asarray(cam2rig, dtype=np.float64)
-    E = np.eye(6)
-    E[:3, 3:] = -skew(C[:3, :3] @ np.asarray(board2cam, dtype=np.float64)[:3, 3])
-    return E
+    """E = d(t, r of board2rig) / d(t, r of cam2rig), shape (6, 6): [[I, -[R_c t_b]x], [0, I]].
+
+    ``board2cam``, ``cam2rig`` (4, 4) mm; both perturbations are (t (mm), r (rad)) left
+    perturbations in the rig frame (:func:`~stiffmap.posemath.perturb_pose`): the board's
+    origin is a point that cam2rig moves (:func:`~stiffmap.posemath.point_jacobian`).
+    """
+    return point_jacobian(cam2rig, np.asarray(board2cam, dtype=np.float64)[:3, 3])
 
 
 def board_symmetries(board) -> list[tuple[str, np.ndarray]]:
@@ -233,21 +235,6 @@ def board_symmetries(board) -> list[tuple[str, np.ndarray]]:
     if board.cols == board.rows:
         out += [("quarter turn", about_centre(90)), ("three-quarter turn", about_centre(270))]
     return out
-
-
-def _right_map(board2rig: np.ndarray, S: np.ndarray) -> np.ndarray:
-    """M = d(t, r of T S) / d(t, r of T): [[I, -[R s]x], [0, I]] with s the translation of S."""
-    M = np.eye(6)
-    M[:3, 3:] = -skew(board2rig[:3, :3] @ S[:3, 3])
-    return M
-
-
-def _tangent(T: np.ndarray, T_ref: np.ndarray) -> np.ndarray:
-    """(t - t_ref, rotvec(R R_ref^T)): T = perturb_pose(T_ref, that), mm and rad."""
-    d = np.empty(6)
-    d[:3] = T[:3, 3] - T_ref[:3, 3]
-    d[3:] = rotvec_from_matrix(T[:3, :3] @ T_ref[:3, :3].T)
-    return d
 
 
 def _sym(C: np.ndarray) -> np.ndarray:
@@ -339,7 +326,7 @@ def fuse_poses(
             j = int(np.argmin(angles))
             if j:
                 name, S = syms[j]
-                M = _right_map(T, S)
+                M = point_jacobian(T, S[:3, 3])  # d(t, r of T S) / d(t, r of T)
                 v[1] = T @ S
                 v[2] = _sym(M @ v[2] @ M.T)
                 v[3] = None if v[3] is None else M @ v[3]
@@ -361,7 +348,7 @@ def fuse_poses(
         passes = 0
         for _ in range(_MAX_PASSES):
             passes += 1
-            g = sum(W @ _tangent(T, T_f) for W, T in zip(Ws, Ts, strict=True))
+            g = sum(W @ displacement_from_poses(T_f, T) for W, T in zip(Ws, Ts, strict=True))
             step = cov_noise @ g
             T_f = perturb_pose(T_f, step)
             if np.abs(step[:3]).max() < 1e-12 * max(1.0, np.abs(T_f[:3, 3]).max()) and (
@@ -370,7 +357,7 @@ def fuse_poses(
                 break
         U, _, Vt = np.linalg.svd(T_f[:3, :3])
         T_f[:3, :3] = U @ Vt
-    offsets = [_tangent(T, T_f) for T in Ts]
+    offsets = [displacement_from_poses(T_f, T) for T in Ts]
 
     A = cov_cal = None
     if with_A:

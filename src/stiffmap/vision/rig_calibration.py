@@ -61,14 +61,13 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import coo_matrix
 
 from ..camera import CameraModel
 from ..errors import InputError
-from ..geometry import invert_transform, matrix_from_rotvec, mean_transform, rotvec_from_matrix
+from ..geometry import invert_transform, mean_transform, rotvec_from_matrix
 from ..posemath import perturb_pose, projection_jacobian, skew
 from ..rig import Rig, RigCamera
 from .calibrate import (
@@ -80,7 +79,9 @@ from .calibrate import (
     covariance_from_information,
     fixed_params,
     matlab_camera_lines,
+    solve_view_pose,
     usable_views,
+    with_calibration_results,
 )
 from .detection import Board, BoardDetection, grid_of
 
@@ -678,8 +679,12 @@ def calibrate_rig(
         problem.obs = [(k, v) for k in range(n_cam) for v in sorted(used[k])]
         problem.board2rig = {v: problem.board2rig[v] for v in sorted(set().union(*used))}
         problem = _bundle_adjust(problem)
-        f, _ = _evaluate(problem, _x0(problem, _layout(problem)), _layout(problem), jacobian=False)
-        rms = _obs_rms(problem, f)
+        layout = _layout(problem)
+        f, _ = _evaluate(problem, _x0(problem, layout), layout, jacobian=False)
+        rms = {
+            kv: float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+            for kv, e in _split_residuals(problem, f).items()
+        }
         worst = None
         for k in range(n_cam):
             vals = [rms[(k, v)] for v in sorted(used[k])]
@@ -704,13 +709,13 @@ def calibrate_rig(
     return _result(problem, dets, missing, reasons, used, names, vnames, inames, model, outliers, obj_all)
 
 
-def _obs_rms(p: _Problem, f: np.ndarray) -> dict[tuple[int, int], float]:
+def _split_residuals(p: _Problem, f: np.ndarray) -> dict[tuple[int, int], np.ndarray]:
+    """The stacked residuals ``f`` (projected minus observed) per (camera, view): (m, 2) px each."""
     out = {}
     i = 0
     for k, v in p.obs:
         m = len(p.points[(k, v)][0])
-        e = f[i : i + 2 * m]
-        out[(k, v)] = float(np.sqrt(np.sum(e**2) / m))
+        out[(k, v)] = f[i : i + 2 * m].reshape(m, 2)
         i += 2 * m
     return out
 
@@ -721,31 +726,20 @@ def _result(p, dets, missing, reasons, used, names, vnames, inames, model, outli
     cam_off, ext_off, view_off, n_a, n_total = layout
     dof = f.size - n_a - 6 * len(view_off)
     s2 = float(f @ f) / dof if dof > 0 else float("nan")
-    # Map the free camera parameters onto the rig's param_names (fixed ones: zero rows).
-    full_index, full_free = [], []
-    pos = 0
-    for k in range(n_cam):
-        n_k = 4 + len(p.cameras[k].dist)
-        for i in range(n_k):
-            if i in p.free[k]:
-                full_free.append(pos + i)
-                full_index.append(pos + i)
-        pos += n_k
-        if k > 0:
-            full_index += list(range(pos, pos + 6))
-            full_free += list(range(pos, pos + 6))
-            pos += 6
-    S_full = np.zeros((pos, pos))
-    S_full[np.ix_(full_index, full_index)] = S
-    C = covariance_from_information(S_full, s2, full_free)
-
+    # The free camera parameters and the cam2rig perturbations in the rig's param_names (the
+    # information's order; fixed parameters: zero rows).
     proto = Rig(tuple(RigCamera(names[k], p.cameras[k], p.cam2rig[k]) for k in range(n_cam)))
-    uv_res = {}
-    i = 0
-    for k, v in p.obs:
-        m = len(p.points[(k, v)][0])
-        uv_res[(k, v)] = -f[i : i + 2 * m].reshape(m, 2)  # observed minus projected
-        i += 2 * m
+    index = []
+    for k in range(n_cam):
+        index += [proto.intrinsic_slice(k).start + i for i in p.free[k]]
+        if k > 0:
+            index += list(range(proto.extrinsic_slice(k).start, proto.extrinsic_slice(k).stop))
+    n = len(proto.param_names)
+    S_full = np.zeros((n, n))
+    S_full[np.ix_(index, index)] = S
+    C = covariance_from_information(S_full, s2, index)
+
+    uv_res = {kv: -e for kv, e in _split_residuals(p, f).items()}  # observed minus projected
     views, residuals, cams = [], [], []
     for k in range(n_cam):
         cam = p.cameras[k]
@@ -761,38 +755,18 @@ def _result(p, dets, missing, reasons, used, names, vnames, inames, model, outli
                 T = rig2cam @ p.board2rig[v]
             else:  # an outlier: its own pose with the final camera (as calibrate_camera gives it)
                 q = obj_all[d.ids]
-                ok, rv, tv = cv2.solvePnP(q, d.corners, cam.matrix, cam.dist_array)
-                T = np.eye(4)
-                T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
-                T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
+                T = solve_view_pose(cam, q, d.corners)
+                if T is None:  # pragma: no cover - a detection always has a pose
+                    vk.append(ViewResult(inames[k][v], False, float("nan"), reasons[k][v], d.n_corners))
+                    continue
                 e = d.corners - cam.project(q @ T[:3, :3].T + T[:3, 3])
             rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
             vk.append(ViewResult(inames[k][v], (k, v) in uv_res, rms_v, reasons[k][v], d.n_corners, T))
         R = np.concatenate([uv_res[(k, v)] for v in sorted(used[k])])
         block = C[proto.intrinsic_slice(k), proto.intrinsic_slice(k)]
         sd = np.sqrt(np.maximum(np.diag(block), 0.0))
-        std = {
-            "fx": float(sd[0]),
-            "fy": float(sd[1]),
-            "cx": float(sd[2]),
-            "cy": float(sd[3]),
-            "dist": [float(x) for x in sd[4:]],
-        }
-        cams.append(
-            CameraModel(
-                cam.image_size,
-                cam.fx,
-                cam.fy,
-                cam.cx,
-                cam.cy,
-                cam.dist,
-                std=std,
-                rms_px=float(np.sqrt(np.mean(np.sum(R**2, axis=1)))),
-                residual_std_px=(float(np.std(R[:, 0], ddof=1)), float(np.std(R[:, 1], ddof=1))),
-                views=tuple(vr.to_dict() for v, vr in enumerate(vk) if not missing[k][v]),
-                cov=block,
-            )
-        )
+        views_k = [vr.to_dict() for v, vr in enumerate(vk) if not missing[k][v]]
+        cams.append(with_calibration_results(cam, sd, R, views_k, block))
         views.append(tuple(vk))
         residuals.append(R)
     info = {
