@@ -1,4 +1,4 @@
-"""Kinematic chains through Pinocchio (stiffmap.models.chain): Jacobians, units, inverse kinematics, bad URDFs."""
+"""Kinematic chains through Pinocchio (stiffmap.models.chain): Jacobians, units, IK, bad URDFs."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def test_arm_jacobian_matches_central_differences_at_random_configurations(offse
 
 
 def test_urdf_metres_become_millimetres_once():
-    """Zero configuration of the arm: flange at x = 70 + 190 + 190 + 65 mm, z = 352 + 360 mm (the URDF's metres)."""
+    """At q = 0 the flange is at x = 70 + 190 + 190 + 65 mm, z = 352 + 360 mm (the URDF's metres)."""
     chain = Chain.from_urdf(ARM6, "tool0", (0.0, 0.0, 100.0))
     p, R = chain.forward(np.zeros(6))
     # tool0's z axis points along +x at q = 0, so the 100 mm offset adds along x.
@@ -55,7 +55,7 @@ def test_urdf_metres_become_millimetres_once():
 
 
 def test_prismatic_chain_from_joints_is_in_mm():
-    """A cylindrical robot (revolute about z, prismatic up z, prismatic out x): closed-form FK and Jacobian."""
+    """A cylindrical robot (turn about z, lift along z, reach along x): closed-form FK and Jacobian."""
     chain = Chain.from_joints(
         [
             JointSpec("turn", "revolute", (0, 0, 1)),
