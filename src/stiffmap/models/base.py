@@ -47,7 +47,11 @@ __all__ = [
     "raise_first_invalid",
     "flag_singular",
     "inverse_condition",
-    "sum_of_leg_springs",
+    "constrained_directions",
+    "leg_stiffness",
+    "platform_stiffness",
+    "RANK_RTOL",
+    "RIGID_RTOL",
 ]
 
 #: Default threshold of the dimensionless singularity measures (a sine or an inverse
@@ -419,37 +423,160 @@ def inverse_condition(n: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return out
 
 
-def sum_of_leg_springs(k_leg: np.ndarray, n: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """``K = sum_i k_leg,i n_i n_i^T`` at every pose: legs acting as springs along ``n_i``.
+# ---------------------------------------------------------------------- the virtual joint method
+
+#: Relative tolerance on the singular values of a leg's passive columns below which a
+#: direction does not count as freed (dependent or zero columns: a ball joint's spin about
+#: its link, a pin at the measured point). The directions come from ``eigh`` of
+#: ``J_p J_p^T``, whose eigenvalues are the squared singular values: 1e-6 keeps the test
+#: (1e-12 on those) well above their roundoff.
+RANK_RTOL = 1e-6
+#: A leg whose compliance along the directions it holds has an eigenvalue below this
+#: fraction of its largest is *rigid* there (no finite spring acts along it).
+RIGID_RTOL = 1e-12
+
+
+def constrained_directions(passive, *, rank_rtol: float = RANK_RTOL) -> tuple[np.ndarray, np.ndarray]:
+    """The directions a leg holds: an orthonormal basis of the complement of ``range(J_p)``.
 
     Parameters
     ----------
-    k_leg : ndarray, shape (N, legs), N/mm
-        Stiffness of each leg along its direction.
-    n : ndarray, shape (N, legs, dim)
-        Unit leg directions (NaN allowed where ``valid`` is False).
-    valid : ndarray of bool, shape (N,)
+    passive : array_like, shape (..., d, p)
+        Tip velocity per unit rate of each passive joint (mm per rad or mm per mm), d task
+        directions; columns may be zero or dependent.
+    rank_rtol : float
+        Singular values below ``rank_rtol`` times the largest count as zero.
 
     Returns
     -------
-    K : ndarray, shape (N, dim, dim), N/mm
-        Exactly symmetric; zero where ``valid`` is False.
+    U : ndarray, shape (..., d, d)
+        Orthonormal, the held directions first: columns ``j < c`` span the complement of
+        ``range(J_p)``, the others ``range(J_p)``.
+    held : ndarray of bool, shape (..., d)
+        True for the first c columns (c = d - rank J_p, the number of directions held).
     """
-    with np.errstate(invalid="ignore"):
-        kl = np.where(valid[:, None], k_leg, 0.0)
-        K = np.einsum("ni,nij,nik->njk", kl, np.nan_to_num(n), np.nan_to_num(n))
-    return 0.5 * (K + np.swapaxes(K, 1, 2))  # exactly symmetric (roundoff of the sum)
+    P = np.asarray(passive, dtype=np.float64)
+    d = P.shape[-2]
+    if P.shape[-1] == 0:
+        U = np.broadcast_to(np.eye(d), (*P.shape[:-2], d, d)).copy()
+        return U, np.ones((*P.shape[:-2], d), dtype=bool)
+    lam, U = np.linalg.eigh(P @ np.swapaxes(P, -1, -2))  # ascending: the held directions first
+    rank = np.sum(lam > (rank_rtol * rank_rtol) * lam[..., -1:], axis=-1)
+    return U, np.arange(d) < (d - rank)[..., None]
+
+
+def leg_stiffness(springs, k, U, held) -> tuple[np.ndarray, np.ndarray]:
+    """A leg's stiffness at its tip, passive joints free: ``K = U_h (U_h^T C U_h)^-1 U_h^T``.
+
+    ``C = J_s diag(1/k) J_s^T`` is the tip compliance with the passive joints locked; the
+    passive joints let the tip move freely in ``range(J_p)``, so the leg resists only along
+    the held directions ``U_h`` (:func:`constrained_directions`), with the compliance C
+    has there.
+
+    Parameters
+    ----------
+    springs : array_like, shape (..., d, s)
+        Tip velocity per unit rate of each spring joint (actuated joints and virtual springs
+        standing for link compliances), mm per rad or mm per mm.
+    k : array_like, broadcastable to (..., s)
+        Their stiffnesses, N*mm/rad (revolute) or N/mm (prismatic); ``inf`` for rigid.
+    U, held : ndarray, shapes (..., d, d) and (..., d)
+        From :func:`constrained_directions`.
+
+    Returns
+    -------
+    K : ndarray, shape (..., d, d), N/mm
+        Symmetric positive semi-definite, rank c; NaN where ``rigid``.
+    rigid : ndarray of bool, shape (...)
+        Legs with no compliance along a direction they hold (their stiffness is infinite there).
+    """
+    Js = np.asarray(springs, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        w = 1.0 / np.asarray(k, dtype=np.float64)  # compliances; 0 for rigid springs
+    d = Js.shape[-2]
+    h = held.astype(np.float64)
+    W = (np.swapaxes(U, -1, -2) @ Js) * h[..., :, None]  # held rows of U^T J_s
+    M = (W * w[..., None, :]) @ np.swapaxes(W, -1, -2)  # U^T C U on the held block, 0 elsewhere
+    c = np.count_nonzero(held, axis=-1)
+    K = np.zeros(M.shape)
+    rigid = np.zeros(c.shape, dtype=bool)
+    one = c == 1  # a two-force member: it holds U[:, 0] with compliance M[0, 0]
+    if np.any(one):
+        m, u = M[..., 0, 0][one], U[..., :, 0][one]
+        rigid[one] = m <= 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            K[one] = u[:, :, None] * u[:, None, :] / m[:, None, None]
+    more = c > 1
+    if np.any(more):
+        # Invert the held block in one batched eigh: the other rows are filled with the
+        # block's mean eigenvalue, so that a zero eigenvalue is judged at the block's scale.
+        Mm, hm = M[more], h[more]
+        scale = np.trace(Mm, axis1=-2, axis2=-1) / c[more]
+        scale = np.where(scale > 0, scale, 1.0)
+        lam, V = np.linalg.eigh(Mm + np.eye(d) * ((1.0 - hm) * scale[:, None])[:, None, :])
+        rig = lam[:, 0] <= RIGID_RTOL * lam[:, -1]
+        inv = np.where(rig[:, None], 0.0, 1.0 / np.where(rig[:, None], 1.0, lam))
+        G = ((V * inv[:, None, :]) @ np.swapaxes(V, -1, -2)) * hm[:, :, None] * hm[:, None, :]
+        Um = U[more]
+        K[more] = Um @ G @ np.swapaxes(Um, -1, -2)
+        rigid[more] = rig
+    K[rigid] = np.nan
+    return 0.5 * (K + np.swapaxes(K, -1, -2)), rigid
+
+
+def platform_stiffness(springs, k, passive, valid) -> tuple[np.ndarray, np.ndarray]:
+    """The platform's stiffness from its legs (virtual joint method): ``K = sum over legs of K_leg``.
+
+    Every leg's tip moves with the tool point (a translational platform), so the legs act in
+    parallel at the tool point and their stiffnesses add (:func:`leg_stiffness`).
+
+    Parameters
+    ----------
+    springs : ndarray, shape (N, legs, d, s)
+        Spring columns of every leg at every pose (pad with zero columns; NaN allowed where
+        ``valid`` is False).
+    k : array_like, shape (legs, s) or (N, legs, s)
+        Their stiffnesses (``inf`` rigid, and for padding).
+    passive : ndarray, shape (N, legs, d, p)
+        Passive columns (pad with zero columns).
+    valid : ndarray of bool, shape (N,)
+        Poses to assemble.
+
+    Returns
+    -------
+    K : ndarray, shape (N, d, d), N/mm
+        Exactly symmetric; zero where ``valid`` is False, NaN where a leg is rigid.
+    rigid : ndarray of bool, shape (N, legs)
+        Legs with no compliance along a direction they hold (False where not ``valid``).
+    """
+    Js = np.asarray(springs, dtype=np.float64)
+    n, nlegs, d = Js.shape[:3]
+    kk = np.asarray(k, dtype=np.float64)
+    K = np.zeros((n, d, d))
+    rigid = np.zeros((n, nlegs), dtype=bool)
+    if np.any(valid):
+        U, held = constrained_directions(np.asarray(passive, dtype=np.float64)[valid])
+        Kl, rl = leg_stiffness(Js[valid], kk[valid] if kk.ndim == 3 else kk, U, held)
+        K[valid] = Kl.sum(axis=1)
+        rigid[valid] = rl
+    return K, rigid
 
 
 class LegMechanism:
-    """The :class:`Mechanism` methods shared by stiffmap's leg models (Delta, 3PRR).
+    """The :class:`Mechanism` methods shared by stiffmap's parallel robots made of legs.
+
+    Every such robot's stiffness is the virtual joint method's assembly,
+    :func:`platform_stiffness` of its legs' joint columns: the built-in Delta and 3PRR
+    (closed-form columns) and :class:`~stiffmap.models.legs.LegRobot` (columns from each
+    leg's kinematic chain) are instances of it.
 
     A frozen dataclass inherits them. It has a ``singular_tol`` field and provides
     ``name``, ``dim``, ``_LABEL`` (its name in messages), the classmethod
-    ``param_names()``, ``legs(points)`` (per-leg vectors with a ``reachable``
-    mask and unit leg directions ``n``), ``_unreachable_reasons(points, legs)``,
+    ``param_names()``, ``legs(points)`` (per-leg quantities with a ``reachable``
+    mask), ``_unreachable_reasons(points, legs)``,
     ``_measures(legs)`` (serial and parallel singularity measures),
-    ``_leg_stiffness(legs)`` (each leg's stiffness along ``n``, N/mm),
+    ``_leg_joints(legs)`` (every leg's spring columns, their stiffnesses and its passive
+    columns: the arguments of :func:`platform_stiffness` but ``valid``),
     ``_joint_coordinates(legs)`` (the map's ``q``), ``_serial_singularity(legs, i)``
     (what is singular at pose i, in words) and ``_PARALLEL_SINGULARITY`` (the same
     for a parallel singularity). From these :meth:`_map_from_legs` builds the
@@ -488,7 +615,7 @@ class LegMechanism:
         return replace(self, **params)
 
     def _map_from_legs(self, points, legs) -> ModelMap:
-        """The :class:`ModelMap` of poses from their legs: reachable, not singular, K = sum of leg springs.
+        """The :class:`ModelMap` of poses from their legs: reachable, not singular, K = sum of the legs' K.
 
         The conditioning of a pose is the smaller of its two singularity measures
         (NaN where unreachable).
@@ -511,7 +638,13 @@ class LegMechanism:
             )
 
         valid = flag_singular(legs.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
-        K = sum_of_leg_springs(self._leg_stiffness(legs), legs.n, valid)
+        K, rigid = platform_stiffness(*self._leg_joints(legs), valid)
+        for i in np.flatnonzero(np.any(rigid, axis=1)):  # every spring along a held direction rigid
+            which = ", ".join(str(j + 1) for j in np.flatnonzero(rigid[i]))
+            reasons[i] = (
+                f"singular: leg {which} rigid along a direction it holds (no finite spring acts there)"
+            )
+            valid[i] = False
         cond = np.where(legs.reachable, np.fmin(serial, parallel), np.nan)
         return model_map(self.name, self.params(), P, K, valid, reasons, self._joint_coordinates(legs), cond)
 

@@ -33,7 +33,12 @@ in series:
     1 / k_leg,i = (n_i . t_i)^2 / k_theta + (n_i . t_i / a)^2 / k_arm + 1 / k_forearm
     K = sum_i k_leg,i n_i n_i^T                                   (N/mm)
 
-which reduces to ``J^T K_theta J`` for rigid links. Singularities: *serial*
+which reduces to ``J^T K_theta J`` for rigid links. The code computes it as the
+virtual joint method's assembly (:func:`~stiffmap.models.base.platform_stiffness`) of
+each leg's joint columns at its platform joint: springs ``t_i`` (k_theta), ``t_i / a``
+(k_arm), ``n_i`` (k_forearm); passive, the elbow's ball joint, which frees the plane
+normal to ``n_i``. The leg then holds the one direction ``n_i``, with the compliance
+above (the closed form is checked against it in ``tests/test_models_legs.py``). Singularities: *serial*
 (the workspace boundary) where the forearm is aligned with the arm, measured
 by ``s_i = |n_i . t_i| / a`` (a sine, 0 there; K is unbounded); *parallel*
 where the three forearms are coplanar, measured by the inverse condition
@@ -340,11 +345,26 @@ class DeltaRobot(LegMechanism):
 
     # ------------------------------------------------------------------ stiffness
 
-    def _leg_stiffness(self, L: DeltaLegs) -> np.ndarray:
-        nt = np.einsum("nij,nij->ni", L.n, L.t)  # mm/rad
-        with np.errstate(divide="ignore"):
-            comp = nt * nt / self.k_theta + (nt / self.arm_length) ** 2 / self.k_arm + 1.0 / self.k_forearm
-            return 1.0 / comp  # N/mm
+    def _leg_joints(self, L: DeltaLegs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each leg's joint columns at its platform joint (virtual joint method, base frame).
+
+        Springs: the actuator (``t_i``, mm/rad, stiffness ``k_theta``), the arm's transverse
+        virtual spring at the elbow (``t_i / a``, ``k_arm``) and the forearm's axial one
+        (``n_i``, ``k_forearm``). Passive: the elbow's ball joint, rotations about x, y, z
+        (``b e_k x n_i``: they span the plane normal to the forearm; the spin is zero).
+
+        Returns
+        -------
+        springs : ndarray, shape (N, 3, 3, 3)
+            ``[pose, leg, xyz, joint]``.
+        k : ndarray, shape (3, 3)
+            ``[leg, joint]``, N*mm/rad and N/mm.
+        passive : ndarray, shape (N, 3, 3, 3)
+        """
+        springs = np.stack([L.t, L.t / self.arm_length, L.n], axis=-1)
+        k = np.tile([self.k_theta, self.k_arm, self.k_forearm], (3, 1))
+        ball = self.forearm_length * np.cross(np.eye(3)[None, None], L.n[:, :, None, :])
+        return springs, k, np.swapaxes(ball, -1, -2)
 
     def _joint_coordinates(self, L: DeltaLegs) -> np.ndarray:
         """The actuator angles (rad), NaN for a leg that cannot reach."""

@@ -29,7 +29,10 @@ as one spring along its rod, in series:
 
 which equals the assembled truss ``F = K d`` condensed to the tool node
 (:meth:`PRR3.truss_displacements` solves the full 8-DOF system; the tests
-compare both with anastruct). Singularities: *serial* where a rod is
+compare both with anastruct). The code computes it as the virtual joint method's
+assembly (:func:`~stiffmap.models.base.platform_stiffness`) of each leg's joint columns
+at the tool: springs ``u_i`` (kj), ``u_i^perp`` (kb), ``n_i`` (E area / L); passive, the
+pins, which free the direction normal to the rod. Singularities: *serial* where a rod is
 perpendicular to its rail (``n_i . u_i`` = 0, the workspace boundary: the
 slider cannot move the tool along the rod), *parallel* where the three rods are
 parallel (K loses a direction). Measures: ``min_i n_i . u_i`` and the inverse
@@ -304,13 +307,29 @@ class PRR3(LegMechanism):
 
     # ------------------------------------------------------------------ stiffness
 
-    def _leg_stiffness(self, lg: PRR3Legs) -> np.ndarray:
-        u = lg.u
-        uperp = np.stack([-u[:, 1], u[:, 0]], axis=1)
-        a = np.einsum("nij,ij->ni", lg.n, u)
-        c = np.einsum("nij,ij->ni", lg.n, uperp)
-        with np.errstate(invalid="ignore"):
-            return 1.0 / (a * a / self.kj + c * c / self.kb + self.L / (self.E * self.area))
+    def _leg_joints(self, lg: PRR3Legs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each leg's joint columns at the tool (virtual joint method).
+
+        Springs: the prismatic joint along the rail (``u_i``, ``kj``), the bearing across it
+        (``u_i^perp``, ``kb``) and the rod's axial stiffness (``n_i``, ``E area / L``).
+        Passive: the pins at the slider (``L n_i^perp``) and at the tool (zero: it turns
+        about the tool point).
+
+        Returns
+        -------
+        springs : ndarray, shape (N, 3, 2, 3)
+            ``[pose, leg, xy, joint]``.
+        k : ndarray, shape (3, 3)
+            ``[leg, joint]``, N/mm.
+        passive : ndarray, shape (N, 3, 2, 2)
+        """
+        u = np.broadcast_to(lg.u, lg.n.shape)
+        uperp = np.stack([-u[..., 1], u[..., 0]], axis=-1)
+        nperp = np.stack([-lg.n[..., 1], lg.n[..., 0]], axis=-1)
+        springs = np.stack([u, uperp, lg.n], axis=-1)
+        k = np.tile([self.kj, self.kb, self.E * self.area / self.L], (3, 1))
+        passive = np.stack([self.L * nperp, np.zeros_like(nperp)], axis=-1)
+        return springs, k, passive
 
     def _joint_coordinates(self, lg: PRR3Legs) -> np.ndarray:
         """The slider positions (mm), NaN at unreachable poses."""
