@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import math
+import tempfile
 from importlib.resources import files
+from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.fuzz_campaign import mutated_spec, toml_text_mutations
+from hypothesis import given
+from hypothesis import strategies as st
 
 from stiffmap.errors import InputError
 from stiffmap.models import PRR3, DeltaRobot, Mechanism, PoseError
@@ -322,3 +327,21 @@ def test_bad_leg_files_are_named(old, new, message):
     assert old in text
     with pytest.raises(InputError, match=r"^bad\.toml: " + message):
         LegRobot.from_toml_text(text.replace(old, new, 1), source="bad.toml")
+
+
+@pytest.mark.fuzz
+@given(data=st.data())
+def test_mutated_leg_files_load_or_are_refused_by_name(data):
+    name = data.draw(st.sampled_from(["delta", "3prr"]))
+    valid = (ROBOTS / f"{name}.toml").read_text(encoding="utf-8")
+    raw = data.draw(st.one_of(mutated_spec(valid), mutated_spec(valid), toml_text_mutations(valid)))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fuzz.toml"
+        path.write_bytes(raw)
+        try:
+            lr = LegRobot.from_toml(path)
+        except InputError as e:
+            assert str(e).startswith(f"{path}: ")
+            return
+    m = lr.evaluate(np.array([[0.0, 0.0, -300.0]]) if lr.dim == 3 else np.array([[400.0, 230.0]]))
+    assert m.valid[0] or m.reasons[0].startswith(("unreachable: ", "singular: "))

@@ -48,6 +48,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationEr
 from ..errors import InputError
 from ..geometry import euler_from_matrix, matrix_from_euler
 from ..io import read_text_file
+from ..stiffness import MAX_POSITION_MM, MAX_ROTATION_RAD
 from .base import (
     SINGULAR_TOL,
     IKSolution,
@@ -68,12 +69,18 @@ __all__ = [
     "legs_toml",
     "ROLES",
     "LIMIT_TOL",
+    "STIFFNESS_RANGE",
+    "MAX_TOML_BYTES",
 ]
 
 #: The roles of a leg's joints.
 ROLES = ("actuated", "passive", "spring")
 #: How far (rad or mm) an inverse-kinematics solution may lie beyond a joint limit (roundoff).
 LIMIT_TOL = 1e-9
+#: A legs TOML larger than this is refused unread (the Delta's is 3 kB).
+MAX_TOML_BYTES = 1024 * 1024
+#: The stiffnesses a legs TOML may give (N*mm/rad or N/mm), besides inf (rigid).
+STIFFNESS_RANGE = (1e-6, 1e12)
 
 # ---------------------------------------------------------------------- descriptions
 
@@ -149,7 +156,7 @@ def _number(v):
     return float(v)
 
 
-def _vector(counts: tuple[int, ...], words: str):
+def _vector(counts: tuple[int, ...], words: str, bound: float, unit: str):
     def check(v):
         if (
             not isinstance(v, list | tuple)
@@ -159,14 +166,26 @@ def _vector(counts: tuple[int, ...], words: str):
             raise ValueError(f"expected {words} numbers")
         if not all(math.isfinite(x) for x in v):
             raise ValueError(f"expected {words} finite numbers")
+        if any(abs(x) > bound for x in v):
+            raise ValueError(f"expected {words} numbers within +-{bound:g} {unit}".rstrip())
         return tuple(float(x) for x in v)
 
     return BeforeValidator(check)
 
 
+def _bounded(v):
+    v = _number(v)
+    if math.isfinite(v) and abs(v) > MAX_POSITION_MM:
+        raise ValueError(f"expected a number within +-{MAX_POSITION_MM:g} (rad or mm)")
+    return v
+
+
 _Num = Annotated[float, BeforeValidator(_number)]
-_Vec3 = Annotated[tuple[float, ...], _vector((3,), "three")]
-_VecD = Annotated[tuple[float, ...], _vector((2, 3), "two or three")]
+_Coord = Annotated[float, BeforeValidator(_bounded)]
+_Vec3 = Annotated[tuple[float, ...], _vector((3,), "three", MAX_POSITION_MM, "mm")]
+_VecD = Annotated[tuple[float, ...], _vector((2, 3), "two or three", MAX_POSITION_MM, "mm")]
+_Rpy = Annotated[tuple[float, ...], _vector((3,), "three", MAX_ROTATION_RAD * 16, "rad")]
+_Axis = Annotated[tuple[float, ...], _vector((3,), "three", math.inf, "")]
 
 
 class _Strict(BaseModel):
@@ -177,13 +196,13 @@ class _JointIn(_Strict):
     name: str = Field(min_length=1)
     role: Literal["actuated", "passive", "spring"]
     stiffness: str | None = None
-    q0: _Num | None = None
-    lower: _Num | None = None
-    upper: _Num | None = None
+    q0: _Coord | None = None
+    lower: _Coord | None = None
+    upper: _Coord | None = None
     type: Literal["revolute", "prismatic"] | None = None
-    axis: _Vec3 | None = None
+    axis: _Axis | None = None
     xyz_mm: _Vec3 | None = None
-    rpy: _Vec3 | None = None
+    rpy: _Rpy | None = None
 
 
 class _LegIn(_Strict):
@@ -248,6 +267,12 @@ def _descriptions(data: dict, source: str, default_name: str):
             fail(f"params.{pname}", "a parameter name is letters, digits and _ (not starting with a digit)")
         if math.isnan(value) or value <= 0:
             fail(f"params.{pname}", f"a stiffness must be positive (or inf for rigid), got {value!r}")
+        if math.isfinite(value) and not (STIFFNESS_RANGE[0] <= value <= STIFFNESS_RANGE[1]):
+            fail(
+                f"params.{pname}",
+                f"a stiffness between {STIFFNESS_RANGE[0]:g} and {STIFFNESS_RANGE[1]:g} N*mm/rad or N/mm "
+                f"(or inf for rigid), got {value!r}",
+            )
     used: dict[str, str] = {}
     legs = []
     leg_names: set[str] = set()
@@ -289,8 +314,10 @@ def _descriptions(data: dict, source: str, default_name: str):
                 for k in ("type", "axis"):
                     if kin[k] is None:
                         fail(f"{jw}.{k}", "missing key")
-                if not any(jt.axis):
+                big = max(abs(x) for x in jt.axis)
+                if big == 0:
                     fail(f"{jw}.axis", "expected three numbers, not all zero")
+                jt = jt.model_copy(update={"axis": tuple(x / big for x in jt.axis)})
             if jt.role == "passive":
                 if jt.stiffness is not None:
                     fail(f"{jw}.stiffness", "a passive joint is free: no stiffness")
@@ -721,6 +748,14 @@ class LegRobot(LegMechanism):
             tables numbered from 1; a URDF's problems name the URDF.
         """
         p = Path(path)
+        try:
+            size = p.stat().st_size
+        except OSError:
+            size = 0  # read_text_file says why it cannot be read
+        if size > MAX_TOML_BYTES:
+            raise InputError(
+                f"{size} bytes; a legs TOML of more than {MAX_TOML_BYTES} bytes is not one", source=str(p)
+            )
         return cls.from_toml_text(
             read_text_file(p, "legs TOML file"), source=str(p), base_dir=p.parent, default_name=p.stem
         )
@@ -731,9 +766,15 @@ class LegRobot(LegMechanism):
     ) -> LegRobot:
         """:meth:`from_toml` of a TOML text (``source`` names it in messages)."""
         try:
-            data = tomllib.loads(text)
+            data = tomllib.loads(text.removeprefix("\ufeff"))
         except tomllib.TOMLDecodeError as e:
             raise InputError(f"not valid TOML: {e}", source=source) from None
+        except RecursionError:
+            raise InputError("not valid TOML: arrays or tables nested too deeply", source=source) from None
+        except ValueError:  # an integer of thousands of digits
+            raise InputError(
+                "not a usable TOML file: a number has thousands of digits", source=source
+            ) from None
         name, dim, tol, params, legs = _descriptions(data, source, default_name)
         built = tuple(
             _build_leg(d, k, dim, Path(base_dir), source, name) for k, d in enumerate(legs, start=1)
