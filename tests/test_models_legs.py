@@ -109,6 +109,12 @@ def test_delta_rebuilt_from_its_legs_equals_the_builtin(rng):
         v = ref.valid
         assert _relative(m.K[v], ref.K[v]).max() < 1e-9
         np.testing.assert_allclose(m.q[v], ref.q[v], rtol=0, atol=1e-9)  # actuator angles, rad
+    # Near the base, far from the seed, the IK's direct solve lands on the elbow-in branch; the
+    # elbow's limits (the elbow-out branch) send it back along a path from the seed.
+    far = np.array(
+        [[180.6, 8.9, -135.4], [261.5, -19.4, -143.7], [142.7, 224.8, -109.1], [22.5, 219.3, -101.5]]
+    )
+    assert _relative(lr.stiffness(far), DeltaRobot().stiffness(far)).max() < 1e-9
     # Singularity measures: the same parallel one; the serial one is the sine between n and the
     # actuator's column at the platform joint, w x (C - A), where the built-in takes t.
     s, p = lr.singularity_measures(P[v])
@@ -193,7 +199,9 @@ def test_legs_given_as_urdfs_equal_the_builtin(rng, tmp_path):
         InputError, match=r"legs\[1\]\.joints\[1\]\.name: 'slidr' is not a joint moving 'l5' in"
     ):
         LegRobot.from_toml_text(text.replace('name = "slider"', 'name = "slidr"', 2), base_dir=tmp_path)
-    with pytest.raises(InputError, match=r"leg1\.urdf: no frame 'l9'"):
+    with pytest.raises(
+        InputError, match=r"^legs\.toml: legs\[1\]\.urdf: .*leg1\.urdf: no frame 'l9' for the measured point"
+    ):
         LegRobot.from_toml_text(text.replace('"l5"', '"l9"', 1), base_dir=tmp_path)
 
 
@@ -255,11 +263,13 @@ def test_leg_robot_flags_unreachable_poses_naming_the_leg():
     lr = _from_legs("3prr")
     m = lr.evaluate([[400.0, 220.0], [400.0, 900.0], [50.0, 0.0]])
     np.testing.assert_array_equal(m.valid, [True, False, False])
-    assert m.reasons[1].startswith("unreachable: leg 1 (leg1) cannot reach it")
-    assert (
-        "leg 1 (leg1): joint slider at -2" in m.reasons[2]
-        and "beyond its limits [0, 461.88] mm" in m.reasons[2]
+    assert m.reasons[1].startswith("unreachable: leg 1 (leg1) cannot reach it from its seed")
+    # Near vertex 1, slider 1 would sit 205 mm before its rail starts: moving there from the
+    # seed, it leaves its rail (the built-in: "slider 1 off its rail (l1 = -205.4 mm ...)").
+    assert m.reasons[2].startswith(
+        "unreachable: leg 1 (leg1) cannot reach it from its seed within its limits (joint slider at -"
     )
+    assert "beyond its limits [0, 461.88] mm" in m.reasons[2]
     with pytest.raises(PoseError, match=r"point 1: pose \(400, 900\) mm unreachable: leg 1"):
         lr.stiffness([[400.0, 220.0], [400.0, 900.0]])
 
@@ -297,9 +307,9 @@ def test_leg_robot_params_fit_and_write_back(tmp_path):
             r"legs\[1\]\.joints\[1\]\.stiffness: 'k_thta' is not in \[params\] \(k_theta, k_arm, k_forearm\)",
         ),
         (
-            'q0 = 0.0\n\n[[legs.joints]]\nname = "elbow_z"',
-            'q0 = 0.0\nstifness = "k"\n\n[[legs.joints]]\nname = "elbow_z"',
-            r"legs\[1\]\.joints\[4\]\.stifness: unknown key \(expected one of name, role, stiffness",
+            'name = "elbow_z"\ntype = "revolute"',
+            'name = "elbow_z"\nstifness = "k"\ntype = "revolute"',
+            r"legs\[1\]\.joints\[5\]\.stifness: unknown key \(expected one of name, role, stiffness",
         ),
         ("dim = 3", "dim = 4", r"dim: Input should be 2 or 3, got 4"),
         (

@@ -439,11 +439,12 @@ def _delta_description(m: DeltaRobot) -> tuple[dict, tuple[LegDescription, ...]]
     R, r, a, b = m.base_radius, m.platform_radius, m.arm_length, m.forearm_length
     seed = m.forward_kinematics([0.5, 0.5, 0.5])  # a central pose on the z axis
     L = m.legs(seed)
-    legs = []
+    legs, h = [], math.pi / 2
     for i, phi in enumerate(m.leg_angles):
         th = float(L.theta[0, i])
-        # Ball joint: n = R_leg Ry(theta) Ry(alpha) Rx(beta) (-z); its lock (n along the
-        # actuator axis) lies far outside a Delta's workspace.
+        # Ball joint: n = R_leg Ry(theta) Ry(alpha) Rx(beta) (-z), so n.t = a cos(alpha) cos(beta):
+        # alpha, beta within +-90 deg is the elbow-out branch (and keeps the ball's lock, n along
+        # the actuator axis, out of reach).
         v = (_yaw(phi) @ _rot_y(th)).T @ L.n[0, i]
         alpha, beta = math.atan2(-v[0], -v[2]), math.asin(max(-1.0, min(1.0, v[1])))
         e = (math.cos(phi), math.sin(phi), 0.0)
@@ -461,8 +462,8 @@ def _delta_description(m: DeltaRobot) -> tuple[dict, tuple[LegDescription, ...]]
                 (0.0, 0.0, phi),
             ),
             LegJoint("arm", "spring", "k_arm", type="prismatic", axis=(0.0, 0.0, -1.0), xyz_mm=(a, 0.0, 0.0)),
-            LegJoint("elbow_y", "passive", q0=alpha, type="revolute", axis=(0.0, 1.0, 0.0)),
-            LegJoint("elbow_x", "passive", q0=beta, type="revolute", axis=(1.0, 0.0, 0.0)),
+            LegJoint("elbow_y", "passive", None, alpha, -h, h, "revolute", (0.0, 1.0, 0.0)),
+            LegJoint("elbow_x", "passive", None, beta, -h, h, "revolute", (1.0, 0.0, 0.0)),
             LegJoint("elbow_z", "passive", q0=0.0, type="revolute", axis=(0.0, 0.0, 1.0)),
             LegJoint("forearm", "spring", "k_forearm", type="prismatic", axis=(0.0, 0.0, -1.0)),
         )
@@ -511,7 +512,8 @@ joint method's input (docs/models.md, "Parallel robots from their legs"). Writte
 stiffmap.models.legs.legs_toml(DeltaRobot()); LegRobot.from_toml reads it.
 Each leg: the actuator (k_theta, N*mm/rad), the arm's transverse compliance at the elbow
 as a virtual prismatic spring (k_arm, N/mm), the elbow as a ball joint (three revolute
-joints), the forearm's axial compliance (k_forearm, N/mm). inf = rigid."""
+joints; limits +-90 deg on the first two: the elbow-out branch), the forearm's axial
+compliance (k_forearm, N/mm). inf = rigid."""
 
 _PRR3_HEADER = """\
 The planar 3PRR of stiffmap.models.prr3 (PRR3) described by its legs, the virtual joint
@@ -597,6 +599,53 @@ class _Leg:
     lower: np.ndarray
     upper: np.ndarray
     target: np.ndarray  # (3,): attach_mm, and for a planar robot the tip's z at the seed
+    tip0: np.ndarray  # (3,) mm: the tip at the seed
+    step_mm: float  # continuation step
+
+    @property
+    def columns(self) -> tuple[list[int], list[int], list[int]]:
+        """Indices of the spring (actuated and spring), actuated and passive joints."""
+        r = self.roles
+        return (
+            [i for i, x in enumerate(r) if x != "passive"],
+            [i for i, x in enumerate(r) if x == "actuated"],
+            [i for i, x in enumerate(r) if x == "passive"],
+        )
+
+    def solve(self, target: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """Joint coordinates of the IK chain with the tip at ``target``, on the seed's branch.
+
+        :meth:`Chain.inverse` from the seed; when that does not converge or lands beyond a
+        limit (on another branch), continuation: the tip moved from its seed position to the
+        target in steps of ``step_mm``, each solved from the previous solution.
+
+        Returns
+        -------
+        q : ndarray or None
+        why : str
+            Why not (when None), in words.
+        """
+        res = self.ik_chain.inverse(target, q0=self.q0, max_iter=50)
+        if res.converged and not self.beyond_limits(res.q):
+            return res.q, ""
+        n = max(2, math.ceil(float(np.linalg.norm(target - self.tip0)) / self.step_mm))
+        q = self.q0
+        for k in range(1, n + 1):
+            on_path = self.tip0 + (k / n) * (target - self.tip0)
+            res = self.ik_chain.inverse(on_path, q0=q, max_iter=30, tol_mm=1e-9 if k == n else 1e-6)
+            way = f"{100 * (k - 1) / n:.0f} % of the way"
+            if not res.converged:
+                return None, (
+                    f"cannot reach it from its seed (inverse kinematics stops {res.position_error_mm:.3g} "
+                    f"mm away, {way})"
+                )
+            q = res.q
+            out = self.beyond_limits(q)
+            if out and k < n:
+                return None, f"cannot reach it from its seed within its limits ({'; '.join(out)}, {way})"
+            if out:
+                return None, "; ".join(out)
+        return q, ""
 
     def beyond_limits(self, q: np.ndarray) -> list[str]:
         out = []
@@ -631,7 +680,10 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
     else:
         path = Path(desc.urdf)
         path = path if path.is_absolute() else base_dir / path
-        chain = Chain.from_urdf(path, desc.tip_frame, desc.tip_offset_mm)
+        try:
+            chain = Chain.from_urdf(path, desc.tip_frame, desc.tip_offset_mm)
+        except InputError as e:  # named in the URDF's terms; say which leg refers to it
+            raise InputError(f"{where}.urdf: {e}", source=source) from None
         for j, jt in enumerate(desc.joints, start=1):
             if jt.name not in chain.joint_names:
                 raise InputError(
@@ -654,12 +706,20 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
         lower.append(chain.lower[i] if jt is None or jt.lower is None else jt.lower)
         upper.append(chain.upper[i] if jt is None or jt.upper is None else jt.upper)
     q0a = np.array(q0)
+    tip0 = ik_chain.forward(q0a)[0]
     target = np.zeros(3)
     target[:dim] = desc.attach_mm
     if dim == 2:  # a planar robot: the leg's tip stays in its plane
-        target[2] = ik_chain.forward(q0a)[0][2]
+        target[2] = tip0[2]
+    # Continuation steps: a tenth of the leg's size (its joints' offsets and its tip's).
+    if desc.urdf is None:
+        size = sum(float(np.linalg.norm(jt.xyz_mm or (0.0, 0.0, 0.0))) for jt in desc.joints)
+        size += float(np.linalg.norm(desc.tip_offset_mm))
+    else:
+        size = float(np.linalg.norm(tip0))
+    lims = (np.array(lower), np.array(upper))
     return _Leg(
-        desc.name, chain, ik_chain, roles, stiffness, free, q0a, np.array(lower), np.array(upper), target
+        desc.name, chain, ik_chain, roles, stiffness, free, q0a, *lims, target, tip0, max(0.1 * size, 1.0)
     )
 
 
@@ -855,30 +915,18 @@ class LegRobot(LegMechanism):
             for k, lg in enumerate(self._legs):
                 target = lg.target.copy()
                 target[:d] += p
-                res = lg.ik_chain.inverse(target, q0=lg.q0)
-                if not res.converged:
-                    bad.append(
-                        f"leg {k + 1} ({lg.name}) cannot reach it (its inverse kinematics from q0 stops "
-                        f"{res.position_error_mm:.3g} mm away)"
-                    )
-                    continue
-                out = lg.beyond_limits(res.q)
-                if out:
-                    bad.append(f"leg {k + 1} ({lg.name}): " + "; ".join(out))
+                qf, why = lg.solve(target)
+                if qf is None:
+                    sep = " " if why.startswith("cannot") else ": "
+                    bad.append(f"leg {k + 1} ({lg.name}){sep}{why}")
                     continue
                 q = np.zeros(lg.chain.n)
-                q[lg.free] = res.q
+                q[lg.free] = qf
                 joints[k][i] = q
                 J = lg.chain.jacobian(q)[:d]
-                roles = np.array(lg.roles)
-                for arr, cols in (
-                    (springs, roles != "passive"),
-                    (actuated, roles == "actuated"),
-                    (passive, roles == "passive"),
-                ):
-                    m = int(np.count_nonzero(cols))
-                    arr[i, k, :, :m] = J[:, cols]
-                    arr[i, k, :, m:] = 0.0
+                for arr, cols in zip((springs, actuated, passive), lg.columns, strict=True):
+                    arr[i, k, :, : len(cols)] = J[:, cols]
+                    arr[i, k, :, len(cols) :] = 0.0
             if bad:
                 reasons[i] = "unreachable: " + "; ".join(bad)
         reachable = np.array([r == "" for r in reasons], dtype=bool)
