@@ -355,3 +355,20 @@ def test_mutated_leg_files_load_or_are_refused_by_name(data):
             return
     m = lr.evaluate(np.array([[0.0, 0.0, -300.0]]) if lr.dim == 3 else np.array([[400.0, 230.0]]))
     assert m.valid[0] or m.reasons[0].startswith(("unreachable: ", "singular: "))
+
+
+def test_the_docs_example_is_a_3rpr_with_the_hand_stiffness(rng):
+    # docs/models.md, "The legs TOML": each leg a two-force member along its length, so
+    # K = k_leg sum_i n_i n_i^T with n_i the unit vector from base pin i to the tool.
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "models.md").read_text(encoding="utf-8")
+    section = doc[doc.index("### The legs TOML") :]
+    text = section[section.index("```toml\n") + 8 : section.index("```\n", section.index("```toml"))]
+    lr = LegRobot.from_toml_text(text, source="docs/models.md")
+    assert (lr.name, lr.dim, lr.params()) == ("3rpr", 2, {"k_leg": 2000.0})
+    T = rng.uniform((200.0, 100.0), (400.0, 250.0), size=(8, 2))
+    n = T[:, None, :] - np.array([[0.0, 0.0], [600.0, 0.0], [300.0, 519.6]])
+    q = np.linalg.norm(n, axis=2)
+    n /= q[..., None]
+    K = 2000.0 * np.einsum("nij,nik->njk", n, n)
+    assert _relative(lr.stiffness(T), K).max() < 1e-9
+    np.testing.assert_allclose(lr.inverse_kinematics(T).q, q, atol=1e-7)  # leg lengths, mm
