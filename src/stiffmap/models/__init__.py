@@ -5,6 +5,10 @@
 - :mod:`~stiffmap.models.delta`: :class:`DeltaRobot`, a Delta-type translational robot;
 - :mod:`~stiffmap.models.prr3`: :class:`PRR3`, the redundant planar 3PRR of the
   milling study (truss with flexible prismatic joints);
+- :mod:`~stiffmap.models.legs`: :class:`~stiffmap.models.legs.LegRobot`, a translational
+  parallel robot described by its legs in a TOML (virtual joint method; the Delta and the
+  3PRR are instances: ``robots/delta.toml``, ``robots/3prr.toml``). Not imported here: it
+  loads Pinocchio (:mod:`~stiffmap.models.chain`), which the built-ins do not need;
 - :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
   position layouts, grids and load directions from text;
 - :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors;

@@ -640,10 +640,9 @@ class LegMechanism:
         valid = flag_singular(legs.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
         K, rigid = platform_stiffness(*self._leg_joints(legs), valid)
         for i in np.flatnonzero(np.any(rigid, axis=1)):  # every spring along a held direction rigid
-            which = ", ".join(str(j + 1) for j in np.flatnonzero(rigid[i]))
-            reasons[i] = (
-                f"singular: leg {which} rigid along a direction it holds (no finite spring acts there)"
-            )
+            which = [str(j + 1) for j in np.flatnonzero(rigid[i])]
+            legs_ = ("leg " if len(which) == 1 else "legs ") + ", ".join(which)
+            reasons[i] = f"singular: {legs_} rigid along a direction held (no finite spring acts there)"
             valid[i] = False
         cond = np.where(legs.reachable, np.fmin(serial, parallel), np.nan)
         return model_map(self.name, self.params(), P, K, valid, reasons, self._joint_coordinates(legs), cond)
