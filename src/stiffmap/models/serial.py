@@ -145,8 +145,9 @@ class SerialRobot:
         they stand for.
     tool_rotation : ndarray, shape (3, 3), optional
         The tip frame's orientation (tip to base) held by inverse kinematics for a position
-        that is not a configuration's; default the orientation at the first configuration,
-        else at ``q_seed``.
+        that is not a configuration's. Default: the orientation of the configuration it
+        starts from (the nearest one; the same for all when the configurations share one
+        orientation, the usual map), else the orientation at ``q_seed``.
     q_seed : ndarray, shape (n,), optional
         Start of inverse kinematics when there are no configurations (default zeros,
         clipped into the joint limits); with configurations, the nearest one's is used.
@@ -223,10 +224,10 @@ class SerialRobot:
         else:
             Pc, Rc = np.zeros((0, 3)), np.zeros((0, 3, 3))
         object.__setattr__(self, "_config_points", Pc)
-        if self.tool_rotation is None:
-            R = Rc[0] if Q is not None else ch.forward(seed)[1]
-        else:
-            R = np.asarray(self.tool_rotation, dtype=np.float64)
+        object.__setattr__(self, "_config_rotations", Rc)
+        object.__setattr__(self, "_seed_rotation", ch.forward(seed)[1])
+        if self.tool_rotation is not None:
+            R = np.array(self.tool_rotation, dtype=np.float64)
             if (
                 R.shape != (3, 3)
                 or not np.all(np.isfinite(R))
@@ -234,9 +235,8 @@ class SerialRobot:
                 or np.linalg.det(R) < 0
             ):
                 raise ValueError(f"tool_rotation must be a 3x3 rotation matrix, got {self.tool_rotation!r}")
-        R = np.array(R)
-        R.setflags(write=False)
-        object.__setattr__(self, "tool_rotation", R)
+            R.setflags(write=False)
+            object.__setattr__(self, "tool_rotation", R)
         if self.length_mm is None:
             J = ch.jacobian(seed)
             rev = [i for i, t in enumerate(ch.joint_types) if t == "revolute"]
@@ -425,8 +425,12 @@ class SerialRobot:
             else:
                 res = (Qc[j].copy(), "")
         else:
-            q0, start = (Qc[j], f"configuration {j + 1}") if Qc is not None else (self.q_seed, "q_seed")
-            r = ch.inverse(p, self.tool_rotation, q0=q0, length_mm=self.length)
+            if Qc is not None:
+                q0, R0, start = Qc[j], self._config_rotations[j], f"configuration {j + 1}"
+            else:
+                q0, R0, start = self.q_seed, self._seed_rotation, "q_seed"
+            R = R0 if self.tool_rotation is None else self.tool_rotation
+            r = ch.inverse(p, R, q0=q0, length_mm=self.length)
             if not r.converged:
                 res = (
                     np.full(self.n, np.nan),
@@ -450,8 +454,9 @@ class SerialRobot:
         """The joint configuration of each position of the measured point.
 
         A point within ``match_tol_mm`` of a given configuration's measured point takes
-        that configuration; any other is solved by :meth:`Chain.inverse` holding
-        ``tool_rotation``, from the nearest configuration (or ``q_seed``). A point is
+        that configuration; any other is solved by :meth:`Chain.inverse` from the nearest
+        configuration (or ``q_seed``), holding ``tool_rotation`` (default: the orientation of
+        that configuration). A point is
         unreachable when inverse kinematics does not converge, when its configuration
         puts a joint beyond its limits, or when two different configurations share it.
 
