@@ -194,6 +194,12 @@ def test_parameters_by_name_and_a_fit_recovers_them(rng):
     np.testing.assert_allclose(rigid.compliance6(Q[0]), C5, rtol=1e-12, atol=1e-15 * np.abs(C5).max())
     with pytest.raises(InputError, match="K6 needs six compliant joints"):
         rigid.stiffness6(Q[0])
+    # Finite but absurdly stiff joints (a fit running away): flagged, not inverted into noise.
+    stiff = robot.with_params(k_theta=[1e9, 1e9, 1e300, 1e300, 1e300, 1e300])
+    m = stiff.evaluate_configurations(Q[:2])
+    assert not m.valid.any() and "leave the point almost rigid along" in m.reasons[0]
+    with pytest.raises(InputError, match="leave the point almost rigid"):
+        stiff.stiffness3(Q[0])
     # Fitting k1..k6 to exact matrices at the configurations' points (the generic fit) finds them.
     P = robot.chain.forward_many(Q)[0]
     start = robot.with_params(

@@ -59,12 +59,16 @@ from .base import (
 )
 from .chain import Chain
 
-__all__ = ["SerialRobot", "MATCH_TOL_MM"]
+__all__ = ["SerialRobot", "MATCH_TOL_MM", "RIGID_RATIO"]
 
 #: A point within this distance (mm) of a configuration's measured point takes that
 #: configuration. stiffmap's CSV files write positions with 6 significant digits (up to
 #: 5 micrometres off at 1 m), so a position read back from one still finds its configuration.
 MATCH_TOL_MM = 0.01
+
+#: A compliance whose smallest principal value is below this fraction of its largest is not
+#: inverted: the joint springs leave the point (almost) rigid along a direction.
+RIGID_RATIO = 1e-12
 
 #: Above this many remembered inverse-kinematics solutions the memo is cleared.
 _MEMO_MAX = 100_000
@@ -109,6 +113,27 @@ def _inverse_condition(A: np.ndarray, k: int) -> np.ndarray:
     s = np.linalg.svd(A, compute_uv=False)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(s[:, 0] > 0, s[:, k - 1] / np.where(s[:, 0] > 0, s[:, 0], 1.0), 0.0)
+
+
+def _check_rigid(C: np.ndarray, index: np.ndarray, reasons: list[str]) -> np.ndarray:
+    """Compliances C (M, d, d) that can be inverted; the others get a reason (at ``index``).
+
+    A compliance whose smallest principal value is below :data:`RIGID_RATIO` times its
+    largest leaves the point (almost) rigid along a direction: far stiffer joints than the
+    others (a fit wandering to k = 1e300), not a stiffness to invert.
+    """
+    w, V = np.linalg.eigh(C)
+    ok = w[:, 0] > RIGID_RATIO * w[:, -1]
+    for a in np.flatnonzero(~ok):
+        d = V[a][:, 0]
+        along = _direction(d[:3]) + (
+            " (with rotation)" if d.size > 3 and np.linalg.norm(d[3:]) > 1e-6 else ""
+        )
+        reasons[int(index[a])] = (
+            f"singular: the joint springs leave the point almost rigid along {along} (principal "
+            f"compliances {w[a, 0]:.2g} to {w[a, -1]:.2g}: ratio below {RIGID_RATIO:g})"
+        )
+    return ok
 
 
 def _names(names: Sequence[str]) -> str:
@@ -636,9 +661,13 @@ class SerialRobot:
             valid[i] = False
         K = np.full((N, 3, 3), np.nan)
         if np.any(valid):
-            C = _compliances(J[valid], self.compliances)[:, :3, :3]
-            Kv = np.linalg.inv(C)
-            K[valid] = 0.5 * (Kv + np.swapaxes(Kv, 1, 2))
+            idx = np.flatnonzero(valid)
+            C = _compliances(J[idx], self.compliances)[:, :3, :3]
+            ok = _check_rigid(C, idx, reasons)
+            valid[idx[~ok]] = False
+            if np.any(ok):
+                Kv = np.linalg.inv(C[ok])
+                K[idx[ok]] = 0.5 * (Kv + np.swapaxes(Kv, 1, 2))
         cond = np.where(reachable, np.fmin(joint, trans), np.nan)
         return model_map(self.name, self.params(), P, K, valid, reasons, Q, cond)
 
@@ -686,7 +715,7 @@ class SerialRobot:
         return self._map(P, Q, reachable, reasons)
 
     def _check_configs(self, q, need6: bool) -> tuple[np.ndarray, np.ndarray, bool]:
-        """Jacobians of configurations at which K3 (or K6) exists, else InputError naming the first."""
+        """C6 (or C3) of configurations where K6 (or K3) exists, else InputError naming the first."""
         Q, single = self._configs(q)
         J = self.chain.jacobian_many(Q)
         joint, trans = self._measures(J)
@@ -707,7 +736,15 @@ class SerialRobot:
                 bad.append(self._translation_reason(J[i], trans[i]))
             if bad:
                 raise InputError(f"{where}singular: " + "; ".join(bad), source=self.chain.source)
-        return Q, J, single
+        C = _compliances(J, self.compliances)
+        C = C if need6 else C[:, :3, :3]
+        reasons = ["" for _ in range(Q.shape[0])]
+        ok = _check_rigid(C, np.arange(Q.shape[0]), reasons)
+        if not ok.all():
+            i = int(np.flatnonzero(~ok)[0])
+            where = "" if single else f"configuration {i + 1}: "
+            raise InputError(where + reasons[i], source=self.chain.source)
+        return Q, C, single
 
     def stiffness6(self, q) -> np.ndarray:
         """``K6 = C6^-1`` (= J^-T K_theta J^-1 for six joints), where J has rank 6.
@@ -727,8 +764,8 @@ class SerialRobot:
         InputError
             Fewer than six compliant joints, or a singular configuration (named).
         """
-        _, J, single = self._check_configs(q, need6=True)
-        K = np.linalg.inv(_compliances(J, self.compliances))
+        _, C, single = self._check_configs(q, need6=True)
+        K = np.linalg.inv(C)
         K = 0.5 * (K + np.swapaxes(K, 1, 2))
         return K[0] if single else K
 
@@ -748,8 +785,8 @@ class SerialRobot:
         InputError
             Where the compliant joints cannot move the point in every direction (named).
         """
-        _, J, single = self._check_configs(q, need6=False)
-        K = np.linalg.inv(_compliances(J, self.compliances)[:, :3, :3])
+        _, C, single = self._check_configs(q, need6=False)
+        K = np.linalg.inv(C)
         K = 0.5 * (K + np.swapaxes(K, 1, 2))
         return K[0] if single else K
 
