@@ -473,9 +473,13 @@ def read_configurations(path: str | os.PathLike, chain) -> np.ndarray:
 
 
 def _q_display(robot: SerialRobot, q: np.ndarray) -> list[float]:
-    """Joint coordinates as given in a configurations file: degrees (mm for prismatic joints)."""
+    """Joint coordinates as given in a configurations file: degrees (mm for prismatic joints).
+
+    Rounded to 12 significant digits: the file's 30 comes back as 30, not as the
+    29.999999999999996 of its trip through radians.
+    """
     return [
-        float(v) if t == "prismatic" else math.degrees(float(v))
+        float(f"{float(v) if t == 'prismatic' else math.degrees(float(v)):.12g}")
         for v, t in zip(q, robot.chain.joint_types, strict=True)
     ]
 
