@@ -5,6 +5,8 @@
 - :mod:`~stiffmap.models.delta`: :class:`DeltaRobot`, a Delta-type translational robot;
 - :mod:`~stiffmap.models.prr3`: :class:`PRR3`, the redundant planar 3PRR of the
   milling study (truss with flexible prismatic joints);
+- :mod:`~stiffmap.models.serial`: :class:`SerialRobot`, a serial arm read from a URDF
+  (kinematics through :mod:`~stiffmap.models.chain`, Pinocchio) with joint springs;
 - :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
   position layouts, grids and load directions from text;
 - :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors;
@@ -20,6 +22,7 @@ from .delta import DeltaRobot
 from .fit import ModelFit, fit_static_errors, fit_stiffness
 from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
 from .prr3 import PRR3
+from .serial import SerialRobot
 
 __all__ = [
     "Mechanism",
@@ -29,6 +32,7 @@ __all__ = [
     "SINGULAR_TOL",
     "DeltaRobot",
     "PRR3",
+    "SerialRobot",
     "paper48",
     "prr3_points22",
     "POSITION_PRESETS",
