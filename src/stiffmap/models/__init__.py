@@ -10,6 +10,7 @@
 - :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
   position layouts, grids and load directions from text;
 - :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors;
+- :mod:`~stiffmap.models.joint_fit`: joint stiffnesses of a robot from measured deflections;
 - :mod:`~stiffmap.models.io`: the files of ``stiffmap model`` and ``stiffmap fit``.
 
 See ``docs/models.md``.
@@ -20,6 +21,13 @@ from __future__ import annotations
 from .base import SINGULAR_TOL, IKSolution, Mechanism, ModelMap, PoseError
 from .delta import DeltaRobot
 from .fit import ModelFit, fit_static_errors, fit_stiffness
+from .joint_fit import (
+    JointFit,
+    JointIdentifiability,
+    fit_joint_compliances,
+    joint_deflections,
+    joint_identifiability,
+)
 from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
 from .prr3 import PRR3
 from .serial import SerialRobot
@@ -40,4 +48,9 @@ __all__ = [
     "ModelFit",
     "fit_stiffness",
     "fit_static_errors",
+    "JointFit",
+    "JointIdentifiability",
+    "fit_joint_compliances",
+    "joint_deflections",
+    "joint_identifiability",
 ]
