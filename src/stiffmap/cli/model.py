@@ -1,4 +1,8 @@
-"""``stiffmap model`` (a model's stiffness and static error per point) and ``stiffmap fit``."""
+"""``stiffmap model`` (a model's stiffness and static error per point) and ``stiffmap fit``.
+
+Both take a built-in mechanism (``delta``, ``3prr``) or a serial robot read from a URDF
+(``urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv --param k_theta=K1,...,Kn``).
+"""
 
 from __future__ import annotations
 
@@ -13,22 +17,80 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
-from ..models.io import fit_measurements_file, map_csv, map_records, read_points
+from ..models.io import configuration_records, fit_measurements_file, map_csv, map_records, read_points
 from ..models.presets import (
     DEFAULT_LOAD,
+    URDF_MODEL,
     default_positions,
     fit_parameter_names,
     force_direction,
     grid_points,
     mechanism_from_params,
+    serial_robot_from_options,
 )
 from ..textfmt import fmt, fmt_pm
-from .common import EXIT_PARTIAL, fail, float_values, out, parse_key_values, print_json, warn
+from .common import (
+    EXIT_PARTIAL,
+    fail,
+    float_values,
+    from_option,
+    out,
+    parse_key_values,
+    print_json,
+    three_numbers,
+    warn,
+)
 
 
 class MechanismName(StrEnum):
     delta = "delta"
     prr3 = "3prr"
+    urdf = "urdf"
+
+
+_URDF_USAGE = (
+    "stiffmap {cmd} urdf ROBOT.urdf {more}--tip FRAME --configs CONFIGS.csv --param k_theta=K1,...,Kn"
+)
+_TIP_HELP = "urdf: the link (frame) of the URDF that carries the measured point."
+_OFFSET_HELP = "urdf: the measured point in the tip frame, X,Y,Z in mm (default 0,0,0)."
+_CONFIGS_HELP = (
+    "urdf: CSV of joint configurations, one row each, columns q1_deg..qn_deg in the URDF's joint "
+    "order (qk_mm for a prismatic joint)."
+)
+
+
+def _urdf_only(mech: str, **given) -> None:
+    """Refuse the urdf options (``--tip`` ...) for delta and 3prr."""
+    for opt, v in given.items():
+        if v is not None:
+            raise InputError(f"{opt} is for 'urdf' (a serial robot from its URDF), not {mech}")
+
+
+def _serial_robot(cmd: str, robot: Path | None, tip, tip_offset, configs, param, more: str = ""):
+    """The SerialRobot of ``stiffmap model|fit urdf`` from the options (InputError naming what is missing)."""
+    usage = _URDF_USAGE.format(cmd=cmd, more=more)
+    if robot is None:
+        raise InputError(f"urdf needs the robot's URDF file: {usage}")
+    if not tip:
+        raise InputError(
+            f"--tip FRAME is required for urdf: the link of {robot} that carries the measured point"
+        )
+    if configs is None:
+        raise InputError(
+            "--configs CONFIGS.csv is required for urdf: the joint configurations (columns q1_deg..qn_deg "
+            "in the URDF's joint order)"
+        )
+    offset = (0.0, 0.0, 0.0)
+    if tip_offset is not None:
+        offset = three_numbers(tip_offset)
+        if offset is None:
+            raise InputError(f"--tip-offset-mm: expected X,Y,Z in mm (three numbers), got {tip_offset!r}")
+    if not param:
+        raise InputError(
+            "--param k_theta=K1,...,Kn is required for urdf: the joint stiffnesses in the URDF's joint "
+            "order (N*mm/rad; N/mm for prismatic joints), or one value for all; there is no default"
+        )
+    return from_option("--param:", serial_robot_from_options, robot, tip, offset, configs, param)
 
 
 def _from_option(option: str, parse, *args):
@@ -46,7 +108,10 @@ def _build_model(name: str, param_items: list[str]):
 
 
 def model(
-    mechanism: MechanismName = typer.Argument(..., help="delta or 3prr."),
+    mechanism: MechanismName = typer.Argument(..., help="delta, 3prr or urdf."),
+    robot: Path = typer.Argument(
+        None, metavar="[ROBOT.urdf]", help="urdf only (and required): the robot's URDF file."
+    ),
     grid: str = typer.Option(
         None,
         "--grid",
@@ -66,8 +131,15 @@ def model(
         "-z for delta).",
     ),
     param: list[str] = typer.Option(
-        None, "--param", help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names)."
+        None,
+        "--param",
+        help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names). urdf: "
+        "k_theta=K1,...,Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
+        "and k3=K for one joint.",
     ),
+    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
+    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
+    configs: Path = typer.Option(None, "--configs", help=_CONFIGS_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
     as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
     output: Path = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead."),
@@ -77,8 +149,33 @@ def model(
     Points that cannot be evaluated (outside the workspace, or at a singularity) are
     named with the reason, the others are printed; the exit status is then 1 (2 when no
     point can be evaluated).
+
+    urdf (a serial robot): 'stiffmap model urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv
+    --param k_theta=K1,...,Kn' prints, per configuration, the measured point's position (mm,
+    base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
     """
     mech = mechanism.value
+    if mech == URDF_MODEL:
+        for opt, v in (
+            ("--grid", grid),
+            ("--points", points),
+            ("--load-n", load_n),
+            ("--direction", direction),
+        ):
+            if v is not None:
+                raise InputError(
+                    f"{opt} is for delta and 3prr; urdf evaluates the configurations of --configs"
+                )
+        if as_csv:
+            raise InputError("--csv is for delta and 3prr; urdf prints --json")
+        _model_urdf(_serial_robot("model", robot, tip, tip_offset, configs, param), configs, as_json, output)
+        return
+    if robot is not None:
+        raise InputError(
+            f"{robot}: a robot file is only for 'stiffmap model urdf ROBOT.urdf'; {mech} takes none "
+            "(positions: --grid or --points)"
+        )
+    _urdf_only(mech, **{"--tip": tip, "--tip-offset-mm": tip_offset, "--configs": configs})
     if as_json and as_csv:
         raise InputError("--json and --csv are exclusive")
     if grid is not None and points is not None:
@@ -105,6 +202,53 @@ def model(
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _model_urdf(built, configs: Path, as_json: bool, output: Path | None) -> None:
+    """``stiffmap model urdf``: position and stiffness per configuration; exit 1 or 2 when some fail."""
+    robot, lines = built
+    mp, recs = configuration_records(robot, robot.configurations, lines, str(configs))
+    if as_json:
+        if output is not None:
+            atomic_write_text(output, dumps_json(recs) + "\n")
+        else:
+            print_json(recs)
+    elif output is not None:
+        raise InputError("--output needs --json")
+    else:
+        _print_configurations(robot, mp, recs, lines)
+    bad = [r["error"] for r in recs if "error" in r]
+    if len(bad) == len(recs):
+        if len(bad) == 1:
+            raise fail(bad[0])
+        raise fail(
+            f"none of the {len(recs)} configuration(s) can be evaluated (see 'error'); the first: {bad[0]}"
+        )
+    if bad:
+        warn(f"{len(bad)} of {len(recs)} configuration(s) of {configs} cannot be evaluated (see 'error')")
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_configurations(robot, mp, recs, lines) -> None:
+    out.print(robot.describe())
+    out.print(
+        "K: the stiffness a pure force at the measured point sees (N/mm, base frame); "
+        "k_min <= k_mid <= k_max its principal stiffnesses; q in deg (mm for prismatic joints)"
+    )
+    t = Table()
+    for c in ("#", "line", "q", "x (mm)", "y (mm)", "z (mm)", "k_min", "k_mid", "k_max"):
+        t.add_column(c, justify="left" if c == "q" else "right")
+    t.add_column("status")
+    for i, r in enumerate(recs):
+        q = ", ".join(fmt(v, 5) for v in r["q_deg"])
+        head = [str(i + 1), str(int(lines[i])), q]
+        if "error" in r:
+            t.add_row(*head, *([""] * 6), mp.reasons[i])
+        else:
+            t.add_row(
+                *head, *(fmt(v, 6) for v in mp.points[i]), *(fmt(v, 4) for v in mp.eigenvalues[i]), "ok"
+            )
+    out.print(t)
 
 
 def _force(mech: str, dim: int, load_n: float | None, direction: str | None) -> np.ndarray:
@@ -173,19 +317,32 @@ def _print_map(m, mp, F) -> None:
 
 
 def fit(
-    mechanism: MechanismName = typer.Argument(..., help="delta or 3prr."),
-    measurements: Path = typer.Argument(
+    mechanism: MechanismName = typer.Argument(..., help="delta, 3prr or urdf."),
+    files: list[Path] = typer.Argument(
         ...,
-        help="CSV of static errors (x,y[,z], fx,fy[,fz], [nx,ny[,nz],] value_mm[, std_mm]) or of "
-        "stiffness matrices (x,y[,z], k11..kdd[, k11_std..]); see docs/models.md.",
+        metavar="[ROBOT.urdf] MEASUREMENTS",
+        help="urdf: the robot's URDF, then the measurements; delta, 3prr: the measurements. "
+        "MEASUREMENTS: CSV of static errors (x,y[,z], fx,fy[,fz], [nx,ny[,nz],] value_mm[, std_mm]) or "
+        "of stiffness matrices (x,y[,z], k11..kdd[, k11_std..]); see docs/models.md.",
     ),
     param_to_fit: list[str] = typer.Option(
         None,
         "--param-to-fit",
-        help="Parameter to estimate (repeatable; default kj for 3prr, k_theta for delta).",
+        help="Parameter to estimate (repeatable; default kj for 3prr, k_theta for delta, every joint "
+        "k1..kn for urdf).",
     ),
     param: list[str] = typer.Option(
-        None, "--param", help="Fixed model parameter or starting value NAME=VALUE (repeatable)."
+        None,
+        "--param",
+        help="Fixed model parameter or starting value NAME=VALUE (repeatable). urdf: "
+        "k_theta=K1,...,Kn (required; N*mm/rad, N/mm for prismatic joints), k3=K for one joint.",
+    ),
+    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
+    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
+    configs: Path = typer.Option(
+        None,
+        "--configs",
+        help=_CONFIGS_HELP + " The measurements' positions are matched to their measured points.",
     ),
     absolute_sigma: bool = typer.Option(
         False,
@@ -198,10 +355,29 @@ def fit(
 
     Prints each estimate with its standard error, the fit's condition, chi-square and the
     residual RMS per pose. Refuses parameters the data cannot determine.
+
+    urdf: 'stiffmap fit urdf ROBOT.urdf MEASUREMENTS --tip FRAME --configs CONFIGS.csv --param
+    k_theta=K1,...,Kn [--param-to-fit k1 ...]' fits joint stiffnesses; each measured position is
+    one of the configurations' measured points (or solved by inverse kinematics).
     """
     mech = mechanism.value
-    m = _build_model(mech, param or [])
-    names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit)
+    if mech == URDF_MODEL:
+        if len(files) != 2:
+            usage = _URDF_USAGE.format(cmd="fit", more="MEASUREMENTS ")
+            raise InputError(f"urdf takes two files, the robot's URDF then the measurements: {usage}")
+        robot_file, measurements = files
+        m, _ = _serial_robot("fit", robot_file, tip, tip_offset, configs, param, more="MEASUREMENTS ")
+        names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit, m)
+    else:
+        if len(files) != 1:
+            raise InputError(
+                f"{mech} takes one file, the measurements; a robot file is only for 'stiffmap fit urdf "
+                f"ROBOT.urdf MEASUREMENTS' (got {', '.join(map(str, files))})"
+            )
+        (measurements,) = files
+        _urdf_only(mech, **{"--tip": tip, "--tip-offset-mm": tip_offset, "--configs": configs})
+        m = _build_model(mech, param or [])
+        names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         f, _ = fit_measurements_file(m, measurements, names, absolute_sigma=absolute_sigma)

@@ -5,13 +5,15 @@
 - :mod:`~stiffmap.models.delta`: :class:`DeltaRobot`, a Delta-type translational robot;
 - :mod:`~stiffmap.models.prr3`: :class:`PRR3`, the redundant planar 3PRR of the
   milling study (truss with flexible prismatic joints);
-- :mod:`~stiffmap.models.legs`: :class:`~stiffmap.models.legs.LegRobot`, a translational
-  parallel robot described by its legs in a TOML (virtual joint method; the Delta and the
-  3PRR are instances: ``robots/delta.toml``, ``robots/3prr.toml``). Not imported here: it
-  loads Pinocchio (:mod:`~stiffmap.models.chain`), which the built-ins do not need;
+- :mod:`~stiffmap.models.legs`: :class:`LegRobot`, a translational parallel robot
+  described by its legs in a TOML (virtual joint method; the Delta and the 3PRR are
+  instances: ``robots/delta.toml``, ``robots/3prr.toml``);
+- :mod:`~stiffmap.models.serial`: :class:`SerialRobot`, a serial arm read from a URDF
+  (kinematics through :mod:`~stiffmap.models.chain`, Pinocchio) with joint springs;
 - :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
   position layouts, grids and load directions from text;
 - :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors;
+- :mod:`~stiffmap.models.joint_fit`: joint stiffnesses of a robot from measured deflections;
 - :mod:`~stiffmap.models.io`: the files of ``stiffmap model`` and ``stiffmap fit``.
 
 See ``docs/models.md``.
@@ -22,8 +24,17 @@ from __future__ import annotations
 from .base import SINGULAR_TOL, IKSolution, Mechanism, ModelMap, PoseError
 from .delta import DeltaRobot
 from .fit import ModelFit, fit_static_errors, fit_stiffness
+from .joint_fit import (
+    JointFit,
+    JointIdentifiability,
+    fit_joint_compliances,
+    joint_deflections,
+    joint_identifiability,
+)
+from .legs import LegRobot, legs_toml
 from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
 from .prr3 import PRR3
+from .serial import SerialRobot
 
 __all__ = [
     "Mechanism",
@@ -33,6 +44,9 @@ __all__ = [
     "SINGULAR_TOL",
     "DeltaRobot",
     "PRR3",
+    "SerialRobot",
+    "LegRobot",
+    "legs_toml",
     "paper48",
     "prr3_points22",
     "POSITION_PRESETS",
@@ -40,4 +54,9 @@ __all__ = [
     "ModelFit",
     "fit_stiffness",
     "fit_static_errors",
+    "JointFit",
+    "JointIdentifiability",
+    "fit_joint_compliances",
+    "joint_deflections",
+    "joint_identifiability",
 ]

@@ -441,7 +441,8 @@ class Chain:
 
         Damped least squares (Levenberg-Marquardt on the joints, the minimum-norm step
         for a redundant chain) from ``q0``: the solution is the one of ``q0``'s branch
-        (elbow up or down, wrist flipped or not). Joint limits are not enforced here;
+        (elbow up or down, wrist flipped or not), its revolute joints within half a turn
+        of ``q0``'s. Joint limits are not enforced here;
         :meth:`beyond_limits` says whether the solution respects them.
 
         Parameters
@@ -465,6 +466,7 @@ class Chain:
         target = np.asarray(position_mm, dtype=float).reshape(3)
         Rt = None if rotation is None else np.asarray(rotation, dtype=float).reshape(3, 3)
         q = np.zeros(self.n) if q0 is None else self.check_q(q0, "q0").copy()
+        q_start = q.copy()
         p, R = self.forward(q)
         L = float(length_mm) if length_mm else max(100.0, float(np.linalg.norm(p)))
         lam = 1e-3
@@ -481,7 +483,7 @@ class Chain:
         for it in range(1, max_iter + 1):
             ep, er = float(np.linalg.norm(e_p)), float(np.linalg.norm(e_r)) if e_r.size else 0.0
             if ep < tol_mm and er < tol_rad:
-                return IKResult(q, True, ep, er, it - 1)
+                return IKResult(self._near(q, q_start), True, ep, er, it - 1)
             J = self.jacobian(q)
             A = J[:3] if Rt is None else np.vstack([J[:3], L * J[3:]])
             e = e_p if Rt is None else np.concatenate([e_p, L * e_r])
@@ -503,7 +505,15 @@ class Chain:
             q, e_p, e_r = qn, n_p, n_r
             lam = max(lam / 10.0, 1e-12)
         ep, er = float(np.linalg.norm(e_p)), float(np.linalg.norm(e_r)) if e_r.size else 0.0
-        return IKResult(q, ep < tol_mm * 1e3 and er < tol_rad * 1e3, ep, er, it)
+        return IKResult(self._near(q, q_start), ep < tol_mm * 1e3 and er < tol_rad * 1e3, ep, er, it)
+
+    def _near(self, q: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        """``q`` with each revolute joint turned by whole turns to lie within half a turn of ``seed``."""
+        out = q.copy()
+        for k, t in enumerate(self.joint_types):
+            if t == "revolute":
+                out[k] = seed[k] + (q[k] - seed[k] + math.pi) % (2 * math.pi) - math.pi
+        return out
 
     def __repr__(self) -> str:
         tip = f"{self.tip_frame!r} + {self.tip_offset_mm.tolist()} mm"

@@ -24,23 +24,33 @@ reading of one displacement component:
 
 A file holding ``value_mm`` is read as static errors, one holding ``k11`` as
 stiffness matrices.
+
+**Joint configurations** of a serial robot (``stiffmap model urdf --configs``): one row
+per configuration, columns ``q1_deg ... qn_deg`` in the URDF's joint order
+(:attr:`~stiffmap.models.chain.Chain.joint_names`), degrees; a prismatic joint's column is
+``qk_mm`` (mm). Other columns (a label, the commanded pose) are ignored; a column named
+like a joint's (``q7_deg``, ``q2_mm`` for a revolute joint) that the robot does not have
+is refused.
 """
 
 from __future__ import annotations
 
 import csv
 import io as _io
+import math
 import os
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
-from ..io import read_csv_columns, sniff_delimiter
+from ..io import read_csv_columns, read_text_file, sniff_delimiter
 from ..loads import MAX_FORCE_N
 from ..stiffness import MAX_DISPLACEMENT_MM, MAX_POSITION_MM, MAX_STIFFNESS_N_PER_MM
 from .base import Mechanism, ModelMap, PoseError, format_pose
 from .fit import ModelFit, fit_static_errors, fit_stiffness
+from .serial import SerialRobot
 
 __all__ = [
     "read_points",
@@ -51,9 +61,17 @@ __all__ = [
     "map_records",
     "map_csv",
     "AXIS_NAMES",
+    "configuration_columns",
+    "read_configurations",
+    "read_configuration_rows",
+    "configuration_records",
+    "MAX_JOINT_ANGLE_DEG",
 ]
 
 AXIS_NAMES = ("x", "y", "z")
+#: Largest joint angle a configurations file may hold (ten turns), degrees.
+MAX_JOINT_ANGLE_DEG = 3600.0
+_JOINT_COLUMN = re.compile(r"q(\d+)(_.*)?$")
 
 
 def read_points(path: str | os.PathLike, dim: int) -> np.ndarray:
@@ -357,3 +375,154 @@ def map_csv(m: ModelMap, force) -> str:
         else:
             w.writerow(pos + [""] * (len(cols) - dim - 1) + [m.reasons[i]])
     return buf.getvalue()
+
+
+def configuration_columns(chain) -> list[str]:
+    """The columns of a configurations file for ``chain``: ``q1_deg`` ..., ``qk_mm`` for prismatic joints."""
+    return [f"q{i + 1}_{'mm' if t == 'prismatic' else 'deg'}" for i, t in enumerate(chain.joint_types)]
+
+
+def _span(cols: list[str]) -> str:
+    """``q1_deg..q5_deg`` for a run of columns of one unit, else the columns listed."""
+    if not cols:
+        return "no joint columns"
+    units = {c.split("_", 1)[-1] for c in cols}
+    nums = [int(_JOINT_COLUMN.match(c).group(1)) for c in cols]
+    if len(cols) > 2 and len(units) == 1 and nums == list(range(nums[0], nums[0] + len(nums))):
+        return f"{cols[0]}..{cols[-1]}"
+    return ", ".join(cols)
+
+
+def _first_header(path: str | os.PathLike, expected: str) -> list[str]:
+    """The header row of a CSV (lower case), or InputError for a missing or empty file."""
+    src = str(path)
+    if not os.path.exists(path):
+        raise InputError("file not found", source=src)
+    if os.path.isdir(path):
+        raise InputError("is a directory, expected a CSV file", source=src)
+    lines = read_text_file(path, "CSV file").splitlines()
+    for row in csv.reader(lines, delimiter=sniff_delimiter(lines)):
+        if row and not row[0].lstrip().startswith("#"):
+            return [h.strip().lower() for h in row]
+    raise InputError(f"empty file; expected a header with columns {expected}", source=src)
+
+
+def read_configuration_rows(path: str | os.PathLike, chain) -> tuple[np.ndarray, np.ndarray]:
+    """Joint configurations of a serial robot from a CSV, with the line of each row.
+
+    Parameters
+    ----------
+    path : path-like
+        CSV with columns ``q1_deg ... qn_deg`` (``qk_mm`` for a prismatic joint), one row
+        per configuration (module docstring).
+    chain : Chain
+        The robot (its joint names and types; ``n`` columns expected).
+
+    Returns
+    -------
+    Q : ndarray, shape (N, n)
+        rad (revolute), mm (prismatic).
+    lines : ndarray of int, shape (N,)
+        The line of each row in the file.
+
+    Raises
+    ------
+    InputError
+        Naming the file: missing or extra joint columns (what the robot expects), an empty
+        file, a cell that is not a number (line and column), a joint angle beyond ten turns.
+    """
+    src = str(path)
+    cols = configuration_columns(chain)
+    header = _first_header(path, _span(cols))
+    found = sorted(
+        (c for c in header if _JOINT_COLUMN.match(c)), key=lambda c: int(_JOINT_COLUMN.match(c).group(1))
+    )
+    if found != cols:
+        extra = [c for c in found if c not in cols]
+        hint = ""
+        for c in extra:
+            k = int(_JOINT_COLUMN.match(c).group(1))
+            if 1 <= k <= chain.n and cols[k - 1] != c:
+                kind = chain.joint_types[k - 1]
+                unit = "mm" if kind == "prismatic" else "degrees"
+                name = chain.joint_names[k - 1]
+                hint = f" (joint {k}, {name}, is {kind}: its column is {cols[k - 1]}, {unit})"
+                break
+        raise InputError(
+            f"the file has {_span(found)}; {chain.name} has {chain.n} joints "
+            f"({', '.join(chain.joint_names)}): expected {_span(cols)}{hint}",
+            source=src,
+        )
+    t = read_csv_columns(path, cols)
+    deg = [c for c in cols if c.endswith("_deg")]
+    t.check_magnitude(deg, MAX_JOINT_ANGLE_DEG, "deg", "joint angle")
+    t.check_magnitude([c for c in cols if c.endswith("_mm")], MAX_POSITION_MM, "mm", "joint position")
+    Q = t.stack(cols).T.copy()
+    for i, c in enumerate(cols):
+        if c.endswith("_deg"):
+            Q[:, i] = np.radians(Q[:, i])
+    return Q, t.lines
+
+
+def read_configurations(path: str | os.PathLike, chain) -> np.ndarray:
+    """Joint configurations (N, n) in rad (mm for prismatic joints) from a CSV.
+
+    See :func:`read_configuration_rows` (which also gives each row's line).
+    """
+    return read_configuration_rows(path, chain)[0]
+
+
+def _q_display(robot: SerialRobot, q: np.ndarray) -> list[float]:
+    """Joint coordinates as given in a configurations file: degrees (mm for prismatic joints).
+
+    Rounded to 12 significant digits: the file's 30 comes back as 30, not as the
+    29.999999999999996 of its trip through radians.
+    """
+    return [
+        float(f"{float(v) if t == 'prismatic' else math.degrees(float(v)):.12g}")
+        for v, t in zip(q, robot.chain.joint_types, strict=True)
+    ]
+
+
+def configuration_records(
+    robot: SerialRobot, Q, lines=None, source: str | None = None
+) -> tuple[ModelMap, list[dict]]:
+    """Evaluate a serial robot at its configurations: one JSON-able dict each.
+
+    Parameters
+    ----------
+    robot : SerialRobot
+    Q : array_like, shape (N, n)
+        Configurations, rad or mm.
+    lines : array_like of int, shape (N,), optional
+        The line of each configuration in its file (for the errors).
+    source : str, optional
+        That file.
+
+    Returns
+    -------
+    map : ModelMap
+        :meth:`SerialRobot.evaluate_configurations`.
+    records : list of dict
+        ``q_deg`` (degrees; mm for prismatic joints), ``position`` (mm, base frame), ``K``
+        (3 x 3, N/mm: the stiffness a pure force sees), ``K6`` (6 x 6 over u mm and rotation
+        rad, or None when the robot has fewer than six compliant joints); or ``q_deg`` and
+        ``error``: the reason, after ``FILE line L:`` when given.
+    """
+    m = robot.evaluate_configurations(Q)
+    six = robot.n >= 6 and int(np.count_nonzero(np.isfinite(robot.k_theta))) >= 6
+    K6 = np.full((len(m), 6, 6), np.nan)
+    if six and m.n_valid:
+        K6[m.valid] = robot.stiffness6(m.q[m.valid])
+    out = []
+    for i in range(len(m)):
+        rec: dict = {"q_deg": _q_display(robot, m.q[i])}
+        if m.valid[i]:
+            rec["position"] = m.points[i].tolist()
+            rec["K"] = m.K[i].tolist()
+            rec["K6"] = K6[i].tolist() if six else None
+        else:
+            where = " ".join(x for x in (source or "", "" if lines is None else f"line {int(lines[i])}") if x)
+            rec["error"] = f"{where}: {m.reasons[i]}" if where else m.reasons[i]
+        out.append(rec)
+    return m, out

@@ -47,6 +47,12 @@ Named sets of tool positions, the reference studies' measurement layouts:
   the default geometry, with both singularity measures >= 0.25.
 - ``POSITION_PRESETS``: name -> (mechanism name, function); :func:`position_preset`
   and :func:`default_positions` look them up for a mechanism.
+
+Serial robots from a URDF (``stiffmap model urdf ROBOT.urdf``; not in ``MECHANISMS``: a
+URDF model has no default to build without its file): :func:`serial_robot_from_options`
+reads the URDF, its configurations file and the joint stiffnesses of ``--param``
+(:func:`joint_stiffnesses_from_text`: ``k_theta=K1,...,Kn`` or one value for all, and
+``k<i>=K`` for one joint).
 """
 
 from __future__ import annotations
@@ -56,10 +62,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .base import Mechanism
+from .base import Mechanism, check_positive
+from .chain import Chain
 from .delta import DeltaRobot
-from .io import AXIS_NAMES, read_points
+from .io import AXIS_NAMES, read_configuration_rows, read_points
 from .prr3 import PRR3
+from .serial import SerialRobot
 
 __all__ = [
     "paper48",
@@ -79,6 +87,9 @@ __all__ = [
     "mechanism_from_params",
     "fit_parameter_names",
     "force_direction",
+    "URDF_MODEL",
+    "joint_stiffnesses_from_text",
+    "serial_robot_from_options",
 ]
 
 #: Mechanism name (as on the command line) -> class.
@@ -88,6 +99,8 @@ MECHANISMS: dict[str, type] = {"delta": DeltaRobot, "3prr": PRR3}
 DEFAULT_LOAD: dict[str, tuple[float, str]] = {"delta": (4.905, "-z"), "3prr": (490.5, "y")}
 #: Parameters fitted when none are named.
 DEFAULT_FIT: dict[str, tuple[str, ...]] = {"delta": ("k_theta",), "3prr": ("kj",)}
+#: The name of serial robots read from a URDF (``stiffmap model urdf``).
+URDF_MODEL = "urdf"
 #: Most points a grid may hold.
 MAX_GRID_POINTS = 1_000_000
 
@@ -313,19 +326,29 @@ def mechanism_from_params(name: str, params: Mapping[str, float]) -> Mechanism:
     return cls(**params)
 
 
-def fit_parameter_names(name: str, items: Sequence[str] | None) -> list[str]:
+def fit_parameter_names(name: str, items: Sequence[str] | None, model: Mechanism | None = None) -> list[str]:
     """The parameters of mechanism ``name`` to fit: ``items`` (each may be comma-separated), else
     ``DEFAULT_FIT[name]``.
+
+    For ``urdf`` (a :class:`SerialRobot` given as ``model``) the names are ``k1 ... kn`` and
+    the default is every joint.
 
     Raises
     ------
     ValueError
         Naming unknown parameters and the valid ones.
     """
+    if name == URDF_MODEL:
+        if not isinstance(model, SerialRobot):
+            raise TypeError("fit_parameter_names('urdf', ...) needs the SerialRobot as model")
+        valid = model.param_names()
+        default = list(valid)
+    else:
+        valid = MECHANISMS[name].param_names()
+        default = list(DEFAULT_FIT[name])
     names: list[str] = []
-    for item in items or list(DEFAULT_FIT[name]):
+    for item in items or default:
         names.extend(s.strip() for s in item.split(",") if s.strip())
-    valid = MECHANISMS[name].param_names()
     bad = [n for n in names if n not in valid]
     if bad:
         raise ValueError(f"unknown {name} parameter(s) {', '.join(bad)}; valid: {', '.join(valid)}")
@@ -362,3 +385,120 @@ def force_direction(text: str, dim: int) -> np.ndarray:
         names = ", ".join([*axes, *("-" + a for a in axes)])
         raise ValueError(f"{text!r}: expected one of {names} or {dim} comma-separated components")
     return u / np.linalg.norm(u)
+
+
+def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...]:
+    """A serial robot's joint stiffnesses from ``--param`` texts.
+
+    Parameters
+    ----------
+    items : sequence of str
+        Each ``NAME=VALUE[,NAME=VALUE...]``: ``k_theta=K1,K2,...,Kn`` (one per joint, the
+        URDF's joint order; or one value for all), ``k<i>=K`` (joint i alone, after
+        ``k_theta``); N*mm/rad for revolute joints, N/mm for prismatic ones, ``inf`` rigid.
+    chain : Chain
+        The robot (its joints, for the count and the messages).
+
+    Returns
+    -------
+    tuple of float, length n
+
+    Raises
+    ------
+    ValueError
+        Saying what was expected: an item that is not NAME=VALUE, a value that is not a
+        number, an unknown name, k_theta of the wrong length (naming the URDF and its
+        joints), a joint without a stiffness (there is no default), a non-positive value.
+    """
+    n = chain.n
+    joints = ", ".join(chain.joint_names)
+    units = "N*mm/rad" + (", N/mm for prismatic joints" if "prismatic" in chain.joint_types else "")
+    valid = [f"k{i + 1}" for i in range(n)]
+    given: dict[str, list[float]] = {}
+    key = None
+    for item in items:
+        for part in item.split(","):
+            part = part.strip()
+            if not part:
+                continue
+            if "=" in part:
+                key, text = (x.strip() for x in part.split("=", 1))
+                if key not in ("k_theta", *valid):
+                    raise ValueError(
+                        f"unknown urdf parameter {key!r}; valid: k_theta (all {n} joints: {joints}) or "
+                        f"{valid[0]}..{valid[-1]} (one joint)"
+                    )
+                given[key] = []
+            elif key == "k_theta":
+                text = part
+            else:
+                raise ValueError(f"{part!r} should look like NAME=VALUE (k_theta=K1,...,K{n} takes a list)")
+            try:
+                given[key].append(float(text))
+            except ValueError:
+                raise ValueError(f"{key}: {text!r} is not a number ({units})") from None
+    k: list[float | None] = [None] * n
+    if "k_theta" in given:
+        v = given["k_theta"]
+        if len(v) not in (1, n):
+            raise ValueError(
+                f"k_theta has {len(v)} values; {chain.source} ({chain.name}) has {n} joints ({joints}): "
+                f"give {n} stiffnesses in that order ({units}), or one for all"
+            )
+        k = list(v * n if len(v) == 1 else v)
+    for i, name in enumerate(valid):
+        if name in given:
+            k[i] = given[name][0]
+    missing = [chain.joint_names[i] for i in range(n) if k[i] is None]
+    if missing:
+        raise ValueError(
+            f"no stiffness for joint(s) {', '.join(missing)} of {chain.source}: a URDF robot has no "
+            f"default; give k_theta=K1,...,K{n} for {joints} ({units}), or one value for all"
+        )
+    return tuple(
+        check_positive(f"k{i + 1} ({chain.joint_names[i]})", v, units.split(",")[0], allow_inf=True)
+        for i, v in enumerate(k)
+    )
+
+
+def serial_robot_from_options(
+    urdf,
+    tip_frame: str | None,
+    tip_offset_mm=(0.0, 0.0, 0.0),
+    configs=None,
+    params: Sequence[str] = (),
+) -> tuple[SerialRobot, np.ndarray | None]:
+    """The serial robot of ``stiffmap model urdf`` / ``stiffmap fit urdf``.
+
+    Parameters
+    ----------
+    urdf : path-like
+        The URDF.
+    tip_frame : str
+        The frame of the measured point.
+    tip_offset_mm : array_like, shape (3,), mm
+    configs : path-like, optional
+        A configurations file (``models.io.read_configuration_rows``).
+    params : sequence of str
+        The ``--param`` texts (:func:`joint_stiffnesses_from_text`).
+
+    Returns
+    -------
+    robot : SerialRobot
+        With the file's configurations.
+    lines : ndarray of int, shape (N,), or None
+        The line of each configuration in its file.
+
+    Raises
+    ------
+    InputError
+        A URDF or configurations file that cannot be read (naming it and the item).
+    ValueError
+        Bad ``params`` text (see :func:`joint_stiffnesses_from_text`).
+    """
+    if not tip_frame:
+        raise ValueError(f"no tip frame: give the link of {urdf} that carries the measured point")
+    chain = Chain.from_urdf(urdf, tip_frame, tip_offset_mm)
+    Q, lines = (None, None) if configs is None else read_configuration_rows(configs, chain)
+    k = joint_stiffnesses_from_text(params, chain)
+    return SerialRobot(chain, k, configurations=Q), lines

@@ -1,0 +1,1200 @@
+"""Joint stiffnesses of a robot identified from measured deflections (virtual-joint model).
+
+The model
+---------
+A serial robot, or the virtual-joint model of any robot, with n joints held by springs of
+compliance ``c_j`` deflects at its measured point under a wrench ``w`` by
+
+    delta = J C J^T w,      C = diag(c_1, ..., c_n),
+
+- ``J`` (6 x n): the Jacobian of the measured point in the base frame, rows
+  ``(vx, vy, vz, wx, wy, wz)``: the point's velocity (mm per joint unit) and the angular
+  velocity (rad per joint unit). Column j of a revolute joint about the unit axis z_j
+  through o_j is ``(z_j x (p - o_j), z_j)`` (mm/rad, rad/rad); of a prismatic joint along
+  z_j, ``(z_j, 0)`` (mm/mm);
+- ``w = (F, M)``: force (N) and moment (N*mm) at the measured point, base frame (a force F
+  at the point p + r is the wrench ``(F, r x F)``);
+- ``delta = (u, r)``: the point's displacement (mm) and the rotation vector of the loaded
+  orientation relative to the unloaded one (rad), base frame (``docs/conventions.md``);
+- ``c_j``: rad/(N*mm) for a revolute joint, mm/N for a prismatic one. The joint stiffness
+  is ``k_j = 1 / c_j``: N*mm/rad (revolute) or N/mm (prismatic).
+
+``J^T w`` is the generalised force on each joint (N*mm or N), ``C J^T w`` the joints'
+deflections, ``J`` carries them to the measured point. The deflection is linear in c:
+
+    delta = A c,     A[:, j] = J[:, j] (J[:, j] . w)             (:func:`joint_deflections`)
+
+so the compliances follow from measured deflections under known wrenches at several
+configurations by weighted linear least squares (:func:`fit_joint_compliances`). A
+measurement is either a 6-DOF pose change (d = 6: u and r) or the displacement of a point
+(d = 3: u only), each with its covariance (d x d, full).
+
+The fit
+-------
+Each measured displacement is whitened by the Cholesky factor of its covariance
+(``cov = L L^T``; ``L^-1`` applied to its row of A and to the displacement), so the fit
+minimises ``chi2 = sum_m r_m^T cov_m^-1 r_m`` over the residuals r_m. Joints not fitted
+are held at given compliances and their deflection is subtracted first. The covariance of
+the estimates is ``(A_w^T A_w)^-1``, multiplied by the reduced chi-square ``chi2 / dof``
+unless ``absolute_sigma`` (the covariances are then taken as exact), as
+:mod:`stiffmap.models.fit` does. Compliances are kept non-negative by default
+(``scipy.optimize.lsq_linear``, bounded variables): a joint held at 0 is reported
+(``active``, a note), its standard error is NaN and the covariance covers the free joints.
+The stiffness's standard error follows by the delta method, ``k_std = c_std / c^2``.
+
+Identifiability
+---------------
+Before solving, :func:`joint_identifiability` looks at the whitened design with its columns
+scaled to unit length (:class:`JointIdentifiability`):
+
+- **not felt**: a joint whose column is negligible, its relative sensitivity below
+  :data:`~stiffmap.models.fit.MIN_RELATIVE_SENSITIVITY`: no load acts on it (a revolute
+  axis that no load has a moment about, a force through the axis), or it moves nothing
+  that is measured (the measured point on its axis, translations only);
+- **confounded**: joints whose compliances move the measurements only in a fixed
+  combination: components of the right singular vectors whose singular value is below
+  :data:`~stiffmap.models.fit.MIN_INVERSE_CONDITION` times the largest (joints 4 and 6 of
+  a wrist held straight, for instance).
+
+Either is refused with a :class:`~stiffmap.errors.DesignError` naming the joints, why, and
+what would determine them. A design that determines every joint but badly (condition number
+above :data:`~stiffmap.models.fit.CONDITION_WARN`) passes with an
+:class:`~stiffmap.errors.IllConditionedWarning`.
+
+The relative sensitivity of joint j compares its whitened column with the largest it could
+be given the magnitudes of the wrenches, of the Jacobian's entries and of the weights: about
+0.1-1 when the loads act on the joint and its motion is measured, about 1e-16 when it is felt
+only through rounding errors. Rotations are compared with translations through a length, the
+RMS lever arm ``l = |z_j x (p - o_j)|`` of the revolute joints at the measured point (at least
+1 mm): a force through a revolute axis is "no moment about it" when its lever arm is below
+1e-6 l, and, translations only, a measured point closer than 1e-6 l to the axis does not
+see the joint move.
+
+The misfit test: with covariances given, ``p = P(chi2_dof > chi2)``
+(``scipy.stats.chi2.sf``); below :data:`~stiffmap.models.fit.MISFIT_P` a note says the model
+or the uncertainties do not explain the data.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import optimize, stats
+
+from ..errors import DesignError, IllConditionedWarning, InputError
+from ..io import to_jsonable
+from .fit import (
+    CONDITION_WARN,
+    MIN_INVERSE_CONDITION,
+    MIN_RELATIVE_SENSITIVITY,
+    MISFIT_P,
+    MISFIT_RELATIVE,
+    _group_poses,
+)
+
+__all__ = [
+    "JointFit",
+    "JointIdentifiability",
+    "fit_joint_compliances",
+    "joint_deflections",
+    "joint_identifiability",
+    "NULL_WEIGHT",
+]
+
+#: A joint whose unit vector has a component above this in the numerical null space of the
+#: column-scaled design is named as undetermined (its share of a combination the data
+#: cannot see).
+NULL_WEIGHT = 1e-3
+#: A joint whose angular-velocity column has a norm above this (rad per joint unit) is revolute.
+_REVOLUTE_MIN_OMEGA = 0.5
+#: Relative tolerance of a covariance's symmetry.
+_SYMMETRY_RTOL = 1e-9
+
+#: Why a joint is not felt, said of one joint and of several.
+_WHY = {
+    "moment": ("no load has a moment about its axis", "no load has a moment about their axes"),
+    "force": ("no load has a force along its axis", "no load has a force along their axes"),
+    "measure": (
+        "it moves nothing that is measured (the measured point lies on its axis)",
+        "they move nothing that is measured (the measured point lies on their axes)",
+    ),
+    "where": (
+        "the loads act on it only where its motion is not measured",
+        "the loads act on them only where their motion is not measured",
+    ),
+}
+
+_UNITS = {
+    "revolute": ("rad/(N*mm)", "N*mm/rad"),
+    "prismatic": ("mm/N", "N/mm"),
+}
+
+
+# --------------------------------------------------------------------------- input checks
+
+
+def _as_float(x, name: str) -> np.ndarray:
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: expected numbers, got {type(x).__name__} ({exc})") from None
+
+
+def _first_bad_row(ok_rows: np.ndarray) -> int:
+    return int(np.flatnonzero(~ok_rows)[0])
+
+
+def _check_finite(a: np.ndarray, name: str, unit: str) -> None:
+    ok = np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1)
+    if not np.all(ok):
+        i = _first_bad_row(ok)
+        raise InputError(f"{name}: row {i} contains NaN or infinite values; expected finite {unit}")
+
+
+def _check_jacobians(jacobians) -> np.ndarray:
+    J = _as_float(jacobians, "jacobians")
+    if J.ndim != 3 or J.shape[1] != 6 or J.shape[0] < 1 or J.shape[2] < 1:
+        raise InputError(
+            f"jacobians: expected shape (M, 6, n), one 6 x n Jacobian per measurement "
+            f"(rows vx, vy, vz in mm and wx, wy, wz in rad per joint unit), got {J.shape}"
+        )
+    _check_finite(J, "jacobians", "mm and rad per joint unit")
+    return J
+
+
+def _check_wrenches(wrenches, M: int) -> np.ndarray:
+    W = _as_float(wrenches, "wrenches")
+    if W.shape != (M, 6):
+        raise InputError(f"wrenches: expected shape ({M}, 6), (F in N, M in N*mm) per row, got {W.shape}")
+    _check_finite(W, "wrenches", "N and N*mm")
+    return W
+
+
+def _check_displacements(displacements, M: int) -> np.ndarray:
+    D = _as_float(displacements, "displacements")
+    if D.ndim != 2 or D.shape[0] != M or D.shape[1] not in (3, 6):
+        raise InputError(
+            f"displacements: expected shape ({M}, 3) (translations, mm) or ({M}, 6) "
+            f"(translations mm, rotation vector rad), got {D.shape}"
+        )
+    _check_finite(D, "displacements", "mm and rad")
+    return D
+
+
+def _whitener(cov, M: int, d: int) -> np.ndarray:
+    """``L^-1`` of each row's covariance ``L L^T``: shape (M, d, d); the identity when None."""
+    if cov is None:
+        return np.broadcast_to(np.eye(d), (M, d, d)).copy()
+    C = _as_float(cov, "cov")
+    if C.shape == (M, d):
+        ok = np.all(np.isfinite(C) & (C > 0), axis=1)
+        if not np.all(ok):
+            i = _first_bad_row(ok)
+            raise InputError(
+                f"cov: row {i} has standard deviations {C[i].tolist()}; expected positive finite numbers "
+                "(mm, rad)"
+            )
+        Linv = np.zeros((M, d, d))
+        Linv[:, np.arange(d), np.arange(d)] = 1.0 / C
+        return Linv
+    if C.shape != (M, d, d):
+        raise InputError(
+            f"cov: expected shape ({M}, {d}, {d}) (a covariance per displacement) or ({M}, {d}) "
+            f"(standard deviations), got {C.shape}"
+        )
+    _check_finite(C, "cov", "mm^2, mm*rad and rad^2")
+    scale = np.max(np.abs(np.diagonal(C, axis1=1, axis2=2)), axis=1)
+    asym = np.max(np.abs(C - np.swapaxes(C, 1, 2)), axis=(1, 2))
+    ok = asym <= _SYMMETRY_RTOL * scale
+    if not np.all(ok):
+        i = _first_bad_row(ok)
+        raise InputError(
+            f"cov: row {i} is not symmetric (largest asymmetry {asym[i]:.3g}); expected a covariance"
+        )
+    C = 0.5 * (C + np.swapaxes(C, 1, 2))
+    try:
+        L = np.linalg.cholesky(C)
+    except np.linalg.LinAlgError:
+        eig = np.linalg.eigvalsh(C)[:, 0]
+        i = _first_bad_row(eig > 0)
+        raise InputError(
+            f"cov: row {i} is not positive definite (smallest eigenvalue {eig[i]:.3g}); expected the "
+            "covariance of a measured displacement"
+        ) from None
+    I = np.broadcast_to(np.eye(d), C.shape)
+    return np.linalg.solve(L, I)
+
+
+def _check_names(joint_names, n: int) -> tuple[str, ...]:
+    if joint_names is None:
+        return tuple(f"k{j + 1}" for j in range(n))
+    if isinstance(joint_names, str):
+        joint_names = (joint_names,)
+    names = tuple(str(s) for s in joint_names)
+    if len(names) != n:
+        raise InputError(f"joint_names: expected {n} names (one per Jacobian column), got {len(names)}")
+    dup = sorted({s for s in names if names.count(s) > 1})
+    if dup:
+        raise InputError(f"joint_names: {', '.join(dup)} given more than once")
+    return names
+
+
+def _check_fit_sets(names: tuple[str, ...], fit, fixed) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the fitted joints, and the compliances of all (NaN for the fitted)."""
+    n = len(names)
+    fixed = {} if fixed is None else fixed
+    if not isinstance(fixed, Mapping):
+        raise InputError(f"fixed: expected a mapping of joint name to compliance, got {type(fixed).__name__}")
+    bad = [str(k) for k in fixed if k not in names]
+    if bad:
+        raise InputError(f"fixed: unknown joint(s) {', '.join(bad)}; joints: {', '.join(names)}")
+    values = np.full(n, np.nan)
+    for k, v in fixed.items():
+        try:
+            c = float(v)
+        except (TypeError, ValueError):
+            raise InputError(f"fixed: {k} must be a compliance (a number), got {v!r}") from None
+        if not (np.isfinite(c) and c >= 0):
+            raise InputError(f"fixed: {k} must be a finite non-negative compliance, got {c!r}")
+        values[names.index(k)] = c
+    if fit is None:
+        fitted = [s for s in names if s not in fixed]
+    else:
+        if isinstance(fit, str):
+            fit = (fit,)
+        fitted = [str(s) for s in fit]
+        bad = [s for s in fitted if s not in names]
+        if bad:
+            raise InputError(f"fit: unknown joint(s) {', '.join(bad)}; joints: {', '.join(names)}")
+        dup = sorted({s for s in fitted if fitted.count(s) > 1})
+        if dup:
+            raise InputError(f"fit: {', '.join(dup)} given more than once")
+        both = [s for s in fitted if s in fixed]
+        if both:
+            raise InputError(f"fit: {', '.join(both)} also held in fixed; a joint is either fitted or fixed")
+        loose = [s for s in names if s not in fitted and s not in fixed]
+        if loose:
+            raise InputError(
+                f"fixed: no compliance for {', '.join(loose)}, neither fitted nor fixed; give "
+                f"{'its' if len(loose) == 1 else 'their'} compliance in fixed or fit "
+                f"{'it' if len(loose) == 1 else 'them'}"
+            )
+    if not fitted:
+        raise InputError("fit: no joint to fit")
+    idx = np.array(sorted(names.index(s) for s in fitted), dtype=int)
+    return idx, values
+
+
+def _joint_types(J: np.ndarray) -> tuple[str, ...]:
+    omega = np.sqrt(np.mean(np.sum(J[:, 3:, :] ** 2, axis=1), axis=0))
+    return tuple("revolute" if w > _REVOLUTE_MIN_OMEGA else "prismatic" for w in omega)
+
+
+def _design(J: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """A[m, :, j] = J[m, :, j] (J[m, :, j] . w_m): shape (M, 6, n), mm or rad per compliance unit."""
+    g = np.einsum("mkj,mk->mj", J, W)
+    return J * g[:, None, :]
+
+
+# --------------------------------------------------------------------------- forward model
+
+
+def joint_deflections(jacobians, wrenches, compliances) -> np.ndarray:
+    """Deflection ``J C J^T w`` of the measured point under wrenches (the forward model).
+
+    Parameters
+    ----------
+    jacobians : array_like, shape (M, 6, n)
+        Jacobian of the measured point at each configuration, base frame: rows vx, vy, vz
+        (mm per joint unit) and wx, wy, wz (rad per joint unit).
+    wrenches : array_like, shape (M, 6) or (6,)
+        Force (N) and moment (N*mm) at the measured point, base frame; one for all rows
+        when 1-D.
+    compliances : array_like, shape (n,) or (M, n)
+        Joint compliances: rad/(N*mm) (revolute) or mm/N (prismatic).
+
+    Returns
+    -------
+    ndarray, shape (M, 6)
+        Displacement of the point (mm) and rotation vector (rad), base frame.
+
+    Raises
+    ------
+    InputError
+        Wrong shapes or non-finite values, naming the argument and the row.
+    """
+    J = _check_jacobians(jacobians)
+    M, _, n = J.shape
+    W = _as_float(wrenches, "wrenches")
+    if W.shape == (6,):
+        W = np.broadcast_to(W, (M, 6))
+    W = _check_wrenches(W, M)
+    c = _as_float(compliances, "compliances")
+    if c.shape not in ((n,), (M, n)):
+        raise InputError(f"compliances: expected shape ({n},) or ({M}, {n}), got {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise InputError("compliances: NaN or infinite values; expected finite compliances")
+    c = np.broadcast_to(c, (M, n))
+    return np.einsum("mkj,mj->mk", _design(J, W), c)
+
+
+# --------------------------------------------------------------------------- identifiability
+
+
+@dataclass(frozen=True)
+class JointIdentifiability:
+    """What a set of configurations and loads can determine (:func:`joint_identifiability`).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The joints examined (the fitted ones), in the order of the arrays below.
+    joint_types : tuple of str
+        ``"revolute"`` or ``"prismatic"`` of each.
+    sensitivity : ndarray, shape (p,)
+        Relative sensitivity of the measurements to each joint, in [0, 1] (module docstring);
+        below ``MIN_RELATIVE_SENSITIVITY`` the joint is not felt.
+    condition : float
+        Condition number of the whitened design over the felt joints, columns scaled to unit
+        length (1 for orthogonal columns; ``inf`` when some joints are confounded).
+    singular_values : ndarray, shape (q,)
+        Singular values of that design relative to the largest, descending (q = felt joints).
+    directions : ndarray, shape (q, p)
+        The matching right singular vectors over all examined joints (0 for joints not
+        felt), in the column-scaled parameters: row k is the combination of joints that
+        the data see with strength ``singular_values[k]``; the last rows are the weakest.
+    inflation : ndarray, shape (p,)
+        How much the correlation with the other joints inflates each joint's standard error
+        (square root of the variance inflation factor, >= 1; ``inf`` when undetermined).
+    weakest : ndarray, shape (p,)
+        For each joint, the relative singular value of the direction that contributes most
+        to its variance (0 when undetermined).
+    not_felt : dict of str to str
+        Joints not felt, with the reason in words.
+    confounded : tuple of tuple of str
+        Groups of joints the data see only in a fixed combination.
+    message : str
+        Empty when every joint is determined, else the refusal (names, why, what to add).
+    """
+
+    names: tuple[str, ...]
+    joint_types: tuple[str, ...]
+    sensitivity: np.ndarray
+    condition: float
+    singular_values: np.ndarray
+    directions: np.ndarray
+    inflation: np.ndarray
+    weakest: np.ndarray
+    not_felt: dict[str, str]
+    confounded: tuple[tuple[str, ...], ...]
+    message: str
+
+    @property
+    def determined(self) -> bool:
+        """True when the data determine every examined joint."""
+        return not self.message
+
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        """The joints the data cannot determine (not felt or confounded), in joint order."""
+        bad = set(self.not_felt) | {s for g in self.confounded for s in g}
+        return tuple(s for s in self.names if s in bad)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-able summary (NaN and inf become None)."""
+        return to_jsonable(
+            {
+                "joints": {
+                    s: {
+                        "type": t,
+                        "sensitivity": float(v),
+                        "inflation": float(f),
+                        "weakest": float(w),
+                        "determined": s not in self.undetermined,
+                    }
+                    for s, t, v, f, w in zip(
+                        self.names,
+                        self.joint_types,
+                        self.sensitivity,
+                        self.inflation,
+                        self.weakest,
+                        strict=True,
+                    )
+                },
+                "condition": self.condition,
+                "singular_values": self.singular_values,
+                "directions": self.directions,
+                "not_felt": dict(self.not_felt),
+                "confounded": [list(g) for g in self.confounded],
+                "message": self.message,
+            }
+        )
+
+
+def _lever_arm(J: np.ndarray, types: tuple[str, ...]) -> float:
+    """The length (mm) that compares rotations with translations: the RMS lever arm
+    ``|z_j x (p - o_j)|`` of the revolute joints at the measured point, at least 1 mm."""
+    rev = [j for j, t in enumerate(types) if t == "revolute"]
+    if not rev:
+        return 1.0
+    return max(float(np.sqrt(np.mean(np.sum(J[:, :3, rev] ** 2, axis=1)))), 1.0)
+
+
+def _relative_sensitivity(J, W, Linv, d, ell) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per joint: (relative sensitivity, load factor, motion factor), each in [0, 1].
+
+    Row m, joint j: the whitened column is ``L^-1 S J_j (J_j . w)``. With the lever arm
+    ``ell`` (mm) rotations compare with translations: ``D = diag(1, 1, 1, ell, ell, ell)``.
+    The load factor compares ``|J_j . w|`` with its bound ``|D J_j| |D^-1 w|``; the motion
+    factor compares ``|L^-1 S J_j|`` with ``|| |L^-1| |S J_j| || |D J_j| / |D S J_j|``, the
+    whitened motion if all of the joint's motion were measured; the sensitivity compares the
+    column with the product of the two bounds. Each ratio is taken over all rows at once.
+    """
+    Dv = np.array([1.0, 1.0, 1.0, ell, ell, ell])
+    SJ = J[:, :d, :]  # (M, d, n): the measured part of each joint's motion
+    g = np.einsum("mkj,mk->mj", J, W)  # generalised forces, N*mm or N
+    djn = np.linalg.norm(J * Dv[None, :, None], axis=1)  # (M, n)
+    h = djn * np.linalg.norm(W / Dv, axis=1)[:, None]  # bound of |g|
+    dsjn = np.linalg.norm(SJ * Dv[None, :d, None], axis=1)
+    u = np.where(
+        dsjn[:, None, :] > 0, np.abs(SJ) / np.where(dsjn > 0, dsjn, 1.0)[:, None, :], 1.0 / np.sqrt(d)
+    )
+    motion = np.linalg.norm(Linv @ SJ, axis=1)  # (M, n)
+    bound = np.linalg.norm(np.abs(Linv) @ u, axis=1) * djn  # bound of the motion
+
+    def ratio(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        num, den = np.sqrt(np.sum(x**2, axis=0)), np.sqrt(np.sum(y**2, axis=0))
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+
+    return ratio(motion * g, bound * h), ratio(g, h), ratio(motion, bound)
+
+
+def _format_names(names: Sequence[str]) -> str:
+    return ", ".join(names)
+
+
+def _identify(
+    Aw: np.ndarray,
+    names: tuple[str, ...],
+    types: tuple[str, ...],
+    sens: np.ndarray,
+    load_f: np.ndarray,
+    motion_f: np.ndarray,
+    *,
+    d: int,
+    n_config: int,
+    has_moments: bool,
+) -> JointIdentifiability:
+    """The identifiability report of a whitened design ``Aw`` (N, p) over the joints ``names``."""
+    N, p = Aw.shape
+    felt = sens >= MIN_RELATIVE_SENSITIVITY
+    not_felt: dict[str, str] = {}
+    why_groups: dict[tuple[str, ...], list[str]] = {}  # reasons -> joints
+    hints: dict[str, list[str]] = {}  # what to add -> the joints it would help
+    for j in np.flatnonzero(~felt):
+        s, t = names[j], types[j]
+        why = []
+        if load_f[j] < MIN_RELATIVE_SENSITIVITY:
+            why.append("moment" if t == "revolute" else "force")
+        if motion_f[j] < MIN_RELATIVE_SENSITIVITY:
+            why.append("measure")
+        if not why:
+            why.append("where")
+        for w in why:
+            hints.setdefault(w, []).append(s)
+        why_groups.setdefault(tuple(why), []).append(s)
+        not_felt[s] = " and ".join(_WHY[w][0] for w in why)
+
+    fi = np.flatnonzero(felt)
+    q = fi.size
+    directions = np.zeros((q, p))
+    rel = np.zeros(q)
+    inflation = np.full(p, np.inf)
+    weakest = np.zeros(p)
+    confounded: list[tuple[str, ...]] = []
+    condition = np.inf
+    if q:
+        A = Aw[:, fi]
+        norms = np.linalg.norm(A, axis=0)
+        An = A / norms
+        _, s, Vt = np.linalg.svd(An, full_matrices=N < q)
+        s = np.concatenate([s, np.zeros(q - s.size)])
+        rel = s / s[0]
+        directions[:, fi] = Vt
+        null = rel < MIN_INVERSE_CONDITION
+        if np.any(null):
+            V0 = Vt[null]
+            P = V0.T @ V0  # projector on the null space: independent of its basis
+            named = np.diag(P) > NULL_WEIGHT**2
+            link = (np.abs(P) > NULL_WEIGHT**2) & named[:, None] & named[None, :]
+            seen = np.zeros(q, dtype=bool)
+            for k in np.flatnonzero(named):
+                if seen[k]:
+                    continue
+                group, stack = [], [k]
+                seen[k] = True
+                while stack:
+                    i = stack.pop()
+                    group.append(i)
+                    for m in np.flatnonzero(link[i] & ~seen):
+                        seen[m] = True
+                        stack.append(m)
+                confounded.append(tuple(names[fi[i]] for i in sorted(group)))
+            good = ~named
+        else:
+            condition = float(1.0 / rel[-1])
+            good = np.ones(q, dtype=bool)
+        ok = ~null
+        # The variance of the scaled parameters is V diag(1/s^2) V^T; with unit columns an
+        # orthogonal design has variance 1, so the inflation is sqrt(sum_k V_jk^2 / s_k^2).
+        contrib = Vt[ok].T ** 2 / s[ok][None, :] ** 2  # (q, r): each direction's share
+        vif = np.sum(contrib, axis=1)
+        for k in np.flatnonzero(good):
+            inflation[fi[k]] = float(np.sqrt(vif[k]))
+            weakest[fi[k]] = float(rel[ok][int(np.argmax(contrib[k]))])
+
+    message = ""
+    bad_names = [s for s in names if s in not_felt or any(s in g for g in confounded)]
+    if bad_names:
+        parts = []
+        for why, js in why_groups.items():
+            k = 0 if len(js) == 1 else 1
+            parts.append(
+                f"{_format_names(js)} {('is', 'are')[k]} not felt: " + " and ".join(_WHY[w][k] for w in why)
+            )
+        for g in confounded:
+            if len(g) == 1:
+                parts.append(f"{g[0]} is hardly felt: its column is nearly a combination of the others'")
+            else:
+                parts.append(
+                    f"{_format_names(g)} change the measured displacements only in a fixed combination "
+                    "(the data see their sum, weighted, not each one)"
+                )
+        todo = []
+        for key, js in hints.items():
+            them = _format_names(js)
+            axes = "its axis" if len(js) == 1 else "their axes"
+            todo.append(
+                {
+                    "moment": f"load cases with moments about the {'axis' if len(js) == 1 else 'axes'} of "
+                    f"{them} (a load point off {axes})",
+                    "force": f"load cases with forces along {axes} ({them})",
+                    "measure": f"measure rotations (6-DOF poses) or a point off {axes} ({them})",
+                    "where": f"load cases that act on {them} where {'its' if len(js) == 1 else 'their'} "
+                    "motion is measured",
+                }[key]
+            )
+        if confounded:
+            todo.append(
+                "add configurations"
+                if n_config == 1
+                else "add configurations where their axes lie differently"
+            )
+            if not has_moments:
+                todo.append("load cases with moments (a load point off the tool axis)")
+            else:
+                todo.append("load cases in other directions")
+            if d == 3:
+                todo.append("measure rotations (6-DOF poses)")
+        one = len(bad_names) == 1
+        message = (
+            f"{'joint' if one else 'joints'} {_format_names(bad_names)} cannot be determined from these "
+            "configurations and loads: "
+            + "; ".join(parts)
+            + f". To determine {'it' if one else 'them'}: "
+            + ", or ".join(dict.fromkeys(todo))
+            + f"; or hold {'it' if one else 'them'} at a known compliance (fixed) and fit the others"
+        )
+    return JointIdentifiability(
+        names=names,
+        joint_types=types,
+        sensitivity=sens,
+        condition=condition,
+        singular_values=rel,
+        directions=directions,
+        inflation=inflation,
+        weakest=weakest,
+        not_felt=not_felt,
+        confounded=tuple(confounded),
+        message=message,
+    )
+
+
+def _prepare(jacobians, wrenches, d_or_displacements, cov, joint_names, fit, fixed):
+    J = _check_jacobians(jacobians)
+    M, _, n = J.shape
+    W = _check_wrenches(wrenches, M)
+    if isinstance(d_or_displacements, int):
+        d, D = d_or_displacements, None
+        if d not in (3, 6):
+            raise InputError(f"measured: expected 3 (translations) or 6 (poses), got {d}")
+    else:
+        D = _check_displacements(d_or_displacements, M)
+        d = D.shape[1]
+    Linv = _whitener(cov, M, d)
+    names = _check_names(joint_names, n)
+    idx, fixed_values = _check_fit_sets(names, fit, fixed)
+    return J, W, D, d, Linv, names, idx, fixed_values
+
+
+def _too_few_message(M: int, d: int, fitted: tuple[str, ...]) -> str:
+    return (
+        f"{M * d} observation(s) ({M} row(s) of {d} components) cannot determine {len(fitted)} joint "
+        f"compliances ({_format_names(fitted)}); measure more"
+    )
+
+
+def _too_few(M: int, d: int, fitted: tuple[str, ...], types: tuple[str, ...]) -> JointIdentifiability:
+    """The report of a design with fewer observations than joints: none determined."""
+    p = len(fitted)
+    return JointIdentifiability(
+        names=fitted,
+        joint_types=types,
+        sensitivity=np.full(p, np.nan),
+        condition=np.inf,
+        singular_values=np.zeros(0),
+        directions=np.zeros((0, p)),
+        inflation=np.full(p, np.inf),
+        weakest=np.zeros(p),
+        not_felt={},
+        confounded=(fitted,),
+        message=_too_few_message(M, d, fitted),
+    )
+
+
+def _report(J, W, Linv, d, names, types, idx, config_keys) -> tuple[JointIdentifiability, np.ndarray]:
+    """The identifiability report over the joints ``idx`` and the whitened design (M*d, n)."""
+    M = J.shape[0]
+    A = _design(J, W)[:, :d, :]
+    Aw = np.einsum("mab,mbj->maj", Linv, A).reshape(M * d, -1)
+    sens, load_f, motion_f = _relative_sensitivity(J[:, :, idx], W, Linv, d, _lever_arm(J, types))
+    n_config = _group_poses(config_keys)[0].shape[0]
+    force = np.linalg.norm(W[:, :3], axis=1)
+    has_moments = bool(np.any(np.linalg.norm(W[:, 3:], axis=1) > 1e-6 * np.maximum(force, 1e-300)))
+    if M * d < idx.size:
+        return _too_few(M, d, tuple(names[j] for j in idx), tuple(types[j] for j in idx)), Aw
+    rep = _identify(
+        Aw[:, idx],
+        tuple(names[j] for j in idx),
+        tuple(types[j] for j in idx),
+        sens,
+        load_f,
+        motion_f,
+        d=d,
+        n_config=n_config,
+        has_moments=has_moments,
+    )
+    return rep, Aw
+
+
+def joint_identifiability(
+    jacobians,
+    wrenches,
+    cov=None,
+    *,
+    measured: int = 6,
+    joint_names: Sequence[str] | None = None,
+    fit: Sequence[str] | None = None,
+) -> JointIdentifiability:
+    """Which joint compliances a set of configurations and loads can determine (no data needed).
+
+    Plan an experiment with it before measuring: it never raises for an undetermined joint,
+    but says so in ``message``. :func:`fit_joint_compliances` refuses a fit whose report
+    has a message.
+
+    Parameters
+    ----------
+    jacobians : array_like, shape (M, 6, n)
+        Jacobian of the measured point at the configuration of each planned measurement.
+    wrenches : array_like, shape (M, 6)
+        Wrench (N, N*mm) at the measured point, base frame, of each measurement.
+    cov : array_like, shape (M, d, d) or (M, d), optional
+        Expected covariance (or standard deviations) of each measured displacement; unit
+        weights when omitted.
+    measured : {3, 6}
+        3 for point translations, 6 for poses (ignored when ``cov`` says it by its shape).
+    joint_names : sequence of str, optional
+        Default ``k1`` ... ``kn``.
+    fit : sequence of str, optional
+        The joints to examine (default all).
+
+    Returns
+    -------
+    JointIdentifiability
+    """
+    if cov is not None:
+        shape = np.shape(cov)
+        if len(shape) >= 2 and shape[1] in (3, 6):
+            measured = int(shape[1])
+    J, W, _, d, Linv, names, idx, _ = _prepare(jacobians, wrenches, measured, cov, joint_names, fit, None)
+    rep, _ = _report(J, W, Linv, d, names, _joint_types(J), idx, J.reshape(J.shape[0], -1))
+    return rep
+
+
+# --------------------------------------------------------------------------- the fit
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """Joint compliances fitted to measured deflections (:func:`fit_joint_compliances`).
+
+    Arrays are read-only. ``n`` joints, ``p`` fitted, ``M`` measured rows of ``d``
+    components, ``G`` configurations, ``L`` load-case labels.
+
+    Attributes
+    ----------
+    names : tuple of str
+        All joints, in the Jacobians' column order.
+    joint_types : tuple of str
+        ``"revolute"`` or ``"prismatic"`` (from the Jacobians: a revolute column has a unit
+        angular velocity).
+    fitted : tuple of str
+        The fitted joints, in joint order; the others were held at ``fixed``.
+    compliance : ndarray, shape (n,)
+        rad/(N*mm) (revolute) or mm/N (prismatic); the fixed value for joints not fitted.
+    compliance_std : ndarray, shape (n,)
+        Standard errors; NaN where not estimated (held fixed, or held at 0 by the bound).
+    stiffness, stiffness_std : ndarray, shape (n,)
+        ``1 / compliance`` (N*mm/rad or N/mm; ``inf`` for a zero compliance) and its standard
+        error ``c_std / c^2`` (NaN where the compliance is 0 or not estimated).
+    covariance : ndarray, shape (p, p)
+        Covariance of the fitted compliances (NaN rows and columns for joints held at 0).
+    correlation : ndarray, shape (p, p)
+    residuals : ndarray, shape (M, d)
+        Measured minus predicted displacement (mm, rad).
+    normalized_residuals : ndarray, shape (M, d)
+        Residuals whitened by the Cholesky factor of their covariance, ``L^-1 r`` (unit-free;
+        about unit variance when the covariances are right). Equal to ``residuals`` without
+        covariances.
+    config_index : ndarray of int, shape (M,)
+        The configuration of each row, 0 .. G-1 in order of first appearance.
+    configs : ndarray, shape (G,)
+        The configuration ids given in ``config_index`` (or 0 .. G-1 when grouped by
+        Jacobian).
+    residual_rms_per_config : ndarray, shape (G, 2)
+        RMS residual per component of each configuration: translations (mm), rotations (rad;
+        NaN when only translations are measured).
+    normalized_rms_per_config : ndarray, shape (G,)
+        RMS of the normalised residuals of each configuration (about 1 when it fits).
+    labels : tuple of str or None
+        Load-case label of each row, as given.
+    label_names : tuple of str
+        The distinct labels in order of first appearance (empty without labels).
+    residual_rms_per_label : ndarray, shape (L, 2)
+    normalized_rms_per_label : ndarray, shape (L,)
+    chi2 : float
+        Sum of squared normalised residuals.
+    dof : int
+        Observations (M * d) minus free fitted compliances.
+    reduced_chi2 : float
+        ``chi2 / dof`` (NaN when dof = 0).
+    p_value : float
+        ``P(chi2_dof > chi2)``: small when the model or the covariances do not explain the
+        data (NaN without covariances or without dof).
+    condition : float
+        Condition number of the column-scaled whitened design (``identifiability``).
+    sensitivity : ndarray, shape (p,)
+        Relative sensitivity of each fitted joint (``identifiability``).
+    identifiability : JointIdentifiability
+    active : tuple of str
+        Fitted joints held at 0 by the non-negativity bound.
+    notes : tuple of str
+    absolute_sigma : bool
+    """
+
+    names: tuple[str, ...]
+    joint_types: tuple[str, ...]
+    fitted: tuple[str, ...]
+    compliance: np.ndarray
+    compliance_std: np.ndarray
+    stiffness: np.ndarray
+    stiffness_std: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    residuals: np.ndarray
+    normalized_residuals: np.ndarray
+    config_index: np.ndarray
+    configs: np.ndarray
+    residual_rms_per_config: np.ndarray
+    normalized_rms_per_config: np.ndarray
+    labels: tuple[str, ...] | None
+    label_names: tuple[str, ...]
+    residual_rms_per_label: np.ndarray
+    normalized_rms_per_label: np.ndarray
+    chi2: float
+    dof: int
+    reduced_chi2: float
+    p_value: float
+    condition: float
+    sensitivity: np.ndarray
+    identifiability: JointIdentifiability
+    active: tuple[str, ...]
+    absolute_sigma: bool
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Stiffness by joint name (N*mm/rad or N/mm)."""
+        return {s: float(k) for s, k in zip(self.names, self.stiffness, strict=True)}
+
+    def predict(self, jacobians, wrenches) -> np.ndarray:
+        """Deflection (M, 6) (mm, rad) with the fitted compliances (:func:`joint_deflections`)."""
+        return joint_deflections(jacobians, wrenches, self.compliance)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-able summary (NaN and inf become None)."""
+        rows = []
+        for j, s in enumerate(self.names):
+            cu, ku = _UNITS[self.joint_types[j]]
+            rows.append(
+                (
+                    s,
+                    {
+                        "type": self.joint_types[j],
+                        "fitted": s in self.fitted,
+                        "active": s in self.active,
+                        "compliance": float(self.compliance[j]),
+                        "compliance_std": float(self.compliance_std[j]),
+                        "compliance_unit": cu,
+                        "stiffness": float(self.stiffness[j]),
+                        "stiffness_std": float(self.stiffness_std[j]),
+                        "stiffness_unit": ku,
+                    },
+                )
+            )
+        r = self.residuals
+        return to_jsonable(
+            {
+                "joints": dict(rows),
+                "fitted": list(self.fitted),
+                "correlation": self.correlation,
+                "n_rows": int(r.shape[0]),
+                "measured": int(r.shape[1]),
+                "dof": self.dof,
+                "chi2": self.chi2,
+                "reduced_chi2": self.reduced_chi2,
+                "p_value": self.p_value,
+                "condition": self.condition,
+                "sensitivity": dict(zip(self.fitted, self.sensitivity.tolist(), strict=True)),
+                "identifiability": self.identifiability.to_dict(),
+                "absolute_sigma": self.absolute_sigma,
+                "residual_rms_mm": float(np.sqrt(np.mean(r[:, :3] ** 2))),
+                "residual_rms_rad": float(np.sqrt(np.mean(r[:, 3:] ** 2))) if r.shape[1] == 6 else None,
+                "configs": [
+                    {"config": c, "rms_mm": t[0], "rms_rad": t[1], "normalized_rms": z}
+                    for c, t, z in zip(
+                        self.configs.tolist(),
+                        self.residual_rms_per_config.tolist(),
+                        self.normalized_rms_per_config.tolist(),
+                        strict=True,
+                    )
+                ],
+                "load_cases": [
+                    {"label": c, "rms_mm": t[0], "rms_rad": t[1], "normalized_rms": z}
+                    for c, t, z in zip(
+                        self.label_names,
+                        self.residual_rms_per_label.tolist(),
+                        self.normalized_rms_per_label.tolist(),
+                        strict=True,
+                    )
+                ],
+                "active": list(self.active),
+                "notes": list(self.notes),
+            }
+        )
+
+
+def _rms_table(index: np.ndarray, G: int, r: np.ndarray, rn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per group: RMS per component of translations (mm) and rotations (rad), normalised RMS."""
+    count = np.bincount(index, minlength=G).astype(float)
+    d = r.shape[1]
+    tr = np.sqrt(np.bincount(index, np.sum(r[:, :3] ** 2, axis=1), G) / (3 * count))
+    if d == 6:
+        rot = np.sqrt(np.bincount(index, np.sum(r[:, 3:] ** 2, axis=1), G) / (3 * count))
+    else:
+        rot = np.full(G, np.nan)
+    nrm = np.sqrt(np.bincount(index, np.sum(rn**2, axis=1), G) / (d * count))
+    return np.stack([tr, rot], axis=1), nrm
+
+
+def _solve(An: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares of a column-scaled system: solution and (An^T An)^-1, by the SVD."""
+    U, s, Vt = np.linalg.svd(An, full_matrices=False)
+    x = Vt.T @ ((U.T @ y) / s)
+    cov = (Vt.T / s**2) @ Vt
+    return x, cov
+
+
+def fit_joint_compliances(
+    jacobians,
+    wrenches,
+    displacements,
+    cov=None,
+    *,
+    joint_names: Sequence[str] | None = None,
+    fit: Sequence[str] | None = None,
+    fixed: Mapping[str, float] | None = None,
+    nonnegative: bool = True,
+    absolute_sigma: bool = False,
+    config_index=None,
+    labels: Sequence[str] | None = None,
+) -> JointFit:
+    """Joint compliances from measured deflections, by weighted linear least squares.
+
+    Row m: at a configuration with Jacobian ``jacobians[m]`` the wrench ``wrenches[m]``
+    moves the measured point by ``displacements[m]``, modelled as ``J C J^T w`` (module
+    docstring).
+
+    Parameters
+    ----------
+    jacobians : array_like, shape (M, 6, n)
+        Jacobian of the measured point at each row's configuration, base frame: rows vx, vy,
+        vz (mm per joint unit) then wx, wy, wz (rad per joint unit).
+    wrenches : array_like, shape (M, 6)
+        Force (N) and moment (N*mm) at the measured point, base frame.
+    displacements : array_like, shape (M, 3) or (M, 6)
+        Measured deflection: translations (mm), and for d = 6 the rotation vector (rad).
+    cov : array_like, shape (M, d, d) or (M, d), optional
+        Covariance of each displacement (mm^2, mm*rad, rad^2; full, symmetric positive
+        definite), or its standard deviations. Unit weights when omitted (then
+        ``absolute_sigma`` must be False, and there is no p-value).
+    joint_names : sequence of str, optional
+        The n joints' names (default ``k1`` ... ``kn``), used in messages and results.
+    fit : sequence of str, optional
+        The joints to fit; default every joint not in ``fixed``.
+    fixed : mapping of str to float, optional
+        Compliances of the joints not fitted (rad/(N*mm) or mm/N; 0 for a rigid joint);
+        their deflection is subtracted from the data.
+    nonnegative : bool
+        Keep compliances >= 0 (default); a joint the bound holds at 0 is said in ``active``
+        and ``notes``.
+    absolute_sigma : bool
+        Take ``cov`` as exact; otherwise scale the covariance by the reduced chi-square.
+    config_index : array_like of int, shape (M,), optional
+        The configuration of each row, for the per-configuration residuals; default: rows
+        with identical Jacobians form a configuration.
+    labels : sequence of str, shape (M,), optional
+        The load case of each row, for the per-load-case residuals.
+
+    Returns
+    -------
+    JointFit
+
+    Raises
+    ------
+    InputError
+        Wrong shapes, non-finite values, a covariance that is not symmetric positive
+        definite, unknown names in ``fit`` or ``fixed``, a joint neither fitted nor fixed:
+        the message names the argument and the row.
+    DesignError
+        Fewer observations than fitted joints, or joints the configurations and loads cannot
+        determine (named, with what would determine them; :func:`joint_identifiability`).
+
+    Warns
+    -----
+    IllConditionedWarning
+        When the design determines every joint but its condition number exceeds
+        ``CONDITION_WARN``.
+    """
+    J, W, D, d, Linv, names, idx, fixed_values = _prepare(
+        jacobians, wrenches, displacements, cov, joint_names, fit, fixed
+    )
+    M, _, n = J.shape
+    if cov is None and absolute_sigma:
+        raise InputError("absolute_sigma: True needs cov (the covariances to take as exact)")
+    if config_index is None:
+        configs, cidx = _group_poses(J.reshape(M, -1))
+        configs = np.arange(configs.shape[0])
+    else:
+        ci = np.asarray(config_index)
+        if ci.shape != (M,) or not np.issubdtype(ci.dtype, np.integer):
+            raise InputError(
+                f"config_index: expected {M} integers (one per row), got shape {ci.shape}, {ci.dtype}"
+            )
+        configs, cidx = _group_poses(ci)
+    if labels is None:
+        label_tuple, label_names, lidx = None, (), np.zeros(M, dtype=int)
+    else:
+        if isinstance(labels, str) or len(labels) != M:
+            got = 1 if isinstance(labels, str) else len(labels)
+            raise InputError(f"labels: expected {M} load-case labels (one per row), got {got}")
+        label_tuple = tuple(str(s) for s in labels)
+        uniq, lidx = _group_poses(np.array(label_tuple))
+        label_names = tuple(str(s) for s in uniq)
+
+    types = _joint_types(J)
+    fitted = tuple(names[j] for j in idx)
+    p = idx.size
+    n_obs = M * d
+    if n_obs < p:
+        raise DesignError(_too_few_message(M, d, fitted))
+    rep, Aw = _report(J, W, Linv, d, names, types, idx, cidx)
+    if not rep.determined:
+        raise DesignError(rep.message)
+    if rep.condition > CONDITION_WARN:
+        weak = rep.directions[-1] * np.sign(rep.directions[-1][np.argmax(np.abs(rep.directions[-1]))])
+        combo = " ".join(
+            f"{'-' if w < 0 else '+'} {abs(w):.2g} {s}"
+            for w, s in zip(weak, fitted, strict=True)
+            if abs(w) > 0.1
+        ).lstrip("+ ")
+        warnings.warn(
+            f"joint-compliance fit of {_format_names(fitted)}: condition number {rep.condition:.3g} > "
+            f"{CONDITION_WARN:g}; the estimates are strongly correlated and sensitive to noise (the "
+            f"weakest combination, in scaled compliances: {combo})",
+            IllConditionedWarning,
+            stacklevel=2,
+        )
+
+    # Subtract the fixed joints' deflection; whiten.
+    c_all = np.where(np.isnan(fixed_values), 0.0, fixed_values)
+    known = np.setdiff1d(np.arange(n), idx)
+    y = D - np.einsum(
+        "mkj,mj->mk", _design(J, W)[:, :d, :][:, :, known], np.broadcast_to(c_all[known], (M, known.size))
+    )
+    yw = np.einsum("mab,mb->ma", Linv, y).reshape(-1)
+    A = Aw[:, idx]
+    norms = np.linalg.norm(A, axis=0)
+    An = A / norms
+
+    def scaled(cov_s: np.ndarray, chi2: float, dof: int) -> np.ndarray:
+        if absolute_sigma:
+            return cov_s
+        if dof > 0:
+            return cov_s * (chi2 / dof)
+        return np.full_like(cov_s, np.nan)
+
+    x, cov_s = _solve(An, yw)
+    notes: list[str] = []
+    free = np.ones(p, dtype=bool)
+    if nonnegative and np.any(x < 0):
+        r0 = yw - An @ x
+        chi0 = float(r0 @ r0)
+        cov_unc = scaled(cov_s, chi0, n_obs - p) / np.outer(norms, norms)
+        c_unc = x / norms
+        res = optimize.lsq_linear(An, yw, bounds=(0.0, np.inf), method="bvls", tol=1e-14)
+        free = res.active_mask == 0
+        while True:
+            # The exact solution on bvls's free set (a joint that still comes out negative
+            # by rounding joins the bound).
+            x = np.zeros(p)
+            cov_s = np.full((p, p), np.nan)
+            if not np.any(free):
+                break
+            xf, cf = _solve(An[:, free], yw)
+            if np.all(xf >= 0):
+                x[free] = xf
+                cov_s[np.ix_(free, free)] = cf
+                break
+            free[np.flatnonzero(free)[int(np.argmin(xf))]] = False
+        for k in np.flatnonzero(~free):
+            j = idx[k]
+            unit = _UNITS[types[j]][0]
+            notes.append(
+                f"compliance of {names[j]} held at 0 (the unconstrained estimate was {c_unc[k]:.3g} {unit} "
+                f"± {np.sqrt(cov_unc[k, k]):.2g}): the data favour a rigid joint; its standard error is not "
+                "given and the covariance covers the other joints"
+            )
+    rw = yw - An @ x
+    chi2 = float(rw @ rw)
+    n_free = int(np.count_nonzero(free))
+    dof = n_obs - n_free
+    red = chi2 / dof if dof > 0 else float("nan")
+    cov_s = scaled(cov_s, chi2, dof)
+    if not absolute_sigma and dof == 0:
+        notes.append("no residual degree of freedom: standard errors unknown (give cov and absolute_sigma)")
+    c_fit = x / norms
+    cov_c = cov_s / np.outer(norms, norms)
+    std_fit = np.sqrt(np.diag(cov_c))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov_c / np.outer(std_fit, std_fit)
+
+    compliance = c_all.copy()
+    compliance[idx] = c_fit
+    compliance_std = np.full(n, np.nan)
+    compliance_std[idx] = std_fit
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stiffness = np.where(compliance > 0, 1.0 / np.where(compliance > 0, compliance, 1.0), np.inf)
+        stiffness_std = np.where(compliance > 0, compliance_std / compliance**2, np.nan)
+
+    resid = (D - joint_deflections(J, W, compliance)[:, :d]).copy()
+    nres = np.einsum("mab,mb->ma", Linv, resid)
+    rms_c, nrms_c = _rms_table(cidx, configs.shape[0], resid, nres)
+    if label_tuple is None:
+        rms_l, nrms_l = np.zeros((0, 2)), np.zeros(0)
+    else:
+        rms_l, nrms_l = _rms_table(lidx, len(label_names), resid, nres)
+
+    p_value = float(stats.chi2.sf(chi2, dof)) if cov is not None and dof > 0 else float("nan")
+    hint = (
+        f"the model with joint compliances {_format_names(fitted)} fitted does not explain the measurements"
+    )
+    if cov is not None and dof > 0 and p_value < MISFIT_P:
+        notes.append(
+            f"{hint} (chi2/dof = {red:.3g} over {dof} dof, p = {p_value:.2g}): the uncertainties are "
+            "underestimated, or the model misses something (a link's compliance, backlash, a wrong "
+            "Jacobian or load, a held joint's compliance)"
+        )
+    elif cov is None and dof > 0:
+        rel = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(y**2))), 1e-300))
+        if rel > MISFIT_RELATIVE:
+            notes.append(f"{hint} (residual RMS {100 * rel:.3g} % of the measurements' RMS)")
+
+    active = tuple(fitted[k] for k in np.flatnonzero(~free))
+    arrays = (
+        compliance,
+        compliance_std,
+        stiffness,
+        stiffness_std,
+        cov_c,
+        corr,
+        resid,
+        nres,
+        cidx,
+        configs,
+        rms_c,
+        nrms_c,
+        rms_l,
+        nrms_l,
+        rep.sensitivity,
+        rep.singular_values,
+        rep.directions,
+        rep.inflation,
+        rep.weakest,
+    )
+    for a in arrays:
+        a.setflags(write=False)
+    return JointFit(
+        names=names,
+        joint_types=types,
+        fitted=fitted,
+        compliance=compliance,
+        compliance_std=compliance_std,
+        stiffness=stiffness,
+        stiffness_std=stiffness_std,
+        covariance=cov_c,
+        correlation=corr,
+        residuals=resid,
+        normalized_residuals=nres,
+        config_index=cidx,
+        configs=configs,
+        residual_rms_per_config=rms_c,
+        normalized_rms_per_config=nrms_c,
+        labels=label_tuple,
+        label_names=label_names,
+        residual_rms_per_label=rms_l,
+        normalized_rms_per_label=nrms_l,
+        chi2=chi2,
+        dof=dof,
+        reduced_chi2=red,
+        p_value=p_value,
+        condition=rep.condition,
+        sensitivity=rep.sensitivity,
+        identifiability=rep,
+        active=active,
+        absolute_sigma=bool(absolute_sigma),
+        notes=tuple(notes),
+    )
