@@ -77,6 +77,8 @@ __all__ = [
 ROLES = ("actuated", "passive", "spring")
 #: How far (rad or mm) an inverse-kinematics solution may lie beyond a joint limit (roundoff).
 LIMIT_TOL = 1e-9
+#: Most steps of the inverse kinematics' continuation from a leg's seed.
+MAX_STEPS = 100
 #: A legs TOML larger than this is refused unread (the Delta's is 3 kB).
 MAX_TOML_BYTES = 1024 * 1024
 #: The stiffnesses a legs TOML may give (N*mm/rad or N/mm), besides inf (rigid).
@@ -617,7 +619,8 @@ class _Leg:
 
         :meth:`Chain.inverse` from the seed; when that does not converge or lands beyond a
         limit (on another branch), continuation: the tip moved from its seed position to the
-        target in steps of ``step_mm``, each solved from the previous solution.
+        target in steps of ``step_mm`` (at most :data:`MAX_STEPS`), each solved from the previous
+        solution.
 
         Returns
         -------
@@ -628,7 +631,7 @@ class _Leg:
         res = self.ik_chain.inverse(target, q0=self.q0, max_iter=50)
         if res.converged and not self.beyond_limits(res.q):
             return res.q, ""
-        n = max(2, math.ceil(float(np.linalg.norm(target - self.tip0)) / self.step_mm))
+        n = min(max(2, math.ceil(float(np.linalg.norm(target - self.tip0)) / self.step_mm)), MAX_STEPS)
         q = self.q0
         for k in range(1, n + 1):
             on_path = self.tip0 + (k / n) * (target - self.tip0)
