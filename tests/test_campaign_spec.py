@@ -64,7 +64,7 @@ def _line_of(text: str, needle: str) -> int:
             "not a rotation matrix",
         ),
         ('board = "5x4"', 'board = "5by4"', "targets.mobile.board", "COLSxROWS"),
-        ('model = "delta"', 'model = "scara"', "robot.model", "'delta', '3prr' or 'none'"),
+        ('model = "delta"', 'model = "scara"', "robot.model", "'delta', '3prr', 'urdf', 'legs' or 'none'"),
         ("[0.0, -1.0, 0.0, 31.00]", "[0.0, -1.0, 0.5, 31.00]", "targets.fixed.fixed2base", "rotation"),
     ],
 )

@@ -67,7 +67,7 @@ def plan(
         two roles (a loaded image that is also an unloaded one, or one file for two
         positions or two load cases), naming the key and the two uses.
     """
-    positions = spec.positions.resolve()
+    positions = spec.position_points(root)
     n_loads = len(spec.loads.resolve(spec.g))
     roles: dict[str, tuple[str, int, int, int]] = {}
     resolved: dict = {}  # folders resolved once for all the images

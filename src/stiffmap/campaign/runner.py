@@ -30,6 +30,7 @@ import hashlib
 import json
 import os
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ from ..camera import load_camera
 from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
 from ..models.fit import fit_stiffness
+from ..models.joint_fit import fit_joint_compliances
 from ..rig import Rig, load_rig
 from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions
@@ -141,7 +143,7 @@ def run_campaign(
                     continue
                 problems = _derive_and_persist(store, campaign, work, task, rows)
                 tally.position_done(task, rows, problems)
-        summary.failures.extend(fit_and_evaluate_model(store, campaign.spec))
+        summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
     return summary
@@ -473,27 +475,45 @@ class _Tally:
 # ---------------------------------------------------------------------- model
 
 
-def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
-    """Evaluate the campaign's model at every position, fit it to the measured K, store both."""
+def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list[str]:
+    """Evaluate the campaign's model at every position, fit it to the measurements, store both.
+
+    The Delta and a robot described by its legs are fitted to the measured K
+    (:func:`~stiffmap.models.fit.fit_stiffness`); a URDF robot's joint stiffnesses to the
+    measured displacements themselves (:func:`~stiffmap.models.joint_fit.fit_joint_compliances`:
+    linear in the joint compliances, translations and rotations with their covariances).
+    """
     problems: list[str] = []
     name = spec.robot.model
     if name == "none" or spec.kind != "vision":
         return problems
-    if name != "delta":
+    if name == "3prr":
         problems.append(f"robot model {name!r} has no 3D stiffness for a vision campaign; model step skipped")
         return problems
     try:
-        model = spec.robot.mechanism()
-    except ValueError as e:
-        problems.append(f"campaign.toml robot.params: {e}")
+        model = spec.model(root)
+    except ValueError as e:  # InputError too: it names the file or the key
+        where = "robot model" if isinstance(e, InputError) else "campaign.toml robot.params"
+        problems.append(f"{where}: {e}")
+        return problems
+    if model.dim != 3:
+        problems.append(f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign")
         return problems
     rows = store.stiffness_rows()
     if not rows:
         return problems
     pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
     ok = [r for r in rows if r["status"] == "ok"]
+    disp = store.displacement_rows(only_ok=True) if name == "urdf" else []
     ihash = params_hash(
-        {"model": name, "params": spec.robot.params, "xyz": pts.tolist(), "K": [r["K"] for r in ok]}
+        {
+            "model": name,
+            "params": spec.robot.params,
+            "robot": spec.robot.model_dump(exclude={"params"}),
+            "xyz": pts.tolist(),
+            "K": [r["K"] for r in ok],
+            "d": [(d["position"], d["load"], d["repeat"], d["d"], d["cov"]) for d in disp],
+        }
     )
     fit_row: dict[str, Any] = {
         "name": "stiffness",
@@ -501,7 +521,10 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
         "inputs_hash": ihash,
         "version": __version__,
     }
-    fitted = _fit_to_measured(model, ok, spec.robot.fitted_names(), fit_row, problems)
+    if name == "urdf":
+        fitted = _fit_joints(model, spec, rows, disp, fit_row, problems)
+    else:
+        fitted = _fit_to_measured(model, ok, spec.robot.fitted_names(model), fit_row, problems)
     mm = fitted.evaluate(pts)
     per_position = []
     for r, K, valid, reason, det, lam in zip(
@@ -524,6 +547,72 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec) -> list[str]:
             problems.append(f"position {r['position']} {where}: outside the model: {reason}")
     store.save_model_stiffness(fit_row, per_position)
     return problems
+
+
+def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str]):
+    """A URDF robot with its joint stiffnesses fitted to the measured displacements (``model``
+    when the fit fails); the fit's columns (or its failure) into ``fit_row``."""
+    try:
+        if not disp:
+            raise InputError("no measured displacement to fit the joint stiffnesses to")
+        loads = spec.loads.resolve(spec.g)
+        lever = np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float)
+        pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+        ik = model.configurations_for(pts)
+        at = {r["position"]: i for i, r in enumerate(rows)}
+        J_rows, W, D, C, cfg, labels = [], [], [], [], [], []
+        jac: dict[int, np.ndarray] = {}
+        for d in disp:
+            i = at.get(d["position"])
+            if i is None or not ik.reachable[i] or d["load"] > len(loads):
+                continue
+            if i not in jac:
+                jac[i] = model.chain.jacobian(ik.q[i])
+            F = loads[d["load"] - 1].force
+            J_rows.append(jac[i])
+            W.append(np.concatenate([F, np.cross(lever, F)]))
+            D.append(from_json(d["d"]))
+            C.append(from_json(d["cov"]))
+            cfg.append(i)
+            labels.append(loads[d["load"] - 1].label)
+        if not D:
+            raise InputError("no measured displacement at a position the robot model reaches")
+        names = model.param_names()
+        fitted_names = spec.robot.fitted_names(model)
+        fixed = {k: 1.0 / v for k, v in model.params().items() if k not in fitted_names}
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fit = fit_joint_compliances(
+                np.array(J_rows),
+                np.array(W),
+                np.array(D),
+                np.array(C),
+                joint_names=names,
+                fit=fitted_names,
+                fixed=fixed,
+                config_index=np.array(cfg),
+                labels=labels,
+                extra_noise=True,
+            )
+        problems.extend(f"model fit: {w.message}" for w in caught)
+        problems.extend(f"model fit: {n}" for n in fit.notes)
+        fitted = model.with_params(**{k: float(fit.stiffness[names.index(k)]) for k in fitted_names})
+        idx = [names.index(k) for k in fitted_names]
+        fit_row.update(
+            status="ok",
+            error=None,
+            params=to_json({k: float(fit.stiffness[i]) for k, i in zip(fitted_names, idx, strict=True)}),
+            std=to_json({k: float(fit.stiffness_std[i]) for k, i in zip(fitted_names, idx, strict=True)}),
+            cov=to_json(fit.covariance),
+            residuals=to_json(fit.residual_rms_per_config),
+            condition=float(fit.condition),
+            dof=int(fit.dof),
+        )
+        return fitted
+    except (InputError, ValueError) as e:
+        fit_row.update(status="failed", error=str(e))
+        problems.append(f"model fit: {e}")
+        return model
 
 
 def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict, problems: list[str]):

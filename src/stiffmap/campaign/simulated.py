@@ -60,6 +60,7 @@ from ..sim.calibration_views import (
 )
 from ..sim.render import encode_image
 from ..sim.render_pool import render_calibration_images, render_campaign_images
+from ..sim.robot import URDF_NAME
 from ..sim.testbed import CampaignPlan, SimConfig, plan_campaign, seeded_generator
 from ..vision.calibrate import CalibrationResult
 from ..vision.files import calibrate_files, calibrate_rig_files
@@ -86,7 +87,7 @@ __all__ = [
 ]
 
 RIG_NAME = "rig.json"
-_OWN_FILES = ("campaign.toml", "camera.json", RIG_NAME, TRUTH_NAME, CORNERS_NAME)
+_OWN_FILES = ("campaign.toml", "camera.json", RIG_NAME, TRUTH_NAME, CORNERS_NAME, URDF_NAME)
 #: The distortion model of the calibration (``stiffmap calibrate``'s default).
 CALIBRATION_MODEL = "k3"
 
@@ -215,7 +216,7 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
         "kind": "vision",
         "g": float(config.g),
         "repeats": config.repeats,
-        "robot": {"model": config.robot.model, "params": dict(config.robot.params)},
+        "robot": {"model": config.robot.model, "params": dict(config.robot.params), **config.robot.spec},
         **({"camera": {"file": "camera.json"}} if sc.rig is None else {"cameras": {"rig": RIG_NAME}}),
         "targets": {
             "fixed": {
@@ -235,7 +236,12 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
             "cases": [
                 {"force_n": [float(v) for v in ld.force], "label": ld.label or f"load {i}"}
                 for i, ld in enumerate(config.loads, start=1)
-            ]
+            ],
+            **(
+                {"point_mm": [float(v) for v in config.robot.load_point_mm]}
+                if any(config.robot.load_point_mm)
+                else {}
+            ),
         },
         "images": {
             "unloaded": pat_u,
@@ -624,6 +630,8 @@ def write_campaign(
         save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
     else:
         save_rig(rig if rig_result is None else rig_result.rig, out / RIG_NAME)
+    for name, source in config.robot.files.items():  # the robot's own files (a URDF robot's URDF)
+        atomic_write_bytes(out / name, Path(source).read_bytes())
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
         f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "

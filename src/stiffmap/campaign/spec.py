@@ -46,11 +46,14 @@ from pydantic import (
 )
 
 from ..errors import InputError
-from ..geometry import as_transform
+from ..geometry import as_transform, matrix_from_euler
 from ..loads import LoadCase, load_from_mass, with_friction
 from ..loads import preset as load_preset
 from ..models import MECHANISMS
-from ..models.presets import preset_points
+from ..models.chain import Chain
+from ..models.legs import LegRobot
+from ..models.presets import preset_points, urdf_file
+from ..models.serial import SerialRobot
 from ..rig import CAMERA_FIELD
 from ..sensors.recording import parse_channel_map
 from ..targets import parse_board_size
@@ -184,20 +187,36 @@ def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
     return v
 
 
-class RobotSpec(_Spec):
-    """The robot: a model to fit and draw beside the measurements, or ``none``."""
+#: Joint-stiffness parameters of a model from a URDF: k1, k2, ... (N*mm/rad or N/mm).
+_JOINT_PARAM = re.compile(r"k[1-9][0-9]?")
+Angle = Annotated[Finite, _between(-3600.0, 3600.0, "degrees")]
 
-    model: Literal["delta", "3prr", "none"] = "none"
+
+class RobotSpec(_Spec):
+    """The robot: a model to fit and draw beside the measurements, or ``none``.
+
+    ``delta`` and ``3prr`` are stiffmap's built-in models; ``urdf`` a serial robot read from
+    its URDF (``urdf``, ``tip_frame``, ``tip_offset_mm``; joint stiffnesses ``params.k1`` ...
+    in N*mm/rad, or N/mm for a prismatic joint; positions reached by inverse kinematics with
+    the tool at ``tool_rpy_deg`` from ``q_seed_deg``, or given as ``positions.q_deg``);
+    ``legs`` a parallel robot described by its legs (``legs``: a TOML file, docs/models.md).
+    Files are relative to the campaign folder.
+    """
+
+    model: Literal["delta", "3prr", "urdf", "legs", "none"] = "none"
     params: dict[str, Finite] = Field(default_factory=dict)
-    #: Parameters fitted to the measurements (default: k_theta for the Delta, kj for the 3PRR).
+    #: Parameters fitted to the measurements (default: k_theta for the Delta, kj for the 3PRR,
+    #: every joint of a URDF robot).
     fit: list[Text] | None = None
+    urdf: Text | None = None
+    tip_frame: Text | None = None
+    tip_offset_mm: Annotated[tuple[Coord, Coord, Coord], Field(strict=False)] | None = None
+    tool_rpy_deg: Annotated[tuple[Angle, Angle, Angle], Field(strict=False)] | None = None
+    q_seed_deg: list[Angle] | None = None
+    legs: Text | None = None
 
     @model_validator(mode="after")
     def _known(self):
-        if self.model == "none":
-            return self
-        cls = MECHANISMS[self.model]
-        names = cls.param_names()
         lo, hi = LIMITS["model_param"]
         for k, v in self.params.items():
             if v != 0 and not lo <= abs(v) <= hi:
@@ -205,6 +224,39 @@ class RobotSpec(_Spec):
                     f"robot.params.{k} = {v:g} is not between {lo:g} and {hi:g} in size (in the "
                     "parameter's unit, docs/models.md): a typing mistake?"
                 )
+        if self.fit is not None and len(set(self.fit)) != len(self.fit):
+            raise ValueError("robot.fit = a parameter is listed twice")
+        own = {
+            "urdf": ("urdf", "tip_frame", "tip_offset_mm", "tool_rpy_deg", "q_seed_deg"),
+            "legs": ("legs",),
+        }
+        for model, keys in own.items():
+            if self.model != model:
+                given = [k for k in keys if getattr(self, k) is not None]
+                if given:
+                    raise ValueError(f'robot.{given[0]} is for model = "{model}", not "{self.model}"')
+        if self.model == "urdf":
+            missing = [k for k in ("urdf", "tip_frame") if getattr(self, k) is None]
+            if missing:
+                raise ValueError(f'model = "urdf" needs robot.{missing[0]}')
+            bad = [k for k in list(self.params) + list(self.fit or ()) if not _JOINT_PARAM.fullmatch(k)]
+            if bad:
+                raise ValueError(
+                    f"robot.params / robot.fit: {bad[0]!r} is not a joint stiffness of a URDF robot; "
+                    "its parameters are k1, k2, ... (N*mm/rad; N/mm for a prismatic joint)"
+                )
+            if any(v <= 0 for v in self.params.values()):
+                raise ValueError("robot.params: joint stiffnesses must be positive (N*mm/rad)")
+            _check_path_text(self.urdf, "robot.urdf")
+            return self
+        if self.model == "legs":
+            if self.legs is None:
+                raise ValueError('model = "legs" needs robot.legs (the TOML file describing its legs)')
+            _check_path_text(self.legs, "robot.legs")
+            return self
+        if self.model == "none":
+            return self
+        names = MECHANISMS[self.model].param_names()
         try:
             self.mechanism()
         except ValueError as e:
@@ -215,26 +267,92 @@ class RobotSpec(_Spec):
                 f"robot.fit = unknown {self.model} parameter(s) {', '.join(map(repr, bad))}; "
                 f"valid: {', '.join(names)}"
             )
-        if self.fit is not None and len(set(self.fit)) != len(self.fit):
-            raise ValueError("robot.fit = a parameter is listed twice")
         return self
 
-    def mechanism(self, **overrides: float):
-        """The model with ``params`` (then ``overrides``) applied; ValueError on a bad parameter."""
+    def mechanism(self, root: Path | None = None, configurations_deg=None, **overrides: float):
+        """The model with ``params`` (then ``overrides``) applied.
+
+        Parameters
+        ----------
+        root : Path, optional
+            The campaign folder, where ``urdf`` and ``legs`` files are (needed for those models).
+        configurations_deg : array_like, shape (n, joints), optional
+            A URDF robot's joint configurations at the positions (``positions.q_deg``).
+
+        Raises
+        ------
+        ValueError
+            A bad parameter; InputError naming the file for a URDF or legs file that cannot
+            be read.
+        """
         if self.model == "none":
             raise ValueError("robot.model is 'none': the campaign has no model")
-        model = MECHANISMS[self.model]()
         params = {**self.params, **overrides}
+        if self.model in ("urdf", "legs"):
+            if root is None:
+                raise ValueError(f"robot.model = {self.model!r} needs the campaign folder to find its file")
+            return self._described(Path(root), params, configurations_deg)
+        model = MECHANISMS[self.model]()
         try:
             return model.with_params(**params) if params else model
         except TypeError as e:
             raise ValueError(str(e)) from None
 
-    def fitted_names(self) -> tuple[str, ...]:
-        """The parameters to fit: ``fit``, or the model's default."""
+    def _described(self, root: Path, params: dict[str, float], configurations_deg):
+        """The URDF or legs model from its file in ``root``."""
+        where = f"{SPEC_NAME} robot.{self.model}"
+        if self.model == "legs":
+            model = _read_model_file(root / self.legs, where, LegRobot.from_toml)
+            return model.with_params(**params) if params else model
+        seed = None if self.q_seed_deg is None else np.radians(self.q_seed_deg)
+        rot = None if self.tool_rpy_deg is None else matrix_from_euler(np.radians(self.tool_rpy_deg))
+        q = None if configurations_deg is None else np.radians(np.asarray(configurations_deg, dtype=float))
+        path = root / self.urdf
+        if not path.exists() and urdf_file(self.urdf) != self.urdf:
+            path = Path(urdf_file(self.urdf))  # a URDF that ships with stiffmap
+        chain = _read_model_file(
+            path, where, lambda p: Chain.from_urdf(p, self.tip_frame, self.tip_offset_mm or (0.0, 0.0, 0.0))
+        )
+        names = [f"k{i}" for i in range(1, chain.n + 1)]
+        unknown = [k for k in list(params) + list(self.fit or ()) if k not in names]
+        if unknown:
+            raise InputError(
+                f"robot.params / robot.fit: {unknown[0]!r}: {chain.name} has {chain.n} joints "
+                f"(k1 .. k{chain.n})",
+                source=SPEC_NAME,
+            )
+        missing = [k for k in names if k not in params]
+        if missing:
+            raise InputError(
+                f"robot.params: give the stiffness of every joint of {chain.name} "
+                f"({', '.join(missing)} missing; N*mm/rad, the starting values of the fit)",
+                source=SPEC_NAME,
+            )
+        if q is not None and q.shape[1] != chain.n:
+            raise InputError(
+                f"positions.q_deg: {q.shape[1]} joint values per position; {chain.name} has {chain.n} "
+                f"joints ({', '.join(chain.joint_names)})",
+                source=SPEC_NAME,
+            )
+        k = tuple(float(params[n]) for n in names)
+        return SerialRobot(chain, k, configurations=q, tool_rotation=rot, q_seed=seed)
+
+    def fitted_names(self, model=None) -> tuple[str, ...]:
+        """The parameters to fit: ``fit``, or the model's default (every joint of a URDF robot, every
+        ``[params]`` stiffness of a robot described by its legs: ``model``'s, when given)."""
         if self.fit:
             return tuple(self.fit)
+        if self.model in ("urdf", "legs"):
+            names = model.param_names() if model is not None else sorted(self.params)
+            return tuple(names)
         return ("kj",) if self.model == "3prr" else ("k_theta",)
+
+
+def _read_model_file(path: Path, where: str, read):
+    """``read(path)``; a missing file is an InputError naming the key of campaign.toml."""
+    if not path.is_file():
+        raise InputError(f"no such file (named by {where})", source=str(path))
+    return read(path)
 
 
 class CameraSpec(_Spec):
@@ -343,19 +461,30 @@ class PositionsSpec(_Spec):
     preset: Text | None = None
     points: list[list[Coord]] | None = Field(default=None, alias="list")
     grid: GridSpec | None = None
+    #: A URDF robot's joint configurations (degrees; mm for a prismatic joint), one per position:
+    #: the positions are where they put the measured point.
+    q_deg: list[list[Angle]] | None = None
 
     @model_validator(mode="after")
     def _one(self):
         given = [
             k
-            for k, a in (("preset", "preset"), ("list", "points"), ("grid", "grid"))
+            for k, a in (("preset", "preset"), ("list", "points"), ("grid", "grid"), ("q_deg", "q_deg"))
             if getattr(self, a) is not None
         ]
         if len(given) != 1:
             raise ValueError(
-                "give exactly one of 'preset', 'list' or 'grid'"
+                "give exactly one of 'preset', 'list', 'grid' or 'q_deg'"
                 + (f" (got {', '.join(given)})" if given else "")
             )
+        if self.q_deg is not None:
+            if not self.q_deg:
+                raise ValueError("'q_deg' is empty")
+            if len({len(q) for q in self.q_deg}) > 1:
+                i = next(i for i, q in enumerate(self.q_deg) if len(q) != len(self.q_deg[0]))
+                raise ValueError(
+                    f"q_deg[{i}] has {len(self.q_deg[i])} joint values, q_deg[0] has {len(self.q_deg[0])}"
+                )
         if self.points is not None:
             if not self.points:
                 raise ValueError("'list' is empty")
@@ -376,6 +505,8 @@ class PositionsSpec(_Spec):
 
     def count(self) -> int:
         """The number of positions (without building them)."""
+        if self.q_deg is not None:
+            return len(self.q_deg)
         if self.points is not None:
             return len(self.points)
         if self.grid is not None:
@@ -383,7 +514,10 @@ class PositionsSpec(_Spec):
         return len(preset_points(self.preset))
 
     def resolve(self) -> np.ndarray:
-        """Positions, shape (n, 3) mm (z = 0 for planar points)."""
+        """Positions, shape (n, 3) mm (z = 0 for planar points); not for ``q_deg``
+        (:meth:`CampaignSpec.position_points` puts those through the robot's kinematics)."""
+        if self.q_deg is not None:
+            raise ValueError("positions.q_deg: the positions come from the robot's kinematics")
         if self.preset is not None:
             pts = np.asarray(preset_points(self.preset), dtype=float)
         elif self.points is not None:
@@ -438,6 +572,10 @@ class LoadsSpec(_Spec):
     preset: Text | None = None
     cases: list[LoadCaseSpec] | None = None
     friction: FrictionSpec | None = None
+    #: Where the loads act, relative to the measured point, in the base frame's axes (mm): a
+    #: load off the measured point also applies a moment (the tool keeps its orientation at
+    #: every position). Used by a URDF robot's joint-stiffness fit.
+    point_mm: Annotated[tuple[Coord, Coord, Coord], Field(strict=False)] | None = None
 
     @model_validator(mode="after")
     def _one(self):
@@ -710,8 +848,24 @@ class CampaignSpec(_Spec):
     measurement: MeasurementSpec = Field(default_factory=MeasurementSpec)
     sensor: SensorSpec | None = None
 
+    def position_points(self, root: Path) -> np.ndarray:
+        """The positions, shape (n, 3) mm: as given, or where ``positions.q_deg`` puts the measured
+        point of the URDF robot (``root``: the campaign folder, where the URDF is)."""
+        if self.positions.q_deg is None:
+            return self.positions.resolve()
+        model = self.robot.mechanism(root, configurations_deg=self.positions.q_deg)
+        return model.chain.forward_many(model.configurations)[0]
+
+    def model(self, root: Path, **overrides: float):
+        """The campaign's robot model (``robot.mechanism`` with the configurations of
+        ``positions.q_deg``, if any)."""
+        q = None if self.positions is None else self.positions.q_deg
+        return self.robot.mechanism(root, configurations_deg=q, **overrides)
+
     @model_validator(mode="after")
     def _complete(self):
+        if self.positions is not None and self.positions.q_deg is not None and self.robot.model != "urdf":
+            raise ValueError('positions.q_deg gives joint configurations: it needs robot.model = "urdf"')
         if self.kind == "vision":
             if self.camera is not None and self.cameras is not None:
                 raise ValueError("give [camera] (one camera) or [cameras] (a rig of several), not both")

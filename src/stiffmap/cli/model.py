@@ -110,7 +110,9 @@ def _build_model(name: str, param_items: list[str]):
 def model(
     mechanism: MechanismName = typer.Argument(..., help="delta, 3prr or urdf."),
     robot: Path = typer.Argument(
-        None, metavar="[ROBOT.urdf]", help="urdf only (and required): the robot's URDF file."
+        None,
+        metavar="[ROBOT.urdf]",
+        help="urdf only (and required): the robot's URDF file, or arm6 (stiffmap's six-joint test arm).",
     ),
     grid: str = typer.Option(
         None,

@@ -31,10 +31,12 @@ from ..campaign.simulated import SimSummary, check_output_dir, write_campaign
 from ..campaign.simulated_sensor import SensorSimSummary, write_sensor_campaign
 from ..errors import InputError
 from ..loads import load_design
+from ..models import arm6
 from ..models.presets import positions_from_text, select_positions
 from ..models.prr3 import PRR3
 from ..sim.plan import SimulationPlan, plan_simulation, vision_config
-from ..sim.robot import delta_robot
+from ..sim.robot import arm6_robot, delta_robot
+from ..sim.scene import arm_scene
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from ..units import G_REFERENCE_PAPER
 from .common import (
@@ -52,6 +54,7 @@ from .common import (
 class RobotName(StrEnum):
     delta = "delta"
     prr3 = "3prr"
+    arm6 = "arm6"
 
 
 class ImageFormat(StrEnum):
@@ -109,7 +112,7 @@ def _refuse_options_of_the_other_robot(ctx: typer.Context, robot: RobotName) -> 
 
     given = [opt for name, opt in other.items() if on_command_line(name)]
     if given:
-        what = "the 3PRR's sensor traces" if robot is RobotName.prr3 else "the Delta's camera images"
+        what = "the 3PRR's sensor traces" if robot is RobotName.prr3 else f"the {robot.value}'s camera images"
         raise InputError(
             f"{', '.join(given)}: not used when simulating {what} (--robot {robot.value}); "
             "leave out, or choose the other --robot"
@@ -173,13 +176,18 @@ def simulate(
     robot: RobotName = typer.Option(
         RobotName.delta,
         "--robot",
-        help="Robot model giving the true stiffness field (delta: stiffmap.models).",
+        help="Robot model giving the true stiffness field: delta (the Delta-type robot), 3prr (sensor "
+        "traces of the planar 3PRR) or arm6 (stiffmap's six-joint arm from its URDF, tool pointing down, "
+        "loads hung from a bracket at (150, 100, -150) mm from the measured point; its joint "
+        "stiffnesses k1..k6 are "
+        "fitted by 'stiffmap run').",
     ),
     positions: str = typer.Option(
         None,
         "--positions",
         help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
-        "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'.",
+        "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
+        "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list.",
         show_default=False,
     ),
     select: str = typer.Option(
@@ -229,7 +237,11 @@ def simulate(
         show_default=False,
     ),
     load_point: str = typer.Option(
-        "0,0,0", "--load-point-mm", help="Where the loads act, in the tool frame, mm (with a 6x6 field)."
+        None,
+        "--load-point-mm",
+        help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
+        "150,100,-150 for arm6).",
+        show_default=False,
     ),
     param: list[str] = typer.Option(
         [], "--param", help="Robot model parameter NAME=VALUE (repeatable), e.g. k_theta=3e5."
@@ -293,20 +305,30 @@ def simulate(
         args = (positions, select, directions, repeats, seed, trace_format, force, param, name, command)
         _simulate_sensor(out_dir, *args, as_json)
         return
-    P = _positions(positions or "paper48", select, "delta")
+    arm = robot is RobotName.arm6
+    P = _positions(positions or ("arm20" if arm else "paper48"), select, "urdf" if arm else "delta")
     load_cases = from_option("--loads", load_design, loads, G_REFERENCE_PAPER)
     cam = load_camera(camera_file) if camera_file is not None else None
     values = float_values(parse_key_values(param, "--param"), "--param")
-    lp = _load_point(load_point)
-    base = from_option("--param:", delta_robot, values)
-    _check_rotation_options(rot_stiffness, lp)
+    lp = _load_point(load_point or (",".join(f"{v:g}" for v in arm6.LOAD_POINT_MM) if arm else "0,0,0"))
+    if arm:
+        if rot_stiffness is not None:
+            raise InputError(
+                "--rot-stiffness-nmm-per-rad: arm6's rotations come from its joints; leave it out"
+            )
+        base = from_option("--param:", arm6_robot, values)
+        scene = arm_scene(cam)
+    else:
+        base = from_option("--param:", delta_robot, values)
+        _check_rotation_options(rot_stiffness, lp)
+        scene = None
     n_views = _calibration_views(ctx, calibration_views, true_camera)
     cfg = vision_config(
         base, P, load_cases, cam, rot_stiffness_nmm_per_rad=rot_stiffness, load_point_mm=lp,
         repeatability_mm=repeatability_mm, jitter_mm=jitter_mm, noise=noise, blur_px=blur_px,
         clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
         jpeg_quality=jpeg_quality, name=name, calibration_views=n_views, cameras=cameras,
-        camera_angle_deg=camera_angle_deg,
+        camera_angle_deg=camera_angle_deg, scene=scene,
     )  # fmt: skip
     with _naming_positions_file(positions, select, loads):
         sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)

@@ -79,7 +79,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize, stats
@@ -803,6 +803,10 @@ class JointFit:
         Fitted joints held at 0 by the non-negativity bound.
     notes : tuple of str
     absolute_sigma : bool
+    extra_translation_std : float, mm
+        With ``extra_noise``: the standard deviation per axis of the translation noise added to
+        every displacement's covariance so that the reduced chi-square is 1 (0 when none was
+        needed or asked for).
     """
 
     names: tuple[str, ...]
@@ -834,6 +838,7 @@ class JointFit:
     active: tuple[str, ...]
     absolute_sigma: bool
     notes: tuple[str, ...] = field(default_factory=tuple)
+    extra_translation_std: float = 0.0
 
     @property
     def values(self) -> dict[str, float]:
@@ -903,6 +908,7 @@ class JointFit:
                 ],
                 "active": list(self.active),
                 "notes": list(self.notes),
+                "extra_translation_std_mm": self.extra_translation_std,
             }
         )
 
@@ -941,6 +947,7 @@ def fit_joint_compliances(
     absolute_sigma: bool = False,
     config_index=None,
     labels: Sequence[str] | None = None,
+    extra_noise: bool = False,
 ) -> JointFit:
     """Joint compliances from measured deflections, by weighted linear least squares.
 
@@ -978,6 +985,13 @@ def fit_joint_compliances(
         with identical Jacobians form a configuration.
     labels : sequence of str, shape (M,), optional
         The load case of each row, for the per-load-case residuals.
+    extra_noise : bool
+        The given covariances may leave out a noise the measurements have (a robot's jitter
+        between images, vibration): when the fit's reduced chi-square is above 1, estimate the
+        standard deviation s of an isotropic translation noise such that with ``cov + s^2 I``
+        on the translations the reduced chi-square is 1, and fit with that covariance (a
+        variance component: the weights become right, the chi-square test then says nothing
+        more). ``extra_translation_std`` and a note give s. Needs ``cov``.
 
     Returns
     -------
@@ -999,6 +1013,73 @@ def fit_joint_compliances(
         When the design determines every joint but its condition number exceeds
         ``CONDITION_WARN``.
     """
+    kw = dict(
+        joint_names=joint_names,
+        fit=fit,
+        fixed=fixed,
+        nonnegative=nonnegative,
+        absolute_sigma=absolute_sigma,
+        config_index=config_index,
+        labels=labels,
+    )
+    if not extra_noise:
+        return _fit_once(jacobians, wrenches, displacements, cov, **kw)
+    if cov is None:
+        raise InputError("extra_noise: True needs cov (the covariances the extra noise is added to)")
+    C = _as_float(cov, "cov")
+    D = _as_float(displacements, "displacements")
+    if C.ndim == 2:
+        C = np.einsum("mi,ij->mij", C**2, np.eye(C.shape[1]))
+    d = D.shape[1] if D.ndim == 2 else 0
+    P = np.diag([1.0, 1.0, 1.0, 0.0, 0.0, 0.0][:d])
+
+    def fit_with(s2: float, quiet: bool = True) -> JointFit:
+        if not quiet:
+            return _fit_once(jacobians, wrenches, displacements, C + s2 * P, **kw)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return _fit_once(jacobians, wrenches, displacements, C + s2 * P, **kw)
+
+    f0 = fit_with(0.0)
+    if not (f0.dof > 0 and f0.reduced_chi2 > 1.0):
+        return fit_with(0.0, quiet=False)
+    hi = max(float(np.mean(f0.residuals[:, :3] ** 2)), 1e-300)
+    while fit_with(hi).reduced_chi2 > 1.0:
+        hi *= 4.0
+    lo = 0.0
+    for _ in range(60):  # bisection on s^2: the reduced chi-square falls as s grows
+        mid = 0.5 * (lo + hi)
+        if fit_with(mid).reduced_chi2 > 1.0:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-6 * hi:
+            break
+    s2 = 0.5 * (lo + hi)
+    f = fit_with(s2, quiet=False)
+    note = (
+        f"the displacements scatter more than their covariances say (chi2/dof = {f0.reduced_chi2:.3g} "
+        f"with them alone): {1e3 * np.sqrt(s2):.3g} um per axis of extra translation noise (robot "
+        "jitter, vibration) was added to every displacement's covariance to make it 1"
+    )
+    return replace(f, extra_translation_std=float(np.sqrt(s2)), notes=(*f.notes, note))
+
+
+def _fit_once(
+    jacobians,
+    wrenches,
+    displacements,
+    cov,
+    *,
+    joint_names,
+    fit,
+    fixed,
+    nonnegative,
+    absolute_sigma,
+    config_index,
+    labels,
+) -> JointFit:
+    """:func:`fit_joint_compliances` with the given covariances."""
     J, W, D, d, Linv, names, idx, fixed_values = _prepare(
         jacobians, wrenches, displacements, cov, joint_names, fit, fixed
     )

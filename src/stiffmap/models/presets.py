@@ -62,6 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import arm6
 from .base import Mechanism, check_positive
 from .chain import Chain
 from .delta import DeltaRobot
@@ -88,6 +89,8 @@ __all__ = [
     "fit_parameter_names",
     "force_direction",
     "URDF_MODEL",
+    "BUILTIN_URDFS",
+    "urdf_file",
     "joint_stiffnesses_from_text",
     "serial_robot_from_options",
 ]
@@ -101,6 +104,8 @@ DEFAULT_LOAD: dict[str, tuple[float, str]] = {"delta": (4.905, "-z"), "3prr": (4
 DEFAULT_FIT: dict[str, tuple[str, ...]] = {"delta": ("k_theta",), "3prr": ("kj",)}
 #: The name of serial robots read from a URDF (``stiffmap model urdf``).
 URDF_MODEL = "urdf"
+#: URDFs that ship with stiffmap, by name: ``stiffmap model urdf arm6 ...`` needs no file.
+BUILTIN_URDFS: dict[str, str] = {"arm6": arm6.URDF}
 #: Most points a grid may hold.
 MAX_GRID_POINTS = 1_000_000
 
@@ -149,6 +154,7 @@ def prr3_points22() -> np.ndarray:
 POSITION_PRESETS: dict[str, tuple[str, Callable[[], np.ndarray]]] = {
     "paper48": ("delta", paper48),
     "points22": ("3prr", prr3_points22),
+    "arm20": (URDF_MODEL, arm6.positions20),
 }
 
 
@@ -263,7 +269,7 @@ def positions_from_text(text: str, mechanism: str) -> np.ndarray:
     InputError
         Naming the CSV file and what is wrong in it.
     """
-    dim = MECHANISMS[mechanism].dim
+    dim = SerialRobot.dim if mechanism == URDF_MODEL else MECHANISMS[mechanism].dim
     preset = position_preset(text, mechanism)
     if preset is not None:
         return np.asarray(preset, dtype=np.float64)
@@ -461,6 +467,15 @@ def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...
     )
 
 
+def urdf_file(urdf) -> str:
+    """The URDF file of ``urdf``: a path, or the name of one that ships with stiffmap
+    (:data:`BUILTIN_URDFS`, when no file of that name exists)."""
+    text = str(urdf)
+    if text in BUILTIN_URDFS and not Path(text).exists():
+        return BUILTIN_URDFS[text]
+    return text
+
+
 def serial_robot_from_options(
     urdf,
     tip_frame: str | None,
@@ -473,7 +488,7 @@ def serial_robot_from_options(
     Parameters
     ----------
     urdf : path-like
-        The URDF.
+        The URDF, or the name of a built-in one (``arm6``).
     tip_frame : str
         The frame of the measured point.
     tip_offset_mm : array_like, shape (3,), mm
@@ -498,7 +513,7 @@ def serial_robot_from_options(
     """
     if not tip_frame:
         raise ValueError(f"no tip frame: give the link of {urdf} that carries the measured point")
-    chain = Chain.from_urdf(urdf, tip_frame, tip_offset_mm)
+    chain = Chain.from_urdf(urdf_file(urdf), tip_frame, tip_offset_mm)
     Q, lines = (None, None) if configs is None else read_configuration_rows(configs, chain)
     k = joint_stiffnesses_from_text(params, chain)
     return SerialRobot(chain, k, configurations=Q), lines

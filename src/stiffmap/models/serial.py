@@ -58,6 +58,7 @@ from .base import (
     raise_first_invalid,
 )
 from .chain import Chain
+from .joint_fit import joint_deflections
 
 __all__ = ["SerialRobot", "MATCH_TOL_MM", "RIGID_RATIO"]
 
@@ -72,30 +73,6 @@ RIGID_RATIO = 1e-12
 
 #: Above this many remembered inverse-kinematics solutions the memo is cleared.
 _MEMO_MAX = 100_000
-
-
-def _joint_deflections(J: np.ndarray, W: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Deflection of the measured point under wrenches: ``J diag(c) J^T w`` per configuration.
-
-    (The joint-stiffness fit, ``models.joint_fit.joint_deflections``, writes the same forward
-    model; one home at merge.)
-
-    Parameters
-    ----------
-    J : ndarray, shape (M, 6, n)
-        Jacobians of the measured point (mm or rad per joint unit).
-    W : ndarray, shape (M, 6)
-        Wrenches (N, N*mm) at the point, base frame.
-    c : ndarray, shape (n,)
-        Joint compliances (rad/(N*mm) or mm/N; 0 for a rigid joint).
-
-    Returns
-    -------
-    ndarray, shape (M, 6)
-        (u mm, rotation vector rad), base frame.
-    """
-    tau = np.einsum("mij,mi->mj", J, W)
-    return np.einsum("mij,mj->mi", J, c * tau)
 
 
 def _compliances(J: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -551,7 +528,7 @@ class SerialRobot:
             raise ValueError(
                 f"wrench must be 6 finite numbers (N, N*mm) or ({Q.shape[0]}, 6), got {np.shape(wrench)}"
             )
-        d = _joint_deflections(self.chain.jacobian_many(Q), W, self.compliances)
+        d = joint_deflections(self.chain.jacobian_many(Q), W, self.compliances)
         return d[0] if single else d
 
     def _scaled(self, J: np.ndarray) -> np.ndarray:

@@ -51,13 +51,20 @@ def _parameters(store: Store, name: str):
         "L": "mm",
     }
     return tuple(
-        contract.Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, units.get(k, ""))
+        contract.Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, _param_unit(units, k))
         for k, v in est.items()
     )
 
 
-def _fitted_model(spec: CampaignSpec, store: Store, fit_name: str):
-    return spec.robot.mechanism(**{p.name: p.value for p in _parameters(store, fit_name)})
+def _param_unit(units: dict[str, str], name: str) -> str:
+    """The unit of a fitted parameter (a URDF robot's k1, k2, ...: N*mm/rad)."""
+    if name in units:
+        return units[name]
+    return "N*mm/rad" if name[:1] == "k" and name[1:].isdigit() else ""
+
+
+def _fitted_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str):
+    return spec.model(root, **{p.name: p.value for p in _parameters(store, fit_name)})
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
@@ -96,8 +103,8 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     out["loads"] = contract.LoadData(
         tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
     )
-    if spec.robot.model == "delta":
-        model = _fitted_model(spec, store, "stiffness")
+    if spec.robot.model in ("delta", "urdf", "legs"):
+        model = _fitted_model(root, spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
         for r in store.model_stiffness_rows():
             i = index.get(r["position"])
@@ -115,7 +122,9 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         dense = contract.ModelMap(
             g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
         )
-        out["model"] = contract.ModelStiffness.from_K("delta", _parameters(store, "stiffness"), Km, map=dense)
+        out["model"] = contract.ModelStiffness.from_K(
+            spec.robot.model, _parameters(store, "stiffness"), Km, map=dense
+        )
     truth = _truth_K(root, n)
     if truth is not None:
         out["truth"] = contract.TruthStiffness(truth)
@@ -200,7 +209,7 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
         name = "3prr"
         params = _parameters(store, "static_error")
         model_um = np.array([1e3 * pred[f] if pred.get(f) is not None else np.nan for f in m["files"]])
-        model = _fitted_model(spec, store, "static_error")
+        model = _fitted_model(root, spec, store, "static_error")
         h = model.params()["h"]
         xs = np.linspace(0.0, h, 41)
         ys = np.linspace(0.0, h * np.sqrt(3) / 2, 36)

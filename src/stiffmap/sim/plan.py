@@ -63,6 +63,7 @@ def vision_config(
     calibration_views: int = DEFAULT_CALIBRATION_VIEWS,
     cameras: int = 1,
     camera_angle_deg: float = 60.0,
+    scene: Scene | None = None,
 ) -> SimConfig:
     """The settings of a simulated vision campaign, as ``stiffmap simulate`` takes them.
 
@@ -98,6 +99,9 @@ def vision_config(
         Cameras looking at the robot (:func:`rig_scene`): 1, or a rig of several.
     camera_angle_deg : float
         With several cameras, the angle between the first and the last about the vertical.
+    scene : Scene, optional
+        The camera, boards and their mounting (default: :func:`~stiffmap.sim.scene.default_scene`
+        of ``camera``; ``camera`` is then not used).
 
     Returns
     -------
@@ -119,12 +123,14 @@ def vision_config(
             load_point_mm=load_point_mm,
             model=robot.model,
             params=robot.params,
+            spec=robot.spec,
+            files=robot.files,
         )
         if noise:
             ph = Photometry(blur_px=blur_px, clutter=clutter, colour=colour)
         else:
             ph = Photometry.noise_free(blur_px=blur_px, clutter=clutter, colour=colour)
-        scene = default_scene(camera)
+        scene = default_scene(camera) if scene is None else scene
         if int(cameras) != 1:
             scene = rig_scene(scene, int(cameras), positions, angle_deg=camera_angle_deg)
         return SimConfig(

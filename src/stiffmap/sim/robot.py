@@ -31,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from ..geometry import matrix_from_rotvec, transform_from
+from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
+from ..models import arm6
 from ..models.delta import DeltaRobot
 
 __all__ = [
@@ -40,6 +41,9 @@ __all__ = [
     "smooth_field",
     "with_rotational_compliance",
     "translational_stiffness",
+    "serial_robot",
+    "arm6_robot",
+    "URDF_NAME",
 ]
 
 
@@ -164,9 +168,13 @@ class VirtualRobot:
     load_point_mm : (float, float, float)
         Where the loads act, tcp frame, mm.
     model : str
-        ``"delta"``, ``"3prr"`` or ``"none"`` (written to campaign.toml).
+        ``"delta"``, ``"3prr"``, ``"urdf"`` or ``"none"`` (written to campaign.toml).
     params : dict
         The model's parameters (written to campaign.toml and truth.json).
+    spec : dict
+        More keys of campaign.toml's ``[robot]`` (a URDF robot's ``urdf``, ``tip_frame``, ...).
+    files : dict
+        Files the campaign folder gets: name there -> the file to copy (a URDF robot's URDF).
     """
 
     field: Callable[[np.ndarray], np.ndarray]
@@ -176,6 +184,8 @@ class VirtualRobot:
     load_point_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     model: str = "none"
     params: dict[str, Any] = field(default_factory=dict)
+    spec: dict[str, Any] = field(default_factory=dict)
+    files: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not callable(self.field):
@@ -301,3 +311,64 @@ def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     model = DeltaRobot().with_params(**(params or {}))
     finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
     return VirtualRobot(field=model.stiffness, model="delta", params=finite, **kw)
+
+
+def _degrees(a) -> list[float]:
+    """Angles in rad as degrees for campaign.toml, rounded to 1e-9 degree (no -0.0)."""
+    return [round(float(v), 9) + 0.0 for v in np.degrees(np.asarray(a, dtype=float))]
+
+
+#: The name of a URDF robot's URDF in a simulated campaign's folder.
+URDF_NAME = "robot.urdf"
+
+
+def serial_robot(model, **kw) -> VirtualRobot:
+    """A serial robot from its URDF (:class:`~stiffmap.models.serial.SerialRobot`) as a virtual robot.
+
+    Its field is the 6x6 stiffness at the measured point (N/mm, N, N*mm/rad blocks, base axes)
+    of the configuration that reaches each position (the model's own configurations, or
+    inverse kinematics with its tool orientation): the platform turns under a load, and a
+    load off the measured point (``load_point_mm``) turns the wrist joints too.
+
+    Parameters
+    ----------
+    model : SerialRobot
+    **kw
+        :class:`VirtualRobot` fields (repeatability_mm, load_point_mm, ...).
+    """
+
+    def field6(points) -> np.ndarray:
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        ik = model.configurations_for(P)
+        for i in np.flatnonzero(~ik.reachable):
+            raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
+        return np.array([model.stiffness6(q) for q in ik.q])
+
+    spec = {
+        "urdf": URDF_NAME,
+        "tip_frame": model.chain.tip_frame,
+        "tip_offset_mm": [float(v) for v in model.chain.tip_offset_mm],
+        "tool_rpy_deg": _degrees(euler_from_matrix(model.tool_rotation)),
+        "q_seed_deg": _degrees(model.q_seed),
+    }
+    return VirtualRobot(
+        field=field6,
+        model="urdf",
+        params={k: float(v) for k, v in model.params().items()},
+        spec=spec,
+        files={URDF_NAME: model.chain.source},
+        **kw,
+    )
+
+
+def arm6_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
+    """stiffmap's six-joint arm (:mod:`stiffmap.models.arm6`) as a virtual robot.
+
+    Parameters
+    ----------
+    params : dict, optional
+        Joint stiffnesses ``k1`` .. ``k6`` (N*mm/rad) to change from :data:`~stiffmap.models.arm6.K_THETA`.
+    **kw
+        :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
+    """
+    return serial_robot(arm6.model().with_params(**(params or {})), **kw)

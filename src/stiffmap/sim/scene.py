@@ -30,6 +30,8 @@ __all__ = [
     "Scene",
     "default_scene",
     "demo_scene",
+    "arm_scene",
+    "ARM_SCENE_SHIFT_MM",
     "with_cameras",
     "two_camera_rig",
     "FIXED2BASE_REFERENCE",
@@ -196,6 +198,28 @@ def default_scene(camera: CameraModel | None = None) -> Scene:
         mobile2tcp=mobile2tcp,
         margin_mm=10.0,
     )
+
+
+#: Where the arm's scene puts the demo scene's base frame, in the arm's base frame (mm): the
+#: demo scene's view of the Delta's grid becomes a view of the arm's test box
+#: (:func:`stiffmap.models.arm6.positions20`).
+ARM_SCENE_SHIFT_MM = (525.0, 0.0, 700.0)
+
+
+def arm_scene(camera: CameraModel | None = None) -> Scene:
+    """The six-joint arm's scene: :func:`demo_scene` moved to the arm's test box.
+
+    The same camera, boards and mounting of the mobile board on the platform as the
+    demo (a 15x14 board 50 mm in front of the tool point), all moved by
+    :data:`ARM_SCENE_SHIFT_MM`: the camera is 1.25 m in front of the box x 400-650,
+    y -150-150, z 300-500 mm in front of the arm, and the fixed board stands on a
+    post fixed to the arm's base, above and behind that box (at about (525, 188, 700) mm).
+    The tool's orientation is the same at every position (the arm's tool points
+    down), so the tcp frame keeps the base's axes, as for a translational robot.
+    """
+    sc = demo_scene(camera)
+    shift = transform_from(np.eye(3), ARM_SCENE_SHIFT_MM)
+    return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
 
 
 def demo_scene(camera: CameraModel | None = None) -> Scene:
