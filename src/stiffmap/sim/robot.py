@@ -313,6 +313,21 @@ def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     return VirtualRobot(field=model.stiffness, model="delta", params=finite, **kw)
 
 
+@dataclass(frozen=True)
+class SerialField:
+    """The 6x6 stiffness field of a serial robot (a picklable callable: the test-bed's image
+    workers receive it): K6 at the measured point of the configuration reaching each point."""
+
+    model: Any
+
+    def __call__(self, points) -> np.ndarray:
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        ik = self.model.configurations_for(P)
+        for i in np.flatnonzero(~ik.reachable):
+            raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
+        return np.array([self.model.stiffness6(q) for q in ik.q]).reshape(-1, 6, 6)
+
+
 def _degrees(a) -> list[float]:
     """Angles in rad as degrees for campaign.toml, rounded to 1e-9 degree (no -0.0)."""
     return [round(float(v), 9) + 0.0 for v in np.degrees(np.asarray(a, dtype=float))]
@@ -337,13 +352,6 @@ def serial_robot(model, **kw) -> VirtualRobot:
         :class:`VirtualRobot` fields (repeatability_mm, load_point_mm, ...).
     """
 
-    def field6(points) -> np.ndarray:
-        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        ik = model.configurations_for(P)
-        for i in np.flatnonzero(~ik.reachable):
-            raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
-        return np.array([model.stiffness6(q) for q in ik.q])
-
     spec = {
         "urdf": URDF_NAME,
         "tip_frame": model.chain.tip_frame,
@@ -352,7 +360,7 @@ def serial_robot(model, **kw) -> VirtualRobot:
         "q_seed_deg": _degrees(model.q_seed),
     }
     return VirtualRobot(
-        field=field6,
+        field=SerialField(model),
         model="urdf",
         params={k: float(v) for k, v in model.params().items()},
         spec=spec,
