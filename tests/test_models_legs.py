@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import tempfile
 from importlib.resources import files
@@ -13,6 +14,7 @@ from helpers.fuzz_campaign import mutated_spec, toml_text_mutations
 from hypothesis import given
 from hypothesis import strategies as st
 
+from stiffmap.cli.main import main
 from stiffmap.errors import InputError
 from stiffmap.models import PRR3, DeltaRobot, Mechanism, PoseError
 from stiffmap.models.base import constrained_directions, leg_stiffness
@@ -372,3 +374,20 @@ def test_the_docs_example_is_a_3rpr_with_the_hand_stiffness(rng):
     K = 2000.0 * np.einsum("nij,nik->njk", n, n)
     assert _relative(lr.stiffness(T), K).max() < 1e-9
     np.testing.assert_allclose(lr.inverse_kinematics(T).q, q, atol=1e-7)  # leg lengths, mm
+
+
+def test_model_legs_command_prints_the_leg_described_robot(tmp_path, capsys):
+    """`stiffmap model legs ROBOT.toml --points ... --json`: the Delta's TOML gives the Delta's K;
+    a missing TOML and missing positions are named."""
+    pts = tmp_path / "pts.csv"
+    pts.write_text("x,y,z\n0,0,-300\n50,20,-250\n")
+    code = main(["model", "legs", str(ROBOTS / "delta.toml"), "--points", str(pts), "--json"])
+    out = capsys.readouterr().out
+    assert code in (0, None)
+    recs = json.loads(out)
+    K = DeltaRobot().stiffness(np.array([[0.0, 0.0, -300.0], [50.0, 20.0, -250.0]]))
+    np.testing.assert_allclose(np.array([r["K"] for r in recs]), K, rtol=1e-6, atol=1e-9 * np.abs(K).max())
+    assert main(["model", "legs", "--points", str(pts)]) == 2
+    assert "needs the TOML file" in capsys.readouterr().err
+    assert main(["model", "legs", str(ROBOTS / "delta.toml")]) == 2
+    assert "give the positions" in capsys.readouterr().err

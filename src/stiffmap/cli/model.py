@@ -18,6 +18,7 @@ from rich.table import Table
 from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
 from ..models.io import configuration_records, fit_measurements_file, map_csv, map_records, read_points
+from ..models.legs import LegRobot
 from ..models.presets import (
     DEFAULT_LOAD,
     URDF_MODEL,
@@ -46,6 +47,7 @@ class MechanismName(StrEnum):
     delta = "delta"
     prr3 = "3prr"
     urdf = "urdf"
+    legs = "legs"
 
 
 _URDF_USAGE = (
@@ -108,11 +110,12 @@ def _build_model(name: str, param_items: list[str]):
 
 
 def model(
-    mechanism: MechanismName = typer.Argument(..., help="delta, 3prr or urdf."),
+    mechanism: MechanismName = typer.Argument(..., help="delta, 3prr, urdf or legs."),
     robot: Path = typer.Argument(
         None,
-        metavar="[ROBOT.urdf]",
-        help="urdf only (and required): the robot's URDF file, or arm6 (stiffmap's six-joint test arm).",
+        metavar="[ROBOT]",
+        help="urdf: the robot's URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML "
+        "file describing a parallel robot's legs (docs/models.md). Required for those two only.",
     ),
     grid: str = typer.Option(
         None,
@@ -172,21 +175,23 @@ def model(
             raise InputError("--csv is for delta and 3prr; urdf prints --json")
         _model_urdf(_serial_robot("model", robot, tip, tip_offset, configs, param), configs, as_json, output)
         return
-    if robot is not None:
+    if robot is not None and mech != "legs":
         raise InputError(
-            f"{robot}: a robot file is only for 'stiffmap model urdf ROBOT.urdf'; {mech} takes none "
-            "(positions: --grid or --points)"
+            f"{robot}: a robot file is only for 'stiffmap model urdf ROBOT.urdf' and 'stiffmap model legs "
+            f"ROBOT.toml'; {mech} takes none (positions: --grid or --points)"
         )
     _urdf_only(mech, **{"--tip": tip, "--tip-offset-mm": tip_offset, "--configs": configs})
     if as_json and as_csv:
         raise InputError("--json and --csv are exclusive")
     if grid is not None and points is not None:
         raise InputError("--grid and --points are exclusive")
-    m = _build_model(mech, param or [])
+    m = _legs_model(robot, param or []) if mech == "legs" else _build_model(mech, param or [])
     if points is not None:
         P = read_points(points, m.dim)
     elif grid is not None:
         P = _from_option("--grid", grid_points, grid, m.dim, mech)
+    elif mech == "legs":
+        raise InputError("legs: give the positions, --points FILE.csv or --grid X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]")
     else:
         P = default_positions(mech)
     F = _force(mech, m.dim, load_n, direction)
@@ -253,9 +258,19 @@ def _print_configurations(robot, mp, recs, lines) -> None:
     out.print(t)
 
 
+def _legs_model(robot: Path | None, param_items: list[str]):
+    """``stiffmap model legs ROBOT.toml``: the robot its legs describe, with ``--param`` overrides."""
+    if robot is None:
+        raise InputError("legs needs the TOML file describing the legs: stiffmap model legs ROBOT.toml ...")
+    values = float_values(parse_key_values(param_items, "--param"), "--param")
+    m = LegRobot.from_toml(robot)
+    return _from_option("--param:", lambda: m.with_params(**values)) if values else m
+
+
 def _force(mech: str, dim: int, load_n: float | None, direction: str | None) -> np.ndarray:
-    """The force (N) of ``--load-n`` along ``--direction``, each defaulting to the mechanism's."""
-    mag, dname = DEFAULT_LOAD[mech]
+    """The force (N) of ``--load-n`` along ``--direction``, each defaulting to the mechanism's
+    (10 N along -z, or y in the plane, for a robot described by its legs)."""
+    mag, dname = DEFAULT_LOAD.get(mech, (10.0, "-z" if dim == 3 else "y"))
     if load_n is not None:
         if not np.isfinite(load_n):
             raise InputError(f"--load-n must be a finite number of N, got {load_n}")
