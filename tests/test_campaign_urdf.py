@@ -72,13 +72,15 @@ def test_simulated_arm_campaign_is_self_contained_and_its_truth_is_the_model(arm
     np.testing.assert_allclose(P, arm6.positions20())
     ik = model.configurations_for(P)
     assert ik.reachable.all()
-    # The test-bed's 6x6 field is the model's stiffness at the inverse-kinematics configurations.
+    # The test-bed's 6x6 field is the model's stiffness at the inverse-kinematics configurations,
+    # and the K it says a campaign identifies (forces at loads.point_mm) is the model's map.
     K6 = np.array([model.stiffness6(q) for q in ik.q])
     K3_true = np.array(truth.K)
     lever = np.asarray(arm6.LOAD_POINT_MM)
     S = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]])
     C = np.linalg.inv(K6)
     np.testing.assert_allclose(K3_true, np.linalg.inv(C[:, :3, :3] + C[:, :3, 3:] @ S), rtol=1e-9)
+    np.testing.assert_allclose(model.evaluate(P).K, K3_true, rtol=1e-9)
 
 
 def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
@@ -129,6 +131,7 @@ def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
         assert abs(k - k_true) < 4 * s, (i, k, k_true, s)
         assert s / k_true < 0.02  # 540 displacements of this precision pin each joint within 2 %
     assert len(rows) == 20 and all(r["valid"] for r in rows)
-    K_model = from_json(rows[0]["K"])
-    fitted = truth_model.with_params(**est)
-    np.testing.assert_allclose(K_model, fitted.stiffness3(ik.q[0]), rtol=1e-9)
+    # The model's K beside the measured one: what forces hung at loads.point_mm see.
+    C = truth_model.with_params(**est).compliance6(ik.q[0])
+    S = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]])
+    np.testing.assert_allclose(from_json(rows[0]["K"]), np.linalg.inv(C[:3, :3] + C[:3, 3:] @ S), rtol=1e-9)

@@ -858,9 +858,14 @@ class CampaignSpec(_Spec):
 
     def model(self, root: Path, **overrides: float):
         """The campaign's robot model (``robot.mechanism`` with the configurations of
-        ``positions.q_deg``, if any)."""
+        ``positions.q_deg``, if any; a URDF robot's maps give the K that forces hung at
+        ``loads.point_mm`` see, the K the campaign identifies)."""
         q = None if self.positions is None else self.positions.q_deg
-        return self.robot.mechanism(root, configurations_deg=q, **overrides)
+        model = self.robot.mechanism(root, configurations_deg=q, **overrides)
+        if self.robot.model == "urdf" and self.loads is not None and self.loads.point_mm is not None:
+            # Its K is what the campaign identifies: forces hung at loads.point_mm.
+            model = model.with_params(load_offset_mm=self.loads.point_mm)
+        return model
 
     @model_validator(mode="after")
     def _complete(self):

@@ -161,6 +161,12 @@ class SerialRobot:
     length_mm : float, optional
         The characteristic length L of the singularity measures (default: the largest
         distance from the measured point to a revolute joint's axis at ``q_seed``).
+    load_offset_mm : array_like, shape (3,), mm, optional
+        Where the forces of the maps act, from the measured point (base axes). None (default):
+        at the point, and the maps' K is ``(C6[:3, :3])^-1``. Given r: a force F there also
+        applies r x F, the point moves by ``(C_tt + C_tr [r]x) F``, and the maps' K is the
+        inverse of that (not symmetric in general): the K a campaign identifies from forces
+        hung at ``loads.point_mm`` (docs/campaigns.md).
     """
 
     chain: Chain
@@ -171,11 +177,19 @@ class SerialRobot:
     singular_tol: float = SINGULAR_TOL
     match_tol_mm: float = MATCH_TOL_MM
     length_mm: float | None = None
+    load_offset_mm: tuple[float, float, float] | None = None
 
     name: ClassVar[str] = "urdf"
     dim: ClassVar[int] = 3
 
     def __post_init__(self) -> None:
+        if self.load_offset_mm is not None:
+            r = np.asarray(self.load_offset_mm, dtype=float)
+            if r.shape != (3,) or not np.all(np.isfinite(r)):
+                raise InputError(
+                    f"load_offset_mm must be three finite numbers (mm), got {self.load_offset_mm!r}"
+                )
+            object.__setattr__(self, "load_offset_mm", tuple(float(v) for v in r))
         ch = self.chain
         if not isinstance(ch, Chain):
             raise TypeError(f"chain must be a stiffmap.models.chain.Chain, got {type(ch).__name__}")
@@ -639,12 +653,18 @@ class SerialRobot:
         K = np.full((N, 3, 3), np.nan)
         if np.any(valid):
             idx = np.flatnonzero(valid)
-            C = _compliances(J[idx], self.compliances)[:, :3, :3]
+            C6 = _compliances(J[idx], self.compliances)
+            C = C6[:, :3, :3]
             ok = _check_rigid(C, idx, reasons)
             valid[idx[~ok]] = False
             if np.any(ok):
-                Kv = np.linalg.inv(C[ok])
-                K[idx[ok]] = 0.5 * (Kv + np.swapaxes(Kv, 1, 2))
+                if self.load_offset_mm is None:
+                    Kv = np.linalg.inv(C[ok])
+                    K[idx[ok]] = 0.5 * (Kv + np.swapaxes(Kv, 1, 2))
+                else:  # forces off the point: C_tt + C_tr [r]x (the class docstring)
+                    r = self.load_offset_mm
+                    S = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+                    K[idx[ok]] = np.linalg.inv(C[ok] + C6[ok][:, :3, 3:] @ S)
         cond = np.where(reachable, np.fmin(joint, trans), np.nan)
         return model_map(self.name, self.params(), P, K, valid, reasons, Q, cond)
 
