@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from importlib.resources import files
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,7 @@ from stiffmap.campaign.store import DB_NAME, Store, from_json, to_json
 from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main as stiffmap
 from stiffmap.errors import InputError
-from stiffmap.models import arm6
+from stiffmap.models import DeltaRobot, arm6
 
 _BASE = """
 [camera]
@@ -135,3 +137,25 @@ def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
     C = truth_model.with_params(**est).compliance6(ik.q[0])
     S = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]])
     np.testing.assert_allclose(from_json(rows[0]["K"]), np.linalg.inv(C[:3, :3] + C[:3, 3:] @ S), rtol=1e-9)
+
+
+def test_a_robot_described_by_its_legs_is_a_campaign_model(tmp_path):
+    """[robot] model = "legs": the TOML next to campaign.toml is the model, fitted by its [params]."""
+    toml = (files("stiffmap.models") / "robots" / "delta.toml").read_text()
+    (tmp_path / "delta_legs.toml").write_text(toml)
+    text = (
+        'kind = "vision"\n[robot]\nmodel = "legs"\nlegs = "delta_legs.toml"\n'
+        "[positions]\nlist = [[0.0, 0.0, -300.0]]\n" + _BASE
+    )
+    spec = parse_spec(text)
+    model = spec.model(tmp_path)
+    np.testing.assert_allclose(
+        model.stiffness([[0.0, 0.0, -300.0]]),
+        DeltaRobot().stiffness([[0.0, 0.0, -300.0]]),
+        rtol=1e-9,
+        atol=1e-9,
+    )
+    assert spec.robot.fitted_names(model) == tuple(model.param_names())
+    missing = r"nowhere\.toml: no such file \(named by campaign\.toml robot\.legs\)"
+    with pytest.raises(InputError, match=missing):
+        parse_spec(text.replace("delta_legs.toml", "nowhere.toml")).model(tmp_path)

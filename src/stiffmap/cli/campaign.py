@@ -29,6 +29,7 @@ from ..campaign.store import Store, from_json
 from ..errors import InputError
 from ..io import atomic_write_text
 from ..report.campaign import write_campaign_report
+from ..textfmt import fmt_pm
 from .common import EXIT_PARTIAL, fmt, images_progress, out, print_json, warn
 
 
@@ -117,6 +118,24 @@ def _summary_table(store: Store) -> Table:
     return t
 
 
+def _fit_table(store: Store, model: str) -> Table | None:
+    """The model's parameters fitted to a vision campaign (None when there is no fit)."""
+    fit = store.model_fit("stiffness")
+    if fit is None or fit["status"] != "ok":
+        return None
+    est = from_json(fit["params"], array=False)
+    std = from_json(fit["std"], array=False) or {}
+    what = "joint stiffnesses (N*mm/rad)" if model == "urdf" else "parameters"
+    t = Table(title=f"{model} model: {what} fitted", show_lines=False)
+    t.add_column("parameter")
+    t.add_column("estimate ± standard error", justify="right")
+    t.add_column("relative", justify="right")
+    for k, v in est.items():
+        s = std.get(k, float("nan"))
+        t.add_row(k, fmt_pm(v, s), f"{100 * s / v:.2g} %" if v and s == s else "")
+    return t
+
+
 def _sensor_table(spec, store: Store) -> Table:
     m = measured_static_errors(spec, store)
     pred = store.model_static_errors()
@@ -197,6 +216,9 @@ def run(
         elif spec.kind == "vision":
             out.print(_summary_table(store), width=max(out.width, 110))
             out.print(_calibration_line(calibration_share_of_K(store)))
+            fitted = _fit_table(store, spec.robot.model)
+            if fitted is not None:
+                out.print(fitted)
         else:
             out.print(_sensor_table(spec, store))
     if nothing is not None:  # one line with the first failures; summary.json lists them all

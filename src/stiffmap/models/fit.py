@@ -287,7 +287,15 @@ def _fit(
         raise ValueError("absolute_sigma=True needs the standard errors of the observations")
 
     def model_at(x: np.ndarray) -> Mechanism:
-        return model.with_params(**dict(zip(names, np.exp(x).tolist(), strict=True)))
+        values = np.exp(x)
+        try:
+            return model.with_params(**dict(zip(names, values.tolist(), strict=True)))
+        except ValueError as e:  # a parameter run to 0 or infinity: the data do not hold it
+            now = ", ".join(f"{k} = {v:.6g}" for k, v in zip(names, values, strict=True))
+            raise DesignError(
+                f"during the fit, {now}: {e}; the data do not hold these parameters (fit fewer, or "
+                "start closer to the solution)"
+            ) from None
 
     def resid(x: np.ndarray) -> np.ndarray:
         yhat = predict(model_at(x))
