@@ -597,13 +597,15 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
         problems.extend(f"model fit: {w.message}" for w in caught)
         problems.extend(f"model fit: {n}" for n in fit.notes)
         fitted = model.with_params(**{k: float(fit.stiffness[names.index(k)]) for k in fitted_names})
-        idx = [names.index(k) for k in fitted_names]
+        idx = [names.index(k) for k in fit.fitted]  # joint order, as fit.covariance
+        with np.errstate(divide="ignore"):
+            dk_dc = -1.0 / fit.compliance[idx] ** 2  # k = 1/c: the stiffnesses' covariance
         fit_row.update(
             status="ok",
             error=None,
-            params=to_json({k: float(fit.stiffness[i]) for k, i in zip(fitted_names, idx, strict=True)}),
-            std=to_json({k: float(fit.stiffness_std[i]) for k, i in zip(fitted_names, idx, strict=True)}),
-            cov=to_json(fit.covariance),
+            params=to_json({k: float(fit.stiffness[i]) for k, i in zip(fit.fitted, idx, strict=True)}),
+            std=to_json({k: float(fit.stiffness_std[i]) for k, i in zip(fit.fitted, idx, strict=True)}),
+            cov=to_json(fit.covariance * np.outer(dk_dc, dk_dc)),
             residuals=to_json(fit.residual_rms_per_config),
             condition=float(fit.condition),
             dof=int(fit.dof),
