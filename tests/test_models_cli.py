@@ -5,25 +5,16 @@ from __future__ import annotations
 import csv
 import io
 import json
-import sys
 
 import numpy as np
 import pytest
+from helpers.cli_process import run_in_process as _cli
 
-from stiffmap.cli.main import run
 from stiffmap.errors import InputError
 from stiffmap.models import PRR3, DeltaRobot, PoseError
 from stiffmap.models.fit import static_error_predictions
 from stiffmap.models.io import fit_measurements_file, read_measurements
 from stiffmap.models.presets import paper48, prr3_points22
-
-
-def _cli(args, monkeypatch, capsys):
-    monkeypatch.setattr(sys, "argv", ["stiffmap", *map(str, args)])
-    with pytest.raises(SystemExit) as e:
-        run()
-    cap = capsys.readouterr()
-    return (e.value.code or 0), cap.out, cap.err
 
 
 def test_model_3prr_json_default_points(monkeypatch, capsys):

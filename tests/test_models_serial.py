@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from importlib.resources import files
 
 import numpy as np
 import pytest
+from helpers.cli_process import run_in_process as _cli
 from scipy.spatial.transform import Rotation
 
-from stiffmap.cli.main import run
 from stiffmap.errors import InputError
 from stiffmap.models.base import Mechanism
 from stiffmap.models.fit import fit_stiffness
@@ -245,14 +244,6 @@ def test_configurations_file_in_degrees_and_mm(tmp_path):
         "# measured 2026-05\nlabel,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\nA,90,0,-30,0,45,-180\n"
     )
     np.testing.assert_allclose(read_configurations(f, _arm().chain), [np.radians([90, 0, -30, 0, 45, -180])])
-
-
-def _cli(args, monkeypatch, capsys):
-    monkeypatch.setattr(sys, "argv", ["stiffmap", *map(str, args)])
-    with pytest.raises(SystemExit) as e:
-        run()
-    cap = capsys.readouterr()
-    return (e.value.code or 0), cap.out, cap.err
 
 
 def _write_configs(path, Q_deg) -> None:

@@ -31,7 +31,6 @@ __all__ = [
     "TIP_FRAME",
     "TIP_OFFSET_MM",
     "TOOL_ROTATION",
-    "TOOL_RPY_DEG",
     "Q_SEED_DEG",
     "K_THETA",
     "LOAD_POINT_MM",
@@ -45,9 +44,8 @@ URDF = str(files("stiffmap.models") / "robots" / "arm6.urdf")
 TIP_FRAME = "tool0"
 #: The measured point in that frame, mm (100 mm along the tool axis).
 TIP_OFFSET_MM = (0.0, 0.0, 100.0)
-#: Roll, pitch, yaw (degrees) of the tool frame in the base at every position: the tool points down.
-TOOL_RPY_DEG = (0.0, 180.0, 0.0)
-#: The same as a rotation matrix (tool0 to base).
+#: The tool frame's orientation at every position (tool0 to base): a half turn about y, the tool
+#: pointing down.
 TOOL_ROTATION = np.diag([-1.0, 1.0, -1.0])
 #: Seed of the inverse kinematics, degrees: elbow up, wrist pitched down.
 Q_SEED_DEG = (0.0, 40.0, -10.0, 0.0, 60.0, 0.0)

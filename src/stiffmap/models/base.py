@@ -52,6 +52,8 @@ __all__ = [
     "platform_stiffness",
     "RANK_RTOL",
     "RIGID_RTOL",
+    "stiffness_of",
+    "static_error_of",
 ]
 
 #: Default threshold of the dimensionless singularity measures (a sine or an inverse
@@ -562,6 +564,49 @@ def platform_stiffness(springs, k, passive, valid) -> tuple[np.ndarray, np.ndarr
     return K, rigid
 
 
+def stiffness_of(mechanism, points) -> np.ndarray:
+    """``mechanism.stiffness(points)`` from its map: K (N/mm) at every pose, which must all be valid.
+
+    The :class:`Mechanism` method for a model that has ``evaluate`` and ``dim``.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, dim) or (dim,), mm, base frame
+
+    Returns
+    -------
+    ndarray, shape (N, dim, dim) or (dim, dim), N/mm
+
+    Raises
+    ------
+    PoseError
+        Naming the first unreachable or singular pose.
+    """
+    _, single = as_points(points, mechanism.dim)
+    m = mechanism.evaluate(points)
+    raise_first_invalid(m, single)
+    return m.K[0].copy() if single else m.K.copy()
+
+
+def static_error_of(mechanism, points, force) -> np.ndarray:
+    """``mechanism.static_error(points, force)``: u = K^-1 F (mm) under a force F (N), base frame.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, dim) or (dim,), mm
+    force : array_like, shape (dim,) or (N, dim), N
+
+    Returns
+    -------
+    ndarray, shape (N, dim) or (dim,), mm
+    """
+    P, single = as_points(points, mechanism.dim)
+    F = as_forces(force, P.shape[0], mechanism.dim)
+    K = mechanism.stiffness(P)
+    u = np.linalg.solve(K, F[..., None])[..., 0]
+    return u[0] if single else u
+
+
 class LegMechanism:
     """The :class:`Mechanism` methods shared by stiffmap's parallel robots made of legs.
 
@@ -707,10 +752,7 @@ class LegMechanism:
         PoseError
             Naming the first unreachable or singular pose.
         """
-        _, single = as_points(points, self.dim)
-        m = self.evaluate(points)
-        raise_first_invalid(m, single)
-        return m.K[0].copy() if single else m.K.copy()
+        return stiffness_of(self, points)
 
     def static_error(self, points, force) -> np.ndarray:
         """Static error ``u = K^-1 F`` (mm) of the tool under a force F (N).
@@ -724,8 +766,4 @@ class LegMechanism:
         -------
         ndarray, shape (N, dim) or (dim,), mm
         """
-        P, single = as_points(points, self.dim)
-        F = as_forces(force, P.shape[0], self.dim)
-        K = self.stiffness(P)
-        u = np.linalg.solve(K, F[..., None])[..., 0]
-        return u[0] if single else u
+        return static_error_of(self, points, force)

@@ -505,6 +505,8 @@ class Chain:
             q, e_p, e_r = qn, n_p, n_r
             lam = max(lam / 10.0, 1e-12)
         ep, er = float(np.linalg.norm(e_p)), float(np.linalg.norm(e_r)) if e_r.size else 0.0
+        # The steps stalled (round-off) or ran out: converged when within a thousand times the
+        # tolerances (1e-6 mm and 1e-9 rad by default), not reached otherwise.
         return IKResult(self._near(q, q_start), ep < tol_mm * 1e3 and er < tol_rad * 1e3, ep, er, it)
 
     def _near(self, q: np.ndarray, seed: np.ndarray) -> np.ndarray:

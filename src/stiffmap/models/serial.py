@@ -51,11 +51,11 @@ from .base import (
     SINGULAR_TOL,
     IKSolution,
     ModelMap,
-    as_forces,
     as_points,
     check_positive,
     model_map,
-    raise_first_invalid,
+    static_error_of,
+    stiffness_of,
 )
 from .chain import Chain
 from .joint_fit import joint_deflections
@@ -803,10 +803,7 @@ class SerialRobot:
         PoseError
             Naming the first unreachable or singular position.
         """
-        _, single = as_points(points, 3)
-        m = self.evaluate(points)
-        raise_first_invalid(m, single)
-        return m.K[0].copy() if single else m.K.copy()
+        return stiffness_of(self, points)
 
     def static_error(self, points, force) -> np.ndarray:
         """Static error ``u = K^-1 F`` (mm) of the measured point under a force F (N).
@@ -820,11 +817,7 @@ class SerialRobot:
         -------
         ndarray, shape (N, 3) or (3,), mm
         """
-        P, single = as_points(points, 3)
-        F = as_forces(force, P.shape[0], 3)
-        K = self.stiffness(P)
-        u = np.linalg.solve(K, F[..., None])[..., 0]
-        return u[0] if single else u
+        return static_error_of(self, points, force)
 
     def __repr__(self) -> str:
         m = 0 if self.configurations is None else self.configurations.shape[0]
