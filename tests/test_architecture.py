@@ -21,6 +21,7 @@ MODULES = sorted(SRC.rglob("*.py"))
 LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("stiffmap/report/writer.py", ".html"): "plotly loads only when a page is written",
     ("stiffmap/report/writer.py", ".static_figures"): "matplotlib loads only when PNGs are written",
+    ("stiffmap/parallel.py", "distributed"): "an optional extra, loaded only for --dask",
 }
 
 SQL = re.compile(

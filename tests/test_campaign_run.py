@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import logging
 import os
 import re
 import shutil
@@ -16,10 +18,11 @@ import tomllib
 
 import numpy as np
 import pytest
-from helpers.cli_process import run_stiffmap
+from helpers.cli_process import run_in_process, run_stiffmap
 
 from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
+from stiffmap.campaign.runner import run_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.store import Store, dump_content
 from stiffmap.campaign.truth import load_truth
@@ -256,3 +259,107 @@ def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
     assert r.ready
     assert r.errors == ()
     assert r.external_requests == ()
+
+
+# ------------------------------------------------------------------ Dask (issue 14)
+
+
+def _fresh_copy(demo, dst):
+    """The demo campaign without its results: images hard-linked (read only), nothing measured."""
+    skip = shutil.ignore_patterns("stiffmap.db*", "report", "exports")
+    shutil.copytree(demo, dst, copy_function=os.link, ignore=skip)
+    return dst
+
+
+def test_dask_local_run_gives_the_local_run_database(quick_demo, tmp_path):
+    """`stiffmap run --dask local` on the quick demo: the database of `stiffmap run`, row for row
+    (the demo's own database is `stiffmap run`'s: run_campaign in a pool of 2 processes). The
+    workers see the campaign directory; --send-images sends them the files anyway."""
+    proc, demo = quick_demo
+    assert proc.returncode == 0, proc.stderr
+    c = _fresh_copy(demo, tmp_path / "c")
+    done = _run(c, "--dask", "local", "--workers", "2", "--send-images")
+    assert done.returncode == 0, done.stderr
+    assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
+
+
+def test_killed_dask_client_resumes_to_the_same_database(quick_demo, tmp_path):
+    """SIGKILL of `stiffmap run --dask local` partway (the client, then its orphaned local
+    cluster), then a re-run: the same database as an uninterrupted run."""
+    _, demo = quick_demo
+    c = _fresh_copy(demo, tmp_path / "c")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "stiffmap", "run", str(c), "--quiet", "--no-report", "--dask", "local",
+         "--workers", "2"],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=dict(os.environ, PYTHONWARNINGS="error"),
+    )  # fmt: skip
+    killed_at = _kill_when_measured(proc, c / "stiffmap.db", 1)
+    assert killed_at is not None and killed_at < 6, "the run was not caught partway"
+    again = _run(c, "--dask", "local", "--workers", "2")
+    assert again.returncode == 0, again.stderr
+    assert f"{6 - killed_at} measured" in again.stdout
+    assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
+
+
+def _kill_when_measured(proc, db, n_positions, timeout=180):
+    """SIGKILL ``proc`` (the client first, then its process group) once ``db`` holds
+    ``n_positions`` positions; how many it held (None: the run ended first)."""
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            if db.exists():
+                try:
+                    with Store(db, read_only=True, timeout=0.1) as st:
+                        n = len(st.stiffness_rows())
+                except (sqlite3.OperationalError, InputError):  # being created: no tables yet
+                    n = 0
+                if n >= n_positions:
+                    os.kill(proc.pid, signal.SIGKILL)
+                    return n
+            time.sleep(0.02)
+        return None
+    finally:
+        proc.wait(timeout=30)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # the local cluster the client left behind
+
+
+def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(quick_demo, tmp_path):
+    """A Dask worker SIGKILLed while it measures a position (a cluster of 2 workers, given to
+    `run` by its scheduler's address): its task runs again elsewhere, the run completes, and the
+    database is the uninterrupted run's, row for row."""
+    distributed = pytest.importorskip("distributed")
+    _, demo = quick_demo
+    c = _fresh_copy(demo, tmp_path / "c")
+    killed: list[int] = []
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, dashboard_address=None, silence_logs=logging.CRITICAL
+        ) as cluster,
+        distributed.Client(cluster, set_as_default=False) as client,
+    ):
+
+        def progress(done, total, measured):
+            if measured and not killed:  # a position is in: kill a worker busy with another
+                busy = [w for w, keys in client.processing().items() if keys]
+                pid = client.run(os.getpid, workers=busy[:1])
+                killed.extend(pid.values())
+                os.kill(killed[0], signal.SIGKILL)
+
+        summary = run_campaign(c, workers=2, dask=cluster.scheduler_address, progress=progress)
+    assert killed, "no worker was busy when the first position came in"
+    assert summary.failures == [] and summary.measured == 6
+    assert len(summary.notes) == 1 and "left the cluster during the run" in summary.notes[0]
+    assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
+
+
+def test_an_unreachable_scheduler_is_one_line(campaign, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr("stiffmap.parallel.CONNECT_TIMEOUT_S", 0.5)
+    c = _copy(campaign, tmp_path / "c")
+    code, _, err = run_in_process(["run", c, "--quiet", "--dask", "tcp://127.0.0.1:9"], monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--dask tcp://127.0.0.1:9: cannot reach the Dask scheduler" in err and "dask scheduler" in err
+    assert not (c / "stiffmap.db").exists()  # nothing done

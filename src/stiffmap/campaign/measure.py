@@ -13,10 +13,12 @@ and the row keeps what each camera gave (``ImageRow.cameras``).
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import tempfile
 import traceback
 import warnings
 from collections.abc import Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,13 +26,21 @@ import numpy as np
 
 from ..camera import CameraModel
 from ..errors import StiffmapWarning
+from ..parallel import Backend, Cluster, Lost, connected, map_unordered
 from ..rig import Rig
 from ..targets import Chessboard
 from ..vision.sequence import measure_sequence
 from .positions import PositionTask
 from .spec import CampaignSpec
 
-__all__ = ["MeasureContext", "ImageRow", "measure_position", "measure_positions"]
+__all__ = [
+    "MeasureContext",
+    "ImageRow",
+    "measure_position",
+    "measure_positions",
+    "task_files",
+    "workers_see_images",
+]
 
 
 @dataclass(frozen=True)
@@ -94,8 +104,14 @@ class ImageRow:
     cameras: list[dict] | None = None
 
 
-def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
-    """Measure every existing image of a position (worker process). Never raises for an image."""
+def measure_position(
+    ctx: MeasureContext, task: PositionTask, files: dict[str, Path] | None = None
+) -> list[ImageRow]:
+    """Measure every existing image of a position (worker process). Never raises for an image.
+
+    ``files``: where to read each file of the task (by its name in the campaign); default
+    ``ctx.root / name``.
+    """
     camera: CameraModel | Rig
     if ctx.rig is None:
         camera = CameraModel.from_dict(ctx.camera)
@@ -104,14 +120,15 @@ def measure_position(ctx: MeasureContext, task: PositionTask) -> list[ImageRow]:
     mobile = Chessboard(*ctx.mobile)
     fixed = Chessboard(*ctx.fixed) if ctx.fixed is not None else None
     root = Path(ctx.root)
+    where = (lambda f: files.get(f, root / f)) if files is not None else (lambda f: root / f)
     missing = set(task.missing)
     present = [rel for rel in task.images if rel not in missing]
     if isinstance(camera, Rig):
         images = [
-            {c: root / f for c, f in zip(task.cameras, task.files(rel), strict=True)} for rel in present
+            {c: where(f) for c, f in zip(task.cameras, task.files(rel), strict=True)} for rel in present
         ]
     else:
-        images = [root / rel for rel in present]
+        images = [where(rel) for rel in present]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StiffmapWarning)
         ms = measure_sequence(
@@ -182,35 +199,94 @@ def _per_camera(m) -> list[dict]:
     return out
 
 
-def _measure_worker(ctx: MeasureContext, task: PositionTask) -> tuple[int, list[ImageRow] | str]:
+def _measure_worker(
+    ctx: MeasureContext, task: PositionTask, files: dict[str, Path] | None = None
+) -> list[ImageRow] | str:
     try:
-        return task.index, measure_position(ctx, task)
+        return measure_position(ctx, task, files)
     except Exception:  # a bug, not a user error: keep the message, let the run go on
-        return task.index, "internal error while measuring:\n" + traceback.format_exc()
+        return "internal error while measuring:\n" + traceback.format_exc()
+
+
+def _measure_sent(ctx: MeasureContext, sent: tuple[PositionTask, dict[str, bytes]]) -> list[ImageRow] | str:
+    """Measure a position whose files came as bytes (a worker that does not see the campaign).
+
+    Each file is written to a temporary folder under a name of its own (the campaign's names
+    may be absolute or lead out of the campaign, with ``--allow-outside-paths``), measured,
+    and deleted; a file the client could not read is absent, and its image's row says so.
+    """
+    task, blobs = sent
+    with tempfile.TemporaryDirectory(prefix="stiffmap-") as tmp:
+        files = {}
+        for k, (rel, data) in enumerate(blobs.items()):
+            files[rel] = Path(tmp) / f"{k:05d}{Path(rel).suffix}"
+            files[rel].write_bytes(data)
+        for rel in task_files(task):
+            files.setdefault(rel, Path(tmp) / "not sent" / Path(rel).name)
+        return _measure_worker(ctx, task, files)
+
+
+def _read_files(root: Path, task: PositionTask) -> tuple[PositionTask, dict[str, bytes]]:
+    """A position's files as bytes, to send with its task (those that cannot be read are left out)."""
+    blobs = {}
+    for f in task_files(task):
+        with contextlib.suppress(OSError):
+            blobs[f] = (root / f).read_bytes()
+    return task, blobs
+
+
+def task_files(task: PositionTask) -> list[str]:
+    """Every existing file of a position (relative to the campaign; one per camera of a rig)."""
+    missing = set(task.missing)
+    return [f for rel in task.images if rel not in missing for f in task.files(rel)]
 
 
 def measure_positions(
-    ctx: MeasureContext, tasks: list[PositionTask], workers: int
+    ctx: MeasureContext,
+    tasks: list[PositionTask],
+    backend: Backend | int,
+    *,
+    send_files: bool | None = None,
 ) -> Iterator[tuple[PositionTask, list[ImageRow] | str]]:
     """Measure positions, yielding each as soon as it is done.
 
-    With ``workers`` > 1 the positions are measured by a pool of processes, in
-    the order they finish. A position whose measurement failed as a whole (a bug,
-    not a user error: an image's problem is its row's error) yields the text of
-    the error instead of its rows, in this process as in a worker. Close the iterator
-    (``contextlib.closing``) to stop the pool when the caller stops early.
+    ``backend`` (:class:`stiffmap.parallel.Backend`, or a number of processes) says where:
+    this process, a pool of processes, or a Dask cluster. ``send_files``: on a cluster,
+    read each position's files here and send them with its task, at most two positions
+    per worker in flight (for workers without the campaign directory at the same path);
+    None: when :func:`workers_see_images` says so. A position whose measurement failed as
+    a whole (a bug, not a user error: an image's problem is its row's error; or a task the
+    cluster gave up because its workers kept dying) yields why, in one line, instead of
+    its rows. Close the iterator (``contextlib.closing``) to stop the workers when the
+    caller stops early.
     """
     if not tasks:
         return
-    if workers <= 1:
-        for t in tasks:
-            yield t, _measure_worker(ctx, t)[1]
-        return
-    by_index = {t.index: t for t in tasks}
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        pending = {pool.submit(_measure_worker, ctx, t) for t in tasks}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                idx, rows = fut.result()
-                yield by_index[idx], rows
+    if isinstance(backend, int):
+        backend = Backend(workers=backend)
+    with connected(backend) as backend:
+        fn, prepare, window = _measure_worker, None, None
+        if backend.cluster is not None:
+            if send_files is None:
+                send_files = not workers_see_images(backend.cluster, ctx, tasks)
+            if send_files:
+                fn, window = _measure_sent, 2 * backend.cluster.n_workers
+                prepare = functools.partial(_read_files, Path(ctx.root))
+
+        results = map_unordered(fn, ctx, tasks, backend, prepare=prepare, window=window)
+        with contextlib.closing(results):
+            for task, rows in results:
+                if isinstance(rows, Lost):
+                    rows = f"the position's task was given up: {rows.reason}"
+                elif isinstance(rows, str):
+                    rows = f"internal error while measuring (a bug): {rows.splitlines()[-1]}"
+                yield task, rows
+
+
+def workers_see_images(cluster: Cluster, ctx: MeasureContext, tasks: list[PositionTask]) -> bool:
+    """Whether the cluster's workers read the campaign's images where this process does."""
+    for t in tasks:
+        files = task_files(t)
+        if files:
+            return cluster.sees(Path(ctx.root) / files[0])
+    return True

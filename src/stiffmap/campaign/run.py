@@ -97,6 +97,8 @@ def run_and_export(
     method: str = "compliance",
     progress: ProgressHook | None = None,
     allow_outside: bool = False,
+    dask: str | None = None,
+    send_images: bool = False,
 ) -> CampaignRun:
     """Run a campaign of either kind (resuming where it stopped), then export its tables.
 
@@ -106,9 +108,10 @@ def run_and_export(
         Directory holding ``campaign.toml`` (or that file itself).
     spec : CampaignSpec, optional
         ``load_spec(campaign_dir)`` if already read.
-    workers, method, progress
+    workers, method, progress, dask, send_images
         As :func:`~stiffmap.campaign.runner.run_campaign` (vision campaigns; a sensor
-        campaign is analysed in this process, without progress calls).
+        campaign is analysed in this process, without progress calls, and ``dask`` is
+        ignored: its recordings are light).
     allow_outside : bool
         Let ``campaign.toml`` name files outside the campaign directory
         (:mod:`stiffmap.campaign.paths`).
@@ -130,7 +133,13 @@ def run_and_export(
     vision = sensor = None
     if spec.kind == "vision":
         vision = run_campaign(
-            root, workers=workers, method=method, progress=progress, allow_outside=allow_outside
+            root,
+            workers=workers,
+            method=method,
+            progress=progress,
+            allow_outside=allow_outside,
+            dask=dask,
+            send_images=send_images,
         )
         failures = vision.failures
     else:

@@ -28,7 +28,6 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-import os
 import time
 import warnings
 from collections.abc import Callable
@@ -44,15 +43,16 @@ from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
 from ..models.fit import fit_stiffness
 from ..models.joint_fit import fit_joint_compliances
+from ..parallel import Backend, connected
 from ..rig import Rig, load_rig
 from .derive import derive_position
-from .measure import ImageRow, MeasureContext, measure_positions
+from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .positions import PositionTask, plan
 from .spec import SPEC_NAME, CampaignSpec, load_spec
 from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
-__all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model", "default_workers"]
+__all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model"]
 
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
@@ -75,6 +75,10 @@ class RunSummary:
     wall_seconds: float = 0.0
     failures: list[str] = field(default_factory=list)
     db: str = ""
+    #: Where the images were measured ("2 process(es)", "the Dask cluster at ...; images ...").
+    backend: str = ""
+    #: What the user should know that is not a failure (a Dask worker that died, its tasks re-run).
+    notes: list[str] = field(default_factory=list)
 
 
 #: ``progress(images_done, images_total, images_measured)`` after each position.
@@ -88,6 +92,8 @@ def run_campaign(
     method: str = "compliance",
     progress: ProgressHook | None = None,
     allow_outside: bool = False,
+    dask: str | None = None,
+    send_images: bool = False,
 ) -> RunSummary:
     """Run a vision campaign: measure every position, identify K, fit the model.
 
@@ -96,7 +102,8 @@ def run_campaign(
     campaign_dir : path
         Directory holding ``campaign.toml``.
     workers : int
-        Processes measuring positions in parallel (1: in this process).
+        Processes measuring positions in parallel (1: in this process); with
+        ``dask="local"``, the local cluster's worker processes.
     method : str
         Identification method (see :func:`stiffmap.identify.identify_stiffness`).
     progress : callable, optional
@@ -105,6 +112,14 @@ def run_campaign(
     allow_outside : bool
         Let ``campaign.toml`` name files outside the campaign directory
         (``stiffmap run --allow-outside-paths``; :mod:`stiffmap.campaign.paths`).
+    dask : str, optional
+        Measure on a Dask cluster (:mod:`stiffmap.parallel`): ``"local"`` or a scheduler's
+        address. Its workers read the images from the campaign directory when they see it
+        at the same path (shared storage), else this process sends each position's files
+        with its task. The database is written by this process only, as without Dask.
+    send_images : bool
+        With ``dask``: send the images to the workers even when they see the campaign
+        directory (shared storage slower than the network to this machine).
 
     Returns
     -------
@@ -116,7 +131,8 @@ def run_campaign(
     ------
     InputError
         When nothing can be done: no or bad campaign.toml, camera file missing or
-        malformed, a file named outside the campaign directory.
+        malformed, a file named outside the campaign directory, a Dask scheduler that
+        cannot be reached or has no worker.
     """
     t_start = time.perf_counter()
     campaign = _read_campaign(campaign_dir, method, allow_outside)  # plan: the spec's positions and images
@@ -124,25 +140,39 @@ def run_campaign(
     for t in campaign.tasks:
         for rel in t.missing:
             summary.failures.append(f"{rel}: image not found (position {t.index})")
-    with Store(campaign.db) as store:
-        run_id = store.begin_run({"workers": workers, "method": method})
+    summary.backend = Backend(workers=workers, dask=dask).describe()
+    with contextlib.ExitStack() as stack:  # a cluster first: an address that does not answer stops here
+        backend = stack.enter_context(connected(Backend(workers=workers, dask=dask)))
+        store = stack.enter_context(Store(campaign.db))
+        run_id = store.begin_run({"workers": workers, "method": method, "dask": dask})
         work = _plan_work(store, campaign)  # plan: what the database holds, what is left to do
         tally = _Tally(summary, sum(len(t.images) for t in campaign.tasks), progress)
         for task in campaign.tasks:  # images unchanged: derive again when the parameters changed
             if task.index in work.stored:
                 problems = _derive_and_persist(store, campaign, work, task, None)
                 tally.position_done(task, None, problems)
-        measuring = measure_positions(campaign.context, work.to_measure, workers)
+        send = send_images or None
+        if backend.cluster is not None and work.to_measure:
+            if send is None:
+                send = not workers_see_images(backend.cluster, campaign.context, work.to_measure)
+            summary.backend += (
+                "; images sent to the workers by this process"
+                if send
+                else "; images read by the workers from the campaign directory (shared storage)"
+            )
+        measuring = measure_positions(campaign.context, work.to_measure, backend, send_files=send)
         with contextlib.closing(measuring):
             for task, rows in measuring:  # measured: derive and persist each position as it comes
-                if isinstance(rows, str):  # the worker failed: a bug, named, and the run goes on
-                    why = f"internal error while measuring (a bug): {rows.splitlines()[-1]}"
+                if isinstance(rows, str):  # the task failed (a bug; dead workers), named; the run goes on
+                    why = rows
                     summary.failures.append(f"position {task.index}: {why}")
                     _persist_lost(store, work, task, why)
                     tally.position_lost(task)
                     continue
                 problems = _derive_and_persist(store, campaign, work, task, rows)
                 tally.position_done(task, rows, problems)
+        if backend.cluster is not None:
+            summary.notes.extend(backend.cluster.events)
         summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
@@ -647,11 +677,3 @@ def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict,
         fit_row.update(status="failed", error=str(e))
         problems.append(f"model fit: {e}")
     return fitted
-
-
-def default_workers() -> int:
-    """Worker processes by default: the CPUs this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover
-        return max(1, os.cpu_count() or 1)

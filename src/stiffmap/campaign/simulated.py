@@ -46,6 +46,7 @@ from ..camera import plausibility_problems, save_camera
 from ..errors import InputError
 from ..geometry import invert_transform, rotvec_from_matrix
 from ..io import atomic_write_bytes, atomic_write_text, to_jsonable
+from ..parallel import Backend, connected
 from ..rig import Rig, save_rig
 from ..sim.calibration_views import (
     CALIBRATION_BOARD,
@@ -346,7 +347,7 @@ def calibrate_from_views(
     config: SimConfig,
     views: tuple[CalibrationView, ...],
     *,
-    workers: int = 1,
+    workers: int | Backend = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> tuple[CalibrationSummary, CalibrationResult, dict[str, Any]]:
     """Render the calibration views into ``out`` and calibrate the camera from them.
@@ -555,6 +556,7 @@ def write_campaign(
     progress: Callable[[int, int], None] | None = None,
     command: str = "",
     plan: CampaignPlan | None = None,
+    dask: str | None = None,
 ) -> SimSummary:
     """Simulate a campaign and write its directory.
 
@@ -564,8 +566,8 @@ def write_campaign(
         Created if needed; must be empty (or a previous simulation, with ``force``).
     config : SimConfig
     workers : int
-        Processes rendering images (1: in this process). The images do not
-        depend on it.
+        Processes rendering images (1: in this process); with ``dask="local"``, the local
+        cluster's workers. The images do not depend on it.
     force : bool
         Overwrite a previous simulation in ``out_dir``.
     render_images : bool
@@ -579,6 +581,10 @@ def write_campaign(
         The command line, recorded in truth.json.
     plan : CampaignPlan, optional
         ``plan_campaign(config)`` if already computed.
+    dask : str, optional
+        Render on a Dask cluster (:mod:`stiffmap.parallel`): ``"local"`` or a scheduler's
+        address. Workers that see ``out_dir`` at the same path write the images there;
+        others send them back and this process writes them.
 
     Returns
     -------
@@ -597,18 +603,33 @@ def write_campaign(
         raise InputError(f"workers must be >= 1, got {workers}")
     if plan is None:
         plan = plan_campaign(config)
+    prepare_output_dir(out, force)
+    with connected(Backend(int(workers), dask, start_method="spawn")) as backend:
+        return _write_campaign(out, config, backend, render_images, progress, command, plan, t0)
+
+
+def _write_campaign(
+    out: Path,
+    config: SimConfig,
+    backend: Backend,
+    render_images: bool,
+    progress: Callable[[int, int], None] | None,
+    command: str,
+    plan: CampaignPlan,
+    t0: float,
+) -> SimSummary:
+    """:func:`write_campaign` once its output directory is ready and its backend connected."""
     rig = config.scene.rig
     views = plan_calibration_views(config) if render_images and rig is None else ()
     rig_result = None
     jobs = list(plan.jobs)
     n_total = len(views) + (len(jobs) if render_images else 0)
-    prepare_output_dir(out, force)
     result = None
     t_cal = time.perf_counter()
     if views:
         cal_progress = None if progress is None else (lambda done, _total: progress(done, n_total))
         calibration, result, rendered_views = calibrate_from_views(
-            out, config, views, workers=workers, progress=cal_progress
+            out, config, views, workers=backend, progress=cal_progress
         )
     elif rig is not None and render_images and config.calibration_views:
         cal_progress = None if progress is None else (lambda done, total: progress(done, total + len(jobs)))
@@ -646,7 +667,7 @@ def write_campaign(
             (lambda done, total: progress(len(rendered_views) + done, n_total)) if render_images else progress
         )
     results = render_campaign_images(
-        out, config, jobs, workers=workers, render_images=render_images, progress=img_progress
+        out, config, jobs, workers=backend, render_images=render_images, progress=img_progress
     )
     corners = [results[j.file][0] for j in jobs]
     gz = {"format": TRUTH_FORMAT, "images": corners}

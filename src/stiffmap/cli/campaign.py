@@ -20,7 +20,6 @@ from ..campaign.demo import demo_config
 from ..campaign.export import calibration_share_of_K, summary_dict
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION
 from ..campaign.run import CampaignRun, campaign_root, run_and_export
-from ..campaign.runner import default_workers
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.simulated import check_output_dir, write_campaign
 from ..campaign.spec import SPEC_NAME, load_spec
@@ -28,9 +27,10 @@ from ..campaign.spec_writer import EXAMPLE_TOML
 from ..campaign.store import Store, from_json
 from ..errors import InputError
 from ..io import atomic_write_text
+from ..parallel import local_workers
 from ..report.campaign import write_campaign_report
 from ..textfmt import fmt_pm
-from .common import EXIT_PARTIAL, fmt, images_progress, out, print_json, warn
+from .common import EXIT_PARTIAL, dask_option, fmt, images_progress, out, print_json, warn
 
 
 class MethodName(StrEnum):
@@ -88,7 +88,7 @@ def _init_from_demo(directory: Path, force: bool) -> None:
         write_campaign(
             directory,
             demo_config(quick=True),
-            workers=default_workers(),
+            workers=local_workers(),
             force=force,
             progress=lambda done, total: update(done, total, done),
             command=f"stiffmap init {directory} --from-demo",
@@ -169,7 +169,21 @@ def _sensor_table(spec, store: Store) -> Table:
 def run(
     campaign: Path = typer.Argument(..., help="Campaign directory (holding campaign.toml)."),
     workers: int = typer.Option(
-        0, "--workers", "-w", min=0, help="Worker processes for image work (0: all CPUs)."
+        0,
+        "--workers",
+        "-w",
+        min=0,
+        help="Worker processes for image work (0: all CPUs); with --dask local, the local cluster's workers.",
+    ),
+    dask: str | None = dask_option(
+        "Measure the images (workers read them from the campaign directory when they see it, "
+        "else this machine sends them)"
+    ),
+    send_images: bool = typer.Option(
+        False,
+        "--send-images",
+        help="With --dask: send the images to the workers even when they see the campaign "
+        "directory (shared storage slower than the network).",
     ),
     method: MethodName = typer.Option(
         MethodName.compliance, "--method", help="Stiffness identification method."
@@ -202,10 +216,12 @@ def run(
         done = run_and_export(
             root,
             spec=spec,
-            workers=workers or default_workers(),
+            workers=workers or local_workers(),
             method=method.value,
             progress=hook,
             allow_outside=allow_outside_paths,
+            dask=dask,
+            send_images=send_images,
         )
     nothing = done.nothing_measured()
     with Store(done.db) as store:
@@ -263,6 +279,10 @@ def _print_counts(done: CampaignRun, page: Path | None, seconds: float) -> None:
             + (f"{summary.rederived} re-derived (images unchanged), " if summary.rederived else "")
             + f"{summary.reused} unchanged since the last run"
         )
+        if summary.measured:
+            out.print(f"measured on {summary.backend}", highlight=False)
+        for note in summary.notes:
+            warn(note)
     else:
         res = done.sensor
         out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")

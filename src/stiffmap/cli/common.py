@@ -168,3 +168,15 @@ def images_progress(description: str, show: bool = True, *, transient: bool = Fa
             prog.update(task, completed=done, total=total, measured=done if measured is None else measured)
 
         yield update
+
+
+def dask_option(work: str):
+    """The ``--dask SCHEDULER`` option of a command whose heavy ``work`` can run on a Dask cluster."""
+    return typer.Option(
+        None,
+        "--dask",
+        metavar="SCHEDULER",
+        help=f"{work} on a Dask cluster: 'local' (a cluster of --workers processes on this machine) "
+        "or a running scheduler's address (tcp://HOST:8786). Needs pip install 'stiffmap[dask]'; "
+        "see docs/scaling.md.",
+    )

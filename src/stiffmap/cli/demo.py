@@ -11,7 +11,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from ..campaign.demo import DemoResult, run_demo
-from ..campaign.runner import default_workers
+from ..parallel import local_workers
 from ..report.campaign import write_campaign_report
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from .common import EXIT_PARTIAL, err, out, warn
@@ -55,7 +55,7 @@ def demo(
             repeats=repeats or None,
             seed=seed,
             calibration_views=0 if true_camera else DEFAULT_CALIBRATION_VIEWS,
-            workers=workers or default_workers(),
+            workers=workers or local_workers(),
             fresh=fresh,
             sim_progress=sim_hook,
             run_progress=run_hook,

@@ -26,7 +26,6 @@ from rich.progress import (
 )
 
 from ..camera import load_camera
-from ..campaign.runner import default_workers
 from ..campaign.simulated import SimSummary, check_output_dir, write_campaign
 from ..campaign.simulated_sensor import SensorSimSummary, write_sensor_campaign
 from ..errors import InputError
@@ -34,12 +33,14 @@ from ..loads import load_design
 from ..models import arm6
 from ..models.presets import positions_from_text, select_positions
 from ..models.prr3 import PRR3
+from ..parallel import Backend, local_workers
 from ..sim.plan import SimulationPlan, plan_simulation, vision_config
 from ..sim.robot import arm6_robot, delta_robot
 from ..sim.scene import arm_scene
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from ..units import G_REFERENCE_PAPER
 from .common import (
+    dask_option,
     err,
     float_values,
     fmt,
@@ -78,6 +79,7 @@ _VISION_ONLY = {
     "load_point": "--load-point-mm",
     "truth_only": "--truth-only",
     "workers": "--workers",
+    "dask": "--dask",
     "calibration_views": "--calibration-views",
     "true_camera": "--true-camera",
 }
@@ -214,6 +216,7 @@ def simulate(
     workers: int = typer.Option(
         0, "--workers", min=0, help="Processes rendering images (0: one per available CPU)."
     ),
+    dask: str | None = dask_option("Render the images"),
     force: bool = typer.Option(
         False, "--force", help="Overwrite a previous simulation in OUT_DIR (never a real campaign)."
     ),
@@ -332,19 +335,19 @@ def simulate(
     )  # fmt: skip
     with _naming_positions_file(positions, select, loads):
         sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
-    n_workers = workers or default_workers()
+    n_workers = workers or local_workers()
     if not as_json:
         views = f" + {sim.n_calibration_views} calibration views" if sim.n_calibration_views else ""
         err.print(
             f"simulating {len(P)} position(s) x {len(load_cases)} load case(s) x {repeats} repeat(s): "
-            f"{sim.n_images} images{views} (~{sim.bytes_needed / 1e9:.2f} GB) with {n_workers} "
-            f"process(es) -> {out_dir}",
+            f"{sim.n_images} images{views} (~{sim.bytes_needed / 1e9:.2f} GB) on "
+            f"{Backend(n_workers, dask).describe()} -> {out_dir}",
             highlight=False,
         )
     with _rendering_progress(sim, show=not (as_json or truth_only)) as progress:
         summary = write_campaign(
             out_dir, cfg, workers=n_workers, force=force, render_images=not truth_only,
-            progress=progress, command=command, plan=sim.plan,
+            progress=progress, command=command, plan=sim.plan, dask=dask,
         )  # fmt: skip
     _print_vision_summary(summary, sim, as_json)
 

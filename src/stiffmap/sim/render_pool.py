@@ -12,15 +12,16 @@ on the number of processes. What else a simulated campaign directory holds (``ca
 from __future__ import annotations
 
 import os
+import uuid
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import cv2
 
+from ..errors import InputError
 from ..io import atomic_write_bytes
+from ..parallel import Backend, Cluster, Lost, connected, map_unordered
 from ..rig import camera_path
 from .calibration_views import CalibrationView, render_calibration_view
 from .render import true_corners
@@ -53,15 +54,25 @@ def _boards_truth(scene, job: ImageJob, camera: int, rendering=None) -> dict[str
     return out
 
 
-def _do_job(job: ImageJob | CalibrationView) -> tuple[dict[str, Any], int]:
+def _do_job(job: ImageJob | CalibrationView) -> tuple[dict[str, Any], int, dict[str, bytes]]:
     """Render one job: its truth (with a rig, the first camera's boards and ``cameras``: every
-    camera's, by name) and the bytes written."""
+    camera's, by name), the bytes written, and the files themselves when they are sent back
+    (a cluster whose workers do not see the output directory) instead of written here."""
     c = _CTX
+    files: dict[str, bytes] = {}
+
+    def write(rel: str, data: bytes) -> None:
+        if c.get("send_back"):
+            files[rel] = data
+        else:
+            atomic_write_bytes(Path(c["out"]) / rel, data)
+
     if isinstance(job, CalibrationView):
         data, r = render_calibration_view(c["config"], job)
-        atomic_write_bytes(Path(c["out"]) / job.file, data)
+        write(job.file, data)
         t = r.targets[0]
-        return {"file": job.file, t.name: {"board2cam": t.board2cam, "corners_px": t.corners_px}}, len(data)
+        truth = {"file": job.file, t.name: {"board2cam": t.board2cam, "corners_px": t.corners_px}}
+        return truth, len(data), files
     scene = c["scene"]
     per_camera: dict[str, Any] = {}
     nbytes = 0
@@ -69,16 +80,16 @@ def _do_job(job: ImageJob | CalibrationView) -> tuple[dict[str, Any], int]:
         r = None
         if c["render"]:
             data, r = render_job(scene, c["photometry"], c["seed"], job, c["format"], c["quality"], camera=k)
-            atomic_write_bytes(Path(c["out"]) / camera_path(job.file, name), data)
+            write(camera_path(job.file, name), data)
             nbytes += len(data)
         per_camera[name] = _boards_truth(scene, job, k, r)
     out: dict[str, Any] = {"file": job.file, **next(iter(per_camera.values()))}
     if scene.rig is not None:
         out["cameras"] = per_camera
-    return out, nbytes
+    return out, nbytes, files
 
 
-def _do_chunk(jobs: list[ImageJob | CalibrationView]) -> list[tuple[dict[str, Any], int]]:
+def _do_chunk(ctx: dict[str, Any], jobs: list[ImageJob | CalibrationView]):
     return [_do_job(j) for j in jobs]
 
 
@@ -87,7 +98,7 @@ def render_campaign_images(
     config: SimConfig,
     jobs: Sequence[ImageJob],
     *,
-    workers: int = 1,
+    workers: int | Backend = 1,
     render_images: bool = True,
     progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, tuple[dict[str, Any], int]]:
@@ -99,8 +110,10 @@ def render_campaign_images(
     config : SimConfig
         The scene, photometry, seed and image format.
     jobs : sequence of ImageJob
-    workers : int
-        Processes rendering images (1: in this process; spawned processes otherwise).
+    workers : int or Backend
+        Processes rendering images (1: in this process; spawned processes otherwise), or
+        where to render (:class:`stiffmap.parallel.Backend`: a Dask cluster). On a cluster
+        whose workers do not see ``out_dir``, the images are sent back and written here.
     render_images : bool
         False: the true poses and corners only, no image (in this process).
     progress : callable, optional
@@ -129,7 +142,7 @@ def render_calibration_images(
     config: SimConfig,
     views: Sequence[CalibrationView],
     *,
-    workers: int = 1,
+    workers: int | Backend = 1,
     progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, tuple[dict[str, Any], int]]:
     """Render every calibration view to ``out_dir / view.file`` and collect its truth.
@@ -141,8 +154,8 @@ def render_calibration_images(
         The camera, photometry, seed and image format.
     views : sequence of CalibrationView
         :func:`~stiffmap.sim.calibration_views.plan_calibration_views`.
-    workers : int
-        Processes rendering images (1: in this process).
+    workers : int or Backend
+        As :func:`render_campaign_images`.
     progress : callable, optional
         Called as ``progress(done, total)`` at the start and as images finish.
 
@@ -158,37 +171,42 @@ def render_calibration_images(
 def _render_all(
     ctx: dict[str, Any],
     jobs: Sequence[ImageJob | CalibrationView],
-    workers: int,
+    workers: int | Backend,
     progress: Callable[[int, int], None] | None,
 ) -> dict[str, tuple[dict[str, Any], int]]:
-    """Run every job in this process (``workers == 1`` or no rendering) or in a pool."""
+    """Run every job in this process (one worker, or no rendering), in a pool or on a cluster."""
+    backend = workers if isinstance(workers, Backend) else Backend(int(workers), start_method="spawn")
     results: dict[str, tuple[dict[str, Any], int]] = {}
     total = len(jobs)
     if progress:
         progress(0, total)
-    if workers == 1 or not ctx["render"]:
-        _init_worker(ctx)
-        for k, job in enumerate(jobs, start=1):
-            results[job.file] = _do_job(job)
-            if progress:
-                progress(k, total)
-        return results
-    chunk = 2
-    chunks = [jobs[i : i + chunk] for i in range(0, len(jobs), chunk)]
-    with ProcessPoolExecutor(
-        max_workers=int(workers),
-        mp_context=get_context("spawn"),
-        initializer=_init_worker,
-        initargs=(ctx,),
-    ) as ex:
-        pending = {ex.submit(_do_chunk, c) for c in chunks}
+    if not ctx["render"] or (backend.workers <= 1 and not backend.dask):
+        backend = Backend(1)
+    chunk = 1 if backend.workers <= 1 and not backend.dask else 2
+    chunks = [list(jobs[i : i + chunk]) for i in range(0, len(jobs), chunk)]
+    with connected(backend) as backend:
+        if backend.cluster is not None:
+            ctx = {**ctx, "send_back": not _cluster_sees(backend.cluster, Path(ctx["out"]))}
         done_n = 0
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for f in finished:
-                for truth, nbytes in f.result():
-                    results[truth["file"]] = (truth, nbytes)
-                    done_n += 1
+        for _, rendered in map_unordered(_do_chunk, ctx, chunks, backend, init=_init_worker):
+            if isinstance(rendered, Lost):
+                raise InputError(f"rendering stopped: {rendered.reason}; run the simulation again")
+            for truth, nbytes, files in rendered:
+                for rel, data in files.items():  # sent back by a worker that does not see the folder
+                    atomic_write_bytes(Path(ctx["out"]) / rel, data)
+                results[truth["file"]] = (truth, nbytes)
+                done_n += 1
             if progress:
                 progress(done_n, total)
     return results
+
+
+def _cluster_sees(cluster: Cluster, out: Path) -> bool:
+    """Whether the cluster's workers write where this process reads (a probe file in ``out``)."""
+    out.mkdir(parents=True, exist_ok=True)
+    probe = out / f".stiffmap-probe-{uuid.uuid4().hex}"
+    atomic_write_bytes(probe, uuid.uuid4().bytes * 8)
+    try:
+        return cluster.sees(probe)
+    finally:
+        probe.unlink(missing_ok=True)

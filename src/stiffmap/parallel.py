@@ -1,0 +1,473 @@
+"""Where heavy work runs: in this process, in a pool of processes, or on a Dask cluster.
+
+One function, :func:`map_unordered`, runs ``fn(ctx, item)`` for every item and yields
+``(item, result)`` as each finishes. ``ctx`` is what every task shares (a campaign's
+camera and boards, a simulation's scene): it is sent once per worker, not once per
+task. The caller stays the only writer of results (the campaign database, the
+simulation's ``truth.json``): workers compute and return.
+
+Backends (:class:`Backend`):
+
+- ``workers == 1``, no ``dask``: every task in this process, in order;
+- ``workers > 1``: a :class:`concurrent.futures.ProcessPoolExecutor`;
+- ``dask``: a ``dask.distributed`` cluster, ``"local"`` for a
+  :class:`distributed.LocalCluster` of ``workers`` single-threaded processes on this
+  machine, else the address of a running scheduler (``tcp://host:8786``). A task whose
+  worker dies is run again on another worker (Dask's own retry; after
+  ``distributed.scheduler.allowed-failures`` deaths it is given up and yields a
+  :class:`Lost`). ``dask.distributed`` is an optional extra
+  (``pip install 'stiffmap[dask]'``), imported only when a cluster is asked for.
+
+Files on a cluster: :meth:`Cluster.sees` tells whether every worker reads the same
+file at the same path (shared storage); when one does not, the caller sends the
+bytes with the task instead (``stiffmap run``) or has them sent back
+(``stiffmap simulate``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ctypes
+import gc
+import hashlib
+import logging
+import os
+import socket
+import sys
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field, replace
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from .errors import InputError
+
+__all__ = ["Backend", "Cluster", "Lost", "connected", "map_unordered", "file_digest", "local_workers"]
+
+#: How long to wait for a scheduler to answer, and for it to have a worker (seconds).
+CONNECT_TIMEOUT_S = 15.0
+WORKERS_TIMEOUT_S = 60.0
+
+
+def local_workers() -> int:
+    """The CPUs this process may use (the default number of worker processes)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+@dataclass(frozen=True)
+class Backend:
+    """Where to run: ``workers`` processes here, or the Dask cluster ``dask`` ("local" or an address).
+
+    ``cluster`` is the open connection (:func:`connected`): several calls of
+    :func:`map_unordered` then share one cluster instead of starting one each.
+    """
+
+    workers: int = 1
+    dask: str | None = None
+    #: Start method of a local process pool (None: the platform's default).
+    start_method: str | None = None
+    cluster: Cluster | None = field(default=None, compare=False, repr=False)
+
+    def describe(self) -> str:
+        """``"2 processes"``, ``"Dask cluster at tcp://..."``, ``"a local Dask cluster of 2 workers"``."""
+        if self.dask == "local":
+            return f"a local Dask cluster of {self.workers} worker(s)"
+        if self.dask:
+            return f"the Dask cluster at {self.dask}"
+        return f"{self.workers} process(es)"
+
+
+@contextlib.contextmanager
+def connected(backend: Backend) -> Iterator[Backend]:
+    """``backend`` with its cluster connected (started, for ``"local"``) for the block, then closed.
+
+    A backend without ``dask``, or already connected, is given back as it is.
+
+    Raises
+    ------
+    InputError
+        dask.distributed not installed, the scheduler cannot be reached or has no
+        worker, a local cluster could not start.
+    """
+    if not backend.dask or backend.cluster is not None:
+        yield backend
+        return
+    with Cluster(backend.dask, backend.workers) as c:
+        yield replace(backend, cluster=c)
+
+
+@dataclass(frozen=True)
+class Lost:
+    """A task given up by the cluster (its workers kept dying): why, in one line."""
+
+    reason: str
+
+
+def file_digest(path: str | os.PathLike, limit: int = 1 << 16) -> tuple[int, str]:
+    """(size, SHA-256 of the first ``limit`` bytes) of a file: enough to tell two copies apart."""
+    p = Path(path)
+    with p.open("rb") as f:
+        head = f.read(limit)
+    return p.stat().st_size, hashlib.sha256(head).hexdigest()
+
+
+def _same_file(path: str, digest: tuple[int, str]) -> bool:
+    try:
+        return file_digest(path) == tuple(digest)
+    except OSError:
+        return False
+
+
+class Cluster:
+    """A connection to a Dask cluster (started on this machine for ``"local"``); a context manager."""
+
+    def __init__(self, address: str, workers: int = 1):
+        try:
+            import distributed  # optional extra: only a cluster run needs it
+        except ImportError:
+            raise InputError(
+                "--dask needs dask.distributed, which is not installed: pip install 'stiffmap[dask]'"
+            ) from None
+        self.address = address
+        self._cluster = None
+        self._dist = distributed
+        if address == "local":
+            try:
+                self._cluster = distributed.LocalCluster(
+                    n_workers=max(1, int(workers)),
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    silence_logs=logging.ERROR,
+                )
+            except (OSError, RuntimeError, TimeoutError) as e:
+                raise InputError(
+                    f"--dask local: could not start a local Dask cluster ({_one_line(e)})"
+                ) from None
+            target: Any = self._cluster
+        else:
+            _check_reachable(distributed, address)
+            target = address
+        try:
+            with _quiet_unraisable():  # a client that failed to connect complains as it is collected
+                try:
+                    self.client = distributed.Client(target, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+                finally:
+                    gc.collect()
+        except (OSError, TimeoutError, ValueError) as e:
+            self._close_cluster()
+            raise InputError(
+                f"--dask {address}: no Dask scheduler answers there ({_one_line(e)}); " + _START_HINT
+            ) from None
+        #: What happened to the cluster during the work (workers that left), one line each.
+        self.events: list[str] = []
+        try:
+            self.client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
+        except (OSError, TimeoutError) as e:
+            self.close()
+            raise InputError(
+                f"--dask {address}: the scheduler has no worker after {WORKERS_TIMEOUT_S:.0f} s "
+                f"({_one_line(e)}); start workers with 'dask worker {address}'"
+            ) from None
+        self._known = set(self.client.scheduler_info().get("workers", {}))
+
+    def __enter__(self) -> Cluster:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self.client.close()
+        self._close_cluster()
+
+    def _close_cluster(self) -> None:
+        if self._cluster is not None:
+            with contextlib.suppress(Exception):
+                self._cluster.close()
+            self._cluster = None
+
+    def note_departures(self) -> list[str]:
+        """Workers that left the cluster since the last call, each said once in :attr:`events`."""
+        now = set(self.client.scheduler_info().get("workers", {}))
+        gone = sorted(self._known - now)
+        self._known |= now
+        self._known -= set(gone)
+        for w in gone:
+            self.events.append(
+                f"the Dask worker {w} left the cluster during the run (it died or was stopped); "
+                "Dask ran its tasks again on the other workers"
+            )
+        return gone
+
+    @property
+    def n_workers(self) -> int:
+        """Threads over all workers (tasks that can run at once)."""
+        workers = self.client.scheduler_info().get("workers", {})
+        return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+    def worker_pids(self) -> dict[str, int]:
+        """Process id of each worker, by address."""
+        return self.client.run(os.getpid)
+
+    def sees(self, path: str | os.PathLike) -> bool:
+        """Whether every worker reads the same file at ``path`` (same size, same first 64 KiB)."""
+        digest = file_digest(path)
+        answers = self.client.run(_same_file, str(Path(path).resolve()), digest)
+        return bool(answers) and all(answers.values())
+
+    def share(self, ctx: Any) -> Any:
+        """``ctx`` sent once to every worker; pass the result to tasks in its place."""
+        return self.client.scatter(ctx, broadcast=True, hash=False)
+
+    def lost_reason(self, exc: BaseException) -> str | None:
+        """One line when ``exc`` is the cluster giving a task up (its workers died), else None."""
+        killed = getattr(self._dist, "KilledWorker", None) or self._dist.scheduler.KilledWorker
+        if isinstance(exc, killed):
+            return f"the Dask workers running it died repeatedly ({_one_line(exc)})"
+        return None
+
+
+_START_HINT = (
+    "start one ('dask scheduler', then 'dask worker ADDRESS' on each machine) and give its "
+    "address as tcp://HOST:PORT, or use --dask local"
+)
+
+
+def _check_reachable(distributed, address: str) -> None:
+    """InputError unless ``address`` is a scheduler address whose host and port accept a connection."""
+    try:
+        scheme, location = distributed.comm.parse_address(address)
+        host, port = distributed.comm.parse_host_port(location)
+    except (ValueError, TypeError) as e:
+        raise InputError(
+            f"--dask {address!r}: not a scheduler address ({_one_line(e)}); expected 'local' or "
+            "tcp://HOST:PORT (e.g. tcp://192.168.1.20:8786)"
+        ) from None
+    if scheme not in ("tcp", "tls"):
+        raise InputError(f"--dask {address}: scheme {scheme!r}; expected tcp://HOST:PORT or tls://HOST:PORT")
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as e:
+        raise InputError(f"--dask {address}: cannot reach the Dask scheduler ({e}); " + _START_HINT) from None
+
+    async def identity() -> Any:
+        comm = await distributed.comm.connect(address, timeout=CONNECT_TIMEOUT_S)
+        try:
+            await comm.write({"op": "identity"})
+            return await comm.read()
+        finally:
+            await comm.close()
+
+    # Something answers there; a Dask client would wait for ever on a server that is not Dask's.
+    try:
+        answer = asyncio.run(asyncio.wait_for(identity(), CONNECT_TIMEOUT_S))
+    except (OSError, TimeoutError, ValueError, TypeError) as e:
+        answer = e
+    if isinstance(answer, dict) and answer.get("type") == "Scheduler":
+        return
+    if isinstance(answer, BaseException):
+        what = (
+            f"no Dask answer in {CONNECT_TIMEOUT_S:g} s"
+            if isinstance(answer, TimeoutError)
+            else _one_line(answer)
+        )
+    else:
+        what = f"it says it is a {answer.get('type', '?')}" if isinstance(answer, dict) else "no identity"
+    raise InputError(f"--dask {address}: what answers there is not a Dask scheduler ({what}); " + _START_HINT)
+
+
+@contextlib.contextmanager
+def _quiet_unraisable() -> Iterator[None]:
+    """Drop the 'Exception ignored in Client.__del__' reports of a client that never connected."""
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: None
+    try:
+        yield
+    finally:
+        sys.unraisablehook = hook
+
+
+def _one_line(e: BaseException) -> str:
+    text = str(e).strip().splitlines()
+    return text[0] if text else type(e).__name__
+
+
+# ------------------------------------------------------------------ running tasks
+
+_CTX: dict[str, Any] = {}
+
+
+def _init_process(init: Callable[[Any], None] | None, ctx: Any) -> None:
+    _CTX["ctx"] = ctx
+    if init is not None:
+        init(ctx)
+
+
+def _call_in_process(fn: Callable[[Any, Any], Any], item: Any) -> Any:
+    return fn(_CTX["ctx"], item)
+
+
+def _call_on_worker(fn: Callable[[Any, Any], Any], init: Callable[[Any], None] | None, token: str, ctx, item):
+    if "malloc" not in _CTX:
+        _CTX["malloc"] = _keep_large_buffers()
+    if init is not None and _CTX.get("token") != token:
+        init(ctx)
+        _CTX["token"] = token
+    return fn(ctx, item)
+
+
+def _keep_large_buffers() -> bool:
+    """Let glibc reuse large freed buffers in a Dask worker (True when it could be told).
+
+    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which also fixes
+    glibc's mmap threshold: every image-sized array is then mapped and unmapped afresh,
+    and measuring a 5 MP image took twice as long (11.1 s against 5.9 s for 40 images).
+    A 64 MiB mmap threshold and a 128 MiB trim threshold bring the time back.
+    """
+    try:
+        libc = ctypes.CDLL(None)
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):  # not glibc: nothing to tune
+        return False
+    m_trim_threshold, m_mmap_threshold = -1, -3
+    return bool(mallopt(m_mmap_threshold, 1 << 26)) and bool(mallopt(m_trim_threshold, 1 << 27))
+
+
+def map_unordered(
+    fn: Callable[[Any, Any], Any],
+    ctx: Any,
+    items: Iterable[Any],
+    backend: Backend,
+    *,
+    init: Callable[[Any], None] | None = None,
+    prepare: Callable[[Any], Any] | None = None,
+    window: int | None = None,
+) -> Iterator[tuple[Any, Any]]:
+    """Run ``fn(ctx, task)`` for every item; yield ``(item, result)`` as each finishes.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(ctx, task)``, a module-level function (it is pickled to the workers).
+        Its exceptions propagate to the caller (wrap them in ``fn`` to keep going).
+    ctx : object
+        Shared by every task; sent once per worker (picklable).
+    items : iterable
+        The tasks' items, in submission order.
+    backend : Backend
+        Where; a Dask backend not yet :func:`connected` is connected for this call.
+    init : callable, optional
+        ``init(ctx)`` once in each process before its first task (e.g. thread settings).
+    prepare : callable, optional
+        ``prepare(item)`` in this process just before the item is submitted; ``fn``
+        receives its result instead of the item (e.g. a task with its files' bytes).
+    window : int, optional
+        At most this many tasks submitted and not yet yielded (a memory bound with
+        ``prepare``); all at once when None.
+
+    Yields
+    ------
+    (item, result)
+        ``result`` is ``fn``'s return, or a :class:`Lost` when a cluster gave the task up.
+        Closing the iterator early cancels what is not done.
+    """
+    items = list(items)
+    if not items:
+        return
+    prep = prepare if prepare is not None else (lambda x: x)
+    if backend.dask:
+        with connected(backend) as b:
+            yield from _on_cluster(b.cluster, fn, ctx, items, init, prep, window)
+        return
+    if backend.workers <= 1:
+        _init_process(init, ctx)
+        for item in items:
+            yield item, fn(ctx, prep(item))
+        return
+    mp = get_context(backend.start_method) if backend.start_method else None
+    limit = window or len(items)
+    with ProcessPoolExecutor(
+        max_workers=backend.workers, mp_context=mp, initializer=_init_process, initargs=(init, ctx)
+    ) as pool:
+        queue = iter(items)
+        pending: dict[Any, Any] = {}
+        try:
+            for item in queue:
+                pending[pool.submit(_call_in_process, fn, prep(item))] = item
+                if len(pending) >= limit:
+                    break
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    item = pending.pop(fut)
+                    yield item, fut.result()
+                    for nxt in queue:
+                        pending[pool.submit(_call_in_process, fn, prep(nxt))] = nxt
+                        break
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+
+def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterator[tuple[Any, Any]]:
+    """:func:`map_unordered` on a Dask cluster."""
+    dist = cluster._dist
+    client = cluster.client
+    shared = cluster.share(ctx)
+    token = uuid.uuid4().hex
+    limit = window or len(items)
+    queue = iter(items)
+    pending: dict[Any, Any] = {}
+
+    def submit(item):
+        arg = prep(item)
+        if _is_large(arg):  # big data goes beside the task graph, not inside it
+            [arg] = client.scatter([arg], hash=False)
+        fut = client.submit(_call_on_worker, fn, init, token, shared, arg, pure=False)
+        pending[fut.key] = (fut, item)
+        return fut
+
+    first = []
+    for item in queue:
+        first.append(submit(item))
+        if len(pending) >= limit:
+            break
+    futures = dist.as_completed(first, loop=client.loop)
+    try:
+        for fut in futures:
+            _, item = pending.pop(fut.key)
+            try:
+                result = fut.result()
+            except Exception as e:  # a dead worker's task given up: the run goes on without it
+                reason = cluster.lost_reason(e)
+                if reason is None:
+                    raise
+                result = Lost(reason)
+            fut.release()
+            cluster.note_departures()
+            yield item, result
+            for nxt in queue:
+                futures.add(submit(nxt))
+                break
+    finally:
+        for fut, _ in pending.values():
+            fut.cancel()
+
+
+def _is_large(arg: Any, limit: int = 1 << 20) -> bool:
+    """Whether a task's argument is big enough to be scattered rather than put in the task (bytes)."""
+    if isinstance(arg, bytes | bytearray):
+        return len(arg) > limit
+    if isinstance(arg, dict):
+        return sum(len(v) for v in arg.values() if isinstance(v, bytes | bytearray)) > limit
+    if isinstance(arg, tuple):
+        return any(_is_large(a, limit) for a in arg)
+    return False
