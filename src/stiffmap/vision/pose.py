@@ -60,7 +60,7 @@ from ..posemath import (
 )
 from ..targets import Chessboard
 from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
-from .photometric import PhotometricError, refine_pose_photometric
+from .photometric import PhotometricError, PhotometricTrack, refine_pose_photometric
 
 __all__ = [
     "estimate_pose",
@@ -122,6 +122,7 @@ def estimate_pose(
     refine: str = "auto",
     exclude=(),
     max_shift_sigma: float = MAX_REFINE_SHIFT_SIGMA,
+    track: PhotometricTrack | None = None,
 ) -> BoardPose:
     """Pose of a detected board in the camera frame, with its covariance.
 
@@ -152,6 +153,9 @@ def estimate_pose(
     max_shift_sigma : float
         Consistency check of the photometric pose against the corner pose (Mahalanobis
         distance over the six pose parameters with both covariances).
+    track : PhotometricTrack, optional
+        The board's photometric fit in the previous image of a sequence (a warm start for
+        this one; updated, and cleared when the photometric pose is not kept).
 
     Returns
     -------
@@ -184,12 +188,21 @@ def estimate_pose(
         )
     try:
         photo = refine_pose_photometric(
-            image, board, camera, corner_pose.board2cam, detection=detection, exclude=exclude, source=source
+            image,
+            board,
+            camera,
+            corner_pose.board2cam,
+            detection=detection,
+            exclude=exclude,
+            source=source,
+            track=track,
         )
     except PhotometricError as e:
         return replace(corner_pose, fallback=f"{e.detail}; corner pose kept")
     shift = pose_shift_sigma(corner_pose, photo)
     if not shift <= max_shift_sigma:
+        if track is not None:
+            track.clear()
         return replace(
             corner_pose,
             fallback=(
