@@ -320,8 +320,10 @@ class PoseTracker:
         self._ref: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
         self._poses: list[list[np.ndarray | None]] = [[None] * nb for _ in range(nc)]
         self._fused: list[np.ndarray | None] = [None] * nb
-        # Each board's last photometric fit in each camera: the next image's fit starts from it.
+        # Each board's last photometric fit in each camera: the next image's fit starts from it
+        # (``_warm_start`` False: every fit from the start, for the speed benchmark's comparison).
         self._photo = [[PhotometricTrack() for _ in range(nb)] for _ in range(nc)]
+        self._warm_start = True
 
     def reset(self) -> None:
         """Forget the previous image (the next one gets a full detection in every camera)."""
@@ -535,7 +537,7 @@ class PoseTracker:
                     image=img,
                     refine=self.refine if b == 0 else self.refine_fixed,
                     exclude=others,
-                    track=self._photo[k][b],
+                    track=self._photo[k][b] if self._warm_start else None,
                 )
                 res.dets[b] = d
             t3 = time.perf_counter()

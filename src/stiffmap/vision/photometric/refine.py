@@ -125,10 +125,12 @@ class PhotometricTrack:
 
     def __init__(self) -> None:
         self._last: dict | None = None
+        self._sensitivity: tuple | None = None
 
     def clear(self) -> None:
         """Forget the last fit (the next one is cold)."""
         self._last = None
+        self._sensitivity = None
 
     @property
     def ready(self) -> bool:
@@ -157,6 +159,18 @@ class PhotometricTrack:
             for p, q in zip(polys, last["exclude"], strict=True)
         )
         return dict(last, reuse=moved < REUSE_PX and same_exclusion)
+
+    def sensitivity(self, camera: CameraModel, board: Chessboard, T: np.ndarray) -> np.ndarray | None:
+        """The calibration sensitivity of the last pose it was computed at, when ``T`` moves the
+        board's outline by less than :data:`LIN_PX` px from it (it changes by ~1e-4 there)."""
+        kept = self._sensitivity
+        if kept is None or kept[2] != (board, camera.key):
+            return None
+        return kept[1] if _outline_shift(camera, board, T, kept[0]) < LIN_PX else None
+
+    def keep_sensitivity(self, T: np.ndarray, A: np.ndarray, camera: CameraModel, board: Chessboard) -> None:
+        """Keep the calibration sensitivity A computed at pose T."""
+        self._sensitivity = (np.array(T, dtype=np.float64), A, (board, camera.key))
 
     def record_cold(self, img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera):
         """Keep a cold fit (its pixel set in single precision) for the next image."""
@@ -189,7 +203,7 @@ class PhotometricTrack:
             last["select_pose"] = np.array(T0, dtype=np.float64)
             last["exclude"] = _polygons(exclude)
         last["state"] = st
-        last["noise"] = fit_noise_model(*_sample(setup, sol))
+        last["noise"] = fit_noise_model(*_sample(setup, sol, 32))
         last["lin"] = sol.lin if full else None
 
 
@@ -211,10 +225,10 @@ def _polygons(exclude) -> list[np.ndarray]:
     return [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in exclude]
 
 
-def _sample(setup: PhotometricSetup, sol) -> tuple[np.ndarray, np.ndarray]:
-    """Model values and residuals of every 8th pixel (for the noise model)."""
-    e = np.asarray(sol.e[::8], dtype=np.float64)
-    return np.asarray(setup.values[::8], dtype=np.float64) - e, e
+def _sample(setup: PhotometricSetup, sol, every: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Model values and residuals of every ``every``-th pixel (for the noise model)."""
+    e = np.asarray(sol.e[::every], dtype=np.float64)
+    return np.asarray(setup.values[::every], dtype=np.float64) - e, e
 
 
 def _cold_fit(T0, blur_init, huber, max_iter, select, fail):
