@@ -26,6 +26,7 @@ Saves benchmarks/results/vision_speed.md.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import sys
 import tempfile
@@ -328,7 +329,8 @@ def main() -> None:
         default_verdict,
         "",
         f"_{time.strftime('%Y-%m-%d')}, Python {platform.python_version()}, OpenCV {cv2.__version__}, "
-        f"{platform.machine()}, run time {time.perf_counter() - t_start:.0f} s_",
+        f"{platform.machine()}, run time {time.perf_counter() - t_start:.0f} s, load average at the end "
+        f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores_",
     ]
     print(verdict)
     print(default_verdict)
