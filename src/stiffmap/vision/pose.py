@@ -43,6 +43,7 @@ refinement and the renderer.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import cv2
@@ -60,7 +61,7 @@ from ..posemath import (
 )
 from ..targets import Chessboard
 from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
-from .photometric import PhotometricError, refine_pose_photometric
+from .photometric import PhotometricError, PhotometricTrack, refine_pose_photometric
 
 __all__ = [
     "estimate_pose",
@@ -122,6 +123,7 @@ def estimate_pose(
     refine: str = "auto",
     exclude=(),
     max_shift_sigma: float = MAX_REFINE_SHIFT_SIGMA,
+    track: PhotometricTrack | None = None,
 ) -> BoardPose:
     """Pose of a detected board in the camera frame, with its covariance.
 
@@ -152,6 +154,9 @@ def estimate_pose(
     max_shift_sigma : float
         Consistency check of the photometric pose against the corner pose (Mahalanobis
         distance over the six pose parameters with both covariances).
+    track : PhotometricTrack, optional
+        The board's photometric fit in the previous image of a sequence (a warm start for
+        this one; updated, and cleared when the photometric pose is not kept).
 
     Returns
     -------
@@ -165,48 +170,66 @@ def estimate_pose(
         Fewer than 4 corners, or a degenerate layout.
     """
     check_refine(refine)
-    corner_pose = _corner_pose(detection, board, camera, initial=initial, max_iter=max_iter, source=source)
-    if refine == "corners" or (refine == "auto" and (image is None or not isinstance(board, Chessboard))):
-        return corner_pose
+    corner_only = refine == "corners" or (
+        refine == "auto" and (image is None or not isinstance(board, Chessboard))
+    )
+    bare = _corner_pose(detection, board, camera, initial=initial, max_iter=max_iter, source=source)
+    if corner_only:
+        return with_calibration_share(bare, detection, camera)
+
+    def kept(reason: str) -> BoardPose:
+        # The corner pose's calibration share only when it is the answer (a fallback).
+        return replace(with_calibration_share(bare, detection, camera), fallback=reason)
+
     if image is None:
-        return replace(corner_pose, fallback="photometric refinement needs the image; corner pose kept")
+        return kept("photometric refinement needs the image; corner pose kept")
     if not isinstance(board, Chessboard):
-        return replace(
-            corner_pose, fallback="ChArUco boards are not modelled photometrically; corner pose kept"
-        )
-    if not faces_camera(corner_pose.board2cam):
-        return replace(
-            corner_pose,
-            fallback=(
-                "the corner pose shows the board from behind (its z axis towards the camera: a wrong "
-                "camera model?); corner pose kept"
-            ),
+        return kept("ChArUco boards are not modelled photometrically; corner pose kept")
+    if not faces_camera(bare.board2cam):
+        return kept(
+            "the corner pose shows the board from behind (its z axis towards the camera: a wrong "
+            "camera model?); corner pose kept"
         )
     try:
         photo = refine_pose_photometric(
-            image, board, camera, corner_pose.board2cam, detection=detection, exclude=exclude, source=source
+            image,
+            board,
+            camera,
+            bare.board2cam,
+            detection=detection,
+            exclude=exclude,
+            source=source,
+            track=track,
         )
     except PhotometricError as e:
-        return replace(corner_pose, fallback=f"{e.detail}; corner pose kept")
-    shift = pose_shift_sigma(corner_pose, photo)
+        return kept(f"{e.detail}; corner pose kept")
+    shift = pose_shift_sigma(bare, photo)
     if not shift <= max_shift_sigma:
-        return replace(
-            corner_pose,
-            fallback=(
-                f"photometric pose {shift:.1f} sigma from the corner pose (more than "
-                f"{max_shift_sigma:g}); corner pose kept"
-            ),
+        if track is not None:
+            track.clear()
+        return kept(
+            f"photometric pose {shift:.1f} sigma from the corner pose (more than "
+            f"{max_shift_sigma:g}); corner pose kept"
         )
-    return with_calibration_share(photo, detection, camera, edges_of=board)
+    A = track.sensitivity(camera, board, photo.board2cam) if track is not None else None
+    out = with_calibration_share(photo, detection, camera, edges_of=board, sensitivity=A)
+    if track is not None and A is None:
+        track.keep_sensitivity(photo.board2cam, out.calibration_jacobian, camera, board)
+    return out
 
 
 def _edge_samples(board: Chessboard, per_square: int = 8):
+    """Points along the edges of a board's squares (cached per board geometry), see _edge_samples_of."""
+    return _edge_samples_of(board.square_mm, board.cols, board.rows, per_square)
+
+
+@functools.lru_cache(maxsize=32)
+def _edge_samples_of(s: float, c: int, r: int, per_square: int):
     """Points along the edges of a chessboard's squares (outer squares included), board frame.
 
     Returns (points (m, 3) mm, tangents (m, 3), weights (m,)): the border's edges at half
     weight (only the black squares' half of it is an edge).
     """
-    s, c, r = board.square_mm, board.cols, board.rows
     f = (np.arange(per_square) + 0.5) / per_square
     pts, tan, wt = [], [], []
     for i in range(-1, c + 1):  # lines x = i s, y from -s to r s
@@ -219,11 +242,19 @@ def _edge_samples(board: Chessboard, per_square: int = 8):
         pts.append(np.c_[x, np.full_like(x, j * s), np.zeros_like(x)])
         tan.append(np.tile([1.0, 0.0, 0.0], (x.size, 1)))
         wt.append(np.full(x.size, 0.5 if j in (-1, r) else 1.0))
-    return np.concatenate(pts), np.concatenate(tan), np.concatenate(wt)
+    out = np.concatenate(pts), np.concatenate(tan), np.concatenate(wt)
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def with_calibration_share(
-    pose: BoardPose, detection: BoardDetection, camera: CameraModel, *, edges_of: Chessboard | None = None
+    pose: BoardPose,
+    detection: BoardDetection,
+    camera: CameraModel,
+    *,
+    edges_of: Chessboard | None = None,
+    sensitivity: np.ndarray | None = None,
 ) -> BoardPose:
     """``pose`` with the camera calibration's sensitivity and share of the covariance added.
 
@@ -231,8 +262,12 @@ def with_calibration_share(
     corners (a corner fit), or over the edges of the squares of ``edges_of`` (a photometric
     fit). With the camera's ``calibration_cov`` Sigma_c, cov_calibration = A Sigma_c A^T is
     added to ``cov`` (nothing added, ``cov_calibration`` None, when it is unknown).
+    ``sensitivity``: A already known (the same board at nearly the same pose, see
+    :meth:`~stiffmap.vision.photometric.PhotometricTrack.sensitivity`).
     """
-    if edges_of is None:
+    if sensitivity is not None:
+        A = sensitivity
+    elif edges_of is None:
         A = calibration_sensitivity(pose.board2cam, detection.object_points(), camera)
     else:
         q, tg, w = _edge_samples(edges_of)
@@ -334,4 +369,4 @@ def _corner_pose(
         condition=condition,
         iterations=it,
     )
-    return with_calibration_share(pose, detection, camera)
+    return pose

@@ -40,6 +40,7 @@ from .board_plane import detection_mask
 from .detect import Board, BoardDetection, DetectionError, board_label, detect_boards
 from .fuse import FusedPose, fuse_poses
 from .images import check_image_size, read_image
+from .photometric import PhotometricTrack
 from .pose import check_refine, estimate_pose
 
 __all__ = ["CameraView", "ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
@@ -319,6 +320,10 @@ class PoseTracker:
         self._ref: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
         self._poses: list[list[np.ndarray | None]] = [[None] * nb for _ in range(nc)]
         self._fused: list[np.ndarray | None] = [None] * nb
+        # Each board's last photometric fit in each camera: the next image's fit starts from it
+        # (``_warm_start`` False: every fit from the start, for the speed benchmark's comparison).
+        self._photo = [[PhotometricTrack() for _ in range(nb)] for _ in range(nc)]
+        self._warm_start = True
 
     def reset(self) -> None:
         """Forget the previous image (the next one gets a full detection in every camera)."""
@@ -328,6 +333,8 @@ class PoseTracker:
     def _reset_camera(self, k: int) -> None:
         self._prev[k] = [None] * len(self.boards)
         self._poses[k] = [None] * len(self.boards)
+        for t in self._photo[k]:
+            t.clear()
 
     def _camera_source(self, k: int) -> str:
         """The camera's file for messages: the camera file, or the rig file and the camera's name."""
@@ -512,6 +519,8 @@ class PoseTracker:
                 if d is None:
                     continue
                 init = self._poses[k][b] if d.tracked else None
+                if not d.tracked:
+                    self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
                 # The other boards' areas (squares and a white margin of up to 1.2 squares) are
                 # left out of a photometric fit.
                 others = [
@@ -528,6 +537,7 @@ class PoseTracker:
                     image=img,
                     refine=self.refine if b == 0 else self.refine_fixed,
                     exclude=others,
+                    track=self._photo[k][b] if self._warm_start else None,
                 )
                 res.dets[b] = d
             t3 = time.perf_counter()

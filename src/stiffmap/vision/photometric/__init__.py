@@ -31,12 +31,13 @@ ChArUco boards (markers in the white squares) are not modelled.
 
 from .model import model_and_jacobian
 from .pixels import PhotometricError, PhotometricSetup, prepare_pixels
-from .refine import PhotometricFit, refine_pose_photometric
+from .refine import PhotometricFit, PhotometricTrack, refine_pose_photometric
 
 __all__ = [
     "PhotometricFit",
     "PhotometricError",
     "PhotometricSetup",
+    "PhotometricTrack",
     "prepare_pixels",
     "model_and_jacobian",
     "refine_pose_photometric",

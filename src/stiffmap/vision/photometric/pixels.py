@@ -129,6 +129,15 @@ class PhotometricSetup:
                 kw[f] = val
         return PhotometricSetup(**kw)
 
+    def astype(self, dtype) -> PhotometricSetup:
+        """The same set-up with every per-pixel array in ``dtype`` (float32: the fast fit)."""
+        dt = np.dtype(dtype)
+        kw = {}
+        for f in self.__dataclass_fields__:
+            val = getattr(self, f)
+            kw[f] = np.ascontiguousarray(val, dtype=dt) if isinstance(val, np.ndarray) else val
+        return PhotometricSetup(**kw)
+
     def subset(self, idx: np.ndarray) -> PhotometricSetup:
         """The same set-up restricted to pixels ``idx``."""
         kw = {}

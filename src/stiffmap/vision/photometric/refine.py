@@ -13,7 +13,7 @@ or refused (:mod:`~stiffmap.vision.photometric.acceptance`) and returned as a
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from .model import model_and_jacobian
 from .pixels import MIN_PIXELS, PhotometricError, PhotometricSetup, check_board2cam, prepare_pixels
 from .solver import FitState, fit_noise_model, gauss_newton, linear_shading
 
-__all__ = ["PhotometricFit", "refine_pose_photometric"]
+__all__ = ["PhotometricFit", "PhotometricTrack", "REUSE_PX", "refine_pose_photometric"]
 
 
 #: Gauss-Newton stops after a step shorter than this many standard deviations (in the metric
@@ -72,6 +72,8 @@ class PhotometricFit:
         Gauss-Newton iterations (all passes).
     converged : bool
     seconds : float
+    warm_start : bool
+        The fit started from the previous image's fit of the board (:class:`PhotometricTrack`).
     """
 
     rms_dn: float
@@ -89,6 +91,223 @@ class PhotometricFit:
     iterations: int
     converged: bool
     seconds: float
+    warm_start: bool = False
+
+
+#: The previous image's pixel set is reused while the start pose moves the board's outline by
+#: less than this, px (the bands and corner zones then shift by at most this much).
+REUSE_PX = 0.25
+#: The previous image's linearisation (Jacobian, normal matrix, weights) starts the fit while the
+#: start pose moves the board's outline by less than this from where it was taken, px (the
+#: Jacobian then differs by ~LIN_PX / blur, a few %: each chord step shrinks the error by as much).
+LIN_PX = 0.1
+#: Chord steps (no new Jacobian) allowed after each linearisation of a warm-started fit.
+_WARM_CHORD_STEPS = 2
+
+
+class PhotometricTrack:
+    """What one board's photometric fit leaves for the next image of a sequence (a warm start).
+
+    In a sequence of one robot position the board barely moves between images. The next
+    fit of the board then starts from this one: the same pixel set (only the pixels'
+    values are read from the new image) while the start pose moves the board's outline by
+    less than :data:`REUSE_PX` px (and the left-out areas by less than 1 px), else a new
+    one selected for the fitted blur; the blur, dilation and shading of the last fit as
+    the start of those parameters, and its noise model for the weights (refitted to each
+    fit's residuals). The pass on an eighth of the pixels and the set-up of the cold fit are
+    skipped, and the fit runs in single precision with chord steps (the Jacobian of the
+    start reused, :func:`~stiffmap.vision.photometric.solver.gauss_newton`). The pose comes
+    from the same model and the same cost as the cold fit's; a warm fit that fails any
+    check falls back to the cold fit, and a failed cold fit clears the track.
+
+    Used by :class:`~stiffmap.vision.sequence.PoseTracker` (one per camera and board).
+    """
+
+    def __init__(self) -> None:
+        self._last: dict | None = None
+        self._sensitivity: tuple | None = None
+
+    def clear(self) -> None:
+        """Forget the last fit (the next one is cold)."""
+        self._last = None
+        self._sensitivity = None
+
+    @property
+    def ready(self) -> bool:
+        """True when a fit is recorded (the next may start from it)."""
+        return self._last is not None
+
+    def start(self, img, board, camera, T0, exclude, options) -> dict | None:
+        """The recorded fit when it may start this one (same board, camera, image type and options)."""
+        last = self._last
+        if last is None:
+            return None
+        if (
+            last["board"] != board
+            or last["camera"] != camera.key
+            or last["shape"] != img.shape
+            or last["dtype"] != img.dtype
+            or last["options"] != options
+        ):
+            return None
+        moved = _outline_shift(camera, board, T0, last["select_pose"])
+        if not moved < board.square_mm * camera.fx / max(T0[2, 3], 1.0):
+            return None  # moved by a square or more: a new start
+        polys = _polygons(exclude)
+        same_exclusion = len(polys) == len(last["exclude"]) and all(
+            p.shape == q.shape and float(np.max(np.abs(p - q), initial=0.0)) < 1.0
+            for p, q in zip(polys, last["exclude"], strict=True)
+        )
+        return dict(last, reuse=moved < REUSE_PX and same_exclusion)
+
+    def sensitivity(self, camera: CameraModel, board: Chessboard, T: np.ndarray) -> np.ndarray | None:
+        """The calibration sensitivity of the last pose it was computed at, when ``T`` moves the
+        board's outline by less than :data:`LIN_PX` px from it (it changes by ~1e-4 there)."""
+        kept = self._sensitivity
+        if kept is None or kept[2] != (board, camera.key):
+            return None
+        return kept[1] if _outline_shift(camera, board, T, kept[0]) < LIN_PX else None
+
+    def keep_sensitivity(self, T: np.ndarray, A: np.ndarray, camera: CameraModel, board: Chessboard) -> None:
+        """Keep the calibration sensitivity A computed at pose T."""
+        self._sensitivity = (np.array(T, dtype=np.float64), A, (board, camera.key))
+
+    def record_cold(self, img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera):
+        """Keep a cold fit (its pixel set in single precision) for the next image."""
+        w = img.shape[1]
+        flat = setup.v.astype(np.int64) * w + setup.u.astype(np.int64)
+        self._last = {
+            "board": board,
+            "camera": camera.key,
+            "shape": img.shape,
+            "dtype": img.dtype,
+            "options": options,
+            "select_pose": np.array(select_pose, dtype=np.float64),
+            "select_blur": float(select_blur),
+            "exclude": _polygons(exclude),
+            "setup": setup.astype(np.float32),
+            "flat": flat,
+            "state": st,
+            "noise": fit_noise_model(*_sample(setup, sol)),
+            "lin": None,
+        }
+
+    def record_warm(self, img, warm, T0, exclude, st, sol, setup, full: bool) -> None:
+        """Keep the state and noise model of a warm fit, and its pixel set when it was new."""
+        last = self._last
+        if last is None:  # pragma: no cover - a warm fit needs a record
+            return
+        if not warm["reuse"]:
+            last["setup"] = setup
+            last["flat"] = setup.v.astype(np.int64) * img.shape[1] + setup.u.astype(np.int64)
+            last["select_pose"] = np.array(T0, dtype=np.float64)
+            last["exclude"] = _polygons(exclude)
+        last["state"] = st
+        last["noise"] = fit_noise_model(*_sample(setup, sol, 32))
+        last["lin"] = sol.lin if full else None
+
+
+def _outline_shift(camera: CameraModel, board: Chessboard, Ta: np.ndarray, Tb: np.ndarray) -> float:
+    """Largest motion of the checkered area's corners between two poses, px (pinhole: the lens
+    distortion changes a motion of a few px by a few %). inf when a corner is behind the camera."""
+    s = board.square_mm
+    q = np.array([[-s, -s], [board.cols * s, -s], [-s, board.rows * s], [board.cols * s, board.rows * s]])
+    uv = []
+    for T in (Ta, Tb):
+        P = q @ T[:3, :2].T + T[:3, 3]
+        if np.any(P[:, 2] <= 0):
+            return float("inf")
+        uv.append(P[:, :2] / P[:, 2:] * [camera.fx, camera.fy])
+    return float(np.max(np.abs(uv[0] - uv[1])))
+
+
+def _polygons(exclude) -> list[np.ndarray]:
+    return [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in exclude]
+
+
+def _sample(setup: PhotometricSetup, sol, every: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Model values and residuals of every ``every``-th pixel (for the noise model)."""
+    e = np.asarray(sol.e[::every], dtype=np.float64)
+    return np.asarray(setup.values[::every], dtype=np.float64) - e, e
+
+
+def _cold_fit(T0, blur_init, huber, max_iter, select, fail):
+    """Today's fit from the corner pose: a pass on an eighth of the pixels, then every pixel."""
+    setup = select(T0, blur_init)
+    select_pose, select_blur = T0, blur_init
+    # Pass 1, on an eighth of the pixels, equal weights: near the optimum, and residuals for
+    # the noise model.
+    n = setup.n_pixels
+    sub = setup.subset(np.arange(0, n, 8)) if n >= 8 * MIN_PIXELS else setup
+    sig0 = np.array([blur_init, 0.0, 0.0])
+    st = FitState(T0, sig0, np.zeros(3), *linear_shading(sub, T0, sig0, np.zeros(3)))
+    m0, _ = model_and_jacobian(sub, st.T, st.sig, st.dil, st.a, st.b, jacobian=False)
+    e0 = sub.values - m0
+    var0 = max(1.4826 * float(np.median(np.abs(e0 - np.median(e0)))), 0.3) ** 2
+    sol = gauss_newton(sub, st, lambda m: np.full_like(m, var0), huber, max_iter, tol=1.0)
+    iters = sol.iterations
+    st = sol.state
+    m1 = sub.values - sol.e
+    alpha, beta = fit_noise_model(m1, sol.e)
+
+    def noise_var(m):
+        return alpha + beta * np.maximum(m, 0.0)
+
+    try:
+        check_blur(st.sig)
+    except PhotometricError as e:
+        raise fail(e.detail) from None
+    # The blur is now known: select again when the bands and corner zones were set for another.
+    sig_max = st.sig[0] + np.hypot(st.sig[1], st.sig[2])
+    if sig_max > 1.15 * blur_init or sig_max < 0.7 * blur_init:
+        setup = select(st.T, sig_max)
+        select_pose, select_blur = st.T, sig_max
+        st = FitState(st.T, st.sig, st.dil, *linear_shading(setup, st.T, st.sig, st.dil))
+    # Pass 2, every pixel, weights from the noise model.
+    sol = gauss_newton(setup, st, noise_var, huber, max_iter, tol=_TOL_SIGMA)
+    iters += sol.iterations
+    return setup, sol, (alpha, beta), iters, select_pose, select_blur
+
+
+def _warm_fit(img, board, camera, warm, T0, huber, max_iter, select):
+    """The fit started from the previous image's (:class:`PhotometricTrack`), single precision.
+
+    Returns the set-up, the solution, the noise model, the iterations and whether the set-up
+    is the whole recorded (or new) pixel set (its linearisation may then serve the next image).
+    """
+    full = True
+    if warm["reuse"]:
+        vals = img.ravel().take(warm["flat"])
+        setup = replace(warm["setup"], values=vals.astype(np.float32))
+        sat = np.iinfo(img.dtype).max
+        bad = (vals >= sat) | (vals == 0)
+        if bad.any():
+            setup = setup.subset(np.flatnonzero(~bad))
+            full = False
+    else:
+        setup = select(T0, warm["select_blur"]).astype(np.float32)
+    if setup.n_pixels < MIN_PIXELS:
+        raise PhotometricError("too few pixels")
+    prev = warm["state"]
+    alpha, beta = warm["noise"]
+    a32, b32 = np.float32(alpha), np.float32(beta)
+
+    def noise_var(m):
+        return a32 + b32 * np.maximum(m, np.float32(0.0))
+
+    lin = warm["lin"] if warm["reuse"] and full else None
+    if lin is not None and not _outline_shift(camera, board, T0, lin.state.T) < LIN_PX:
+        lin = None
+    st = FitState(T0, prev.sig.copy(), prev.dil.copy(), prev.a.copy(), prev.b.copy())
+    sol = gauss_newton(
+        setup, st, noise_var, huber, min(max_iter, 10), tol=_TOL_SIGMA, chord=_WARM_CHORD_STEPS, start=lin
+    )
+    sig = sol.state.sig
+    sig_max = sig[0] + np.hypot(sig[1], sig[2])
+    blur = warm["select_blur"]
+    if sig_max > 1.15 * blur or sig_max < 0.7 * blur:
+        raise PhotometricError("the blur changed: the pixel set is for another")
+    return setup, sol, (alpha, beta), sol.iterations, full
 
 
 def refine_pose_photometric(
@@ -108,6 +327,7 @@ def refine_pose_photometric(
     max_outlier_fraction: float = 0.3,
     source: str | None = None,
     phase: int | None = None,
+    track: PhotometricTrack | None = None,
 ):
     """Refine a chessboard's pose by fitting a model of the blurred board to its pixels.
 
@@ -148,6 +368,9 @@ def refine_pose_photometric(
     phase : {0, 1}, optional
         Colour phase of the board (square (i, j) black when i + j + phase is even);
         default ``detection.phase``, else 0.
+    track : PhotometricTrack, optional
+        The board's fit in the previous image of a sequence (updated here): when the board
+        has barely moved, the fit starts from it (:class:`PhotometricTrack`).
 
     Returns
     -------
@@ -180,6 +403,8 @@ def refine_pose_photometric(
     def fail(msg: str) -> PhotometricError:
         return PhotometricError(f"{board.size} chessboard: photometric fit: {msg}", source=source)
 
+    options = (band_px, int(shading_degree), bool(outer_edges), colour_phase)
+
     def select(T, sig) -> PhotometricSetup:
         try:
             return prepare_pixels(
@@ -197,42 +422,28 @@ def refine_pose_photometric(
         except PhotometricError as e:
             raise fail(e.detail) from None
 
-    setup = select(T0, float(blur_init_px))
-    # Pass 1, on an eighth of the pixels, equal weights: near the optimum, and residuals for
-    # the noise model.
-    n = setup.n_pixels
-    sub = setup.subset(np.arange(0, n, 8)) if n >= 8 * MIN_PIXELS else setup
-    sig0 = np.array([float(blur_init_px), 0.0, 0.0])
-    st = FitState(T0, sig0, np.zeros(3), *linear_shading(sub, T0, sig0, np.zeros(3)))
-    m0, _ = model_and_jacobian(sub, st.T, st.sig, st.dil, st.a, st.b, jacobian=False)
-    e0 = sub.values - m0
-    var0 = max(1.4826 * float(np.median(np.abs(e0 - np.median(e0)))), 0.3) ** 2
-    sol = gauss_newton(sub, st, lambda m: np.full_like(m, var0), huber, max_iter, tol=1.0)
-    iters = sol.iterations
+    warm = track.start(img, board, camera, T0, exclude, options) if track is not None else None
+    sol = None
+    if warm is not None:
+        try:
+            setup, sol, (alpha, beta), iters, full = _warm_fit(
+                img, board, camera, warm, T0, huber, max_iter, select
+            )
+            ok = accept_fit(sol, setup, max_iter, max_outlier_fraction)
+        except PhotometricError:
+            sol = None  # the image differs from the previous one: today's fit from the start
+    if sol is None:
+        warm = None
+        setup, sol, (alpha, beta), iters, select_pose, select_blur = _cold_fit(
+            T0, float(blur_init_px), huber, max_iter, select, fail
+        )
+        try:
+            ok = accept_fit(sol, setup, max_iter, max_outlier_fraction)
+        except PhotometricError as e:
+            if track is not None:
+                track.clear()
+            raise fail(e.detail) from None
     st = sol.state
-    m1 = sub.values - sol.e
-    alpha, beta = fit_noise_model(m1, sol.e)
-
-    def noise_var(m):
-        return alpha + beta * np.maximum(m, 0.0)
-
-    try:
-        check_blur(st.sig)
-    except PhotometricError as e:
-        raise fail(e.detail) from None
-    # The blur is now known: select again when the bands and corner zones were set for another.
-    sig_max = st.sig[0] + np.hypot(st.sig[1], st.sig[2])
-    if sig_max > 1.15 * blur_init_px or sig_max < 0.7 * blur_init_px:
-        setup = select(st.T, sig_max)
-        st = FitState(st.T, st.sig, st.dil, *linear_shading(setup, st.T, st.sig, st.dil))
-    # Pass 2, every pixel, weights from the noise model.
-    sol = gauss_newton(setup, st, noise_var, huber, max_iter, tol=_TOL_SIGMA)
-    iters += sol.iterations
-    st = sol.state
-    try:
-        ok = accept_fit(sol, setup, max_iter, max_outlier_fraction)
-    except PhotometricError as e:
-        raise fail(e.detail) from None
     e, var = sol.e, sol.var
     T = st.T.copy()
     U, _, Vt = np.linalg.svd(T[:3, :3])
@@ -264,7 +475,13 @@ def refine_pose_photometric(
         iterations=iters,
         converged=sol.converged,
         seconds=time.perf_counter() - t_start,
+        warm_start=warm is not None,
     )
+    if track is not None:
+        if warm is None:
+            track.record_cold(img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera)
+        else:
+            track.record_warm(img, warm, T0, exclude, st, sol, setup, full)
     return BoardPose(
         board2cam=T,
         cov=ok.cov,

@@ -20,15 +20,23 @@ from ...posemath import perturb_pose
 from .model import GEMM_SINGLE_THREAD, GEMV_SINGLE_THREAD, N_NONLINEAR, model_and_jacobian
 from .pixels import PhotometricError, PhotometricSetup
 
-__all__ = ["FitState", "Solution", "gauss_newton", "linear_shading", "fit_noise_model", "wsum"]
+__all__ = [
+    "FitState",
+    "Linearisation",
+    "Solution",
+    "gauss_newton",
+    "linear_shading",
+    "fit_noise_model",
+    "wsum",
+]
 
 #: Pixels per chunk of the fused model / Jacobian / normal-matrix evaluation (kept in cache).
 _CHUNK = 8192
 
 
 def wsum(w: np.ndarray, e: np.ndarray) -> float:
-    """sum w e^2 (elementwise: BLAS's dot product is threaded on long vectors)."""
-    return float(np.sum(w * e * e))
+    """sum w e^2, accumulated in double precision (elementwise: BLAS's dot product is threaded)."""
+    return float(np.sum(w * e * e, dtype=np.float64))
 
 
 def _weighted_gram(M: np.ndarray, w: np.ndarray, e: np.ndarray | None = None):
@@ -61,7 +69,8 @@ def linear_shading(setup: PhotometricSetup, T, sig, dil) -> tuple[np.ndarray, np
 
 def _huber(r: np.ndarray, k: float) -> np.ndarray:
     a = np.abs(r)
-    return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
+    one = a.dtype.type(1.0)
+    return np.where(a <= k, one, a.dtype.type(k) / np.maximum(a, np.finfo(a.dtype).tiny))
 
 
 @dataclass
@@ -82,33 +91,62 @@ class Solution:
     var: np.ndarray  # modelled noise variance, DN^2
     hw: np.ndarray  # Huber weights
     A: np.ndarray  # J^T W J at the last linearisation (p, p)
+    lin: Linearisation | None = None  # the last linearisation, kept (chord steps)
+
+
+@dataclass
+class Linearisation:
+    """A fit's last linearisation, kept for chord steps in the next image (same pixel set).
+
+    ``evaluator`` holds the Jacobian and the weights at ``state``; ``A`` = J^T W J.
+    """
+
+    evaluator: _Evaluator
+    A: np.ndarray
+    state: FitState
 
 
 class _Evaluator:
     """Residuals, noise, Huber weights and the normal equations of a state, chunk by chunk.
 
     The Jacobian of a chunk is written into one reused buffer, with the residuals as its
-    last row, and its weighted Gram matrix [J; e] W [J; e]^T is accumulated at once:
-    the full (p, N) Jacobian is never held in memory.
+    last row, and its weighted Gram matrix [J; e] W [J; e]^T is accumulated at once (in
+    double precision, over blocks of columns: a float32 set-up computes the model and the
+    Jacobian in single precision). With ``keep``, the whole Jacobian of the last
+    linearisation is kept (one buffer per chunk), for :meth:`gradient`.
     """
 
-    def __init__(self, setup: PhotometricSetup, noise_var, huber: float) -> None:
+    def __init__(self, setup: PhotometricSetup, noise_var, huber: float, keep: bool = False) -> None:
         self.setup = setup
         self.noise_var = noise_var
         self.huber = huber
         n = setup.n_pixels
+        self.dtype = setup.values.dtype
         self.chunks = [setup.slice(k, min(k + _CHUNK, n)) for k in range(0, n, _CHUNK)]
         self.p = N_NONLINEAR + 2 * setup.basis.shape[0]
-        self.buf = np.empty((self.p + 1, min(_CHUNK, n)))
+        self.keep = keep
+        self.nv = max(64, GEMV_SINGLE_THREAD // self.p)
+        if keep:
+            # Columns padded with zeros to a multiple of nv: J W e as one batched product of
+            # (p, nv) blocks, each below OpenBLAS's threading size.
+            self.bufs = [
+                np.zeros((self.p + 1, -(-ch.n_pixels // self.nv) * self.nv), dtype=self.dtype)
+                for ch in self.chunks
+            ]
+        else:
+            buf = np.empty((self.p + 1, min(_CHUNK, n)), dtype=self.dtype)
+            self.bufs = [buf] * len(self.chunks)
+        self.weights: np.ndarray | None = None
+        self.lin_state: FitState | None = None
         self.nk = max(64, GEMM_SINGLE_THREAD // (self.p + 1) ** 2)
 
     def __call__(self, st: FitState, jacobian: bool = True):
         p = self.p
         es, vs, hs = [], [], []
         G = np.zeros((p + 1, p + 1)) if jacobian else None
-        for ch in self.chunks:
+        for ch, buf in zip(self.chunks, self.bufs, strict=True):
             n = ch.n_pixels
-            M = self.buf[:, :n]
+            M = buf[:, :n]
             m, _ = model_and_jacobian(ch, st.T, st.sig, st.dil, st.a, st.b, jacobian=jacobian, out=M[:p])
             e = ch.values - m
             var = self.noise_var(m)
@@ -125,11 +163,48 @@ class _Evaluator:
         e, var, hw = (np.concatenate(x) for x in (es, vs, hs))
         if not jacobian:
             return e, var, hw, None, None
+        if self.keep:
+            self.weights = hw / var
+            self.lin_state = st
         return e, var, hw, G[:p, :p], G[:p, p]
+
+    def rebind(self, setup: PhotometricSetup, noise_var) -> None:
+        """The same pixels (and kept Jacobian) with another image's values and noise model."""
+        if setup.n_pixels != self.setup.n_pixels:  # pragma: no cover - guarded by the caller
+            raise ValueError("a kept linearisation needs the same pixels")
+        n = setup.n_pixels
+        self.setup = setup
+        self.noise_var = noise_var
+        self.chunks = [setup.slice(k, min(k + _CHUNK, n)) for k in range(0, n, _CHUNK)]
+
+    def gradient(self, e: np.ndarray) -> np.ndarray:
+        """J W e with the Jacobian and weights of the last linearisation (kept), float64."""
+        if self.weights is None:  # pragma: no cover - guarded by the caller
+            raise RuntimeError("no linearisation kept")
+        we = (self.weights * e).astype(self.dtype, copy=False)
+        g = np.zeros(self.p)
+        start = 0
+        for ch, buf in zip(self.chunks, self.bufs, strict=True):
+            n, npad = ch.n_pixels, buf.shape[1]
+            wk = np.zeros(npad, dtype=self.dtype)
+            wk[:n] = we[start : start + n]
+            K = npad // self.nv
+            J = buf[: self.p].reshape(self.p, K, self.nv).transpose(1, 0, 2)
+            g += (J @ wk.reshape(K, self.nv, 1)).sum(axis=0)[:, 0]
+            start += n
+        return g
 
 
 def gauss_newton(
-    setup: PhotometricSetup, st: FitState, noise_var, huber: float, max_iter: int, tol: float = 0.1
+    setup: PhotometricSetup,
+    st: FitState,
+    noise_var,
+    huber: float,
+    max_iter: int,
+    tol: float = 0.1,
+    *,
+    chord: int = 0,
+    start: Linearisation | None = None,
 ) -> Solution:
     """Damped Gauss-Newton (IRLS) from ``st``; ``noise_var(model)`` -> variance per pixel (DN^2).
 
@@ -137,16 +212,38 @@ def gauss_newton(
     length in the metric of the normal matrix, sqrt(d^T A d)): the step is taken and the
     next one would be smaller still by the (linear) rate of convergence. The normal
     matrix returned is that of the last linearisation (less than ``tol`` sigma away).
+
+    ``chord`` > 0 (a start a few sigma from the optimum): after a step, up to ``chord``
+    further steps reuse the last linearisation's Jacobian, normal matrix and weights (the
+    chord method: the gradient J W e at the new residuals, one model evaluation and no new
+    Jacobian per step). The model is so nearly linear over a few sigma that each such step
+    shrinks the remaining error by far more than the ``tol`` criterion needs; a step that
+    does not lower the cost, or ``chord`` steps without convergence, linearise again.
+    ``start``: the first steps are chord steps with that linearisation (the previous image's,
+    on the same pixels, near ``st``) and its weights, with no Jacobian computed here unless
+    they do not converge. The solution keeps its last linearisation (``lin``) when ``chord``.
     """
     nb = setup.basis.shape[0]
-    evaluate = _Evaluator(setup, noise_var, huber)
-    e, var, hw, A, g = evaluate(st)
+    if start is not None and chord > 0:
+        evaluate = start.evaluator
+        evaluate.rebind(setup, noise_var)
+        e, var, hw, _, _ = evaluate(st, jacobian=False)
+        A = start.A
+        w = evaluate.weights
+        g = evaluate.gradient(e)
+    else:
+        evaluate = _Evaluator(setup, noise_var, huber, keep=chord > 0)
+        e, var, hw, A, g = evaluate(st)
+        w = hw / var
+    # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
+    # steps within that are taken as not raising it (a diverging step raises it far more).
+    slack = 1.0 if evaluate.dtype == np.float32 else 0.0
     lam = 1e-6
     it = 0
+    chords = 0
     converged = False
     while it < max_iter:
         it += 1
-        w = hw / var
         cost = wsum(w, e)
         d = np.sqrt(np.diag(A))
         d[d == 0] = 1.0
@@ -171,12 +268,27 @@ def gauss_newton(
                 st.a + step[N_NONLINEAR : N_NONLINEAR + nb],
                 st.b + step[N_NONLINEAR + nb :],
             )
-            e2, var2, hw2, A2, g2 = evaluate(new, jacobian=not last)
-            # Cost at the same weights (IRLS): accept when it does not increase.
-            if wsum(w, e2) <= cost * (1 + 1e-12):
+            relinearise = not last and chords >= chord
+            if last and chord:
+                # A last step (below the tolerance) of a chord fit is taken without evaluating
+                # the model again: the residuals, noise and weights stay those before it (the
+                # cost they give is higher by at most tol^2 in sum w e^2 ~ N: s^2 by < 1e-3).
+                e2, var2, hw2 = e, var, hw
                 accepted = True
                 break
+            e2, var2, hw2, A2, g2 = evaluate(new, jacobian=relinearise)
+            # Cost at the same weights (IRLS): accept when it does not increase.
+            if wsum(w, e2) <= cost * (1 + 1e-12) + slack:
+                accepted = True
+                break
+            if chords:  # a chord step that fails: linearise again where we are
+                break
             lam = max(lam * 10, 1e-6)
+        if not accepted and chords:
+            e, var, hw, A, g = evaluate(st)
+            w = hw / var
+            chord = chords = 0  # plain Gauss-Newton from here
+            continue
         if not accepted:
             converged = True  # no step lowers the cost: at the minimum to rounding
             break
@@ -185,8 +297,15 @@ def gauss_newton(
         if last:
             converged = True
             break
-        A, g = A2, g2
-    return Solution(st, it, converged, e, var, hw, A)
+        if relinearise:
+            A, g = A2, g2
+            w = hw / var
+            chords = 0 if chord else chords
+        else:
+            g = evaluate.gradient(e)
+            chords += 1
+    lin = Linearisation(evaluate, A, evaluate.lin_state) if evaluate.keep else None
+    return Solution(st, it, converged, e, var, hw, A, lin)
 
 
 def fit_noise_model(m: np.ndarray, e: np.ndarray) -> tuple[float, float]:
