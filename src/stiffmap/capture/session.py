@@ -217,6 +217,17 @@ def _run_move(template: str, xyz, root: Path) -> None:
         )
 
 
+def _remove_stale_temporaries(root: Path, steps) -> None:
+    """Remove what a capture killed while writing left: the atomic writer's temporary files
+    (``.NAME.*.tmp`` beside each image NAME); the images themselves are whole or absent."""
+    for step in steps:
+        for rel in step.files:
+            p = root / rel
+            if p.parent.is_dir():
+                for tmp in p.parent.glob(f".{p.name}.*.tmp"):
+                    tmp.unlink(missing_ok=True)
+
+
 def run_capture(
     root: str | os.PathLike,
     spec: CampaignSpec,
@@ -280,6 +291,7 @@ def run_capture(
             "calibrated with"
         )
     actuator = source if isinstance(source, Actuator) else None
+    _remove_stale_temporaries(root, steps)
     loads = spec.loads.resolve(spec.g)
     n_pos = len({s.position for s in steps})
     present = sum(all((root / f).is_file() for f in s.files) for s in steps)

@@ -175,7 +175,13 @@ class OpenCVSource(_Source):
             p = Path(str(self.target))
             if not p.is_file():
                 raise InputError("no such video file", source=str(p))
-        cap = cv2.VideoCapture(self.target)
+        log = cv2.utils.logging
+        level = log.getLogLevel()
+        log.setLogLevel(log.LOG_LEVEL_SILENT)  # the backends' warnings: the message below says it
+        try:
+            cap = cv2.VideoCapture(self.target)
+        finally:
+            log.setLogLevel(level)
         if not cap.isOpened():
             cap.release()
             what = (

@@ -81,7 +81,7 @@ def capture(
         "actuators, scripts); an image without a good settled frame in [capture] timeout_s stops.",
     ),
 ) -> None:
-    """Take a campaign's images from a live camera, one step at a time, only when the platform has settled.
+    """Take a campaign's images from a live camera, one step at a time, once the platform has settled.
 
     Walks the campaign's plan (positions, load cases, repeats; unloaded and loaded images in
     the order of its [images] patterns), tells what to do next, and saves an image under the
