@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import pytest
 from helpers.capture_campaigns import FAST_SIM, small_campaign
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import run_in_process
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -77,7 +77,7 @@ def test_capture_with_the_simulated_camera_then_run_recovers_K(tmp_path):
         assert np.linalg.norm(K - Kt) / np.linalg.norm(Kt) < 0.04
 
 
-def test_sigkill_then_resume_gives_the_same_files(tmp_path):
+def test_sigkill_then_resume_gives_the_same_files(tmp_path, monkeypatch, capsys):
     """A capture killed (SIGKILL) partway resumes at the first missing image and ends with the
     plan's files, as an uninterrupted capture does (the first test), and no temporary file."""
     root = small_campaign(tmp_path / "c", positions=(6,))
@@ -95,8 +95,8 @@ def test_sigkill_then_resume_gives_the_same_files(tmp_path):
     before = _images_on_disk(root) & plan
     assert 2 <= len(before) < len(plan)
     first_missing = next(f for s in capture_steps(load_spec(root), root) for f in s.files if f not in before)
-    r = run_stiffmap("capture", root, "--camera", FAST_SIM, "--yes")
-    assert r.returncode == 0, r.stderr
+    code, _, err = run_in_process(["capture", root, "--camera", FAST_SIM, "--yes"], monkeypatch, capsys)
+    assert code == 0, err
     assert _images_on_disk(root) == plan
     log = _log(root)
     assert [e["event"] for e in log].count("start") == 2
@@ -191,12 +191,17 @@ def test_a_bad_view_stops_with_a_clear_message_and_keeps_the_images(tmp_path, ch
     assert _log(root)[-1]["event"] == "stop"
 
 
-def test_a_camera_that_cannot_be_opened_and_a_video_that_ends_early(tmp_path):
+def _one_line_error(code: int, err: str, *needles: str) -> None:
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert all(n in lines[0] for n in needles), lines[0]
+
+
+def test_a_camera_that_cannot_be_opened_and_a_video_that_ends_early(tmp_path, monkeypatch, capsys):
     root = small_campaign(tmp_path / "c", positions=(6,))
     # No camera 57 on any test machine.
-    assert_one_line_error(
-        run_stiffmap("capture", root, "--camera", "57", "--yes"), "camera 57", "cannot be opened"
-    )
+    code, _, err = run_in_process(["capture", root, "--camera", "57", "--yes"], monkeypatch, capsys)
+    _one_line_error(code, err, "camera 57", "cannot be opened")
     # A video of the rig at rest, unloaded, that ends before the loaded images.
     spec = load_spec(root)
     with open_camera(FAST_SIM, root, spec) as cam:
@@ -210,10 +215,10 @@ def test_a_camera_that_cannot_be_opened_and_a_video_that_ends_early(tmp_path):
     for f in frames:
         vw.write(f)
     vw.release()
-    r = run_stiffmap("capture", root, "--camera", video, "--yes")
-    assert_one_line_error(r, "rig.avi", "the video ended after 6 frames", "kept")
+    code, out, err = run_in_process(["capture", root, "--camera", video, "--yes"], monkeypatch, capsys)
+    _one_line_error(code, err, "rig.avi", "the video ended after 6 frames", "kept")
     assert _images_on_disk(root) == {"images/p01/r01_unloaded.png"}
-    assert "saved images/p01/r01_unloaded.png" in r.stdout
+    assert "saved images/p01/r01_unloaded.png" in out
 
 
 def test_the_simulated_camera_refuses_a_position_it_does_not_know(tmp_path):
