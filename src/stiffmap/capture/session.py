@@ -477,6 +477,10 @@ def run_capture(
     except CaptureStopped as e:
         log.write("stop", reason=str(e))
         raise
+    except KeyboardInterrupt:
+        stopped = "interrupted"
+        log.write("stop", reason=stopped)
+        raise
     finally:
         missing = tuple(f for s in steps for f in s.files if not (root / f).is_file())
         if stopped is None and not missing:
