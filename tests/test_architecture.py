@@ -22,6 +22,7 @@ LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("stiffmap/report/writer.py", ".html"): "plotly loads only when a page is written",
     ("stiffmap/report/writer.py", ".static_figures"): "matplotlib loads only when PNGs are written",
     ("stiffmap/parallel.py", "distributed"): "an optional extra, loaded only for --dask",
+    ("stiffmap/capture/sources.py", "harvesters.core"): "GenICam cameras, an optional extra",
 }
 
 SQL = re.compile(

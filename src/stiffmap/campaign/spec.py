@@ -61,6 +61,7 @@ from .spec_errors import validation_message
 
 __all__ = [
     "CampaignSpec",
+    "CaptureSpec",
     "load_spec",
     "parse_spec",
     "SPEC_NAME",
@@ -700,6 +701,50 @@ class ImagesSpec(_Spec):
         return CAMERA_FIELD in self.unloaded or CAMERA_FIELD in self.loaded
 
 
+_MOVE_FIELDS = {"x", "y", "z"}
+
+
+def _check_move_command(v: str) -> str:
+    """A command template with {x}, {y}, {z} (mm; format specs allowed, e.g. {x:.3f})."""
+    if not v.strip():
+        raise ValueError("empty move_command")
+    if len(v) > LIMITS["path"]:
+        raise ValueError(f"move_command of {len(v)} characters; at most {LIMITS['path']}")
+    try:
+        parsed = list(string.Formatter().parse(v))
+    except ValueError as e:
+        raise ValueError(f"bad move_command {v!r}: {e}") from None
+    names = {f.split("!")[0].split(":")[0] for _, f, _, _ in parsed if f is not None}
+    unknown = names - _MOVE_FIELDS
+    if unknown:
+        raise ValueError(
+            f"unknown placeholder(s) {sorted(unknown)} in move_command {v!r}; use {{x}}, {{y}}, {{z}} (mm)"
+        )
+    if not names:
+        raise ValueError(f"move_command {v!r} holds none of {{x}}, {{y}}, {{z}}: where would it move to?")
+    try:
+        v.format(x=-100.0, y=-34.0, z=-400.0)
+    except (ValueError, KeyError, IndexError, TypeError) as e:
+        raise ValueError(f"bad move_command {v!r}: {e}") from None
+    return v
+
+
+class CaptureSpec(_Spec):
+    """How ``stiffmap capture`` takes the images from a live camera (``docs/capture.md``)."""
+
+    #: Settled frames per image: averaged into one (``average = true``), or each its own repeat.
+    frames: Annotated[Count, Field(ge=1, le=1000)] = 1
+    average: bool = True
+    #: How long the platform must stay still, within the measurement noise, before an image (s).
+    settle_seconds: Annotated[Finite, _between(0.0, 3600.0, "s")] = 1.0
+    #: Motion of the platform at rest (1 sigma per axis, mm), added to the noise of the test.
+    vibration_mm: Annotated[Finite, _between(0.0, 10.0, "mm")] = 0.001
+    #: Give up an image (with --yes) when no good settled frame came for this long (s).
+    timeout_s: Annotated[Finite, _between(0.01, LIMITS["time_s"], "s")] = 120.0
+    #: A command run to move the robot: {x}, {y}, {z} are the position in mm.
+    move_command: Annotated[str, Strict(), AfterValidator(_check_move_command)] | None = None
+
+
 class MeasurementSpec(_Spec):
     """How board poses are measured in the images."""
 
@@ -847,6 +892,12 @@ class CampaignSpec(_Spec):
     images: ImagesSpec = Field(default_factory=ImagesSpec)
     measurement: MeasurementSpec = Field(default_factory=MeasurementSpec)
     sensor: SensorSpec | None = None
+    capture: CaptureSpec | None = None
+
+    @property
+    def capture_settings(self) -> CaptureSpec:
+        """The ``[capture]`` section, or its defaults when there is none."""
+        return self.capture if self.capture is not None else CaptureSpec()
 
     def position_points(self, root: Path) -> np.ndarray:
         """The positions, shape (n, 3) mm: as given, or where ``positions.q_deg`` puts the measured
@@ -913,6 +964,12 @@ class CampaignSpec(_Spec):
                     f"repeats = {self.repeats} with {self.positions.count()} positions and "
                     f"{self.loads.count()} load cases name {n} images; a campaign may name at most "
                     f"{LIMITS['images']}"
+                )
+            cap = self.capture
+            if cap is not None and not cap.average and cap.frames > 1 and cap.frames != self.repeats:
+                raise ValueError(
+                    f"capture.frames = {cap.frames} with average = false keeps the frames as the "
+                    f"repeats: it must equal repeats = {self.repeats} (or set average = true)"
                 )
         elif self.sensor is None:
             raise ValueError("a sensor campaign needs a [sensor] section")

@@ -75,6 +75,10 @@ COMMANDS: dict[str, CommandEntry] = {
     "simulate": CommandEntry(
         "simulate", "Simulate a vision campaign of a robot with known stiffness, seen by a known camera."
     ),
+    "capture": CommandEntry(
+        "capture",
+        "Take a campaign's images from a live camera, one step at a time, once the platform has settled.",
+    ),
     "init": CommandEntry("campaign", "Write a commented example campaign.toml to start a campaign from."),
     "run": CommandEntry(
         "campaign",

@@ -1,0 +1,489 @@
+"""A guided capture: walk the campaign's plan, tell the operator what to do, save good images.
+
+:func:`run_capture` goes through the steps of :func:`stiffmap.capture.plan.capture_steps` and,
+for each image not yet on disk:
+
+1. brings the rig to the step's state: moves the robot (``[capture] move_command``, or the
+   operator does and confirms), removes the load or hangs the step's load (the operator, or an
+   actuator: the simulated camera is one);
+2. grabs frames and judges each (:class:`~stiffmap.capture.settle.SettleMonitor`) until the
+   platform has settled with both boards found and no board saturated, then keeps ``frames``
+   settled frames in a row (a frame that is not settled starts the count again);
+3. writes the image -- the mean of the frames (``average = true``) or each frame as one repeat
+   -- atomically under the campaign's file name, never over an existing file without asking;
+4. records it in the capture log (:data:`LOG_NAME`, JSON lines in the campaign directory): the
+   time, the files, the frames' timestamps and the settle figures; and skips, redos, stops,
+   failures.
+
+An interrupted capture resumes at the first missing image (images on disk are never taken
+again). The operator may skip an image or redo the last one (:class:`Operator`); with
+``--yes`` (:class:`AutoOperator`) nothing is asked and a step that gets no good settled frame
+within ``timeout_s`` ends the capture with a clear message (the images saved so far are kept).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import shlex
+import subprocess
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol, runtime_checkable
+
+import cv2
+import numpy as np
+
+from ..campaign.runner import read_cameras
+from ..campaign.spec import CampaignSpec
+from ..errors import InputError
+from ..io import atomic_write_bytes, to_jsonable
+from ..targets import Chessboard, parse_board_size
+from .plan import capture_steps, load_instruction
+from .settle import FrameCheck, SettleMonitor, SettleSettings
+from .sources import CameraSource, SourceEnded
+
+__all__ = [
+    "LOG_NAME",
+    "Actuator",
+    "Operator",
+    "AutoOperator",
+    "ViewState",
+    "CaptureSummary",
+    "CaptureStopped",
+    "run_capture",
+    "encode_for",
+    "monitor_for",
+]
+
+#: The capture log in the campaign directory (one JSON object per line).
+LOG_NAME = "capture_log.jsonl"
+
+
+@runtime_checkable
+class Actuator(Protocol):
+    """A rig that moves the robot and applies loads itself (the simulated camera is one)."""
+
+    def move_to(self, xyz_mm) -> None: ...
+
+    def set_load(self, force_n=None) -> None: ...
+
+
+class Operator(Protocol):
+    """The person at the rig (or a script): confirms actions, answers questions.
+
+    ``confirm`` returns ``"go"`` (done, take the image), ``"skip"`` (leave this image out),
+    ``"redo"`` (take the last saved image again) or ``"quit"``.
+    """
+
+    def confirm(self, instruction: str) -> str: ...
+
+    def overwrite(self, file: str) -> bool: ...
+
+    def gave_up(self, message: str) -> str: ...
+
+
+class AutoOperator:
+    """No questions (``--yes``): every action is taken as done, nothing is overwritten, and an
+    image that gets no good settled frame in time stops the capture."""
+
+    def confirm(self, instruction: str) -> str:
+        return "go"
+
+    def overwrite(self, file: str) -> bool:
+        return False
+
+    def gave_up(self, message: str) -> str:
+        return "quit"
+
+
+class CaptureStopped(InputError):
+    """The capture stopped before the end (a source that ended, a step that timed out, the operator)."""
+
+
+@dataclass
+class ViewState:
+    """What the live view shows (:mod:`stiffmap.capture.view`)."""
+
+    campaign: str
+    step: int = 0
+    steps: int = 0
+    image: str = ""
+    on_disk: int = 0
+    instruction: str = ""
+    check: FrameCheck | None = None
+    collected: int = 0
+    needed: int = 1
+    settle_seconds: float = 1.0
+    status: str = ""
+    saved: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class CaptureSummary:
+    """What a capture did.
+
+    Attributes
+    ----------
+    saved : tuple of str
+        Image files written (relative paths).
+    skipped : tuple of str
+        Images the operator left out.
+    present : int
+        Images already on disk at the start.
+    missing : tuple of str
+        Images of the plan still missing at the end.
+    frames : int
+        Frames grabbed.
+    stopped : str or None
+        Why the capture stopped early (None: it went to the end of the plan).
+    """
+
+    saved: tuple[str, ...]
+    skipped: tuple[str, ...]
+    present: int
+    missing: tuple[str, ...]
+    frames: int
+    stopped: str | None = None
+
+
+def encode_for(path: str, image: np.ndarray) -> bytes:
+    """Encode an 8-bit image in the format its file name says (.png, .jpg/.jpeg, .tif/.tiff, .bmp)."""
+    ext = Path(path).suffix.lower()
+    params: list[int] = []
+    if ext in (".jpg", ".jpeg"):
+        params = [cv2.IMWRITE_JPEG_QUALITY, 95]
+    elif ext == ".png":
+        params = [cv2.IMWRITE_PNG_COMPRESSION, 1]
+    elif ext not in (".tif", ".tiff", ".bmp"):
+        raise InputError(
+            f"cannot write an image named {path!r}: use .png, .jpg, .tif or .bmp in the [images] patterns"
+        )
+    ok, buf = cv2.imencode(ext, image, params)
+    if not ok:  # pragma: no cover
+        raise InputError(f"OpenCV could not encode {path}")
+    return buf.tobytes()
+
+
+def monitor_for(spec: CampaignSpec, root: Path, *, refine: str = "corners") -> SettleMonitor:
+    """The settle monitor of a campaign: its camera file, its boards and ``[capture]`` settings."""
+    _, rig = read_cameras(spec, root)
+    t = spec.targets
+    mobile = Chessboard(*parse_board_size(t.mobile.board), t.mobile.square_mm)
+    fixed = Chessboard(*parse_board_size(t.fixed.board), t.fixed.square_mm)
+    cap = spec.capture_settings
+    settings = SettleSettings(settle_seconds=cap.settle_seconds, vibration_mm=cap.vibration_mm, refine=refine)
+    return SettleMonitor(rig.cameras[0].camera, mobile, fixed, np.asarray(t.fixed.fixed2base), settings)
+
+
+class _Log:
+    """The capture log: one JSON object per line, flushed and synced line by line."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._f = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed by close()
+
+    def write(self, event: str, **data) -> None:
+        rec = {"time": _dt.datetime.now(_dt.UTC).isoformat(timespec="milliseconds"), "event": event, **data}
+        self._f.write(json.dumps(to_jsonable(rec), allow_nan=False) + "\n")
+        self._f.flush()
+        os.fsync(self._f.fileno())
+
+    def close(self) -> None:
+        self._f.close()
+
+
+def _fmt(v: float) -> str:
+    return f"{v:g}"
+
+
+def _run_move(template: str, xyz, root: Path) -> None:
+    x, y, z = (float(v) for v in xyz)
+    line = template.format(x=x, y=y, z=z)
+    try:
+        argv = shlex.split(line)
+        proc = subprocess.run(argv, cwd=root, capture_output=True, text=True, timeout=600)
+    except (ValueError, OSError, subprocess.TimeoutExpired) as e:
+        raise CaptureStopped(
+            f"capture.move_command {line!r} could not run: {e}", source=str(root / "campaign.toml")
+        ) from None
+    if proc.returncode != 0:
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or [""]
+        raise CaptureStopped(
+            f"capture.move_command {line!r} failed with exit status {proc.returncode}: {tail[0][:200]}",
+            source=str(root / "campaign.toml"),
+        )
+
+
+def _remove_stale_temporaries(root: Path, steps) -> None:
+    """Remove what a capture killed while writing left: the atomic writer's temporary files
+    (``.NAME.*.tmp`` beside each image NAME); the images themselves are whole or absent."""
+    for step in steps:
+        for rel in step.files:
+            p = root / rel
+            if p.parent.is_dir():
+                for tmp in p.parent.glob(f".{p.name}.*.tmp"):
+                    tmp.unlink(missing_ok=True)
+
+
+def run_capture(
+    root: str | os.PathLike,
+    spec: CampaignSpec,
+    source: CameraSource,
+    *,
+    operator: Operator | None = None,
+    frames: int | None = None,
+    view: Callable[[ViewState], None] | None = None,
+    monitor: SettleMonitor | None = None,
+) -> CaptureSummary:
+    """Take a campaign's missing images from a live camera (see the module docstring).
+
+    Parameters
+    ----------
+    root : path
+        The campaign directory.
+    spec : CampaignSpec
+    source : CameraSource
+        Open (the caller's ``with`` block).
+    operator : Operator, optional
+        Default :class:`AutoOperator` (no questions).
+    frames : int, optional
+        Settled frames per image (default ``[capture] frames``).
+    view : callable, optional
+        Called with the :class:`ViewState` after every frame and event (the live view).
+    monitor : SettleMonitor, optional
+        Default :func:`monitor_for` the campaign.
+
+    Returns
+    -------
+    CaptureSummary
+
+    Raises
+    ------
+    InputError
+        A camera whose image size is not the campaign camera's, a bad ``[images]`` file name.
+    CaptureStopped
+        A source that ended, a step without a good settled frame within ``timeout_s`` (with
+        :class:`AutoOperator`), a move command that failed: the images saved before are kept
+        and in the log.
+    """
+    root = Path(root)
+    operator = operator or AutoOperator()
+    cap = spec.capture_settings
+    n_frames = int(frames) if frames is not None else cap.frames
+    if n_frames < 1:
+        raise InputError(f"--frames must be 1 or more, got {n_frames}")
+    average = cap.average or n_frames == 1
+    if not average and n_frames != spec.repeats:
+        raise InputError(
+            f"--frames {n_frames} with [capture] average = false keeps the frames as the repeats: "
+            f"it must equal repeats = {spec.repeats}"
+        )
+    steps = capture_steps(spec, root, group_repeats=not average)
+    monitor = monitor or monitor_for(spec, root)
+    want = monitor.tracker.camera.image_size
+    if tuple(source.image_size) != tuple(want) and source.image_size != (0, 0):
+        raise InputError(
+            f"{source.name} gives {source.image_size[0]}x{source.image_size[1]} px images; the campaign's "
+            f"camera is calibrated at {want[0]}x{want[1]} px: use the camera and resolution it was "
+            "calibrated with"
+        )
+    actuator = source if isinstance(source, Actuator) else None
+    _remove_stale_temporaries(root, steps)
+    loads = spec.loads.resolve(spec.g)
+    n_pos = len({s.position for s in steps})
+    present = sum(all((root / f).is_file() for f in s.files) for s in steps)
+    state = ViewState(
+        campaign=spec.name,
+        steps=len(steps),
+        on_disk=present,
+        needed=n_frames if average else 1,
+        settle_seconds=cap.settle_seconds,
+    )
+    saved: list[str] = []
+    skipped: list[str] = []
+    log = _Log(root / LOG_NAME)
+    grabbed = 0
+    position: int | None = None
+    load_on: int | None = None  # None: no load (or not known to hang: the operator is told)
+    last_done: int | None = None
+    stopped: str | None = None
+    redo_steps: set[int] = set()
+
+    def show(status: str = "") -> None:
+        if status:
+            state.status = status
+        if view is not None:
+            view(state)
+
+    log.write(
+        "start",
+        camera=source.name,
+        frames=n_frames,
+        average=average,
+        settle_seconds=cap.settle_seconds,
+        images=sum(len(s.files) for s in steps),
+        on_disk=present,
+    )
+    try:
+        i = 0
+        while i < len(steps):
+            step = steps[i]
+            on_disk = [f for f in step.files if (root / f).is_file()]
+            if len(on_disk) == len(step.files) and i not in redo_steps:
+                i += 1
+                continue
+            state.step, state.image = i + 1, ", ".join(step.files)
+            # 1. the rig's state
+            actions = []
+            if position != step.position:
+                if load_on is not None:
+                    actions.append("remove the load")
+                actions.append(
+                    f"position {step.position} of {n_pos}: move the robot to "
+                    f"({', '.join(_fmt(v) for v in step.xyz_mm)}) mm"
+                )
+            if step.state == "unloaded":
+                if position == step.position and load_on is not None:
+                    actions.append("remove the load")
+                elif position != step.position:
+                    actions.append("no load hangs")
+            else:
+                if position == step.position and load_on is not None:
+                    actions.append("remove the load")
+                actions.append(load_instruction(spec, step.load))
+            what = (
+                f"{step.state} image, load {step.load}, repeat {', '.join(str(s.repeat) for s in step.shots)}"
+            )
+            instruction = "; ".join(actions) + f"  ({what})"
+            state.instruction = instruction
+            state.check, state.collected = None, 0
+            show("waiting for the operator")
+            if position != step.position and cap.move_command:
+                _run_move(cap.move_command, step.xyz_mm, root)
+            answer = operator.confirm(instruction)
+            if answer == "quit":
+                stopped = "stopped by the operator"
+                log.write("stop", reason=stopped, at=list(step.files))
+                break
+            if answer == "skip":
+                skipped.extend(f for f in step.files if f not in on_disk)
+                log.write("skip", files=[f for f in step.files if f not in on_disk])
+                i += 1
+                continue
+            if answer == "redo":
+                if last_done is None:
+                    show("nothing to redo yet")
+                    continue
+                prev = steps[last_done]
+                if not all(operator.overwrite(f) for f in prev.files if (root / f).is_file()):
+                    show("not redone: the images on disk are kept")
+                    continue
+                log.write("redo", files=list(prev.files))
+                redo_steps.add(last_done)
+                i = last_done
+                continue
+            if actuator is not None:
+                if position != step.position:
+                    actuator.move_to(step.xyz_mm)
+                    load_on = None
+                if load_on is not None:
+                    actuator.set_load(None)
+                if step.state == "loaded":
+                    actuator.set_load(loads[step.load - 1].force)
+            position = step.position
+            load_on = step.load if step.state == "loaded" else None
+            # 2. frames until settled, then n settled frames in a row
+            monitor.reset()
+            kept: list = []
+            checks: list[FrameCheck] = []
+            t_start: float | None = None
+            while True:
+                frame = source.grab()
+                grabbed += 1
+                t = float(frame.timestamp_s)
+                t_start = t if t_start is None else t_start
+                c = monitor.check(frame.image, t)
+                state.check = c
+                if c.settled:
+                    kept.append(frame)
+                    checks.append(c)
+                else:
+                    kept, checks = [], []
+                state.collected = len(kept)
+                if len(kept) >= n_frames:
+                    break
+                status = c.problem or (
+                    "settled: taking the image" if c.settled else "waiting for the platform to settle"
+                )
+                show(status)
+                if t - t_start > cap.timeout_s:
+                    message = f"{', '.join(step.files)}: no good settled frame in {cap.timeout_s:g} s" + (
+                        f"; the last frame: {c.problem}" if c.problem else " (the platform did not settle)"
+                    )
+                    log.write("timeout", files=list(step.files), reason=message)
+                    if operator.gave_up(message) == "quit":
+                        raise CaptureStopped(message + "; the images saved so far are kept")
+                    monitor.reset()
+                    kept, checks, t_start = [], [], None
+            # 3. write
+            images = [np.asarray(f.image) for f in kept]
+            if average:
+                outs = [(step.files[0], np.clip(np.rint(np.mean(images, axis=0)), 0, 255).astype(np.uint8))]
+            else:
+                outs = list(zip(step.files, images, strict=True))
+            redo = i in redo_steps
+            written = []
+            for rel, img in outs:
+                if (root / rel).is_file() and not redo and not operator.overwrite(rel):
+                    continue
+                atomic_write_bytes(root / rel, encode_for(rel, img))
+                written.append(rel)
+            redo_steps.discard(i)
+            truth = {}
+            if all(hasattr(f, "settled") for f in kept):
+                truth = {
+                    "settled": [bool(f.settled) for f in kept],
+                    "envelope_mm": [float(f.envelope_mm) for f in kept],
+                }
+            log.write(
+                "saved",
+                files=written,
+                position=step.position,
+                state=step.state,
+                load=step.load,
+                repeats=[s.repeat for s in step.shots],
+                frames=len(kept),
+                averaged=average,
+                timestamps_s=[float(f.timestamp_s) for f in kept],
+                settle=checks[-1].figures(),
+                **({"source_truth": truth} if truth else {}),
+            )
+            saved.extend(written)
+            state.saved = saved[-3:]
+            state.on_disk += len(written)
+            show(f"saved {', '.join(written)}")
+            last_done = i
+            i += 1
+    except SourceEnded as e:
+        stopped = str(e)
+        log.write("stop", reason=stopped)
+        raise CaptureStopped(
+            f"{e.detail}: the images saved so far are kept; run stiffmap capture again to go on",
+            source=e.source,
+        ) from None
+    except CaptureStopped as e:
+        log.write("stop", reason=str(e))
+        raise
+    except KeyboardInterrupt:
+        stopped = "interrupted"
+        log.write("stop", reason=stopped)
+        raise
+    finally:
+        missing = tuple(f for s in steps for f in s.files if not (root / f).is_file())
+        if stopped is None and not missing:
+            log.write("end", saved=len(saved), skipped=len(skipped))
+        log.close()
+    return CaptureSummary(tuple(saved), tuple(skipped), present, missing, grabbed, stopped)

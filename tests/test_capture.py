@@ -1,0 +1,298 @@
+"""Guided capture (stiffmap capture) with the simulated live camera of the virtual test-bed.
+
+The campaigns are small (helpers.capture_campaigns: the demo's scene seen by a half-size
+camera, one or two positions, four load cases, one repeat) and the simulated camera is fast
+(5 frames per simulated second, a swing decaying with tau = 0.1 s): a frame costs about 0.1 s.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from helpers.capture_campaigns import FAST_SIM, small_campaign
+from helpers.cli_process import run_in_process
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.spec import load_spec, parse_spec
+from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.campaign.truth import load_truth
+from stiffmap.capture.cameras import open_camera
+from stiffmap.capture.plan import capture_steps
+from stiffmap.capture.session import LOG_NAME, AutoOperator, CaptureStopped, run_capture
+from stiffmap.errors import InputError
+from stiffmap.sim.live_camera import SimulatedCamera
+from stiffmap.sim.render import Photometry
+from stiffmap.sim.scene import Scene
+
+
+def _log(root: Path) -> list[dict]:
+    return [json.loads(line) for line in (root / LOG_NAME).read_text(encoding="utf-8").splitlines()]
+
+
+def _plan_files(root: Path) -> set[str]:
+    return {f for s in capture_steps(load_spec(root), root) for f in s.files}
+
+
+def _images_on_disk(root: Path) -> set[str]:
+    return {p.relative_to(root).as_posix() for p in (root / "images").rglob("*") if p.is_file()}
+
+
+def test_capture_with_the_simulated_camera_then_run_recovers_K(tmp_path):
+    """Capture two positions with the simulated camera, then stiffmap run: K close to the truth,
+    and every saved frame was taken after the platform had settled (the camera's own truth)."""
+    root = small_campaign(tmp_path / "c")
+    spec = load_spec(root)
+    with open_camera(FAST_SIM, root, spec) as cam:
+        summary = run_capture(root, spec, cam)
+    assert summary.stopped is None and not summary.missing
+    assert set(summary.saved) == _plan_files(root) == _images_on_disk(root)
+    saved = [r for r in _log(root) if r["event"] == "saved"]
+    assert len(saved) == len(summary.saved) == 10
+    # The platform swung after every load change (frames were refused), and every saved frame
+    # shows it settled: its swing's envelope below the camera's vibration (1 um).
+    assert summary.frames > 3 * len(saved)
+    for r in saved:
+        assert all(r["source_truth"]["settled"]), r
+        assert max(r["source_truth"]["envelope_mm"]) < 1e-3
+        assert r["settle"]["chi2_max"] <= r["settle"]["chi2_limit"]
+    run_campaign(root)
+    truth = load_truth(root)
+    with Store(root / DB_NAME) as store:
+        rows = store.stiffness_rows()
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+    for r in rows:
+        K, Kt = from_json(r["K"]), truth.K[r["position"] - 1]
+        # The demo's own images give K within a few percent (docs/simulation.md); these are
+        # half-size images with four load cases and one repeat: 0.3 % and 1.2 % measured.
+        assert np.linalg.norm(K - Kt) / np.linalg.norm(Kt) < 0.04
+
+
+def test_sigkill_then_resume_gives_the_same_files(tmp_path, monkeypatch, capsys):
+    """A capture killed (SIGKILL) partway resumes at the first missing image and ends with the
+    plan's files, as an uninterrupted capture does (the first test), and no temporary file."""
+    root = small_campaign(tmp_path / "c", positions=(6,))
+    plan = _plan_files(root)
+    cmd = [sys.executable, "-m", "stiffmap", "capture", str(root), "--camera", FAST_SIM, "--yes"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        t0 = time.monotonic()
+        while len(_images_on_disk(root) & plan) < 2 and time.monotonic() - t0 < 60:
+            assert proc.poll() is None, "the capture ended before it could be killed"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    before = _images_on_disk(root) & plan
+    assert 2 <= len(before) < len(plan)
+    first_missing = next(f for s in capture_steps(load_spec(root), root) for f in s.files if f not in before)
+    code, _, err = run_in_process(["capture", root, "--camera", FAST_SIM, "--yes"], monkeypatch, capsys)
+    assert code == 0, err
+    assert _images_on_disk(root) == plan
+    log = _log(root)
+    assert [e["event"] for e in log].count("start") == 2
+    resumed = [e for e in log if e["event"] == "saved"][len(before) :]
+    assert resumed[0]["files"] == [first_missing]
+
+
+def test_redo_and_skip_are_logged(tmp_path):
+    """The operator redoes the last image (asked before overwriting) and skips one; the log says so."""
+    root = small_campaign(tmp_path / "c", positions=(6,))
+    spec = load_spec(root)
+
+    class Scripted(AutoOperator):
+        def __init__(self):
+            self.answers = ["go", "redo", "go", "skip", "quit"]
+            self.asked = []
+
+        def confirm(self, instruction):
+            return self.answers.pop(0)
+
+        def overwrite(self, file):
+            self.asked.append(file)
+            return True
+
+    op = Scripted()
+    with open_camera(FAST_SIM, root, spec) as cam:
+        summary = run_capture(root, spec, cam, operator=op)
+    first = "images/p01/r01_unloaded.png"
+    assert op.asked == [first]
+    assert summary.saved == (first, first)
+    assert summary.skipped == ("images/p01/l01_r01_loaded.png",)
+    assert summary.stopped == "stopped by the operator"
+    events = [(e["event"], e.get("files")) for e in _log(root)][1:]
+    assert events == [
+        ("saved", [first]),
+        ("redo", [first]),
+        ("saved", [first]),
+        ("skip", ["images/p01/l01_r01_loaded.png"]),
+        ("stop", None),
+    ]
+
+
+def _modified(root, spec, *, shift_mm=None, photometry=None) -> SimulatedCamera:
+    cam = open_camera(FAST_SIM, root, spec)
+    sc = cam.scene
+    if shift_mm is not None:
+        T = sc.cam2base.copy()
+        T[:3, 3] += shift_mm
+        sc = Scene(sc.camera, T, sc.fixed_board, sc.fixed2base, sc.mobile_board, sc.mobile2tcp, sc.margin_mm)
+    return SimulatedCamera(
+        sc,
+        cam.robot,
+        photometry=photometry or cam.photometry,
+        fps=cam.fps,
+        time_constant_s=cam.time_constant_s,
+        frequency_hz=cam.frequency_hz,
+    )
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        # The camera moved 700 mm sideways: the mobile board leaves the image.
+        ({"shift_mm": [-700.0, 0.0, 0.0]}, "not found"),
+        # Twice the exposure: the white squares clip at 255.
+        ({"photometry": Photometry(gain=1.6)}, "saturated"),
+    ],
+    ids=["board out of view", "saturated board"],
+)
+def test_a_bad_view_stops_with_a_clear_message_and_keeps_the_images(tmp_path, change, needle):
+    root = small_campaign(tmp_path / "c", positions=(6,), timeout=0.5)
+    spec = load_spec(root)
+    # One good image first: it must survive the failure.
+    with open_camera(FAST_SIM, root, spec) as cam:
+
+        class OneImage(AutoOperator):
+            n = 0
+
+            def confirm(self, instruction):
+                self.n += 1
+                return "go" if self.n == 1 else "quit"
+
+        run_capture(root, spec, cam, operator=OneImage())
+    kept = _images_on_disk(root)
+    assert kept == {"images/p01/r01_unloaded.png"}
+    with _modified(root, spec, **change) as cam, pytest.raises(CaptureStopped) as e:
+        run_capture(root, spec, cam)
+    msg = str(e.value)
+    assert needle in msg and "images/p01/l01_r01_loaded.png" in msg and "kept" in msg
+    assert "\n" not in msg
+    assert _images_on_disk(root) == kept
+    assert _log(root)[-1]["event"] == "stop"
+
+
+def _one_line_error(code: int, err: str, *needles: str) -> None:
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert all(n in lines[0] for n in needles), lines[0]
+
+
+def test_a_camera_that_cannot_be_opened_and_a_video_that_ends_early(tmp_path, monkeypatch, capsys):
+    root = small_campaign(tmp_path / "c", positions=(6,))
+    # No camera 57 on any test machine.
+    code, _, err = run_in_process(["capture", root, "--camera", "57", "--yes"], monkeypatch, capsys)
+    _one_line_error(code, err, "camera 57", "cannot be opened")
+    # A video of the rig at rest, unloaded, that ends before the loaded images.
+    spec = load_spec(root)
+    with open_camera(FAST_SIM, root, spec) as cam:
+        cam.move_to(spec.position_points(root)[0])
+        for _ in range(15):  # let the move's ring die out
+            cam.grab()
+        frames = [cam.grab().image for _ in range(6)]
+    video = tmp_path / "rig.avi"
+    h, w = frames[0].shape
+    vw = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 5.0, (w, h), isColor=False)
+    for f in frames:
+        vw.write(f)
+    vw.release()
+    code, out, err = run_in_process(["capture", root, "--camera", video, "--yes"], monkeypatch, capsys)
+    _one_line_error(code, err, "rig.avi", "the video ended after 6 frames", "kept")
+    assert _images_on_disk(root) == {"images/p01/r01_unloaded.png"}
+    assert "saved images/p01/r01_unloaded.png" in out
+
+
+def test_the_simulated_camera_refuses_a_position_it_does_not_know(tmp_path):
+    root = small_campaign(tmp_path / "c", positions=(6,))
+    cam = open_camera(FAST_SIM, root, load_spec(root))
+    with pytest.raises(ValueError, match="known only at the campaign's positions"):
+        cam.move_to([0.0, 0.0, -350.0])
+    with pytest.raises(InputError, match="sim:fps=x"):
+        open_camera("sim:fps=x", root, load_spec(root))
+
+
+# ---------------------------------------------------------------- [capture] in campaign.toml
+
+_BASE_TOML = """
+name = "capture spec"
+repeats = 2
+[camera]
+file = "camera.json"
+[targets.fixed]
+board = "9x6"
+square_mm = 10.0
+fixed2base = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+[targets.mobile]
+board = "15x14"
+square_mm = 10.0
+[positions]
+list = [[0.0, 0.0, -300.0]]
+[loads]
+preset = "paper9"
+"""
+
+_KEYS = ("frames", "average", "settle_seconds", "vibration_mm", "timeout_s", "move_command", "fps")
+
+
+def _toml(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return (
+            "nan" if v != v else ("inf" if v == float("inf") else ("-inf" if v == -float("inf") else repr(v)))
+        )
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False).replace("\x7f", "\\u007f")
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    return str(v)
+
+
+def _values():
+    scalar = st.one_of(
+        st.booleans(),
+        st.integers(-(2**63), 2**63 - 1),
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.text(max_size=30),
+        st.sampled_from(["move {x} {y} {z}", "m {x:.3f}", "m {q}", "m {x", "m {}", "m {0}", "", " "]),
+    )
+    return st.one_of(scalar, st.lists(scalar, max_size=3))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.dictionaries(st.sampled_from(_KEYS), _values(), max_size=4))
+def test_capture_section_fuzz(table):
+    """Whatever a [capture] section holds, the spec reader accepts it with sane settings or says
+    which capture key is wrong: never another error."""
+    text = _BASE_TOML + "[capture]\n" + "".join(f"{k} = {_toml(v)}\n" for k, v in table.items())
+    try:
+        spec = parse_spec(text)
+    except InputError as e:
+        assert "capture" in str(e), str(e)
+        return
+    cap = spec.capture_settings
+    assert isinstance(cap.frames, int) and 1 <= cap.frames <= 1000
+    assert isinstance(cap.average, bool)
+    assert 0 <= cap.settle_seconds <= 3600 and 0 <= cap.vibration_mm <= 10 and cap.timeout_s > 0
+    assert cap.average or cap.frames in (1, spec.repeats)
+    if cap.move_command is not None:
+        cap.move_command.format(x=1.0, y=2.0, z=3.0)
