@@ -264,30 +264,47 @@ def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
 # ------------------------------------------------------------------ Dask (issue 14)
 
 
-def _fresh_copy(demo, dst):
-    """The demo campaign without its results: images hard-linked (read only), nothing measured."""
-    skip = shutil.ignore_patterns("stiffmap.db*", "report", "exports")
+def _fresh_copy(demo, dst, positions=None):
+    """The demo campaign without its results: images hard-linked (read only), nothing measured;
+    with ``positions``, only its first ones (a copy of campaign.toml cut to them)."""
+    skip = shutil.ignore_patterns("stiffmap.db*", "report", "exports", "campaign.toml")
     shutil.copytree(demo, dst, copy_function=os.link, ignore=skip)
+    spec = (demo / "campaign.toml").read_text()
+    if positions is not None:
+        m = re.search(r"\[positions\]\n(?:#.*\n)*list = \[\n((?:  \[.*\],\n)+)\]", spec)
+        rows = m.group(1).splitlines(keepends=True)
+        assert len(rows) > positions
+        spec = spec.replace(m.group(1), "".join(rows[:positions]))
+    (dst / "campaign.toml").write_text(spec)
     return dst
+
+
+def _positions_content(db, positions):
+    """The rows of the per-position tables (the model's evaluation left out) for positions 1..n."""
+    tables = dump_content(db)
+    cols = {"measurements": 1, "displacements": 0, "repeat_stats": 0, "stiffness": 0}  # position column
+    return {t: [r for r in tables[t] if r[k] <= positions] for t, k in cols.items()}
 
 
 def test_dask_local_run_gives_the_local_run_database(quick_demo, tmp_path):
     """`stiffmap run --dask local` on the quick demo: the database of `stiffmap run`, row for row
     (the demo's own database is `stiffmap run`'s: run_campaign in a pool of 2 processes). The
-    workers see the campaign directory; --send-images sends them the files anyway."""
+    workers see the campaign directory and read the images there."""
     proc, demo = quick_demo
     assert proc.returncode == 0, proc.stderr
     c = _fresh_copy(demo, tmp_path / "c")
-    done = _run(c, "--dask", "local", "--workers", "2", "--send-images")
+    done = _run(c, "--dask", "local", "--workers", "2")
     assert done.returncode == 0, done.stderr
+    assert "images read by the workers from the campaign directory (shared storage)" in done.stdout
     assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
 
 
 def test_killed_dask_client_resumes_to_the_same_database(quick_demo, tmp_path):
     """SIGKILL of `stiffmap run --dask local` partway (the client, then its orphaned local
-    cluster), then a re-run: the same database as an uninterrupted run."""
+    cluster), then a re-run: the same database as an uninterrupted run (the quick demo's first
+    four positions: their rows are the whole demo's)."""
     _, demo = quick_demo
-    c = _fresh_copy(demo, tmp_path / "c")
+    c = _fresh_copy(demo, tmp_path / "c", positions=4)
     proc = subprocess.Popen(
         [sys.executable, "-m", "stiffmap", "run", str(c), "--quiet", "--no-report", "--dask", "local",
          "--workers", "2"],
@@ -297,11 +314,11 @@ def test_killed_dask_client_resumes_to_the_same_database(quick_demo, tmp_path):
         env=dict(os.environ, PYTHONWARNINGS="error"),
     )  # fmt: skip
     killed_at = _kill_when_measured(proc, c / "stiffmap.db", 1)
-    assert killed_at is not None and killed_at < 6, "the run was not caught partway"
+    assert killed_at is not None and killed_at < 4, "the run was not caught partway"
     again = _run(c, "--dask", "local", "--workers", "2")
     assert again.returncode == 0, again.stderr
-    assert f"{6 - killed_at} measured" in again.stdout
-    assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
+    assert f"{4 - killed_at} measured" in again.stdout
+    assert _positions_content(c / "stiffmap.db", 4) == _positions_content(demo / "stiffmap.db", 4)
 
 
 def _kill_when_measured(proc, db, n_positions, timeout=180):
@@ -329,11 +346,12 @@ def _kill_when_measured(proc, db, n_positions, timeout=180):
 
 def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(quick_demo, tmp_path):
     """A Dask worker SIGKILLed while it measures a position (a cluster of 2 workers, given to
-    `run` by its scheduler's address): its task runs again elsewhere, the run completes, and the
-    database is the uninterrupted run's, row for row."""
+    `run` by its scheduler's address, the images sent to them): its task runs again elsewhere,
+    the run completes, and the database is the uninterrupted run's, row for row (the quick
+    demo's first four positions)."""
     distributed = pytest.importorskip("distributed")
     _, demo = quick_demo
-    c = _fresh_copy(demo, tmp_path / "c")
+    c = _fresh_copy(demo, tmp_path / "c", positions=4)
     killed: list[int] = []
     with (
         distributed.LocalCluster(
@@ -349,11 +367,14 @@ def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(quick_demo, t
                 killed.extend(pid.values())
                 os.kill(killed[0], signal.SIGKILL)
 
-        summary = run_campaign(c, workers=2, dask=cluster.scheduler_address, progress=progress)
+        summary = run_campaign(
+            c, workers=2, dask=cluster.scheduler_address, send_images=True, progress=progress
+        )
     assert killed, "no worker was busy when the first position came in"
-    assert summary.failures == [] and summary.measured == 6
+    assert summary.failures == [] and summary.measured == 4
     assert len(summary.notes) == 1 and "left the cluster during the run" in summary.notes[0]
-    assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
+    assert "images sent to the workers" in summary.backend
+    assert _positions_content(c / "stiffmap.db", 4) == _positions_content(demo / "stiffmap.db", 4)
 
 
 def test_an_unreachable_scheduler_is_one_line(campaign, tmp_path, monkeypatch, capsys):

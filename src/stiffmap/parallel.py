@@ -37,7 +37,7 @@ import socket
 import sys
 import uuid
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, CancelledError, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
@@ -417,35 +417,52 @@ def map_unordered(
                 fut.cancel()
 
 
+#: Submissions of one task before it is given up when the data sent with it is lost with a worker.
+MAX_SUBMISSIONS = 3
+
+
 def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterator[tuple[Any, Any]]:
-    """:func:`map_unordered` on a Dask cluster."""
+    """:func:`map_unordered` on a Dask cluster.
+
+    A task whose worker dies is run again by Dask itself. Data scattered for a task (its
+    files' bytes) lives on one worker and dies with it: such a task is cancelled by Dask,
+    and submitted again from here (``prepare`` called again), up to :data:`MAX_SUBMISSIONS`.
+    """
     dist = cluster._dist
     client = cluster.client
     shared = cluster.share(ctx)
     token = uuid.uuid4().hex
     limit = window or len(items)
-    queue = iter(items)
-    pending: dict[Any, Any] = {}
+    queue = iter(range(len(items)))
+    pending: dict[Any, tuple[Any, int]] = {}
+    submissions = [0] * len(items)
 
-    def submit(item):
-        arg = prep(item)
+    def submit(k: int):
+        arg = prep(items[k])
         if _is_large(arg):  # big data goes beside the task graph, not inside it
             [arg] = client.scatter([arg], hash=False)
         fut = client.submit(_call_on_worker, fn, init, token, shared, arg, pure=False)
-        pending[fut.key] = (fut, item)
+        pending[fut.key] = (fut, k)
+        submissions[k] += 1
         return fut
 
     first = []
-    for item in queue:
-        first.append(submit(item))
+    for k in queue:
+        first.append(submit(k))
         if len(pending) >= limit:
             break
     futures = dist.as_completed(first, loop=client.loop)
     try:
         for fut in futures:
-            _, item = pending.pop(fut.key)
+            _, k = pending.pop(fut.key)
             try:
                 result = fut.result()
+            except CancelledError:  # its sent data died with a worker: send it again
+                fut.release()
+                if submissions[k] < MAX_SUBMISSIONS:
+                    futures.add(submit(k))
+                    continue
+                result = Lost(f"the data sent with it was lost with {submissions[k]} workers")
             except Exception as e:  # a dead worker's task given up: the run goes on without it
                 reason = cluster.lost_reason(e)
                 if reason is None:
@@ -453,7 +470,7 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
                 result = Lost(reason)
             fut.release()
             cluster.note_departures()
-            yield item, result
+            yield items[k], result
             for nxt in queue:
                 futures.add(submit(nxt))
                 break
