@@ -36,12 +36,14 @@ from ..errors import InputError
 from ..geometry import as_transform, invert_transform
 from ..posemath import BoardPose, skew
 from ..rig import Rig
+from ..targets import Chessboard
 from .board_plane import detection_mask
 from .detect import Board, BoardDetection, DetectionError, board_label, detect_boards
 from .fuse import FusedPose, fuse_poses
 from .images import check_image_size, read_image
-from .photometric import PhotometricTrack
-from .pose import check_refine, estimate_pose
+from .photometric import PhotometricError, PhotometricTrack
+from .pose import check_refine, estimate_pose, follow_pose
+from .tracking import followed_detection
 
 __all__ = ["CameraView", "ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
 
@@ -319,6 +321,8 @@ class PoseTracker:
         self._prev: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
         self._ref: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
         self._poses: list[list[np.ndarray | None]] = [[None] * nb for _ in range(nc)]
+        # Whether each board's last pose was photometric (the next image may follow it alone).
+        self._followable: list[list[bool]] = [[False] * nb for _ in range(nc)]
         self._fused: list[np.ndarray | None] = [None] * nb
         # Each board's last photometric fit in each camera: the next image's fit starts from it
         # (``_warm_start`` False: every fit from the start, for the speed benchmark's comparison).
@@ -333,6 +337,7 @@ class PoseTracker:
     def _reset_camera(self, k: int) -> None:
         self._prev[k] = [None] * len(self.boards)
         self._poses[k] = [None] * len(self.boards)
+        self._followable[k] = [False] * len(self.boards)
         for t in self._photo[k]:
             t.clear()
 
@@ -502,45 +507,51 @@ class PoseTracker:
             res.timings["read"] = time.perf_counter() - t0
             check_image_size(img, camera.image_size, source=label, camera_source=self._camera_source(k))
             t1 = time.perf_counter()
-            try:
-                dets: list[BoardDetection | None] = list(self._detect(k, img, list(range(nb)), label))
-            except DetectionError as e:
-                found = e.found or []
-                if len(self.rig) == 1 or not any(d is not None for d in found):
-                    raise
-                # Several cameras: the boards missing here may be seen by another camera; this
-                # one goes on with those it found (the search's error names the missing ones).
-                dets = list(found) + [None] * (nb - len(found))
-                for b in range(nb):
-                    if dets[b] is None:
-                        res.errors[b] = str(e.with_source(label))
-            t2 = time.perf_counter()
-            for b, d in enumerate(dets):
-                if d is None:
-                    continue
-                init = self._poses[k][b] if d.tracked else None
-                if not d.tracked:
-                    self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
-                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
-                # left out of a photometric fit.
-                others = [
-                    detection_mask(o, margin_sq=2.2)
-                    for j, o in enumerate(dets)
-                    if j != b and o is not None and o.n_corners >= 4
-                ]
-                res.poses[b] = estimate_pose(
-                    d,
-                    self.boards[b],
-                    camera,
-                    initial=init,
-                    source=label,
-                    image=img,
-                    refine=self.refine if b == 0 else self.refine_fixed,
-                    exclude=others,
-                    track=self._photo[k][b] if self._warm_start else None,
-                )
-                res.dets[b] = d
-            t3 = time.perf_counter()
+            followed = self._follow(k, img, label)
+            if followed is not None:
+                res.dets, res.poses, t_det = followed
+                t2 = t1 + t_det
+                t3 = time.perf_counter()
+            else:
+                try:
+                    dets: list[BoardDetection | None] = list(self._detect(k, img, list(range(nb)), label))
+                except DetectionError as e:
+                    found = e.found or []
+                    if len(self.rig) == 1 or not any(d is not None for d in found):
+                        raise
+                    # Several cameras: the boards missing here may be seen by another camera; this
+                    # one goes on with those it found (the search's error names the missing ones).
+                    dets = list(found) + [None] * (nb - len(found))
+                    for b in range(nb):
+                        if dets[b] is None:
+                            res.errors[b] = str(e.with_source(label))
+                t2 = time.perf_counter()
+                for b, d in enumerate(dets):
+                    if d is None:
+                        continue
+                    init = self._poses[k][b] if d.tracked else None
+                    if not d.tracked:
+                        self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
+                    # The other boards' areas (squares and a white margin of up to 1.2 squares) are
+                    # left out of a photometric fit.
+                    others = [
+                        detection_mask(o, margin_sq=2.2)
+                        for j, o in enumerate(dets)
+                        if j != b and o is not None and o.n_corners >= 4
+                    ]
+                    res.poses[b] = estimate_pose(
+                        d,
+                        self.boards[b],
+                        camera,
+                        initial=init,
+                        source=label,
+                        image=img,
+                        refine=self.refine if b == 0 else self.refine_fixed,
+                        exclude=others,
+                        track=self._photo[k][b] if self._warm_start else None,
+                    )
+                    res.dets[b] = d
+                t3 = time.perf_counter()
         except InputError as e:
             self._reset_camera(k)
             res.timings["total"] = time.perf_counter() - t0
@@ -559,11 +570,60 @@ class PoseTracker:
                 self._prev[k][b] = res.dets[b]
                 self._ref[k][b] = res.dets[b]
                 self._poses[k][b] = res.poses[b].board2cam
+                self._followable[k][b] = res.poses[b].method == "photometric"
             else:
                 self._prev[k][b] = None
                 self._poses[k][b] = None
+                self._followable[k][b] = False
         res.timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
         return res
+
+    def _follow(self, k: int, img: np.ndarray, label: str):
+        """Every board of camera ``k`` followed by its photometric fit alone, or None.
+
+        Each chessboard whose previous pose was photometric (its :class:`PhotometricTrack`
+        ready) is fitted from that pose, pixel set and linearisation, without measuring its
+        corners (:func:`~stiffmap.vision.pose.follow_pose`). When any board cannot be (the
+        corner refinement asked for, a board not tracked, a fit failing its checks: the board
+        moved too far, the scene changed), None: the caller tracks the corners and fits from
+        them. Returns (detections, poses, seconds spent on the detections).
+        """
+        if not (self._warm_start and self.track):
+            return None
+        camera = self.rig.cameras[k].camera
+        prev, nb = self._prev[k], len(self.boards)
+        for b in range(nb):
+            refine = self.refine if b == 0 else self.refine_fixed
+            if (
+                refine == "corners"
+                or not isinstance(self.boards[b], Chessboard)
+                or prev[b] is None
+                or prev[b].n_corners < 4
+                or self._poses[k][b] is None
+                or not self._followable[k][b]
+                or not self._photo[k][b].ready
+            ):
+                return None
+        masks = [detection_mask(d, margin_sq=2.2) for d in prev]
+        poses = []
+        for b in range(nb):
+            try:
+                poses.append(
+                    follow_pose(
+                        img,
+                        self.boards[b],
+                        camera,
+                        self._poses[k][b],
+                        self._photo[k][b],
+                        exclude=[m for j, m in enumerate(masks) if j != b],
+                        source=label,
+                    )
+                )
+            except PhotometricError:
+                return None
+        t0 = time.perf_counter()
+        dets = [followed_detection(prev[b], poses[b].board2cam, camera, 0.0) for b in range(nb)]
+        return dets, poses, time.perf_counter() - t0
 
     def _detect(self, k: int, img: np.ndarray, which: list[int], label: str) -> list[BoardDetection]:
         return detect_boards(
