@@ -507,51 +507,54 @@ class PoseTracker:
             res.timings["read"] = time.perf_counter() - t0
             check_image_size(img, camera.image_size, source=label, camera_source=self._camera_source(k))
             t1 = time.perf_counter()
-            followed = self._follow(k, img, label)
-            if followed is not None:
-                res.dets, res.poses, t_det = followed
-                t2 = t1 + t_det
-                t3 = time.perf_counter()
-            else:
+            # Boards followed by their photometric fit alone (None: their corners are measured).
+            dets, poses, t_follow = self._follow(k, img, label)
+            todo = [b for b in range(nb) if dets[b] is None]
+            if todo:
+                hidden = [detection_mask(d) for d in dets if d is not None]
                 try:
-                    dets: list[BoardDetection | None] = list(self._detect(k, img, list(range(nb)), label))
+                    found = list(self._detect(k, img, todo, label, hidden))
                 except DetectionError as e:
                     found = e.found or []
                     if len(self.rig) == 1 or not any(d is not None for d in found):
                         raise
                     # Several cameras: the boards missing here may be seen by another camera; this
                     # one goes on with those it found (the search's error names the missing ones).
-                    dets = list(found) + [None] * (nb - len(found))
-                    for b in range(nb):
-                        if dets[b] is None:
+                    found = list(found) + [None] * (len(todo) - len(found))
+                    for j, b in enumerate(todo):
+                        if found[j] is None:
                             res.errors[b] = str(e.with_source(label))
-                t2 = time.perf_counter()
-                for b, d in enumerate(dets):
-                    if d is None:
-                        continue
-                    init = self._poses[k][b] if d.tracked else None
-                    if not d.tracked:
-                        self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
-                    # The other boards' areas (squares and a white margin of up to 1.2 squares) are
-                    # left out of a photometric fit.
-                    others = [
-                        detection_mask(o, margin_sq=2.2)
-                        for j, o in enumerate(dets)
-                        if j != b and o is not None and o.n_corners >= 4
-                    ]
-                    res.poses[b] = estimate_pose(
-                        d,
-                        self.boards[b],
-                        camera,
-                        initial=init,
-                        source=label,
-                        image=img,
-                        refine=self.refine if b == 0 else self.refine_fixed,
-                        exclude=others,
-                        track=self._photo[k][b] if self._warm_start else None,
-                    )
-                    res.dets[b] = d
-                t3 = time.perf_counter()
+                for j, b in enumerate(todo):
+                    dets[b] = found[j]
+            t2 = time.perf_counter()
+            for b in todo:
+                d = dets[b]
+                if d is None:
+                    continue
+                init = self._poses[k][b] if d.tracked else None
+                if not d.tracked:
+                    self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
+                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
+                # left out of a photometric fit.
+                others = [
+                    detection_mask(o, margin_sq=2.2)
+                    for j, o in enumerate(dets)
+                    if j != b and o is not None and o.n_corners >= 4
+                ]
+                poses[b] = estimate_pose(
+                    d,
+                    self.boards[b],
+                    camera,
+                    initial=init,
+                    source=label,
+                    image=img,
+                    refine=self.refine if b == 0 else self.refine_fixed,
+                    exclude=others,
+                    track=self._photo[k][b] if self._warm_start else None,
+                )
+            res.dets, res.poses = dets, poses
+            t3 = time.perf_counter()
+            t2 -= t_follow  # the follow's fits are pose time
         except InputError as e:
             self._reset_camera(k)
             res.timings["total"] = time.perf_counter() - t0
@@ -579,53 +582,53 @@ class PoseTracker:
         return res
 
     def _follow(self, k: int, img: np.ndarray, label: str):
-        """Every board of camera ``k`` followed by its photometric fit alone, or None.
+        """The boards of camera ``k`` followed by their photometric fit alone (None for the others).
 
         Each chessboard whose previous pose was photometric (its :class:`PhotometricTrack`
         ready) is fitted from that pose, pixel set and linearisation, without measuring its
         corners (:func:`~stiffmap.vision.pose.follow_pose`). When any board cannot be (the
         corner refinement asked for, a board not tracked, a fit failing its checks: the board
-        moved too far, the scene changed), None: the caller tracks the corners and fits from
-        them. Returns (detections, poses, seconds spent on the detections).
+        moved too far, the scene changed), None in its place: the caller tracks its corners
+        and fits from them. Returns (detections, poses, seconds spent).
         """
+        nb = len(self.boards)
+        dets: list[BoardDetection | None] = [None] * nb
+        poses: list[BoardPose | None] = [None] * nb
+        t0 = time.perf_counter()
         if not (self._warm_start and self.track):
-            return None
+            return dets, poses, 0.0
         camera = self.rig.cameras[k].camera
-        prev, nb = self._prev[k], len(self.boards)
+        prev = self._prev[k]
+        masks = [None if d is None or d.n_corners < 4 else detection_mask(d, margin_sq=2.2) for d in prev]
         for b in range(nb):
             refine = self.refine if b == 0 else self.refine_fixed
             if (
                 refine == "corners"
                 or not isinstance(self.boards[b], Chessboard)
-                or prev[b] is None
-                or prev[b].n_corners < 4
+                or masks[b] is None
                 or self._poses[k][b] is None
                 or not self._followable[k][b]
                 or not self._photo[k][b].ready
             ):
-                return None
-        masks = [detection_mask(d, margin_sq=2.2) for d in prev]
-        poses = []
-        for b in range(nb):
+                continue
             try:
-                poses.append(
-                    follow_pose(
-                        img,
-                        self.boards[b],
-                        camera,
-                        self._poses[k][b],
-                        self._photo[k][b],
-                        exclude=[m for j, m in enumerate(masks) if j != b],
-                        source=label,
-                    )
+                poses[b] = follow_pose(
+                    img,
+                    self.boards[b],
+                    camera,
+                    self._poses[k][b],
+                    self._photo[k][b],
+                    exclude=[m for j, m in enumerate(masks) if j != b and m is not None],
+                    source=label,
                 )
             except PhotometricError:
-                return None
-        t0 = time.perf_counter()
-        dets = [followed_detection(prev[b], poses[b].board2cam, camera, 0.0) for b in range(nb)]
+                continue
+            dets[b] = followed_detection(prev[b], poses[b].board2cam, camera, 0.0)
         return dets, poses, time.perf_counter() - t0
 
-    def _detect(self, k: int, img: np.ndarray, which: list[int], label: str) -> list[BoardDetection]:
+    def _detect(
+        self, k: int, img: np.ndarray, which: list[int], label: str, hidden=()
+    ) -> list[BoardDetection]:
         return detect_boards(
             img,
             [self.boards[b] for b in which],
@@ -634,6 +637,7 @@ class PoseTracker:
             camera=self.rig.cameras[k].camera,
             scale=self.scale,
             source=label,
+            hidden=hidden,
         )
 
 
