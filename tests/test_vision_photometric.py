@@ -38,6 +38,7 @@ from stiffmap.sim.render import Photometry, Target, render, true_corners
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import (
     BoardDetection,
+    PoseTracker,
     calibrate_files,
     detect_board,
     estimate_pose,
@@ -507,3 +508,49 @@ def test_photometric_pose_holds_or_says_why_under_other_image_formations(formati
     sigma = float(np.sqrt(los @ photo.cov[:3, :3] @ los))
     assert abs(along["photometric"]) < 3 * sigma, (along, sigma)
     assert abs(along["photometric"]) <= abs(along["corners"]) + 2 * sigma, (along, sigma)
+
+
+# ------------------------------------------------------------------ along a sequence
+
+
+def test_a_sequence_follows_warm_agrees_with_cold_fits_and_falls_back_after_a_jump():
+    """Warm-started and followed fits (PoseTracker's default) against every fit cold, same images.
+
+    Seven images of one pose with 2 um vibrations: from the second on each board is followed by
+    its photometric fit alone; the poses differ from the cold fits' by a small fraction of
+    their sigma, with the same covariance (within 3 %). Then the board jumps 2 mm (~5 px: a load change) and
+    by one square (the grid fits one corner off): the follow is refused, the corners are
+    measured (or the board searched), and the pose is the true one.
+    """
+    T0 = look_at_pose(330, BOARD, tilt_deg=(15, -20, 10), offset_mm=(5, 0))
+    rng = np.random.default_rng(3)
+    truth = []
+    for _ in range(7):
+        T = T0.copy()
+        T[:3, 3] += rng.normal(scale=0.002, size=3)
+        truth.append(T)
+    jump = T0.copy()
+    jump[:3, 3] += T0[:3, :3] @ [2.0, -1.0, 0.0]
+    square = T0.copy()
+    square[:3, 3] += T0[:3, :3] @ [BOARD.square_mm, 0.0, 0.0]
+    truth += [jump, jump, square]
+    images = [render(SMALL, [Target(BOARD, T)], seed=k).image for k, T in enumerate(truth)]
+    warm = PoseTracker(SMALL, BOARD)
+    cold = PoseTracker(SMALL, BOARD)
+    cold._warm_start = False
+    ms = [warm.measure(im) for im in images]
+    mc = [cold.measure(im) for im in images]
+    how = [m.mobile_detection.orientation for m in ms]
+    assert how[1:7] == ["photometric"] * 6 and how[8] == "photometric", how
+    assert how[7] != "photometric" and how[9] != "photometric", how
+    assert all(m.mobile.method == "photometric" for m in ms)
+    for k in range(1, 7):
+        a, b = ms[k].mobile, mc[k].mobile
+        assert a.photometric.warm_start and a.n_corners == 0 and np.isnan(a.rms_px)
+        sd = np.sqrt(np.diag(b.cov_noise))
+        # Within a quarter sigma: adds at most 3 % in quadrature to the error of a pose.
+        assert np.all(np.abs(_err(a.board2cam, b.board2cam)) < 0.25 * sd), _err(a.board2cam, b.board2cam) / sd
+        np.testing.assert_allclose(np.sqrt(np.diag(a.cov_noise)), sd, rtol=0.03)
+    for k in range(len(truth)):  # every pose, the jumps' included, is the true one
+        z = _err(ms[k].mobile2cam, truth[k]) / np.sqrt(np.diag(ms[k].mobile2cam_cov))
+        assert np.all(np.abs(z) < 5), (k, z)

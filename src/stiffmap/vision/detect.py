@@ -71,6 +71,7 @@ def detect_boards(
     reject_px: float = REJECT_PX,
     min_corners: int = 6,
     source: str | None = None,
+    hidden=(),
 ) -> list[BoardDetection]:
     """Find several boards in one image, each identified by its size.
 
@@ -98,6 +99,8 @@ def detect_boards(
         Fewest corners accepted for a ChArUco board.
     source : str, optional
         The image's file name, for error messages.
+    hidden : sequence of array_like, shape (k, 2)
+        Polygons (px) of boards found otherwise in this image, hidden from the search.
 
     Returns
     -------
@@ -138,7 +141,7 @@ def detect_boards(
         if todo_chess:
             t_search = time.perf_counter()
             # Boards already found in this image (tracked, ChArUco) are hidden from the search.
-            masks = [detection_mask(d) for d in out if d is not None and d.n_corners >= 4]
+            masks = [detection_mask(d) for d in out if d is not None and d.n_corners >= 4] + list(hidden)
             found = search_chessboards(img, [boards[k] for k in todo_chess], scale, masks)
             # The search time is shared by the boards it found.
             t_share = (time.perf_counter() - t_search) / max(len(found), 1)

@@ -82,7 +82,9 @@ class BoardDetection:
     orientation : str
         What fixed the corner numbering: ``"colour"``, ``"continuity"``,
         ``"default"`` (symmetric board, no reference: x axis towards the image's
-        right), ``"markers"`` (ChArUco) or ``"tracked"``.
+        right), ``"markers"`` (ChArUco), ``"tracked"`` or ``"photometric"`` (followed by the
+        photometric fit alone: ``corners`` projected at its pose, ``residual_px`` NaN; see
+        :func:`~stiffmap.vision.pose.follow_pose`).
     rejected : ndarray of int
         Canonical ids of corners found but rejected by the homography check.
     seconds : float

@@ -7,9 +7,10 @@ their own maximum (the corner positions do not depend on a grey-level gain).
 
 Every failure is an :class:`ImageError` (an :class:`~stiffmap.errors.InputError`)
 naming the file: missing, a directory, empty, truncated or corrupt (checked from the
-file's own structure before decoding: every chunk of a PNG with its CRC and the size its
-header declares, the closing marker of a JPEG; and by the decoder for the others), not an
-image, an unsupported format, or smaller than 8x8 px. What the C decoders (libpng, libjpeg,
+file's own structure before decoding: every chunk of a PNG and the size its header
+declares (the chunks' CRCs are checked by libpng; a failing chunk is named), the closing
+marker of a JPEG; and by the decoder for the others), not an image, an unsupported
+format, or smaller than 8x8 px. What the C decoders (libpng, libjpeg,
 OpenCV's TIFF reader) would print on the terminal is caught instead and said in the
 message: an image they report damaged is refused, not measured. :func:`check_image_size`
 compares an image with the size in ``camera.json``.
@@ -95,8 +96,12 @@ def _check_complete(fmt: str, tail: bytes, size: int, src: str) -> None:
 MAX_IMAGE_SIDE_PX = 100_000
 
 
-def _check_png(data: bytes, src: str) -> None:
-    """Walk a PNG's chunks: lengths, the CRC of every critical chunk, the header's size."""
+def _check_png(data: bytes, src: str, crc: bool = True) -> None:
+    """Walk a PNG's chunks: lengths, the header's size and (``crc``) every critical chunk's CRC.
+
+    libpng checks the critical chunks' CRCs itself while decoding (and fails): :func:`read_image`
+    walks without them before decoding, and with them only to say why a decoding failed.
+    """
     size = len(data)
     pos = 8
     first = True
@@ -118,16 +123,22 @@ def _check_png(data: bytes, src: str) -> None:
                 f"the file ends {size - pos - 12} bytes after its header",
                 source=src,
             )
-        body = data[pos + 8 : pos + 8 + length]
         critical = tag[:1].isupper()
-        if critical and zlib.crc32(tag + body) != int.from_bytes(data[pos + 8 + length : end], "big"):
-            raise ImageError(f"corrupt PNG file: chunk {name} at byte {pos} fails its CRC check", source=src)
+        if crc and critical:
+            body = data[pos + 8 : pos + 8 + length]
+            if zlib.crc32(tag + body) != int.from_bytes(data[pos + 8 + length : end], "big"):
+                raise ImageError(
+                    f"corrupt PNG file: chunk {name} at byte {pos} fails its CRC check", source=src
+                )
         if first:
             if tag != b"IHDR" or length != 13:
                 raise ImageError(
                     f"corrupt PNG file: it starts with chunk {name}, not a header (IHDR)", source=src
                 )
-            w, h = int.from_bytes(body[:4], "big"), int.from_bytes(body[4:8], "big")
+            w, h = (
+                int.from_bytes(data[pos + 8 : pos + 12], "big"),
+                int.from_bytes(data[pos + 12 : pos + 16], "big"),
+            )
             if not (0 < w <= MAX_IMAGE_SIDE_PX and 0 < h <= MAX_IMAGE_SIDE_PX):
                 raise ImageError(
                     f"the PNG header declares a {w}x{h} px image: not a camera image "
@@ -243,7 +254,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         )
     _check_complete(fmt, data[-32:], size, src)
     if fmt == "PNG":
-        _check_png(data, src)
+        _check_png(data, src, crc=False)
     flags = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
     with _decoder_messages() as lines:
         try:
@@ -252,6 +263,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
             img = None
             lines.append(str(e))
     damage, notes = _damage(lines)
+    if fmt == "PNG" and (img is None or damage):
+        _check_png(data, src)  # which chunk is corrupt, when its CRC says so
     said = f" (the decoder says: {'; '.join(damage)[:300]})" if damage else ""
     if img is None:
         raise ImageError(

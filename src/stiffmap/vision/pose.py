@@ -65,6 +65,7 @@ from .photometric import PhotometricError, PhotometricTrack, refine_pose_photome
 
 __all__ = [
     "estimate_pose",
+    "follow_pose",
     "pose_shift_sigma",
     "with_calibration_share",
     "check_refine",
@@ -218,6 +219,62 @@ def estimate_pose(
     return out
 
 
+def follow_pose(
+    image: np.ndarray,
+    board: Chessboard,
+    camera: CameraModel,
+    previous: np.ndarray,
+    track: PhotometricTrack,
+    *,
+    exclude=(),
+    source: str | None = None,
+) -> BoardPose:
+    """The board's photometric pose from the previous image's fit alone, no corners measured.
+
+    In a sequence of one robot position, where the board barely moves: the photometric fit
+    starts from the previous image's pose, pixel set and linearisation (``track``,
+    :func:`~stiffmap.vision.photometric.refine_pose_photometric` with ``warm_only``). It is
+    kept only when it passes the photometric fit's own checks (converged, blur, outliers,
+    contrast), the board's outline moved by less than
+    :data:`~stiffmap.vision.photometric.refine.FOLLOW_PX` px and its residuals did not grow
+    (a board that moved far, by a square or more, or a changed scene fails these); the caller
+    then measures the corners (:func:`~stiffmap.vision.tracking.track_board`) and runs
+    :func:`estimate_pose`. The pose has no corner residuals: ``n_corners`` 0, ``rms_px`` NaN.
+
+    Parameters
+    ----------
+    image : ndarray, shape (h, w), uint8 or uint16
+    board : Chessboard
+    camera : CameraModel
+    previous : ndarray, shape (4, 4), mm
+        The board's photometric pose in the previous image (the start).
+    track : PhotometricTrack
+        The board's fit in the previous image (updated when the fit is kept).
+    exclude : sequence of array_like, shape (k, 2)
+        Polygons (px) the fit leaves out (another board).
+    source : str, optional
+        Image name for error messages.
+
+    Returns
+    -------
+    BoardPose
+        As :func:`estimate_pose`'s photometric pose, with the calibration's share.
+
+    Raises
+    ------
+    PhotometricError
+        No warm start, or it failed one of the checks above (``track`` unchanged).
+    """
+    photo = refine_pose_photometric(
+        image, board, camera, previous, exclude=exclude, source=source, track=track, warm_only=True
+    )
+    A = track.sensitivity(camera, board, photo.board2cam)
+    out = with_calibration_share(photo, None, camera, edges_of=board, sensitivity=A)
+    if A is None:
+        track.keep_sensitivity(photo.board2cam, out.calibration_jacobian, camera, board)
+    return out
+
+
 def _edge_samples(board: Chessboard, per_square: int = 8):
     """Points along the edges of a board's squares (cached per board geometry), see _edge_samples_of."""
     return _edge_samples_of(board.square_mm, board.cols, board.rows, per_square)
@@ -250,7 +307,7 @@ def _edge_samples_of(s: float, c: int, r: int, per_square: int):
 
 def with_calibration_share(
     pose: BoardPose,
-    detection: BoardDetection,
+    detection: BoardDetection | None,
     camera: CameraModel,
     *,
     edges_of: Chessboard | None = None,

@@ -36,12 +36,14 @@ from ..errors import InputError
 from ..geometry import as_transform, invert_transform
 from ..posemath import BoardPose, skew
 from ..rig import Rig
+from ..targets import Chessboard
 from .board_plane import detection_mask
 from .detect import Board, BoardDetection, DetectionError, board_label, detect_boards
 from .fuse import FusedPose, fuse_poses
 from .images import check_image_size, read_image
-from .photometric import PhotometricTrack
-from .pose import check_refine, estimate_pose
+from .photometric import PhotometricError, PhotometricTrack
+from .pose import check_refine, estimate_pose, follow_pose
+from .tracking import followed_detection
 
 __all__ = ["CameraView", "ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
 
@@ -319,6 +321,8 @@ class PoseTracker:
         self._prev: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
         self._ref: list[list[BoardDetection | None]] = [[None] * nb for _ in range(nc)]
         self._poses: list[list[np.ndarray | None]] = [[None] * nb for _ in range(nc)]
+        # Whether each board's last pose was photometric (the next image may follow it alone).
+        self._followable: list[list[bool]] = [[False] * nb for _ in range(nc)]
         self._fused: list[np.ndarray | None] = [None] * nb
         # Each board's last photometric fit in each camera: the next image's fit starts from it
         # (``_warm_start`` False: every fit from the start, for the speed benchmark's comparison).
@@ -333,6 +337,7 @@ class PoseTracker:
     def _reset_camera(self, k: int) -> None:
         self._prev[k] = [None] * len(self.boards)
         self._poses[k] = [None] * len(self.boards)
+        self._followable[k] = [False] * len(self.boards)
         for t in self._photo[k]:
             t.clear()
 
@@ -502,20 +507,28 @@ class PoseTracker:
             res.timings["read"] = time.perf_counter() - t0
             check_image_size(img, camera.image_size, source=label, camera_source=self._camera_source(k))
             t1 = time.perf_counter()
-            try:
-                dets: list[BoardDetection | None] = list(self._detect(k, img, list(range(nb)), label))
-            except DetectionError as e:
-                found = e.found or []
-                if len(self.rig) == 1 or not any(d is not None for d in found):
-                    raise
-                # Several cameras: the boards missing here may be seen by another camera; this
-                # one goes on with those it found (the search's error names the missing ones).
-                dets = list(found) + [None] * (nb - len(found))
-                for b in range(nb):
-                    if dets[b] is None:
-                        res.errors[b] = str(e.with_source(label))
+            # Boards followed by their photometric fit alone (None: their corners are measured).
+            dets, poses, t_follow = self._follow(k, img, label)
+            todo = [b for b in range(nb) if dets[b] is None]
+            if todo:
+                hidden = [detection_mask(d) for d in dets if d is not None]
+                try:
+                    found = list(self._detect(k, img, todo, label, hidden))
+                except DetectionError as e:
+                    found = e.found or []
+                    if len(self.rig) == 1 or not any(d is not None for d in found):
+                        raise
+                    # Several cameras: the boards missing here may be seen by another camera; this
+                    # one goes on with those it found (the search's error names the missing ones).
+                    found = list(found) + [None] * (len(todo) - len(found))
+                    for j, b in enumerate(todo):
+                        if found[j] is None:
+                            res.errors[b] = str(e.with_source(label))
+                for j, b in enumerate(todo):
+                    dets[b] = found[j]
             t2 = time.perf_counter()
-            for b, d in enumerate(dets):
+            for b in todo:
+                d = dets[b]
                 if d is None:
                     continue
                 init = self._poses[k][b] if d.tracked else None
@@ -528,7 +541,7 @@ class PoseTracker:
                     for j, o in enumerate(dets)
                     if j != b and o is not None and o.n_corners >= 4
                 ]
-                res.poses[b] = estimate_pose(
+                poses[b] = estimate_pose(
                     d,
                     self.boards[b],
                     camera,
@@ -539,8 +552,9 @@ class PoseTracker:
                     exclude=others,
                     track=self._photo[k][b] if self._warm_start else None,
                 )
-                res.dets[b] = d
+            res.dets, res.poses = dets, poses
             t3 = time.perf_counter()
+            t2 -= t_follow  # the follow's fits are pose time
         except InputError as e:
             self._reset_camera(k)
             res.timings["total"] = time.perf_counter() - t0
@@ -559,13 +573,62 @@ class PoseTracker:
                 self._prev[k][b] = res.dets[b]
                 self._ref[k][b] = res.dets[b]
                 self._poses[k][b] = res.poses[b].board2cam
+                self._followable[k][b] = res.poses[b].method == "photometric"
             else:
                 self._prev[k][b] = None
                 self._poses[k][b] = None
+                self._followable[k][b] = False
         res.timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
         return res
 
-    def _detect(self, k: int, img: np.ndarray, which: list[int], label: str) -> list[BoardDetection]:
+    def _follow(self, k: int, img: np.ndarray, label: str):
+        """The boards of camera ``k`` followed by their photometric fit alone (None for the others).
+
+        Each chessboard whose previous pose was photometric (its :class:`PhotometricTrack`
+        ready) is fitted from that pose, pixel set and linearisation, without measuring its
+        corners (:func:`~stiffmap.vision.pose.follow_pose`). When any board cannot be (the
+        corner refinement asked for, a board not tracked, a fit failing its checks: the board
+        moved too far, the scene changed), None in its place: the caller tracks its corners
+        and fits from them. Returns (detections, poses, seconds spent).
+        """
+        nb = len(self.boards)
+        dets: list[BoardDetection | None] = [None] * nb
+        poses: list[BoardPose | None] = [None] * nb
+        t0 = time.perf_counter()
+        if not (self._warm_start and self.track):
+            return dets, poses, 0.0
+        camera = self.rig.cameras[k].camera
+        prev = self._prev[k]
+        masks = [None if d is None or d.n_corners < 4 else detection_mask(d, margin_sq=2.2) for d in prev]
+        for b in range(nb):
+            refine = self.refine if b == 0 else self.refine_fixed
+            if (
+                refine == "corners"
+                or not isinstance(self.boards[b], Chessboard)
+                or masks[b] is None
+                or self._poses[k][b] is None
+                or not self._followable[k][b]
+                or not self._photo[k][b].ready
+            ):
+                continue
+            try:
+                poses[b] = follow_pose(
+                    img,
+                    self.boards[b],
+                    camera,
+                    self._poses[k][b],
+                    self._photo[k][b],
+                    exclude=[m for j, m in enumerate(masks) if j != b and m is not None],
+                    source=label,
+                )
+            except PhotometricError:
+                continue
+            dets[b] = followed_detection(prev[b], poses[b].board2cam, camera, 0.0)
+        return dets, poses, time.perf_counter() - t0
+
+    def _detect(
+        self, k: int, img: np.ndarray, which: list[int], label: str, hidden=()
+    ) -> list[BoardDetection]:
         return detect_boards(
             img,
             [self.boards[b] for b in which],
@@ -574,6 +637,7 @@ class PoseTracker:
             camera=self.rig.cameras[k].camera,
             scale=self.scale,
             source=label,
+            hidden=hidden,
         )
 
 

@@ -29,7 +29,7 @@ from .corners import refine_corners
 from .detection import BoardDetection, grid_of
 from .images import check_image
 
-__all__ = ["track_board"]
+__all__ = ["track_board", "followed_detection"]
 
 
 def track_board(
@@ -105,4 +105,28 @@ def track_board(
         phase=previous.phase,
         rejected=np.zeros(0, dtype=int),
         seconds=time.perf_counter() - t0,
+    )
+
+
+def followed_detection(previous: BoardDetection, board2cam: np.ndarray, camera: CameraModel, seconds: float):
+    """The detection of a board followed by its photometric fit alone (no corners measured).
+
+    Its ``corners`` are the previous detection's corners projected at the fitted pose
+    (``board2cam``), its ``residual_px`` NaN (not measured), ``orientation`` ``"photometric"``
+    (see :func:`~stiffmap.vision.pose.follow_pose`); they seed the next image's tracking.
+    """
+    obj = previous.object_points()
+    corners = camera.project(obj @ board2cam[:3, :3].T + board2cam[:3, 3])
+    return BoardDetection(
+        board=previous.board,
+        corners=corners,
+        ids=previous.ids.copy(),
+        residual_px=np.full(previous.ids.size, np.nan),
+        tracked=True,
+        window_px=previous.window_px,
+        scale=0,
+        orientation="photometric",
+        phase=previous.phase,
+        rejected=np.zeros(0, dtype=int),
+        seconds=seconds,
     )

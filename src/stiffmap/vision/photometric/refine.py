@@ -26,7 +26,7 @@ from .model import model_and_jacobian
 from .pixels import MIN_PIXELS, PhotometricError, PhotometricSetup, check_board2cam, prepare_pixels
 from .solver import FitState, fit_noise_model, gauss_newton, linear_shading
 
-__all__ = ["PhotometricFit", "PhotometricTrack", "REUSE_PX", "refine_pose_photometric"]
+__all__ = ["PhotometricFit", "PhotometricTrack", "REUSE_PX", "FOLLOW_PX", "refine_pose_photometric"]
 
 
 #: Gauss-Newton stops after a step shorter than this many standard deviations (in the metric
@@ -103,6 +103,17 @@ REUSE_PX = 0.25
 LIN_PX = 0.1
 #: Chord steps (no new Jacobian) allowed after each linearisation of a warm-started fit.
 _WARM_CHORD_STEPS = 2
+#: A fit started from the previous image's pose alone (``warm_only``, no corners measured in
+#: this image) is kept only when the board's outline moved by less than this from that pose, px
+#: (the pixel set, chosen there, then still holds every edge's band), ...
+FOLLOW_PX = 0.5
+#: ... and its residuals' variance s^2 (in units of the modelled noise) is at most this many
+#: times the previous fit's: a board that moved by a square or more, a changed scene or a
+#: partly covered board leave the model's edges where the image has none (s^2 grows many-fold).
+S2_GROWTH = 1.5
+#: Iterations allowed to such a fit (it takes 2-3 when the board barely moved; one that moved
+#: far takes many and would fail the checks above anyway).
+FOLLOW_MAX_ITER = 4
 
 
 class PhotometricTrack:
@@ -172,7 +183,7 @@ class PhotometricTrack:
         """Keep the calibration sensitivity A computed at pose T."""
         self._sensitivity = (np.array(T, dtype=np.float64), A, (board, camera.key))
 
-    def record_cold(self, img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera):
+    def record_cold(self, img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera, s2):
         """Keep a cold fit (its pixel set in single precision) for the next image."""
         w = img.shape[1]
         flat = setup.v.astype(np.int64) * w + setup.u.astype(np.int64)
@@ -190,9 +201,10 @@ class PhotometricTrack:
             "state": st,
             "noise": fit_noise_model(*_sample(setup, sol)),
             "lin": None,
+            "s2": s2,
         }
 
-    def record_warm(self, img, warm, T0, exclude, st, sol, setup, full: bool) -> None:
+    def record_warm(self, img, warm, T0, exclude, st, sol, setup, full: bool, s2: float) -> None:
         """Keep the state and noise model of a warm fit, and its pixel set when it was new."""
         last = self._last
         if last is None:  # pragma: no cover - a warm fit needs a record
@@ -205,6 +217,7 @@ class PhotometricTrack:
         last["state"] = st
         last["noise"] = fit_noise_model(*_sample(setup, sol, 32))
         last["lin"] = sol.lin if full else None
+        last["s2"] = s2
 
 
 def _outline_shift(camera: CameraModel, board: Chessboard, Ta: np.ndarray, Tb: np.ndarray) -> float:
@@ -269,7 +282,7 @@ def _cold_fit(T0, blur_init, huber, max_iter, select, fail):
     return setup, sol, (alpha, beta), iters, select_pose, select_blur
 
 
-def _warm_fit(img, board, camera, warm, T0, huber, max_iter, select):
+def _warm_fit(img, board, camera, warm, T0, huber, max_iter, select, follow=False):
     """The fit started from the previous image's (:class:`PhotometricTrack`), single precision.
 
     Returns the set-up, the solution, the noise model, the iterations and whether the set-up
@@ -299,8 +312,26 @@ def _warm_fit(img, board, camera, warm, T0, huber, max_iter, select):
     if lin is not None and not _outline_shift(camera, board, T0, lin.state.T) < LIN_PX:
         lin = None
     st = FitState(T0, prev.sig.copy(), prev.dil.copy(), prev.a.copy(), prev.b.copy())
+
+    def watch(s: FitState) -> None:
+        # Following the board from the previous pose alone: stop as soon as it has moved too far.
+        moved = _outline_shift(camera, board, s.T, T0)
+        if not moved < FOLLOW_PX:
+            raise PhotometricError(
+                f"the board moved by {moved:.2f} px or more from the previous image (a fit from that "
+                f"pose alone is kept below {FOLLOW_PX:g} px)"
+            )
+
     sol = gauss_newton(
-        setup, st, noise_var, huber, min(max_iter, 10), tol=_TOL_SIGMA, chord=_WARM_CHORD_STEPS, start=lin
+        setup,
+        st,
+        noise_var,
+        huber,
+        min(max_iter, 10),
+        tol=_TOL_SIGMA,
+        chord=_WARM_CHORD_STEPS,
+        start=lin,
+        watch=watch if follow else None,
     )
     sig = sol.state.sig
     sig_max = sig[0] + np.hypot(sig[1], sig[2])
@@ -308,6 +339,21 @@ def _warm_fit(img, board, camera, warm, T0, huber, max_iter, select):
     if sig_max > 1.15 * blur or sig_max < 0.7 * blur:
         raise PhotometricError("the blur changed: the pixel set is for another")
     return setup, sol, (alpha, beta), sol.iterations, full
+
+
+def _check_followed(camera, board, T0, T, s2: float, s2_prev: float) -> None:
+    """The checks of a fit from the previous image's pose alone (``warm_only``)."""
+    moved = _outline_shift(camera, board, T, T0)
+    if not moved < FOLLOW_PX:
+        raise PhotometricError(
+            f"the board moved by {moved:.2f} px from the previous image (a fit from that pose alone "
+            f"is kept below {FOLLOW_PX:g} px)"
+        )
+    if not s2 <= S2_GROWTH * s2_prev:
+        raise PhotometricError(
+            f"the residuals grew {s2 / s2_prev:.1f}-fold over the previous image's (more than "
+            f"{S2_GROWTH:g}): the board moved far, or the scene changed"
+        )
 
 
 def refine_pose_photometric(
@@ -328,6 +374,7 @@ def refine_pose_photometric(
     source: str | None = None,
     phase: int | None = None,
     track: PhotometricTrack | None = None,
+    warm_only: bool = False,
 ):
     """Refine a chessboard's pose by fitting a model of the blurred board to its pixels.
 
@@ -371,6 +418,12 @@ def refine_pose_photometric(
     track : PhotometricTrack, optional
         The board's fit in the previous image of a sequence (updated here): when the board
         has barely moved, the fit starts from it (:class:`PhotometricTrack`).
+    warm_only : bool
+        Only the warm start from ``track``, from a start pose that is the previous image's
+        fitted pose (no corners measured in this image): raise :class:`PhotometricError`
+        (``track`` unchanged) instead of fitting from the start when there is no warm start or
+        it fails, when the fitted outline moved :data:`FOLLOW_PX` px or more from the start,
+        or when s^2 grew more than :data:`S2_GROWTH` times over the previous fit's.
 
     Returns
     -------
@@ -424,13 +477,20 @@ def refine_pose_photometric(
 
     warm = track.start(img, board, camera, T0, exclude, options) if track is not None else None
     sol = None
+    if warm_only and warm is None:
+        raise fail("no warm start from the previous image")
     if warm is not None:
         try:
+            n_iter = min(max_iter, FOLLOW_MAX_ITER) if warm_only else max_iter
             setup, sol, (alpha, beta), iters, full = _warm_fit(
-                img, board, camera, warm, T0, huber, max_iter, select
+                img, board, camera, warm, T0, huber, n_iter, select, follow=warm_only
             )
-            ok = accept_fit(sol, setup, max_iter, max_outlier_fraction)
-        except PhotometricError:
+            ok = accept_fit(sol, setup, n_iter, max_outlier_fraction)
+            if warm_only:
+                _check_followed(camera, board, T0, sol.state.T, ok.s2, warm["s2"])
+        except PhotometricError as e:
+            if warm_only:
+                raise fail(e.detail) from None
             sol = None  # the image differs from the previous one: today's fit from the start
     if sol is None:
         warm = None
@@ -479,9 +539,11 @@ def refine_pose_photometric(
     )
     if track is not None:
         if warm is None:
-            track.record_cold(img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera)
+            track.record_cold(
+                img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera, ok.s2
+            )
         else:
-            track.record_warm(img, warm, T0, exclude, st, sol, setup, full)
+            track.record_warm(img, warm, T0, exclude, st, sol, setup, full, ok.s2)
     return BoardPose(
         board2cam=T,
         cov=ok.cov,

@@ -205,6 +205,7 @@ def gauss_newton(
     *,
     chord: int = 0,
     start: Linearisation | None = None,
+    watch=None,
 ) -> Solution:
     """Damped Gauss-Newton (IRLS) from ``st``; ``noise_var(model)`` -> variance per pixel (DN^2).
 
@@ -222,6 +223,8 @@ def gauss_newton(
     ``start``: the first steps are chord steps with that linearisation (the previous image's,
     on the same pixels, near ``st``) and its weights, with no Jacobian computed here unless
     they do not converge. The solution keeps its last linearisation (``lin``) when ``chord``.
+    ``watch(state)``, called after every step taken, may raise to stop the fit (a
+    :class:`~stiffmap.vision.photometric.pixels.PhotometricError`).
     """
     nb = setup.basis.shape[0]
     if start is not None and chord > 0:
@@ -293,6 +296,8 @@ def gauss_newton(
             converged = True  # no step lowers the cost: at the minimum to rounding
             break
         st, e, var, hw = new, e2, var2, hw2
+        if watch is not None:
+            watch(st)
         lam = max(lam / 10, 1e-9)
         if last:
             converged = True
