@@ -123,6 +123,9 @@ def measure_position(
     where = (lambda f: files.get(f, root / f)) if files is not None else (lambda f: root / f)
     missing = set(task.missing)
     present = [rel for rel in task.images if rel not in missing]
+    # The platform's state in each image, its load case (0: unloaded): the mobile board is
+    # tracked from the last image of the same load, where it stood (PoseTracker.measure).
+    state = {p.loaded: p.load for p in task.pairs}
     if isinstance(camera, Rig):
         images = [
             {c: where(f) for c, f in zip(task.cameras, task.files(rel), strict=True)} for rel in present
@@ -138,6 +141,7 @@ def measure_position(
             fixed,
             None,
             names=present,
+            states=[state.get(rel, 0) for rel in present],
             refine=ctx.refine,
             # The fixed target only orients the displacements, through its mean pose over the
             # position's images: corner poses are precise enough there.

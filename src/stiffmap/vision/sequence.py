@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Hashable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -328,11 +328,41 @@ class PoseTracker:
         # (``_warm_start`` False: every fit from the start, for the speed benchmark's comparison).
         self._photo = [[PhotometricTrack() for _ in range(nb)] for _ in range(nc)]
         self._warm_start = True
+        # The platform's states (load cases) seen so far: the mobile board's tracking state in
+        # each camera when it last was in each (see ``measure(state=...)``).
+        self._state: Hashable | None = None
+        self._saved: dict[Hashable, list[tuple]] = {}
 
     def reset(self) -> None:
         """Forget the previous image (the next one gets a full detection in every camera)."""
         for k in range(len(self.rig)):
             self._reset_camera(k)
+        self._state = None
+        self._saved.clear()
+
+    def _enter_state(self, state: Hashable | None) -> None:
+        """Make the mobile board's tracking state that of the last image in ``state``.
+
+        The current state is kept for when the platform comes back to it; a state not seen
+        before starts from the last image's corners with a fresh photometric fit.
+        """
+        if state is None or state == self._state:
+            self._state = state if state is not None else self._state
+            return
+        nc = len(self.rig)
+        if self._state is not None:
+            self._saved[self._state] = [
+                (self._prev[k][0], self._poses[k][0], self._followable[k][0], self._photo[k][0])
+                for k in range(nc)
+            ]
+        back = self._saved.pop(state, None)
+        for k in range(nc):
+            if back is not None and self._prev[k][0] is not None and back[k][0] is not None:
+                self._prev[k][0], self._poses[k][0], self._followable[k][0], self._photo[k][0] = back[k]
+            else:  # first time in this state (or a camera that lost the board since): corners first
+                self._followable[k][0] = False
+                self._photo[k][0] = PhotometricTrack()
+        self._state = state
 
     def _reset_camera(self, k: int) -> None:
         self._prev[k] = [None] * len(self.boards)
@@ -396,7 +426,7 @@ class PoseTracker:
         ]
         return items, labels, set_label
 
-    def measure(self, image, name: str | None = None) -> ImageMeasurement:
+    def measure(self, image, name: str | None = None, state: Hashable | None = None) -> ImageMeasurement:
         """Measure one image (a path or a uint8 array), or, with a rig, one image set.
 
         Parameters
@@ -407,6 +437,12 @@ class PoseTracker:
             per camera in the rig's order.
         name : str, optional
             Label of the image (set) in the result and the messages.
+        state : hashable, optional
+            The platform's state in this image (a campaign's load case: 0 unloaded, k the
+            k-th load). The mobile board is tracked from the last image in the same state,
+            where it stood within the robot's repeatability: with repeated load cycles it is
+            followed by its photometric fit alone instead of being found again at every load
+            change. None: from the previous image.
 
         Returns
         -------
@@ -418,6 +454,7 @@ class PoseTracker:
         """
         t0 = time.perf_counter()
         items, labels, set_label = self._split(image, name)
+        self._enter_state(state)
         results = [self._measure_view(k, items[k], labels[k]) for k in range(len(self.rig))]
         views = tuple(
             CameraView(
@@ -654,6 +691,7 @@ def measure_sequence(
     camera_source: str = "camera.json",
     refine: str = "auto",
     refine_fixed: str | None = None,
+    states: Sequence[Hashable] | None = None,
 ) -> list[ImageMeasurement]:
     """Measure a sequence of images of one robot position (see :class:`PoseTracker`).
 
@@ -673,6 +711,8 @@ def measure_sequence(
         Name of the camera (or rig) file, for the image-size message.
     refine, refine_fixed : {"auto", "photometric", "corners"}
         Pose refinement of the mobile and of the fixed target (see :class:`PoseTracker`).
+    states : sequence of hashable, optional
+        The platform's state in each image (e.g. its load case; :meth:`PoseTracker.measure`).
 
     Returns
     -------
@@ -692,5 +732,7 @@ def measure_sequence(
     )
     out = []
     for k, im in enumerate(images):
-        out.append(tracker.measure(im, None if names is None else names[k]))
+        out.append(
+            tracker.measure(im, None if names is None else names[k], None if states is None else states[k])
+        )
     return out

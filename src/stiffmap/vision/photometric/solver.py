@@ -234,10 +234,12 @@ def gauss_newton(
         A = start.A
         w = evaluate.weights
         g = evaluate.gradient(e)
+        fresh = False  # the linearisation is the previous image's, not at st
     else:
         evaluate = _Evaluator(setup, noise_var, huber, keep=chord > 0)
         e, var, hw, A, g = evaluate(st)
         w = hw / var
+        fresh = True
     # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
     # steps within that are taken as not raising it (a diverging step raises it far more).
     slack = 1.0 if evaluate.dtype == np.float32 else 0.0
@@ -271,8 +273,10 @@ def gauss_newton(
                 st.a + step[N_NONLINEAR : N_NONLINEAR + nb],
                 st.b + step[N_NONLINEAR + nb :],
             )
-            relinearise = not last and chords >= chord
-            if last and chord:
+            # A chord step's gradient uses an older Jacobian: its fixed point is not the optimum.
+            # Converged only on a step from a linearisation at the current state.
+            relinearise = (not last and chords >= chord) or (last and not fresh)
+            if last and chord and fresh:
                 # A last step (below the tolerance) of a chord fit is taken without evaluating
                 # the model again: the residuals, noise and weights stay those before it (the
                 # cost they give is higher by at most tol^2 in sum w e^2 ~ N: s^2 by < 1e-3).
@@ -287,10 +291,11 @@ def gauss_newton(
             if chords:  # a chord step that fails: linearise again where we are
                 break
             lam = max(lam * 10, 1e-6)
-        if not accepted and chords:
+        if not accepted and (chords or not fresh):
             e, var, hw, A, g = evaluate(st)
             w = hw / var
             chord = chords = 0  # plain Gauss-Newton from here
+            fresh = True
             continue
         if not accepted:
             converged = True  # no step lowers the cost: at the minimum to rounding
@@ -299,16 +304,18 @@ def gauss_newton(
         if watch is not None:
             watch(st)
         lam = max(lam / 10, 1e-9)
-        if last:
+        if last and fresh:
             converged = True
             break
         if relinearise:
             A, g = A2, g2
             w = hw / var
             chords = 0 if chord else chords
+            fresh = True
         else:
             g = evaluate.gradient(e)
             chords += 1
+            fresh = False
     lin = Linearisation(evaluate, A, evaluate.lin_state) if evaluate.keep else None
     return Solution(st, it, converged, e, var, hw, A, lin)
 
