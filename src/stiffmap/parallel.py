@@ -143,7 +143,7 @@ class Cluster:
                     n_workers=max(1, int(workers)),
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=None,
+                    dashboard_address=":0",  # a free port: none named, none taken from another cluster
                     silence_logs=logging.ERROR,
                 )
             except (OSError, RuntimeError, TimeoutError) as e:
