@@ -63,30 +63,8 @@ def test_killed_run_resumes_to_the_same_database(campaign, tmp_path):
     b = _copy(campaign, tmp_path / "b")
     full = _run(a, "--workers", "1")
     assert full.returncode == 0, full.stderr
-    env = dict(os.environ, PYTHONWARNINGS="error")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "stiffmap", "run", str(b), "--quiet", "--no-report", "--workers", "2"],
-        start_new_session=True,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        env=env,
-    )
-    db = b / "stiffmap.db"
-    killed_at = None
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and proc.poll() is None:
-        if db.exists():
-            try:
-                with Store(db, read_only=True, timeout=0.1) as st:
-                    n = len(st.stiffness_rows())
-            except (sqlite3.OperationalError, InputError):  # being created: no tables yet
-                n = 0
-            if n >= 1:
-                os.killpg(proc.pid, signal.SIGKILL)  # the run and its worker processes
-                killed_at = n
-                break
-        time.sleep(0.02)
-    proc.wait(timeout=30)
+    proc = _start_run(b, "--workers", "2")
+    killed_at = _kill_when_measured(proc, b / "stiffmap.db", 1)
     assert killed_at is not None and killed_at < 4, "the run was not caught partway"
     again = _run(b, "--workers", "2")
     assert again.returncode == 0, again.stderr
@@ -305,20 +283,24 @@ def test_killed_dask_client_resumes_to_the_same_database(quick_demo, tmp_path):
     four positions: their rows are the whole demo's)."""
     _, demo = quick_demo
     c = _fresh_copy(demo, tmp_path / "c", positions=4)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "stiffmap", "run", str(c), "--quiet", "--no-report", "--dask", "local",
-         "--workers", "2"],
-        start_new_session=True,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        env=dict(os.environ, PYTHONWARNINGS="error"),
-    )  # fmt: skip
+    proc = _start_run(c, "--dask", "local", "--workers", "2")
     killed_at = _kill_when_measured(proc, c / "stiffmap.db", 1)
     assert killed_at is not None and killed_at < 4, "the run was not caught partway"
     again = _run(c, "--dask", "local", "--workers", "2")
     assert again.returncode == 0, again.stderr
     assert f"{4 - killed_at} measured" in again.stdout
     assert _positions_content(c / "stiffmap.db", 4) == _positions_content(demo / "stiffmap.db", 4)
+
+
+def _start_run(path, *args):
+    """`stiffmap run PATH ARGS` started in its own process group (to be killed), warnings as errors."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "stiffmap", "run", str(path), "--quiet", "--no-report", *args],
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=dict(os.environ, PYTHONWARNINGS="error"),
+    )
 
 
 def _kill_when_measured(proc, db, n_positions, timeout=180):

@@ -154,17 +154,16 @@ class Cluster:
         else:
             _check_reachable(distributed, address)
             target = address
+        failure = None
         try:
-            with _quiet_unraisable():  # a client that failed to connect complains as it is collected
-                try:
-                    self.client = distributed.Client(target, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-                finally:
-                    gc.collect()
+            self.client = distributed.Client(target, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as e:
+            failure = _one_line(e)
+        if failure is not None:
+            with _quiet_unraisable():  # the half-made client complains as it is collected
+                gc.collect()
             self._close_cluster()
-            raise InputError(
-                f"--dask {address}: no Dask scheduler answers there ({_one_line(e)}); " + _START_HINT
-            ) from None
+            raise InputError(f"--dask {address}: no Dask scheduler answers there ({failure}); " + _START_HINT)
         #: What happened to the cluster during the work (workers that left), one line each.
         self.events: list[str] = []
         try:
@@ -212,10 +211,6 @@ class Cluster:
         """Threads over all workers (tasks that can run at once)."""
         workers = self.client.scheduler_info().get("workers", {})
         return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
-
-    def worker_pids(self) -> dict[str, int]:
-        """Process id of each worker, by address."""
-        return self.client.run(os.getpid)
 
     def sees(self, path: str | os.PathLike) -> bool:
         """Whether every worker reads the same file at ``path`` (same size, same first 64 KiB)."""

@@ -20,6 +20,7 @@ a video or folder that ends, raise :class:`~stiffmap.errors.InputError` naming t
 
 from __future__ import annotations
 
+import abc
 import importlib
 import os
 import time
@@ -112,8 +113,8 @@ class CameraSource(Protocol):
     def __exit__(self, exc_type, exc: BaseException | None, tb: TracebackType | None) -> None: ...
 
 
-class _Source:
-    """Context-manager plumbing shared by the sources."""
+class _Source(abc.ABC):
+    """Context-manager plumbing shared by the sources (each opens and closes its camera)."""
 
     name = "camera"
 
@@ -124,11 +125,13 @@ class _Source:
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close()
 
-    def open(self) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abc.abstractmethod
+    def open(self) -> None:
+        """Open the camera (InputError when it cannot be)."""
 
-    def close(self) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Release the camera (safe to call twice)."""
 
 
 def _grey_or_bgr(img: np.ndarray, name: str) -> np.ndarray:

@@ -347,7 +347,6 @@ class PoseTracker:
         before starts from the last image's corners with a fresh photometric fit.
         """
         if state is None or state == self._state:
-            self._state = state if state is not None else self._state
             return
         nc = len(self.rig)
         if self._state is not None:
