@@ -24,6 +24,7 @@ BGR uint8 image (h, w, 3) is converted to grey. :func:`coarse_scales` and
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import re
@@ -96,11 +97,12 @@ def _check_complete(fmt: str, tail: bytes, size: int, src: str) -> None:
 MAX_IMAGE_SIDE_PX = 100_000
 
 
-def _check_png(data: bytes, src: str, crc: bool = True) -> None:
+def _check_png(data: bytes, src: str, crc: bool = True, header_only: bool = False) -> None:
     """Walk a PNG's chunks: lengths, the header's size and (``crc``) every critical chunk's CRC.
 
-    libpng checks the critical chunks' CRCs itself while decoding (and fails): :func:`read_image`
-    walks without them before decoding, and with them only to say why a decoding failed.
+    libpng checks the chunks itself while decoding (and fails): :func:`read_image` checks the
+    header alone before decoding (a declared size no camera makes is refused before the decoder
+    allocates it), and walks every chunk with its CRC only to say why a decoding failed.
     """
     size = len(data)
     pos = 8
@@ -146,6 +148,8 @@ def _check_png(data: bytes, src: str, crc: bool = True) -> None:
                     source=src,
                 )
             first = False
+            if header_only:
+                return
         n_idat += tag == b"IDAT"
         if tag == b"IEND":
             break
@@ -169,6 +173,31 @@ def _decoder_messages():
         yield lines
 
 
+_CAPTURE: list = []  # [(pid, file)]: the file fd 2 is sent to while decoding, one per process
+
+
+def _capture_file():
+    """This process's temporary file for the decoders' messages (made once: a new one per image
+    cost a few hundred microseconds), closed at exit. A forked child closes its copy of the
+    parent's (the parent keeps its own) and makes its own."""
+    pid = os.getpid()
+    if _CAPTURE and _CAPTURE[0][0] == pid:
+        return _CAPTURE[0][1]
+    if _CAPTURE:
+        with contextlib.suppress(OSError):
+            _CAPTURE[0][1].close()
+    else:
+        atexit.register(_close_capture_file)
+    _CAPTURE[:] = [(pid, tempfile.TemporaryFile())]
+    return _CAPTURE[0][1]
+
+
+def _close_capture_file() -> None:
+    if _CAPTURE:
+        with contextlib.suppress(OSError):
+            _CAPTURE[0][1].close()
+
+
 @contextlib.contextmanager
 def _caught_fd2():
     lines: list[str] = []
@@ -182,17 +211,19 @@ def _caught_fd2():
         if saved is None:
             yield lines
             return
-        with tempfile.TemporaryFile() as tmp:
-            with contextlib.suppress(Exception):
-                sys.stderr.flush()
-            os.dup2(tmp.fileno(), 2)
-            try:
-                yield lines
-            finally:
-                os.dup2(saved, 2)
-                tmp.seek(0)
-                text = tmp.read(4096).decode("utf-8", errors="replace")
-                lines += [" ".join(ln.split()) for ln in text.splitlines() if ln.strip()]
+        tmp = _capture_file()
+        tmp.seek(0)
+        tmp.truncate()
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            tmp.seek(0)
+            text = tmp.read(4096).decode("utf-8", errors="replace")
+            lines += [" ".join(ln.split()) for ln in text.splitlines() if ln.strip()]
     finally:
         if saved is not None:
             os.close(saved)
@@ -254,7 +285,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         )
     _check_complete(fmt, data[-32:], size, src)
     if fmt == "PNG":
-        _check_png(data, src, crc=False)
+        _check_png(data, src, header_only=True)
     flags = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
     with _decoder_messages() as lines:
         try:
