@@ -57,7 +57,7 @@ __all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model"]
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
 #: recomputes it. MEASUREMENT: image -> board poses; DERIVATION: poses -> K.
-MEASUREMENT_REVISION = 6
+MEASUREMENT_REVISION = 7
 DERIVATION_REVISION = 3
 
 

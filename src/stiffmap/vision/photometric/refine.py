@@ -12,6 +12,7 @@ or refused (:mod:`~stiffmap.vision.photometric.acceptance`) and returned as a
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, replace
 
@@ -223,15 +224,21 @@ class PhotometricTrack:
 def _outline_shift(camera: CameraModel, board: Chessboard, Ta: np.ndarray, Tb: np.ndarray) -> float:
     """Largest motion of the checkered area's corners between two poses, px (pinhole: the lens
     distortion changes a motion of a few px by a few %). inf when a corner is behind the camera."""
-    s = board.square_mm
-    q = np.array([[-s, -s], [board.cols * s, -s], [-s, board.rows * s], [board.cols * s, board.rows * s]])
-    uv = []
-    for T in (Ta, Tb):
-        P = q @ T[:3, :2].T + T[:3, 3]
-        if np.any(P[:, 2] <= 0):
-            return float("inf")
-        uv.append(P[:, :2] / P[:, 2:] * [camera.fx, camera.fy])
-    return float(np.max(np.abs(uv[0] - uv[1])))
+    q = _outline(board.square_mm, board.cols, board.rows)
+    Pa = q @ Ta[:3, :2].T + Ta[:3, 3]
+    Pb = q @ Tb[:3, :2].T + Tb[:3, 3]
+    if Pa[:, 2].min() <= 0 or Pb[:, 2].min() <= 0:
+        return float("inf")
+    d = np.abs(Pa[:, :2] / Pa[:, 2:] - Pb[:, :2] / Pb[:, 2:]).max(axis=0)
+    return float(max(d[0] * camera.fx, d[1] * camera.fy))
+
+
+@functools.lru_cache(maxsize=64)
+def _outline(s: float, cols: int, rows: int) -> np.ndarray:
+    """The corners of a board's checkered area, (4, 2) (board frame, mm)."""
+    q = np.array([[-s, -s], [cols * s, -s], [-s, rows * s], [cols * s, rows * s]])
+    q.setflags(write=False)
+    return q
 
 
 def _polygons(exclude) -> list[np.ndarray]:
@@ -396,7 +403,8 @@ def refine_pose_photometric(
         Starting effective blur sigma, px.
     band_px : float, optional
         Half-width of the band of pixels used along every grid line, px (default
-        2.5 blur sigmas, at least 2 px).
+        :data:`~stiffmap.vision.photometric.pixels.BAND_SIGMAS` blur sigmas, at least
+        :data:`~stiffmap.vision.photometric.pixels.BAND_MIN_PX`).
     shading_degree : int
         Degree (0, 1, 2) of the black-level and contrast polynomials over the image.
     outer_edges : bool
