@@ -85,6 +85,22 @@ def test_rotvec_round_trip_and_small_angle(rng):
     np.testing.assert_allclose(g.rotvec_from_matrix(R), r, atol=1e-15)
 
 
+def test_one_logarithm_agrees_with_scipy_to_the_bit():
+    # One matrix is taken on floats (the pose fits' path), several by SciPy: the same values,
+    # over angles from 1e-12 rad to a half turn, within 1e-12 of a half turn, and 0.
+    rng = np.random.default_rng(12)
+    r = np.concatenate([rng.normal(scale=s, size=(300, 3)) for s in (1e-12, 1e-8, 1e-5, 1e-3, 0.5, 3.0)])
+    axis = rng.normal(size=(200, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    r = np.vstack([r, axis * (np.pi - 10.0 ** rng.uniform(-12, -1, size=(200, 1))), np.zeros(3)])
+    R = g.matrix_from_rotvec(r)
+    one = np.array([g.rotvec_from_matrix(m) for m in R])
+    np.testing.assert_array_equal(one, Rotation.from_matrix(R).as_rotvec())
+    np.testing.assert_array_equal(one, g.rotvec_from_matrix(R))
+    np.testing.assert_allclose(g.matrix_from_rotvec(one), R, rtol=0, atol=1e-14)
+    assert np.linalg.norm(one, axis=1).max() <= np.pi
+
+
 def test_cam2base_from_fixed_is_eq1_of_the_paper(rng):
     # The paper's fixed-target pose on the robot (section 3.1).
     fixed2base = np.array([[1, 0, 0, -75.63], [0, 0, 1, 188.10], [0, -1, 0, 31.00], [0, 0, 0, 1.0]])

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...geometry import rotvec_from_matrix
 from ...posemath import perturb_pose
 from .model import GEMM_SINGLE_THREAD, GEMV_SINGLE_THREAD, N_NONLINEAR, model_and_jacobian
 from .pixels import PhotometricError, PhotometricSetup
@@ -30,11 +31,15 @@ __all__ = [
     "wsum",
 ]
 
-#: A chord step from the previous image's linearisation shrinks the error by that Jacobian's
-#: change, 1.5-3 % between the images of one position (measured on 2592x1944 renders: a step of
-#: 100 sigma leaves 1.4-3 sigma); after a step of more than this many sigma another such step
-#: comes before the fit linearises again.
-STALE_STEP_SIGMA = 100.0
+#: A chord step (the Jacobian, normal matrix and weights of an earlier linearisation, such as the
+#: previous image's) ends a fit when that linearisation was taken within this many standard
+#: deviations of the step's start (the metric of its normal matrix, all parameters) and the step
+#: is itself shorter than this: the Jacobian changes by well under 1 % over such distances, so
+#: the step leaves the fit within a few hundredths of a sigma of the optimum (measured on nine
+#: image formations, benchmarks/bench_vision_speed.py: warm poses against cold fits moved by
+#: < 0.01 sigma RMS going from steps of 3 sigma from a linearisation at the start to this).
+#: A step ending farther than this from the linearisation linearises again where it ends.
+CHORD_SIGMA = 10.0
 
 #: Pixels per chunk of the fused model / Jacobian / normal-matrix evaluation (kept in cache).
 _CHUNK = 8192
@@ -220,15 +225,16 @@ def gauss_newton(
     next one would be smaller still by the (linear) rate of convergence. The normal
     matrix returned is that of the last linearisation (less than ``tol`` sigma away).
 
-    ``chord`` > 0 (a start a few sigma from the optimum): after a step, up to ``chord``
-    further steps reuse the last linearisation's Jacobian, normal matrix and weights (the
-    chord method: the gradient J W e at the new residuals, one model evaluation and no new
-    Jacobian per step). The model is so nearly linear over a few sigma that each such step
-    shrinks the remaining error by far more than the ``tol`` criterion needs; a step that
-    does not lower the cost, or ``chord`` steps without convergence, linearise again.
-    ``start``: the first steps are chord steps with that linearisation (the previous image's,
-    on the same pixels, near ``st``) and its weights, with no Jacobian computed here unless
-    they do not converge. The solution keeps its last linearisation (``lin``) when ``chord``.
+    ``chord`` > 0 (a start a few sigma from the optimum): steps reuse the last linearisation's
+    Jacobian, normal matrix and weights (the chord method: the gradient J W e at the new
+    residuals, one model evaluation and no new Jacobian per step) while they end within
+    :data:`CHORD_SIGMA` of where it was taken, for up to ``chord`` steps in a row; a step from a
+    linearisation within :data:`CHORD_SIGMA` of its start, itself shorter than that, ends the
+    fit without evaluating the model again (see :data:`CHORD_SIGMA`); a step that does not
+    lower the cost linearises again. ``start``: the fit starts with that linearisation (the
+    previous image's, on the same pixels, near ``st``) and its weights, with no Jacobian
+    computed here unless the fit moves too far from it. The solution keeps its last
+    linearisation (``lin``) when ``chord``.
     ``watch(state)``, called after every step taken, may raise to stop the fit (a
     :class:`~stiffmap.vision.photometric.pixels.PhotometricError`).
     """
@@ -241,13 +247,11 @@ def gauss_newton(
         w = evaluate.weights
         g = evaluate.gradient(e)
         fresh = False  # the linearisation is the previous image's, not at st
-        stale = True  # ... and is replaced after the first step (see below)
     else:
         evaluate = _Evaluator(setup, noise_var, huber, keep=chord > 0)
         e, var, hw, A, g = evaluate(st)
         w = hw / var
         fresh = True
-        stale = False
     # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
     # steps within that are taken as not raising it (a diverging step raises it far more).
     slack = 1.0 if evaluate.dtype == np.float32 else 0.0
@@ -262,7 +266,9 @@ def gauss_newton(
         d[d == 0] = 1.0
         An = A / np.outer(d, d)
         gn = g / d
-        accepted = last = False
+        accepted = last = ended = False
+        # The linearisation was taken at st, or near enough for a chord step to end the fit.
+        near = fresh or (chord > 0 and _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA)
         for _ in range(10):
             try:
                 step = np.linalg.solve(An + lam * np.eye(An.shape[0]), gn) / d
@@ -273,7 +279,8 @@ def gauss_newton(
             if not np.isfinite(step).all() or sig_new[0] - np.hypot(sig_new[1], sig_new[2]) <= 0.05:
                 lam = max(lam * 10, 1e-6)
                 continue
-            last = float(step @ A @ step) < tol * tol
+            length2 = float(step @ A @ step)
+            last = length2 < tol * tol
             new = FitState(
                 perturb_pose(st.T, step),
                 sig_new,
@@ -281,20 +288,16 @@ def gauss_newton(
                 st.a + step[N_NONLINEAR : N_NONLINEAR + nb],
                 st.b + step[N_NONLINEAR + nb :],
             )
-            # A chord step's gradient uses an older Jacobian: its fixed point is not the optimum.
-            # Converged only on a step from a linearisation at the current state.
-            # The previous image's linearisation serves until a step shorter than STALE_STEP_SIGMA:
-            # converging needs this image's Jacobian anyway, and such a step leaves the fit a few
-            # sigma from the optimum at most, where one step from that Jacobian ends the fit.
-            small = float(step @ A @ step) < STALE_STEP_SIGMA**2
-            relinearise = (not last and chords >= chord) or (last and not fresh) or (stale and small)
-            if last and chord and fresh:
-                # A last step (below the tolerance) of a chord fit is taken without evaluating
-                # the model again: the residuals, noise and weights stay those before it (the
-                # cost they give is higher by at most tol^2 in sum w e^2 ~ N: s^2 by < 1e-3).
-                e2, var2, hw2 = e, var, hw
-                accepted = True
-                break
+            relinearise = True
+            if chord:
+                if near and length2 < CHORD_SIGMA**2:
+                    # The last step, taken without evaluating the model again: the residuals,
+                    # noise and weights stay those before it (the cost they give is higher by
+                    # at most CHORD_SIGMA^2 in sum w e^2 ~ N: s^2 by < 1 % of its 1/N).
+                    e2, var2, hw2 = e, var, hw
+                    accepted = ended = True
+                    break
+                relinearise = chords >= chord or not _distance_sigma(new, evaluate.lin_state, A) < CHORD_SIGMA
             e2, var2, hw2, A2, g2 = evaluate(new, jacobian=relinearise)
             # Cost at the same weights (IRLS): accept when it does not increase.
             if wsum(w, e2) <= cost * (1 + 1e-12) + slack:
@@ -307,7 +310,7 @@ def gauss_newton(
             e, var, hw, A, g = evaluate(st)
             w = hw / var
             chord = chords = 0  # plain Gauss-Newton from here
-            fresh, stale = True, False
+            fresh = True
             continue
         if not accepted:
             converged = True  # no step lowers the cost: at the minimum to rounding
@@ -316,20 +319,36 @@ def gauss_newton(
         if watch is not None:
             watch(st)
         lam = max(lam / 10, 1e-9)
-        if last and fresh:
+        if ended or (last and fresh):
             converged = True
             break
         if relinearise:
             A, g = A2, g2
             w = hw / var
-            chords = 0 if chord else chords
-            fresh, stale = True, False
+            chords = 0
+            fresh = True
         else:
             g = evaluate.gradient(e)
             chords += 1
             fresh = False
     lin = Linearisation(evaluate, A, evaluate.lin_state) if evaluate.keep else None
     return Solution(st, it, converged, e, var, hw, A, lin)
+
+
+def _distance_sigma(a: FitState, b: FitState, A: np.ndarray) -> float:
+    """The length of the parameter change from ``b`` to ``a`` in the metric of A, sigmas (the pose
+    part as the perturbation of :func:`~stiffmap.posemath.perturb_pose`)."""
+    d = np.concatenate(
+        [
+            a.T[:3, 3] - b.T[:3, 3],
+            rotvec_from_matrix(a.T[:3, :3] @ b.T[:3, :3].T),
+            a.sig - b.sig,
+            a.dil - b.dil,
+            a.a - b.a,
+            a.b - b.b,
+        ]
+    )
+    return float(np.sqrt(max(d @ A @ d, 0.0)))
 
 
 def fit_noise_model(m: np.ndarray, e: np.ndarray) -> tuple[float, float]:
