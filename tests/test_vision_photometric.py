@@ -554,3 +554,35 @@ def test_a_sequence_follows_warm_agrees_with_cold_fits_and_falls_back_after_a_ju
     for k in range(len(truth)):  # every pose, the jumps' included, is the true one
         z = _err(ms[k].mobile2cam, truth[k]) / np.sqrt(np.diag(ms[k].mobile2cam_cov))
         assert np.all(np.abs(z) < 5), (k, z)
+
+
+def test_a_followed_board_keeps_its_pixels_when_the_other_board_moves_far_from_them():
+    """The mobile board jumps by 2 mm (a load change: its left-out area in the fixed board's fit
+    moves by ~5 px) far from the fixed board: the fixed board keeps its pixel set (no new
+    selection) and its pose is the one a cold fit gives, within a quarter sigma."""
+    fixed = Chessboard(6, 4, 10.0)
+    Tf = look_at_pose(330, fixed, tilt_deg=(5, 15, 0), offset_mm=(70, 10))
+    Tm = look_at_pose(330, BOARD, tilt_deg=(15, -20, 10), offset_mm=(-50, 0))
+    jump = Tm.copy()
+    jump[:3, 3] += Tm[:3, :3] @ [2.0, -1.0, 0.0]
+    scenes = [Tm, Tm, jump, jump]
+    images = [
+        render(SMALL, [Target(BOARD, T), Target(fixed, Tf)], seed=k).image for k, T in enumerate(scenes)
+    ]
+    warm = PoseTracker(SMALL, BOARD, fixed, np.eye(4))
+    cold = PoseTracker(SMALL, BOARD, fixed, np.eye(4))
+    cold._warm_start = False
+    track = warm._photo[0][1]
+    kept, masks = [], []
+    for im in images:
+        ms, mc = warm.measure(im), cold.measure(im)
+        assert ms.ok and mc.ok and ms.fixed.method == mc.fixed.method == "photometric"
+        kept.append(track._last["setup"])
+        masks.append(detection_mask(ms.mobile_detection, margin_sq=2.2))
+        sd = np.sqrt(np.diag(mc.fixed.cov_noise))
+        assert np.all(np.abs(_err(ms.fixed.board2cam, mc.fixed.board2cam)) < 0.25 * sd)
+    assert ms.mobile_detection.orientation == "photometric"  # followed again after the jump
+    # The mobile board's left-out area moved by more than the 1 px a pixel set is kept for ...
+    assert np.abs(masks[2] - masks[1]).max() > 3.0
+    # ... but it misses the fixed board's pixels: they were not selected again.
+    assert kept[1] is kept[2] is kept[3], "the fixed board's pixels were selected again"

@@ -97,13 +97,12 @@ def accept_fit(
             f"{100 * outliers:.0f} % of the pixels do not fit the model (more than "
             f"{100 * max_outlier_fraction:.0f} %: obstructed board or another pattern)"
         )
-    bvals = poly(st.b, setup.basis[:, ::8])  # a smooth polynomial: every 8th pixel is plenty
-    contrast = float(np.median(bvals))
+    # A polynomial of degree <= 2 over the board: every 16th pixel is plenty.
+    low, contrast = (float(q) for q in np.quantile(poly(st.b, setup.basis[:, ::16]), [0.01, 0.5]))
     if contrast <= 0:
         raise PhotometricError(
             f"the fitted contrast is not positive ({contrast:.1f} DN): inverted or wrong board"
         )
-    low = float(np.percentile(bvals, 1))
     if low < MIN_CONTRAST_RATIO * contrast:
         raise PhotometricError(
             f"the fitted contrast falls to {100 * low / contrast:.0f} % of its median over part of the "

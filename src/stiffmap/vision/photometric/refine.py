@@ -120,17 +120,17 @@ FOLLOW_MAX_ITER = 4
 class PhotometricTrack:
     """What one board's photometric fit leaves for the next image of a sequence (a warm start).
 
-    In a sequence of one robot position the board barely moves between images. The next
-    fit of the board then starts from this one: the same pixel set (only the pixels'
-    values are read from the new image) while the start pose moves the board's outline by
-    less than :data:`REUSE_PX` px (and the left-out areas by less than 1 px), else a new
-    one selected for the fitted blur; the blur, dilation and shading of the last fit as
-    the start of those parameters, and its noise model for the weights (refitted to each
-    fit's residuals). The pass on an eighth of the pixels and the set-up of the cold fit are
-    skipped, and the fit runs in single precision with chord steps (the Jacobian of the
-    start reused, :func:`~stiffmap.vision.photometric.solver.gauss_newton`). The pose comes
-    from the same model and the same cost as the cold fit's; a warm fit that fails any
-    check falls back to the cold fit, and a failed cold fit clears the track.
+    In a sequence of one robot position the board barely moves between images. The next fit of
+    the board then starts from this one: the same pixel set (only the pixels' values are read
+    from the new image) while the start pose moves the board's outline by less than
+    :data:`REUSE_PX` px (and the left-out areas moved by less than 1 px, or miss the pixels it
+    looked at), else a new one selected for the fitted blur; the blur, dilation and shading of
+    the last fit as the start of those parameters, and its noise model for the weights (refitted
+    to each fit's residuals). The pass on an eighth of the pixels and the set-up of the cold fit
+    are skipped, and the fit runs in single precision with chord steps (the Jacobian of the
+    start reused, :func:`~stiffmap.vision.photometric.solver.gauss_newton`). The pose comes from
+    the same model and the same cost as the cold fit's; a warm fit that fails any check falls
+    back to the cold fit, and a failed cold fit clears the track.
 
     Used by :class:`~stiffmap.vision.sequence.PoseTracker` (one per camera and board).
     """
@@ -166,10 +166,14 @@ class PhotometricTrack:
         if not moved < board.square_mm * camera.fx / max(T0[2, 3], 1.0):
             return None  # moved by a square or more: a new start
         polys = _polygons(exclude)
-        same_exclusion = len(polys) == len(last["exclude"]) and all(
-            p.shape == q.shape and float(np.max(np.abs(p - q), initial=0.0)) < 1.0
-            for p, q in zip(polys, last["exclude"], strict=True)
-        )
+        region = last["setup"].region
+        same_exclusion = (
+            len(polys) == len(last["exclude"])
+            and all(
+                p.shape == q.shape and float(np.max(np.abs(p - q), initial=0.0)) < 1.0
+                for p, q in zip(polys, last["exclude"], strict=True)
+            )
+        ) or not (_meets(polys, region) or _meets(last["exclude"], region))
         return dict(last, reuse=moved < REUSE_PX and same_exclusion)
 
     def sensitivity(self, camera: CameraModel, board: Chessboard, T: np.ndarray) -> np.ndarray | None:
@@ -239,6 +243,24 @@ def _outline(s: float, cols: int, rows: int) -> np.ndarray:
     q = np.array([[-s, -s], [cols * s, -s], [-s, rows * s], [cols * s, rows * s]])
     q.setflags(write=False)
     return q
+
+
+def _meets(polygons: list[np.ndarray], region: tuple[int, int, int, int], margin_px: float = 2.0) -> bool:
+    """Whether any polygon's bounding box meets the pixel box ``region`` (c0, r0, c1, r1) grown
+    by ``margin_px`` (a pixel set chosen in that box is then the same with or without them)."""
+    c0, r0, c1, r1 = region
+    for p in polygons:
+        if p.size == 0:
+            continue
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        if (
+            hi[0] >= c0 - margin_px
+            and lo[0] <= c1 + margin_px
+            and hi[1] >= r0 - margin_px
+            and lo[1] <= r1 + margin_px
+        ):
+            return True
+    return False
 
 
 def _polygons(exclude) -> list[np.ndarray]:
