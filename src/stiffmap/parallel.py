@@ -18,6 +18,14 @@ Backends (:class:`Backend`):
   :class:`Lost`). ``dask.distributed`` is an optional extra
   (``pip install 'stiffmap[dask]'``), imported only when a cluster is asked for.
 
+Objects on a cluster travel as pickles of their own (:func:`_pack`: arrays inside, as a
+process pool sends them), not through Dask's serialisation, which rebuilds small arrays
+as views into a received message at any byte offset: a float64 array 4 bytes off its
+alignment makes NumPy's matrix product take another loop than BLAS's, whose sums differ
+in the last bit (a simulated campaign's truth rendered on Dask differed from the pool's).
+A task's context, its item and its result are thus the same arrays, bit for bit and
+aligned, wherever it runs.
+
 Files on a cluster: :meth:`Cluster.sees` tells whether every worker reads the same
 file at the same path (shared storage); when one does not, the caller sends the
 bytes with the task instead (``stiffmap run``) or has them sent back
@@ -33,6 +41,7 @@ import gc
 import hashlib
 import logging
 import os
+import pickle
 import socket
 import sys
 import uuid
@@ -310,13 +319,30 @@ def _call_in_process(fn: Callable[[Any, Any], Any], item: Any) -> Any:
     return fn(_CTX["ctx"], item)
 
 
-def _call_on_worker(fn: Callable[[Any, Any], Any], init: Callable[[Any], None] | None, token: str, ctx, item):
+def _pack(obj: Any) -> bytes:
+    """``obj`` pickled with its arrays' data inside the pickle (no out-of-band buffers).
+
+    Unpickled, every array is a fresh, aligned one: what a process pool's worker receives.
+    Dask's own serialisation of the same object may give arrays that are views at any byte
+    offset of a message, whose products NumPy computes without BLAS (other last bits).
+    """
+    return pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def _call_on_worker(
+    fn: Callable[[Any, Any], Any], init: Callable[[Any], None] | None, token: str, ctx: bytes, item: bytes
+) -> bytes:
+    """``fn(ctx, item)`` on a Dask worker, from and to :func:`_pack`'s bytes; the context is
+    unpacked (and ``init`` run) once per worker and :func:`map_unordered` call (``token``)."""
     if "malloc" not in _CTX:
         _CTX["malloc"] = _keep_large_buffers()
-    if init is not None and _CTX.get("token") != token:
-        init(ctx)
-        _CTX["token"] = token
-    return fn(ctx, item)
+    current = _CTX.get("cluster")
+    if current is None or current[0] != token:
+        current = (token, pickle.loads(ctx))
+        if init is not None:
+            init(current[1])
+        _CTX["cluster"] = current
+    return _pack(fn(current[1], pickle.loads(item)))
 
 
 def _keep_large_buffers() -> bool:
@@ -425,7 +451,7 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
     """
     dist = cluster._dist
     client = cluster.client
-    shared = cluster.share(ctx)
+    shared = cluster.share(_pack(ctx))
     token = uuid.uuid4().hex
     limit = window or len(items)
     queue = iter(range(len(items)))
@@ -434,7 +460,9 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
 
     def submit(k: int):
         arg = prep(items[k])
-        if _is_large(arg):  # big data goes beside the task graph, not inside it
+        large = _is_large(arg)
+        arg = _pack(arg)
+        if large:  # big data goes beside the task graph, not inside it
             [arg] = client.scatter([arg], hash=False)
         fut = client.submit(_call_on_worker, fn, init, token, shared, arg, pure=False)
         pending[fut.key] = (fut, k)
@@ -451,7 +479,7 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
         for fut in futures:
             _, k = pending.pop(fut.key)
             try:
-                result = fut.result()
+                result = pickle.loads(fut.result())
             except CancelledError:  # its sent data died with a worker: send it again
                 fut.release()
                 if submissions[k] < MAX_SUBMISSIONS:
