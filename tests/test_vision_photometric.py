@@ -33,7 +33,7 @@ from helpers.shared_data import CALIB_DIR
 
 from stiffmap.camera import CameraModel, reference_camera, save_camera
 from stiffmap.geometry import rotvec_from_matrix
-from stiffmap.posemath import perturb_pose
+from stiffmap.posemath import perturb_pose, ray2board_homography
 from stiffmap.sim.render import Photometry, Target, render, true_corners
 from stiffmap.targets import CharucoBoard, Chessboard
 from stiffmap.vision import (
@@ -79,6 +79,22 @@ def _los(T, board) -> np.ndarray:
     c = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])
     p = T[:3, :3] @ c + T[:3, 3]
     return p / np.linalg.norm(p)
+
+
+def test_ray2board_homography_inverts_the_board_plane_homography():
+    """H^-1 of H = [r1, r2, t] (closed form): H^-1 H = I, and a board point's ray meets the board
+    at that point, for poses from 50 mm to 5 m at any orientation facing the camera."""
+    rng = np.random.default_rng(21)
+    for _ in range(200):
+        T = look_at_pose(
+            rng.uniform(50, 5000), BOARD, tilt_deg=rng.uniform(-60, 60, 3), offset_mm=rng.normal(0, 30, 2)
+        )
+        H = np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]])
+        np.testing.assert_allclose(ray2board_homography(T) @ H, np.eye(3), rtol=0, atol=1e-12)
+        q = np.r_[rng.uniform(-10, 80, 2), 0.0]
+        p = T[:3, :3] @ q + T[:3, 3]
+        w = ray2board_homography(T) @ (p / p[2])
+        np.testing.assert_allclose(w[:2] / w[2], q[:2], rtol=0, atol=1e-9)
 
 
 # --------------------------------------------------------------------------- Jacobian

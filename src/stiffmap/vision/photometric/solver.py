@@ -41,8 +41,10 @@ __all__ = [
 #: A step ending farther than this from the linearisation linearises again where it ends.
 CHORD_SIGMA = 10.0
 
-#: Pixels per chunk of the fused model / Jacobian / normal-matrix evaluation (kept in cache).
-_CHUNK = 8192
+#: Pixels per chunk of the fused model / Jacobian / normal-matrix evaluation: a chunk's ~20
+#: single-precision arrays stay in a 2 MB cache (on such a machine, 16384 measured 20 % faster
+#: per tracked image than 8192; 32768 and more no faster).
+_CHUNK = 16384
 
 
 def wsum(w: np.ndarray, e: np.ndarray) -> float:
