@@ -33,9 +33,11 @@ from pathlib import Path
 import cv2
 from _table import RESULTS, markdown, write
 
+from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
 from stiffmap.campaign.runner import run_campaign
 from stiffmap.campaign.simulated import write_campaign
+from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, dump_content
 
 #: The reference study's campaign: positions x load cases x repeats x (unloaded, loaded).
@@ -125,9 +127,12 @@ def main() -> None:
                 + f" {TARGET_S / 60:.0f} min",
             ],
         ]
+        spec = load_spec(out)
+        w, h = load_camera(out / spec.camera.file).image_size
         notes = (
-            f"{n} rendered 2592x1944 PNG images of two boards (12x7 fixed with corner poses, 8x6 mobile "
-            f"with photometric poses, the default), {os.cpu_count()} CPUs"
+            f"{n} rendered {w}x{h} PNG images of two boards (the demo scene: fixed "
+            f"{spec.targets.fixed.board} with corner poses, mobile {spec.targets.mobile.board} with "
+            f"photometric poses, a campaign's default), {os.cpu_count()} CPUs"
             + (f"; rendering them took {t_render:.0f} s with 2 processes" if t_render else "")
             + ". Each run starts from an empty database. 'x decode' is the run's time per image over "
             "the decode floor's with as many processes."
