@@ -285,8 +285,9 @@ def run_capture(
     average = cap.average or n_frames == 1
     if not average and n_frames != spec.repeats:
         raise InputError(
-            f"--frames {n_frames} with [capture] average = false keeps the frames as the repeats: "
-            f"it must equal repeats = {spec.repeats}"
+            f"--frames {n_frames} with capture.average = false keeps the frames as the repeats: "
+            f"it must equal repeats = {spec.repeats}",
+            source=str(root / "campaign.toml"),
         )
     steps = capture_steps(spec, root, group_repeats=not average)
     monitor = monitor or monitor_for(spec, root)
