@@ -18,13 +18,14 @@ import tomllib
 
 import numpy as np
 import pytest
+from helpers.capture_campaigns import FAST_SIM
 from helpers.cli_process import run_in_process, run_stiffmap
 
 from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
 from stiffmap.campaign.runner import run_campaign
 from stiffmap.campaign.simulated import write_campaign
-from stiffmap.campaign.store import Store, dump_content
+from stiffmap.campaign.store import Store, dump_content, from_json
 from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main
 from stiffmap.errors import InputError
@@ -237,6 +238,73 @@ def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
     assert r.ready
     assert r.errors == ()
     assert r.external_requests == ()
+
+
+# ------------------------------------------------------------------ guided capture (issue 15)
+
+#: The quick demo's positions (1-based) the capture test takes at full size: the one its own
+#: images measure worst (2: -67, -67, -200 mm, 0.60 %) and the far corner of the lowest plane
+#: (6: 200, 200, -400 mm).
+CAPTURED = (2, 6)
+
+
+def test_capture_of_the_quick_demo_then_run_gives_the_demo_error(quick_demo, tmp_path):
+    """Issue 15's must-show on the quick demo's own campaign (its campaign.toml, calibrated
+    camera.json and truth.json; no image): `stiffmap capture --camera sim --yes`, then `stiffmap
+    run`, gives K as close to the truth as the demo's own rendered images do, and every image was
+    saved from frames taken with the platform settled (the simulated camera's truth).
+
+    Two of the six positions (40 of the 120 images, 2592x1944 px, the campaign's [capture]
+    defaults: 1 s settled; 40 s to capture, 5 s to run): the whole campaign takes 2 min to
+    capture, benchmarks/bench_capture_demo.py (benchmarks/results/capture_demo.md: every
+    position, worst K error 0.51 % captured against 0.60 % from the demo's images). Measured
+    here: 0.40 and 0.43 % at positions 2 and 6, where the demo's images give 0.60 and 0.22 %.
+    """
+    proc, demo = quick_demo
+    assert proc.returncode == 0, proc.stderr
+    c = tmp_path / "captured"
+    c.mkdir()
+    for name in ("camera.json", "truth.json"):
+        shutil.copy2(demo / name, c / name)
+    spec = (demo / "campaign.toml").read_text()
+    m = re.search(r"\[positions\]\n(?:#.*\n)*list = \[\n((?:  \[.*\],\n)+)\]", spec)
+    rows = m.group(1).splitlines(keepends=True)
+    (c / "campaign.toml").write_text(spec.replace(m.group(1), "".join(rows[i - 1] for i in CAPTURED)))
+    cap = run_stiffmap("capture", c, "--camera", FAST_SIM, "--yes")
+    assert cap.returncode == 0, cap.stderr
+    assert "every image of the campaign is on disk" in cap.stdout
+    log = [json.loads(line) for line in (c / "capture_log.jsonl").read_text().splitlines()]
+    saved = [r for r in log if r["event"] == "saved"]
+    assert len(saved) == 2 * 20 and log[-1]["event"] == "end"
+    # The platform swung after each load change and move: frames were refused (6.8 frames per
+    # image); every saved frame shows it settled, its swing's envelope below the camera's 1 um
+    # vibration (at most 0.001 um measured), and the settle monitor's chi2 within its limit.
+    frames = int(re.search(r"; (\d+) frames;", cap.stdout).group(1))
+    assert frames > 4 * len(saved)
+    for r in saved:
+        assert r["source_truth"]["settled"] == [True], r
+        assert max(r["source_truth"]["envelope_mm"]) < 1e-3
+        assert r["settle"]["chi2_max"] <= r["settle"]["chi2_limit"]
+    run = _run(c, "--workers", "2")
+    assert run.returncode == 0, run.stderr
+    truth = load_truth(demo)
+    rel = lambda K, i: np.linalg.norm(K - truth.K[i]) / np.linalg.norm(truth.K[i])  # noqa: E731
+    demo_K = [
+        np.array(p["K"]) for p in json.loads((demo / "exports" / "summary.json").read_text())["positions"]
+    ]
+    err_demo = [rel(K, i) for i, K in enumerate(demo_K)]
+    with Store(c / "stiffmap.db", read_only=True) as st:
+        got = {r["position"]: r for r in st.stiffness_rows()}
+    assert sorted(got) == [1, 2] and all(r["status"] == "ok" for r in got.values())
+    err_cap = [rel(from_json(got[k + 1]["K"]), i - 1) for k, i in enumerate(CAPTURED)]
+    # One capture is one draw of the camera's noise and the robot's jitter, as one rendering of
+    # the demo is: in three full captures the worst position was 0.51-0.95 % against the demo's
+    # 0.60 % (capture_demo.md: settled 1, 0.6 and 0.4 s). The demo's error is its worst
+    # position's; a capture is held to twice it (1.2 %; the demo's own bound is 2 %,
+    # docs/simulation.md). A capture that does not wait for the platform to settle misses every
+    # K by 5.6-6.8 % (capture_demo.md, settle_seconds = 0).
+    assert max(err_demo) < 0.02
+    assert max(err_cap) < 2 * max(err_demo), (err_cap, err_demo)
 
 
 # ------------------------------------------------------------------ Dask (issue 14)

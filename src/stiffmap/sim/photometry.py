@@ -5,7 +5,8 @@ an 8-bit image: :func:`blurred_reflectance` passes it through the optics (a Gaus
 point-spread function, then integration over each pixel, on supersampled target regions),
 and :func:`apply_photometry` through the sensor: illumination gain and black level, cos^4
 vignetting, shot and read noise from a seeded generator, an optional Bayer colour
-filter, rounding.
+filter, rounding. The pieces (:func:`target_patch`, :func:`sensor_signal`, :func:`noise_sigma`)
+serve :mod:`.live_render`, which renders again only what moves between a live camera's frames.
 """
 
 from __future__ import annotations
@@ -19,7 +20,18 @@ import numpy as np
 from ..camera import CameraModel
 from .reflectance import render_reflectance, target_bbox
 
-__all__ = ["Photometry", "apply_photometry", "blurred_reflectance", "BLUR_SUPERSAMPLE"]
+__all__ = [
+    "Photometry",
+    "apply_photometry",
+    "blurred_reflectance",
+    "BLUR_SUPERSAMPLE",
+    "blur_reach_px",
+    "patch_bounds",
+    "target_patch",
+    "has_noise",
+    "sensor_signal",
+    "noise_sigma",
+]
 
 
 @dataclass(frozen=True)
@@ -190,27 +202,114 @@ def blurred_reflectance(
         out = cv2.GaussianBlur(
             np.asarray(background, dtype=np.float32), (0, 0), blur_px, borderType=cv2.BORDER_REPLICATE
         )
-    cam_s = _supersampled_camera(camera, ss)
-    m = int(np.ceil(4 * blur_px)) + 2  # beyond 4 sigma the PSF is negligible
     for tg in targets:
-        bb = target_bbox(camera, tg.texture(), tg.board2cam, (0, 0, w, h))
-        if bb is None:
-            continue
-        r0, r1, c0, c1 = bb
-        R0, R1, C0, C1 = max(r0 - 2 * m, 0), min(r1 + 2 * m, h), max(c0 - 2 * m, 0), min(c1 + 2 * m, w)
-        if np.isscalar(background):
-            bg = float(background)
-        else:
-            bg = np.repeat(np.repeat(np.asarray(background)[R0:R1, C0:C1], ss, axis=0), ss, axis=1)
-        fine = render_reflectance(cam_s, targets, background=bg, roi=(C0 * ss, R0 * ss, C1 * ss, R1 * ss))
-        fine = cv2.GaussianBlur(
-            fine.astype(np.float32), (0, 0), blur_px * ss, borderType=cv2.BORDER_REPLICATE
-        )
-        coarse = fine.reshape(R1 - R0, ss, C1 - C0, ss).mean(axis=(1, 3))
-        # Keep the part at least m pixels inside the rendered area (the blur there saw no border).
-        i0, i1, j0, j1 = max(r0 - m, 0), min(r1 + m, h), max(c0 - m, 0), min(c1 + m, w)
-        out[i0:i1, j0:j1] = coarse[i0 - R0 : i1 - R0, j0 - C0 : j1 - C0]
+        patch = target_patch(camera, targets, tg, background=background, blur_px=blur_px, supersample=ss)
+        if patch is not None:
+            (i0, i1, j0, j1), values = patch
+            out[i0:i1, j0:j1] = values
     return out
+
+
+def blur_reach_px(blur_px: float) -> int:
+    """How far the optics blur reaches around a target, px: beyond 4 sigma the PSF is negligible."""
+    return int(np.ceil(4 * blur_px)) + 2
+
+
+def patch_bounds(
+    camera: CameraModel, target, blur_px: float
+) -> tuple[tuple[int, int, int, int], tuple[int, int, int, int]] | None:
+    """Where :func:`target_patch` renders a target and which part of it it keeps.
+
+    Returns
+    -------
+    ((R0, R1, C0, C1), (i0, i1, j0, j1)) or None
+        Rows and columns (end excluded) of the image rendered at the fine resolution (the
+        target's bounding box widened by twice the blur's reach ``m``, :func:`blur_reach_px`),
+        and of the patch kept (widened by ``m``: the blur there saw no border); None when the
+        target is out of the image.
+    """
+    w, h = camera.image_size
+    m = blur_reach_px(blur_px)
+    bb = target_bbox(camera, target.texture(), target.board2cam, (0, 0, w, h))
+    if bb is None:
+        return None
+    r0, r1, c0, c1 = bb
+    render_box = (max(r0 - 2 * m, 0), min(r1 + 2 * m, h), max(c0 - 2 * m, 0), min(c1 + 2 * m, w))
+    keep = (max(r0 - m, 0), min(r1 + m, h), max(c0 - m, 0), min(c1 + m, w))
+    return render_box, keep
+
+
+def target_patch(
+    camera: CameraModel,
+    targets,
+    target,
+    *,
+    background=0.35,
+    blur_px: float,
+    supersample: int = BLUR_SUPERSAMPLE,
+    rays=None,
+    tile_px: int = 0,
+    chunk_rows: int = 128,
+) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+    """The blurred reflectance around one target, as :func:`blurred_reflectance` pastes it.
+
+    The part of the image :func:`patch_bounds` gives is rendered at ``supersample`` x
+    ``supersample`` sub-pixels with every target of ``targets`` that falls in it, blurred,
+    and averaged back to pixels.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    targets : sequence of Target
+        Every target of the scene (those near ``target`` are drawn in its patch too).
+    target : Target
+    background : float or ndarray, shape (h, w)
+    blur_px : float
+        PSF sigma, px (> 0).
+    supersample : int
+        > 1.
+    rays : optional
+        The supersampled camera's rays (see :func:`stiffmap.sim.reflectance.render_reflectance`).
+    tile_px : int
+        Tiles of uniform pixels (see :func:`stiffmap.sim.reflectance.render_reflectance`).
+    chunk_rows : int
+        Fine rows rendered at a time (memory; the values do not depend on it).
+
+    Returns
+    -------
+    ((i0, i1, j0, j1), values) or None
+        Rows i0..i1-1 and columns j0..j1-1 of the image, and their values, float32 (None: the
+        target is out of the image).
+    """
+    bounds = patch_bounds(camera, target, blur_px)
+    if bounds is None:
+        return None
+    (R0, R1, C0, C1), (i0, i1, j0, j1) = bounds
+    ss = int(supersample)
+    if np.isscalar(background):
+        bg = float(background)
+    else:
+        bg = np.repeat(np.repeat(np.asarray(background)[R0:R1, C0:C1], ss, axis=0), ss, axis=1)
+    cam_s = _supersampled_camera(camera, ss)
+    fine = render_reflectance(
+        cam_s,
+        targets,
+        background=bg,
+        roi=(C0 * ss, R0 * ss, C1 * ss, R1 * ss),
+        rays=rays,
+        tile_px=tile_px,
+        chunk_rows=chunk_rows,
+    )
+    fine = cv2.GaussianBlur(fine.astype(np.float32), (0, 0), blur_px * ss, borderType=cv2.BORDER_REPLICATE)
+    if ss == 2:
+        # The mean of each 2 x 2 block, summed as NumPy's mean sums them (the same float32
+        # values, bit for bit), without its 15 times slower strided reduction.
+        coarse = ((fine[0::2, 0::2] + fine[0::2, 1::2]) + (fine[1::2, 0::2] + fine[1::2, 1::2])) / np.float32(
+            4
+        )
+    else:
+        coarse = fine.reshape(R1 - R0, ss, C1 - C0, ss).mean(axis=(1, 3))
+    return (i0, i1, j0, j1), coarse[i0 - R0 : i1 - R0, j0 - C0 : j1 - C0]
 
 
 def apply_photometry(
@@ -247,23 +346,62 @@ def apply_photometry(
     ph = photometry
     if ph.blur_px > 0 and not blurred:
         img = cv2.GaussianBlur(img, (0, 0), ph.blur_px, borderType=cv2.BORDER_REPLICATE)
-    sig = img * np.float32(255.0 * ph.gain)
-    if ph.vignetting > 0:
-        sig *= np.float32(1.0 - ph.vignetting) + np.float32(ph.vignetting) * _cos4(camera)
-    if ph.colour:
-        # A Bayer sensor: one colour filter per pixel, R at even rows and columns.
-        b, g, r = (np.float32(x) for x in ph.white_balance)
-        sig[0::2, 0::2] *= r
-        sig[0::2, 1::2] *= g
-        sig[1::2, 0::2] *= g
-        sig[1::2, 1::2] *= b
-    if ph.read_noise_dn > 0 or ph.shot_dn_per_e > 0:
+    sig = sensor_signal(img, camera, ph)
+    if has_noise(ph):
         if rng is None:
             raise ValueError("apply_photometry needs a random generator (rng) when the photometry has noise")
-        sd = np.sqrt(np.float32(ph.read_noise_dn**2) + np.float32(ph.shot_dn_per_e) * sig)
+        sd = noise_sigma(sig, ph)
         sig = sig + sd * rng.standard_normal(sig.shape, dtype=np.float32)
     sig += np.float32(ph.offset_dn)
     raw = np.clip(np.rint(sig), 0, 255).astype(np.uint8)
     if ph.colour:
         return cv2.cvtColor(raw, cv2.COLOR_BayerBG2BGR_EA)
     return raw
+
+
+def has_noise(photometry: Photometry) -> bool:
+    """The photometry draws noise (read or shot noise)."""
+    return photometry.read_noise_dn > 0 or photometry.shot_dn_per_e > 0
+
+
+def sensor_signal(
+    reflectance: np.ndarray, camera: CameraModel, photometry: Photometry, origin: tuple[int, int] = (0, 0)
+) -> np.ndarray:
+    """Mean signal above the black level, DN (float32), of a blurred reflectance image or of a part.
+
+    Illumination gain, vignetting and, for a colour camera, the Bayer filter's gains (R at even
+    rows and columns of the whole image).
+
+    Parameters
+    ----------
+    reflectance : ndarray, shape (n, m), float32
+        The image's rows ``origin[0]`` .. ``origin[0] + n - 1`` and columns ``origin[1]`` ...
+    camera : CameraModel
+    photometry : Photometry
+    origin : (int, int)
+        Row and column of ``reflectance[0, 0]`` in the image.
+    """
+    ph = photometry
+    r0, c0 = (int(v) for v in origin)
+    n, m = reflectance.shape
+    sig = reflectance * np.float32(255.0 * ph.gain)
+    if ph.vignetting > 0:
+        sig *= (
+            np.float32(1.0 - ph.vignetting)
+            + np.float32(ph.vignetting) * _cos4(camera)[r0 : r0 + n, c0 : c0 + m]
+        )
+    if ph.colour:
+        # A Bayer sensor: one colour filter per pixel, R at even rows and columns.
+        b, g, r = (np.float32(x) for x in ph.white_balance)
+        er, ec = r0 % 2, c0 % 2  # the first even row and column of the part
+        sig[er::2, ec::2] *= r
+        sig[er::2, 1 - ec :: 2] *= g
+        sig[1 - er :: 2, ec::2] *= g
+        sig[1 - er :: 2, 1 - ec :: 2] *= b
+    return sig
+
+
+def noise_sigma(signal: np.ndarray, photometry: Photometry) -> np.ndarray:
+    """1 sigma of the sensor noise, DN (float32), at each pixel's mean signal (read and shot noise)."""
+    ph = photometry
+    return np.sqrt(np.float32(ph.read_noise_dn**2) + np.float32(ph.shot_dn_per_e) * signal)

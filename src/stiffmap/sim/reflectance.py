@@ -22,7 +22,7 @@ from ..camera import CameraModel, pixel_rays
 from ..geometry import as_transform
 from ..posemath import faces_camera
 from ..targets import CharucoBoard, Chessboard
-from .coverage import render_block
+from .coverage import render_block, render_block_tiled
 from .texture import BoardTexture, texture_from_board
 
 __all__ = ["Target", "render_reflectance", "true_corners", "clutter_background", "target_bbox"]
@@ -103,6 +103,8 @@ def render_reflectance(
     background=0.35,
     roi: tuple[int, int, int, int] | None = None,
     chunk_rows: int = 128,
+    rays=None,
+    tile_px: int = 0,
 ) -> np.ndarray:
     """Box-filtered scene reflectance seen by the camera (no photometry, no noise).
 
@@ -116,6 +118,16 @@ def render_reflectance(
         Render only columns c0..c1-1 and rows r0..r1-1 (default the whole image).
     chunk_rows : int
         Rows processed at a time (memory).
+    rays : optional
+        Where the rays of a block of pixels come from: an object with ``block(rows, cols)``
+        returning the values of ``pixel_rays(camera).block(rows, cols)`` (default that, the
+        camera's ray cache; :class:`stiffmap.sim.live_render.RayWindow` keeps them for a part of
+        the image that is rendered again and again).
+    tile_px : int
+        0: every pixel worked out (:func:`~stiffmap.sim.coverage.render_block`); more: tiles of
+        that many pixels that see one cell of a print take its value without working out each
+        pixel (:func:`~stiffmap.sim.coverage.render_block_tiled`: the same values, bit for bit,
+        twice as fast on the demo's mobile board, whose squares span tens of pixels).
 
     Returns
     -------
@@ -144,6 +156,7 @@ def render_reflectance(
     rm = pixel_rays(camera)
     if not rm.covers_image:
         raise ValueError(f"cannot render through this camera's distortion: {rm.field.describe()}")
+    block = rm.block if rays is None else rays.block
     # Painter's order: the farthest target first.
     order = sorted(targets, key=lambda tg: -float(np.linalg.norm(tg.board2cam[:3, 3])))
     for tg in order:
@@ -162,7 +175,10 @@ def render_reflectance(
         for rs in range(br0, br1, chunk_rows):
             re = min(rs + chunk_rows, br1)
             rows = np.arange(rs - 1, re + 1, dtype=np.float64)
-            colv, covv = render_block(*rm.block(rows, cols), tex, T)
+            if tile_px:
+                colv, covv = render_block_tiled(*block(rows, cols), tex, T, tile_px)
+            else:
+                colv, covv = render_block(*block(rows, cols), tex, T)
             sub = img[rs - r0 : re - r0, bc0 - c0 : bc1 - c0]
             sub[...] = colv.reshape(sub.shape) + (1.0 - covv.reshape(sub.shape)) * sub
     return img
