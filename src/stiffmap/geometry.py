@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 __all__ = [
     "as_transform",
@@ -259,6 +258,8 @@ def rotvec_from_matrix(R) -> np.ndarray:
     R = _as_array(R, (3, 3), "R")
     if R.ndim == 2:
         return _rotvec_one(R)
+    from scipy.spatial.transform import Rotation  # imported here: 0.2 s that most commands never need
+
     flat = R.reshape(-1, 3, 3)
     rv = Rotation.from_matrix(flat).as_rotvec()
     return rv.reshape(*R.shape[:-2], 3)

@@ -54,9 +54,9 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from scipy import optimize, stats
 
 from .errors import DesignError, IllConditionedWarning
+from .stats import chi2_sf, t_ppf
 from .stiffness import (
     DISPLACEMENT_FLOOR_MM,
     StiffnessIndices,
@@ -120,7 +120,7 @@ def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG
         Sa = A @ np.asarray(K_cov) @ A.T
         try:
             chi2 = float(a @ np.linalg.solve(Sa, a))
-            p = float(stats.chi2.sf(chi2, a.size))
+            p = chi2_sf(chi2, a.size)
         except np.linalg.LinAlgError:
             p = 0.0 if idx.asymmetry > asymmetry_threshold else 1.0
         if p < 0.01:
@@ -226,7 +226,7 @@ class StiffnessFit:
         """
         if not 0 < level < 1:
             raise ValueError(f"level must be in (0, 1), got {level}")
-        q = stats.t.ppf(0.5 + level / 2, self.dof_effective)
+        q = t_ppf(0.5 + level / 2, self.dof_effective)
         return self.K - q * self.K_std, self.K + q * self.K_std
 
 
@@ -412,6 +412,8 @@ def _spd_compliance(
 
     theta0 = L0[il].copy()
     theta0[diag] = np.log(theta0[diag])
+    from scipy import optimize  # on first use: 0.15 s that most commands never need
+
     sol = optimize.least_squares(resid, theta0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     L = unpack(sol.x)
     # The optimum may lie on the boundary of the cone (a compliance eigenvalue -> 0, an
@@ -636,7 +638,7 @@ def _estimate(
         chi2 = float(sum(R[:, i] @ W[i] @ R[:, i] for i in range(n)))
         if dof > 0:
             chi2_red = chi2 / (m * dof)
-            p = float(stats.chi2.sf(chi2, m * dof))
+            p = chi2_sf(chi2, m * dof)
             if p < 0.01:
                 flags.append(
                     f"residuals exceed the given displacement uncertainty "

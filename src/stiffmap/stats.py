@@ -13,6 +13,10 @@ conditions this module computes:
 - stragglers (5 %) and outliers (1 %) judged by critical values computed
   from the t and F distributions (ISO 5725-2, 7.3.3-7.3.4 and Annex B
   formulas), not read from tables.
+
+It is also the one home of the probability laws the package uses (:func:`chi2_sf`,
+:func:`chi2_ppf`, :func:`t_ppf`, :func:`f_ppf`): SciPy's, with ``scipy.stats`` imported on
+first use (it takes 0.35 s, and most commands never need it).
 """
 
 from __future__ import annotations
@@ -21,7 +25,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 __all__ = [
     "ConditionStats",
@@ -32,7 +35,43 @@ __all__ = [
     "mandel_k_critical",
     "cochran_critical",
     "grubbs_critical",
+    "chi2_sf",
+    "chi2_ppf",
+    "t_ppf",
+    "f_ppf",
 ]
+
+
+def _laws():
+    from scipy import stats  # on first use: 0.35 s that most commands never need
+
+    return stats
+
+
+def _value(v):
+    """A float for one value, an array for several (the laws take arrays elementwise)."""
+    return float(v) if np.ndim(v) == 0 else np.asarray(v, dtype=np.float64)
+
+
+def chi2_sf(x, dof):
+    """P(X > x) for X chi-squared with ``dof`` degrees of freedom (elementwise over arrays)."""
+    return _value(_laws().chi2.sf(x, dof))
+
+
+def chi2_ppf(q, dof):
+    """The ``q`` quantile of the chi-squared law with ``dof`` degrees of freedom."""
+    return _value(_laws().chi2.ppf(q, dof))
+
+
+def t_ppf(q, dof):
+    """The ``q`` quantile of Student's t with ``dof`` degrees of freedom (elementwise over arrays)."""
+    return _value(_laws().t.ppf(q, dof))
+
+
+def f_ppf(q, dfn, dfd):
+    """The ``q`` quantile of Fisher's F with (``dfn``, ``dfd``) degrees of freedom."""
+    return _value(_laws().f.ppf(q, dfn, dfd))
+
 
 STRAGGLER_ALPHA = 0.05
 OUTLIER_ALPHA = 0.01
@@ -50,7 +89,7 @@ def mandel_h_critical(p: int, alpha: float) -> float:
     Student's t with p - 2 degrees of freedom.
     """
     _check_p(p, 3)
-    t = stats.t.ppf(1 - alpha / 2, p - 2)
+    t = t_ppf(1 - alpha / 2, p - 2)
     return float((p - 1) * t / np.sqrt(p * (t * t + p - 2)))
 
 
@@ -63,7 +102,7 @@ def mandel_k_critical(p: int, n: int, alpha: float) -> float:
     _check_p(p, 2)
     if n < 2:
         raise ValueError(f"n (repeats per condition) must be >= 2, got {n}")
-    f = stats.f.ppf(1 - alpha, n - 1, (p - 1) * (n - 1))
+    f = f_ppf(1 - alpha, n - 1, (p - 1) * (n - 1))
     return float(np.sqrt(p / (1 + (p - 1) / f)))
 
 
@@ -76,7 +115,7 @@ def cochran_critical(p: int, n: int, alpha: float) -> float:
     _check_p(p, 2)
     if n < 2:
         raise ValueError(f"n (repeats per condition) must be >= 2, got {n}")
-    f = stats.f.ppf(1 - alpha / p, n - 1, (p - 1) * (n - 1))
+    f = f_ppf(1 - alpha / p, n - 1, (p - 1) * (n - 1))
     return float(1 / (1 + (p - 1) / f))
 
 
@@ -87,7 +126,7 @@ def grubbs_critical(p: int, alpha: float) -> float:
     quantile of Student's t with p - 2 degrees of freedom.
     """
     _check_p(p, 3)
-    t = stats.t.ppf(1 - alpha / (2 * p), p - 2)
+    t = t_ppf(1 - alpha / (2 * p), p - 2)
     return float((p - 1) / np.sqrt(p) * np.sqrt(t * t / (p - 2 + t * t)))
 
 

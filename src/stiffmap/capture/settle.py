@@ -39,10 +39,10 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from ..camera import CameraModel
 from ..geometry import rotvec_from_matrix
+from ..stats import chi2_ppf
 from ..vision.board_plane import detection_mask
 from ..vision.detection import Board, BoardDetection, board_label, grid_of
 from ..vision.images import check_image, coarse_scales, reduce_image
@@ -87,7 +87,7 @@ class SettleSettings:
     @property
     def chi2_limit(self) -> float:
         """The chi2 (6 dof) below which a frame's pose is within the noise."""
-        return float(chi2_dist.ppf(self.confidence, 6))
+        return chi2_ppf(self.confidence, 6)
 
 
 @dataclass(frozen=True)

@@ -40,9 +40,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
 
 from ..errors import DesignError, IllConditionedWarning
+from ..stats import chi2_sf
 from .base import Mechanism, PoseError, as_points, format_pose
 
 __all__ = [
@@ -311,6 +311,8 @@ def _fit(
     yhat0 = predict(model)
     scale = float(np.linalg.norm(yhat0 / w))
     _check_design(names, _jac_log(resid, x0), scale)
+    from scipy import optimize  # on first use: 0.15 s that most commands never need
+
     res = optimize.least_squares(resid, x0, method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = res.x
     fitted = model_at(x)
@@ -407,7 +409,7 @@ def _misfit_notes(
         "wrong (a fixed one, or the geometry), or a measurement is"
     )
     if has_sigma and dof > 0:
-        p = float(stats.chi2.sf(chi2, dof))
+        p = chi2_sf(chi2, dof)
         if p < MISFIT_P:
             return [
                 f"{hint} (chi2/dof = {chi2 / dof:.3g} over {dof} dof, p = {p:.2g}; "

@@ -82,10 +82,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import optimize, stats
 
 from ..errors import DesignError, IllConditionedWarning, InputError
 from ..io import to_jsonable
+from ..stats import chi2_sf
 from .fit import (
     CONDITION_WARN,
     MIN_INVERSE_CONDITION,
@@ -1156,6 +1156,8 @@ def _fit_once(
         chi0 = float(r0 @ r0)
         cov_unc = scaled(cov_s, chi0, n_obs - p) / np.outer(norms, norms)
         c_unc = x / norms
+        from scipy import optimize  # on first use: 0.15 s that most commands never need
+
         res = optimize.lsq_linear(An, yw, bounds=(0.0, np.inf), method="bvls", tol=1e-14)
         free = res.active_mask == 0
         while True:
@@ -1209,7 +1211,7 @@ def _fit_once(
     else:
         rms_l, nrms_l = _rms_table(lidx, len(label_names), resid, nres)
 
-    p_value = float(stats.chi2.sf(chi2, dof)) if cov is not None and dof > 0 else float("nan")
+    p_value = chi2_sf(chi2, dof) if cov is not None and dof > 0 else float("nan")
     hint = (
         f"the model with joint compliances {_format_names(fitted)} fitted does not explain the measurements"
     )

@@ -18,7 +18,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+
+from ..stats import t_ppf
 
 __all__ = ["LinearFit", "Hysteresis", "fit_load_displacement", "hysteresis", "branches"]
 
@@ -116,7 +117,7 @@ def fit_load_displacement(load_n, displacement_mm, *, level: float = 0.95) -> Li
         s2 = float((res**2).sum()) / dof
         sc = math.sqrt(s2 / Sff)
         sa = math.sqrt(s2 * (1.0 / n + Fm**2 / Sff))
-        tq = float(stats.t.ppf(0.5 + level / 2, dof))
+        tq = t_ppf(0.5 + level / 2, dof)
     else:
         sc = sa = tq = float("nan")
     k = _ratio(1.0, c) if c != 0 else float("inf")

@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..camera import CameraModel, reference_camera
 from ..geometry import as_transform, concat, invert_transform, transform_from
@@ -180,6 +179,8 @@ def default_scene(camera: CameraModel | None = None) -> Scene:
     orientation). The tool point is 50 mm behind the mobile board, 15 mm above
     its first row of corners, centred.
     """
+    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
+
     cam = reference_camera() if camera is None else camera
     R0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # cam x, y, z in base
     R = (
@@ -236,6 +237,8 @@ def demo_scene(camera: CameraModel | None = None) -> Scene:
     a 6x5 one) is what brings the displacement along the line of sight to a few
     micrometres, so that K is recovered within a few percent at every position.
     """
+    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
+
     cam = reference_camera() if camera is None else camera
     R0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
     R = (
@@ -293,6 +296,8 @@ def with_cameras(
         With ``rig`` set (exact ``cam2rig``: the test-bed's truth) and ``camera``,
         ``cam2base`` those of the first camera.
     """
+    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
+
     n = int(n)
     if n < 1:
         raise ValueError(f"a scene needs at least one camera, got {n}")
@@ -354,6 +359,8 @@ def two_camera_rig(
     -------
     Rig
     """
+    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
+
     d = float(distance_mm)
     a = float(angle_deg)
     if not (np.isfinite(d) and d > 0):
@@ -404,6 +411,8 @@ def board_pose_at_pixel(
     -------
     board2cam : ndarray, shape (4, 4)
     """
+    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
+
     uv = np.asarray(pixel, dtype=np.float64)
     p = np.asarray(board_point_mm, dtype=np.float64)
     if uv.shape != (2,) or p.shape != (2,) or not (np.all(np.isfinite(uv)) and np.all(np.isfinite(p))):

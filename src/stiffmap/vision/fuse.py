@@ -67,11 +67,11 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import chi2 as chi2_law
 
 from ..geometry import displacement_from_poses, rotvec_from_matrix
 from ..posemath import BoardPose, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
+from ..stats import chi2_ppf, chi2_sf
 from ..targets import CharucoBoard, Chessboard
 
 __all__ = [
@@ -175,7 +175,9 @@ class FusedPose(BoardPose):
     @property
     def p_value(self) -> float:
         """Probability of a chi2 at least this large when the cameras agree (1 for one camera)."""
-        return 1.0 if self.dof == 0 else float(chi2_law.sf(self.chi2, self.dof))
+        if self.dof == 0:
+            return 1.0
+        return chi2_sf(self.chi2, self.dof)
 
 
 def to_rig_frame(board2cam: np.ndarray, cam2rig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -451,7 +453,7 @@ def _consistency(Ns, Bs, offsets, Sc) -> tuple[float, int]:
 
 @lru_cache(maxsize=16)
 def _chi2_limit(dof: int) -> float:
-    return float(chi2_law.ppf(CONSISTENCY_QUANTILE, dof))
+    return chi2_ppf(CONSISTENCY_QUANTILE, dof)
 
 
 def _consistency_warning(views, chi2: float, dof: int, label: str) -> str | None:
