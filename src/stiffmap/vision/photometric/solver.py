@@ -127,7 +127,8 @@ class _Evaluator:
     last row, and its weighted Gram matrix [J; e] W [J; e]^T is accumulated at once (in
     double precision, over blocks of columns: a float32 set-up computes the model and the
     Jacobian in single precision). With ``keep``, the whole Jacobian of the last
-    linearisation is kept (one buffer per chunk), for :meth:`gradient`.
+    linearisation and the model there are kept (one buffer per chunk), for :meth:`gradient`
+    and :meth:`predict`.
     """
 
     def __init__(self, setup: PhotometricSetup, noise_var, huber: float, keep: bool = False) -> None:
@@ -150,18 +151,21 @@ class _Evaluator:
         else:
             buf = np.empty((self.p + 1, min(_CHUNK, n)), dtype=self.dtype)
             self.bufs = [buf] * len(self.chunks)
+        # With keep: the model at the last linearisation, per chunk (its row p of bufs is e).
+        self.models: list[np.ndarray] | None = None
         self.weights: np.ndarray | None = None
         self.lin_state: FitState | None = None
         self.nk = max(64, GEMM_SINGLE_THREAD // (self.p + 1) ** 2)
 
     def __call__(self, st: FitState, jacobian: bool = True):
         p = self.p
-        es, vs, hs = [], [], []
+        es, vs, hs, ms = [], [], [], []
         G = np.zeros((p + 1, p + 1)) if jacobian else None
         for ch, buf in zip(self.chunks, self.bufs, strict=True):
             n = ch.n_pixels
             M = buf[:, :n]
             m, _ = model_and_jacobian(ch, st.T, st.sig, st.dil, st.a, st.b, jacobian=jacobian, out=M[:p])
+            ms.append(m)
             e = ch.values - m
             var = self.noise_var(m)
             hw = _huber(e / np.sqrt(var), self.huber)
@@ -180,7 +184,31 @@ class _Evaluator:
         if self.keep:
             self.weights = hw / var
             self.lin_state = st
+            self.models = ms
         return e, var, hw, G[:p, :p], G[:p, p]
+
+    def predict(self, st: FitState):
+        """Residuals, noise and Huber weights at ``st`` from the kept linearisation, m(x_L) +
+        J_L (st - x_L), instead of the model (:data:`CHORD_SIGMA`: within it of x_L, the
+        difference is below a hundredth of the noise)."""
+        if self.models is None or self.lin_state is None:  # pragma: no cover - guarded by the caller
+            raise RuntimeError("no linearisation kept")
+        p, nv = self.p, self.nv
+        delta = _parameter_change(st, self.lin_state).astype(self.dtype)
+        es, vs, hs = [], [], []
+        for ch, buf, m_lin in zip(self.chunks, self.bufs, self.models, strict=True):
+            n, npad = ch.n_pixels, buf.shape[1]
+            K = npad // nv
+            # delta^T J over blocks of nv columns, each below OpenBLAS's threading size.
+            J = buf[:p].reshape(p, K, nv).transpose(1, 0, 2)
+            m = (delta @ J).reshape(npad)[:n]
+            m += m_lin
+            e = ch.values - m
+            var = self.noise_var(m)
+            es.append(e)
+            vs.append(var)
+            hs.append(_huber(e / np.sqrt(var), self.huber))
+        return tuple(np.concatenate(x) for x in (es, vs, hs))
 
     def rebind(self, setup: PhotometricSetup, noise_var) -> None:
         """The same pixels (and kept Jacobian) with another image's values and noise model."""
@@ -245,8 +273,12 @@ def gauss_newton(
     if start is not None and chord > 0:
         evaluate = start.evaluator
         evaluate.rebind(setup, noise_var)
-        e, var, hw, _, _ = evaluate(st, jacobian=False)
         A = start.A
+        if _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA:
+            # Near the linearisation: the model there and its Jacobian give the residuals.
+            e, var, hw = evaluate.predict(st)
+        else:
+            e, var, hw, _, _ = evaluate(st, jacobian=False)
         w = evaluate.weights
         g = evaluate.gradient(e)
         fresh = False  # the linearisation is the previous image's, not at st
@@ -339,10 +371,10 @@ def gauss_newton(
     return Solution(st, it, converged, e, var, hw, A, lin)
 
 
-def _distance_sigma(a: FitState, b: FitState, A: np.ndarray) -> float:
-    """The length of the parameter change from ``b`` to ``a`` in the metric of A, sigmas (the pose
-    part as the perturbation of :func:`~stiffmap.posemath.perturb_pose`)."""
-    d = np.concatenate(
+def _parameter_change(a: FitState, b: FitState) -> np.ndarray:
+    """The parameters' change from ``b`` to ``a`` (the pose part as the perturbation of
+    :func:`~stiffmap.posemath.perturb_pose`), shape (p,)."""
+    return np.concatenate(
         [
             a.T[:3, 3] - b.T[:3, 3],
             rotvec_from_matrix(a.T[:3, :3] @ b.T[:3, :3].T),
@@ -352,6 +384,11 @@ def _distance_sigma(a: FitState, b: FitState, A: np.ndarray) -> float:
             a.b - b.b,
         ]
     )
+
+
+def _distance_sigma(a: FitState, b: FitState, A: np.ndarray) -> float:
+    """The length of the parameter change from ``b`` to ``a`` in the metric of A, sigmas."""
+    d = _parameter_change(a, b)
     return float(np.sqrt(max(d @ A @ d, 0.0)))
 
 
