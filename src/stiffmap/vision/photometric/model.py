@@ -119,8 +119,9 @@ def model_and_jacobian(
     iw2 = 1.0 / (Hi64[2, 0] * rx + Hi64[2, 1] * ry + Hi64[2, 2])
     X = (Hi64[0, 0] * rx + Hi64[0, 1] * ry + Hi64[0, 2]) * iw2
     Y = (Hi64[1, 0] * rx + Hi64[1, 1] * ry + Hi64[1, 2]) * iw2
-    dX = np.subtract(X, S.line_x, dtype=dt)
-    dY = np.subtract(Y, S.line_y, dtype=dt)
+    # (Subtracted in double, then rounded: np.subtract(..., dtype=float32) would round X first.)
+    dX = (X - S.line_x).astype(dt, copy=False)
+    dY = (Y - S.line_y).astype(dt, copy=False)
     if dt != X.dtype:
         X, Y = X.astype(dt), Y.astype(dt)
     Hi = Hi64.astype(dt)
