@@ -99,6 +99,11 @@ def test_one_logarithm_agrees_with_scipy_to_the_bit():
     np.testing.assert_array_equal(one, g.rotvec_from_matrix(R))
     np.testing.assert_allclose(g.matrix_from_rotvec(one), R, rtol=0, atol=1e-14)
     assert np.linalg.norm(one, axis=1).max() <= np.pi
+    # A reflection or a null frame is refused by both paths.
+    for bad in (np.diag([1.0, 1.0, -1.0]), -np.eye(3), np.zeros((3, 3))):
+        for arg in (bad, bad[None]):
+            with pytest.raises(ValueError):
+                g.rotvec_from_matrix(arg)
 
 
 def test_cam2base_from_fixed_is_eq1_of_the_paper(rng):

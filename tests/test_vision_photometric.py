@@ -48,10 +48,12 @@ from stiffmap.vision import (
 from stiffmap.vision.board_plane import detection_mask
 from stiffmap.vision.photometric import (
     PhotometricError,
+    PhotometricTrack,
     model_and_jacobian,
     prepare_pixels,
     refine_pose_photometric,
 )
+from stiffmap.vision.photometric.solver import CHORD_SIGMA, FitState, _Evaluator, linear_shading
 from stiffmap.vision.pose import pose_shift_sigma
 
 #: Why a fit on an obstructed board is refused: outliers, or a contrast that fades out there.
@@ -151,6 +153,49 @@ def test_single_precision_model_keeps_the_edges_where_double_puts_them():
     m64, _ = model_and_jacobian(setup, T, sig, dil, a, b, jacobian=False)
     m32, _ = model_and_jacobian(setup.astype(np.float32), T, sig, dil, a, b, jacobian=False)
     assert m32.dtype == np.float32 and np.abs(m32 - m64).max() < 1e-4
+
+
+def test_residuals_predicted_from_a_kept_linearisation_are_the_model_within_chord_sigma():
+    """A warm fit's first residuals come from its kept linearisation, m(x_L) + J_L (x - x_L):
+    within CHORD_SIGMA of x_L (in the metric of its normal matrix) they are the model's to a
+    hundredth of the noise (measured: 0.002), and far beyond it they are not (the limit matters)."""
+    T = look_at_pose(330, BOARD, tilt_deg=(20, -25, 15), offset_mm=(10, -5))
+    img = render(SMALL, [Target(BOARD, T)], seed=0).image
+    setup = prepare_pixels(img, BOARD, SMALL, T, blur_px=0.85, shading_degree=2).astype(np.float32)
+    sig, dil = np.array([0.85, 0.0, 0.0]), np.zeros(3)
+    st = FitState(T, sig, dil, *linear_shading(setup, T, sig, dil))
+    ev = _Evaluator(setup, lambda m: 1.0 + 0.04 * np.maximum(m, 0), 3.0, keep=True)
+    _, _, _, A, _ = ev(st)
+    ev.commit()
+    rng = np.random.default_rng(1)
+    for length, bound in ((CHORD_SIGMA, 0.01), (20 * CHORD_SIGMA, None)):
+        u = rng.normal(size=A.shape[0])
+        d = length * u / np.sqrt(u @ A @ u)
+        x = FitState(perturb_pose(T, d), sig + d[6:9], dil + d[9:12], st.a + d[12:18], st.b + d[18:])
+        e_pred, _, _ = ev.predict(x)
+        e_model, var, _, _, _ = ev(x, jacobian=False)
+        off = np.abs(e_pred - e_model).max() / np.sqrt(var.mean())
+        assert off < bound if bound else off > 0.01, (length, off)
+
+
+def test_a_followed_board_down_weights_a_smudge_as_a_cold_fit_does():
+    """A grey smudge over two edges in the fifth image of a static board (radius 6-12 px): the
+    default tracker (followed board, or its corners tracked when the smudge raises the residuals
+    too much) gives the cold fit's pose within a quarter sigma, the smudge down-weighted."""
+    T = look_at_pose(330, BOARD, tilt_deg=(15, -20, 10), offset_mm=(5, 0))
+    images = [render(SMALL, [Target(BOARD, T)], seed=k).image for k in range(5)]
+    uv = true_corners(SMALL, BOARD, T)
+    mid = 0.5 * (uv[10] + uv[11])
+    for radius in (6, 9, 12):
+        smudged = images[4].copy()
+        cv2.circle(smudged, (int(mid[0]), int(mid[1])), radius, 128, -1)
+        warm, cold = PoseTracker(SMALL, BOARD), PoseTracker(SMALL, BOARD)
+        cold._warm_start = False
+        a = [warm.measure(im) for im in [*images[:4], smudged]][-1].mobile
+        b = [cold.measure(im) for im in [*images[:4], smudged]][-1].mobile
+        assert a.method == b.method == "photometric" and a.photometric.outlier_fraction > 0.005
+        z = _err(a.board2cam, b.board2cam) / np.sqrt(np.diag(b.cov_noise))
+        assert np.all(np.abs(z) < 0.25), (radius, z)
 
 
 # ---------------------------------------------------------------- truth on renders
@@ -589,6 +634,28 @@ def test_a_sequence_follows_warm_agrees_with_cold_fits_and_falls_back_after_a_ju
     for k in range(len(truth)):  # every pose, the jumps' included, is the true one
         z = _err(ms[k].mobile2cam, truth[k]) / np.sqrt(np.diag(ms[k].mobile2cam_cov))
         assert np.all(np.abs(z) < 5), (k, z)
+
+
+def test_a_left_out_area_that_moves_keeps_the_pixel_set_only_while_it_misses_it():
+    """The same image fitted again with a warm start (PhotometricTrack): a left-out area that moves
+    by 5 px far from the board keeps the pixel set; one that moves onto the board's region, or
+    off it, chooses the pixels again (the area's pixels out, then back in)."""
+    T = look_at_pose(330, BOARD, tilt_deg=(15, -20, 10), offset_mm=(5, 0))
+    img = render(SMALL, [Target(BOARD, T)], seed=2).image
+    det = _truth_detection(BOARD, SMALL, T, np.random.default_rng(4), 0.02)
+    T0 = estimate_pose(det, BOARD, SMALL).board2cam
+    track = PhotometricTrack()
+    far = np.array([[5.0, 5.0], [40.0, 5.0], [40.0, 40.0], [5.0, 40.0]])  # the image's corner
+    uv = true_corners(SMALL, BOARD, T)
+    on = np.array([uv[0], uv[1], uv[9], uv[8]])  # over the board's first square
+    sets, sizes = [], []
+    for exclude in ([far], [far + 5.0], [on], [far]):
+        p = refine_pose_photometric(img, BOARD, SMALL, T0, exclude=exclude, track=track)
+        sets.append(track._last["setup"])
+        sizes.append(p.photometric.n_pixels)
+    assert sets[1] is sets[0], "an area moving far from the board chose the pixels again"
+    assert sets[2] is not sets[1] and sizes[2] < sizes[1], "an area moving onto the board kept them"
+    assert sets[3] is not sets[2] and sizes[3] == sizes[0], "an area leaving the board kept them"
 
 
 def test_a_followed_board_keeps_its_pixels_when_the_other_board_moves_far_from_them():

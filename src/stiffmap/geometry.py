@@ -245,6 +245,8 @@ def rotvec_from_matrix(R) -> np.ndarray:
     SciPy's method (``Rotation.from_matrix(R).as_rotvec()``: the unit quaternion from the
     largest of the diagonal and the trace, then 2 atan2(|v|, w) v / |v|); one matrix on
     floats, 10x faster than SciPy's set-up (the pose fits take one per step), several with SciPy.
+    R must be a rotation to rounding (the two paths then agree to the bit; a matrix far from
+    orthonormal is read differently by each).
 
     Parameters
     ----------
@@ -254,6 +256,11 @@ def rotvec_from_matrix(R) -> np.ndarray:
     -------
     ndarray, shape (..., 3)
         Angle in [0, pi].
+
+    Raises
+    ------
+    ValueError
+        A matrix whose determinant is not positive (a reflection, a null frame).
     """
     R = _as_array(R, (3, 3), "R")
     if R.ndim == 2:
@@ -268,6 +275,9 @@ def rotvec_from_matrix(R) -> np.ndarray:
 def _rotvec_one(R: np.ndarray) -> np.ndarray:
     """:func:`rotvec_from_matrix` of one (3, 3) matrix, with SciPy's arithmetic on floats."""
     (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist()
+    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
+    if not det > 0:  # as SciPy's
+        raise ValueError(f"R is not a rotation: its determinant is {det:.3g} (a reflection or a null frame)")
     tr = m00 + m11 + m22
     choice, best = 0, m00
     for k, v in ((1, m11), (2, m22), (3, tr)):

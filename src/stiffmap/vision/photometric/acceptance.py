@@ -77,10 +77,10 @@ def accept_fit(
     if not sol.converged:
         raise PhotometricError(f"did not converge in {max_iter} iterations")
     e, var, hw, A = sol.e, sol.var, sol.hw, sol.A
-    # s^2 with the weights of the normal matrix A: a warm fit's A may be a previous image's
-    # linearisation, weighted by that image's noise model (a scale error in the weights then
-    # cancels in s^2 A^-1).
-    w = sol.lin.evaluator.weights if sol.lin is not None else hw / var
+    # s^2 with the noise variance of the normal matrix A (a warm fit's A may be a previous
+    # image's linearisation, weighted by that image's noise model: a scale error in the weights
+    # then cancels in s^2 A^-1) and this image's Huber weights, as the fit's last step.
+    w = hw / (sol.lin.evaluator.var_lin if sol.lin is not None else var)
     outliers = float(np.mean(hw < 1.0))
     p, N = A.shape[0], e.size
     s2 = wsum(w, e) / max(N - p, 1)

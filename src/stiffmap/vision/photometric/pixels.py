@@ -99,10 +99,10 @@ class PhotometricSetup:
         Shading monomials of (u - u0) / L, (v - v0) / L.
     centre : (float, float)
     length : float
-    region : (int, int, int, int)
+    region : (int, int, int, int) or None
         The pixels the selection looked at, (c0, r0, c1, r1): columns c0..c1-1, rows
         r0..r1-1 (the checkered area grown by 0.6 square); areas left out (``exclude``)
-        that miss it leave the set unchanged.
+        that miss it leave the set unchanged. None: unknown (any area may change it).
     """
 
     board: Chessboard
@@ -130,7 +130,7 @@ class PhotometricSetup:
     basis: np.ndarray
     centre: tuple[float, float]
     length: float
-    region: tuple[int, int, int, int] = (0, 0, 0, 0)
+    region: tuple[int, int, int, int] | None = None
 
     @property
     def n_pixels(self) -> int:

@@ -245,9 +245,14 @@ def _outline(s: float, cols: int, rows: int) -> np.ndarray:
     return q
 
 
-def _meets(polygons: list[np.ndarray], region: tuple[int, int, int, int], margin_px: float = 2.0) -> bool:
+def _meets(
+    polygons: list[np.ndarray], region: tuple[int, int, int, int] | None, margin_px: float = 2.0
+) -> bool:
     """Whether any polygon's bounding box meets the pixel box ``region`` (c0, r0, c1, r1) grown
-    by ``margin_px`` (a pixel set chosen in that box is then the same with or without them)."""
+    by ``margin_px`` (if none does, a pixel set chosen in that box is the same with or without
+    them); True for an unknown region (None) and any polygon."""
+    if region is None:
+        return bool(polygons)
     c0, r0, c1, r1 = region
     for p in polygons:
         if p.size == 0:

@@ -128,7 +128,8 @@ class _Evaluator:
     double precision, over blocks of columns: a float32 set-up computes the model and the
     Jacobian in single precision). With ``keep``, the whole Jacobian of the last
     linearisation and the model there are kept (one buffer per chunk), for :meth:`gradient`
-    and :meth:`predict`.
+    and :meth:`predict`: a new linearisation is written beside the kept one and replaces it
+    only when :meth:`commit` is called (its step accepted).
     """
 
     def __init__(self, setup: PhotometricSetup, noise_var, huber: float, keep: bool = False) -> None:
@@ -148,20 +149,24 @@ class _Evaluator:
                 np.zeros((self.p + 1, -(-ch.n_pixels // self.nv) * self.nv), dtype=self.dtype)
                 for ch in self.chunks
             ]
+            self._spare = [np.zeros_like(b) for b in self.bufs]
         else:
             buf = np.empty((self.p + 1, min(_CHUNK, n)), dtype=self.dtype)
             self.bufs = [buf] * len(self.chunks)
         # With keep: the model at the last linearisation, per chunk (its row p of bufs is e).
         self.models: list[np.ndarray] | None = None
         self.weights: np.ndarray | None = None
+        self.var_lin: np.ndarray | None = None  # the noise variance at the linearisation
         self.lin_state: FitState | None = None
+        self._staged: tuple | None = None
         self.nk = max(64, GEMM_SINGLE_THREAD // (self.p + 1) ** 2)
 
     def __call__(self, st: FitState, jacobian: bool = True):
         p = self.p
         es, vs, hs, ms = [], [], [], []
         G = np.zeros((p + 1, p + 1)) if jacobian else None
-        for ch, buf in zip(self.chunks, self.bufs, strict=True):
+        bufs = self._spare if self.keep and jacobian else self.bufs
+        for ch, buf in zip(self.chunks, bufs, strict=True):
             n = ch.n_pixels
             M = buf[:, :n]
             m, _ = model_and_jacobian(ch, st.T, st.sig, st.dil, st.a, st.b, jacobian=jacobian, out=M[:p])
@@ -182,10 +187,15 @@ class _Evaluator:
         if not jacobian:
             return e, var, hw, None, None
         if self.keep:
-            self.weights = hw / var
-            self.lin_state = st
-            self.models = ms
+            self._staged = (st, ms, hw / var, var)
         return e, var, hw, G[:p, :p], G[:p, p]
+
+    def commit(self) -> None:
+        """Keep the last linearisation computed (its Jacobian, model, weights and state)."""
+        if self.keep and self._staged is not None:
+            self.bufs, self._spare = self._spare, self.bufs
+            self.lin_state, self.models, self.weights, self.var_lin = self._staged
+            self._staged = None
 
     def predict(self, st: FitState):
         """Residuals, noise and Huber weights at ``st`` from the kept linearisation, m(x_L) +
@@ -219,11 +229,11 @@ class _Evaluator:
         self.noise_var = noise_var
         self.chunks = [setup.slice(k, min(k + _CHUNK, n)) for k in range(0, n, _CHUNK)]
 
-    def gradient(self, e: np.ndarray) -> np.ndarray:
-        """J W e with the Jacobian and weights of the last linearisation (kept), float64."""
-        if self.weights is None:  # pragma: no cover - guarded by the caller
+    def gradient(self, e: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """J W e with the Jacobian of the kept linearisation and the weights ``w``, float64."""
+        if self.models is None:  # pragma: no cover - guarded by the caller
             raise RuntimeError("no linearisation kept")
-        we = (self.weights * e).astype(self.dtype, copy=False)
+        we = (w * e).astype(self.dtype, copy=False)
         g = np.zeros(self.p)
         start = 0
         for ch, buf in zip(self.chunks, self.bufs, strict=True):
@@ -279,12 +289,16 @@ def gauss_newton(
             e, var, hw = evaluate.predict(st)
         else:
             e, var, hw, _, _ = evaluate(st, jacobian=False)
-        w = evaluate.weights
-        g = evaluate.gradient(e)
+        # The gradient with this image's Huber weights (a pixel newly hidden is down-weighted
+        # here) over the noise variance of the linearisation (its normal matrix's: a noise model
+        # refitted since scales the weights by a few %, and a chord step by as much).
+        w = hw / evaluate.var_lin
+        g = evaluate.gradient(e, w)
         fresh = False  # the linearisation is the previous image's, not at st
     else:
         evaluate = _Evaluator(setup, noise_var, huber, keep=chord > 0)
         e, var, hw, A, g = evaluate(st)
+        evaluate.commit()
         w = hw / var
         fresh = True
     # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
@@ -304,7 +318,7 @@ def gauss_newton(
         accepted = last = ended = False
         # The linearisation was taken at st, or near enough for a chord step to end the fit.
         near = fresh or (chord > 0 and _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA)
-        for _ in range(10):
+        for attempt in range(10):
             try:
                 step = np.linalg.solve(An + lam * np.eye(An.shape[0]), gn) / d
             except np.linalg.LinAlgError:
@@ -325,7 +339,7 @@ def gauss_newton(
             )
             relinearise = True
             if chord:
-                if near and length2 < CHORD_SIGMA**2:
+                if attempt == 0 and near and length2 < CHORD_SIGMA**2:
                     # The last step, taken without evaluating the model again: the residuals,
                     # noise and weights stay those before it (the cost they give is higher by
                     # at most CHORD_SIGMA^2 = 100 in sum w e^2 ~ N: s^2 by < 100 / N, 0.3 % for
@@ -344,6 +358,7 @@ def gauss_newton(
             lam = max(lam * 10, 1e-6)
         if not accepted and (chords or not fresh):
             e, var, hw, A, g = evaluate(st)
+            evaluate.commit()
             w = hw / var
             chord = chords = 0  # plain Gauss-Newton from here
             fresh = True
@@ -359,12 +374,14 @@ def gauss_newton(
             converged = True
             break
         if relinearise:
+            evaluate.commit()
             A, g = A2, g2
             w = hw / var
             chords = 0
             fresh = True
         else:
-            g = evaluate.gradient(e)
+            w = hw / evaluate.var_lin  # as at the start
+            g = evaluate.gradient(e, w)
             chords += 1
             fresh = False
     lin = Linearisation(evaluate, A, evaluate.lin_state) if evaluate.keep else None
