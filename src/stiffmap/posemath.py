@@ -26,6 +26,7 @@ cannot live in either. It is pure NumPy: OpenCV stays in ``vision`` and ``sim``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -206,21 +207,31 @@ def ray2board_homography(board2cam: np.ndarray) -> np.ndarray:
     """H^-1 for the board plane's homography H = [r1, r2, t] of ``board2cam`` = [R | t].
 
     A ray (x/z, y/z, 1) meets the board plane at (X, Y, 1) ~ H^-1 (x/z, y/z, 1) (mm).
-
     The inverse of the columns (a, b, c) = (r1, r2, t) as the rows (b x c, c x a, a x b) over
-    a . (b x c) (= r3 . t, the board plane's distance from the camera: never zero for a board
-    in front of it), on floats (the photometric model takes one per evaluation).
+    a . (b x c) = r3 . t, the board plane's distance from the camera's centre, on floats (the
+    photometric model takes one per evaluation).
+
+    Parameters
+    ----------
+    board2cam : array_like, shape (4, 4), mm
 
     Returns
     -------
     ndarray, shape (3, 3)
+
+    Raises
+    ------
+    ValueError
+        The board's plane passes through the camera's centre (seen edge-on).
     """
     (a0, b0, _, c0), (a1, b1, _, c1), (a2, b2, _, c2) = np.asarray(board2cam, dtype=np.float64)[:3].tolist()
     bc = (b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0)
     ca = (c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0)
     ab = (a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0)
-    inv = 1.0 / (a0 * bc[0] + a1 * bc[1] + a2 * bc[2])
-    return np.array([bc, ca, ab]) * inv
+    det = a0 * bc[0] + a1 * bc[1] + a2 * bc[2]
+    if det == 0.0 or not math.isfinite(det):
+        raise ValueError("the board's plane passes through the camera's centre (the board is seen edge-on)")
+    return np.array([bc, ca, ab]) * (1.0 / det)
 
 
 def projection_jacobian(

@@ -219,27 +219,27 @@ class FrameRenderer:
         w, h = self.camera.image_size
         if patches:
             # One box around the moving targets' patches: its reflectance, signal and sigma anew.
-            u0 = min(p[0][0] for p in patches)
-            u1 = max(p[0][1] for p in patches)
-            v0 = min(p[0][2] for p in patches)
-            v1 = max(p[0][3] for p in patches)
-            refl = self._refl[u0:u1, v0:v1].copy()
+            r0 = min(p[0][0] for p in patches)
+            r1 = max(p[0][1] for p in patches)
+            c0 = min(p[0][2] for p in patches)
+            c1 = max(p[0][3] for p in patches)
+            refl = self._refl[r0:r1, c0:c1].copy()
             for (i0, i1, j0, j1), values in patches:
-                refl[i0 - u0 : i1 - u0, j0 - v0 : j1 - v0] = values
-            sig_u = sensor_signal(refl, self.camera, ph, origin=(u0, v0))
+                refl[i0 - r0 : i1 - r0, j0 - c0 : j1 - c0] = values
+            sig_u = sensor_signal(refl, self.camera, ph, origin=(r0, c0))
         if has_noise(ph):
             # The whole image's noise in one draw, as render() draws it; then signal + sd * noise.
             out = rng.standard_normal((h, w), dtype=np.float32)
             if patches:
-                noise_u = out[u0:u1, v0:v1].copy()
+                noise_u = out[r0:r1, c0:c1].copy()
             out *= self._sd
             out += self._sig
             if patches:
-                out[u0:u1, v0:v1] = noise_u * noise_sigma(sig_u, ph) + sig_u
+                out[r0:r1, c0:c1] = noise_u * noise_sigma(sig_u, ph) + sig_u
         else:
             out = self._sig.copy()
             if patches:
-                out[u0:u1, v0:v1] = sig_u
+                out[r0:r1, c0:c1] = sig_u
         out += np.float32(ph.offset_dn)
         np.rint(out, out=out)
         np.clip(out, 0, 255, out=out)

@@ -310,7 +310,10 @@ def prepare_pixels(
         raise PhotometricError("the board is outside the image")
     rm = pixel_rays(camera)
     corr_x, corr_y = rm.correction_maps
-    Hi = ray2board_homography(T)
+    try:
+        Hi = ray2board_homography(T)
+    except ValueError as e:
+        raise PhotometricError(str(e)) from None
     h32 = Hi.astype(np.float32)
 
     cxf, cyf = corr_x.ravel(), corr_y.ravel()

@@ -100,7 +100,9 @@ class PhotometricFit:
 REUSE_PX = 0.25
 #: The previous image's linearisation (Jacobian, normal matrix, weights) starts the fit while the
 #: start pose moves the board's outline by less than this from where it was taken, px (the
-#: Jacobian then differs by ~LIN_PX / blur, a few %: each chord step shrinks the error by as much).
+#: Jacobian then differs by ~LIN_PX / blur, a few %); its steps then follow
+#: :data:`~stiffmap.vision.photometric.solver.CHORD_SIGMA`'s rule. The calibration sensitivity of
+#: a pose is kept within the same distance.
 LIN_PX = 0.1
 #: Chord steps (no new Jacobian) allowed after each linearisation of a warm-started fit.
 _WARM_CHORD_STEPS = 2

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry import rotvec_from_matrix
+from ...geometry import displacement_from_poses
 from ...posemath import perturb_pose
 from .model import GEMM_SINGLE_THREAD, GEMV_SINGLE_THREAD, N_NONLINEAR, model_and_jacobian
 from .pixels import PhotometricError, PhotometricSetup
@@ -37,7 +37,7 @@ __all__ = [
 #: is itself shorter than this: the Jacobian changes by well under 1 % over such distances, so
 #: the step leaves the fit within a few hundredths of a sigma of the optimum. Measured on the
 #: nine image formations of benchmarks/bench_vision_speed.py: the default's poses differ from
-#: cold fits' by 0.06-0.14 sigma RMS, and this rule (in place of steps of 3 sigma from a
+#: cold fits' by 0.06-0.22 sigma RMS, and this rule (in place of steps of 3 sigma from a
 #: linearisation at their start) moved them by < 0.01 sigma RMS. A step ending farther than
 #: this from the linearisation linearises again where it ends.
 CHORD_SIGMA = 10.0
@@ -101,7 +101,7 @@ class Solution:
     state: FitState
     iterations: int
     converged: bool
-    e: np.ndarray  # residuals at the solution, DN
+    e: np.ndarray  # residuals, DN: at the solution, or before its last step when a chord step ended it
     var: np.ndarray  # modelled noise variance, DN^2
     hw: np.ndarray  # Huber weights
     A: np.ndarray  # J^T W J at the last linearisation (p, p)
@@ -261,18 +261,20 @@ def gauss_newton(
 ) -> Solution:
     """Damped Gauss-Newton (IRLS) from ``st``; ``noise_var(model)`` -> variance per pixel (DN^2).
 
-    Converged when a step is below ``tol`` standard deviations of the parameters (its
-    length in the metric of the normal matrix, sqrt(d^T A d)): the step is taken and the
-    next one would be smaller still by the (linear) rate of convergence. The normal
-    matrix returned is that of the last linearisation (less than ``tol`` sigma away).
+    ``chord`` = 0: converged when a step is below ``tol`` standard deviations of the
+    parameters (its length in the metric of the normal matrix, sqrt(d^T A d)): the step is
+    taken and the next one would be smaller still by the (linear) rate of convergence. The
+    normal matrix returned is that of the last linearisation (less than ``tol`` sigma away).
 
     ``chord`` > 0 (a start a few sigma from the optimum): steps reuse the last linearisation's
     Jacobian, normal matrix and weights (the chord method: the gradient J W e at the new
     residuals, one model evaluation and no new Jacobian per step) while they end within
     :data:`CHORD_SIGMA` of where it was taken, for up to ``chord`` steps in a row; a step from a
     linearisation within :data:`CHORD_SIGMA` of its start, itself shorter than that, ends the
-    fit without evaluating the model again (see :data:`CHORD_SIGMA`); a step that does not
-    lower the cost linearises again. ``start``: the fit starts with that linearisation (the
+    fit without evaluating the model again (see :data:`CHORD_SIGMA`; ``tol`` then plays no
+    part, and the normal matrix returned may be up to 2 :data:`CHORD_SIGMA` away); a step
+    that does not lower the cost linearises again. The chord steps take the current Huber
+    weights over the linearisation's noise variance. ``start``: the fit starts with that linearisation (the
     previous image's, on the same pixels, near ``st``) and its weights, with no Jacobian
     computed here unless the fit moves too far from it. The solution keeps its last
     linearisation (``lin``) when ``chord``.
@@ -392,14 +394,7 @@ def _parameter_change(a: FitState, b: FitState) -> np.ndarray:
     """The parameters' change from ``b`` to ``a`` (the pose part as the perturbation of
     :func:`~stiffmap.posemath.perturb_pose`), shape (p,)."""
     return np.concatenate(
-        [
-            a.T[:3, 3] - b.T[:3, 3],
-            rotvec_from_matrix(a.T[:3, :3] @ b.T[:3, :3].T),
-            a.sig - b.sig,
-            a.dil - b.dil,
-            a.a - b.a,
-            a.b - b.b,
-        ]
+        [displacement_from_poses(b.T, a.T), a.sig - b.sig, a.dil - b.dil, a.a - b.a, a.b - b.b]
     )
 
 
