@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..camera import CameraModel, reference_camera
-from ..geometry import as_transform, concat, invert_transform, transform_from
+from ..geometry import as_transform, concat, invert_transform, matrix_from_rotvec, transform_from
 from ..rig import Rig, RigCamera
 from ..targets import Chessboard
 from .reflectance import Target
@@ -171,6 +171,13 @@ class Scene:
                     raise ValueError(f"position {i + 1} ({', '.join(f'{v:g}' for v in p)}) mm: {why}")
 
 
+def _turn(axis: str, deg: float) -> np.ndarray:
+    """The rotation by ``deg`` degrees about the frame's ``axis`` ("x", "y" or "z"), (3, 3)."""
+    r = np.zeros(3)
+    r["xyz".index(axis)] = np.radians(deg)
+    return matrix_from_rotvec(r)
+
+
 def default_scene(camera: CameraModel | None = None) -> Scene:
     """The reference set-up seen from the front (see the module docstring).
 
@@ -179,15 +186,9 @@ def default_scene(camera: CameraModel | None = None) -> Scene:
     orientation). The tool point is 50 mm behind the mobile board, 15 mm above
     its first row of corners, centred.
     """
-    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
-
     cam = reference_camera() if camera is None else camera
     R0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # cam x, y, z in base
-    R = (
-        Rotation.from_euler("z", 8.0, degrees=True).as_matrix()
-        @ R0
-        @ Rotation.from_euler("x", -10.4, degrees=True).as_matrix()
-    )
+    R = _turn("z", 8.0) @ R0 @ _turn("x", -10.4)
     cam2base = transform_from(R, [300.0, -1280.0, 0.0])
     mobile2tcp = transform_from(FIXED2BASE_REFERENCE[:3, :3], [-25.0, -50.0, -15.0])
     return Scene(
@@ -237,15 +238,9 @@ def demo_scene(camera: CameraModel | None = None) -> Scene:
     a 6x5 one) is what brings the displacement along the line of sight to a few
     micrometres, so that K is recovered within a few percent at every position.
     """
-    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
-
     cam = reference_camera() if camera is None else camera
     R0 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-    R = (
-        Rotation.from_euler("z", 4.0, degrees=True).as_matrix()
-        @ R0
-        @ Rotation.from_euler("x", -9.0, degrees=True).as_matrix()
-    )
+    R = _turn("z", 4.0) @ R0 @ _turn("x", -9.0)
     mobile = Chessboard(15, 14, 10.0)
     mobile2tcp = transform_from(FIXED2BASE_REFERENCE[:3, :3], [-70.0, -50.0, 65.0])
     return Scene(
@@ -296,8 +291,6 @@ def with_cameras(
         With ``rig`` set (exact ``cam2rig``: the test-bed's truth) and ``camera``,
         ``cam2base`` those of the first camera.
     """
-    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
-
     n = int(n)
     if n < 1:
         raise ValueError(f"a scene needs at least one camera, got {n}")
@@ -314,7 +307,7 @@ def with_cameras(
     angles = np.linspace(-angle_deg / 2.0, angle_deg / 2.0, n)
     poses = []
     for a in angles:
-        Rz = Rotation.from_euler("z", float(a), degrees=True).as_matrix()
+        Rz = _turn("z", float(a))
         poses.append(transform_from(Rz @ C[:3, :3], pivot + distance_scale * (Rz @ (c0 - pivot))))
     base2rig = invert_transform(poses[0])
     rig = Rig(
@@ -359,8 +352,6 @@ def two_camera_rig(
     -------
     Rig
     """
-    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
-
     d = float(distance_mm)
     a = float(angle_deg)
     if not (np.isfinite(d) and d > 0):
@@ -369,7 +360,7 @@ def two_camera_rig(
         raise ValueError(f"angle_deg must be in (0, 180) degrees, got {angle_deg!r}")
     left = reference_camera() if camera is None else camera
     right = left if right_camera is None else right_camera
-    R = Rotation.from_euler("y", -a, degrees=True).as_matrix()
+    R = _turn("y", -a)
     target = np.array([0.0, 0.0, d])
     return Rig(
         (
@@ -411,8 +402,6 @@ def board_pose_at_pixel(
     -------
     board2cam : ndarray, shape (4, 4)
     """
-    from scipy.spatial.transform import Rotation  # imported here: scipy.spatial takes 0.2 s
-
     uv = np.asarray(pixel, dtype=np.float64)
     p = np.asarray(board_point_mm, dtype=np.float64)
     if uv.shape != (2,) or p.shape != (2,) or not (np.all(np.isfinite(uv)) and np.all(np.isfinite(p))):
@@ -423,10 +412,8 @@ def board_pose_at_pixel(
         raise ValueError(f"distance_mm must be a positive number of mm, got {distance_mm!r}")
     ray = camera.rays_from_pixels(uv)
     a = np.radians(tilt_axis_deg)
-    R = (
-        Rotation.from_rotvec(np.radians(tilt_deg) * np.array([np.cos(a), np.sin(a), 0.0]))
-        * Rotation.from_rotvec([0.0, 0.0, np.radians(spin_deg)])
-    ).as_matrix()
+    tilt = matrix_from_rotvec(np.radians(tilt_deg) * np.array([np.cos(a), np.sin(a), 0.0]))
+    R = tilt @ _turn("z", spin_deg)
     t = np.array([ray[0], ray[1], 1.0]) * float(distance_mm) - R @ np.array([p[0], p[1], 0.0])
     return transform_from(R, t)
 
