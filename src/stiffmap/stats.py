@@ -59,7 +59,7 @@ def chi2_sf(x, dof):
 
 
 def chi2_ppf(q, dof):
-    """The ``q`` quantile of the chi-squared law with ``dof`` degrees of freedom."""
+    """The ``q`` quantile of the chi-squared law with ``dof`` degrees of freedom (elementwise over arrays)."""
     return _value(_laws().chi2.ppf(q, dof))
 
 
@@ -69,7 +69,7 @@ def t_ppf(q, dof):
 
 
 def f_ppf(q, dfn, dfd):
-    """The ``q`` quantile of Fisher's F with (``dfn``, ``dfd``) degrees of freedom."""
+    """The ``q`` quantile of Fisher's F with (``dfn``, ``dfd``) degrees of freedom (elementwise)."""
     return _value(_laws().f.ppf(q, dfn, dfd))
 
 

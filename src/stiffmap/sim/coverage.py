@@ -288,7 +288,7 @@ def render_block_tiled(rx, ry, tex: BoardTexture, board2cam: np.ndarray, tile: i
     rx, ry : ndarray, shape (h + 2, w + 2)
         Rays of the block with a one-pixel halo, as for :func:`render_block`.
     tex : BoardTexture
-    board2cam : ndarray, shape (4, 4)
+    board2cam : ndarray, shape (4, 4), mm
     tile : int
         Tile side, px (>= 2).
 

@@ -380,6 +380,10 @@ def sensor_signal(
     photometry : Photometry
     origin : (int, int)
         Row and column of ``reflectance[0, 0]`` in the image.
+
+    Returns
+    -------
+    ndarray, shape (n, m), float32, DN
     """
     ph = photometry
     r0, c0 = (int(v) for v in origin)
@@ -402,6 +406,17 @@ def sensor_signal(
 
 
 def noise_sigma(signal: np.ndarray, photometry: Photometry) -> np.ndarray:
-    """1 sigma of the sensor noise, DN (float32), at each pixel's mean signal (read and shot noise)."""
+    """1 sigma of the sensor noise, DN (float32), at each pixel's mean signal (read and shot noise).
+
+    Parameters
+    ----------
+    signal : ndarray, float32, DN
+        Mean signal above the black level (:func:`sensor_signal`).
+    photometry : Photometry
+
+    Returns
+    -------
+    ndarray, the shape of ``signal``, float32, DN
+    """
     ph = photometry
     return np.sqrt(np.float32(ph.read_noise_dn**2) + np.float32(ph.shot_dn_per_e) * signal)
