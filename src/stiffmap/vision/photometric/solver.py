@@ -286,15 +286,13 @@ def gauss_newton(
         evaluate = start.evaluator
         evaluate.rebind(setup, noise_var)
         A = start.A
-        if _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA:
+        near = _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA
+        if near:
             # Near the linearisation: the model there and its Jacobian give the residuals.
             e, var, hw = evaluate.predict(st)
         else:
             e, var, hw, _, _ = evaluate(st, jacobian=False)
-        # The gradient with this image's Huber weights (a pixel newly hidden is down-weighted
-        # here) over the noise variance of the linearisation (its normal matrix's: a noise model
-        # refitted since scales the weights by a few %, and a chord step by as much).
-        w = hw / evaluate.var_lin
+        w = evaluate.weights
         g = evaluate.gradient(e, w)
         fresh = False  # the linearisation is the previous image's, not at st
     else:
@@ -302,7 +300,7 @@ def gauss_newton(
         e, var, hw, A, g = evaluate(st)
         evaluate.commit()
         w = hw / var
-        fresh = True
+        fresh = near = True
     # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
     # steps within that are taken as not raising it (a diverging step raises it far more).
     slack = 1.0 if evaluate.dtype == np.float32 else 0.0
@@ -318,37 +316,38 @@ def gauss_newton(
         An = A / np.outer(d, d)
         gn = g / d
         accepted = last = ended = False
-        # The linearisation was taken at st, or near enough for a chord step to end the fit.
-        near = fresh or (chord > 0 and _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA)
+        # near: the linearisation was taken at st, or near enough for a chord step to end the fit.
         for attempt in range(10):
+            M = An + lam * np.eye(An.shape[0])
             try:
-                step = np.linalg.solve(An + lam * np.eye(An.shape[0]), gn) / d
+                step = np.linalg.solve(M, gn) / d
             except np.linalg.LinAlgError:
                 lam = max(lam * 10, 1e-6)
                 continue
-            sig_new = st.sig + step[6:9]
-            if not np.isfinite(step).all() or sig_new[0] - np.hypot(sig_new[1], sig_new[2]) <= 0.05:
+            new = _moved(st, step, nb)
+            if new is None:
                 lam = max(lam * 10, 1e-6)
                 continue
             length2 = float(step @ A @ step)
             last = length2 < tol * tol
-            new = FitState(
-                perturb_pose(st.T, step),
-                sig_new,
-                st.dil + step[9:12],
-                st.a + step[N_NONLINEAR : N_NONLINEAR + nb],
-                st.b + step[N_NONLINEAR + nb :],
-            )
             relinearise = True
             if chord:
                 if attempt == 0 and near and length2 < CHORD_SIGMA**2:
                     # The last step, taken without evaluating the model again: the residuals,
                     # noise and weights stay those before it (the cost they give is higher by
                     # at most CHORD_SIGMA^2 = 100 in sum w e^2 ~ N: s^2 by < 100 / N, 0.3 % for
-                    # the ~30000 pixels of a board).
-                    e2, var2, hw2 = e, var, hw
-                    accepted = ended = True
-                    break
+                    # the ~30000 pixels of a board). Its gradient takes this state's Huber weights
+                    # (over the linearisation's noise variance, its normal matrix's): the board
+                    # barely moved, its residuals are at noise level but for real outliers, and a
+                    # pixel newly hidden is down-weighted. (The chord steps before keep the
+                    # linearisation's: a board that moved by 100 sigma has residuals of a few
+                    # noise sigmas along every edge, which its own Huber weights would cut.)
+                    end_step = np.linalg.solve(M, evaluate.gradient(e, hw / evaluate.var_lin) / d) / d
+                    end = _moved(st, end_step, nb)
+                    if end is not None and float(end_step @ A @ end_step) < CHORD_SIGMA**2:
+                        new, e2, var2, hw2 = end, e, var, hw
+                        accepted = ended = True
+                        break
                 relinearise = chords >= chord or not _distance_sigma(new, evaluate.lin_state, A) < CHORD_SIGMA
             e2, var2, hw2, A2, g2 = evaluate(new, jacobian=relinearise)
             # Cost at the same weights (IRLS): accept when it does not increase.
@@ -363,7 +362,7 @@ def gauss_newton(
             evaluate.commit()
             w = hw / var
             chord = chords = 0  # plain Gauss-Newton from here
-            fresh = True
+            fresh = near = True
             continue
         if not accepted:
             converged = True  # no step lowers the cost: at the minimum to rounding
@@ -380,14 +379,31 @@ def gauss_newton(
             A, g = A2, g2
             w = hw / var
             chords = 0
-            fresh = True
+            fresh = near = True
         else:
-            w = hw / evaluate.var_lin  # as at the start
+            near = _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA
+            w = evaluate.weights
             g = evaluate.gradient(e, w)
             chords += 1
             fresh = False
     lin = Linearisation(evaluate, A, evaluate.lin_state) if evaluate.keep else None
     return Solution(st, it, converged, e, var, hw, A, lin)
+
+
+def _moved(st: FitState, step: np.ndarray, nb: int) -> FitState | None:
+    """The state moved by a step (its pose as :func:`~stiffmap.posemath.perturb_pose`); None when
+    the step is not finite or leaves the blur's least sigma (over the edges' directions) at
+    0.05 px or less."""
+    sig = st.sig + step[6:9]
+    if not np.isfinite(step).all() or sig[0] - np.hypot(sig[1], sig[2]) <= 0.05:
+        return None
+    return FitState(
+        perturb_pose(st.T, step),
+        sig,
+        st.dil + step[9:12],
+        st.a + step[N_NONLINEAR : N_NONLINEAR + nb],
+        st.b + step[N_NONLINEAR + nb :],
+    )
 
 
 def _parameter_change(a: FitState, b: FitState) -> np.ndarray:
