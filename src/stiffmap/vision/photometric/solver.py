@@ -273,11 +273,11 @@ def gauss_newton(
     linearisation within :data:`CHORD_SIGMA` of its start, itself shorter than that, ends the
     fit without evaluating the model again (see :data:`CHORD_SIGMA`; ``tol`` then plays no
     part, and the normal matrix returned may be up to 2 :data:`CHORD_SIGMA` away); a step
-    that does not lower the cost linearises again. The chord steps take the current Huber
-    weights over the linearisation's noise variance. ``start``: the fit starts with that linearisation (the
-    previous image's, on the same pixels, near ``st``) and its weights, with no Jacobian
-    computed here unless the fit moves too far from it. The solution keeps its last
-    linearisation (``lin``) when ``chord``.
+    that does not lower the cost linearises again. The chord steps take the linearisation's
+    weights, the step that ends the fit this state's Huber weights over the linearisation's
+    noise variance. ``start``: the fit starts with that linearisation (the previous image's,
+    on the same pixels, near ``st``), with no Jacobian computed here unless the fit moves too
+    far from it. The solution keeps its last linearisation (``lin``) when ``chord``.
     ``watch(state)``, called after every step taken, may raise to stop the fit (a
     :class:`~stiffmap.vision.photometric.pixels.PhotometricError`).
     """
