@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test test-fast test-long lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,7 +17,15 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports --no-cache
-	$(BIN)/python -m pytest -n 2 --dist loadscope -q
+	$(BIN)/python -m pytest -n 2 --dist loadscope -q -m "not long"
+
+# The fast loop: no test marked slow or long (CONTRIBUTING.md).
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -n 2 --dist loadscope -q -m "not slow and not long"
+
+# The long profile: demo-size end-to-end checks, run by CI after `make test`.
+test-long: $(STAMP)
+	$(BIN)/python -m pytest -n 2 --dist loadscope -q -m long
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
