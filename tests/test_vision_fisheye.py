@@ -23,6 +23,7 @@ from helpers.shared_data import REAL_SETS
 from stiffmap.camera import CameraModel, invertible_field, load_camera
 from stiffmap.campaign.demo import QUICK_POSITIONS
 from stiffmap.campaign.simulated import write_campaign
+from stiffmap.campaign.truth import load_truth
 from stiffmap.errors import InputError
 from stiffmap.geometry import rotvec_from_matrix
 from stiffmap.loads import paper9
@@ -260,6 +261,7 @@ def test_a_fisheye_test_bed_campaign_is_measured_to_the_true_stiffness(tmp_path)
     write_campaign(out, cfg, workers=2)
     calibrated = load_camera(out / "camera.json")
     assert calibrated.model == "fisheye" and calibrated.cov is not None
+    assert load_truth(out).camera == cam and load_truth(out).calibrated_camera == calibrated
     np.testing.assert_allclose(calibrated.params[:4], cam.params[:4], atol=0.5)  # px
     proc = run_stiffmap("run", out)
     assert proc.returncode == 0, proc.stderr
