@@ -202,6 +202,7 @@ def test_calibrate_fisheye_and_pose_from_the_command_line(views, tmp_path, monke
     assert code == 2 and "choose at most one of --fix-k3, --rational, --thin-prism, --fisheye" in err
 
 
+@pytest.mark.slow  # 4-7 s: detection in 20 photographs of 1280x720
 @pytest.mark.parametrize("name", ["udacity"])
 def test_a_real_wide_angle_set_calibrates_with_the_fisheye_model_over_the_whole_image(name):
     """The udacity set (../shared/data/real/README.md): 20 photographs, strong barrel distortion."""
