@@ -327,8 +327,7 @@ def compensate_path(
 
 def _check_known(path: Toolpath, feed: np.ndarray) -> None:
     """Refuse a feed move from or to a position the program left unknown (after G28/G30/G53)."""
-    prev_known = np.vstack([np.ones((1, 3), dtype=bool), path.known[:-1]])
-    bad = feed[~np.all(path.known[feed] & prev_known[feed], axis=1)]
+    bad = feed[~np.all(path.known[feed] & path.known_start[feed], axis=1)]
     if bad.size:
         raise CompensationError(
             f"line {path.line[bad[0]]}: a cut from or to a position the program left unknown (after "
@@ -338,19 +337,22 @@ def _check_known(path: Toolpath, feed: np.ndarray) -> None:
 
 def _programmed_configurations(fld, path: Toolpath, spin_of) -> np.ndarray | None:
     """An arm's configurations at every move's start and end, solved along the program in order
-    (one branch); None for other mechanisms. Also refuses a programmed point out of reach."""
+    (one branch); None for other mechanisms. Also refuses a programmed point out of reach. A
+    point the program left unknown (after G28) takes the configuration of the next known one."""
     if not hasattr(fld, "solve_path") or len(path) == 0:
         return None
-    m = np.concatenate([np.arange(len(path)), np.arange(len(path))])
-    s = np.concatenate([np.zeros(len(path)), np.ones(len(path))])
-    order = np.argsort(m * 2 + s, kind="stable")
-    m, s = m[order], s[order]
-    P = path.point(m, s)
-    res = fld(P, np.zeros_like(P), None, spin_of(m, s))
-    _raise_invalid(path, m, res, fld, P, "programmed point")
-    Q = np.empty((2, len(path), res.q.shape[1]))
-    Q[s.astype(int), m] = res.q
-    return Q
+    n = len(path)
+    m = np.repeat(np.arange(n), 2)
+    s = np.tile([0.0, 1.0], n)
+    known = np.ravel(np.column_stack([np.all(path.known_start, axis=1), np.all(path.known, axis=1)]))
+    idx = np.flatnonzero(known)
+    P = path.point(m[idx], s[idx])
+    res = fld(P, np.zeros_like(P), None, spin_of(m[idx], s[idx]))
+    _raise_invalid(path, m[idx], res, fld, P, "programmed point")
+    Q = np.empty((m.size, res.q.shape[1]))
+    nxt = np.minimum(np.searchsorted(idx, np.arange(m.size)), idx.size - 1)
+    Q[:] = res.q[nxt]
+    return np.stack([Q[0::2], Q[1::2]])
 
 
 def _initial_pieces(fld, path, forces, feed, q_prog, spin_of) -> _Pieces:

@@ -15,8 +15,9 @@ unknown until the program gives them again), G40, G43/G49, G54-G59 (one work off
 G61/G64, G80, G94/G95, G98/G99. Rotary and other axes (A, B, C, U, V, W) stay in their
 lines unchanged.
 
-What cannot be compensated safely is refused with its line number (a
-:class:`GcodeError`): O-words (subprograms, loops), ``#`` parameters, ``[expressions]``,
+A line holding only a program number (``O1001``, as Fanuc posts write) is kept. What
+cannot be compensated safely is refused with its line number (a :class:`GcodeError`):
+O-words (subprograms, loops, conditions), ``#`` parameters, ``[expressions]``,
 canned cycles (G73-G89), cutter-radius compensation on (G41/G42), inverse-time feed (G93),
 coordinate offsets (G10, G52, G92), a change of work offset after the first move, and
 every other G-code. With ``pass_through=True`` such a line is kept unchanged and named
@@ -62,6 +63,7 @@ ARC_RADIUS_RTOL = 1e-3
 
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 _LETTERS = set("ABCDFGHIJKLMNPQRSTUVWXYZ")
+_PROGRAM_NUMBER = re.compile(r"\s*[Oo]\s*\d+\s*")
 _KEEP_G = {4, 40, 43, 43.1, 49, 54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3, 61, 61.1, 64, 69, 80, 94, 95}
 _KEEP_G |= {96, 97, 98, 99, 17, 18, 19, 20, 21, 90, 91, 90.1, 91.1, 0, 1, 2, 3, 28, 30, 28.1, 30.1, 53}
 _REFUSED_G = {
@@ -281,7 +283,7 @@ def _refusal(words: list[Word], state: _State) -> str:
             return f"canned cycle G{g:g} (its moves are made by the controller)"
         if g not in _KEEP_G:
             return f"G{g:g} is not supported"
-        if g in (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3) and state.moved and g != state.work_offset:
+        if g in (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3) and state.moved and g != (state.work_offset or 54):
             return f"G{g:g} changes the work offset after the first move (the program's origin would move)"
     for w in words:
         if w.letter == "M" and round(w.value) in (98, 99):
@@ -439,6 +441,8 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
             why = "block delete '/': whether the line runs is the operator's choice"
             _pass_or_refuse(why, [], st, n, source, pass_through, warnings)
             continue
+        if _PROGRAM_NUMBER.fullmatch(code):
+            continue  # "O1234" alone: a program number (Fanuc), kept verbatim
         words = _words(code, n, source)
         why = st.passing or _refusal(words, st)
         if why:
@@ -483,6 +487,7 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
                 st.known[k] = False
         if motion is not None:
             st.motion = motion
+        st.moved = True
         return None
     if motion is not None:
         st.motion = motion
@@ -497,6 +502,11 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
         )
     end, axes = _target(words, st, n, source)
     if not st.moved:
+        if st.motion != 0:
+            warnings.append(
+                f"line {n}: the first move is a feed from wherever the machine stands: taken as an "
+                "approach (no force; it goes to the next cut's compensated start)"
+            )
         for k, a in enumerate("XYZ"):
             if not st.known[k] and a not in axes:
                 warnings.append(f"line {n}: {a} was never set before the first move: taken as 0")

@@ -66,6 +66,11 @@ class Toolpath:
         return int(self.kind.size)
 
     @property
+    def known_start(self) -> np.ndarray:
+        """Whether each axis of each move's start is known, shape (n, 3)."""
+        return np.vstack([np.ones((1, 3), dtype=bool), self.known[:-1]]) if len(self) else self.known
+
+    @property
     def feed(self) -> np.ndarray:
         """Feed moves (G1, G2, G3), which carry the cutting force."""
         return self.kind != RAPID
@@ -179,7 +184,11 @@ def _arc_params(start, end, centre, axes, kind) -> tuple[float, float, float, fl
 
 
 def toolpath_from_moves(moves: tuple[Move, ...] | list[Move]) -> Toolpath:
-    """The :class:`Toolpath` of a program's moves (:class:`~stiffmap.machining.gcode.Move`)."""
+    """The :class:`Toolpath` of a program's moves (:class:`~stiffmap.machining.gcode.Move`).
+
+    The first move starts wherever the machine stands when the program begins: a feed move
+    there is taken as an approach (a rapid, carrying no force), not as a cut.
+    """
     n = len(moves)
     kind = np.array([mv.kind for mv in moves], dtype=np.intp).reshape(n)
     start = np.array([mv.start for mv in moves], dtype=float).reshape(n, 3)
@@ -195,6 +204,13 @@ def toolpath_from_moves(moves: tuple[Move, ...] | list[Move]) -> Toolpath:
         centre[i] = mv.centre[ax[0]], mv.centre[ax[1]]
         theta0[i], sweep[i], r0[i], r1[i] = _arc_params(mv.start, mv.end, mv.centre, ax, mv.kind)
     known = np.array([mv.known for mv in moves], dtype=bool).reshape(n, 3)
+    if n and kind[0] != RAPID:
+        # The first move starts wherever the machine stands: not a cut but an approach, which
+        # (as a rapid) goes to the next cut's compensated start.
+        kind[0] = RAPID
+        centre[0] = np.nan
+        theta0[0] = sweep[0] = r0[0] = r1[0] = 0.0
+        axes[0] = np.arange(3)
     line = np.array([mv.line for mv in moves], dtype=np.intp).reshape(n)
     return Toolpath(kind, line, start, end, axes, centre, theta0, sweep, r0, r1, known)
 

@@ -112,6 +112,7 @@ def program_samples(
     m = np.repeat(np.arange(n), t.size)
     s = np.tile(t, n)
     keep = path.feed[m] | (s == 0) | (s == 1)
+    keep &= np.where(s == 0, np.all(path.known_start[m], axis=1), np.all(path.known[m], axis=1))
     m, s = m[keep], s[keep]
     return path.point(m, s), force_at(path, forces, m, s), path.feed[m]
 
