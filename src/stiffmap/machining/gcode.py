@@ -238,6 +238,14 @@ def _strip_comments(text: str, line: int, src: str | None) -> tuple[str, bool]:
 
 def _words(code: str, line: int, src: str | None) -> list[Word]:
     """The words of a comment-free line; refuses what is not a letter and a number."""
+    if "#" in code:
+        raise GcodeError(
+            "'#' parameters are not supported (the values are not known before running)",
+            line=line,
+            source=src,
+        )
+    if "[" in code:
+        raise GcodeError("'[' expressions are not supported (give numbers)", line=line, source=src)
     words: list[Word] = []
     i = 0
     n = len(code)
@@ -444,6 +452,9 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
         if _PROGRAM_NUMBER.fullmatch(code):
             continue  # "O1234" alone: a program number (Fanuc), kept verbatim
         words = _words(code, n, source)
+        gs = {round(w.value, 1) for w in words if w.letter == "G"}
+        if st.passing and (40 in gs if st.passing.startswith("cutter") else 94 in gs):
+            st.passing = ""  # the line that ends the region is read as usual
         why = st.passing or _refusal(words, st)
         if why:
             _update_passing(words, st)
@@ -457,14 +468,12 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
 
 
 def _update_passing(words: list[Word], st: _State) -> None:
-    """Enter or leave a passed-through region (G41/G42 ... G40, G93 ... G94)."""
+    """Enter a passed-through region (G41/G42 until G40, G93 until G94)."""
     gs = {round(w.value, 1) for w in words if w.letter == "G"}
     if gs & {41, 42, 41.1, 42.1}:
         st.passing = "cutter-radius compensation is on (G41/G42 until G40)"
-    if gs & {93}:
+    elif 93 in gs:
         st.passing = "inverse-time feed is on (G93 until G94)"
-    if st.passing.startswith("cutter") and 40 in gs or st.passing.startswith("inverse") and 94 in gs:
-        st.passing = ""
 
 
 def _pass_or_refuse(why, words, st: _State, n, source, pass_through, warnings) -> None:
@@ -500,7 +509,6 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
         raise GcodeError(
             "axis words with no motion mode in force (after G80, or before any G0-G3)", line=n, source=source
         )
-    end, axes = _target(words, st, n, source)
     if not st.moved:
         if st.motion != 0:
             warnings.append(
@@ -508,9 +516,12 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
                 "approach (no force; it goes to the next cut's compensated start)"
             )
         for k, a in enumerate("XYZ"):
-            if not st.known[k] and a not in axes:
+            if not st.known[k] and not any(w.letter == a for w in words):
                 warnings.append(f"line {n}: {a} was never set before the first move: taken as 0")
                 st.known[k] = True
+    if not st.moved:  # the program's origin: where the machine stands for the axes it never gives
+        st.known[:] = True
+    end, axes = _target(words, st, n, source)
     start = st.pos.copy()
     centre, arc_r = None, False
     if st.motion in (2, 3):
@@ -548,13 +559,15 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
 
 
 def _code_lower(raw: str, words: list[Word]) -> bool:
-    """The line's words are written in lower case."""
-    return bool(words) and all(raw[w.start].islower() for w in words)
+    """The line's coordinate words are written in lower case."""
+    coords = [w for w in words if w.letter in "XYZIJKR"] or words
+    return all(raw[w.start].islower() for w in coords)
 
 
 def _compact(raw: str, words: list[Word]) -> bool:
-    """No space separates the line's words."""
-    return len(words) > 1 and all(words[j].start == words[j - 1].end for j in range(1, len(words)))
+    """No space separates the line's coordinate words from the words before them."""
+    idx = [j for j, w in enumerate(words) if w.letter in "XYZIJKR" and j > 0]
+    return bool(idx) and all(words[j].start == words[j - 1].end for j in idx)
 
 
 # ---------------------------------------------------------------------- writing
