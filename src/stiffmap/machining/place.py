@@ -8,8 +8,11 @@ singularities: the model's conditioning at least :data:`MIN_CONDITIONING`.
 
 Method: the objective on a coarse grid of placements (:data:`GRID` per axis; a planar
 mechanism places in x, y only), at a subset of the program's points; then a compass
-search from the best three feasible grid points on every point, the step halved down to
-:data:`STEP_MM`. The grid's values are kept for the placement map.
+search from the best three feasible grid points, on points at most :data:`DENSE_MM` apart
+along the feed moves, the step halved down to :data:`STEP_MM`. A placement is feasible
+when the programmed points and their commanded points (pushed :data:`REACH_MARGIN_MM`
+outwards: the optimum often lies on the edge of the workspace) are all evaluable. The
+grid's values are kept for the placement map.
 """
 
 from __future__ import annotations
@@ -44,6 +47,10 @@ GRID = {2: 25, 3: 9}
 STEP_MM = 0.02
 #: Points of the program the coarse grid evaluates (a subset when there are more).
 COARSE_POINTS = 400
+#: The compass search checks the program's feed moves at least every this many mm.
+DENSE_MM = 1.0
+#: Commanded points are checked this far (mm) beyond where they are, away from the program's centre.
+REACH_MARGIN_MM = 0.01
 
 
 @dataclass(frozen=True)
@@ -96,10 +103,11 @@ def default_region(mechanism) -> tuple[np.ndarray, np.ndarray]:
 
 
 def program_samples(
-    path: Toolpath, forces: ForceSpec, per_move: int = CHECK_SAMPLES
+    path: Toolpath, forces: ForceSpec, per_move: int = CHECK_SAMPLES, dense_mm: float | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points where the objective is evaluated: every move's ends and ``per_move`` points inside
-    each feed move; with the force there (zero on rapids) and whether it is a feed point.
+    each feed move (at least one every ``dense_mm`` when given); with the force there (zero on
+    rapids) and whether it is a feed point.
 
     Returns
     -------
@@ -108,9 +116,11 @@ def program_samples(
     feed : ndarray of bool, shape (N,)
     """
     n = len(path)
-    t = np.linspace(0.0, 1.0, per_move + 2)
-    m = np.repeat(np.arange(n), t.size)
-    s = np.tile(t, n)
+    k = np.where(path.feed, per_move + 2, 2)
+    if dense_mm is not None:
+        k = np.where(path.feed, np.maximum(k, np.ceil(path.length() / dense_mm).astype(int) + 1), 2)
+    m = np.repeat(np.arange(n), k)
+    s = np.concatenate([np.linspace(0.0, 1.0, c) for c in k]) if n else np.zeros(0)
     keep = path.feed[m] | (s == 0) | (s == 1)
     keep &= np.where(s == 0, np.all(path.known_start[m], axis=1), np.all(path.known[m], axis=1))
     m, s = m[keep], s[keep]
@@ -144,13 +154,24 @@ def _evaluate(fld, T: np.ndarray, P: np.ndarray, F: np.ndarray) -> tuple[np.ndar
     return delta.reshape(K, N, 3), ok
 
 
+def _outward(P: np.ndarray, dims) -> np.ndarray:
+    """Unit directions (N, 3) from the program's centre to its points, in the placed axes."""
+    d = np.zeros_like(P)
+    d[:, dims] = P[:, dims] - P[:, dims].mean(axis=0)
+    n = np.linalg.norm(d, axis=1)
+    return np.divide(d, n[:, None], out=np.zeros_like(d), where=n[:, None] > 0)
+
+
 def _many(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
     """The objective at many placements T (K, 3); inf where a programmed point, or the commanded
-    point ``p - delta`` that compensates it, is out of reach or too poorly conditioned."""
+    point ``c = p - delta(c)`` that compensates it (two fixed-point steps) pushed outwards by
+    :data:`REACH_MARGIN_MM`, is out of reach or too poorly conditioned."""
     delta, ok = _evaluate(fld, T, P, F)
     if np.any(ok):
         sub = np.flatnonzero(ok)
-        ok[sub] = _evaluate(fld, T[sub], P[None] - delta[sub], F)[1]
+        d1, ok1 = _evaluate(fld, T[sub], P[None] - delta[sub], F)
+        C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
+        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F)[1]
     d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
     if d.shape[1] == 0:
         val = np.zeros(T.shape[0])
@@ -207,10 +228,11 @@ def place_program(
         )
     step0 = np.array([(a[1] - a[0]) if a.size > 1 else 1.0 for a in axes])
     best_t, best_v, evals = None, math.inf, T.shape[0]
+    Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
     for i in np.argsort(coarse)[:3]:
         if not np.isfinite(coarse[i]):
             break
-        t, v, n = _compass(fld, T[i], dims, step0 / 2, P, F, feed, objective)
+        t, v, n = _compass(fld, T[i], dims, step0 / 2, Pd, Fd, feedd, objective)
         evals += n
         if v < best_v:
             best_t, best_v = t, v
