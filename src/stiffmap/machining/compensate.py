@@ -336,10 +336,11 @@ def _check_known(path: Toolpath, feed: np.ndarray) -> None:
 
 
 def _programmed_configurations(fld, path: Toolpath, spin_of) -> np.ndarray | None:
-    """An arm's configurations at every move's start and end, solved along the program in order
-    (one branch); None for other mechanisms. Also refuses a programmed point out of reach. A
+    """Refuse the first programmed point (rapids' too) out of reach or at a singularity; an arm's
+    configurations at every move's start and end, solved along the program in order (one
+    branch), None for other mechanisms. A
     point the program left unknown (after G28) takes the configuration of the next known one."""
-    if not hasattr(fld, "solve_path") or len(path) == 0:
+    if len(path) == 0:
         return None
     n = len(path)
     m = np.repeat(np.arange(n), 2)
@@ -349,6 +350,8 @@ def _programmed_configurations(fld, path: Toolpath, spin_of) -> np.ndarray | Non
     P = path.point(m[idx], s[idx])
     res = fld(P, np.zeros_like(P), None, spin_of(m[idx], s[idx]))
     _raise_invalid(path, m[idx], res, fld, P, "programmed point")
+    if res.q is None:
+        return None
     Q = np.empty((m.size, res.q.shape[1]))
     nxt = np.minimum(np.searchsorted(idx, np.arange(m.size)), idx.size - 1)
     Q[:] = res.q[nxt]
