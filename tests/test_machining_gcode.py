@@ -216,3 +216,9 @@ def test_malformed_programs_raise_input_errors_only(lines):
         assert render_program(p, {}, {}) == "\n".join(text.splitlines()) + (
             "\n" if text.endswith("\n") else ""
         )
+
+
+def test_public_r_format_program_without_centre_is_refused_at_its_line():
+    """cncjs's arc-r.nc writes 'X0Y20' in G02 mode without I/J/R: an arc whose centre no word gives."""
+    with pytest.raises(GcodeError, match=r"cncjs_arc-r.nc: line 3: arc without its centre"):
+        read_program(DATA / "cncjs_arc-r.nc")
