@@ -10,7 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.cli_process import run_in_process, run_stiffmap
+from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
 from helpers.machining_checks import distance_to_path, output_samples, truss_3prr
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from stiffmap.machining.io import read_program
 from stiffmap.machining.path import toolpath_from_moves
@@ -151,3 +154,42 @@ def test_from_campaign_compensates_the_test_bed(tmp_path):
     D[:, :2] += truss_3prr(C[:, :2] + [380.0, 200.0], F, **true)
     after = distance_to_path(prog, D).max()
     assert after < 0.1 * before, f"compensated {after:.4f} mm, uncompensated {before:.4f} mm"
+
+
+_FORCES = "line,fx,fy\n15,0,-490.5\n16,0,-490.5\n"
+
+
+@pytest.mark.fuzz
+@settings(max_examples=25, deadline=None)
+@given(
+    which=st.sampled_from(["program", "forces"]),
+    data=st.data(),
+)
+def test_malformed_inputs_are_handled(which, data):
+    """A mutated program or force file: a corrected program, or one clear error line (exit 2)."""
+    prog = PROGRAM.read_bytes()
+    short = b"".join(prog.splitlines(keepends=True)[:17])  # up to the second feed move (line 16)
+    forces = _FORCES.encode()
+    if which == "program":
+        short = data.draw(mutated_text(short.decode()))
+    else:
+        forces = data.draw(mutated_text(_FORCES))
+    case = FuzzCase(
+        {"p.nc": short, "f.csv": forces},
+        (
+            "compensate",
+            "3prr",
+            "--path",
+            "{dir}/p.nc",
+            "--out",
+            "{dir}/o.nc",
+            "--place",
+            "380,200",
+            "--force-file",
+            "{dir}/f.csv",
+            "-q",
+            "--no-figures",
+        ),
+        None,  # a mutated program can change its feed moves: the force file is then to blame
+    )
+    assert_handled(case, run_case(case))
