@@ -100,7 +100,7 @@ def test_a_good_run_writes_program_figures_and_summary(tmp_path, monkeypatch, ca
     assert text.splitlines()[:3] == PROGRAM.read_text().splitlines()[:3]  # header lines kept verbatim
 
 
-@pytest.mark.slow
+@pytest.mark.long  # a campaign simulated and run end to end: about 25 s
 def test_from_campaign_compensates_the_test_bed(tmp_path):
     """A 3PRR sensor campaign on the test-bed (true kj 700 N/mm, not the published 525) identifies
     the model; the program it compensates, cut by the true robot (the truss of the helpers), errs by
