@@ -215,8 +215,9 @@ def testbed(tmp: Path, arm: bool) -> list[list]:
     for name, args, place, force in runs:
         camp = tmp / name.split(",")[0].replace(" ", "_")
         t0 = time.perf_counter()
-        assert stiffmap(["simulate", str(camp), "--seed", "7", *args, "--json"]) in (0, None)
-        assert stiffmap(["run", str(camp), "-q", "--no-report", "--json"]) in (0, None)
+        assert stiffmap(["simulate", str(camp), "--seed", "7", *args]) in (0, None)
+        # exit 1: done, with notes (e.g. the fit's extra noise); the fit itself is checked below
+        assert stiffmap(["run", str(camp), "-q", "--no-report"]) in (0, 1, None)
         truth = load_truth(camp / "truth.json")
         fitted = fitted_model(camp)
         true_model = _true_model(truth, fitted.mechanism)
