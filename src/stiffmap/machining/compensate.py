@@ -493,7 +493,7 @@ def _rapids_into_cuts(path: Toolpath, pieces: dict[int, MovePieces], feed: np.nd
 
 
 def _before(fld, path, forces, feed, cum, spin_of) -> tuple[np.ndarray, np.ndarray]:
-    """|delta| along the feed moves, uncompensated: at their ends and 7 points inside each."""
+    """|delta| along the feed moves, uncompensated: at their ends and CHECK_SAMPLES points inside each."""
     if feed.size == 0:
         return np.zeros(0), np.zeros(0)
     k = CHECK_SAMPLES + 2
