@@ -25,7 +25,7 @@ from ..io import atomic_write_text
 from ..report.validation import stage_plot_svg
 from ..rig import Rig, load_rig, save_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
-from ..vision.calibrate import DIST_MODELS, CalibrationResult
+from ..vision.calibrate import DIST_MODELS, CalibrationResult, grouped_reasons
 from ..vision.displacement import ImageDisplacements, displacement_per_image
 from ..vision.files import (
     MAX_TRANSLATION_MM,
@@ -332,15 +332,17 @@ def calibrate(
         if sum([fix_k3, rational, thin_prism]) > 1:
             raise InputError("choose at most one of --fix-k3, --rational, --thin-prism")
         model = "fix-k3" if fix_k3 else "rational" if rational else "thin-prism" if thin_prism else "k3"
-        res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor)
+        # A bar on a terminal only (it would be a blank line in a log), gone once done.
+        with images_progress("finding the board", show=err.is_terminal, transient=True) as progress:
+            res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor, progress=progress)
         backup = save_camera(res.camera, out_path)
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
         warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
-    for v in res.views:
-        if not v.used:
-            warn(f"{v.image}: not used: {v.reason}")
+    unused = [v for v in res.views if not v.used]
+    for line in grouped_reasons([v.image for v in unused], [v.reason for v in unused]):
+        warn(f"not used: {line}")
     implausible = _warn_calibrated(res.camera, out_path)
     if as_json:
         print_json(res.to_dict())

@@ -46,6 +46,7 @@ __all__ = [
     "calibration_covariance",
     "covariance_from_information",
     "fixed_params",
+    "grouped_reasons",
     "matlab_camera_lines",
     "usable_views",
     "DIST_MODELS",
@@ -303,6 +304,35 @@ def covariance_from_information(S: np.ndarray, s2: float, free) -> np.ndarray:
     return 0.5 * (C + C.T)
 
 
+def grouped_reasons(names: Sequence[str], reasons: Sequence[str], shown: int = 3) -> list[str]:
+    """Images that share a reason, as one line per reason: ``"a.png, b.png (2 images): why"``.
+
+    Parameters
+    ----------
+    names, reasons : sequence of str
+        One per image; an empty reason is left out.
+    shown : int
+        Names written out per reason (the others counted: ``"a.png, b.png ... (16 images)"``).
+
+    Returns
+    -------
+    list of str
+        In the order each reason first occurs.
+    """
+    groups: dict[str, list[str]] = {}
+    for n, r in zip(names, reasons, strict=True):
+        if r:
+            groups.setdefault(r, []).append(n)
+    out = []
+    for r, ns in groups.items():
+        if len(ns) == 1:
+            out.append(f"{ns[0]}: {r}")
+            continue
+        head = ", ".join(ns[:shown]) + (f" ... {ns[-1]}" if len(ns) > shown else "")
+        out.append(f"{head} ({len(ns)} images): {r}")
+    return out
+
+
 def usable_views(detections: Sequence[BoardDetection | str], board: Board) -> tuple[list[str], list[int]]:
     """Which views can enter a calibration, and why the others cannot.
 
@@ -444,7 +474,7 @@ def calibrate_camera(
     grid = grid_of(board)
     reasons, usable = usable_views(detections, board)
     if len(usable) < min_views:
-        detail = "; ".join(f"{names[k]}: {reasons[k]}" for k in range(n_views) if reasons[k])
+        detail = "; ".join(grouped_reasons(names, reasons))
         raise InputError(
             f"calibration needs at least {min_views} views with the board found, got {len(usable)}"
             + (f" ({detail})" if detail else "")
