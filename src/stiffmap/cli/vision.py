@@ -343,23 +343,27 @@ def calibrate(
     unused = [v for v in res.views if not v.used]
     for line in grouped_reasons([v.image for v in unused], [v.reason for v in unused]):
         warn(f"not used: {line}")
-    implausible = _warn_calibrated(res.camera, out_path)
+    implausible = _warn_calibrated(res.camera, out_path, field_warning=False)
+    for key, what in res.problems:
+        warn(f"{out_path}: {key}: {what}")
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views) or implausible:
+    if res.n_used < len(res.views) or implausible or res.problems:
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _warn_calibrated(camera, out_path: Path, label: str = "") -> bool:
-    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model folds."""
+def _warn_calibrated(camera, out_path: Path, label: str = "", field_warning: bool = True) -> bool:
+    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model
+    folds within the image (``field_warning``; ``calibrate`` flags a fold among its views' corners
+    instead, and prints the field)."""
     implausible = plausibility_problems(camera)
     for key, what in implausible:
         # The other commands refuse this camera.json: say so now, with the views to blame.
         warn(f"{out_path}: {label}key {key!r}: {what} (the views may not constrain the calibration)")
     field = invertible_field(camera)
-    if not implausible and field.image_share() < 1.0:
+    if field_warning and not implausible and field.image_share() < 1.0:
         warn(f"{out_path}: {label}{field.describe()}; pose measurements use no pixel beyond it")
     return bool(implausible)
 

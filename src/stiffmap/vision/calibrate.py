@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..camera import CameraModel
+from ..camera import CameraModel, invertible_field
 from ..errors import InputError
 from ..geometry import matrix_from_rotvec
 from .detection import Board, BoardDetection, grid_of
@@ -45,6 +45,7 @@ __all__ = [
     "calibrate_camera",
     "calibration_covariance",
     "covariance_from_information",
+    "calibration_problems",
     "fixed_params",
     "grouped_reasons",
     "matlab_camera_lines",
@@ -108,6 +109,9 @@ class CalibrationResult:
     model : str
         Distortion model (a key of :data:`DIST_MODELS`).
     n_used : int
+    problems : tuple of (str, str)
+        What makes the calibration suspect beyond camera.json's checks
+        (:func:`calibration_problems`): (key, message) pairs, empty when none.
     """
 
     camera: CameraModel
@@ -115,6 +119,7 @@ class CalibrationResult:
     residuals_px: np.ndarray
     model: str
     n_used: int
+    problems: tuple[tuple[str, str], ...] = ()
 
     def to_dict(self) -> dict:
         """The ``camera.json`` object."""
@@ -529,4 +534,69 @@ def calibrate_camera(
     img = [detections[k].corners for k in used]
     cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model))
     camera = with_calibration_results(cam, sd_int[: 4 + nd], R, [v.to_dict() for v in views], cov)
-    return CalibrationResult(camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used))
+    problems = calibration_problems(camera, [detections[k] for k in used], [views[k].rms_px for k in used])
+    return CalibrationResult(
+        camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used), problems=problems
+    )
+
+
+#: A calibration is suspect when its median view RMS exceeds this many times the median RMS of
+#: the views' corners about a smooth board (the detection's own fit, no camera) ...
+VIEW_RMS_FACTOR = 5.0
+#: ... and this many px (corner noise and lens-model error stay well below on real cameras:
+#: 0.1-0.5 px on the four real sets of ``../shared/data``).
+VIEW_RMS_FLOOR_PX = 1.0
+
+
+def calibration_problems(
+    camera: CameraModel, detections: Sequence[BoardDetection], view_rms_px: Sequence[float]
+) -> tuple[tuple[str, str], ...]:
+    """What makes a calibration suspect although each parameter is plausible.
+
+    - The views fit the camera model far worse than their corners fit a smooth board (median
+      view RMS above :data:`VIEW_RMS_FACTOR` times the median of the detections' own
+      ``rms_residual_px`` and :data:`VIEW_RMS_FLOOR_PX`): grids that are not the board's
+      (a wrong board size), or a camera model that cannot describe the lens.
+    - The lens model folds over where the views saw corners (:func:`~stiffmap.camera.invertible_field`):
+      it is not one to one in the very field it was fitted to. Beyond the corners it may fold
+      (a polynomial extrapolated): poses then use no pixel there, which is said, not flagged.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    detections : sequence of BoardDetection
+        The used views' detections.
+    view_rms_px : sequence of float
+        Their reprojection RMS with ``camera``, px.
+
+    Returns
+    -------
+    tuple of (key, message)
+    """
+    out = []
+    own = [d.rms_residual_px for d in detections if np.isfinite(d.rms_residual_px)]
+    med_view = float(np.median(view_rms_px)) if len(view_rms_px) else float("nan")
+    med_own = float(np.median(own)) if own else float("nan")
+    if med_view > max(VIEW_RMS_FLOOR_PX, VIEW_RMS_FACTOR * med_own):
+        out.append(
+            (
+                "views",
+                f"the views fit the camera model to {med_view:.3g} px (median view RMS) where their "
+                f"corners fit a smooth board to {med_own:.3g} px: these grids are not what the model "
+                "describes (a wrong board size, mis-detected corners, or a lens this model cannot follow)",
+            )
+        )
+    corners = np.concatenate([d.corners for d in detections]) if detections else np.zeros((0, 2))
+    field = invertible_field(camera)
+    if field.folds and corners.size:
+        outside = ~field.contains_pixels(corners)
+        if outside.any():
+            out.append(
+                (
+                    "dist",
+                    f"the lens model folds over where the views saw corners ({int(outside.sum())} of "
+                    f"{len(corners)} corners lie beyond its invertible field: {field.describe()}): "
+                    "not a lens's distortion (too few views near the image's edges, or a wrong model)",
+                )
+            )
+    return tuple(out)

@@ -217,9 +217,10 @@ def seed_grid(image: np.ndarray, points: np.ndarray) -> np.ndarray | None:
 
     OpenCV's detectors asked for a pattern smaller than the printed board return real
     corners of it, but not always in grid order; this takes the corner nearest their
-    centroid, its nearest neighbour and the nearest one across, and refines the 3 x 3
-    lattice they span (a seed for :func:`grow_grid`). None when those are not the
-    saddles of a chessboard.
+    centroid and two of its nearest neighbours as the grid's steps (tried in order of length:
+    on a sheared view a diagonal neighbour can be nearer than the other axis', and its lattice
+    is not a board's), and refines the 3 x 3 lattice they span (a seed for :func:`grow_grid`).
+    None when no pair gives chessboard saddles on the board's edges.
     """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(pts) < 3:
@@ -227,22 +228,29 @@ def seed_grid(image: np.ndarray, points: np.ndarray) -> np.ndarray | None:
     p0 = pts[np.argmin(np.linalg.norm(pts - pts.mean(axis=0), axis=1))]
     d = pts - p0
     n = np.linalg.norm(d, axis=1)
-    n[n < 1e-9] = np.inf
-    u = d[np.argmin(n)]
-    cos = np.abs(d @ u) / (n * np.linalg.norm(u))
-    across = np.where(cos < 0.5, n, np.inf)
-    if not np.isfinite(across.min()):
-        return None
-    v = d[np.argmin(across)]
+    near = [d[k] for k in np.argsort(n) if n[k] > 1e-9][:6]
+    pairs = [
+        (a, b)
+        for i, a in enumerate(near)
+        for b in near[i + 1 :]
+        if abs(a @ b) < 0.7 * np.linalg.norm(a) * np.linalg.norm(b)
+    ]
+    pairs.sort(key=lambda ab: np.linalg.norm(ab[0]) + np.linalg.norm(ab[1]))
+    for u, v in pairs[:6]:
+        seed = _lattice_seed(image, p0, u, v)
+        if seed is not None:
+            return seed
+    return None
+
+
+def _lattice_seed(image: np.ndarray, p0: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """The 3 x 3 lattice p0 + i u + j v, refined; None unless it is a chessboard's grid."""
     i, j = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2))
     g = p0 + j[..., None] * v + i[..., None] * u
     step = min(np.linalg.norm(u), np.linalg.norm(v))
     h, w = image.shape
-    if not (
-        np.all(g >= step / 2 + 2)
-        and np.all(g[..., 0] < w - step / 2 - 3)
-        and np.all(g[..., 1] < h - step / 2 - 3)
-    ):
+    lo, hi_x, hi_y = step / 2 + 2, w - step / 2 - 3, h - step / 2 - 3
+    if not (np.all(g >= lo) and np.all(g[..., 0] < hi_x) and np.all(g[..., 1] < hi_y)):
         return None
     win = int(np.clip(round(0.25 * step), 2, 20))
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 20, 0.01)
@@ -251,7 +259,7 @@ def seed_grid(image: np.ndarray, points: np.ndarray) -> np.ndarray | None:
     if np.max(np.linalg.norm(ref - g, axis=-1)) > 0.25 * step:
         return None
     sad = corner_saddles(image, ref)
-    if not (sad.min() >= 0.5 * np.median(sad) and is_board_grid(image, ref)[0]):
+    if not (sad.min() >= 0.5 * np.median(sad) > 0 and is_board_grid(image, ref)[0]):
         return None
     return ref
 

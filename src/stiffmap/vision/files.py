@@ -79,8 +79,15 @@ def image_files(paths: Sequence[str | os.PathLike]) -> list[Path]:
             (q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES and q.is_file()), key=_natural_key
         )
         if not found:
+            subs = sorted((q.name for q in p.iterdir() if q.is_dir()), key=str.lower)
+            hint = (
+                f"; its sub-folders ({', '.join(subs[:5])}{' ...' if len(subs) > 5 else ''}) are not "
+                "searched: give the one of the camera to calibrate"
+                if subs
+                else ""
+            )
             raise InputError(
-                "the folder holds no image files (looked for " + ", ".join(IMAGE_SUFFIXES) + ")",
+                "the folder holds no image files (looked for " + ", ".join(IMAGE_SUFFIXES) + ")" + hint,
                 source=str(p),
             )
         out.extend(found)
