@@ -60,10 +60,11 @@ def test_a_part_of_the_board_grows_to_the_whole_board(image18):
     grown = grow_grid(image18, seed)
     # Its steps may be taken along either axis: the size, in either orientation.
     assert sorted(grown.grid.shape[:2]) == [REAL.rows, REAL.cols] and not grown.cut
-    # Its corners are the detected ones (cornerSubPix against stiffmap's refinement: 0.1 px).
+    # Its corners are the detected ones (cornerSubPix against stiffmap's refinement, within a
+    # small fraction of the 20-35 px squares).
     flat = grid.reshape(-1, 2)
     d = np.min(np.linalg.norm(grown.grid.reshape(-1, 1, 2) - flat[None], axis=-1), axis=1)
-    assert np.median(d) < 0.1 and d.max() < 0.5
+    assert np.median(d) < 0.3 and d.max() < 1.0
 
 
 def test_calibrating_a_13x12_board_as_9x6_stops_early_naming_13x12():
