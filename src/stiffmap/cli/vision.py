@@ -39,7 +39,7 @@ from ..vision.files import (
 )
 from ..vision.fuse import FusedPose
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
-from ..vision.sequence import ImageMeasurement
+from ..vision.sequence import ImageMeasurement, photometric_summary
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
 from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, three_numbers, warn
 
@@ -137,12 +137,17 @@ def _pose_json(p) -> dict:
     return d
 
 
-def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
+def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None, refine: str = "photometric") -> None:
     """One warning per image (set) that failed, or whose pose fell back to the corners (with why).
 
     With a rig, also one per camera whose image of a measured set could not be used, and one
-    per fused pose whose cameras disagree (a wrong rig file, a moved camera).
+    per fused pose whose cameras disagree (a wrong rig file, a moved camera). With the default
+    ``--refine auto`` a pose that keeps its corners is no warning: one note sums them up.
     """
+    if refine == "auto":
+        note = photometric_summary(ms)
+        if note is not None:
+            err.print(f"note: {note}", markup=False, soft_wrap=True)
     for m in ms:
         if not m.ok:
             warn(m.error)
@@ -154,7 +159,7 @@ def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
             for w in m.consistency_warnings:
                 warn(f"{m.image}: {w}")
         for p in (m.mobile, m.fixed):
-            if p is not None and p.fallback:
+            if p is not None and p.fallback and refine != "auto":
                 warn(f"{m.image}: {p.fallback}")
 
 
@@ -600,7 +605,7 @@ def pose(
         _print_poses(ms, f"board2rig of the {size} board (rig frame: camera {the_rig.names[0]}'s), fused")
         _print_cameras(ms, the_rig)
         out.print(_rig_calibration_note(the_rig, str(rig)))
-    _warn_failures(ms, the_rig)
+    _warn_failures(ms, the_rig, refine)
     _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board, rig), _camera_failures(ms) > 0)
 
 
@@ -724,7 +729,7 @@ def displacement(
         n_ref = len(refs)
     except InputError as e:
         raise fail(str(e)) from None
-    _warn_failures(ms, the_rig)
+    _warn_failures(ms, the_rig, refine)
     try:
         res = displacement_per_image(ms[:n_ref], ms[n_ref:], q)
     except InputError as e:

@@ -191,6 +191,32 @@ def estimate_pose(
             "the corner pose shows the board from behind (its z axis towards the camera: a wrong "
             "camera model?); corner pose kept"
         )
+    inner = track is not None and track.inner_only
+    photo, why = _photometric(
+        image, board, camera, bare, detection, exclude, source, track, inner, max_shift_sigma
+    )
+    if photo is None and not inner:
+        # The whole board's model assumes full outer squares on a white margin: a printed board
+        # cut short or framed otherwise fits only its inner squares, which every chessboard has.
+        photo, _ = _photometric(
+            image, board, camera, bare, detection, exclude, source, track, True, max_shift_sigma
+        )
+        if photo is not None and track is not None:
+            track.inner_only = True
+        why = why if photo is None else None
+    if photo is None:
+        if track is not None:
+            track.clear()
+        return kept(f"{why}; corner pose kept")
+    A = track.sensitivity(camera, board, photo.board2cam) if track is not None else None
+    out = with_calibration_share(photo, detection, camera, edges_of=board, sensitivity=A)
+    if track is not None and A is None:
+        track.keep_sensitivity(photo.board2cam, out.calibration_jacobian, camera, board)
+    return out
+
+
+def _photometric(image, board, camera, bare, detection, exclude, source, track, inner, max_shift_sigma):
+    """The photometric pose (None and why not when it fails or is too far from the corner pose)."""
     try:
         photo = refine_pose_photometric(
             image,
@@ -201,22 +227,17 @@ def estimate_pose(
             exclude=exclude,
             source=source,
             track=track,
+            inner_only=inner,
         )
     except PhotometricError as e:
-        return kept(f"{e.detail}; corner pose kept")
+        return None, e.detail
     shift = pose_shift_sigma(bare, photo)
     if not shift <= max_shift_sigma:
-        if track is not None:
-            track.clear()
-        return kept(
-            f"photometric pose {shift:.1f} sigma from the corner pose (more than "
-            f"{max_shift_sigma:g}); corner pose kept"
+        return (
+            None,
+            f"photometric pose {shift:.1f} sigma from the corner pose (more than {max_shift_sigma:g})",
         )
-    A = track.sensitivity(camera, board, photo.board2cam) if track is not None else None
-    out = with_calibration_share(photo, detection, camera, edges_of=board, sensitivity=A)
-    if track is not None and A is None:
-        track.keep_sensitivity(photo.board2cam, out.calibration_jacobian, camera, board)
-    return out
+    return photo, None
 
 
 def follow_pose(
@@ -266,7 +287,15 @@ def follow_pose(
         No warm start, or it failed one of the checks above (``track`` unchanged).
     """
     photo = refine_pose_photometric(
-        image, board, camera, previous, exclude=exclude, source=source, track=track, warm_only=True
+        image,
+        board,
+        camera,
+        previous,
+        exclude=exclude,
+        source=source,
+        track=track,
+        warm_only=True,
+        inner_only=track.inner_only,
     )
     A = track.sensitivity(camera, board, photo.board2cam)
     out = with_calibration_share(photo, None, camera, edges_of=board, sensitivity=A)
