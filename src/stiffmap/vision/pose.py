@@ -208,6 +208,8 @@ def estimate_pose(
         if track is not None:
             track.clear()
         return kept(f"{why}; corner pose kept")
+    if photo.photometric is not None:
+        photo = replace(photo, photometric=replace(photo.photometric, corner_cov=bare.cov_noise))
     A = track.sensitivity(camera, board, photo.board2cam) if track is not None else None
     out = with_calibration_share(photo, detection, camera, edges_of=board, sensitivity=A)
     if track is not None and A is None:

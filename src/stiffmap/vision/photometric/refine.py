@@ -75,6 +75,11 @@ class PhotometricFit:
     seconds : float
     warm_start : bool
         The fit started from the previous image's fit of the board (:class:`PhotometricTrack`).
+    corner_cov : ndarray, shape (6, 6), or None
+        The noise covariance of the corner pose the fit was checked against
+        (:func:`~stiffmap.vision.pose.estimate_pose` sets it): what the corners alone can tell,
+        used where the pixels' own covariance is too optimistic on real images (a rig's
+        consistency test, :mod:`~stiffmap.vision.fuse`).
     """
 
     rms_dn: float
@@ -93,6 +98,7 @@ class PhotometricFit:
     converged: bool
     seconds: float
     warm_start: bool = False
+    corner_cov: np.ndarray | None = None
 
 
 #: The previous image's pixel set is reused while the start pose moves the board's outline by
