@@ -48,14 +48,15 @@ IMAGE_PROBLEMS = ("no complete", "image is ", "partly", "not an image")
 
 
 def _run(args: list[str]) -> tuple[int, list[str], float, float]:
-    """Exit status, warning lines, wall and child CPU seconds of one command."""
+    """Exit status, warning lines (and the error line, if any), wall and child CPU seconds of one
+    command."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     r = subprocess.run(STIFFMAP + args, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-    warns = [ln for ln in r.stderr.splitlines() if ln.startswith("warning:")]
+    warns = [ln for ln in r.stderr.splitlines() if ln.startswith(("warning:", "error:"))]
     return r.returncode, warns, wall, cpu
 
 
@@ -169,7 +170,7 @@ def main() -> None:
         "Default settings (`--refine auto`). Warnings split into those naming an image that cannot be "
         "measured (board partly out of the frame, another image size) and the others. Wrong board size "
         f"(`calibrate calib_example --board 9x6`): exit {rc}, {wall:.1f} s wall, {cpu:.1f} s CPU "
-        f"(this shared machine's load varies): {w[0] if w else 'no warning'}"
+        f"(this shared machine's load varies): `{w[-1] if w else 'no message'}`"
     )
     save("real_pose", "Real photographs: default warnings and photometric refinements", headers, rows, notes)
 

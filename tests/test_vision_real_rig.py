@@ -18,6 +18,7 @@ from stiffmap.geometry import matrix_from_rotvec, rotvec_from_matrix
 from stiffmap.targets import Chessboard
 from stiffmap.vision.files import calibrate_rig_files, measure_image_sets
 from stiffmap.vision.fuse import corner_noise_factor
+from stiffmap.vision.sequence import fallback_category, photometric_counts, photometric_summary
 
 DATA = Path(__file__).parent / "data" / "stereo_opencv"
 BOARD = Chessboard(9, 6, 25.0)  # the square size is not published: any value does
@@ -78,3 +79,25 @@ def test_a_camera_moved_since_calibration_is_caught(rig, move):
     moved = replace(rig, cameras=(rig.cameras[0], replace(cam, cam2rig=T)))
     ms = measure_image_sets(_sets()[:4], moved, BOARD, refine="corners")
     assert all(m.mobile.consistency_warning for m in ms)
+
+
+def test_boards_with_cut_outer_squares_are_refined_on_their_inner_squares(measured):
+    """The samples' board has its outer squares cut short on two sides: the whole-board model
+    failed on all 26 views ("the fitted contrast falls to 1-29 % of its median"); the inner
+    squares' edges fit, within 6 combined sigma of the corner pose, on every one."""
+    kept, tried, why = photometric_counts(measured)
+    assert (kept, tried, why) == (26, 26, {})
+    assert photometric_summary(measured) is None  # nothing to say: kept on every pose
+    views = [v for m in measured for v in m.views]
+    assert all(v.mobile.photometric.inner_only for v in views)
+    assert all(v.mobile.photometric.corner_cov is not None for v in views)
+
+
+def test_fallback_categories():
+    assert fallback_category("photometric pose 7.1 sigma from the corner pose (more than 6)").startswith(
+        "disagrees"
+    )
+    assert fallback_category("9x6 chessboard: photometric fit: the fitted contrast falls to 5 %") == (
+        "the fitted contrast fades over part of the board"
+    )
+    assert fallback_category("something new") == "other"

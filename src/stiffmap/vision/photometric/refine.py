@@ -80,6 +80,9 @@ class PhotometricFit:
         (:func:`~stiffmap.vision.pose.estimate_pose` sets it): what the corners alone can tell,
         used where the pixels' own covariance is too optimistic on real images (a rig's
         consistency test, :mod:`~stiffmap.vision.fuse`).
+    inner_only : bool
+        The fit used only the edges between the inner corners (the whole board's model did not
+        fit: outer squares cut short, a margin that is not white).
     """
 
     rms_dn: float
@@ -99,6 +102,7 @@ class PhotometricFit:
     seconds: float
     warm_start: bool = False
     corner_cov: np.ndarray | None = None
+    inner_only: bool = False
 
 
 #: The previous image's pixel set is reused while the start pose moves the board's outline by
@@ -587,6 +591,7 @@ def refine_pose_photometric(
         converged=sol.converged,
         seconds=time.perf_counter() - t_start,
         warm_start=warm is not None,
+        inner_only=bool(inner_only),
     )
     if track is not None:
         if warm is None:
