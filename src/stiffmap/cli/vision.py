@@ -137,20 +137,27 @@ def _pose_json(p) -> dict:
     return d
 
 
-def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None, refine: str = "photometric") -> None:
+def _warn_failures(
+    ms: list[ImageMeasurement], rig: Rig | None = None, refine: str = "photometric", as_json: bool = False
+) -> None:
     """One warning per image (set) that failed, or whose pose fell back to the corners (with why).
 
     With a rig, also one per camera whose image of a measured set could not be used, and one
     per fused pose whose cameras disagree (a wrong rig file, a moved camera). With the default
-    ``--refine auto`` a pose that keeps its corners is no warning: one note sums them up.
+    ``--refine auto`` a pose that keeps its corners is no warning: one note after the table sums
+    them up (none with ``--json``, whose poses each carry their ``fallback``).
     """
-    if refine == "auto":
+    if refine == "auto" and not as_json:
         note = photometric_summary(ms)
         if note is not None:
-            err.print(f"note: {note}", markup=False, soft_wrap=True)
+            out.print(f"note: {note}", markup=False)
+    failed = [m for m in ms if not m.ok]
+    # Images that failed for one reason (a wrong --board on every image) are one line.
+    reasons = [m.error.removeprefix(f"{m.image}: ") for m in failed]
+    for line in grouped_reasons([m.image for m in failed], reasons):
+        warn(line)
     for m in ms:
         if not m.ok:
-            warn(m.error)
             continue
         if rig is not None:
             for v in m.views:
@@ -605,7 +612,7 @@ def pose(
         _print_poses(ms, f"board2rig of the {size} board (rig frame: camera {the_rig.names[0]}'s), fused")
         _print_cameras(ms, the_rig)
         out.print(_rig_calibration_note(the_rig, str(rig)))
-    _warn_failures(ms, the_rig, refine)
+    _warn_failures(ms, the_rig, refine, as_json)
     _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board, rig), _camera_failures(ms) > 0)
 
 
@@ -729,7 +736,7 @@ def displacement(
         n_ref = len(refs)
     except InputError as e:
         raise fail(str(e)) from None
-    _warn_failures(ms, the_rig, refine)
+    _warn_failures(ms, the_rig, refine, as_json)
     try:
         res = displacement_per_image(ms[:n_ref], ms[n_ref:], q)
     except InputError as e:
