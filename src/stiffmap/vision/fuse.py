@@ -73,6 +73,7 @@ from ..posemath import BoardPose, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
 from ..stats import chi2_ppf, chi2_sf
 from ..targets import CharucoBoard, Chessboard
+from .pose import corner_noise_factor
 
 __all__ = [
     "FusedPose",
@@ -428,39 +429,6 @@ def fuse_poses(
         consistency_warning=warning,
         **stats,
     )
-
-
-#: Largest inflation of a corner pose's noise covariance for its errors' correlation.
-MAX_CORNER_NOISE_FACTOR = 5.0
-
-
-def corner_noise_factor(residuals_px) -> float:
-    """How much a corner pose's independent-noise covariance understates its error on real images.
-
-    The corner fit takes each corner's error as independent (cov_noise = s^2 (J^T J)^-1), but on
-    a real camera what the lens model, the print and the corner estimator leave is smooth across
-    the board: neighbouring corners err alike. With rho the correlation of neighbouring corners'
-    residuals (consecutive ones in the canonical row-major order), a mean over m corners has the
-    variance of about m / (1 + 4 rho) independent ones (four neighbours each, the design effect
-    of a correlated sample); the factor is 1 + 4 rho, within 1..:data:`MAX_CORNER_NOISE_FACTOR`.
-    On OpenCV's stereo samples rho is 0.24-0.56 (factors 2.0-3.2), where the cameras' corner
-    poses scattered 3-5 times their independent-noise variance; on the test-bed's rendered
-    images (independent noise) it is about 0 (factor 1).
-
-    Parameters
-    ----------
-    residuals_px : ndarray, shape (m, 2)
-        The corners' reprojection residuals at the pose, px, in canonical order.
-    """
-    e = np.asarray(residuals_px, dtype=np.float64).reshape(-1, 2)
-    if len(e) < 8:
-        return 1.0
-    a, b = e[:-1], e[1:]
-    den = np.sqrt(np.sum(a * a) * np.sum(b * b))
-    if not den > 0:
-        return 1.0
-    rho = float(np.sum(a * b) / den)
-    return float(np.clip(1.0 + 4.0 * rho, 1.0, MAX_CORNER_NOISE_FACTOR))
 
 
 def _consistency(Ns, Bs, offsets, Sc) -> tuple[float, int]:
