@@ -130,16 +130,18 @@ def side_with_corners(image: np.ndarray, H: np.ndarray, cols: int, rows: int, co
     return None
 
 
-def corner_saddles(image: np.ndarray, grid: np.ndarray) -> np.ndarray:
+def corner_saddles(image: np.ndarray, grid: np.ndarray, reach: float = 0.5) -> np.ndarray:
     """Saddle contrast (as :func:`saddle_score`) at each corner of a (rows, cols, 2) grid.
 
     The four square centres around a corner come from the grid's own local steps
     (central differences, one-sided on the edges), not from one homography, so the
-    test holds under strong lens distortion.
+    test holds under strong lens distortion. ``reach`` (in steps along each axis) places
+    the samples: 0.5 at the squares' centres, less to stay inside outer squares that a
+    printed board cuts short.
     """
     du = np.gradient(grid, axis=1)
     dv = np.gradient(grid, axis=0)
-    centres = [grid + 0.5 * (su * du + sv * dv) for su, sv in ((1, 1), (-1, -1), (1, -1), (-1, 1))]
+    centres = [grid + reach * (su * du + sv * dv) for su, sv in ((1, 1), (-1, -1), (1, -1), (-1, 1))]
     a, b, c, d = (sample_bilinear(image, q) for q in centres)
     return np.abs(a + b - c - d) / 2 - np.abs(a - b) / 2 - np.abs(c - d) / 2
 

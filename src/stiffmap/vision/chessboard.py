@@ -52,6 +52,7 @@ from .ordering import canonical_order
 __all__ = [
     "MIN_CONTRAST",
     "MIN_EDGE_FRACTION",
+    "MIN_SADDLE_SHARE",
     "GrownGrid",
     "LargerBoard",
     "grow_grid",
@@ -72,11 +73,22 @@ MIN_CONTRAST = 10.0
 MIN_EDGE_FRACTION = 0.7
 
 
+#: Least share of a grid's corners that must be saddles of at least 0.3 times the grid's median
+#: saddle contrast (:func:`~stiffmap.vision.board_plane.corner_saddles`): 90 % or more of the
+#: corners of every board of the real sets are; a grid shifted onto a board's outer edge (its
+#: corners there where a black square meets the margin, no saddle) has a row or column of
+#: non-saddles (OpenCV's exhaustive 7x5 search on a 9x6 board of ``greninja``: 11 of 35).
+MIN_SADDLE_SHARE = 0.9
+
+
 def is_board_grid(image: np.ndarray, grid: np.ndarray) -> tuple[bool, float]:
-    """Whether a grid is a chessboard's (contrast, and its sides on edges), and its contrast."""
+    """Whether a grid is a chessboard's (contrast, its sides on edges, its corners saddles), and
+    its contrast."""
     contrast = grid_contrast(image, grid)
-    ok = contrast >= MIN_CONTRAST and grid_edge_fraction(image, grid) >= MIN_EDGE_FRACTION
-    return ok, contrast
+    if contrast < MIN_CONTRAST or grid_edge_fraction(image, grid) < MIN_EDGE_FRACTION:
+        return False, contrast
+    sad = corner_saddles(image, grid)
+    return bool(np.mean(sad >= 0.3 * np.median(sad)) >= MIN_SADDLE_SHARE), contrast
 
 
 @dataclass(frozen=True)
@@ -140,6 +152,8 @@ class LargerBoard:
 GROW_SHARE = 0.7
 #: Largest board side a grid is grown to, corners.
 GROW_MAX = 80
+#: Where the saddle test of a grown row samples the squares around a corner, in steps.
+GROW_REACH = 0.25
 
 
 def grow_grid(image: np.ndarray, grid: np.ndarray) -> GrownGrid:
@@ -147,8 +161,9 @@ def grow_grid(image: np.ndarray, grid: np.ndarray) -> GrownGrid:
 
     Each side in turn: the next row of corners is extrapolated from the last three (or two),
     refined (``cornerSubPix``), and taken when at least :data:`GROW_SHARE` of its corners
-    are saddles of the board's contrast (:func:`~stiffmap.vision.board_plane.corner_saddles`)
-    that stayed within a quarter of a square of the prediction. A row that leaves the image
+    are saddles (:func:`~stiffmap.vision.board_plane.corner_saddles`) of at least half their
+    neighbour's in the last row and a quarter of the grid's median, that stayed within a
+    quarter of a square of the prediction. A row that leaves the image
     ends that side (``cut`` when its corners inside the image are still the board's).
     Local extrapolation follows the lens distortion, which a homography would not.
 
@@ -164,7 +179,9 @@ def grow_grid(image: np.ndarray, grid: np.ndarray) -> GrownGrid:
     """
     g = np.asarray(grid, dtype=np.float64)
     h, w = image.shape
-    ref = float(np.median(corner_saddles(image, g)))
+    # Samples a quarter of a step from each corner: inside outer squares cut short (OpenCV's
+    # stereo samples), where the squares' centres would fall on the margin.
+    ref = float(np.median(corner_saddles(image, g, GROW_REACH)))
     cut = False
     open_sides = ["top", "bottom", "left", "right"]
     while open_sides and max(g.shape[:2]) < GROW_MAX:
@@ -194,8 +211,12 @@ def grow_grid(image: np.ndarray, grid: np.ndarray) -> GrownGrid:
         row = pred.copy()
         row[inside] = refined
         trial = np.concatenate([a, row[None]], axis=0)
-        sad = corner_saddles(image, trial)[-1][inside]
-        good = moved & (sad >= 0.5 * ref)
+        sads = corner_saddles(image, trial, GROW_REACH)
+        sad, last = sads[-1][inside], sads[-2][inside]
+        # Against the neighbouring corner of the last row (lighting varies over a board: a
+        # tablet's screen seen obliquely halves its contrast from one side to the other), and
+        # against a quarter of the grid's median (not a flat margin's speck).
+        good = moved & (sad >= 0.5 * last) & (sad >= 0.25 * ref)
         if good.mean() < GROW_SHARE:
             continue
         if not inside.all():

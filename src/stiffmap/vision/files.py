@@ -575,7 +575,7 @@ def calibrate_rig_files(
     sizes: list[tuple[int, int]] = []
     for name, row in zip(names, table, strict=True):
         paths = [p for p in row if p is not None]
-        d, sz, _ = _detect_files(paths, board, scale, tick)
+        d, sz, _ = _detect_files(paths, board, scale, tick, early=True)
         seen = [s for s in sz if s is not None]
         if not seen:
             raise InputError(
