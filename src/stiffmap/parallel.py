@@ -42,8 +42,10 @@ import hashlib
 import logging
 import os
 import pickle
+import signal
 import socket
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator
@@ -166,13 +168,14 @@ class Cluster:
         distributed, address = self._dist, self.address
         if address == "local":
             try:
-                self._cluster = distributed.LocalCluster(
-                    n_workers=max(1, int(workers)),
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0",  # a free port: none named, none taken from another cluster
-                    silence_logs=logging.ERROR,
-                )
+                with _ctrl_c_ignored():  # its processes inherit it: Ctrl-C is this process's to handle
+                    self._cluster = distributed.LocalCluster(
+                        n_workers=max(1, int(workers)),
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=":0",  # a free port, none taken from another cluster
+                        silence_logs=logging.ERROR,
+                    )
             except (OSError, RuntimeError, TimeoutError) as e:
                 raise InputError(
                     f"--dask local: could not start a local Dask cluster ({_one_line(e)})"
@@ -381,6 +384,24 @@ def _greeting(host: str, port: int) -> str | None:
 
 
 @contextlib.contextmanager
+def _ctrl_c_ignored() -> Iterator[None]:
+    """SIGINT ignored for the block (in the main thread; elsewhere nothing changes).
+
+    Processes started in the block inherit the ignored signal (it survives ``exec``): a Ctrl-C
+    in the terminal then stops this process, which closes them, instead of each printing its
+    own traceback. A Ctrl-C during the block itself is lost.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+@contextlib.contextmanager
 def _quiet_unraisable() -> Iterator[None]:
     """Drop the 'Exception ignored in Client.__del__' reports of a client that never connected."""
     hook = sys.unraisablehook
@@ -405,6 +426,25 @@ def _init_process(init: Callable[[Any], None] | None, ctx: Any) -> None:
     _CTX["ctx"] = ctx
     if init is not None:
         init(ctx)
+
+
+def _init_pool_process(init: Callable[[Any], None] | None, ctx: Any) -> None:
+    """A pool worker's start: Ctrl-C is the parent's to handle (it stops the pool), not each worker's
+    (whose tracebacks would fill the terminal)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _init_process(init, ctx)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now (Ctrl-C): its queued tasks cancelled, its running ones' processes ended.
+
+    Workers only compute (the caller is the only writer of results): nothing is lost that a
+    re-run does not redo.
+    """
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(Exception):
+            proc.terminate()
 
 
 def _call_in_process(fn: Callable[[Any, Any], Any], item: Any) -> Any:
@@ -508,7 +548,7 @@ def map_unordered(
     mp = get_context(backend.start_method) if backend.start_method else None
     limit = window or len(items)
     with ProcessPoolExecutor(
-        max_workers=backend.workers, mp_context=mp, initializer=_init_process, initargs=(init, ctx)
+        max_workers=backend.workers, mp_context=mp, initializer=_init_pool_process, initargs=(init, ctx)
     ) as pool:
         queue = iter(items)
         pending: dict[Any, Any] = {}
@@ -525,6 +565,9 @@ def map_unordered(
                     for nxt in queue:
                         pending[pool.submit(_call_in_process, fn, prep(nxt))] = nxt
                         break
+        except KeyboardInterrupt:
+            _stop_pool(pool)
+            raise
         finally:
             for fut in pending:
                 fut.cancel()
