@@ -205,3 +205,12 @@ def test_a_scheduler_that_dies_during_the_work_is_an_input_error_not_a_hang(tmp_
             if p is not None:
                 p.kill()
                 p.wait()
+
+
+def test_a_host_name_too_long_for_dns_is_named(monkeypatch):
+    """A 300-letter host name is refused by the IDNA codec (UnicodeError, not an OSError)."""
+    monkeypatch.setattr(parallel, "CONNECT_TIMEOUT_S", 0.5)
+    address = "tcp://" + "a" * 300 + ":8786"
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler") as e:
+        parallel.Cluster(address)
+    assert str(e.value).startswith(f"--dask {address}: ")

@@ -303,8 +303,10 @@ def _check_reachable(distributed, address: str) -> None:
         raise InputError(f"--dask {address}: scheme {scheme!r}; expected tcp://HOST:PORT or tls://HOST:PORT")
     try:
         greeting = _greeting(host, int(port)) if scheme == "tcp" else None
-    except OSError as e:
-        raise InputError(f"--dask {address}: cannot reach the Dask scheduler ({e}); " + _START_HINT) from None
+    except (OSError, UnicodeError, ValueError, OverflowError) as e:  # refused, no such host, not a name
+        raise InputError(
+            f"--dask {address}: cannot reach the Dask scheduler ({_one_line(e)}); " + _START_HINT
+        ) from None
     if greeting is not None:
         raise _not_dask(address, greeting)
 

@@ -68,6 +68,8 @@ def camera_path(image_set: str, camera: str) -> str:
     return image_set.replace(CAMERA_FIELD, camera)
 
 
+#: Characters a camera's name may not hold: it is put into file names for ``{camera}``.
+_NOT_IN_NAMES = ("/", "\\", "{", "}")
 #: Tolerance on the first camera's ``cam2rig`` being the identity, and on rotations.
 _IDENTITY_TOL = 1e-6
 #: The farthest a camera of a rig may be from the first one, mm (100 m: a rig of cameras looking
@@ -284,6 +286,12 @@ class Rig:
             name = item.get("name")
             if not isinstance(name, str) or not name.strip() or name != name.strip():
                 raise bad(f"{key}.name", f"must be a non-empty name without outer spaces, got {name!r}")
+            if not name.isprintable() or any(c in name for c in _NOT_IN_NAMES):
+                raise bad(
+                    f"{key}.name",
+                    f"{name!r} cannot name a camera's image files (it stands for {CAMERA_FIELD} in "
+                    "their names: no / \\ { } or unprintable characters)",
+                )
             if name in seen:
                 raise bad(f"{key}.name", f"{name!r} is the name of an earlier camera: names must differ")
             seen.add(name)

@@ -590,27 +590,47 @@ def _check_owner(conn: sqlite3.Connection, path: Path) -> None:
 
 
 #: The JSON columns stiffmap reads back as numbers: per table, the rows that hold them (an SQL
-#: condition, and the key naming a row) and each column's kind (:func:`_value_problem`); "!"
-#: after a kind: never NULL in those rows.
-_VALUES: dict[str, tuple[str, str, dict[str, str]]] = {
-    "stiffness": (
+#: condition), the key naming a row, and each column's kind (:func:`_value_problem`); "!" after
+#: a kind: never NULL in those rows.
+_VALUES: tuple[tuple[str, str, str, dict[str, str]], ...] = (
+    (
+        "stiffness",
         "status = 'ok'",
         "position",
-        {"K": "matrix!", "K_std": "sigmas", "K_cov": "cov", "eigenvalues": "vector", "residual_rms": "any"},
+        {
+            "K": "matrix!",
+            "K_std": "sigmas",
+            "K_cov": "cov",
+            "K_cov_calibration": "cov",
+            "eigenvalues": "vector",
+            "residual_rms": "any",
+        },
     ),
-    "model_stiffness": ("valid = 1", "position", {"K": "matrix!"}),
-    "model_fit": ("status = 'ok'", "name", {"params": "numbers!", "std": "sigma numbers", "cov": "cov"}),
-    "displacements": (
+    ("model_stiffness", "1", "position", {"K": "matrix"}),
+    ("model_stiffness", "valid = 1", "position", {"K": "matrix!"}),
+    ("model_fit", "status = 'ok'", "name", {"params": "numbers!", "std": "sigma numbers", "cov": "cov"}),
+    (
+        "displacements",
         "status = 'ok'",
         "position, load, repeat",
-        {"d": "displacement!", "cov": "displacement cov"},
+        {"d": "displacement!", "cov": "displacement cov", "cov_calibration": "displacement cov"},
     ),
-    "measurements": (
+    (
+        "measurements",
         "status = 'ok'",
         "image",
-        {"mobile2cam": "pose", "fixed2cam": "pose", "mobile_cov": "cov", "fixed_cov": "cov"},
+        {
+            "mobile2cam": "pose",
+            "fixed2cam": "pose",
+            "mobile_cov": "cov",
+            "fixed_cov": "cov",
+        },
     ),
-}
+)
+
+#: What ``typeof()`` may give in a column of each declared type (another is a damaged file:
+#: bytes in a text column, text in a number's).
+_TYPES = {"TEXT": ("text", "null"), "REAL": ("real", "integer", "null"), "INTEGER": ("integer", "null")}
 
 
 #: Databases whose values this process checked or wrote, with the state their files were left in.
@@ -632,8 +652,9 @@ def _file_state(path: Path) -> tuple:
 def _check_values(conn: sqlite3.Connection, path: Path) -> None:
     """InputError naming the table, row and column of the first stored value that is not what
     stiffmap writes there (a NULL, NaN or 2x2 K of a measured position, an edited model row)."""
+    _check_types(conn, path)
     dims: dict[str, int] = {}  # the size of K, the same in every table
-    for table, (where, key, columns) in _VALUES.items():
+    for table, where, key, columns in _VALUES:
         keys = [k.strip() for k in key.split(",")]
         for r in conn.execute(f"SELECT {key}, {', '.join(columns)} FROM {table} WHERE {where}"):
             for col, kind, text in zip(columns, columns.values(), r[len(keys) :], strict=True):
@@ -641,6 +662,30 @@ def _check_values(conn: sqlite3.Connection, path: Path) -> None:
                 if what is not None:
                     row = ", ".join(f"{k} {v}" for k, v in zip(keys, r, strict=False))
                     raise _move_away(path, f"damaged or edited: table {table!r}, {row}: {col} {what}")
+
+
+def _check_types(conn: sqlite3.Connection, path: Path) -> None:
+    """InputError naming the first value whose SQLite type is not its column's (one scan per table)."""
+    for table in _columns():
+        cols = [(r[1], str(r[2]).upper()) for r in conn.execute(f"PRAGMA table_info({table})")]
+        cols = [(c, t) for c, t in cols if t in _TYPES]
+        odd = " OR ".join(f"typeof({c}) NOT IN ({', '.join(map(repr, _TYPES[t]))})" for c, t in cols)
+        row = conn.execute(f"SELECT rowid, * FROM {table} WHERE {odd} LIMIT 1").fetchone() if odd else None
+        if row is not None:
+            col, declared = next((c, t) for c, t in cols if _sql_type(row[c]) not in _TYPES[t])
+            raise _move_away(
+                path,
+                f"damaged or edited: table {table!r}, row {row[0]}: {col} holds {_sql_type(row[col])} "
+                f"where {_TYPES_SAID[declared]} belongs",
+            )
+
+
+_TYPES_SAID = {"TEXT": "text", "REAL": "a number", "INTEGER": "an integer"}
+
+
+def _sql_type(v: Any) -> str:
+    """The ``typeof()`` of a value as sqlite3 returns it."""
+    return {bytes: "blob", str: "text", float: "real", int: "integer", type(None): "null"}.get(type(v), "?")
 
 
 def _value_problem(text: Any, kind: str, dims: dict[str, int]) -> str | None:
