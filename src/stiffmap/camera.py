@@ -48,7 +48,11 @@ lengths of 0.1 to 100 times the image diagonal with fx / fy within 1/2.1 to 2.1,
 point inside the image, distortion coefficients of sane magnitude (radial k1..k6 within
 +/-1000, tangential p1, p2 and thin-prism s1..s4 within +/-1) that are one to one near the
 image centre, a reprojection RMS below 0.5 % of the image diagonal, and non-negative
-uncertainties. Each problem is an :class:`~stiffmap.errors.InputError` naming the file and
+uncertainties no larger than any calibration leaves (:func:`sigma_limits`: a 1-sigma of a
+focal length or principal point above the largest plausible focal length, or of a coefficient
+above its largest plausible value, says nothing; such numbers, 1e10 or 1e200, made the pose
+covariances overflow or singular). Each problem is an :class:`~stiffmap.errors.InputError`
+naming the file and
 the key.
 
 The distortion polynomial is invertible only near the image centre for a strong lens (it
@@ -92,6 +96,7 @@ __all__ = [
     "invertible_field",
     "pixel_rays",
     "plausibility_problems",
+    "sigma_limits",
     "reference_camera",
     "load_camera",
     "save_camera",
@@ -214,7 +219,7 @@ class CameraModel:
                 raise ValueError(
                     f"cov must be a finite ({n}, {n}) matrix over {self.param_names}, got {C.shape}"
                 )
-            C = 0.5 * (C + C.T)
+            C = 0.5 * C + 0.5 * C.T  # (C + C.T) / 2 would overflow near 1e308
             C.setflags(write=False)
             object.__setattr__(self, "cov", C)
 
@@ -770,7 +775,7 @@ def check_cov_object(
             f"is not symmetric: [{i}][{j}] = {C[i, j]:.6g} but [{j}][{i}] = {C[j, i]:.6g} "
             f"({params[i]}, {params[j]})",
         )
-    C = 0.5 * (C + C.T)
+    C = 0.5 * C + 0.5 * C.T  # (C + C.T) / 2 would overflow near 1e308
     nz = s > 0
     off = float(np.abs(C[~nz]).max()) if np.any(~nz) else 0.0
     if off > 0:
@@ -899,7 +904,58 @@ def plausibility_problems(camera: CameraModel) -> list[tuple[str, str]]:
         fold = _fold_near_centre(camera)
         if fold is not None:
             out.append(("dist", fold))
-    return out
+    return out + _uncertainty_problems(camera)
+
+
+def sigma_limits(camera: CameraModel) -> np.ndarray:
+    """The largest plausible 1-sigma of each calibrated parameter, :attr:`CameraModel.param_names` order.
+
+    The width of the range the parameter itself may take (:func:`plausibility_problems`): a
+    focal length's or the principal point's, the largest plausible focal length (100 image
+    diagonals, px); a distortion coefficient's, twice its largest magnitude (radial
+    :data:`MAX_RADIAL`, others :data:`MAX_TANGENTIAL`). An uncertainty beyond says nothing a
+    calibration could have measured (a variance where a standard deviation belongs, a unit
+    slip), and it made the pose covariances that carry it overflow or turn singular.
+    """
+    px = FOCAL_DIAGONALS[1] * math.hypot(*camera.image_size)
+    return np.array(
+        [
+            px if n in ("fx", "fy", "cx", "cy") else 2 * (MAX_RADIAL if n.startswith("k") else MAX_TANGENTIAL)
+            for n in camera.param_names
+        ]
+    )
+
+
+def _uncertainty_problems(camera: CameraModel) -> list[tuple[str, str]]:
+    """The first uncertainty (``std`` or ``cov``) beyond :func:`sigma_limits`, as (key, message)."""
+    if camera.cov is not None:
+        s = np.sqrt(np.abs(np.diag(camera.cov)))
+    elif camera.std is not None:  # the std themselves: their squares could overflow
+        sd = camera.std.get("dist") or [None] * len(camera.dist)
+        s = np.array(
+            [0.0 if x is None else float(x) for x in [*map(camera.std.get, ("fx", "fy", "cx", "cy")), *sd]]
+        )
+    else:
+        return []
+    limits = sigma_limits(camera)
+    over = np.flatnonzero(~(s <= limits))
+    if not over.size:
+        return []
+    k = int(over[0])
+    name = camera.param_names[k]
+    if camera.calibration_cov_source == "cov":
+        key = "cov.matrix"
+    else:
+        key = f"std.{name}" if k < 4 else f"std.dist[{k - 4}]"
+    unit = " px" if k < 4 else ""
+    return [
+        (
+            key,
+            f"a 1-sigma of {s[k]:.3g}{unit} for {name} is not a calibration's uncertainty (at most "
+            f"{limits[k]:.3g}{unit}, the width of the range {name} itself may take; a variance where a "
+            "standard deviation belongs, or another unit? null says 'unknown')",
+        )
+    ]
 
 
 def _distort(xy: np.ndarray, d: np.ndarray, *, jacobian: bool):
