@@ -55,6 +55,8 @@ class MeasureContext:
     refine: str = "auto"
     #: The ``rig.json`` object of a campaign with ``[cameras]`` (None: one camera, ``camera``).
     rig: dict | None = None
+    #: The camera or rig file as campaign.toml names it (for the messages).
+    camera_file: str = "camera.json"
 
     @classmethod
     def from_spec(cls, spec: CampaignSpec, root: Path, rig: Rig | CameraModel) -> MeasureContext:
@@ -72,6 +74,7 @@ class MeasureContext:
             fixed=None if fix is None else (fix.cols, fix.rows, fix.square_mm),
             fixed2base=t.fixed.fixed2base if t.fixed is not None else None,
             refine=spec.measurement.refine,
+            camera_file=spec.camera.file if spec.cameras is None else spec.cameras.rig,
         )
 
 
@@ -146,6 +149,7 @@ def measure_position(
             # The fixed target only orients the displacements, through its mean pose over the
             # position's images: corner poses are precise enough there.
             refine_fixed="corners",
+            camera_source=ctx.camera_file,
         )
     rows = []
     for rel, m in zip(present, ms, strict=True):
@@ -186,10 +190,19 @@ def measure_position(
 
 
 def _per_camera(m) -> list[dict]:
-    """What each camera of a rig gave for one image set (``ImageMeasurement.views``)."""
+    """What each camera of a rig gave for one image set (``ImageMeasurement.views``).
+
+    With two or more cameras on a board, each camera's entry also has how far its own pose of
+    the board lies from the fused one (``offset_mm``, ``offset_deg``: the mobile board's, else
+    the fixed one's) and ``disagree``: whether the fusion's consistency test refused the
+    cameras' poses (:mod:`stiffmap.vision.fuse`; read by :mod:`stiffmap.campaign.rig_checks`).
+    """
+    offsets = _fusion_offsets(m)
+    disagree = bool(m.consistency_warnings)
     out = []
     for v in m.views:
         poses = [p for p in (v.mobile, v.fixed) if p is not None]
+        offset = offsets.get(v.camera)
         out.append(
             {
                 "name": v.camera,
@@ -198,9 +211,27 @@ def _per_camera(m) -> list[dict]:
                 "rms_px": float(np.sqrt(np.mean([p.rms_px**2 for p in poses]))) if poses else None,
                 "n_corners": int(sum(p.n_corners for p in poses)),
                 "boards": [b for b, p in (("mobile", v.mobile), ("fixed", v.fixed)) if p is not None],
+                "offset_mm": None if offset is None else offset[0],
+                "offset_deg": None if offset is None else offset[1],
+                "disagree": disagree,
             }
         )
     return out
+
+
+def _fusion_offsets(m) -> dict[str, tuple[float, float]]:
+    """Each camera's pose of the mobile board (else the fixed) from the fused pose: mm, degrees."""
+    for p in (m.mobile, m.fixed):
+        views = getattr(p, "views", ())
+        if len(views) > 1:
+            return {
+                v.camera: (
+                    float(np.linalg.norm(v.offset[:3])),
+                    float(np.degrees(np.linalg.norm(v.offset[3:]))),
+                )
+                for v in views
+            }
+    return {}
 
 
 def _measure_worker(

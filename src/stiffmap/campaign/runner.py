@@ -49,6 +49,7 @@ from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .positions import PositionTask, plan
+from .rig_checks import rig_failures
 from .spec import SPEC_NAME, CampaignSpec, load_spec
 from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
@@ -57,7 +58,7 @@ __all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model"]
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
 #: recomputes it. MEASUREMENT: image -> board poses; DERIVATION: poses -> K.
-MEASUREMENT_REVISION = 7
+MEASUREMENT_REVISION = 8
 DERIVATION_REVISION = 3
 
 
@@ -79,6 +80,9 @@ class RunSummary:
     backend: str = ""
     #: What the user should know that is not a failure (a Dask worker that died, its tasks re-run).
     notes: list[str] = field(default_factory=list)
+    #: The camera or rig file's name, and whether it gives the calibration's uncertainty.
+    camera_file: str = ""
+    calibration_known: bool = False
 
 
 #: ``progress(images_done, images_total, images_measured)`` after each position.
@@ -136,7 +140,13 @@ def run_campaign(
     """
     t_start = time.perf_counter()
     campaign = _read_campaign(campaign_dir, method, allow_outside)  # plan: the spec's positions and images
-    summary = RunSummary(campaign=campaign.spec.name, positions=len(campaign.tasks), db=str(campaign.db))
+    summary = RunSummary(
+        campaign=campaign.spec.name,
+        positions=len(campaign.tasks),
+        db=str(campaign.db),
+        camera_file=campaign.camera_path.name,
+        calibration_known=campaign.rig.calibration_cov is not None,
+    )
     for t in campaign.tasks:
         for rel in t.missing:
             summary.failures.append(f"{rel}: image not found (position {t.index})")
@@ -173,10 +183,23 @@ def run_campaign(
                 tally.position_done(task, rows, problems)
         if backend.cluster is not None:
             summary.notes.extend(backend.cluster.events)
+        failures, notes = _rig_checks(store, campaign)
+        summary.failures.extend(failures)
+        summary.notes.extend(notes)
         summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
     return summary
+
+
+def _rig_checks(store: Store, campaign: _Campaign) -> tuple[list[str], list[str]]:
+    """A rig's cameras that measured nothing or disagree (failures), or missed some image sets
+    (notes), over the campaign's image sets (:mod:`stiffmap.campaign.rig_checks`)."""
+    if campaign.spec.cameras is None:
+        return [], []
+    images = {rel for t in campaign.tasks for rel in t.images}
+    rows = [r for r in store.measurement_rows() if r["image"] in images]
+    return rig_failures(rows, tuple(campaign.rig.names), campaign.camera_path.name)
 
 
 # ------------------------------------------------------------------------ plan

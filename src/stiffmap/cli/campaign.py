@@ -20,6 +20,7 @@ from ..campaign.demo import demo_config
 from ..campaign.export import calibration_share_of_K, summary_dict
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION
 from ..campaign.run import CampaignRun, campaign_root, run_and_export
+from ..campaign.runner import RunSummary
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.simulated import check_output_dir, write_campaign
 from ..campaign.spec import SPEC_NAME, load_spec
@@ -231,7 +232,7 @@ def run(
             pass
         elif spec.kind == "vision":
             out.print(_summary_table(store), width=max(out.width, 110))
-            out.print(_calibration_line(calibration_share_of_K(store)))
+            out.print(_calibration_line(calibration_share_of_K(store), done.vision))
             fitted = _fit_table(store, spec.robot.model)
             if fitted is not None:
                 out.print(fitted)
@@ -255,12 +256,19 @@ def run(
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _calibration_line(share: tuple[float, float] | None) -> str:
-    """How much of K's uncertainty is the camera calibration's (or that it is left out)."""
-    if share is None:
+def _calibration_line(share: tuple[float, float] | None, run: RunSummary | None) -> str:
+    """How much of K's uncertainty is the camera calibration's (or why that is not known)."""
+    if share is None and run is not None and run.calibration_known:
         return (
-            "K's uncertainty leaves out the camera calibration's: camera.json gives no covariance "
-            "or std (calibrate with 'stiffmap calibrate' to include it)"
+            f"the camera calibration's share of K's uncertainty is unknown: {run.camera_file} gives "
+            "it, but no position has an uncertainty of K (see the flags: too few load cases, or "
+            "failures)"
+        )
+    if share is None:
+        name = run.camera_file if run is not None and run.camera_file else "the camera file"
+        return (
+            f"K's uncertainty leaves out the camera calibration's: {name} gives no covariance "
+            "or std (calibrate with 'stiffmap calibrate' or 'stiffmap calibrate-rig' to include it)"
         )
     return (
         f"camera calibration's share of the variance of k11, k22, k33: median {100 * share[0]:.1f} %, "
