@@ -125,7 +125,7 @@ def _add_cov(d):
 
 
 def _row(*cams, status="ok"):
-    return {"status": status, "per_camera": json.dumps(list(cams))}
+    return status, json.dumps(list(cams))
 
 
 def _cam(name, ok=True, error=None, offset=(0.001, 0.01), disagree=False):
@@ -150,7 +150,8 @@ def test_a_camera_missing_from_some_sets_is_a_note_and_agreement_is_silent():
     (note,) = notes
     assert note.startswith("camera b did not measure 1 of the 2 image sets (first: b.png: image file not")
     # Rows of an older revision (no offsets), a single camera, no rows: nothing to say.
-    old = _row({"name": "a", "ok": True}, {"name": "b", "ok": True})
+    old = ("ok", [{"name": "a", "ok": True}, {"name": "b", "ok": True}])
     assert rig_failures([old], ("a", "b"), "r") == ([], [])
+    assert rig_failures([("ok", "not json"), ("ok", None)], ("a", "b"), "r") == ([], [])
     assert rig_failures(rows, ("a",), "rig.json") == ([], [])
     assert rig_failures([], ("a", "b"), "rig.json") == ([], [])

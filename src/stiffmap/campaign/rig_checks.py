@@ -22,21 +22,20 @@ line; those sets were measured by the others, as ``pose --rig`` measures one).
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from typing import Any
 
 __all__ = ["rig_failures"]
 
 
-def _cameras_of(row: Mapping[str, Any]) -> list[dict] | None:
-    """The ``per_camera`` list of one measurements row (None: not a rig's, or unreadable)."""
-    raw = row["per_camera"]
-    if not raw:
-        return None
-    try:
-        cams = json.loads(raw)
-    except (TypeError, ValueError):
-        return None
+def _cameras_of(per_camera: Any) -> list[dict] | None:
+    """A ``per_camera`` value (its JSON text or the list) as a list (None: not a rig's, unreadable)."""
+    cams = per_camera
+    if isinstance(cams, str | bytes):
+        try:
+            cams = json.loads(cams)
+        except ValueError:
+            return None
     if not isinstance(cams, list) or not all(isinstance(c, dict) and "name" in c for c in cams):
         return None
     return cams
@@ -95,15 +94,16 @@ def _disagreement(sets: list[list[dict]], rig_file: str) -> list[str]:
 
 
 def rig_failures(
-    rows: Iterable[Mapping[str, Any]], cameras: tuple[str, ...], rig_file: str
+    rows: Iterable[tuple[str, Any]], cameras: tuple[str, ...], rig_file: str
 ) -> tuple[list[str], list[str]]:
     """The failures (and notes) of a rig campaign's cameras over all its measured image sets.
 
     Parameters
     ----------
-    rows : iterable of mapping
-        The campaign's ``measurements`` rows (``status``; ``per_camera``: JSON list of each
-        camera's entry, ``name``, ``ok``, ``error``, ``offset_mm``, ``offset_deg``, ``disagree``).
+    rows : iterable of (str, list or str)
+        Of each of the campaign's ``measurements`` rows, its ``status`` and ``per_camera``: the
+        list (or its JSON text) of each camera's entry, ``name``, ``ok``, ``error``,
+        ``offset_mm``, ``offset_deg``, ``disagree``.
     cameras : tuple of str
         The rig's camera names.
     rig_file : str
@@ -121,7 +121,7 @@ def rig_failures(
         return [], []
     # The image sets measured (by one camera at least): one that no camera measured is a failure
     # of its own already.
-    sets = [cams for r in rows if r["status"] == "ok" and (cams := _cameras_of(r)) is not None]
+    sets = [cams for status, per in rows if status == "ok" and (cams := _cameras_of(per)) is not None]
     if not sets:
         return [], []
     failures, notes = _camera_gaps(sets, cameras)

@@ -198,7 +198,7 @@ def _rig_checks(store: Store, campaign: _Campaign) -> tuple[list[str], list[str]
     if campaign.spec.cameras is None:
         return [], []
     images = {rel for t in campaign.tasks for rel in t.images}
-    rows = [r for r in store.measurement_rows() if r["image"] in images]
+    rows = [(r["status"], r["per_camera"]) for r in store.measurement_rows() if r["image"] in images]
     return rig_failures(rows, tuple(campaign.rig.names), campaign.camera_path.name)
 
 

@@ -19,6 +19,10 @@ An interrupted capture resumes at the first missing image (images on disk are ne
 again). The operator may skip an image or redo the last one (:class:`Operator`); with
 ``--yes`` (:class:`AutoOperator`) nothing is asked and a step that gets no good settled frame
 within ``timeout_s`` ends the capture with a clear message (the images saved so far are kept).
+``timeout_s`` counts the source's time (a device's clock, a file's position, the simulated
+clock); when that clock runs more than :data:`CLOCK_SLACK` times slower than the wall clock (a
+simulated camera of a billion frames per second, whose clock barely moves), the wall clock
+counts: the user never waits more than ``timeout_s`` for a clock that does not move.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import json
 import os
 import shlex
 import subprocess
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,6 +65,12 @@ __all__ = [
 
 #: The capture log in the campaign directory (one JSON object per line).
 LOG_NAME = "capture_log.jsonl"
+#: A step's wait counts on the wall clock when the source's clock runs this many times slower
+#: (a simulated camera rendering slower than its frame rate, 10 times at most, keeps its clock).
+CLOCK_SLACK = 10.0
+#: Most settled frames per image (``--frames``; ``[capture] frames`` has the same bound): they
+#: are held in memory until the image is written.
+MAX_FRAMES = 1000
 
 
 @runtime_checkable
@@ -280,8 +291,11 @@ def run_capture(
     operator = operator or AutoOperator()
     cap = spec.capture_settings
     n_frames = int(frames) if frames is not None else cap.frames
-    if n_frames < 1:
-        raise InputError(f"--frames must be 1 or more, got {n_frames}")
+    if not 1 <= n_frames <= MAX_FRAMES:
+        raise InputError(
+            f"--frames must be 1 to {MAX_FRAMES} (the settled frames of one image, held in memory), "
+            f"got {n_frames}"
+        )
     average = cap.average or n_frames == 1
     if not average and n_frames != spec.repeats:
         raise InputError(
@@ -408,11 +422,13 @@ def run_capture(
             kept: list = []
             checks: list[FrameCheck] = []
             t_start: float | None = None
+            wall_start = 0.0  # the wall clock at the first frame (as t_start the source's)
             while True:
                 frame = source.grab()
                 grabbed += 1
                 t = float(frame.timestamp_s)
-                t_start = t if t_start is None else t_start
+                if t_start is None:
+                    t_start, wall_start = t, time.monotonic()
                 c = monitor.check(frame.image, t)
                 state.check = c
                 if c.settled:
@@ -427,7 +443,10 @@ def run_capture(
                     "settled: taking the image" if c.settled else "waiting for the platform to settle"
                 )
                 show(status)
-                if t - t_start > cap.timeout_s:
+                waited = time.monotonic() - wall_start
+                if t - t_start > cap.timeout_s or (
+                    waited > cap.timeout_s and waited > CLOCK_SLACK * (t - t_start)
+                ):
                     message = f"{', '.join(step.files)}: no good settled frame in {cap.timeout_s:g} s" + (
                         f"; the last frame: {c.problem}" if c.problem else " (the platform did not settle)"
                     )

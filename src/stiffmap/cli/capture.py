@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import typer
@@ -13,6 +14,9 @@ from ..capture.cameras import open_camera
 from ..capture.session import LOG_NAME, ViewState, run_capture
 from ..capture.view import render_view
 from .common import EXIT_PARTIAL, err, out
+
+#: Without a terminal (no live view), a line on the step's state at most this often (s).
+WAITING_LINE_S = 10.0
 
 
 class _ConsoleOperator:
@@ -70,15 +74,17 @@ def capture(
         None,
         "--frames",
         min=1,
-        help="Settled frames per image (default [capture] frames): averaged into one image, or kept "
-        "as the repeats with [capture] average = false.",
+        max=1000,
+        help="Settled frames per image, 1 to 1000 (default [capture] frames): averaged into one "
+        "image, or kept as the repeats with [capture] average = false.",
     ),
     yes: bool = typer.Option(
         False,
         "--yes",
         "-y",
         help="No questions: every action is taken as done (the simulated camera, rigs with load "
-        "actuators, scripts); an image without a good settled frame in [capture] timeout_s stops.",
+        "actuators, scripts); an image without a good settled frame in [capture] timeout_s (the "
+        "camera's time; the wall clock's when the camera's runs 10 times slower) stops.",
     ),
 ) -> None:
     """Take a campaign's images from a live camera, one step at a time, once the platform has settled.
@@ -95,13 +101,22 @@ def capture(
     source = open_camera(camera, root, spec)
     live = Live(console=err, auto_refresh=False, transient=False) if err.is_terminal else None
     last_saved: list[str] = []
+    last_line = [time.monotonic()]
 
     def view(state: ViewState) -> None:
         if live is not None:
             live.update(render_view(state), refresh=True)
         elif state.saved and state.saved[-1:] != last_saved[-1:]:
             last_saved[:] = state.saved
+            last_line[0] = time.monotonic()
             out.print(f"saved {state.saved[-1]}  ({state.on_disk} on disk)", highlight=False)
+        elif time.monotonic() - last_line[0] > WAITING_LINE_S:  # progress without a live view
+            last_line[0] = time.monotonic()
+            out.print(
+                f"step {state.step} of {state.steps}, {state.image}: {state.status or 'waiting'} "
+                f"({state.collected} of {state.needed} settled frames kept)",
+                highlight=False,
+            )
 
     operator = None if yes else _ConsoleOperator(live)
     with source:
