@@ -13,11 +13,20 @@ from pathlib import Path
 
 import numpy as np
 import typer
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
 
 from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
 from ..loads import MAX_FORCE_N
+from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_records, fit_measurements_file, map_csv, map_records, read_points
 from ..models.legs import LegRobot
 from ..models.presets import (
@@ -33,6 +42,7 @@ from ..models.presets import (
 from ..textfmt import fmt, fmt_pm
 from .common import (
     EXIT_PARTIAL,
+    err,
     fail,
     float_values,
     from_option,
@@ -196,7 +206,7 @@ def model(
     else:
         P = default_positions(mech)
     F = _force(mech, m.dim, load_n, direction)
-    mp = m.evaluate(P)
+    mp = _evaluate(m, P)
     if as_json or as_csv:
         _write_map(mp, F, as_json, output)
     elif output is not None:
@@ -210,6 +220,23 @@ def model(
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _evaluate(m, P: np.ndarray):
+    """``m.evaluate(P)``, with a progress bar on stderr over more than one chunk of poses."""
+    if len(P) <= CHUNK_POSES:
+        return m.evaluate(P)
+    with Progress(
+        TextColumn("poses"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=err,
+        transient=True,
+    ) as prog:
+        task = prog.add_task("poses", total=len(P))
+        return evaluate_in_chunks(m, P, lambda done, total: prog.update(task, completed=done, total=total))
 
 
 def _model_urdf(built, configs: Path, as_json: bool, output: Path | None) -> None:
