@@ -1,9 +1,12 @@
-"""Fuzz tests of rigs, results databases and Dask addresses (helpers.fuzz_safety).
+"""Fuzz tests of rigs, one camera's images, capture options, results databases and Dask
+addresses (helpers.fuzz_safety).
 
 Each class of :data:`helpers.fuzz_safety.FUZZ_CLASSES` is one hypothesis test: the command
 succeeds (its JSON then holds only finite numbers or nulls: NaN is never printed as a value) or
-ends with one clear message (exit 1 or 2). ``pytest -m fuzz tests/test_fuzz_safety.py`` runs
-the long profile; the default run takes 3 examples of each class.
+ends with one clear message (exit 1 or 2); a case wrong in a way that gives plausible results
+(a rig file of another rig, a camera that measured nothing) is warned or refused by name.
+``pytest -m fuzz tests/test_fuzz_safety.py`` runs the long profile; the default run takes 3
+examples of each class (2 of the two classes of images and capture).
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ _BY_NAME = {c.name: c for c in FUZZ_CLASSES}
 
 #: The current profile's number of examples, at most 3 in the default run (conftest: 12).
 _EXAMPLES = settings(max_examples=settings().max_examples if settings().max_examples > 12 else 3)
+#: The classes added in phase B of issue 27 (a run or a capture of 2-3 s each): 2 in the default run.
+_FEW = settings(max_examples=settings().max_examples if settings().max_examples > 12 else 2)
 
 
 def _finite_json(text: str) -> None:
@@ -47,6 +52,20 @@ def test_rig_files(case):
     assert names_a_campaign_file(case, o.stderr, o.code) or case.argv[0] == "pose", o.stderr[-1500:]
 
 
+@_FEW
+@given(case=_BY_NAME["one camera's images x run (rig)"].cases)
+def test_one_cameras_images(case):
+    o = _check(case)
+    assert names_a_campaign_file(case, o.stderr, o.code), o.stderr[-1500:]
+
+
+@_FEW
+@given(case=_BY_NAME["capture options x capture"].cases)
+def test_capture_options(case):
+    o = _check(case)
+    assert o.code in (0, 1, 2), o.stderr[-1500:]
+
+
 @_EXAMPLES
 @given(case=_BY_NAME["stiffmap.db values x report, run"].cases)
 def test_results_databases(case):
@@ -64,6 +83,8 @@ def test_dask_addresses(case):
 def test_every_class_is_tested():
     assert set(_BY_NAME) == {
         "rig.json x pose --rig, run",
+        "one camera's images x run (rig)",
+        "capture options x capture",
         "stiffmap.db values x report, run",
         "--dask addresses x run",
     }

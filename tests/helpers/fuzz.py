@@ -11,6 +11,8 @@ time limit. :func:`classify` says what happened:
 ``clear``      exit 1 or 2, an ``error:`` (or ``warning:``) line that names the blamed file
 ``unnamed``    exit 1 or 2 with a message that does not name the blamed file
 ``silent``     a non-zero exit without any ``error:``/``warning:`` line
+``wrong``      silently wrong: the case says what must be said (``FuzzCase.expect``: a swapped
+               rig file, a camera that measured nothing) and no ``error:``/``warning:`` line says it
 ``bug``        stiffmap's guard caught an unexpected exception (exit 3, "internal error")
 ``traceback``  an exception escaped the guard (or ``Traceback`` was printed)
 ``hang``       the time limit passed
@@ -45,7 +47,7 @@ from stiffmap.errors import StiffmapWarning
 #: Seconds one invocation may take before it counts as a hang.
 TIME_LIMIT_S = 20.0
 
-OUTCOMES = ("ok", "clear", "unnamed", "silent", "bug", "traceback", "hang")
+OUTCOMES = ("ok", "clear", "unnamed", "silent", "wrong", "bug", "traceback", "hang")
 HANDLED = ("ok", "clear")
 
 
@@ -55,13 +57,16 @@ class FuzzCase:
 
     ``argv`` items may hold ``{dir}`` (the directory). ``blamed`` is the name (relative
     to the directory) of the file an error message must name; None when any message will
-    do (e.g. several files are malformed at once).
+    do (e.g. several files are malformed at once). ``expect``: when the input is wrong in a
+    way that gives plausible results (a rig file of another rig), a text an ``error:`` or
+    ``warning:`` line must hold (whatever the exit status); None when success is right.
     """
 
     files: dict[str, bytes]
     argv: tuple[str, ...]
     blamed: str | None = None
     note: str = ""
+    expect: str | None = None
 
     def __repr__(self) -> str:
         # Short, for hypothesis's report of a failing case (the files' bytes can be megabytes).
@@ -146,7 +151,7 @@ def run_argv(argv: list[str], *, time_limit: float = TIME_LIMIT_S) -> Outcome:
     return o
 
 
-def classify(o: Outcome, blamed: str | None) -> str:
+def classify(o: Outcome, blamed: str | None, expect: str | None = None) -> str:
     """The outcome's kind (see the module docstring)."""
     if isinstance(o.escaped, _Hang):
         return "hang"
@@ -154,9 +159,11 @@ def classify(o: Outcome, blamed: str | None) -> str:
         return "traceback"
     if o.code == cli_main.EXIT_BUG or "internal error" in o.stderr:
         return "bug"
+    lines = [ln for ln in o.stderr.splitlines() if ln.startswith(("error:", "warning:"))]
+    if expect is not None and not any(expect in ln for ln in lines):
+        return "wrong"
     if o.code == 0:
         return "ok"
-    lines = [ln for ln in o.stderr.splitlines() if ln.startswith(("error:", "warning:"))]
     if not lines or o.code not in (1, 2):
         return "silent"
     if blamed is not None and not any(_names(ln, blamed) for ln in lines):
@@ -176,7 +183,7 @@ def run_case(case: FuzzCase, *, time_limit: float = TIME_LIMIT_S) -> Outcome:
         o = run_argv(write_case(case, d), time_limit=time_limit)
     finally:
         shutil.rmtree(d, ignore_errors=True)
-    o.kind = classify(o, case.blamed)
+    o.kind = classify(o, case.blamed, getattr(case, "expect", None))
     return o
 
 

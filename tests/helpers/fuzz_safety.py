@@ -151,7 +151,9 @@ def rig_json(draw, valid: str) -> tuple[bytes, str]:
         del cams[draw(st.integers(0, 1))]
         cams[0]["cam2rig"] = np.eye(4).tolist()
     elif kind == "third":
-        cams.append({**cams[1], "name": draw(st.sampled_from(("cam3", "cam1 ", "", "x/y", "{camera}")))})
+        name = draw(st.sampled_from(("cam3", "cam1 ", "", "x/y", "{camera}")))
+        cams.append({**cams[1], "name": name})
+        kind = f"third {name!r}"
     elif kind == "huge":
         where, value = draw(
             st.sampled_from(
@@ -184,17 +186,144 @@ def rig_json(draw, valid: str) -> tuple[bytes, str]:
     return json.dumps(d).encode(), f"rig.json: {kind}"
 
 
+#: The rig mistakes that give plausible poses: what a warning (pose --rig) or a failure (run)
+#: must say of them.
+_MUST_SAY = {
+    "rig.json: swap": "cameras disagree",
+    "rig.json: move": "cameras disagree",
+    "rig.json: first": "cameras disagree",
+}
+
+
 @st.composite
 def rig_cases(draw) -> FuzzCase:
     """``pose --rig`` on one image set, or ``run``, with a wrong rig.json."""
     files = dict(rig_seed())
     text, note = draw(rig_json(files["rig.json"].decode()))
     files["rig.json"] = text
+    expect = _MUST_SAY.get(note)
     if draw(st.booleans()):
         # A camera dropped, added or renamed: the message may name its images instead.
-        blamed = None if note.endswith(("swap", "drop", "third", "camera.json")) else "rig.json"
-        return CampaignCase(files=files, argv=rig_pose_argv(), blamed=blamed, note=note)
-    return CampaignCase(files=files, argv=(*RUN, "--json"), blamed=None, note=note)
+        blamed = (
+            None
+            if note.startswith(
+                ("rig.json: swap", "rig.json: drop", "rig.json: third", "rig.json: camera.json")
+            )
+            else "rig.json"
+        )
+        return CampaignCase(files=files, argv=rig_pose_argv(), blamed=blamed, note=note, expect=expect)
+    if note == "rig.json: third 'cam3'":  # a camera whose images do not exist
+        expect = "camera cam3 measured nothing"
+    return CampaignCase(files=files, argv=(*RUN, "--json"), blamed=None, note=note, expect=expect)
+
+
+# ----------------------------------------------------------------- one camera's images
+def _damaged_image(kind: str, data: bytes, other: bytes) -> bytes | None:
+    """One camera's image made wrong (None: the file removed; b"/": a folder in its place)."""
+    if kind == "missing":
+        return None
+    if kind == "truncated":
+        return data[: max(1, len(data) // 3)]
+    if kind == "empty":
+        return b""
+    if kind == "text":
+        return b"not an image\n"
+    if kind == "wrong size":
+        return _half_size(data)
+    if kind == "folder":
+        return b"/"
+    return other  # "the other camera's": the two cameras' files exchanged
+
+
+def _half_size(data: bytes) -> bytes:
+    import cv2
+
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    ok, buf = cv2.imencode(".png", img[::2, ::2])
+    return buf.tobytes()
+
+
+@st.composite
+def rig_image_cases(draw) -> FuzzCase:
+    """``run`` on the rig seed with one camera's images damaged: all of them, or some."""
+    files = dict(rig_seed())
+    cam, other_cam = draw(st.sampled_from((("cam1", "cam2"), ("cam2", "cam1"))))
+    kind = draw(
+        st.sampled_from(("missing", "truncated", "empty", "text", "wrong size", "folder", "exchanged"))
+    )
+    mine = sorted(k for k in files if k.endswith(f"_{cam}.png"))
+    every = draw(st.booleans())
+    chosen = (
+        mine
+        if every
+        else draw(st.lists(st.sampled_from(mine), min_size=1, max_size=len(mine) - 1, unique=True))
+    )
+    folders = []
+    for k in chosen:
+        new = _damaged_image(kind, files[k], files[k.replace(f"_{cam}.png", f"_{other_cam}.png")])
+        if kind == "exchanged":
+            twin = k.replace(f"_{cam}.png", f"_{other_cam}.png")
+            files[twin] = files[k]
+        if new is None or new == b"/":
+            del files[k]
+            if new == b"/":
+                folders.append(k)
+        else:
+            files[k] = new
+    for k in folders:  # a folder where the image belongs: a file inside it makes it exist
+        files[f"{k}/x"] = b""
+    expect = None
+    if every:
+        expect = "cameras disagree" if kind == "exchanged" else f"camera {cam} measured nothing"
+    note = f"{cam}'s images, {'all' if every else f'{len(chosen)} of {len(mine)}'}: {kind}"
+    return CampaignCase(files=files, argv=(*RUN, "--json"), blamed=None, note=note, expect=expect)
+
+
+# ------------------------------------------------------------------------------ capture
+@functools.cache
+def capture_seed() -> dict[str, bytes]:
+    """A campaign to capture (:func:`helpers.capture_campaigns.small_campaign`, one position, one
+    load case: two images), no image on disk, ``[capture] timeout_s = 1``."""
+    import tomllib
+
+    from helpers.capture_campaigns import small_campaign
+    from helpers.fuzz_campaign import toml_dumps
+
+    d = Path(tempfile.mkdtemp(prefix="stiffmap-seed-"))
+    try:
+        root = small_campaign(d / "c", positions=(1,), timeout=1.0)
+        spec = tomllib.loads((root / "campaign.toml").read_text(encoding="utf-8"))
+        spec["loads"]["cases"] = spec["loads"]["cases"][:1]
+        (root / "campaign.toml").write_text(toml_dumps(spec), encoding="utf-8")
+        return _read_tree(root)
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+#: Values of the simulated camera's options (``--camera sim:KEY=VALUE``), sane and absurd.
+SIM_VALUES = ("5", "0.1", "1.7", "1e9", "1e-9", "1e308", "1e-300", "0", "-1", "nan", "inf", "x", "", "1e400")
+
+
+@st.composite
+def capture_cases(draw) -> FuzzCase:
+    """``capture --camera sim:... [--frames N] --yes`` on the capture seed (timeout_s = 1)."""
+    from stiffmap.capture.cameras import SIM_OPTIONS
+
+    base = {"fps": "5", "time_constant_s": "0.1", "frequency_hz": "1.7"}
+    items = dict(base)
+    for _ in range(draw(st.integers(1, 2))):
+        key = draw(st.sampled_from((*SIM_OPTIONS, "fps", "fps", "time_constant_s", "shutter")))
+        items[key] = draw(st.sampled_from(SIM_VALUES))
+    camera = "sim:" + ",".join(f"{k}={v}" for k, v in items.items())
+    if draw(st.integers(0, 9)) == 0:
+        camera = draw(
+            st.sampled_from(("sim:", "sim:fps", "sim:fps=5,fps=6", "sim:,,", "sim:fps=5=5", "simx"))
+        )
+    argv = ["capture", "{dir}", "--camera", camera, "--yes"]
+    if draw(st.booleans()):
+        frames = draw(st.sampled_from(("1", "2", "0", "-1", "1001", "1000000000", "1e9", "x", "")))
+        argv += ["--frames", frames]
+    return CampaignCase(files=dict(capture_seed()), argv=tuple(argv), blamed=None, note=camera)
 
 
 # ---------------------------------------------------------------------------- stiffmap.db
@@ -327,6 +456,19 @@ FUZZ_CLASSES: list[FuzzClass] = [
         rig_cases(),
         "the rig campaign's rig.json: one value mutated, the cameras swapped, one moved 50 mm or "
         "turned 3 degrees, one dropped or added, numbers of 1e6 to 1e308, a camera.json instead",
+    ),
+    FuzzClass(
+        "one camera's images x run (rig)",
+        rig_image_cases(),
+        "all or some of one camera's images of the rig campaign missing, truncated, empty, text, "
+        "of half the size, folders, or exchanged with the other camera's",
+    ),
+    FuzzClass(
+        "capture options x capture",
+        capture_cases(),
+        "the simulated camera's options (frame rates, time constants, frequencies of 1e-300 to "
+        "1e400, NaN, text, unknown keys) and --frames (0 to 1e9, text) on a campaign of two images "
+        "with timeout_s = 1",
     ),
     FuzzClass(
         "stiffmap.db values x report, run",
