@@ -12,7 +12,8 @@ time limit. :func:`classify` says what happened:
 ``unnamed``    exit 1 or 2 with a message that does not name the blamed file
 ``silent``     a non-zero exit without any ``error:``/``warning:`` line
 ``wrong``      silently wrong: the case says what must be said (``FuzzCase.expect``: a swapped
-               rig file, a camera that measured nothing) and no ``error:``/``warning:`` line says it
+               rig file, a camera that measured nothing), results were given (exit 0 or 1) and no
+               ``error:``/``warning:`` line says it (a refusal, exit 2, is right)
 ``bug``        stiffmap's guard caught an unexpected exception (exit 3, "internal error")
 ``traceback``  an exception escaped the guard (or ``Traceback`` was printed)
 ``hang``       the time limit passed
@@ -58,8 +59,9 @@ class FuzzCase:
     ``argv`` items may hold ``{dir}`` (the directory). ``blamed`` is the name (relative
     to the directory) of the file an error message must name; None when any message will
     do (e.g. several files are malformed at once). ``expect``: when the input is wrong in a
-    way that gives plausible results (a rig file of another rig), a text an ``error:`` or
-    ``warning:`` line must hold (whatever the exit status); None when success is right.
+    way that gives plausible results (a rig file of another rig), a text a ``warning:`` or
+    ``error:`` line must hold when the command gives results (exit 0 or 1; a refusal, exit 2,
+    is right too); None when success is right.
     """
 
     files: dict[str, bytes]
@@ -160,8 +162,8 @@ def classify(o: Outcome, blamed: str | None, expect: str | None = None) -> str:
     if o.code == cli_main.EXIT_BUG or "internal error" in o.stderr:
         return "bug"
     lines = [ln for ln in o.stderr.splitlines() if ln.startswith(("error:", "warning:"))]
-    if expect is not None and not any(expect in ln for ln in lines):
-        return "wrong"
+    if expect is not None and o.code in (0, 1) and not any(expect in ln for ln in lines):
+        return "wrong"  # results given (exit 0 or 1) without the word that says they are wrong
     if o.code == 0:
         return "ok"
     if not lines or o.code not in (1, 2):
