@@ -13,7 +13,12 @@ through the CLI's own guard (``tests/helpers/fuzz.py``) and counts how each run 
 - bug: the guard's "internal error" line (exit 3); traceback: an exception escaped;
 - hang: longer than the time limit.
 
-Run: .venv/bin/python benchmarks/bench_fuzz.py [--examples 300] [--seed 1] [--only NAME]
+Run: .venv/bin/python benchmarks/bench_fuzz.py [--examples 300] [--slow-examples 40] [--seed 1]
+[--only NAME] [--update]
+
+``--slow-examples``: inputs of the classes whose every case runs a whole campaign or capture
+(``FuzzClass.slow``). ``--update``: keep the other classes' rows of ``results/fuzz.md`` and
+replace (or add) those run now.
 """
 
 from __future__ import annotations
@@ -75,19 +80,37 @@ def count(cls: FuzzClass, examples: int, seed: int) -> tuple[collections.Counter
     return counts, slowest[0], findings
 
 
+def _saved_rows() -> dict[str, list[str]]:
+    """The class rows of results/fuzz.md (name -> cells), when its columns are this script's."""
+    path = HERE / "results" / "fuzz.md"
+    if not path.is_file():
+        return {}
+    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if ln.startswith("| ")]
+    if not lines or [c.strip() for c in lines[0].strip("|").split("|")][2:-1] != list(OUTCOMES):
+        return {}
+    rows = [[c.strip() for c in ln.strip().strip("|").split("|")] for ln in lines[1:]]
+    return {r[0]: r for r in rows if r[0] != "**all classes**"}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--examples", type=int, default=300, help="malformed inputs per class")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--slow-examples", type=int, default=40, help="malformed inputs per slow class")
     ap.add_argument("--only", default="", help="only classes whose name holds this text")
+    ap.add_argument("--update", action="store_true", help="keep the other rows of results/fuzz.md")
     args = ap.parse_args()
     t0 = time.perf_counter()
     rows, findings = [], []
     total: collections.Counter = collections.Counter()
+    kept = _saved_rows() if args.update else {}
     for cls in fuzz_classes():
         if args.only and args.only not in cls.name:
+            if cls.name in kept:
+                rows.append(kept[cls.name])
+                total.update(dict(zip(OUTCOMES, map(int, kept[cls.name][2:-1]), strict=True)))
             continue
-        c, slowest, found = count(cls, args.examples, args.seed)
+        c, slowest, found = count(cls, args.slow_examples if cls.slow else args.examples, args.seed)
         total.update(c)
         findings += found
         n = sum(c.values())

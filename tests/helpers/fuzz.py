@@ -81,11 +81,15 @@ class FuzzCase:
 
 @dataclass(frozen=True)
 class FuzzClass:
-    """A class of malformed inputs: a name (for reports) and a strategy of cases."""
+    """A class of malformed inputs: a name (for reports) and a strategy of cases.
+
+    ``slow``: each case runs a whole campaign or capture (seconds): the benchmark draws fewer.
+    """
 
     name: str
     cases: st.SearchStrategy[FuzzCase]
     description: str = ""
+    slow: bool = False
 
 
 @dataclass

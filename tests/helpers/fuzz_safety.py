@@ -456,12 +456,14 @@ FUZZ_CLASSES: list[FuzzClass] = [
         rig_cases(),
         "the rig campaign's rig.json: one value mutated, the cameras swapped, one moved 50 mm or "
         "turned 3 degrees, one dropped or added, numbers of 1e6 to 1e308, a camera.json instead",
+        slow=True,
     ),
     FuzzClass(
         "one camera's images x run (rig)",
         rig_image_cases(),
         "all or some of one camera's images of the rig campaign missing, truncated, empty, text, "
         "of half the size, folders, or exchanged with the other camera's",
+        slow=True,
     ),
     FuzzClass(
         "capture options x capture",
@@ -469,17 +471,20 @@ FUZZ_CLASSES: list[FuzzClass] = [
         "the simulated camera's options (frame rates, time constants, frequencies of 1e-300 to "
         "1e400, NaN, text, unknown keys) and --frames (0 to 1e9, text) on a campaign of two images "
         "with timeout_s = 1",
+        slow=True,
     ),
     FuzzClass(
         "stiffmap.db values x report, run",
         db_cases(),
         "one stored value of a measured campaign's database (NULL, NaN, 2x2 K, lists for objects, "
         "text, 1e308, deep nesting), a row deleted, another program's table or view",
+        slow=True,
     ),
     FuzzClass(
         "--dask addresses x run",
         dask_cases(),
         "malformed scheduler addresses, ports where nothing listens, and servers on this machine "
         "that are not Dask's (HTTP, SSH, SMTP, a hang-up, binary frame lengths of exbibytes)",
+        slow=True,
     ),
 ]
