@@ -35,6 +35,7 @@ import numpy as np
 from _table import markdown, write
 
 from stiffmap.campaign.demo import run_demo
+from stiffmap.campaign.robot import campaign_positions
 from stiffmap.campaign.runner import run_campaign
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, Store, from_json
@@ -74,7 +75,7 @@ def frame_speed(root: Path, frames: int = 8) -> dict[str, float]:
         mon = monitor_for(spec, root)
         tg, tc = [], []
         with cam:
-            for p in spec.position_points(root)[:3]:
+            for p in campaign_positions(spec, root)[:3]:
                 cam.move_to(p)
                 mon.reset()
                 for k in range(frames + 1):

@@ -7,6 +7,7 @@ from importlib.resources import files
 import numpy as np
 import pytest
 
+from stiffmap.campaign.robot import campaign_model, campaign_positions, fitted_names
 from stiffmap.campaign.runner import fit_and_evaluate_model
 from stiffmap.campaign.spec import load_spec, parse_spec
 from stiffmap.campaign.store import DB_NAME, Store, from_json, to_json
@@ -67,10 +68,10 @@ def test_simulated_arm_campaign_is_self_contained_and_its_truth_is_the_model(arm
     spec = load_spec(root)
     assert spec.robot.model == "urdf" and (root / spec.robot.urdf).is_file()
     assert spec.loads.point_mm == pytest.approx(arm6.LOAD_POINT_MM)
-    model = spec.model(root)
+    model = campaign_model(spec, root)
     assert model.params() == pytest.approx({f"k{i + 1}": k for i, k in enumerate(arm6.K_THETA)})
     truth = load_truth(root)
-    P = spec.position_points(root)
+    P = campaign_positions(spec, root)
     np.testing.assert_allclose(P, arm6.positions20())
     ik = model.configurations_for(P)
     assert ik.reachable.all()
@@ -90,8 +91,8 @@ def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
     deflection of each load case (translations and rotations, base frame) with its covariance."""
     root = arm_campaign
     spec = load_spec(root)
-    truth_model = spec.model(root)
-    P = spec.position_points(root)
+    truth_model = campaign_model(spec, root)
+    P = campaign_positions(spec, root)
     ik = truth_model.configurations_for(P)
     loads = spec.loads.resolve(spec.g)
     lever = np.asarray(spec.loads.point_mm)
@@ -148,14 +149,14 @@ def test_a_robot_described_by_its_legs_is_a_campaign_model(tmp_path):
         "[positions]\nlist = [[0.0, 0.0, -300.0]]\n" + _BASE
     )
     spec = parse_spec(text)
-    model = spec.model(tmp_path)
+    model = campaign_model(spec, tmp_path)
     np.testing.assert_allclose(
         model.stiffness([[0.0, 0.0, -300.0]]),
         DeltaRobot().stiffness([[0.0, 0.0, -300.0]]),
         rtol=1e-9,
         atol=1e-9,
     )
-    assert spec.robot.fitted_names(model) == tuple(model.param_names())
+    assert fitted_names(spec, model) == tuple(model.param_names())
     missing = r"nowhere\.toml: no such file \(named by campaign\.toml robot\.legs\)"
     with pytest.raises(InputError, match=missing):
-        parse_spec(text.replace("delta_legs.toml", "nowhere.toml")).model(tmp_path)
+        campaign_model(parse_spec(text.replace("delta_legs.toml", "nowhere.toml")), tmp_path)

@@ -49,6 +49,8 @@ from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .positions import PositionTask, plan
+from .robot import campaign_model
+from .robot import fitted_names as campaign_fitted_names
 from .spec import SPEC_NAME, CampaignSpec, load_spec
 from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
@@ -508,20 +510,22 @@ class _Tally:
 def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list[str]:
     """Evaluate the campaign's model at every position, fit it to the measurements, store both.
 
-    The Delta and a robot described by its legs are fitted to the measured K
-    (:func:`~stiffmap.models.fit.fit_stiffness`); a URDF robot's joint stiffnesses to the
-    measured displacements themselves (:func:`~stiffmap.models.joint_fit.fit_joint_compliances`:
-    linear in the joint compliances, translations and rotations with their covariances).
+    A robot kind of parameters such as the Delta's or a robot described by its legs is
+    fitted to the measured K (:func:`~stiffmap.models.fit.fit_stiffness`); a kind of joint
+    stiffnesses (``joint_params``: a URDF robot's) to the measured displacements themselves
+    (:func:`~stiffmap.models.joint_fit.fit_joint_compliances`: linear in the joint
+    compliances, translations and rotations with their covariances).
     """
     problems: list[str] = []
     name = spec.robot.model
-    if name == "none" or spec.kind != "vision":
+    kind = spec.robot.kind
+    if kind is None:
         return problems
-    if name == "3prr":
+    if kind.dim is not None and kind.dim != 3:
         problems.append(f"robot model {name!r} has no 3D stiffness for a vision campaign; model step skipped")
         return problems
     try:
-        model = spec.model(root)
+        model = campaign_model(spec, root)
     except ValueError as e:  # InputError too: it names the file or the key
         where = "robot model" if isinstance(e, InputError) else "campaign.toml robot.params"
         problems.append(f"{where}: {e}")
@@ -534,7 +538,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         return problems
     pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
     ok = [r for r in rows if r["status"] == "ok"]
-    disp = store.displacement_rows(only_ok=True) if name == "urdf" else []
+    disp = store.displacement_rows(only_ok=True) if kind.joint_params else []
     ihash = params_hash(
         {
             "model": name,
@@ -551,10 +555,10 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         "inputs_hash": ihash,
         "version": __version__,
     }
-    if name == "urdf":
+    if kind.joint_params:  # joint stiffnesses: fitted to the measured displacements themselves
         fitted = _fit_joints(model, spec, rows, disp, fit_row, problems)
     else:
-        fitted = _fit_to_measured(model, ok, spec.robot.fitted_names(model), fit_row, problems)
+        fitted = _fit_to_measured(model, ok, spec, fit_row, problems)
     mm = fitted.evaluate(pts)
     per_position = []
     for r, K, valid, reason, det, lam in zip(
@@ -608,7 +612,7 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
         if not D:
             raise InputError("no measured displacement at a position the robot model reaches")
         names = model.param_names()
-        fitted_names = spec.robot.fitted_names(model)
+        fitted_names = campaign_fitted_names(spec, model)
         fixed = {k: 1.0 / v for k, v in model.params().items() if k not in fitted_names}
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -647,7 +651,7 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
         return model
 
 
-def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict, problems: list[str]):
+def _fit_to_measured(model, ok: list, spec: CampaignSpec, fit_row: dict, problems: list[str]):
     """The model fitted to the measured K of the ``ok`` stiffness rows (``model`` when the fit fails).
 
     The fit's columns (or its failure) go into ``fit_row``, its problem into ``problems``.
@@ -666,7 +670,7 @@ def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict,
             model,
             np.array([[r["x"], r["y"], r["z"]] for r in good]),
             np.array([from_json(r["K"]) for r in good]),
-            params=fit_names,
+            params=campaign_fitted_names(spec, model),
             # Without residual degrees of freedom a position's K has no standard errors: the
             # fit then weighs every entry alike (and scales the covariance by its residuals).
             K_std=K_std if np.all(np.isfinite(K_std)) and np.all(K_std > 0) else None,

@@ -27,6 +27,7 @@ from ..sensors.batch import direction_from
 from ..sensors.io import read_recording
 from ..sensors.recording import ChannelMap, parse_channel_map
 from .paths import campaign_file
+from .robot import fitted_names, robot_model
 from .spec import SPEC_NAME, CampaignSpec, SensorRecordingSpec
 from .store import Store, from_json, model_fit_columns, params_hash, to_json
 
@@ -93,7 +94,7 @@ def run_sensor_campaign(
     store.delete_recordings_not_in([rec.file for rec in spec.sensor.recordings])
     for i, rec in enumerate(spec.sensor.recordings):
         _analyse_or_reuse(root, store, rec, i, cfg, cmap, phash, out)
-    out.failures.extend(_fit_model(spec, store))
+    out.failures.extend(_fit_model(spec, store, root))
     out.wall_seconds = time.perf_counter() - t0
     return out
 
@@ -205,15 +206,18 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
     }
 
 
-def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
+def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
     """Fit the campaign's model to the measured static errors; store the fit and its static errors."""
     name = spec.robot.model
-    if name == "none":
+    if spec.robot.kind is None:
         return []
     problems: list[str] = []
     m = measured_static_errors(spec, store)
     try:
-        model = spec.robot.mechanism()
+        model = robot_model(spec.robot, root)
+        fit_names = fitted_names(spec, model)
+    except InputError as e:  # it names the file or the key
+        return [f"robot model: {e}"]
     except ValueError as e:
         return [f"campaign.toml robot.params: {e}"]
     if m["points"].shape[1] != model.dim:
@@ -221,7 +225,6 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
         return [f"campaign.toml: sensor points have {n} coordinates but the {name} model has {model.dim}"]
     v = m["valid"]
     ref = m["reference_load_n"]
-    fit_names = spec.robot.fitted_names()
     ihash = params_hash(
         {
             "model": name,

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..campaign.robot import campaign_model
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
@@ -35,36 +36,23 @@ def failures_as_items(failures: list[str]):
     return tuple(out)
 
 
-def _parameters(store: Store, name: str):
+def _parameters(store: Store, name: str, spec: CampaignSpec):
     fit = store.model_fit(name)
     if fit is None or fit["status"] != "ok":
         return ()
     est = from_json(fit["params"], array=False)
     std = from_json(fit["std"], array=False)
-    units = {
-        "k_theta": "N*mm/rad",
-        "kj": "N/mm",
-        "kb": "N/mm",
-        "E": "MPa",
-        "area": "mm^2",
-        "h": "mm",
-        "L": "mm",
-    }
+    kind = spec.robot.kind
     return tuple(
-        contract.Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, _param_unit(units, k))
+        contract.Parameter(
+            k, float(v), float(std.get(k, np.nan)) if std else np.nan, kind.param_unit(k) if kind else ""
+        )
         for k, v in est.items()
     )
 
 
-def _param_unit(units: dict[str, str], name: str) -> str:
-    """The unit of a fitted parameter (a URDF robot's k1, k2, ...: N*mm/rad)."""
-    if name in units:
-        return units[name]
-    return "N*mm/rad" if name[:1] == "k" and name[1:].isdigit() else ""
-
-
 def _fitted_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str):
-    return spec.model(root, **{p.name: p.value for p in _parameters(store, fit_name)})
+    return campaign_model(spec, root, **{p.name: p.value for p in _parameters(store, fit_name, spec)})
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
@@ -103,7 +91,8 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     out["loads"] = contract.LoadData(
         tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
     )
-    if spec.robot.model in ("delta", "urdf", "legs"):
+    kind = spec.robot.kind
+    if kind is not None and kind.dim != 2:  # a spatial model (a legs TOML says its own dim)
         model = _fitted_model(root, spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
         for r in store.model_stiffness_rows():
@@ -123,7 +112,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
             g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
         )
         out["model"] = contract.ModelStiffness.from_K(
-            spec.robot.model, _parameters(store, "stiffness"), Km, map=dense
+            spec.robot.model, _parameters(store, "stiffness", spec), Km, map=dense
         )
     truth = _truth_K(root, n)
     if truth is not None:
@@ -205,16 +194,13 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
     middle = None
     name = ""
     params: tuple = ()
-    if spec.robot.model == "3prr":
-        name = "3prr"
-        params = _parameters(store, "static_error")
+    kind = spec.robot.kind
+    if kind is not None and kind.report_grid is not None:  # a planar kind's map (the 3PRR's)
+        name = kind.name
+        params = _parameters(store, "static_error", spec)
         model_um = np.array([1e3 * pred[f] if pred.get(f) is not None else np.nan for f in m["files"]])
         model = _fitted_model(root, spec, store, "static_error")
-        h = model.params()["h"]
-        xs = np.linspace(0.0, h, 41)
-        ys = np.linspace(0.0, h * np.sqrt(3) / 2, 36)
-        X, Y = np.meshgrid(xs, ys)
-        g = np.c_[X.ravel(), Y.ravel()]
+        g, middle_x = kind.report_grid(model)
         mm = model.evaluate(g)
         ref = m["reference_load_n"]
         dirs = sorted({_axis(u) for u in m["directions"]})
@@ -223,8 +209,8 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
             for a in dirs
             if a in ("x", "y")
         )
-        middle = np.abs(m["points"][:, 0] - h / 2) < 1e-6
-        if not middle.any():
+        middle = None if middle_x is None else np.abs(m["points"][:, 0] - middle_x) < 1e-6
+        if middle is not None and not middle.any():
             middle = None
     sr = contract.SensorResults(
         points=m["points"],
