@@ -36,7 +36,7 @@ from _table import markdown, write
 
 from stiffmap.campaign.demo import run_demo
 from stiffmap.campaign.robot import campaign_positions
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, Store, from_json
 from stiffmap.campaign.truth import load_truth
@@ -126,7 +126,7 @@ def main() -> None:
         t_cap = time.perf_counter() - t0
         assert summary.stopped is None and not summary.missing, summary
         t0 = time.perf_counter()
-        run_campaign(cap, workers=args.workers)
+        run_vision_campaign(cap, workers=args.workers)
         t_run = time.perf_counter() - t0
         saved = [
             r

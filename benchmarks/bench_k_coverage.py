@@ -36,7 +36,7 @@ sys.path.insert(0, str(HERE))
 from _table import write  # noqa: E402
 
 from stiffmap.campaign.demo import demo_config  # noqa: E402
-from stiffmap.campaign.runner import run_campaign  # noqa: E402
+from stiffmap.campaign.runner import run_vision_campaign  # noqa: E402
 from stiffmap.campaign.simulated import write_campaign  # noqa: E402
 from stiffmap.campaign.store import DB_NAME, Store, from_json  # noqa: E402
 from stiffmap.campaign.truth import load_truth  # noqa: E402
@@ -56,7 +56,7 @@ def one_campaign(root: Path, seed: int, n_positions: int, repeats: int, workers:
     t0 = time.perf_counter()
     write_campaign(root, cfg, workers=workers)
     t1 = time.perf_counter()
-    summary = run_campaign(root, workers=workers)
+    summary = run_vision_campaign(root, workers=workers)
     t2 = time.perf_counter()
     truth = load_truth(root)
     rows = []

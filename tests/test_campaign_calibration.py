@@ -20,7 +20,7 @@ from stiffmap.campaign.derive import derive_position
 from stiffmap.campaign.export import read_tables
 from stiffmap.campaign.measure import MeasureContext, measure_position
 from stiffmap.campaign.positions import plan
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, SCHEMA_VERSION, Store, from_json
@@ -98,7 +98,7 @@ def test_run_stores_and_exports_the_calibration_share(one_position, tmp_path):
 
     work = tmp_path / "c"
     shutil.copytree(root, work)
-    summary = run_campaign(work, workers=1)
+    summary = run_vision_campaign(work, workers=1)
     assert not summary.failures, summary.failures
     with Store(work / DB_NAME, read_only=True) as store:
         (st,) = store.stiffness_rows()

@@ -9,7 +9,7 @@ import pytest
 from helpers.board_scenes import scaled_camera
 
 from stiffmap.camera import reference_camera
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.store import DB_NAME, Store, from_json
 from stiffmap.campaign.truth import load_truth
@@ -53,7 +53,7 @@ def _K(out):
 def test_a_two_camera_campaign_recovers_K_and_keeps_each_cameras_outcome(rig_campaign):
     out = rig_campaign
     rig = load_rig(out / "rig.json")
-    summary = run_campaign(out)
+    summary = run_vision_campaign(out)
     assert not summary.failures
     rows, meas = _K(out)
     truth = load_truth(out)
@@ -73,11 +73,11 @@ def test_a_two_camera_campaign_recovers_K_and_keeps_each_cameras_outcome(rig_cam
 
 def test_an_image_missing_for_one_camera_is_named_and_the_set_measured_by_the_other(rig_campaign):
     out = rig_campaign
-    run_campaign(out)
+    run_vision_campaign(out)
     _, meas = _K(out)
     victim = next(m["image"] for m in meas if "loaded" in m["image"] and "unloaded" not in m["image"])
     (out / camera_path(victim, "cam2")).unlink()
-    summary = run_campaign(out)
+    summary = run_vision_campaign(out)
     assert not summary.failures
     rows, meas = _K(out)
     assert all(r["status"] == "ok" for r in rows)
@@ -93,7 +93,7 @@ def test_the_report_shows_each_cameras_residuals(rig_campaign):
     from stiffmap.report.campaign import report_data
 
     out = rig_campaign
-    run_campaign(out)
+    run_vision_campaign(out)
     with Store(out / DB_NAME) as store:
         data = report_data(out, load_spec(out), store, [])
     cams = data.calibration.cameras
@@ -110,7 +110,7 @@ def test_the_exported_measurements_say_what_each_camera_gave(rig_campaign):
     from stiffmap.campaign.export import read_tables
 
     out = rig_campaign
-    run_campaign(out)
+    run_vision_campaign(out)
     with Store(out / DB_NAME) as store:
         rows = read_tables(store)["measurements"]
     assert rows and all(r["cameras"].startswith("cam1: ") and "; cam2: " in r["cameras"] for r in rows)

@@ -23,7 +23,7 @@ from helpers.cli_process import run_in_process, run_stiffmap
 
 from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.store import Store, dump_content, from_json
 from stiffmap.campaign.truth import load_truth
@@ -341,7 +341,7 @@ def _positions_content(db, positions):
 
 def test_dask_local_run_gives_the_local_run_database(quick_demo, tmp_path):
     """`stiffmap run --dask local` on the quick demo: the database of `stiffmap run`, row for row
-    (the demo's own database is `stiffmap run`'s: run_campaign in a pool of 2 processes). The
+    (the demo's own database is `stiffmap run`'s: run_vision_campaign in a pool of 2 processes). The
     workers see the campaign directory and read the images there."""
     proc, demo = quick_demo
     assert proc.returncode == 0, proc.stderr
@@ -424,7 +424,7 @@ def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(quick_demo, t
                 killed.extend(pid.values())
                 os.kill(killed[0], signal.SIGKILL)
 
-        summary = run_campaign(
+        summary = run_vision_campaign(
             c, workers=2, dask=cluster.scheduler_address, send_images=True, progress=progress
         )
     assert killed, "no worker was busy when the first position came in"

@@ -1,6 +1,6 @@
 """``stiffmap run``: measure -> identify -> fit for a vision campaign directory.
 
-:func:`run_campaign` follows ``docs/campaigns.md`` ("What ``stiffmap run`` does"):
+:func:`run_vision_campaign` follows ``docs/campaigns.md`` ("What ``stiffmap run`` does"):
 
 1. **plan** (:mod:`~stiffmap.campaign.positions`): the positions and their image
    files; then, against the database, which positions are unchanged since the
@@ -54,7 +54,7 @@ from .robot import fitted_names as campaign_fitted_names
 from .spec import SPEC_NAME, CampaignSpec, load_spec
 from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
 
-__all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model"]
+__all__ = ["RunSummary", "run_vision_campaign", "fit_and_evaluate_model"]
 
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
@@ -65,7 +65,7 @@ DERIVATION_REVISION = 3
 
 @dataclass
 class RunSummary:
-    """What ``run_campaign`` did."""
+    """What ``run_vision_campaign`` did."""
 
     campaign: str
     positions: int = 0
@@ -87,7 +87,7 @@ class RunSummary:
 ProgressHook = Callable[[int, int, int], None]
 
 
-def run_campaign(
+def run_vision_campaign(
     campaign_dir: str | Path,
     *,
     workers: int = 1,

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..camera import load_camera
 from ..errors import FieldError, InputError
-from ..kinds import ROBOT_KINDS, RobotKind, TestBed, float_params, positions_from_text
+from ..kinds import DEFAULT_TESTBED, ROBOT_KINDS, RobotKind, TestBed, float_params, positions_from_text
 from ..loads import load_design
 from ..models.presets import select_positions
 from ..parallel import Backend, local_workers
@@ -84,7 +84,7 @@ class SimulationRequest:
         The command line, recorded in truth.json.
     """
 
-    robot: str = "delta"
+    robot: str = DEFAULT_TESTBED
     positions: str | None = None
     select: str | None = None
     repeats: int = 3

@@ -18,6 +18,7 @@ from rich.table import Table
 
 from ..campaign.demo import demo_config
 from ..campaign.export import calibration_share_of_K, summary_dict
+from ..campaign.instruments import STIFFNESS, instrument_of
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION
 from ..campaign.run import CampaignRun, campaign_root, run_and_export
 from ..campaign.sensor_runner import measured_static_errors
@@ -27,6 +28,7 @@ from ..campaign.spec_writer import EXAMPLE_TOML
 from ..campaign.store import Store, from_json
 from ..errors import InputError
 from ..io import atomic_write_text
+from ..kinds import robot_kind
 from ..parallel import local_workers
 from ..report.campaign import write_campaign_report
 from ..textfmt import fmt_pm
@@ -125,7 +127,7 @@ def _fit_table(store: Store, model: str) -> Table | None:
         return None
     est = from_json(fit["params"], array=False)
     std = from_json(fit["std"], array=False) or {}
-    what = "joint stiffnesses (N*mm/rad)" if model == "urdf" else "parameters"
+    what = "joint stiffnesses (N*mm/rad)" if robot_kind(model).joint_params else "parameters"
     t = Table(title=f"{model} model: {what} fitted", show_lines=False)
     t.add_column("parameter")
     t.add_column("estimate ± standard error", justify="right")
@@ -212,7 +214,8 @@ def run(
     root = campaign_root(campaign)
     spec = load_spec(root)
     t0 = time.perf_counter()
-    with images_progress("measuring images", show=spec.kind == "vision" and not quiet) as hook:
+    instrument = instrument_of(spec)
+    with images_progress("measuring images", show=instrument.per_image and not quiet) as hook:
         done = run_and_export(
             root,
             spec=spec,
@@ -229,7 +232,7 @@ def run(
             print_json(summary_dict(store, spec.name, done.failures))
         elif nothing is not None:
             pass
-        elif spec.kind == "vision":
+        elif instrument.measures == STIFFNESS:
             out.print(_summary_table(store), width=max(out.width, 110))
             out.print(_calibration_line(calibration_share_of_K(store)))
             fitted = _fit_table(store, spec.robot.model)

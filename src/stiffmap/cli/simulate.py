@@ -38,7 +38,7 @@ from ..campaign.simulate import (
 from ..campaign.simulated import SimSummary
 from ..campaign.simulated_sensor import SensorSimSummary
 from ..errors import InputError
-from ..kinds import params_from_text
+from ..kinds import DEFAULT_TESTBED, params_from_text
 from ..parallel import Backend
 from ..sim.plan import SimulationPlan
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
@@ -137,7 +137,7 @@ def simulate(
         ..., help="Directory to create (must be new or empty).", show_default=False
     ),
     robot: str = typer.Option(
-        "delta",
+        DEFAULT_TESTBED,
         "--robot",
         help="Test-bed robot giving the true stiffness field: "
         + ", ".join(testbed_robots())

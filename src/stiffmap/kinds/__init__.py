@@ -38,8 +38,12 @@ from .serial import BUILTIN_URDFS, URDF_KIND, urdf_file
 for _kind in (DELTA, PRR3_KIND, URDF_KIND, LEGS):
     register_robot_kind(_kind, replace=True)
 
+#: The test-bed robot of ``stiffmap simulate`` when none is named: the reference study's Delta.
+DEFAULT_TESTBED = DELTA.testbed.name
+
 __all__ = [
     "RobotKind",
+    "DEFAULT_TESTBED",
     "RobotDescription",
     "TestBed",
     "ROBOT_KINDS",

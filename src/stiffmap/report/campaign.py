@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
 from ..campaign.robot import campaign_model
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
@@ -184,7 +185,7 @@ def _truth_K(root: Path, n: int) -> np.ndarray | None:
     return Kt
 
 
-def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
+def _sensor(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     m = measured_static_errors(spec, store)
     if m["points"].shape[1] != 2:
         return {}
@@ -239,6 +240,10 @@ def _unit(axis: str) -> np.ndarray:
     return u
 
 
+#: The report's sections of what an instrument measures.
+_SECTIONS = {STIFFNESS: _vision, STATIC_ERROR: _sensor}
+
+
 def report_data(
     root: Path, spec: CampaignSpec, store: Store, failures: list[str], *, allow_outside: bool = False
 ):
@@ -252,24 +257,16 @@ def report_data(
     info = contract.CampaignInfo(
         name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root)
     )
-    if spec.kind == "vision":
-        parts = _vision(root, spec, store, allow_outside)
-        if "measured" not in parts:
-            n_failed = len(store.stiffness_rows())
-            raise InputError(
-                f"no position has results in {DB_NAME} (none could be measured, {n_failed} "
-                f"failed: see {EXPORTS_DIR}/summary.json): nothing to report",
-                source=str(root),
-            )
-    else:
-        rows = store.sensor_result_rows()
-        if not any(r["status"] == "ok" for r in rows):
-            raise InputError(
-                f"no recording has results in {DB_NAME} (none could be analysed, {len(rows)} failed: see "
-                f"{EXPORTS_DIR}/summary.json): nothing to report",
-                source=str(root),
-            )
-        parts = _sensor(root, spec, store)
+    inst = instrument_of(spec)
+    rows = inst.rows(store)
+    if not any(r["status"] == "ok" for r in rows):
+        verb = "measured" if inst.item == "position" else "analysed"
+        raise InputError(
+            f"no {inst.item} has results in {DB_NAME} (none could be {verb}, {len(rows)} failed: see "
+            f"{EXPORTS_DIR}/summary.json): nothing to report",
+            source=str(root),
+        )
+    parts = _SECTIONS[inst.measures](root, spec, store, allow_outside)
     return contract.ReportData(campaign=info, failures=failures_as_items(failures), **parts)
 
 
