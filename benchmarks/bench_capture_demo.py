@@ -38,7 +38,7 @@ from stiffmap.campaign.demo import run_demo
 from stiffmap.campaign.robot import campaign_positions
 from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.spec import load_spec
-from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.campaign.store import DB_NAME, Store
 from stiffmap.campaign.truth import load_truth
 from stiffmap.capture.cameras import open_camera
 from stiffmap.capture.session import LOG_NAME, monitor_for, run_capture
@@ -58,9 +58,9 @@ def k_errors(root: Path) -> np.ndarray:
     err = np.full(len(truth.K), np.nan)
     with Store(root / DB_NAME, read_only=True) as store:
         for r in store.stiffness_rows():
-            if r["status"] == "ok":
-                Kt = truth.K[r["position"] - 1]
-                err[r["position"] - 1] = np.linalg.norm(from_json(r["K"]) - Kt) / np.linalg.norm(Kt)
+            if r.status == "ok":
+                Kt = truth.K[r.position - 1]
+                err[r.position - 1] = np.linalg.norm(r.K - Kt) / np.linalg.norm(Kt)
     return err
 
 

@@ -10,7 +10,7 @@ import pytest
 from stiffmap.campaign.robot import campaign_model, campaign_positions, fitted_names
 from stiffmap.campaign.runner import fit_and_evaluate_model
 from stiffmap.campaign.spec import load_spec, parse_spec
-from stiffmap.campaign.store import DB_NAME, Store, from_json, to_json
+from stiffmap.campaign.store import DB_NAME, Store, to_json
 from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main as stiffmap
 from stiffmap.errors import InputError
@@ -125,19 +125,19 @@ def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
             update={"params": {k: 2 * v for k, v in spec.robot.params.items()}})}), root)  # fmt: skip
         fit = st.model_fit("stiffness")
         rows = st.model_stiffness_rows()
-    assert fit["status"] == "ok", fit["error"]
+    assert fit.status == "ok", fit.error
     assert not [p for p in problems if "outside the model" in p]
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False)
+    est = fit.params
+    std = fit.std
     for i, k_true in enumerate(arm6.K_THETA, start=1):
         k, s = est[f"k{i}"], std[f"k{i}"]
         assert abs(k - k_true) < 4 * s, (i, k, k_true, s)
         assert s / k_true < 0.02  # 540 displacements of this precision pin each joint within 2 %
-    assert len(rows) == 20 and all(r["valid"] for r in rows)
+    assert len(rows) == 20 and all(r.valid for r in rows)
     # The model's K beside the measured one: what forces hung at loads.point_mm see.
     C = truth_model.with_params(**est).compliance6(ik.q[0])
     S = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]])
-    np.testing.assert_allclose(from_json(rows[0]["K"]), np.linalg.inv(C[:3, :3] + C[:3, 3:] @ S), rtol=1e-9)
+    np.testing.assert_allclose(rows[0].K, np.linalg.inv(C[:3, :3] + C[:3, 3:] @ S), rtol=1e-9)
 
 
 def test_a_robot_described_by_its_legs_is_a_campaign_model(tmp_path):

@@ -196,13 +196,13 @@ def test_a_campaign_of_the_new_kind_runs_and_reports(gantry, tmp_path, monkeypat
     with Store(out / DB_NAME) as store:
         fit = store.model_fit("stiffness")
         rows = store.stiffness_rows()
-    assert fit["status"] == "ok" and fit["model"] == "gantry"
-    est = json.loads(fit["params"])
+    assert fit.status == "ok" and fit.model == "gantry"
+    est = fit.params
     # The ram's stiffness from K measured at two positions through a small camera, without
     # noise (none in the images, none in the robot's positioning): the chain's own bias,
     # measured at 0.4 %.
     assert est["k_ram"] == pytest.approx(250.0, rel=0.02)
-    K = np.array([json.loads(r["K"]) for r in rows])
+    K = np.array([r.K for r in rows])
     Kt = np.array([_closed_form_K(Gantry(k_ram=250.0), p) for p in gantry2()])
     lateral = (0, 1)
     np.testing.assert_allclose(K[:, lateral, lateral], Kt[:, lateral, lateral], rtol=0.03)

@@ -18,7 +18,6 @@ numerical fit could not be done or did not converge. Neither is an ``InputError`
 
 from __future__ import annotations
 
-import string
 from collections.abc import Mapping, Sequence
 
 __all__ = [
@@ -118,10 +117,12 @@ class FieldError(InputError):
             head, dot, rest = f.partition(".")
             return names.get(f) or (names[head] + dot + rest if head in names else f)
 
-        placeholders = {p for _, p, _, _ in string.Formatter().parse(self.reason) if p}
-        if placeholders:
-            return self.reason.format(**{p: name(p) for p in placeholders})
-        return f"{name(self.field)}: {self.reason}"
+        text, placed = self.reason, False
+        for f in self.fields:  # only the fields' own placeholders: a file name may hold braces
+            token = "{" + f + "}"
+            if token in text:
+                text, placed = text.replace(token, name(f)), True
+        return text if placed else f"{name(self.field)}: {text}"
 
     def worded(self, names: Mapping[str, str]) -> InputError:
         """The same problem in a caller's vocabulary: each field named as ``names`` says.

@@ -44,7 +44,7 @@ from .export import export_tables
 from .runner import run_vision_campaign
 from .simulated import write_campaign
 from .spec import load_spec
-from .store import DB_NAME, Store, from_json, remove_database
+from .store import DB_NAME, Store, remove_database
 from .truth import TRUTH_NAME, CalibrationSummary, load_truth
 
 __all__ = ["DemoResult", "run_demo", "demo_config", "demo_command", "QUICK_POSITIONS"]
@@ -204,8 +204,8 @@ def run_demo(
     n = len(truth.K)
     K = np.full((n, 3, 3), np.nan)
     for r in rows:
-        if r["status"] == "ok" and 1 <= r["position"] <= n:
-            K[r["position"] - 1] = from_json(r["K"])
+        if r.status == "ok" and 1 <= r.position <= n:
+            K[r.position - 1] = r.K
     err = np.linalg.norm(K - truth.K, axis=(1, 2)) / np.linalg.norm(truth.K, axis=(1, 2))
     return DemoResult(
         out_dir=out,

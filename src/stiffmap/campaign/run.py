@@ -83,7 +83,7 @@ class CampaignRun:
         """
         with Store(self.db) as store:
             rows = self.instrument.rows(store)
-        if any(r["status"] == "ok" for r in rows):
+        if any(r.status == "ok" for r in rows):
             return None
         # The failures of files (images, recordings) first: they say why, the positions' follow.
         ranked = sorted(self.failures, key=lambda f: f.startswith(("position ", "model fit")))

@@ -52,7 +52,7 @@ from .positions import PositionTask, plan
 from .robot import campaign_model
 from .robot import fitted_names as campaign_fitted_names
 from .spec import SPEC_NAME, CampaignSpec, load_spec
-from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
+from .store import DB_NAME, Store, model_fit_columns, params_hash, to_json
 
 __all__ = ["RunSummary", "run_vision_campaign", "fit_and_evaluate_model"]
 
@@ -321,9 +321,9 @@ def _plan_work(store: Store, campaign: _Campaign) -> _Work:
             work.inputs_hash[t.index] = params_hash(
                 {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
             )
-            prev = {r["image"]: r for r in store.measurement_rows(t.index)}
+            prev = {r.image: r for r in store.measurement_rows(t.index)}
             complete = all(
-                rel in prev and prev[rel]["sha256"] == sha and prev[rel]["params_hash"] == mphash
+                rel in prev and prev[rel].sha256 == sha and prev[rel].params_hash == mphash
                 for rel, sha in shas.items()
             )
             if complete:
@@ -443,20 +443,20 @@ def _image_sha(store: Store, campaign: _Campaign, task: PositionTask, image: str
 def _image_row_from_db(r) -> ImageRow:
     """The :class:`ImageRow` of a stored ``measurements`` row."""
     return ImageRow(
-        image=r["image"],
-        ok=r["status"] == "ok",
-        error=r["error"],
-        mobile2cam=from_json(r["mobile2cam"]),
-        mobile_cov=from_json(r["mobile_cov"]),
-        fixed2cam=from_json(r["fixed2cam"]),
-        fixed_cov=from_json(r["fixed_cov"]),
-        mobile_cal_jac=from_json(r["mobile_cal_jac"]),
-        fixed_cal_jac=from_json(r["fixed_cal_jac"]),
-        rms_px=r["rms_px"],
-        n_corners=r["n_corners"],
-        tracked=bool(r["tracked"]),
-        seconds=r["seconds"] or 0.0,
-        cameras=json.loads(r["per_camera"]) if r["per_camera"] else None,
+        image=r.image,
+        ok=r.status == "ok",
+        error=r.error,
+        mobile2cam=r.mobile2cam,
+        mobile_cov=r.mobile_cov,
+        fixed2cam=r.fixed2cam,
+        fixed_cov=r.fixed_cov,
+        mobile_cal_jac=r.mobile_cal_jac,
+        fixed_cal_jac=r.fixed_cal_jac,
+        rms_px=r.rms_px,
+        n_corners=r.n_corners,
+        tracked=bool(r.tracked),
+        seconds=r.seconds or 0.0,
+        cameras=r.per_camera or None,
     )
 
 
@@ -536,8 +536,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     rows = store.stiffness_rows()
     if not rows:
         return problems
-    pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
-    ok = [r for r in rows if r["status"] == "ok"]
+    pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
+    ok = [r for r in rows if r.status == "ok"]
     disp = store.displacement_rows(only_ok=True) if kind.joint_params else []
     ihash = params_hash(
         {
@@ -545,8 +545,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             "params": spec.robot.params,
             "robot": spec.robot.model_dump(exclude={"params"}),
             "xyz": pts.tolist(),
-            "K": [r["K"] for r in ok],
-            "d": [(d["position"], d["load"], d["repeat"], d["d"], d["cov"]) for d in disp],
+            "K": [r.K for r in ok],
+            "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
         }
     )
     fit_row: dict[str, Any] = {
@@ -566,7 +566,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     ):
         per_position.append(
             {
-                "position": r["position"],
+                "position": r.position,
                 "model": name,
                 "valid": int(bool(valid)),
                 "reason": reason or None,
@@ -577,8 +577,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             }
         )
         if not valid:
-            where = f"({r['x']:g}, {r['y']:g}, {r['z']:g})"
-            problems.append(f"position {r['position']} {where}: outside the model: {reason}")
+            where = f"({r.x:g}, {r.y:g}, {r.z:g})"
+            problems.append(f"position {r.position} {where}: outside the model: {reason}")
     store.save_model_stiffness(fit_row, per_position)
     return problems
 
@@ -591,24 +591,24 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             raise InputError("no measured displacement to fit the joint stiffnesses to")
         loads = spec.loads.resolve(spec.g)
         lever = np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float)
-        pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+        pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
         ik = model.configurations_for(pts)
-        at = {r["position"]: i for i, r in enumerate(rows)}
+        at = {r.position: i for i, r in enumerate(rows)}
         J_rows, W, D, C, cfg, labels = [], [], [], [], [], []
         jac: dict[int, np.ndarray] = {}
         for d in disp:
-            i = at.get(d["position"])
-            if i is None or not ik.reachable[i] or d["load"] > len(loads):
+            i = at.get(d.position)
+            if i is None or not ik.reachable[i] or d.load > len(loads):
                 continue
             if i not in jac:
                 jac[i] = model.chain.jacobian(ik.q[i])
-            F = loads[d["load"] - 1].force
+            F = loads[d.load - 1].force
             J_rows.append(jac[i])
             W.append(np.concatenate([F, np.cross(lever, F)]))
-            D.append(from_json(d["d"]))
-            C.append(from_json(d["cov"]))
+            D.append(d.d)
+            C.append(d.cov)
             cfg.append(i)
-            labels.append(loads[d["load"] - 1].label)
+            labels.append(loads[d.load - 1].label)
         if not D:
             raise InputError("no measured displacement at a position the robot model reaches")
         names = model.param_names()
@@ -661,15 +661,15 @@ def _fit_to_measured(model, ok: list, spec: CampaignSpec, fit_row: dict, problem
         return model
     fitted = model
     try:
-        mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))
+        mm = model.evaluate(np.array([[r.x, r.y, r.z] for r in ok]))
         good = [r for r, v in zip(ok, mm.valid, strict=True) if v]
         if not good:
             raise InputError("no measured position lies inside the model's workspace")
-        K_std = np.array([from_json(r["K_std"]) for r in good])
+        K_std = np.array([r.K_std for r in good])
         fit = fit_stiffness(
             model,
-            np.array([[r["x"], r["y"], r["z"]] for r in good]),
-            np.array([from_json(r["K"]) for r in good]),
+            np.array([[r.x, r.y, r.z] for r in good]),
+            np.array([r.K for r in good]),
             params=campaign_fitted_names(spec, model),
             # Without residual degrees of freedom a position's K has no standard errors: the
             # fit then weighs every entry alike (and scales the covariance by its residuals).

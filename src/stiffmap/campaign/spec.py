@@ -796,8 +796,8 @@ class SensorSpec(_Spec):
     def _channels(cls, v):
         try:
             parse_channel_map(",".join(f"{k}={c}" for k, c in v.items()) or None)
-        except ValueError as e:
-            raise ValueError(str(e).removeprefix("--channel-map: ")) from None
+        except FieldError as e:  # this key's own problem: its reason (the key is named by the spec)
+            raise ValueError(e.reason) from None
         if any("," in k or "=" in k or "," in c or "=" in c for k, c in v.items()):
             raise ValueError("a channel name holds ',' or '='")
         return v

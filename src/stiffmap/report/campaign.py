@@ -18,7 +18,7 @@ from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
-from ..campaign.store import DB_NAME, Store, from_json
+from ..campaign.store import DB_NAME, Store
 from ..campaign.truth import load_truth
 from ..errors import InputError
 from ..rig import Rig
@@ -39,10 +39,10 @@ def failures_as_items(failures: list[str]):
 
 def _parameters(store: Store, name: str, spec: CampaignSpec):
     fit = store.model_fit(name)
-    if fit is None or fit["status"] != "ok":
+    if fit is None or fit.status != "ok":
         return ()
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False)
+    est = fit.params
+    std = fit.std
     kind = spec.robot.kind
     return tuple(
         contract.Parameter(
@@ -59,17 +59,17 @@ def _fitted_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str):
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     rows = store.stiffness_rows()
     n = len(rows)
-    if not any(r["status"] == "ok" for r in rows):
+    if not any(r.status == "ok" for r in rows):
         return {}
-    pos = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+    pos = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
     K = np.full((n, 3, 3), np.nan)
     S = np.full((n, 3, 3), np.nan)
     share = np.full((n, 3), np.nan)
     for i, r in enumerate(rows):
-        if r["status"] == "ok":
-            K[i] = from_json(r["K"])
-            S[i] = from_json(r["K_std"])
-            cal, cov = from_json(r["K_cov_calibration"]), from_json(r["K_cov"])
+        if r.status == "ok":
+            K[i] = r.K
+            S[i] = r.K_std
+            cal, cov = r.K_cov_calibration, r.K_cov
             if cal is not None and cov is not None:
                 with np.errstate(invalid="ignore", divide="ignore"):
                     share[i] = np.clip(np.diag(cal)[[0, 4, 8]] / np.diag(cov)[[0, 4, 8]], 0.0, 1.0)
@@ -77,18 +77,18 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         pos,
         K,
         S,
-        status=[r["status"] for r in rows],
-        messages=[r["error"] or "" for r in rows],
-        flags=[tuple(from_json(r["flags"], array=False) or ()) for r in rows],
+        status=[r.status for r in rows],
+        messages=[r.error or "" for r in rows],
+        flags=[tuple(r.flags or ()) for r in rows],
     )
     out: dict = {"measured": measured}
     loads = spec.loads.resolve(spec.g)
     norms = np.full((n, len(loads), spec.repeats), np.nan)
-    index = {r["position"]: i for i, r in enumerate(rows)}
+    index = {r.position: i for i, r in enumerate(rows)}
     for d in store.displacement_rows(only_ok=True):
-        i = index.get(d["position"])
-        if i is not None and d["load"] <= len(loads) and d["repeat"] <= spec.repeats:
-            norms[i, d["load"] - 1, d["repeat"] - 1] = float(np.linalg.norm(from_json(d["d"])[:3]))
+        i = index.get(d.position)
+        if i is not None and d.load <= len(loads) and d.repeat <= spec.repeats:
+            norms[i, d.load - 1, d.repeat - 1] = float(np.linalg.norm(d.d[:3]))
     out["loads"] = contract.LoadData(
         tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
     )
@@ -97,9 +97,9 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         model = _fitted_model(root, spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
         for r in store.model_stiffness_rows():
-            i = index.get(r["position"])
-            if i is not None and r["valid"]:
-                Km[i] = from_json(r["K"])
+            i = index.get(r.position)
+            if i is not None and r.valid:
+                Km[i] = r.K
         # A dense map on the measured planes, over the measured x-y extent.
         grid = []
         for z in np.unique(pos[:, 2]):
@@ -137,7 +137,7 @@ def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:
     errors: dict[str, list[str]] = {n: [] for n in rig.names}
     n_sets = 0
     for r in store.measurement_rows():
-        per = from_json(r["per_camera"], array=False) if r["per_camera"] else None
+        per = r.per_camera
         if not isinstance(per, list):
             continue
         n_sets += 1
@@ -259,7 +259,7 @@ def report_data(
     )
     inst = instrument_of(spec)
     rows = inst.rows(store)
-    if not any(r["status"] == "ok" for r in rows):
+    if not any(r.status == "ok" for r in rows):
         verb = "measured" if inst.item == "position" else "analysed"
         raise InputError(
             f"no {inst.item} has results in {DB_NAME} (none could be {verb}, {len(rows)} failed: see "
