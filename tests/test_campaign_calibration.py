@@ -134,15 +134,16 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     conn.execute("ALTER TABLE measurements DROP COLUMN mobile_cal_jac")
     conn.execute("ALTER TABLE measurements DROP COLUMN per_camera")  # schema 3
     conn.execute(
-        "INSERT INTO stiffness (position, x, y, z, status, inputs_hash, params_hash, version) "
-        "VALUES (1, 0, 0, 0, 'ok', 'h', 'p', 'v')"
+        "INSERT INTO stiffness (position, x, y, z, status, K, inputs_hash, params_hash, version) "
+        "VALUES (1, 0, 0, 0, 'ok', '[[1, 0, 0], [0, 2, 0], [0, 0, 3]]', 'h', 'p', 'v')"
     )
     conn.execute("UPDATE meta SET value = '1' WHERE key = 'schema_version'")
     conn.commit()
     conn.close()
     with Store(db) as store:
         (row,) = store.stiffness_rows()
-        assert row["K_cov_calibration"] is None and row["status"] == "ok"
+        assert row.K_cov_calibration is None and row.status == "ok"
+        np.testing.assert_array_equal(row.K, np.diag([1.0, 2.0, 3.0]))
         assert store.measurement_rows() == []
     conn = sqlite3.connect(db)
     cols = {r[1] for r in conn.execute("PRAGMA table_info(measurements)")}

@@ -50,6 +50,16 @@ def campaign(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="module")
+def campaign_db(campaign, tmp_path_factory):
+    """The campaign run once without interruption (one process): the database every resumed,
+    killed or Dask run of it must equal, row for row."""
+    a = _copy(campaign, tmp_path_factory.mktemp("ran") / "a")
+    full = _run(a, "--workers", "1")
+    assert full.returncode == 0, full.stderr
+    return a / "stiffmap.db"
+
+
 def _copy(src, dst):
     shutil.copytree(src, dst)
     return dst
@@ -59,21 +69,18 @@ def _run(path, *args):
     return run_stiffmap("run", path, "--quiet", "--no-report", *args)
 
 
-def test_killed_run_resumes_to_the_same_database(campaign, tmp_path):
-    a = _copy(campaign, tmp_path / "a")
+def test_killed_run_resumes_to_the_same_database(campaign, campaign_db, tmp_path):
     b = _copy(campaign, tmp_path / "b")
-    full = _run(a, "--workers", "1")
-    assert full.returncode == 0, full.stderr
     proc = _start_run(b, "--workers", "2")
     killed_at = _kill_when_measured(proc, b / "stiffmap.db", 1)
     assert killed_at is not None and killed_at < 4, "the run was not caught partway"
     again = _run(b, "--workers", "2")
     assert again.returncode == 0, again.stderr
-    assert dump_content(b / "stiffmap.db") == dump_content(a / "stiffmap.db")
+    assert dump_content(b / "stiffmap.db") == dump_content(campaign_db)
     # A third run changes nothing and measures nothing.
     third = _run(b)
     assert "0 measured" in third.stdout and "4 unchanged" in third.stdout
-    assert dump_content(b / "stiffmap.db") == dump_content(a / "stiffmap.db")
+    assert dump_content(b / "stiffmap.db") == dump_content(campaign_db)
 
 
 def test_missing_image_and_wrong_camera_size_are_named_and_the_rest_goes_on(campaign, tmp_path):
@@ -160,12 +167,18 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     assert proc.stderr.count("\n") == 1 and "no image found" in proc.stderr
 
 
+# The quick demo (six positions at full size, 120 images and 20 calibration views: about 80 s
+# to render and run) and what is measured on it are the long profile (`make test-long`, run by
+# CI after `make test`); running, resuming and Dask are tested above and below on `campaign`.
+
+
 @pytest.fixture(scope="module")
 def quick_demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "demo"
     return run_stiffmap("demo", out, "--quick", "--workers", "2"), out
 
 
+@pytest.mark.long
 def test_quick_demo_recovers_the_true_stiffness(quick_demo):
     proc, out = quick_demo
     assert proc.returncode == 0, proc.stderr
@@ -229,6 +242,7 @@ def test_init_from_demo_writes_the_quick_demo_campaign_ready_to_run(tmp_path, mo
 
 
 @pytest.mark.browser
+@pytest.mark.long
 def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
     if find_chromium() is None:
         pytest.skip("headless Chromium not found: apt-get install chromium (or set STIFFMAP_CHROMIUM)")
@@ -248,6 +262,7 @@ def test_quick_demo_report_opens_in_chromium_without_console_error(quick_demo):
 CAPTURED = (2, 6)
 
 
+@pytest.mark.long
 def test_capture_of_the_quick_demo_then_run_gives_the_demo_error(quick_demo, tmp_path):
     """Issue 15's must-show on the quick demo's own campaign (its campaign.toml, calibrated
     camera.json and truth.json; no image): `stiffmap capture --camera sim --yes`, then `stiffmap
@@ -317,54 +332,34 @@ def test_capture_of_the_quick_demo_then_run_gives_the_demo_error(quick_demo, tmp
 # ------------------------------------------------------------------ Dask (issue 14)
 
 
-def _fresh_copy(demo, dst, positions=None):
-    """The demo campaign without its results: images hard-linked (read only), nothing measured;
-    with ``positions``, only its first ones (a copy of campaign.toml cut to them)."""
-    skip = shutil.ignore_patterns("stiffmap.db*", "report", "exports", "campaign.toml")
-    shutil.copytree(demo, dst, copy_function=os.link, ignore=skip)
-    spec = (demo / "campaign.toml").read_text()
-    if positions is not None:
-        m = re.search(r"\[positions\]\n(?:#.*\n)*list = \[\n((?:  \[.*\],\n)+)\]", spec)
-        rows = m.group(1).splitlines(keepends=True)
-        assert len(rows) > positions
-        spec = spec.replace(m.group(1), "".join(rows[:positions]))
-    (dst / "campaign.toml").write_text(spec)
+def _fresh_copy(campaign, dst):
+    """The campaign without results: images hard-linked (read only), nothing measured."""
+    skip = shutil.ignore_patterns("stiffmap.db*", "report", "exports")
+    shutil.copytree(campaign, dst, copy_function=os.link, ignore=skip)
     return dst
 
 
-def _positions_content(db, positions):
-    """The rows of the per-position tables (the model's evaluation left out) for positions 1..n."""
-    tables = dump_content(db)
-    cols = {"measurements": 1, "displacements": 0, "repeat_stats": 0, "stiffness": 0}  # position column
-    return {t: [r for r in tables[t] if r[k] <= positions] for t, k in cols.items()}
-
-
-def test_dask_local_run_gives_the_local_run_database(quick_demo, tmp_path):
-    """`stiffmap run --dask local` on the quick demo: the database of `stiffmap run`, row for row
-    (the demo's own database is `stiffmap run`'s: run_vision_campaign in a pool of 2 processes). The
-    workers see the campaign directory and read the images there."""
-    proc, demo = quick_demo
-    assert proc.returncode == 0, proc.stderr
-    c = _fresh_copy(demo, tmp_path / "c")
+def test_dask_local_run_gives_the_local_run_database(campaign, campaign_db, tmp_path):
+    """`stiffmap run --dask local`: the database of `stiffmap run` in one process, row for row.
+    The workers see the campaign directory and read the images there."""
+    c = _fresh_copy(campaign, tmp_path / "c")
     done = _run(c, "--dask", "local", "--workers", "2")
     assert done.returncode == 0, done.stderr
     assert "images read by the workers from the campaign directory (shared storage)" in done.stdout
-    assert dump_content(c / "stiffmap.db") == dump_content(demo / "stiffmap.db")
+    assert dump_content(c / "stiffmap.db") == dump_content(campaign_db)
 
 
-def test_killed_dask_client_resumes_to_the_same_database(quick_demo, tmp_path):
+def test_killed_dask_client_resumes_to_the_same_database(campaign, campaign_db, tmp_path):
     """SIGKILL of `stiffmap run --dask local` partway (the client, then its orphaned local
-    cluster), then a re-run: the same database as an uninterrupted run (the quick demo's first
-    four positions: their rows are the whole demo's)."""
-    _, demo = quick_demo
-    c = _fresh_copy(demo, tmp_path / "c", positions=4)
+    cluster), then a re-run: the same database as an uninterrupted run."""
+    c = _fresh_copy(campaign, tmp_path / "c")
     proc = _start_run(c, "--dask", "local", "--workers", "2")
     killed_at = _kill_when_measured(proc, c / "stiffmap.db", 1)
     assert killed_at is not None and killed_at < 4, "the run was not caught partway"
     again = _run(c, "--dask", "local", "--workers", "2")
     assert again.returncode == 0, again.stderr
     assert f"{4 - killed_at} measured" in again.stdout
-    assert _positions_content(c / "stiffmap.db", 4) == _positions_content(demo / "stiffmap.db", 4)
+    assert dump_content(c / "stiffmap.db") == dump_content(campaign_db)
 
 
 def _start_run(path, *args):
@@ -401,14 +396,12 @@ def _kill_when_measured(proc, db, n_positions, timeout=180):
             os.killpg(proc.pid, signal.SIGKILL)  # the local cluster the client left behind
 
 
-def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(quick_demo, tmp_path):
+def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(campaign, campaign_db, tmp_path):
     """A Dask worker SIGKILLed while it measures a position (a cluster of 2 workers, given to
     `run` by its scheduler's address, the images sent to them): its task runs again elsewhere,
-    the run completes, and the database is the uninterrupted run's, row for row (the quick
-    demo's first four positions)."""
+    the run completes, and the database is the uninterrupted run's, row for row."""
     distributed = pytest.importorskip("distributed")
-    _, demo = quick_demo
-    c = _fresh_copy(demo, tmp_path / "c", positions=4)
+    c = _fresh_copy(campaign, tmp_path / "c")
     killed: list[int] = []
     with (
         distributed.LocalCluster(
@@ -431,7 +424,7 @@ def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(quick_demo, t
     assert summary.failures == [] and summary.measured == 4
     assert len(summary.notes) == 1 and "left the cluster during the run" in summary.notes[0]
     assert "images sent to the workers" in summary.backend
-    assert _positions_content(c / "stiffmap.db", 4) == _positions_content(demo / "stiffmap.db", 4)
+    assert dump_content(c / "stiffmap.db") == dump_content(campaign_db)
 
 
 def test_an_unreachable_scheduler_is_one_line(campaign, tmp_path, monkeypatch, capsys):

@@ -20,6 +20,7 @@ from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
 from ..kinds import CONFIGS_OPTION, grid_from_text, kind_names, robot_from_command, robot_kind
 from ..kinds.options import command_names
+from ..loads import MAX_FORCE_N
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
 from ..models.presets import force_direction
 from ..textfmt import fmt, fmt_pm
@@ -205,6 +206,8 @@ def _force(kind, dim: int, load_n: float | None, direction: str | None) -> np.nd
     if load_n is not None:
         if not np.isfinite(load_n):
             raise InputError(f"--load-n must be a finite number of N, got {load_n}")
+        if abs(load_n) > MAX_FORCE_N:
+            raise InputError(f"--load-n {load_n:g} N is beyond +-{MAX_FORCE_N:g} N: not a plausible load")
         mag = load_n
     return mag * from_option(
         "--direction", force_direction, direction if direction is not None else dname, dim

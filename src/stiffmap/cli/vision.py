@@ -20,7 +20,7 @@ from ..camera import invertible_field, plausibility_problems, save_camera
 from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..rig import parse_named_pattern, save_rig
-from ..vision.calibrate import DIST_MODELS, CalibrationResult
+from ..vision.calibrate import DIST_MODELS, CalibrationResult, grouped_reasons
 from ..vision.files import calibrate_files, calibrate_rig_files
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
 from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, warn
@@ -38,6 +38,12 @@ def calibrate(
     fix_k3: bool = typer.Option(False, "--fix-k3", help="Fix k3 = 0 (the Matlab toolbox's default)."),
     rational: bool = typer.Option(False, "--rational", help="Also estimate k4, k5, k6 (rational model)."),
     thin_prism: bool = typer.Option(False, "--thin-prism", help="Rational model plus thin-prism s1..s4."),
+    fisheye: bool = typer.Option(
+        False,
+        "--fisheye",
+        help="OpenCV's fisheye model (k1..k4 of the angle off axis) for a fisheye or strong "
+        "wide-angle lens: one to one over the whole image where the polynomial folds over.",
+    ),
     outlier_factor: float = typer.Option(
         3.0, "--outlier-factor", min=1.0, help="Leave out views whose RMS exceeds this times the median."
     ),
@@ -55,35 +61,44 @@ def calibrate(
     """
     try:
         b = board_option(board, square_mm, charuco, marker_mm)
-        if sum([fix_k3, rational, thin_prism]) > 1:
-            raise InputError("choose at most one of --fix-k3, --rational, --thin-prism")
-        model = "fix-k3" if fix_k3 else "rational" if rational else "thin-prism" if thin_prism else "k3"
-        res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor)
+        if sum([fix_k3, rational, thin_prism, fisheye]) > 1:
+            raise InputError("choose at most one of --fix-k3, --rational, --thin-prism, --fisheye")
+        model = {"fix-k3": fix_k3, "rational": rational, "thin-prism": thin_prism, "fisheye": fisheye}
+        model = next((k for k, on in model.items() if on), "k3")
+        # A bar on a terminal only (it would be a blank line in a log), gone once done.
+        with images_progress("finding the board", show=err.is_terminal, transient=True) as progress:
+            res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor, progress=progress)
         backup = save_camera(res.camera, out_path)
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
         warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
-    for v in res.views:
-        if not v.used:
-            warn(f"{v.image}: not used: {v.reason}")
-    implausible = _warn_calibrated(res.camera, out_path)
+    unused = [v for v in res.views if not v.used]
+    for line in grouped_reasons([v.image for v in unused], [v.reason for v in unused]):
+        warn(f"not used: {line}")
+    implausible = _warn_calibrated(res.camera, out_path, field_warning=False)
+    for key, what in res.problems:
+        warn(f"{out_path}: {key}: {what}")
+    if res.lens_advice:
+        warn(f"{out_path}: {res.lens_advice}")
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views) or implausible:
+    if res.n_used < len(res.views) or implausible or res.problems:
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _warn_calibrated(camera, out_path: Path, label: str = "") -> bool:
-    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model folds."""
+def _warn_calibrated(camera, out_path: Path, label: str = "", field_warning: bool = True) -> bool:
+    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model
+    folds within the image (``field_warning``; ``calibrate`` flags a fold among its views' corners
+    instead, and prints the field)."""
     implausible = plausibility_problems(camera)
     for key, what in implausible:
         # The other commands refuse this camera.json: say so now, with the views to blame.
         warn(f"{out_path}: {label}key {key!r}: {what} (the views may not constrain the calibration)")
     field = invertible_field(camera)
-    if not implausible and field.image_share() < 1.0:
+    if field_warning and not implausible and field.image_share() < 1.0:
         warn(f"{out_path}: {label}{field.describe()}; pose measurements use no pixel beyond it")
     return bool(implausible)
 
@@ -98,8 +113,7 @@ def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
     t.add_column("1 sigma")
     for k in ("fx", "fy", "cx", "cy"):
         t.add_row(f"{k} (px)", f"{getattr(c, k):.4f}", f"{s[k]:.4f}")
-    names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
-    for name, v, sd in zip(names, c.dist, s["dist"], strict=False):
+    for name, v, sd in zip(c.dist_names, c.dist, s["dist"], strict=False):
         t.add_row(name, f"{v:.6f}", f"{sd:.6f}")
     out.print(t)
     out.print(
@@ -128,7 +142,8 @@ _CAMERA_HELP = (
 )
 _MODEL_HELP = (
     "Distortion model of every camera: k3 (k1, k2, p1, p2, k3), fix-k3 (k3 = 0, the Matlab "
-    "toolbox's default), rational (+ k4, k5, k6) or thin-prism (rational + s1..s4)."
+    "toolbox's default), rational (+ k4, k5, k6), thin-prism (rational + s1..s4) or fisheye "
+    "(OpenCV's fisheye model, k1..k4 of the angle off axis)."
 )
 
 

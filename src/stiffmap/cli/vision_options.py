@@ -14,9 +14,10 @@ from ..camera import CameraModel, load_camera
 from ..errors import InputError
 from ..rig import Rig, load_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
+from ..vision.calibrate import grouped_reasons
 from ..vision.files import MAX_TRANSLATION_MM, read_transform
 from ..vision.measure_files import FixedTarget
-from ..vision.sequence import ImageMeasurement
+from ..vision.sequence import ImageMeasurement, photometric_summary
 from .common import EXIT_PARTIAL, fail, out, three_numbers, warn
 
 BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
@@ -95,15 +96,27 @@ def refine_option(value: str) -> str:
     return value
 
 
-def warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
+def warn_failures(
+    ms: list[ImageMeasurement], rig: Rig | None = None, refine: str = "photometric", as_json: bool = False
+) -> None:
     """One warning per image (set) that failed, or whose pose fell back to the corners (with why).
 
     With a rig, also one per camera whose image of a measured set could not be used, and one
-    per fused pose whose cameras disagree (a wrong rig file, a moved camera).
+    per fused pose whose cameras disagree (a wrong rig file, a moved camera). With the default
+    ``--refine auto`` a pose that keeps its corners is no warning: one note after the table sums
+    them up (none with ``--json``, whose poses each carry their ``fallback``).
     """
+    if refine == "auto" and not as_json:
+        note = photometric_summary(ms)
+        if note is not None:
+            out.print(f"note: {note}", markup=False)
+    failed = [m for m in ms if not m.ok]
+    # Images that failed for one reason (a wrong --board on every image) are one line.
+    reasons = [m.error.removeprefix(f"{m.image}: ") for m in failed]
+    for line in grouped_reasons([m.image for m in failed], reasons):
+        warn(line)
     for m in ms:
         if not m.ok:
-            warn(m.error)
             continue
         if rig is not None:
             for v in m.views:
@@ -112,7 +125,7 @@ def warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
             for w in m.consistency_warnings:
                 warn(f"{m.image}: {w}")
         for p in (m.mobile, m.fixed):
-            if p is not None and p.fallback:
+            if p is not None and p.fallback and refine != "auto":
                 warn(f"{m.image}: {p.fallback}")
 
 

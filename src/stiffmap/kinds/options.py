@@ -62,6 +62,8 @@ def robot_from_command(
     *,
     configs: str | Path | None = None,
     command: str = "model",
+    builtin_defaults: bool = False,
+    configs_required: bool = True,
 ) -> Mechanism:
     """The robot a command line describes, through the registry (any kind).
 
@@ -81,6 +83,13 @@ def robot_from_command(
         (required for it).
     command : str
         The command, for the usage in messages.
+    builtin_defaults : bool
+        For a file that ships with stiffmap (``urdf arm6``), take its own parameters when no
+        ``--param`` is given and its keys for the options not given
+        (:attr:`~stiffmap.kinds.registry.RobotKind.builtin_defaults`).
+    configs_required : bool
+        Whether a kind whose positions are joint configurations needs ``--configs`` (False for
+        a command that reaches its points by inverse kinematics, ``stiffmap compensate``).
 
     Raises
     ------
@@ -106,17 +115,20 @@ def robot_from_command(
             "(positions: --grid or --points)"
         )
     keys = {kind.options[opt]: _option_value(v) for opt, v in given.items() if v is not None}
+    values = _params(kind, params)
+    own = kind.builtin_defaults.get(str(robot)) if builtin_defaults and robot is not None else None
+    if own is not None and kind.builtin_file(robot) is not None:
+        keys = {**own.keys, **keys}
+        values = values or dict(own.params)
     _require(kind, keys, robot)
-    if kind.configurations:
+    if kind.configurations and configs_required:
         if configs is None:
             raise InputError(
                 f"{CONFIGS_OPTION} CONFIGS.csv is required for {kind.name}: the joint configurations "
                 "(columns q1_deg..qn_deg in the robot's joint order)"
             )
         keys["configs"] = Path(configs)
-    description = RobotDescription(
-        kind.name, _params(kind, params), None if robot is None else Path(robot), keys
-    )
+    description = RobotDescription(kind.name, values, None if robot is None else Path(robot), keys)
     try:
         return build_robot(description)
     except FieldError as e:

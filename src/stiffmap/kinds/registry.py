@@ -160,6 +160,11 @@ class RobotKind:
         How usage texts show that file (``ROBOT.urdf``).
     file_key : str or None
         The campaign.toml key of that file (``robot.urdf``, ``robot.legs``).
+    builtin_defaults : mapping of str to RobotDescription
+        A shipped file's own parameters and keys (its springs, tool point, tool orientation,
+        seed), by the file's name: what a command that offers them takes when the user names
+        the file alone (``stiffmap compensate urdf arm6``; :func:`~stiffmap.kinds.robot_from_command`
+        with ``builtin_defaults=True``).
     builtin_files : mapping of str to str
         Files that ship with stiffmap, by name (``arm6``): a name without a file of that
         name is that file.
@@ -197,6 +202,7 @@ class RobotKind:
     file_example: str = "ROBOT"
     file_key: str | None = None
     builtin_files: Mapping[str, str] = field(default_factory=dict)
+    builtin_defaults: Mapping[str, RobotDescription] = field(default_factory=dict)
     keys: type[BaseModel] | None = None
     options: Mapping[str, str] = field(default_factory=dict)
     configurations: bool = False

@@ -139,6 +139,19 @@ URDF_KIND = RobotKind(
     file_example="ROBOT.urdf",
     file_key="urdf",
     builtin_files=BUILTIN_URDFS,
+    builtin_defaults={
+        "arm6": RobotDescription(
+            SerialRobot.name,
+            {f"k{i}": k for i, k in enumerate(arm6.K_THETA, start=1)},
+            None,
+            {
+                "tip_frame": arm6.TIP_FRAME,
+                "tip_offset_mm": arm6.TIP_OFFSET_MM,
+                "tool_rpy_deg": (0.0, 180.0, 0.0),  # arm6.TOOL_ROTATION: the tool pointing down
+                "q_seed_deg": list(arm6.Q_SEED_DEG),
+            },
+        )
+    },
     keys=UrdfKeys,
     options={"--tip": "tip_frame", "--tip-offset-mm": "tip_offset_mm"},
     positions={"arm20": arm6.positions20},
