@@ -36,7 +36,7 @@ from helpers.opencv_corners import opencv_corners_near  # noqa: E402
 from stiffmap.campaign.derive import derive_position  # noqa: E402
 from stiffmap.campaign.measure import ImageRow  # noqa: E402
 from stiffmap.campaign.positions import plan  # noqa: E402
-from stiffmap.campaign.records import StiffnessRecord  # noqa: E402
+from stiffmap.campaign.records import DisplacementRecord, StiffnessRecord  # noqa: E402
 from stiffmap.campaign.simulated import write_campaign  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
 from stiffmap.campaign.store import record_of  # noqa: E402
@@ -103,7 +103,8 @@ def disp_noise(root: Path, noise: float) -> np.ndarray:
     for task, r in derived:
         Kt = truth.K[task.index - 1]
         for d in r.displacements:
-            dev.append(np.asarray(d.d)[:3] - np.linalg.solve(Kt, loads[d.load - 1].force))
+            rec = record_of(DisplacementRecord, d)  # the row as it is stored, decoded
+            dev.append(np.asarray(rec.d)[:3] - np.linalg.solve(Kt, loads[rec.load - 1].force))
     return np.asarray(dev).std(axis=0)
 
 
