@@ -134,8 +134,8 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     conn.execute("ALTER TABLE measurements DROP COLUMN mobile_cal_jac")
     conn.execute("ALTER TABLE measurements DROP COLUMN per_camera")  # schema 3
     conn.execute(
-        "INSERT INTO stiffness (position, x, y, z, status, K, inputs_hash, params_hash, version) "
-        "VALUES (1, 0, 0, 0, 'ok', '[[1, 0, 0], [0, 2, 0], [0, 0, 3]]', 'h', 'p', 'v')"
+        "INSERT INTO stiffness (position, x, y, z, K, status, inputs_hash, params_hash, version) "
+        "VALUES (1, 0, 0, 0, '[[1,0,0],[0,1,0],[0,0,1]]', 'ok', 'h', 'p', 'v')"
     )
     conn.execute("UPDATE meta SET value = '1' WHERE key = 'schema_version'")
     conn.commit()
@@ -143,7 +143,7 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     with Store(db) as store:
         (row,) = store.stiffness_rows()
         assert row.K_cov_calibration is None and row.status == "ok"
-        np.testing.assert_array_equal(row.K, np.diag([1.0, 2.0, 3.0]))
+        np.testing.assert_array_equal(row.K, np.eye(3))
         assert store.measurement_rows() == []
     conn = sqlite3.connect(db)
     cols = {r[1] for r in conn.execute("PRAGMA table_info(measurements)")}
