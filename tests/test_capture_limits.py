@@ -12,6 +12,7 @@ from helpers.capture_campaigns import small_campaign
 from helpers.fuzz import run_argv
 
 from stiffmap.campaign.spec import load_spec
+from stiffmap.capture import session
 from stiffmap.capture.session import MAX_FRAMES, run_capture
 from stiffmap.cli import capture as cli_capture
 from stiffmap.errors import InputError
@@ -20,6 +21,7 @@ from stiffmap.errors import InputError
 def test_a_camera_whose_clock_barely_moves_gives_up_after_timeout_s_of_wall_clock(tmp_path, monkeypatch):
     root = small_campaign(tmp_path / "c", positions=(1,), timeout=1.0)
     monkeypatch.setattr(cli_capture, "WAITING_LINE_S", 0.0)  # a progress line at every frame
+    monkeypatch.setattr(session, "MIN_WALL_S", 1.0)  # the wall clock's floor (10 s) shortened
     o = run_argv(["capture", str(root), "--camera", "sim:fps=1e9", "--yes"], time_limit=60.0)
     assert o.escaped is None, o.escaped  # not a hang (the fuzz layer's 60 s alarm)
     assert o.code == 2, o.stderr[-1000:]

@@ -20,9 +20,10 @@ again). The operator may skip an image or redo the last one (:class:`Operator`);
 ``--yes`` (:class:`AutoOperator`) nothing is asked and a step that gets no good settled frame
 within ``timeout_s`` ends the capture with a clear message (the images saved so far are kept).
 ``timeout_s`` counts the source's time (a device's clock, a file's position, the simulated
-clock); when that clock runs more than :data:`CLOCK_SLACK` times slower than the wall clock (a
-simulated camera of a billion frames per second, whose clock barely moves), the wall clock
-counts: the user never waits more than ``timeout_s`` for a clock that does not move.
+clock) and the wall clock: a step gives up when either passes it (the wall clock: at least
+:data:`MIN_WALL_S`, for a simulated camera rendering slower than real time with a short
+``timeout_s``). A simulated camera of a billion frames per second, whose clock barely moves,
+gives up after ``timeout_s`` of waiting.
 """
 
 from __future__ import annotations
@@ -65,9 +66,8 @@ __all__ = [
 
 #: The capture log in the campaign directory (one JSON object per line).
 LOG_NAME = "capture_log.jsonl"
-#: A step's wait counts on the wall clock when the source's clock runs this many times slower
-#: (a simulated camera rendering slower than its frame rate, 10 times at most, keeps its clock).
-CLOCK_SLACK = 10.0
+#: A step's wait on the wall clock ends after ``timeout_s``, but never before this (s).
+MIN_WALL_S = 10.0
 #: Most settled frames per image (``--frames``; ``[capture] frames`` has the same bound): they
 #: are held in memory until the image is written.
 MAX_FRAMES = 1000
@@ -445,9 +445,7 @@ def run_capture(
                 )
                 show(status)
                 waited = time.monotonic() - wall_start
-                if t - t_start > cap.timeout_s or (
-                    waited > cap.timeout_s and waited > CLOCK_SLACK * (t - t_start)
-                ):
+                if t - t_start > cap.timeout_s or waited > max(cap.timeout_s, MIN_WALL_S):
                     message = f"{', '.join(step.files)}: no good settled frame in {cap.timeout_s:g} s" + (
                         f"; the last frame: {c.problem}" if c.problem else " (the platform did not settle)"
                     )

@@ -84,7 +84,7 @@ def capture(
         "-y",
         help="No questions: every action is taken as done (the simulated camera, rigs with load "
         "actuators, scripts); an image without a good settled frame in [capture] timeout_s (the "
-        "camera's time; the wall clock's when the camera's runs 10 times slower) stops.",
+        "camera's time or the wall clock's, at least 10 s, whichever passes first) stops.",
     ),
 ) -> None:
     """Take a campaign's images from a live camera, one step at a time, once the platform has settled.
