@@ -1,8 +1,10 @@
 """Files named in ``campaign.toml`` stay inside the campaign directory (unless the user allows otherwise).
 
-``campaign.toml`` names the camera file (``camera.file``), the images (the
-``[images]`` patterns) and the recordings (``sensor.recordings[i].file``),
-relative to the campaign directory. A name that leads outside it, by an
+``campaign.toml`` names the camera file (``camera.file``) or rig file
+(``cameras.rig``), the images (the ``[images]`` patterns), the recordings
+(``sensor.recordings[i].file``) and the robot's file (``robot.urdf``,
+``robot.legs``: :func:`stiffmap.campaign.robot.robot_file`), relative to the
+campaign directory. A name that leads outside it, by an
 absolute path, by ``..`` or through a symbolic link, is refused with the key
 (and the position, load and repeat of an image), the name and the option that
 allows it, ``--allow-outside-paths`` (``stiffmap run`` and ``stiffmap report``):

@@ -5,6 +5,11 @@ model of the robot kind ``robot.model`` (:mod:`stiffmap.kinds`), its file (``rob
 ``robot.legs``) found in the campaign folder, the joint configurations of
 ``positions.q_deg``, and, for a kind whose K depends on where the loads act,
 ``loads.point_mm``. Wrong values are worded in campaign.toml's terms (``robot.params``).
+
+:func:`check_robot` checks the whole section before anything is measured (``stiffmap run``
+and ``stiffmap report``): the robot's file stays in the campaign folder (after symbolic
+links; :mod:`stiffmap.campaign.paths`), it reads, the model builds (a URDF's ``tip_frame``,
+parameter names and values), and the parameters to fit are the model's and can be fitted.
 """
 
 from __future__ import annotations
@@ -17,9 +22,18 @@ import numpy as np
 from ..errors import FieldError, InputError
 from ..kinds import NO_ROBOT, RobotDescription, RobotKind, build_robot, robot_kind
 from ..models.base import Mechanism
+from .paths import campaign_file
 from .spec import SPEC_NAME, CampaignSpec, RobotSpec
 
-__all__ = ["robot_description", "robot_model", "campaign_model", "campaign_positions", "fitted_names"]
+__all__ = [
+    "robot_description",
+    "robot_model",
+    "campaign_model",
+    "campaign_positions",
+    "fitted_names",
+    "robot_file",
+    "check_robot",
+]
 
 
 def _kind(robot: RobotSpec) -> RobotKind:
@@ -115,3 +129,62 @@ def fitted_names(spec: CampaignSpec, model: Mechanism) -> tuple[str, ...]:
         return kind.fitted_names(model, spec.robot.fit)
     except FieldError as e:
         raise e.worded(_spec_names(kind)).with_source(SPEC_NAME) from None
+
+
+def robot_file(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> Path | None:
+    """The robot's file (``robot.urdf``, ``robot.legs``), refused when it leads outside the
+    campaign folder (an absolute path, ``..``, a symbolic link out) unless ``allow_outside``.
+
+    Returns
+    -------
+    Path or None
+        None for a kind without a file; a file shipped with stiffmap (``arm6``) as is.
+
+    Raises
+    ------
+    InputError
+        ``campaign.toml: key 'robot.urdf': '/x/arm.urdf' is an absolute path, outside the
+        campaign directory; ... (give --allow-outside-paths to read it anyway)``.
+    """
+    kind = spec.robot.kind
+    if kind is None or kind.file_key is None or kind.file_key not in spec.robot.keys:
+        return None
+    name = str(spec.robot.keys[kind.file_key])
+    if not (Path(root) / name).exists() and kind.builtin_file(name) is not None:
+        return Path(kind.builtin_file(name))
+    return campaign_file(Path(root), name, f"robot.{kind.file_key}", allow_outside=allow_outside)
+
+
+def check_robot(spec: CampaignSpec, root: Path, *, allow_outside: bool = False) -> None:
+    """The ``[robot]`` section checked whole, before anything is measured.
+
+    Its file stays in the campaign folder (:func:`robot_file`) and reads, the model builds
+    with ``robot.params`` (a URDF's ``tip_frame``, its joints' parameters), and every
+    parameter to fit (``robot.fit``, or the kind's default) is the model's, with a positive
+    finite starting value.
+
+    Raises
+    ------
+    InputError
+        Naming the file, or ``campaign.toml`` and its key.
+    """
+    if spec.robot.kind is None:
+        return
+    robot_file(spec, root, allow_outside=allow_outside)
+    try:
+        model = campaign_model(spec, root)
+    except InputError:
+        raise
+    except ValueError as e:
+        raise InputError(f"robot: {e}", source=str(Path(root) / SPEC_NAME)) from None
+    names = fitted_names(spec, model)
+    params = model.params()
+    for n in names:
+        v = float(params.get(n, np.nan))
+        if not (np.isfinite(v) and v > 0):
+            rigid = " (inf: a rigid element, which has nothing to fit)" if np.isinf(v) else ""
+            raise InputError(
+                f"key 'robot.fit': cannot fit {n}: its starting value {v:g} is not a positive finite "
+                f"number{rigid}; leave it out of robot.fit, or give it a value in robot.params",
+                source=str(Path(root) / SPEC_NAME),
+            )

@@ -19,6 +19,7 @@ from pathlib import Path
 from ..errors import InputError
 from .export import export_tables
 from .instruments import Instrument, RunOptions, instrument_of
+from .robot import check_robot
 from .runner import ProgressHook, RunSummary
 from .sensor_runner import SensorCampaignResult
 from .spec import SPEC_NAME, CampaignSpec, load_spec
@@ -132,7 +133,10 @@ def run_and_export(
     Raises
     ------
     InputError
-        When nothing can be done: no or bad campaign.toml, camera file missing or
+        When nothing can be done (found before any image or recording is measured: the
+        whole ``[robot]`` section, :func:`~stiffmap.campaign.robot.check_robot`): no or bad
+        campaign.toml, a robot file missing, unreadable or outside the campaign directory, an
+        unknown tip frame, parameter or parameter to fit, camera file missing or
         malformed, a file named outside the campaign directory, a results database
         that is not one (:class:`~stiffmap.campaign.store.Store`).
     """
@@ -140,6 +144,7 @@ def run_and_export(
     if spec is None:
         spec = load_spec(root)
     instrument = instrument_of(spec)
+    check_robot(spec, root, allow_outside=allow_outside)  # the whole [robot] before any image
     options = RunOptions(workers, method, progress, allow_outside, dask, send_images)
     result, failures = instrument.run(root, spec, options)
     with Store(root / DB_NAME) as store:

@@ -228,7 +228,8 @@ class RobotKind:
         return None
 
     def fitted_names(self, model: Mechanism, fit: Sequence[str] | None = None) -> tuple[str, ...]:
-        """The parameters to fit: ``fit`` (each item may be comma-separated), else the default.
+        """The parameters to fit: ``fit`` (each item may be comma-separated), else the default
+        (without the parameters the model holds infinite: rigid elements have nothing to fit).
 
         Raises
         ------
@@ -237,6 +238,9 @@ class RobotKind:
         """
         valid = model.param_names() if hasattr(model, "param_names") else tuple(model.params())
         default = list(self.default_fit) if self.default_fit is not None else list(valid)
+        # By default, not the rigid elements (inf: nothing to fit; a legs file's rigid arms).
+        params = model.params()
+        default = [n for n in default if not np.isinf(float(params.get(n, 0.0)))] or default
         names: list[str] = []
         for item in fit or default:
             names.extend(s.strip() for s in item.split(",") if s.strip())

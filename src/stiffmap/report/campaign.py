@@ -7,20 +7,21 @@ spec and ``stiffmap.db`` and fills :class:`stiffmap.report.data.ReportData`;
 
 from __future__ import annotations
 
+import warnings
 from datetime import date
 from pathlib import Path
 
 import numpy as np
 
 from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
-from ..campaign.robot import campaign_model
+from ..campaign.robot import campaign_model, robot_file
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
 from ..campaign.store import DB_NAME, Store
 from ..campaign.truth import load_truth
-from ..errors import InputError
+from ..errors import InputError, StiffmapWarning
 from ..rig import Rig
 from . import data as contract
 from . import write_report
@@ -54,6 +55,25 @@ def _parameters(store: Store, name: str, spec: CampaignSpec):
 
 def _fitted_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str):
     return campaign_model(spec, root, **{p.name: p.value for p in _parameters(store, fit_name, spec)})
+
+
+def _stale_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str) -> str | None:
+    """Why the report leaves the model out (None: it does not): campaign.toml's robot changed
+    since the run, so that the stored fit is another robot's, or no longer builds it."""
+    fit = store.model_fit(fit_name)
+    if fit is None:
+        return None
+    rerun = f"run 'stiffmap run {root}' again to fit it; the report leaves the model out"
+    if fit.model != spec.robot.model:
+        return (
+            f"model fit: {DB_NAME} holds the fit of robot model {fit.model!r}, but campaign.toml now "
+            f"names {spec.robot.model!r}: {rerun}"
+        )
+    try:
+        _fitted_model(root, spec, store, fit_name)
+    except (ValueError, TypeError, KeyError) as e:  # InputError too
+        return f"model fit: the fit in {DB_NAME} no longer builds campaign.toml's robot ({e}): {rerun}"
+    return None
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
@@ -93,7 +113,8 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
     )
     kind = spec.robot.kind
-    if kind is not None and kind.dim != 2:  # a spatial model (a legs TOML says its own dim)
+    stale = _stale_model(root, spec, store, "stiffness") if kind is not None else None
+    if kind is not None and kind.dim != 2 and stale is None:  # a spatial model (a legs TOML: its dim)
         model = _fitted_model(root, spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
         for r in store.model_stiffness_rows():
@@ -196,7 +217,8 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     name = ""
     params: tuple = ()
     kind = spec.robot.kind
-    if kind is not None and kind.report_grid is not None:  # a planar kind's map (the 3PRR's)
+    stale = _stale_model(root, spec, store, "static_error") if kind is not None else None
+    if kind is not None and kind.report_grid is not None and stale is None:  # a planar kind's map
         name = kind.name
         params = _parameters(store, "static_error", spec)
         model_um = np.array([1e3 * pred[f] if pred.get(f) is not None else np.nan for f in m["files"]])
@@ -242,6 +264,8 @@ def _unit(axis: str) -> np.ndarray:
 
 #: The report's sections of what an instrument measures.
 _SECTIONS = {STIFFNESS: _vision, STATIC_ERROR: _sensor}
+#: The model fit each kind of result is fitted by (the `model_fit` row).
+_FIT_NAME = {STIFFNESS: "stiffness", STATIC_ERROR: "static_error"}
 
 
 def report_data(
@@ -266,6 +290,11 @@ def report_data(
             f"{EXPORTS_DIR}/summary.json): nothing to report",
             source=str(root),
         )
+    robot_file(spec, root, allow_outside=allow_outside)  # a robot file outside the directory: refused
+    stale = _stale_model(root, spec, store, _FIT_NAME[inst.measures]) if spec.robot.kind else None
+    if stale is not None:
+        warnings.warn(stale, StiffmapWarning, stacklevel=2)
+        failures = [*failures, stale]
     parts = _SECTIONS[inst.measures](root, spec, store, allow_outside)
     return contract.ReportData(campaign=info, failures=failures_as_items(failures), **parts)
 
