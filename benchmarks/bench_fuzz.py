@@ -8,6 +8,8 @@ through the CLI's own guard (``tests/helpers/fuzz.py``) and counts how each run 
 
 - ok: exit 0; clear: exit 1 or 2 with an ``error:``/``warning:`` line naming the file;
 - unnamed: a message that does not name the file; silent: a non-zero exit without a message;
+- late: an input that must be refused before anything is done (a robot file outside the
+  campaign, an unknown tip frame) that a command ran with;
 - wrong: silently wrong, a case whose input gives plausible but wrong results (a rig file of
   another rig, a camera that measured nothing) without the warning or error that says so;
 - bug: the guard's "internal error" line (exit 3); traceback: an exception escaped;
@@ -123,7 +125,8 @@ def main() -> None:
         f"{__doc__.split(chr(10) + chr(10))[1]}\n\n"
         f"{n} malformed inputs over {len(rows) - 1} classes in {time.perf_counter() - t0:.0f} s: "
         f"tracebacks {total['traceback']}, hangs {total['hang']}, non-zero exits without a message "
-        f"{total['silent']}, silently wrong {total['wrong']}, internal errors {total['bug']}, messages not "
+        f"{total['silent']}, late or no refusals {total['late']}, silently wrong {total['wrong']}, "
+        f"internal errors {total['bug']}, messages not "
         f"naming the file {total['unnamed']}."
         + ("\n\nFindings:\n\n" + "\n".join(f"- `{f}`" for f in findings) if bad else "")
     )

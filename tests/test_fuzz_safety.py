@@ -6,7 +6,7 @@ succeeds (its JSON then holds only finite numbers or nulls: NaN is never printed
 ends with one clear message (exit 1 or 2); a case wrong in a way that gives plausible results
 (a rig file of another rig, a camera that measured nothing) is warned or refused by name.
 ``pytest -m fuzz tests/test_fuzz_safety.py`` runs the long profile; the default run takes 3
-examples of each class (2 of the two classes of images and capture).
+examples of each class (2 of the classes of images, [robot] and capture).
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ from helpers.fuzz import assert_handled, run_case
 from helpers.fuzz_campaign import names_a_campaign_file
 from helpers.fuzz_safety import FUZZ_CLASSES, names_the_dask_option
 from hypothesis import given, settings
+
+from stiffmap.capture import session
 
 pytestmark = pytest.mark.fuzz
 
@@ -60,9 +62,21 @@ def test_one_cameras_images(case):
 
 
 @_FEW
+@given(case=_BY_NAME["[robot] and its file x run"].cases)
+def test_robot_sections(case):
+    o = _check(case)
+    assert names_a_campaign_file(case, o.stderr, o.code), o.stderr[-1500:]
+
+
+@_FEW
 @given(case=_BY_NAME["capture options x capture"].cases)
 def test_capture_options(case):
-    o = _check(case)
+    floor = session.MIN_WALL_S
+    session.MIN_WALL_S = 1.0  # a camera whose clock barely moves waits timeout_s = 1 s, not 10 s
+    try:
+        o = _check(case)
+    finally:
+        session.MIN_WALL_S = floor
     assert o.code in (0, 1, 2), o.stderr[-1500:]
 
 
@@ -84,6 +98,7 @@ def test_every_class_is_tested():
     assert set(_BY_NAME) == {
         "rig.json x pose --rig, run",
         "one camera's images x run (rig)",
+        "[robot] and its file x run",
         "capture options x capture",
         "stiffmap.db values x report, run",
         "--dask addresses x run",

@@ -11,6 +11,8 @@ time limit. :func:`classify` says what happened:
 ``clear``      exit 1 or 2, an ``error:`` (or ``warning:``) line that names the blamed file
 ``unnamed``    exit 1 or 2 with a message that does not name the blamed file
 ``silent``     a non-zero exit without any ``error:``/``warning:`` line
+``late``       a case that must be refused before anything is done (``FuzzCase.must_refuse``: a
+               robot file outside the campaign, an unknown tip frame) ran (exit 0 or 1)
 ``wrong``      silently wrong: the case says what must be said (``FuzzCase.expect``: a swapped
                rig file, a camera that measured nothing), results were given (exit 0 or 1) and no
                ``error:``/``warning:`` line says it (a refusal, exit 2, is right)
@@ -48,7 +50,7 @@ from stiffmap.errors import StiffmapWarning
 #: Seconds one invocation may take before it counts as a hang.
 TIME_LIMIT_S = 20.0
 
-OUTCOMES = ("ok", "clear", "unnamed", "silent", "wrong", "bug", "traceback", "hang")
+OUTCOMES = ("ok", "clear", "unnamed", "silent", "late", "wrong", "bug", "traceback", "hang")
 HANDLED = ("ok", "clear")
 
 
@@ -61,7 +63,9 @@ class FuzzCase:
     do (e.g. several files are malformed at once). ``expect``: when the input is wrong in a
     way that gives plausible results (a rig file of another rig), a text a ``warning:`` or
     ``error:`` line must hold when the command gives results (exit 0 or 1; a refusal, exit 2,
-    is right too); None when success is right.
+    is right too); None when success is right. ``must_refuse``: the input must be refused
+    before anything is done (exit 2). ``links``: symbolic links to make (name -> target, both
+    relative to the directory). In the bytes of a ``.toml`` file, ``{dir}`` is the directory.
     """
 
     files: dict[str, bytes]
@@ -69,6 +73,8 @@ class FuzzCase:
     blamed: str | None = None
     note: str = ""
     expect: str | None = None
+    must_refuse: bool = False
+    links: dict[str, str] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         # Short, for hypothesis's report of a failing case (the files' bytes can be megabytes).
@@ -129,7 +135,11 @@ def write_case(case: FuzzCase, directory: Path) -> list[str]:
     for name, data in case.files.items():
         p = directory / name
         p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_bytes(data)
+        p.write_bytes(data.replace(b"{dir}", str(directory).encode()) if name.endswith(".toml") else data)
+    for name, target in getattr(case, "links", {}).items():
+        p = directory / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.symlink_to(directory / target)
     return [a.replace("{dir}", str(directory)) for a in case.argv]
 
 
@@ -157,7 +167,7 @@ def run_argv(argv: list[str], *, time_limit: float = TIME_LIMIT_S) -> Outcome:
     return o
 
 
-def classify(o: Outcome, blamed: str | None, expect: str | None = None) -> str:
+def classify(o: Outcome, blamed: str | None, expect: str | None = None, must_refuse: bool = False) -> str:
     """The outcome's kind (see the module docstring)."""
     if isinstance(o.escaped, _Hang):
         return "hang"
@@ -165,6 +175,8 @@ def classify(o: Outcome, blamed: str | None, expect: str | None = None) -> str:
         return "traceback"
     if o.code == cli_main.EXIT_BUG or "internal error" in o.stderr:
         return "bug"
+    if must_refuse and o.code in (0, 1):
+        return "late"
     lines = [ln for ln in o.stderr.splitlines() if ln.startswith(("error:", "warning:"))]
     if expect is not None and o.code in (0, 1) and not any(expect in ln for ln in lines):
         return "wrong"  # results given (exit 0 or 1) without the word that says they are wrong
@@ -189,7 +201,7 @@ def run_case(case: FuzzCase, *, time_limit: float = TIME_LIMIT_S) -> Outcome:
         o = run_argv(write_case(case, d), time_limit=time_limit)
     finally:
         shutil.rmtree(d, ignore_errors=True)
-    o.kind = classify(o, case.blamed, getattr(case, "expect", None))
+    o.kind = classify(o, case.blamed, getattr(case, "expect", None), getattr(case, "must_refuse", False))
     return o
 
 

@@ -279,6 +279,127 @@ def rig_image_cases(draw) -> FuzzCase:
     return CampaignCase(files=files, argv=(*RUN, "--json"), blamed=None, note=note, expect=expect)
 
 
+# ---------------------------------------------------------------------- [robot] and its file
+ROBOTS = Path(__file__).resolve().parents[2] / "src" / "stiffmap" / "models" / "robots"
+_JOINTS = {f"k{i}": 1e6 for i in range(1, 7)}
+
+
+def _with_robot(spec: str, robot: str) -> bytes:
+    """campaign.toml with its [robot] section replaced by ``robot`` (TOML lines)."""
+    import re
+
+    return re.sub(
+        r"\[robot\]\n(?:.*\n)*?(?=\n\[)", lambda m: "[robot]\n" + robot + "\n", spec, count=1
+    ).encode()
+
+
+def _toml_inline(d: dict) -> str:
+    return "{" + ", ".join(f"{k} = {v!r}".replace("inf", "inf") for k, v in d.items()) + "}"
+
+
+@st.composite
+def _robot_file(draw, key: str, good: bytes, suffix: str) -> tuple[str, dict, dict, bool, str]:
+    """Where ``robot.<key>`` points and what is there: (name, files, links, refused, note)."""
+    where = draw(
+        st.sampled_from(
+            ("in", "in", "in", "missing", "up", "absolute", "link out", "link in", "folder", "empty")
+        )
+    )
+    content = good
+    if where == "in" and draw(st.integers(0, 3)) == 0:
+        content = draw(
+            st.sampled_from(
+                (good[: len(good) // 2], b"", b"\xff\xfe", b"<robot" if suffix == ".urdf" else b"x = [")
+            )
+        )
+        where = "in, damaged"
+    name = f"robot{suffix}"
+    files: dict[str, bytes] = {}
+    links: dict[str, str] = {}
+    if where.startswith("in"):
+        files[f"c/{name}"] = content
+    elif where == "missing":
+        name = f"nope{suffix}"
+    elif where == "up":
+        files[f"outside{suffix}"] = good
+        name = f"../outside{suffix}"
+    elif where == "absolute":
+        files[f"outside{suffix}"] = good
+        name = "{dir}/outside" + suffix
+    elif where == "link out":
+        files[f"outside{suffix}"] = good
+        links[f"c/{name}"] = f"outside{suffix}"
+    elif where == "link in":
+        files[f"c/models/{name}"] = good
+        links[f"c/{name}"] = f"c/models/{name}"
+    elif where == "folder":
+        files[f"c/{name}/x"] = b""
+    elif where == "empty":
+        name = ""
+    refused = where not in ("in", "link in")
+    return name, files, links, refused, f"{key} {where}"
+
+
+@st.composite
+def robot_cases(draw) -> FuzzCase:
+    """``run`` on the bare vision seed with a [robot] of a URDF arm, of legs or the Delta, its file
+    put in, out of or missing from the campaign and its keys made wrong; a case that is
+    certainly wrong must be refused before any image is measured (exit 2)."""
+    seed = {f"c/{k}": v for k, v in bare_vision_seed().items()}
+    spec = seed.pop("c/campaign.toml").decode()
+    kind = draw(st.sampled_from(("urdf", "urdf", "legs", "delta")))
+    lines, refused, notes = [f'model = "{kind}"'], False, []
+    files, links = dict(seed), {}
+    if kind in ("urdf", "legs"):
+        key, suffix = ("urdf", ".urdf") if kind == "urdf" else ("legs", ".toml")
+        good = (ROBOTS / ("arm6.urdf" if kind == "urdf" else "delta.toml")).read_bytes()
+        name, more, links, bad, note = draw(_robot_file(key, good, suffix))
+        files.update(more)
+        lines.append(f'{key} = "{name}"')
+        refused, notes = refused or bad, [note]
+    params: dict = dict(_JOINTS) if kind == "urdf" else {}
+    fit = None
+    if kind == "urdf":
+        tip = draw(st.sampled_from(("tool0", "tool0", "link_3", "nope", "")))
+        lines.append(f'tip_frame = "{tip}"')
+        refused = refused or tip in ("nope", "")
+        notes.append(f"tip_frame {tip!r}")
+    change = draw(
+        st.sampled_from(("none", "none", "extra param", "fit unknown", "fit rigid", "fit one", "param value"))
+    )
+    if change == "extra param":
+        params["k7" if kind == "urdf" else "k9"] = 1.0
+        refused = True
+    elif change == "fit unknown":
+        fit = ["k9"]
+        refused = True
+    elif change == "fit rigid" and kind == "legs":
+        fit = ["k_arm"]
+        refused = True
+    elif change == "fit one":
+        fit = ["k1"] if kind == "urdf" else ["k_theta"]
+    elif change == "param value":
+        target = "k1" if kind == "urdf" else "k_theta"
+        value = draw(st.sampled_from((-1.0, 0.0, 1e300, float("inf"), 1e-300)))
+        params[target] = value
+        refused = refused or value <= 0
+    notes.append(change)
+    if params:
+        lines.append("params = " + _toml_inline(params))
+    if fit is not None:
+        lines.append(f"fit = {fit!r}".replace("'", '"'))
+    files["c/campaign.toml"] = _with_robot(spec, "\n".join(lines))
+    argv = ("run", "{dir}/c", "--quiet", "--workers", "1", "--no-report")
+    return CampaignCase(
+        files=files,
+        argv=argv,
+        blamed=None,
+        note=f"{kind}: " + "; ".join(notes),
+        must_refuse=refused,
+        links=links,
+    )
+
+
 # ------------------------------------------------------------------------------ capture
 @functools.cache
 def capture_seed() -> dict[str, bytes]:
@@ -463,6 +584,15 @@ FUZZ_CLASSES: list[FuzzClass] = [
         rig_image_cases(),
         "all or some of one camera's images of the rig campaign missing, truncated, empty, text, "
         "of half the size, folders, or exchanged with the other camera's",
+        slow=True,
+    ),
+    FuzzClass(
+        "[robot] and its file x run",
+        robot_cases(),
+        "a URDF arm, legs or the Delta: the robot file in the campaign, damaged, missing, a "
+        "folder, up with '..', absolute, a symbolic link out or in; tip frames, parameters and "
+        "fit names unknown, rigid, negative, huge: what is certainly wrong must be refused "
+        "before any image is measured",
         slow=True,
     ),
     FuzzClass(
