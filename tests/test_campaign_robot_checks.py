@@ -135,10 +135,28 @@ def test_a_robot_file_outside_is_read_with_allow_outside_paths(tmp_path):
 
 def test_a_robot_changed_after_the_run_is_said_and_left_out_of_the_report(tmp_path):
     root = _campaign(tmp_path / "c", 'model = "3prr"', files=measured_seed("vision"))
+    # truth.json through a link out of the campaign: left out, with a warning.
+    (root / "truth.json").rename(tmp_path / "truth.json")
+    (root / "truth.json").symlink_to(tmp_path / "truth.json")
     o = run_argv(["report", str(root), "--no-png"])
     assert o.code == 0, o.stderr
-    (line,) = [ln for ln in o.stderr.splitlines() if ln.startswith("warning:")]
-    assert "stiffmap.db holds the fit of robot model 'delta', but campaign.toml now names '3prr'" in line
+    robot, truth = [ln for ln in o.stderr.splitlines() if ln.startswith("warning:")]
+    assert "stiffmap.db holds the fit of robot model 'delta', but campaign.toml now names '3prr'" in robot
+    assert truth.startswith("warning: truth.json leads through a symbolic link to")
+    assert "left out of the report (give --allow-outside-paths to read it)" in truth
     data = json.loads((root / "report" / "data.json").read_text())
-    assert data["model"] is None and data["measured"] is not None
+    assert data["model"] is None and data["truth"] is None and data["measured"] is not None
     assert any("holds the fit of robot model 'delta'" in json.dumps(f) for f in data["failures"])
+
+
+@pytest.mark.parametrize("command", ["run", "report"])
+def test_a_results_database_linked_out_of_the_campaign_is_refused(tmp_path, command):
+    """stiffmap.db as a link to another folder's database: a run would write into it."""
+    root = _campaign(tmp_path / "c", 'model = "delta"')
+    (tmp_path / "other.db").write_bytes(b"another folder's results")
+    (root / "stiffmap.db").symlink_to(tmp_path / "other.db")
+    o = run_argv([command, str(root), *(("--no-report", "--quiet") if command == "run" else ("--no-png",))])
+    (line,) = o.stderr.splitlines()
+    assert o.code == 2 and "stiffmap.db leads through a symbolic link to" in line, o.stderr
+    assert "--allow-outside-paths" in line
+    assert (tmp_path / "other.db").read_bytes() == b"another folder's results"

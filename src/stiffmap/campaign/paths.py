@@ -4,7 +4,9 @@
 (``cameras.rig``), the images (the ``[images]`` patterns), the recordings
 (``sensor.recordings[i].file``) and the robot's file (``robot.urdf``,
 ``robot.legs``: :func:`stiffmap.campaign.robot.robot_file`), relative to the
-campaign directory. A name that leads outside it, by an
+campaign directory. The files stiffmap keeps there under fixed names (``stiffmap.db``,
+``truth.json``) follow the same rule (:func:`own_file`): a symbolic link that leads out
+would make a run write, or a report read, another folder's file. A name that leads outside it, by an
 absolute path, by ``..`` or through a symbolic link, is refused with the key
 (and the position, load and repeat of an image), the name and the option that
 allows it, ``--allow-outside-paths`` (``stiffmap run`` and ``stiffmap report``):
@@ -23,7 +25,7 @@ from ..errors import InputError
 from ..io import ALLOW_OUTSIDE_OPTION, leaves_directory
 from .spec import SPEC_NAME
 
-__all__ = ["ALLOW_OUTSIDE_OPTION", "campaign_file"]
+__all__ = ["ALLOW_OUTSIDE_OPTION", "campaign_file", "own_file"]
 
 
 def campaign_file(
@@ -64,3 +66,19 @@ def campaign_file(
                 source=str(root / SPEC_NAME),
             )
     return root / rel
+
+
+def own_file(root: Path, name: str, *, allow_outside: bool = False) -> str | None:
+    """How a file stiffmap keeps in the campaign under a fixed name (``stiffmap.db``,
+    ``truth.json``) leads outside it (a symbolic link), worded for a message; None when it
+    stays in, or with ``allow_outside``.
+
+    Returns
+    -------
+    str or None
+        ``"stiffmap.db leads through a symbolic link to /x/y.db, outside the campaign directory"``.
+    """
+    if allow_outside:
+        return None
+    how = leaves_directory(root, name)
+    return None if how is None else f"{name} {how}, outside the campaign directory"

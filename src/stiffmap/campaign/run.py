@@ -19,6 +19,7 @@ from pathlib import Path
 from ..errors import InputError
 from .export import export_tables
 from .instruments import Instrument, RunOptions, instrument_of
+from .paths import ALLOW_OUTSIDE_OPTION, own_file
 from .robot import check_robot
 from .runner import ProgressHook, RunSummary
 from .sensor_runner import SensorCampaignResult
@@ -145,6 +146,12 @@ def run_and_export(
         spec = load_spec(root)
     instrument = instrument_of(spec)
     check_robot(spec, root, allow_outside=allow_outside)  # the whole [robot] before any image
+    out = own_file(root, DB_NAME, allow_outside=allow_outside)
+    if out is not None:  # a run would write another folder's results database
+        raise InputError(
+            f"{out}: a run writes its results there; remove the link (or give {ALLOW_OUTSIDE_OPTION})",
+            source=str(root),
+        )
     options = RunOptions(workers, method, progress, allow_outside, dask, send_images)
     result, failures = instrument.run(root, spec, options)
     with Store(root / DB_NAME) as store:

@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
+from ..campaign.paths import ALLOW_OUTSIDE_OPTION, own_file
 from ..campaign.robot import campaign_model, robot_file
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
 from ..campaign.store import DB_NAME, Store
-from ..campaign.truth import load_truth
+from ..campaign.truth import TRUTH_NAME, load_truth
 from ..errors import InputError, StiffmapWarning
 from ..rig import Rig
 from . import data as contract
@@ -136,7 +137,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         out["model"] = contract.ModelStiffness.from_K(
             spec.robot.model, _parameters(store, "stiffness", spec), Km, map=dense
         )
-    truth = _truth_K(root, n)
+    truth = _truth_K(root, n, allow_outside)
     if truth is not None:
         out["truth"] = contract.TruthStiffness(truth)
     cameras_path(spec, root, allow_outside=allow_outside)  # a file outside the directory: refused
@@ -190,12 +191,22 @@ def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:
     return tuple(out)
 
 
-def _truth_K(root: Path, n: int) -> np.ndarray | None:
+def _truth_K(root: Path, n: int, allow_outside: bool = False) -> np.ndarray | None:
     """The true K of the ``n`` positions from a simulated campaign's ``truth.json``, if it has them.
 
     ``truth.json`` is an optional extra of simulated campaigns: one that cannot be read, or
-    that holds something else than ``n`` finite 3x3 matrices, is left out of the report.
+    that holds something else than ``n`` finite 3x3 matrices, is left out of the report; one
+    that leads outside the campaign (a symbolic link) too, with a warning, unless
+    ``allow_outside``.
     """
+    out = own_file(root, TRUTH_NAME, allow_outside=allow_outside)
+    if out is not None:
+        warnings.warn(
+            f"{out}: left out of the report (give {ALLOW_OUTSIDE_OPTION} to read it)",
+            StiffmapWarning,
+            stacklevel=2,
+        )
+        return None
     try:
         t = load_truth(root)
         Kt = np.asarray(t.K, dtype=float)
@@ -320,6 +331,9 @@ def write_campaign_report(
     """
     root = Path(campaign_dir).resolve()
     spec = load_spec(root)
+    out = own_file(root, DB_NAME, allow_outside=allow_outside)
+    if out is not None:  # another folder's results
+        raise InputError(f"{out}: remove the link (or give {ALLOW_OUTSIDE_OPTION})", source=str(root))
     if not (root / DB_NAME).is_file():
         raise InputError(
             f"no results yet ({DB_NAME} missing): run 'stiffmap run {campaign_dir}' first", source=str(root)
