@@ -474,9 +474,40 @@ DB_VALUES = (
 )
 
 
+#: [robot] sections a campaign.toml may hold after a run made with another (the seeds': the
+#: Delta for the vision seed, the 3PRR for the sensor seed).
+CHANGED_ROBOTS = (
+    'model = "3prr"',
+    'model = "delta"',
+    'model = "none"',
+    'model = "legs"\nlegs = "robot.toml"',
+    'model = "legs"\nlegs = "robot.toml"\nfit = ["k_theta"]',
+    'model = "urdf"\nurdf = "arm6"\ntip_frame = "tool0"\nparams = {k1 = 1e6, k2 = 1e6, k3 = 1e6, k4 = 1e6, '
+    "k5 = 1e6, k6 = 1e6}",
+    'model = "delta"\nparams = {arm_length = 1e300}',
+    'model = "delta"\nfit = ["k_arm"]',
+)
+
+
+@st.composite
+def changed_robot_cases(draw) -> FuzzCase:
+    """``report`` on a measured seed whose [robot] was changed after the run."""
+    seed = draw(st.sampled_from(("vision", "sensor")))
+    files = dict(measured_seed(seed))
+    robot = draw(st.sampled_from(CHANGED_ROBOTS))
+    files["campaign.toml"] = _with_robot(files["campaign.toml"].decode(), robot)
+    files["robot.toml"] = (ROBOTS / "delta.toml").read_bytes()
+    return CampaignCase(
+        files=files, argv=("report", "{dir}", "--no-png"), blamed=None, note=f"{seed}: [robot] now {robot!r}"
+    )
+
+
 @st.composite
 def db_cases(draw) -> FuzzCase:
-    """``report`` or ``run`` on the measured seed with one stored value, row or table made wrong."""
+    """``report`` or ``run`` on the measured seed with one stored value, row or table made wrong
+    (or, one case in six, ``report`` after its [robot] section changed)."""
+    if draw(st.integers(0, 5)) == 0:
+        return draw(changed_robot_cases())
     seed = draw(st.sampled_from(("vision", "vision", "sensor")))
     files = dict(measured_seed(seed))
     kind = draw(st.sampled_from(("value", "value", "value", "delete", "foreign")))
@@ -607,7 +638,8 @@ FUZZ_CLASSES: list[FuzzClass] = [
         "stiffmap.db values x report, run",
         db_cases(),
         "one stored value of a measured campaign's database (NULL, NaN, 2x2 K, lists for objects, "
-        "text, 1e308, deep nesting), a row deleted, another program's table or view",
+        "text, 1e308, deep nesting), a row deleted, another program's table or view; report after "
+        "campaign.toml's [robot] changed",
         slow=True,
     ),
     FuzzClass(
