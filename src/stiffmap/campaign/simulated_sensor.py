@@ -99,11 +99,7 @@ def write_sensor_campaign(
         Output directory not usable; a point where the model has no stiffness (named).
     """
     t0 = time.perf_counter()
-    P, dirs = _checked_points_and_directions(points, directions)
-    if int(repeats) < 1:
-        raise InputError(f"repeats must be >= 1, got {repeats}")
-    if fmt not in ("csv", "tdms", "mat"):
-        raise InputError(f"recording format must be csv, tdms or mat, got {fmt!r}")
+    P, dirs = _checked_inputs(points, directions, repeats, fmt)
     K = _stiffness_at(model, P)
     out = Path(out_dir)
     prepare_output_dir(out, force)
@@ -115,17 +111,8 @@ def write_sensor_campaign(
         f"The ground truth (K and the static error at every point) is in {TRUTH_NAME}."
     )
     atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
-    truth = {
-        "format": TRUTH_FORMAT,
-        "kind": "sensor",
-        "generator": {"tool": "stiffmap simulate", "version": __version__, "command": command},
-        "seed": int(seed),
-        "units": "mm, N; K in N/mm (2x2, planar); static errors at reference_load_n along the load",
-        "robot": {"model": model.name, "params": params},
-        "reference_load_n": float(reference_load_n),
-        "positions": _true_positions(P, K, dirs, reference_load_n),
-        "recordings": [{**t.to_dict(), "file": f"recordings/{t.file}"} for t in truths],
-    }
+    positions = _true_positions(P, K, dirs, reference_load_n)
+    truth = _truth(model.name, params, int(seed), command, float(reference_load_n), positions, truths)
     atomic_write_text(out / TRUTH_NAME, compact_json(to_jsonable(truth)) + "\n")
     se = [abs(t.static_error_mm) for t in truths]
     size = sum(f.stat().st_size for f in (out / "recordings").iterdir() if f.is_file())
@@ -144,14 +131,18 @@ def write_sensor_campaign(
     )
 
 
-def _checked_points_and_directions(points, directions) -> tuple[np.ndarray, tuple[str, ...]]:
-    """The points as an (m, 2) array in mm and the directions as a tuple of distinct 'x'/'y'."""
+def _checked_inputs(points, directions, repeats, fmt: str) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The points as an (m, 2) array (mm) and the directions as distinct 'x'/'y'; repeats, format checked."""
     P = np.asarray(points, dtype=np.float64)
     if P.ndim != 2 or P.shape[1] != 2 or P.shape[0] == 0 or not np.all(np.isfinite(P)):
         raise InputError(f"a planar mechanism needs points (x, y) in mm; got an array of shape {P.shape}")
     dirs = tuple(d.strip().lower() for d in directions)
     if not dirs or any(d not in _AXES for d in dirs) or len(set(dirs)) != len(dirs):
         raise FieldError("directions", f"must be x and/or y, got {directions!r}", value=directions)
+    if int(repeats) < 1:
+        raise InputError(f"repeats must be >= 1, got {repeats}")
+    if fmt not in ("csv", "tdms", "mat"):
+        raise InputError(f"recording format must be csv, tdms or mat, got {fmt!r}")
     return P, dirs
 
 
@@ -238,3 +229,20 @@ def _true_positions(P: np.ndarray, K: np.ndarray, dirs, reference_load_n: float)
             e[f"static_error_{d}_mm"] = float(u @ np.linalg.solve(K[i], reference_load_n * u))
         positions.append(e)
     return positions
+
+
+def _truth(
+    model_name: str, params: dict, seed: int, command: str, reference_load_n: float, positions, truths
+) -> dict:
+    """truth.json of the simulated sensor campaign (K and static errors per point, each recording)."""
+    return {
+        "format": TRUTH_FORMAT,
+        "kind": "sensor",
+        "generator": {"tool": "stiffmap simulate", "version": __version__, "command": command},
+        "seed": seed,
+        "units": "mm, N; K in N/mm (2x2, planar); static errors at reference_load_n along the load",
+        "robot": {"model": model_name, "params": params},
+        "reference_load_n": reference_load_n,
+        "positions": positions,
+        "recordings": [{**t.to_dict(), "file": f"recordings/{t.file}"} for t in truths],
+    }
