@@ -13,14 +13,14 @@ from stiffmap.cli.main import run
 
 
 def run_stiffmap(
-    *args: str | Path, cwd: str | Path | None = None, timeout: float = 300
+    *args: str | Path, cwd: str | Path | None = None, timeout: float = 300, columns: int = 200
 ) -> subprocess.CompletedProcess:
     """Run ``python -m stiffmap ARGS`` and return the completed process (text mode).
 
-    The child runs with warnings as errors (``PYTHONWARNINGS=error``), 200 columns and no
-    colour, so its output does not depend on the terminal.
+    The child runs with warnings as errors (``PYTHONWARNINGS=error``), ``columns`` columns
+    (200 unless said) and no colour, so its output does not depend on the terminal.
     """
-    env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONWARNINGS="error")
+    env = dict(os.environ, COLUMNS=str(columns), NO_COLOR="1", PYTHONWARNINGS="error")
     return subprocess.run(
         [sys.executable, "-m", "stiffmap", *map(str, args)],
         capture_output=True,
