@@ -37,6 +37,7 @@ import numpy as np
 from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import matrix_from_rotvec
+from ..targets import as_board
 from .detection import Board, BoardDetection, grid_of
 
 __all__ = [
@@ -399,6 +400,7 @@ def calibrate_camera(
     outlier_factor: float = 3.0,
     outlier_min_px: float = 0.3,
     min_views: int = 3,
+    square_mm: float | None = None,
 ) -> CalibrationResult:
     """Calibrate a camera from board detections in several views.
 
@@ -408,6 +410,7 @@ def calibrate_camera(
         One entry per image: its detection, or the reason it has none
         (e.g. the message of the detection error).
     board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
     image_size : (int, int)
         [w, h] of the images, px.
     names : sequence of str, optional
@@ -434,6 +437,7 @@ def calibrate_camera(
     InputError
         Fewer than ``min_views`` usable views (the message lists why each failed).
     """
+    board = as_board(board, square_mm, "board")
     if model not in DIST_MODELS:
         raise ValueError(f"model must be one of {sorted(DIST_MODELS)}, got {model!r}")
     n_views = len(detections)
