@@ -60,7 +60,7 @@ def test_sensor_campaign_recovers_kj_and_static_errors(tmp_path):
         true_um = 1e3 * t.static_error_mm
         assert abs(measured_um - true_um) <= 1.0 + 0.01 * abs(true_um)
     # A second run reuses every recording.
-    again = run_stiffmap("run", tmp_path)
+    again = run_stiffmap("run", tmp_path, columns=80)
     assert again.returncode == 0, again.stderr
     assert "16 recordings: 0 analysed, 16 unchanged" in again.stdout
 
@@ -77,11 +77,19 @@ def test_a_bad_recording_is_named_and_the_others_go_on(tmp_path):
         cells[j] = "8.0"
         rows[k] = ",".join(cells)
     bad.write_text("\n".join([head, *rows]) + "\n")
-    proc = run_stiffmap("run", tmp_path)
+    proc = run_stiffmap("run", tmp_path, merged=True)  # stdout and stderr as a terminal shows them
     assert proc.returncode == 1
-    assert "rec/trace_003.csv" in proc.stderr and "satur" in proc.stderr
-    assert "Traceback" not in proc.stderr
-    assert "model fit" not in proc.stderr  # the fit went on with the 15 others
+    assert "rec/trace_003.csv" in proc.stdout and "satur" in proc.stdout
+    assert "Traceback" not in proc.stdout
+    warnings = [ln for ln in proc.stdout.splitlines() if ln.startswith("warning:")]
+    assert not any("model fit" in ln for ln in warnings)  # the fit went on with the 15 others
+    # The warnings come before the summary, which ends with "done" (issue 26: a warning after it).
+    lines = proc.stdout.strip().splitlines()
+    assert lines[-1].startswith("done in"), proc.stdout
+    assert max(i for i, ln in enumerate(lines) if ln.startswith("warning:")) < lines.index(lines[-1])
+    assert max(i for i, ln in enumerate(lines) if ln.startswith("warning:")) < min(
+        i for i, ln in enumerate(lines) if ln.startswith("results:")
+    )
 
 
 def test_sign_mistakes_and_unreachable_points_are_left_out_of_the_fit_by_name(tmp_path):

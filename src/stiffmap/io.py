@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import csv
+import difflib
 import json
 import math
 import os
@@ -42,7 +43,26 @@ __all__ = [
     "dumps_json",
     "ALLOW_OUTSIDE_OPTION",
     "leaves_directory",
+    "no_such_path",
 ]
+
+
+def no_such_path(path: str | os.PathLike) -> str:
+    """What to say of a path that does not exist: ``no such file or folder``, and the closest
+    name beside it when there is one (a misspelt folder: ``did you mean 'calib_example'?``)."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    hint = ""
+    try:
+        if p.name and parent.is_dir():
+            names = [q.name for q in parent.iterdir()]
+            close = difflib.get_close_matches(p.name, names, n=1, cutoff=0.75)
+            hint = f" (did you mean {str(parent / close[0])!r}?)" if close else ""
+        elif not parent.exists():
+            hint = f" (the folder {str(parent)!r} does not exist either)"
+    except OSError:
+        pass
+    return f"no such file or folder{hint}"
 
 
 @dataclass(frozen=True)

@@ -107,11 +107,20 @@ def _wrapped(table: Table, console: Console, width: int) -> Table | None:
         return table
     if lo > room:
         return None
-    # Each column gets its minimum, and the room left in proportion to what it lacks.
-    slack, want = room - lo, hi - lo
-    widths = [a + (b - a) * slack // want for a, b in ranges]
-    for i in sorted(range(len(widths)), key=lambda i: widths[i] - ranges[i][1])[: room - sum(widths)]:
-        widths[i] += 1
+
+    # Water filling: every column as wide as it wants up to a common cap (never below its
+    # longest word), the cap as high as the room allows: narrow columns (numbers, short
+    # headers) stay whole, the widest text shares what is left.
+    def widths_at(cap: int) -> list[int]:
+        return [min(b, max(a, cap)) for a, b in ranges]
+
+    cap = max(b for _, b in ranges)
+    while sum(widths_at(cap)) > room:
+        cap -= 1
+    widths = widths_at(cap)
+    for i in range(len(widths)):
+        if sum(widths) < room and widths[i] < ranges[i][1]:
+            widths[i] += 1
     return _rebuild(table, range(len(ranges)), widths)
 
 
@@ -220,10 +229,25 @@ def _console(**kwargs) -> Console:
 out = _console(width=_piped_width())
 err = _console(stderr=True)
 
-#: Exit status for a user mistake (bad file, bad option value).
+# Exit statuses, the same for every command (CONTRIBUTING.md, "Exit statuses"; README):
+#: Done; nothing to look at.
+EXIT_OK = 0
+#: Done, with warnings: some items left out (each named), or results flagged (a K that is
+#: not positive definite, an implausible camera). Every ``warning:`` line means this status:
+#: :func:`stiffmap.cli.main.main` returns it when a command that printed one ends with 0.
+EXIT_WARNINGS = 1
+#: The older name of :data:`EXIT_WARNINGS` (some items failed, the others were processed).
+EXIT_PARTIAL = EXIT_WARNINGS
+#: The user's input is wrong (a file, an option value): one ``error:`` line naming the file
+#: and the field; nothing or only what was safe was written.
 EXIT_INPUT = 2
-#: Exit status when some items failed but others were processed.
-EXIT_PARTIAL = 1
+#: A bug in stiffmap: one line that says so (the traceback with ``--debug``).
+EXIT_BUG = 3
+#: Interrupted by the user (Ctrl-C), as shells report SIGINT.
+EXIT_INTERRUPTED = 130
+
+#: ``warning:`` lines printed since :func:`reset_warnings` (the command line's exit status).
+_warnings_printed = 0
 
 
 def fail(message: str, code: int = EXIT_INPUT) -> typer.Exit:
@@ -233,8 +257,30 @@ def fail(message: str, code: int = EXIT_INPUT) -> typer.Exit:
 
 
 def warn(message: str) -> None:
-    """Print ``warning: message`` on stderr."""
+    """Print ``warning: message`` on stderr: something the user should look at.
+
+    The command then exits with :data:`EXIT_WARNINGS` (1) even if it ends normally; what
+    needs no action (a view left out of a good calibration, a backup kept) is a :func:`note`.
+    """
+    global _warnings_printed
+    _warnings_printed += 1
     err.print(f"[yellow]warning:[/] {escape(message)}", markup=True, highlight=False)
+
+
+def note(message: str) -> None:
+    """Print ``note: message`` on stderr: information that needs no action (exit status unchanged)."""
+    err.print(f"[cyan]note:[/] {escape(message)}", markup=True, highlight=False)
+
+
+def reset_warnings() -> None:
+    """Forget the warnings printed so far (a new command line starts)."""
+    global _warnings_printed
+    _warnings_printed = 0
+
+
+def warnings_printed() -> int:
+    """How many ``warning:`` lines were printed since :func:`reset_warnings`."""
+    return _warnings_printed
 
 
 def print_json(obj) -> None:

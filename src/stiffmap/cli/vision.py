@@ -18,7 +18,7 @@ import numpy as np
 import typer
 from rich.table import Table
 
-from ..camera import invertible_field, load_camera, plausibility_problems, save_camera
+from ..camera import RigFileAsCamera, invertible_field, load_camera, plausibility_problems, save_camera
 from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..io import atomic_write_text
@@ -41,7 +41,19 @@ from ..vision.fuse import FusedPose
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
 from ..vision.sequence import ImageMeasurement
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
-from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, three_numbers, warn
+from .common import (
+    EXIT_PARTIAL,
+    EXIT_WARNINGS,
+    err,
+    fail,
+    fmt,
+    images_progress,
+    note,
+    out,
+    print_json,
+    three_numbers,
+    warn,
+)
 
 _BOARD_HELP = "Board size COLSxROWS in inner corners, e.g. 13x12."
 _CHARUCO_HELP = (
@@ -200,7 +212,18 @@ def _camera_or_rig(camera: Path | None, rig: Path | None):
         raise InputError("give --camera camera.json (one camera) or --rig rig.json (several)")
     if rig is not None:
         return None, load_rig(rig)
-    return load_camera(camera), None
+    return _load_camera(camera), None
+
+
+def _load_camera(camera: Path, rig_option: bool = True):
+    """``--camera``'s camera.json; a rig file there is answered with the option that takes it."""
+    try:
+        return load_camera(camera)
+    except RigFileAsCamera as e:
+        what = f"--camera {camera}: this is a rig file ({e.cameras})"
+        if rig_option:
+            raise InputError(f"{what}: use --rig {camera}") from None
+        raise InputError(f"{what}: this command takes one camera's camera.json") from None
 
 
 def _image_sets(images: list[str], per_camera: list[str], rig: Rig | None, what: str = "image") -> list:
@@ -322,10 +345,10 @@ def calibrate(
     """Calibrate a camera from images of a board (Zhang's method): intrinsics, distortion, 1-sigma.
 
     Views where the board is not found, or whose RMS is an outlier, are left out with the
-    reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
-    Exit status 1 when some images were left out (each named) or the result fails camera.json's
-    plausibility checks (a warning per key: the other commands will refuse it), 2 when no
-    calibration was possible.
+    reason (a note each). Also printed the way the Camera Calibration Toolbox for Matlab does
+    (+/- 3 sigma). Exit status 0 for a good calibration (also when some views were left out),
+    1 when it comes with warnings (it fails camera.json's plausibility checks: a warning per
+    key, the other commands will refuse it), 2 when no calibration was possible.
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
@@ -337,17 +360,17 @@ def calibrate(
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
-        warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
+        note(f"{out_path} replaced; the previous calibration is kept as {backup}")
     for v in res.views:
-        if not v.used:
-            warn(f"{v.image}: not used: {v.reason}")
+        if not v.used:  # a good calibration leaves some views out: said, not a warning
+            note(f"{v.image}: not used: {v.reason}")
     implausible = _warn_calibrated(res.camera, out_path)
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views) or implausible:
-        raise typer.Exit(EXIT_PARTIAL)
+    if implausible:
+        raise typer.Exit(EXIT_WARNINGS)
 
 
 def _warn_calibrated(camera, out_path: Path, label: str = "") -> bool:
@@ -444,9 +467,9 @@ def calibrate_rig(
     intrinsics. Each camera's intrinsics and distortion and its pose in the rig frame (the
     first camera's) are refined together (bundle adjustment) with their joint covariance,
     and printed also the way the Camera Calibration Toolbox for Matlab prints a stereo
-    calibration (om, T +/- 3 sigma). Exit status 1 when some images were left out (each
-    named) or a camera fails camera.json's plausibility checks, 2 when no calibration was
-    possible.
+    calibration (om, T +/- 3 sigma). Exit status 0 for a good calibration (also when some
+    views were left out: a note each), 1 when a camera fails camera.json's plausibility
+    checks (a warning each), 2 when no calibration was possible.
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
@@ -462,20 +485,18 @@ def calibrate_rig(
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
-        warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
-    left_out = 0
+        note(f"{out_path} replaced; the previous calibration is kept as {backup}")
     for c, views in zip(res.rig.cameras, res.views, strict=True):
         for v in views:
             if not v.used and v.reason != NO_IMAGE:
-                left_out += 1
-                warn(f"{v.image}: not used by camera {c.name}: {v.reason}")
+                note(f"{v.image}: not used by camera {c.name}: {v.reason}")
     implausible = [_warn_calibrated(c.camera, out_path, f"camera {c.name}: ") for c in res.rig.cameras]
     if as_json:
         print_json(res.to_dict())
     else:
         _print_rig_calibration(res, out_path)
-    if left_out or any(implausible):
-        raise typer.Exit(EXIT_PARTIAL)
+    if any(implausible):
+        raise typer.Exit(EXIT_WARNINGS)
 
 
 def _print_rig_calibration(res: RigCalibrationResult, out_path: Path) -> None:
@@ -877,7 +898,7 @@ def validate(
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        cam = load_camera(camera)
+        cam = _load_camera(camera, rig_option=False)
         rows = read_stage_manifest(manifest, allow_outside=allow_outside)
         refine = _refine(refine)
     except InputError as e:
