@@ -44,6 +44,7 @@ WHERE = {
     "report": "no table",
     "init": "no table",
     "capture": "no table (its live view is a screen of its own)",
+    "compensate": "here",
 }
 
 
@@ -128,3 +129,11 @@ def test_calibrate_tables_on_real_photographs(tmp_path, monkeypatch, capsys, tab
     args = ["calibrate", *files, "--board", "13x12", "--square-mm", "30", "--out", tmp_path / "c.json"]
     _run(args, monkeypatch, capsys)
     _check(tables, 2)
+
+
+def test_compensate_summary_table(tmp_path, monkeypatch, capsys, tables):
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X10\nG1 Y10\n")
+    args = ["compensate", "3prr", "--path", prog, "--out", tmp_path / "o.nc", "-q", "--place", "380,200"]
+    _run([*args, "--force-n", "0,-490.5", "--no-figures"], monkeypatch, capsys)
+    _check(tables, 1)
