@@ -997,7 +997,7 @@ def save_camera(camera: CameraModel, path: str | Path) -> Path | None:
 
     Returns the backup written, or None.
     """
-    return replace_keeping_previous(path, dumps_json(camera.to_dict()) + "\n")
+    return replace_keeping_previous(path, dumps_json(camera.to_dict(), inline_numbers=True) + "\n")
 
 
 # ------------------------------------------------------------------ invertible field

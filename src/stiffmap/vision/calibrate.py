@@ -96,6 +96,10 @@ class ViewResult:
     n_corners : int
     board2cam : ndarray, shape (4, 4) or None
         The view's pose (used views).
+    corners_px : ndarray, shape (k, 2), px, or None
+        The corners found in the view (where the views put corners: the report's coverage map).
+    residuals_px : ndarray, shape (k, 2), px, or None
+        Their reprojection residuals (observed - projected) with the final camera.
     """
 
     image: str
@@ -104,15 +108,21 @@ class ViewResult:
     reason: str
     n_corners: int = 0
     board2cam: np.ndarray | None = None
+    corners_px: np.ndarray | None = None
+    residuals_px: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """The ``camera.json`` ``views`` entry."""
-        return {
+        """The ``camera.json`` ``views`` entry (corners and residuals rounded to 1e-3 px)."""
+        d = {
             "image": self.image,
             "used": self.used,
             "rms_px": None if not math.isfinite(self.rms_px) else self.rms_px,
             "reason": self.reason,
         }
+        if self.corners_px is not None and self.residuals_px is not None:
+            d["corners_px"] = np.round(self.corners_px, 3).tolist()
+            d["residuals_px"] = np.round(self.residuals_px, 3).tolist()
+        return d
 
 
 @dataclass(frozen=True)
@@ -626,7 +636,7 @@ def calibrate_camera(
         rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
         if k in pose_of:
             res_used.append(e)
-        views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T))
+        views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T, d.corners, e))
     R = np.concatenate(res_used)
     obj = [obj_all[detections[k].ids] for k in used]
     img = [detections[k].corners for k in used]
