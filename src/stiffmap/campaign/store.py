@@ -22,6 +22,7 @@ import json
 import os
 import sqlite3
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,8 @@ from ..io import to_jsonable
 
 __all__ = [
     "Store",
+    "ImageCounts",
+    "MeasuredImage",
     "DB_NAME",
     "file_sha256",
     "params_hash",
@@ -146,6 +149,43 @@ def from_json(text: str | None, array: bool = True):
     if array:
         return np.array(v, dtype=float) if v is not None else None
     return v
+
+
+@dataclass(frozen=True)
+class ImageCounts:
+    """The images (image sets, with a rig) of a vision campaign's measurements, by outcome.
+
+    Attributes
+    ----------
+    total, measured, failed : int
+        Images in the database; those with a pose of the mobile target; the others.
+    positions : int
+        Positions with at least one image.
+    """
+
+    total: int
+    measured: int
+    failed: int
+    positions: int
+
+
+@dataclass(frozen=True)
+class MeasuredImage:
+    """A measured image and the targets' poses in it (``measurements`` row, decoded).
+
+    Attributes
+    ----------
+    image : str
+        As the campaign names it (relative to its directory; with a rig, a set's name).
+    position : int
+    mobile2cam, fixed2cam : ndarray, shape (4, 4), mm, or None
+        The targets' poses in the camera (rig) frame; None where not measured.
+    """
+
+    image: str
+    position: int
+    mobile2cam: np.ndarray | None
+    fixed2cam: np.ndarray | None
 
 
 def model_fit_columns(fit, residuals) -> dict[str, Any]:
@@ -378,6 +418,29 @@ class Store:
         if position is not None:
             return self._rows("SELECT * FROM measurements WHERE position=?", (position,))
         return self._rows("SELECT * FROM measurements ORDER BY position, image")
+
+    def image_counts(self) -> ImageCounts:
+        """How many images were measured and how many failed (the report's set-up summary)."""
+        rows = self._rows(
+            "SELECT COUNT(*) AS total, SUM(status='ok' AND mobile2cam IS NOT NULL) AS measured, "
+            "COUNT(DISTINCT position) AS positions FROM measurements"
+        )
+        r = rows[0]
+        total, measured = int(r["total"] or 0), int(r["measured"] or 0)
+        return ImageCounts(total, measured, total - measured, int(r["positions"] or 0))
+
+    def first_measured_image(self) -> MeasuredImage | None:
+        """The first image (by position, then name) in which the mobile target was measured."""
+        rows = self._rows(
+            "SELECT image, position, mobile2cam, fixed2cam FROM measurements "
+            "WHERE status='ok' AND mobile2cam IS NOT NULL ORDER BY position, image LIMIT 1"
+        )
+        if not rows:
+            return None
+        r = rows[0]
+        return MeasuredImage(
+            r["image"], int(r["position"]), from_json(r["mobile2cam"]), from_json(r["fixed2cam"])
+        )
 
     def stiffness_inputs_hash(self, position: int) -> str | None:
         """The hash of the inputs the stored stiffness of a position was derived from."""

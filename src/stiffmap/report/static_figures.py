@@ -15,6 +15,7 @@ import io
 import numpy as np
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, MultipleLocator
 
 from .data import ReportData
 from .figure_data import (
@@ -26,6 +27,7 @@ from .figure_data import (
     model_vs_measured,
     on_plane,
     plane_map_values,
+    position_dtick,
     position_labels,
     sensor_direction,
     sensor_has_model,
@@ -51,6 +53,13 @@ DIV = "RdBu_r"
 BAD = "#d62728"
 FAILED = "#9a9a9a"
 DPI = 150
+
+
+def _position_axis(ax, n: int) -> None:
+    """Positions 1..n on the x axis: ticks on whole numbers only."""
+    ax.set_xlim(0.5, n + 0.5)
+    ax.xaxis.set_major_locator(MultipleLocator(position_dtick(n)))
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%d"))
 
 
 def png_bytes(fig: Figure, dpi: int = DPI) -> bytes:
@@ -246,8 +255,12 @@ def truth_figure(data: ReportData) -> Figure | None:
     a1.set_ylabel("recovered K entry (N/mm)")
     a1.legend(fontsize=8)
     colors = np.where(te.flagged, BAD, "#2ca02c")
-    a2.bar(np.arange(1, m.n + 1), 100 * np.nan_to_num(err, nan=0.0), color=colors)
-    a2.set_yscale("log")
+    ok = np.isfinite(err)
+    x = np.arange(1, m.n + 1)
+    # A dot per position on a linear axis from zero (a bar from a log axis' baseline would mislead).
+    a2.scatter(x[ok], 100 * err[ok], c=colors[ok], s=22, zorder=3)
+    a2.set_ylim(0.0, 1.15 * 100 * float(np.nanmax(err)) if ok.any() else 1.0)
+    _position_axis(a2, m.n)
     a2.set_xlabel("position")
     a2.set_ylabel("|K − K_true|_F / |K_true|_F (%)")
     if te.worst is not None:
