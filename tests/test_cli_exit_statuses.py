@@ -66,7 +66,7 @@ def test_calibrate_a_good_calibration_that_left_a_view_out_exits_0(tmp_path):
     out = tmp_path / "camera.json"
     proc = run_stiffmap("calibrate", *files, blank, "--board", "13x12", "--square-mm", "30", "--out", out)
     assert proc.returncode == 0, proc.stderr
-    assert "note: " in proc.stderr and "blank.png: not used" in proc.stderr
+    assert "note: not used: " in proc.stderr and "blank.png: no 13x12 chessboard" in proc.stderr
     assert "warning:" not in proc.stderr
     cam = json.loads(out.read_text())
     assert sum(v["used"] for v in cam["views"]) == 4
