@@ -11,6 +11,8 @@ from helpers.cli_process import run_stiffmap
 
 from stiffmap.models.presets import PRR3_MIDDLE_LINE, prr3_points22
 from stiffmap.models.prr3 import PRR3
+from stiffmap.report import load_report_data
+from stiffmap.report.figure_data import sensor_lines
 from stiffmap.sim.traces import simulate_point_traces
 
 
@@ -54,6 +56,17 @@ def test_sensor_campaign_recovers_kj_and_static_errors(tmp_path):
     assert fit["status"] == "ok"
     # The traces carry noise, drift and 16-bit quantisation; 16 recordings fix K_j well.
     assert fit["params"]["kj"] == pytest.approx(600.0, rel=0.01)
+    # The report's linearity figure: every recording's plateaus and the line fitted to them
+    # (least squares with an intercept: what it leaves sums to zero and is orthogonal to the load).
+    data = load_report_data(tmp_path / "report" / "data.json")
+    lin = sensor_lines(data)
+    assert len(lin.rows) == 16
+    for f, u, r in zip(lin.load, lin.displacement, lin.residual, strict=True):
+        assert len(f) >= 5 and np.ptp(f) > 400.0  # N: the stepped load up to 50 kgf
+        tol = 1e-9 * np.abs(u).max() * len(u)
+        assert abs(r.sum()) < tol and abs((r * (f - f.mean())).sum()) < tol * np.abs(f).max()
+    setup = {s.what: s.value for s in data.setup}
+    assert setup["recordings"] == "16 of 16 analysed, 0 failed" and setup["failures"] == "none"
     rows = {r["file"]: r for r in _csv(tmp_path / "exports" / "sensor_results.csv")}
     for i, t in enumerate(truths):
         measured_um = float(rows[f"rec/trace_{i:03d}.csv"]["static_error_um"])

@@ -123,7 +123,7 @@ JS = r"""
       if (!linEl || !D.vectors) return Promise.resolve();
       const i = +pos.value, G = D.directions, data = [], layout = {
         template: {layout: {paper_bgcolor: "white", plot_bgcolor: "white"}}, height: 380,
-        margin: {l: 60, r: 20, t: 60, b: 50}, showlegend: true, legend: {orientation: "h", x: 0, y: 1.17},
+        margin: {l: 60, r: 20, t: 50, b: 90}, showlegend: true, legend: {orientation: "h", x: 0, y: -0.22},
         title: {text: D.positions[i] + ": displacement against the force, per load direction (dots: repeats; lines: d = C·F from the identified K)", x: 0.01, font: {size: 13}},
         annotations: []};
       G.forEach((g, k) => {

@@ -26,6 +26,7 @@ from ..textfmt import fmt
 from ..vision.images import read_image
 from . import data as contract
 from . import write_report
+from .figure_data import displacement_residuals
 from .png import grey_png, reduce_image
 
 __all__ = ["report_data", "failures_as_items", "write_campaign_report"]
@@ -192,37 +193,6 @@ def board_image(root: Path, spec: CampaignSpec, store: Store, rig: Rig) -> contr
         corners_px=np.concatenate(corners),
         corner_board=tuple(which),
     )
-
-
-def displacement_residuals(
-    K: np.ndarray, forces: np.ndarray, vectors: np.ndarray, *, offset: bool
-) -> np.ndarray:
-    """What each position's identified K leaves of its displacements: d - C F (- b).
-
-    Parameters
-    ----------
-    K : ndarray, shape (n, 3, 3), N/mm
-        NaN for a position without a stiffness.
-    forces : ndarray, shape (L, 3), N
-    vectors : ndarray, shape (n, L, R, 3), mm
-        The displacements (NaN where missing).
-    offset : bool
-        The displacements were measured against one (mean) reference per position, so the
-        fit also estimated their common offset b (``identify_stiffness(offset=True)``):
-        given C, its least-squares value is the mean of d - C F, which is taken out.
-
-    Returns
-    -------
-    ndarray, shape (n, L, R, 3), mm
-        NaN where the displacement or K is missing.
-    """
-    out = np.full(vectors.shape, np.nan)
-    for i in np.flatnonzero(np.all(np.isfinite(K), axis=(1, 2))):
-        r = vectors[i] - (np.linalg.solve(K[i], forces.T).T)[:, None, :]  # (L, R, 3)
-        if offset and np.isfinite(r).any():
-            r = r - np.nanmean(r.reshape(-1, 3), axis=0)
-        out[i] = r
-    return out
 
 
 def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:

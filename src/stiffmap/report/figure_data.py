@@ -456,6 +456,32 @@ def view_rms(views: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- reviewer's diagnostics
+def error_axis(values: np.ndarray, outlier: float = 4.0) -> tuple[float, np.ndarray]:
+    """A linear axis from zero for non-negative values (errors, %): its top and the values above it.
+
+    The axis is 15 % above the largest value, unless some values exceed ``outlier`` times the
+    90th percentile: those are drawn at the top of an axis fitted to the others (and say their
+    value), so that one mislabelled position does not flatten every other dot onto zero.
+
+    Returns
+    -------
+    top : float
+    above : ndarray of bool, shape of ``values``
+        The values drawn at the top, beyond the axis.
+    """
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v)
+    above = np.zeros(v.shape, dtype=bool)
+    if not ok.any():
+        return 1.0, above
+    q = float(np.percentile(v[ok], 90))
+    if q > 0:
+        above = ok & (v > outlier * q)
+    rest = v[ok & ~above]
+    top = 1.15 * float(rest.max() if rest.size else v[ok].max())
+    return (top if top > 0 else 1.0), above
+
+
 def position_dtick(n: int, most: int = 24) -> int:
     """Step of the position axis' ticks: a whole number (positions are counted), at most ``most`` ticks."""
     return max(1, -(-int(n) // most))
@@ -501,6 +527,37 @@ def load_directions(forces: np.ndarray) -> list[LoadDirection]:
         else:
             label = "(" + ", ".join(f"{v:.3g}" for v in u) + ")"
         out.append(LoadDirection(label, u, idx, mag[idx]))
+    return out
+
+
+def displacement_residuals(
+    K: np.ndarray, forces: np.ndarray, vectors: np.ndarray, *, offset: bool
+) -> np.ndarray:
+    """What each position's identified K leaves of its displacements: d - C F (- b).
+
+    Parameters
+    ----------
+    K : ndarray, shape (n, 3, 3), N/mm
+        NaN for a position without a stiffness.
+    forces : ndarray, shape (L, 3), N
+    vectors : ndarray, shape (n, L, R, 3), mm
+        The displacements (NaN where missing).
+    offset : bool
+        The displacements were measured against one (mean) reference per position, so the
+        fit also estimated their common offset b (``identify_stiffness(offset=True)``):
+        given C, its least-squares value is the mean of d - C F, which is taken out.
+
+    Returns
+    -------
+    ndarray, shape (n, L, R, 3), mm
+        NaN where the displacement or K is missing.
+    """
+    out = np.full(vectors.shape, np.nan)
+    for i in np.flatnonzero(np.all(np.isfinite(K), axis=(1, 2))):
+        r = vectors[i] - (np.linalg.solve(K[i], forces.T).T)[:, None, :]  # (L, R, 3)
+        if offset and np.isfinite(r).any():
+            r = r - np.nanmean(r.reshape(-1, 3), axis=0)
+        out[i] = r
     return out
 
 

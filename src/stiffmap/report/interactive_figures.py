@@ -21,6 +21,7 @@ from .figure_data import (
     calibration_panels,
     compliance_ellipsoids,
     det_markers,
+    error_axis,
     interpolate_measured,
     load_directions,
     middle_line_order,
@@ -350,8 +351,9 @@ def loads_payload(data: ReportData) -> dict | None:
         "count": cnt,
     }
     if ld.vectors is not None and ld.residuals is not None:
-        out["vectors"] = ld.vectors
-        out["residuals"] = ld.residuals
+        # To the nanometre: the page carries every repeat's vector (a few characters each).
+        out["vectors"] = np.round(ld.vectors, 6)
+        out["residuals"] = np.round(ld.residuals, 6)
         out["directions"] = [
             {"label": g.label, "loads": g.loads, "magnitude": g.magnitude} for g in load_directions(ld.forces)
         ]
@@ -437,14 +439,18 @@ def truth_figure(data: ReportData) -> go.Figure | None:
         )
     labels = np.array(position_labels(data))
     # A dot per position on a linear axis from zero: the dots' heights compare (a bar from
-    # an arbitrary baseline of a log axis would not).
+    # an arbitrary baseline of a log axis would not). An outlier sits at the top, with its value.
+    pct = 100 * err
+    top, above = error_axis(pct)
+    x = np.arange(1, m.n + 1)
+    inside = ~above
     fig.add_trace(
         go.Scatter(
-            x=np.arange(1, m.n + 1),
-            y=100 * err,
+            x=x[inside],
+            y=pct[inside],
             mode="markers",
-            marker=dict(size=8, color=np.where(te.flagged, BAD, "#2ca02c")),
-            hovertext=labels,
+            marker=dict(size=8, color=np.where(te.flagged, BAD, "#2ca02c")[inside]),
+            hovertext=labels[inside],
             hovertemplate="%{hovertext}<br>%{y:.3g} %<extra></extra>",
             name="relative error",
             showlegend=False,
@@ -452,16 +458,22 @@ def truth_figure(data: ReportData) -> go.Figure | None:
         row=1,
         col=2,
     )
-    top = 1.15 * float(np.nanmax(100 * err)) if np.isfinite(err).any() else 1.0
-    if te.worst is not None:
+    if above.any():
+        fig.add_trace(
+            go.Scatter(
+                x=x[above], y=np.full(int(above.sum()), 0.97 * top), mode="markers+text",
+                marker=dict(size=10, symbol="triangle-up", color=BAD),
+                text=[f"{v:.3g} %" for v in pct[above]], textposition="middle left",
+                hovertext=labels[above], customdata=pct[above],
+                hovertemplate="%{hovertext}<br>%{customdata:.3g} % (beyond the axis)<extra></extra>",
+                name="beyond the axis", showlegend=False,
+            ),
+            row=1, col=2,
+        )  # fmt: skip
+    if te.worst is not None and not above[te.worst]:
         w = te.worst
         fig.add_annotation(
-            x=w + 1,
-            y=float(100 * err[w]),
-            text=f"worst {100 * err[w]:.3g} % (P{w + 1})",
-            showarrow=True,
-            row=1,
-            col=2,
+            x=w + 1, y=float(pct[w]), text=f"worst {pct[w]:.3g} % (P{w + 1})", showarrow=True, row=1, col=2
         )
     fig.update_xaxes(title_text="true (N/mm)", row=1, col=1)
     fig.update_yaxes(title_text="recovered (N/mm)", row=1, col=1)
@@ -824,7 +836,7 @@ def ellipsoid_figure(data: ReportData) -> go.Figure | None:
         p = data.measured.positions[el.skipped]
         fig.add_trace(
             go.Scatter3d(
-                x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="markers", marker=dict(symbol="x", size=5, color=BAD),
+                x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="markers", marker=dict(symbol="x", size=8, color=BAD),
                 text=[labels[i] for i in el.skipped], name="K not positive definite",
                 hovertemplate="%{text}: K not positive definite (no ellipsoid)<extra></extra>",
             )

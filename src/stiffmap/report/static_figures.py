@@ -22,6 +22,7 @@ from .figure_data import (
     QUANTITIES,
     calibration_panels,
     det_markers,
+    error_axis,
     middle_line_order,
     model_plane_grid,
     model_vs_measured,
@@ -255,11 +256,17 @@ def truth_figure(data: ReportData) -> Figure | None:
     a1.set_ylabel("recovered K entry (N/mm)")
     a1.legend(fontsize=8)
     colors = np.where(te.flagged, BAD, "#2ca02c")
-    ok = np.isfinite(err)
+    pct = 100 * err
+    top, above = error_axis(pct)
+    ok = np.isfinite(pct) & ~above
     x = np.arange(1, m.n + 1)
-    # A dot per position on a linear axis from zero (a bar from a log axis' baseline would mislead).
-    a2.scatter(x[ok], 100 * err[ok], c=colors[ok], s=22, zorder=3)
-    a2.set_ylim(0.0, 1.15 * 100 * float(np.nanmax(err)) if ok.any() else 1.0)
+    # A dot per position on a linear axis from zero (a bar from a log axis' baseline would
+    # mislead); an outlier at the top, with its value.
+    a2.scatter(x[ok], pct[ok], c=colors[ok], s=22, zorder=3)
+    a2.scatter(x[above], np.full(int(above.sum()), 0.97 * top), marker="^", c=BAD, s=40, zorder=3)
+    for i in np.flatnonzero(above):
+        a2.annotate(f"{pct[i]:.3g} % ", (x[i], 0.97 * top), ha="right", va="center", fontsize=7, color=BAD)
+    a2.set_ylim(0.0, top)
     _position_axis(a2, m.n)
     a2.set_xlabel("position")
     a2.set_ylabel("|K − K_true|_F / |K_true|_F (%)")
