@@ -206,3 +206,12 @@ def test_new_parts_survive_the_json_round_trip(small, tmp_path) -> None:
 
 def _fields(d: ReportData) -> dict:
     return {k: getattr(d, k) for k in d.__dataclass_fields__}
+
+
+def test_view_names_drop_the_folder_the_views_share() -> None:
+    from stiffmap.report.figure_data import view_names
+
+    views = [{"image": "/data/lab/calib/v01.png"}, {"image": "/data/lab/calib/sub/v02.png"}, {}]
+    assert view_names(views[:2]) == ["v01.png", "sub/v02.png"]
+    assert view_names(views) == ["/data/lab/calib/v01.png", "/data/lab/calib/sub/v02.png", "view 3"]
+    assert view_names([{"image": "/data/x.png"}]) == ["/data/x.png"]  # one view: its name as given

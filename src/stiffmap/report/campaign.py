@@ -458,7 +458,7 @@ def _sensor_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[s
         ("points", f"{len(pts)}, loaded along {', '.join(s.directions)}"),
         ("load steps", steps),
         ("reference load", f"{fmt(sn.reference_load_n, 5)} N (the static error is given at it)"),
-        ("displacement sensor", f"{fmt(sn.scale_um_per_v, 5)} um/V, range +-{fmt(sn.range_v, 4)} V"),
+        ("displacement sensor", f"{fmt(sn.scale_um_per_v, 5)} µm/V, range ±{fmt(sn.range_v, 4)} V"),
     ]
 
 

@@ -445,6 +445,16 @@ def sensor_direction(data: ReportData, direction: str) -> SensorDirection:
     return SensorDirection(idx, s.points[idx], e, model, dense, grid, lo, hi)
 
 
+def view_names(views: list[dict]) -> list[str]:
+    """The views' image names without the folder they share (``calibrate`` keeps the paths given)."""
+    names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
+    parts = [n.replace("\\", "/").split("/") for n in names]
+    common = 0
+    while len(names) > 1 and all(len(p) > common + 1 and p[common] == parts[0][common] for p in parts):
+        common += 1
+    return ["/".join(p[common:]) for p in parts]
+
+
 def view_rms(views: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     """Per-view RMS reprojection error (px, NaN when absent) and the used mask of ``camera.json`` views."""
     rms = np.array(

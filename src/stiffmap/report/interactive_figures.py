@@ -36,6 +36,7 @@ from .figure_data import (
     sensor_has_model,
     sensor_lines,
     truth_entries,
+    view_names,
 )
 
 TEMPLATE = "plotly_white"
@@ -496,14 +497,22 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
     cols = cp.panels
     titles = (
         (["RMS reprojection error per view (px)"] if views else [])
-        + (["corner residuals, observed − projected (px)"] if has_res else [])
-        + (["coverage: where the views put corners"] if cp.corners is not None else [])
+        + (
+            [
+                "corner residuals, observed − projected (px)"
+                if cols < 3
+                else "residuals, observed − projected (px)"
+            ]
+            if has_res
+            else []
+        )
+        + (["coverage: corners in the image (px)"] if cp.corners is not None else [])
     )
     widths = {1: None, 2: [0.6, 0.4], 3: [0.4, 0.27, 0.33]}[cols]
     fig = make_subplots(rows=1, cols=cols, subplot_titles=titles, column_widths=widths)
     col = 1
     if views:
-        names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
+        names = view_names(views)
         reason = [str(v.get("reason", "")) for v in views]
         fig.add_trace(
             go.Bar(

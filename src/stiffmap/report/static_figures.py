@@ -34,6 +34,7 @@ from .figure_data import (
     sensor_has_model,
     spans_plane,
     truth_entries,
+    view_names,
 )
 
 __all__ = [
@@ -302,9 +303,7 @@ def calibration_figure(data: ReportData) -> Figure | None:
         ax.bar(x[used], rms[used], color="#1f77b4", label="used")
         if (~used).any():
             ax.plot(x[~used], np.zeros((~used).sum()), "x", color=BAD, ms=8, label="not used")
-        ax.set_xticks(
-            x, [str(v.get("image", i + 1)) for i, v in enumerate(views)], rotation=60, ha="right", fontsize=6
-        )
+        ax.set_xticks(x, view_names(views), rotation=60, ha="right", fontsize=6)
         ax.set_ylabel("RMS reprojection error (px)")
         ax.legend(fontsize=8)
         k += 1

@@ -114,7 +114,7 @@ class ViewResult:
     residuals_px: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """The ``camera.json`` ``views`` entry (corners and residuals rounded to 1e-3 px)."""
+        """The ``camera.json`` ``views`` entry (corners rounded to 1e-3 px, residuals to 1e-4 px)."""
         d = {
             "image": self.image,
             "used": self.used,
@@ -123,7 +123,7 @@ class ViewResult:
         }
         if self.corners_px is not None and self.residuals_px is not None:
             d["corners_px"] = np.round(self.corners_px, 3).tolist()
-            d["residuals_px"] = np.round(self.residuals_px, 3).tolist()
+            d["residuals_px"] = np.round(self.residuals_px, 4).tolist()
         return d
 
 
