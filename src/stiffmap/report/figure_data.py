@@ -676,12 +676,9 @@ def compliance_ellipsoids(data: ReportData, fill: float = 0.45) -> Ellipsoids | 
         return None
     idx = np.array(keep)
     P = m.positions[idx]
-    if len(idx) > 1:
-        d = np.linalg.norm(P[:, None] - P[None], axis=2)
-        d[np.eye(len(idx), dtype=bool)] = np.inf
-        spacing = float(d.min())
-    else:
-        spacing = 100.0
+    d = np.linalg.norm(P[:, None] - P[None], axis=2)
+    d = d[d > 1e-9]  # two positions at one place: not a spacing
+    spacing = float(d.min()) if d.size else 100.0
     ks = np.array(ks)
     scale = fill * spacing * float(ks.min())  # the softest direction's semi-axis = fill x spacing
     return Ellipsoids(idx, P, np.array(dirs), ks, scale, np.array(skipped, dtype=int))
