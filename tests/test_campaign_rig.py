@@ -118,7 +118,7 @@ def test_the_report_shows_each_cameras_residuals(rig_campaign):
         assert len(px) == len(t) and d.max() < 0.5, (board, d.max())  # px
     # The set-up summary counts what the store holds: 1 position x (6 loaded + 1 unloaded) sets.
     setup = {s.what: s.value for s in data.setup}
-    assert setup["images"] == "7 of 7 measured, 0 failed (1 positions)"
+    assert setup["images"] == "7 of 7 measured, 0 failed (1 position)"
     assert setup["load cases"].startswith("6, 1 repeat(s) each: 1: 0.5 kg +y (0, 4.905, 0 N)")
 
 

@@ -70,6 +70,7 @@ def test_vision_report_files_and_pngs(tmp_path) -> None:
         "planes_min_principal.png",
         "planes_det.png",
         "loads_per_position.png",
+        "residuals_per_position.png",
         "model_vs_measured.png",
         "recovered_vs_true.png",
         "calibration.png",

@@ -399,7 +399,8 @@ def _vision_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[s
         ),
     ]
     c = store.image_counts()
-    out.append(("images", f"{c.measured} of {c.total} measured, {c.failed} failed ({c.positions} positions)"))
+    where = f"{c.positions} position" + ("s" if c.positions != 1 else "")
+    out.append(("images", f"{c.measured} of {c.total} measured, {c.failed} failed ({where})"))
     disp = store.displacement_rows()
     n_ok = sum(1 for r in disp if r["status"] == "ok")
     out.append(("load measurements", f"{n_ok} of {len(disp)} displacements measured"))

@@ -30,6 +30,7 @@ from .figure_data import (
     plane_map_values,
     position_dtick,
     position_labels,
+    residual_rms,
     sensor_direction,
     sensor_has_model,
     spans_plane,
@@ -45,6 +46,7 @@ __all__ = [
     "model_scatter",
     "truth_figure",
     "calibration_figure",
+    "residual_figure",
     "sensor_maps",
     "sensor_line",
     "ALL_FIGURES",
@@ -289,7 +291,7 @@ def truth_figure(data: ReportData) -> Figure | None:
 
 
 def calibration_figure(data: ReportData) -> Figure | None:
-    """Per-view RMS reprojection error and corner residuals (px)."""
+    """Per-view RMS reprojection error, corner residuals (px) and the coverage of the image."""
     cp = calibration_panels(data)
     if cp is None:
         return None
@@ -317,7 +319,40 @@ def calibration_figure(data: ReportData) -> Figure | None:
         ax.set_xlabel("Δu (px)")
         ax.set_ylabel("Δv (px)")
         ax.set_title("corner residuals, observed − projected", fontsize=10)
+        k += 1
+    if cp.corners is not None:
+        ax = axes[k]
+        counts, xe, ye = cp.corners.coverage()
+        ax.pcolormesh(xe, ye, np.where(counts > 0, counts, np.nan), cmap="Blues")
+        ax.plot(cp.corners.corners[:, 0], cp.corners.corners[:, 1], ".", ms=1, color="#d95f02", alpha=0.6)
+        w, h = cp.corners.size
+        ax.set_xlim(0, w)
+        ax.set_ylim(h, 0)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (px)")
+        ax.set_ylabel("y (px)")
+        ax.set_title("coverage: corners in the image", fontsize=10)
     fig.suptitle("Camera calibration residuals")
+    return fig
+
+
+def residual_figure(data: ReportData) -> Figure | None:
+    """RMS per position of each component of d − C F (µm), dots on an axis from zero."""
+    rr = residual_rms(data)
+    if rr is None or not np.isfinite(rr).any():
+        return None
+    n = rr.shape[0]
+    fig = Figure(figsize=(max(6.0, 0.18 * n + 3), 3.6), layout="constrained")
+    ax = fig.subplots()
+    colours = ("#1f77b4", "#2ca02c", "#9467bd")
+    for c, (name, color) in enumerate(zip(("dx", "dy", "dz"), colours, strict=True)):
+        ax.plot(np.arange(1, n + 1) + (c - 1) * 0.15, 1e3 * rr[:, c], "o", ms=4, color=color, label=name)
+    ax.set_ylim(0.0, 1.15 * 1e3 * float(np.nanmax(rr)))
+    _position_axis(ax, n)
+    ax.set_xlabel("position")
+    ax.set_ylabel("RMS of d − C·F (µm)")
+    ax.set_title("What K leaves of the displacements, per position and component", fontsize=10)
+    ax.legend(fontsize=8, ncols=3)
     return fig
 
 
@@ -412,6 +447,7 @@ ALL_FIGURES = (
     ("planes_min_principal.png", lambda d: plane_maps(d, "min_principal")),
     ("planes_det.png", lambda d: plane_maps(d, "det")),
     ("loads_per_position.png", loads_small_multiples),
+    ("residuals_per_position.png", residual_figure),
     ("model_vs_measured.png", model_scatter),
     ("recovered_vs_true.png", truth_figure),
     ("calibration.png", calibration_figure),
