@@ -102,7 +102,7 @@ def test_sensor_report_renders_without_console_error(chromium, tmp_path) -> None
     assert r.ready
     assert r.errors == (), r.errors
     assert r.external_requests == ()
-    assert r.result == [True, True]
+    assert r.result == [True, True, True]  # maps, middle line, linearity
 
 
 def test_the_check_catches_console_errors_exceptions_and_failed_loads(chromium, tmp_path) -> None:

@@ -275,6 +275,13 @@ def example_sensor(seed: int = 0) -> rd.ReportData:
     maps = tuple(
         rd.SensorMap(d, grid, np.where(reach, shape_um(grid, d) * 525.0 / kj, np.nan)) for d in ("x", "y")
     )
+    # Each recording's plateaus (0, 10, ..., 50 kgf) and the least-squares line through them.
+    loads_n = np.arange(6) * 98.1
+    steps = np.where(ok[:, None], err[:, None] * loads_n / 490.5, np.nan)
+    steps = steps + rng.normal(0.0, 0.8, steps.shape) + rng.normal(0.0, 1.5, (len(err), 1))
+    slope, icpt = np.full(len(err), np.nan), np.full(len(err), np.nan)
+    for k in np.flatnonzero(ok):
+        slope[k], icpt[k] = np.polyfit(loads_n, steps[k], 1)
     return rd.ReportData(
         campaign=rd.CampaignInfo(
             name="Example sensor campaign (synthetic)",
@@ -296,6 +303,17 @@ def example_sensor(seed: int = 0) -> rd.ReportData:
             model_name="illustrative 3PRR-like field (example)",
             parameters=(rd.Parameter("kj", kj, kj_std, "N/mm"), rd.Parameter("kb", 9800.0, unit="N/mm")),
             maps=maps,
+            step_load_n=np.where(ok[:, None], loads_n, np.nan),
+            step_um=steps,
+            fit_um_per_n=slope,
+            fit_intercept_um=icpt,
         ),
         failures=(rd.Failure("point 13, x", "rec_13_x.csv: saturated from 12.1 s to 14.3 s"),),
+        setup=(
+            rd.SetupItem("robot", "example (an illustrative 3PRR-like field)"),
+            rd.SetupItem("recordings", f"{int(ok.sum())} of {len(err)} analysed, {int((~ok).sum())} failed"),
+            rd.SetupItem("points", f"{len(pts)}, loaded along x, y"),
+            rd.SetupItem("load steps", "0, 10, 20, 30, 40, 50 kgf"),
+            rd.SetupItem("reference load", "490.5 N (the static error is given at it)"),
+        ),
     )
