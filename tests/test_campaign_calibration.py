@@ -128,8 +128,8 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     conn.execute("ALTER TABLE measurements DROP COLUMN mobile_cal_jac")
     conn.execute("ALTER TABLE measurements DROP COLUMN per_camera")  # schema 3
     conn.execute(
-        "INSERT INTO stiffness (position, x, y, z, status, inputs_hash, params_hash, version) "
-        "VALUES (1, 0, 0, 0, 'ok', 'h', 'p', 'v')"
+        "INSERT INTO stiffness (position, x, y, z, K, status, inputs_hash, params_hash, version) "
+        "VALUES (1, 0, 0, 0, '[[1,0,0],[0,1,0],[0,0,1]]', 'ok', 'h', 'p', 'v')"
     )
     conn.execute("UPDATE meta SET value = '1' WHERE key = 'schema_version'")
     conn.commit()

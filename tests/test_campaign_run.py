@@ -96,7 +96,11 @@ def test_missing_image_and_wrong_camera_size_are_named_and_the_rest_goes_on(camp
     assert any("l03_r01_loaded.png" in f for f in summary["failures"])
 
     cam = json.loads((c / "camera.json").read_text())
+    # The same camera at half the resolution (a file from another sensor mode): a plausible
+    # camera, but not the one that took these images.
     cam["image_size"] = [1296, 972]
+    for key in ("fx", "fy", "cx", "cy"):
+        cam[key] /= 2
     (c / "camera.json").write_text(json.dumps(cam))
     proc = _run(c)
     # No position can be measured: exit 2, one line, the images' reason first.
