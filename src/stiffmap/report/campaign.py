@@ -13,11 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
+from ..campaign.robot import campaign_model
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
-from ..campaign.store import DB_NAME, Store, from_json
+from ..campaign.store import DB_NAME, Store
 from ..campaign.truth import load_truth
 from ..errors import InputError
 from ..rig import Rig
@@ -41,52 +43,39 @@ def failures_as_items(failures: list[str]):
     return tuple(out)
 
 
-def _parameters(store: Store, name: str):
+def _parameters(store: Store, name: str, spec: CampaignSpec):
     fit = store.model_fit(name)
-    if fit is None or fit["status"] != "ok":
+    if fit is None or fit.status != "ok":
         return ()
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False)
-    units = {
-        "k_theta": "N*mm/rad",
-        "kj": "N/mm",
-        "kb": "N/mm",
-        "E": "MPa",
-        "area": "mm^2",
-        "h": "mm",
-        "L": "mm",
-    }
+    est = fit.params
+    std = fit.std
+    kind = spec.robot.kind
     return tuple(
-        contract.Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, _param_unit(units, k))
+        contract.Parameter(
+            k, float(v), float(std.get(k, np.nan)) if std else np.nan, kind.param_unit(k) if kind else ""
+        )
         for k, v in est.items()
     )
 
 
-def _param_unit(units: dict[str, str], name: str) -> str:
-    """The unit of a fitted parameter (a URDF robot's k1, k2, ...: N*mm/rad)."""
-    if name in units:
-        return units[name]
-    return "N*mm/rad" if name[:1] == "k" and name[1:].isdigit() else ""
-
-
 def _fitted_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str):
-    return spec.model(root, **{p.name: p.value for p in _parameters(store, fit_name)})
+    return campaign_model(spec, root, **{p.name: p.value for p in _parameters(store, fit_name, spec)})
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     rows = store.stiffness_rows()
     n = len(rows)
-    if not any(r["status"] == "ok" for r in rows):
+    if not any(r.status == "ok" for r in rows):
         return {}
-    pos = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+    pos = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
     K = np.full((n, 3, 3), np.nan)
     S = np.full((n, 3, 3), np.nan)
     share = np.full((n, 3), np.nan)
     for i, r in enumerate(rows):
-        if r["status"] == "ok":
-            K[i] = from_json(r["K"])
-            S[i] = from_json(r["K_std"])
-            cal, cov = from_json(r["K_cov_calibration"]), from_json(r["K_cov"])
+        if r.status == "ok":
+            K[i] = r.K
+            S[i] = r.K_std
+            cal, cov = r.K_cov_calibration, r.K_cov
             if cal is not None and cov is not None:
                 with np.errstate(invalid="ignore", divide="ignore"):
                     share[i] = np.clip(np.diag(cal)[[0, 4, 8]] / np.diag(cov)[[0, 4, 8]], 0.0, 1.0)
@@ -94,19 +83,19 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         pos,
         K,
         S,
-        status=[r["status"] for r in rows],
-        messages=[r["error"] or "" for r in rows],
-        flags=[tuple(from_json(r["flags"], array=False) or ()) for r in rows],
+        status=[r.status for r in rows],
+        messages=[r.error or "" for r in rows],
+        flags=[tuple(r.flags or ()) for r in rows],
     )
     out: dict = {"measured": measured}
     loads = spec.loads.resolve(spec.g)
     forces = np.stack([ld.force for ld in loads])
     vectors = np.full((n, len(loads), spec.repeats, 3), np.nan)
-    index = {r["position"]: i for i, r in enumerate(rows)}
+    index = {r.position: i for i, r in enumerate(rows)}
     for d in store.displacement_rows(only_ok=True):
-        i = index.get(d["position"])
-        if i is not None and d["load"] <= len(loads) and d["repeat"] <= spec.repeats:
-            vectors[i, d["load"] - 1, d["repeat"] - 1] = from_json(d["d"])[:3]
+        i = index.get(d.position)
+        if i is not None and d.load <= len(loads) and d.repeat <= spec.repeats:
+            vectors[i, d.load - 1, d.repeat - 1] = d.d[:3]
     offset = spec.images.pairing == "mean-reference"
     out["loads"] = contract.LoadData(
         tuple(ld.label for ld in loads),
@@ -115,13 +104,14 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         vectors=vectors,
         residuals=displacement_residuals(K, forces, vectors, offset=offset),
     )
-    if spec.robot.model in ("delta", "urdf", "legs"):
+    kind = spec.robot.kind
+    if kind is not None and kind.dim != 2:  # a spatial model (a legs TOML says its own dim)
         model = _fitted_model(root, spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
         for r in store.model_stiffness_rows():
-            i = index.get(r["position"])
-            if i is not None and r["valid"]:
-                Km[i] = from_json(r["K"])
+            i = index.get(r.position)
+            if i is not None and r.valid:
+                Km[i] = r.K
         # A dense map on the measured planes, over the measured x-y extent.
         grid = []
         for z in np.unique(pos[:, 2]):
@@ -135,7 +125,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
             g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
         )
         out["model"] = contract.ModelStiffness.from_K(
-            spec.robot.model, _parameters(store, "stiffness"), Km, map=dense
+            spec.robot.model, _parameters(store, "stiffness", spec), Km, map=dense
         )
     truth = _truth_K(root, n)
     if truth is not None:
@@ -202,7 +192,7 @@ def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:
     errors: dict[str, list[str]] = {n: [] for n in rig.names}
     n_sets = 0
     for r in store.measurement_rows():
-        per = from_json(r["per_camera"], array=False) if r["per_camera"] else None
+        per = r.per_camera
         if not isinstance(per, list):
             continue
         n_sets += 1
@@ -250,7 +240,7 @@ def _truth_K(root: Path, n: int) -> np.ndarray | None:
     return Kt
 
 
-def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
+def _sensor(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     m = measured_static_errors(spec, store)
     if m["points"].shape[1] != 2:
         return {}
@@ -260,16 +250,13 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
     middle = None
     name = ""
     params: tuple = ()
-    if spec.robot.model == "3prr":
-        name = "3prr"
-        params = _parameters(store, "static_error")
+    kind = spec.robot.kind
+    if kind is not None and kind.report_grid is not None:  # a planar kind's map (the 3PRR's)
+        name = kind.name
+        params = _parameters(store, "static_error", spec)
         model_um = np.array([1e3 * pred[f] if pred.get(f) is not None else np.nan for f in m["files"]])
         model = _fitted_model(root, spec, store, "static_error")
-        h = model.params()["h"]
-        xs = np.linspace(0.0, h, 41)
-        ys = np.linspace(0.0, h * np.sqrt(3) / 2, 36)
-        X, Y = np.meshgrid(xs, ys)
-        g = np.c_[X.ravel(), Y.ravel()]
+        g, middle_x = kind.report_grid(model)
         mm = model.evaluate(g)
         ref = m["reference_load_n"]
         dirs = sorted({_axis(u) for u in m["directions"]})
@@ -278,8 +265,8 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
             for a in dirs
             if a in ("x", "y")
         )
-        middle = np.abs(m["points"][:, 0] - h / 2) < 1e-6
-        if not middle.any():
+        middle = None if middle_x is None else np.abs(m["points"][:, 0] - middle_x) < 1e-6
+        if middle is not None and not middle.any():
             middle = None
     steps = _sensor_steps(spec, store)
     sr = contract.SensorResults(
@@ -302,11 +289,11 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
 def _sensor_steps(spec: CampaignSpec, store: Store) -> dict:
     """Each recording's plateaus (load, displacement) and fitted line, in spec order (NaN-padded)."""
     recs = spec.sensor.recordings
-    rows = {r["recording"]: r for r in store.sensor_result_rows()}
+    rows = {r.recording: r for r in store.sensor_result_rows()}
     results = []
     for r in recs:
         row = rows.get(r.file)
-        res = from_json(row["result"], array=False) if row is not None and row["status"] == "ok" else None
+        res = row.result if row is not None and row.status == "ok" else None
         results.append(res if isinstance(res, dict) else None)
     S = max((len(res.get("steps") or []) for res in results if res is not None), default=0)
     if S == 0:
@@ -341,6 +328,10 @@ def _unit(axis: str) -> np.ndarray:
     return u
 
 
+#: The report's sections of what an instrument measures.
+_SECTIONS = {STIFFNESS: _vision, STATIC_ERROR: _sensor}
+
+
 def report_data(
     root: Path, spec: CampaignSpec, store: Store, failures: list[str], *, allow_outside: bool = False
 ):
@@ -354,25 +345,17 @@ def report_data(
     info = contract.CampaignInfo(
         name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root)
     )
-    if spec.kind == "vision":
-        parts = _vision(root, spec, store, allow_outside)
-        if "measured" not in parts:
-            n_failed = len(store.stiffness_rows())
-            raise InputError(
-                f"no position has results in {DB_NAME} (none could be measured, {n_failed} "
-                f"failed: see {EXPORTS_DIR}/summary.json): nothing to report",
-                source=str(root),
-            )
-    else:
-        rows = store.sensor_result_rows()
-        if not any(r["status"] == "ok" for r in rows):
-            raise InputError(
-                f"no recording has results in {DB_NAME} (none could be analysed, {len(rows)} failed: see "
-                f"{EXPORTS_DIR}/summary.json): nothing to report",
-                source=str(root),
-            )
-        parts = _sensor(root, spec, store)
-    setup = _vision_setup(spec, store, parts) if spec.kind == "vision" else _sensor_setup(spec, store, parts)
+    inst = instrument_of(spec)
+    rows = inst.rows(store)
+    if not any(r.status == "ok" for r in rows):
+        verb = "measured" if inst.item == "position" else "analysed"
+        raise InputError(
+            f"no {inst.item} has results in {DB_NAME} (none could be {verb}, {len(rows)} failed: see "
+            f"{EXPORTS_DIR}/summary.json): nothing to report",
+            source=str(root),
+        )
+    parts = _SECTIONS[inst.measures](root, spec, store, allow_outside)
+    setup = _SETUP[inst.measures](spec, store, parts)
     setup.append(("failures", f"{len(failures)} (each listed under Failures)" if failures else "none"))
     return contract.ReportData(
         campaign=info,
@@ -402,7 +385,7 @@ def _vision_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[s
     where = f"{c.positions} position" + ("s" if c.positions != 1 else "")
     out.append(("images", f"{c.measured} of {c.total} measured, {c.failed} failed ({where})"))
     disp = store.displacement_rows()
-    n_ok = sum(1 for r in disp if r["status"] == "ok")
+    n_ok = sum(1 for r in disp if r.status == "ok")
     out.append(("load measurements", f"{n_ok} of {len(disp)} displacements measured"))
     pairing = {
         "pairs": "each loaded image against its own unloaded image",
@@ -428,7 +411,7 @@ def _vision_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[s
         if cal.cameras:
             text = f"a rig of {len(cal.cameras)} cameras; the first: " + text
         out.append(("camera", text))
-    methods = sorted({r["method"] for r in store.stiffness_rows() if r["method"]})
+    methods = sorted({r.method for r in store.stiffness_rows() if r.method})
     flagged = sum(1 for i in range(m.n) if m.ok[i] and m.flags[i])
     out.append(
         (
@@ -444,7 +427,7 @@ def _sensor_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[s
     """The set-up summary of a sensor campaign: recordings, loads, conversion, results."""
     sn = spec.sensor
     rows = store.sensor_result_rows()
-    ok = sum(1 for r in rows if r["status"] == "ok")
+    ok = sum(1 for r in rows if r.status == "ok")
     s = parts["sensor"]
     pts = {tuple(p) for p in np.round(s.points, 6)}
     if sn.steps_kgf is not None:
@@ -461,6 +444,9 @@ def _sensor_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[s
         ("reference load", f"{fmt(sn.reference_load_n, 5)} N (the static error is given at it)"),
         ("displacement sensor", f"{fmt(sn.scale_um_per_v, 5)} µm/V, range ±{fmt(sn.range_v, 4)} V"),
     ]
+
+
+_SETUP = {STIFFNESS: _vision_setup, STATIC_ERROR: _sensor_setup}
 
 
 def write_campaign_report(
