@@ -24,7 +24,6 @@ import json
 import os
 import sqlite3
 from collections.abc import Iterator
-
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
