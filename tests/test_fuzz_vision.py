@@ -315,7 +315,7 @@ def test_a_bad_image_is_one_named_warning_without_decoder_noise(lab):
     # A view left out of a good calibration is a note (status 0), not a warning.
     assert r.returncode == 0 and "Traceback" not in r.stderr and "warning:" not in r.stderr, r.stderr
     assert [ln for ln in r.stderr.splitlines() if ln.startswith("note")] == [
-        f"note: {lab / 'tiny.png'}: not used: image is 2x2 px; a board image needs at least 8x8 px"
+        f"note: not used: {lab / 'tiny.png'}: image is 2x2 px; a board image needs at least 8x8 px"
     ]
 
 
