@@ -57,17 +57,18 @@ def test_a_warning_makes_the_status_1_and_a_note_does_not(monkeypatch, capsys, t
 
 
 # ------------------------------------------------------------------ calibrate
-def test_calibrate_a_good_calibration_that_left_a_view_out_exits_0(tmp_path):
+def test_calibrate_a_good_calibration_that_left_a_view_out_exits_0(tmp_path, monkeypatch, capsys):
     """Four real views of calib_example (Bouguet) and an image without a board: the
     calibration is good, the left-out view is a note, the status 0 (it was 1)."""
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((480, 640), 90, np.uint8))
     files = [CALIB_DIR / f"Image{i}.tif" for i in (1, 2, 3, 4)]
     out = tmp_path / "camera.json"
-    proc = run_stiffmap("calibrate", *files, blank, "--board", "13x12", "--square-mm", "30", "--out", out)
-    assert proc.returncode == 0, proc.stderr
-    assert "note: not used: " in proc.stderr and "blank.png: no 13x12 chessboard" in proc.stderr
-    assert "warning:" not in proc.stderr
+    args = ["calibrate", *files, blank, "--board", "13x12", "--square-mm", "30", "--out", out]
+    code, _, err = run_in_process(args, monkeypatch, capsys)
+    assert code == 0, err
+    assert "note: not used: " in err and "blank.png: no 13x12 chessboard" in err
+    assert "warning:" not in err
     cam = json.loads(out.read_text())
     assert sum(v["used"] for v in cam["views"]) == 4
     assert abs(cam["fx"] - 657.46) < 10.0  # px, Bouguet's published fc(1) 657.46 (four views only)
@@ -93,7 +94,7 @@ def test_flipped_axes_finds_each_reversed_axis_and_only_it():
     assert AXES[6][3:] == ("rx", "ry", "rz")
 
 
-def test_identify_flags_a_reversed_axis_and_exits_1(tmp_path):
+def test_identify_flags_a_reversed_axis_and_exits_1(tmp_path, monkeypatch, capsys):
     """dy recorded with the wrong sign (a camera axis the other way): det K < 0, flagged, the
     y axis named, status 1 (it was 0, with no hint)."""
     F = forces_matrix(paper9())
@@ -103,17 +104,17 @@ def test_identify_flags_a_reversed_axis_and_exits_1(tmp_path):
     assert fit.indices.det < 0
     forces = _csv(tmp_path / "forces.csv", ["fx", "fy", "fz"], F.T)
     disp = _csv(tmp_path / "disp.csv", ["dx", "dy", "dz"], D.T)
-    proc = run_stiffmap("identify", forces, disp)
-    assert proc.returncode == 1, proc.stderr
-    line = [ln for ln in proc.stderr.splitlines() if ln.startswith("warning:")]
+    code, out, err = run_in_process(["identify", forces, disp], monkeypatch, capsys)
+    assert code == 1, err
+    line = [ln for ln in err.splitlines() if ln.startswith("warning:")]
     assert len(line) == 1 and "forces.csv" in line[0] and "disp.csv" in line[0]
-    assert "the y axis (dy or fy of the wrong sign) looks reversed" in line[0]
-    assert "det <= 0" in proc.stdout and "axis sign:" in proc.stdout
+    assert "the y axis (dy or fy of the wrong sign) looks reversed" in " ".join(err.split())
+    assert "det <= 0" in out and "axis sign:" in out
     # With the sign put right: no flag, status 0.
     D[1] *= -1
     _csv(disp, ["dx", "dy", "dz"], D.T)
-    proc = run_stiffmap("identify", forces, disp, "--json")
-    assert proc.returncode == 0 and json.loads(proc.stdout)["flags"] == []
+    code, out, _ = run_in_process(["identify", forces, disp, "--json"], monkeypatch, capsys)
+    assert code == 0 and json.loads(out)["flags"] == []
 
 
 # ------------------------------------------------------------------ files and folders
