@@ -93,7 +93,7 @@ def _folder(p: Path) -> None:
 @pytest.mark.parametrize(
     ("damage", "reason"),
     [
-        (_missing, "image file not found"),
+        (_missing, "no such file"),
         pytest.param(_truncated, "truncated", marks=pytest.mark.slow),
         pytest.param(_wrong_size, "rig.json (camera 'cam2') was calibrated at", marks=pytest.mark.slow),
         pytest.param(_folder, "is a directory", marks=pytest.mark.slow),

@@ -41,7 +41,7 @@ def _cameras_of(per_camera: Any) -> list[dict] | None:
     return cams
 
 
-def _short(text: str, n: int = 200) -> str:
+def _short(text: str, n: int = 300) -> str:
     return text if len(text) <= n else text[: n - 3] + "..."
 
 
