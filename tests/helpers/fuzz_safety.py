@@ -204,11 +204,14 @@ def rig_cases(draw) -> FuzzCase:
     expect = _MUST_SAY.get(note)
     if draw(st.booleans()):
         # A camera dropped, added or renamed: the message may name its images instead; cameras
-        # that disagree are a warning on the image set (exit 1), what it says is ``expect``.
+        # that disagree (a value of cam2rig changed too) are a warning on the image set (exit 1)
+        # that says "the rig file", what it says is ``expect``.
         blamed = (
             None
             if expect is not None
-            or note.startswith(("rig.json: drop", "rig.json: third", "rig.json: camera.json"))
+            or note.startswith(
+                ("rig.json: drop", "rig.json: third", "rig.json: camera.json", "rig.json: one value")
+            )
             else "rig.json"
         )
         return CampaignCase(files=files, argv=rig_pose_argv(), blamed=blamed, note=note, expect=expect)
