@@ -121,3 +121,16 @@ def test_bad_urdfs_are_named(tmp_path):
         Chain.from_urdf(floating, "b")
     with pytest.raises(InputError, match=r"nowhere\.urdf: cannot read"):
         Chain.from_urdf(tmp_path / "nowhere.urdf", "a")
+
+
+def test_a_one_joint_chain_has_a_six_by_one_jacobian():
+    # Pinocchio returns a one-joint chain's Jacobian as a vector; the chain keeps it 6 x 1
+    # (a leg reduced to its actuator, found by the legs TOML fuzz test).
+    c = Chain.from_joints([JointSpec("p", "prismatic", (0.0, 0.6, 0.8), (10.0, 0.0, 0.0))])
+    J = c.jacobian([5.0])
+    assert J.shape == (6, 1)
+    h = 1e-6
+    fd = (c.forward([5.0 + h])[0] - c.forward([5.0 - h])[0]) / (2 * h)
+    np.testing.assert_allclose(J[:3, 0], fd, rtol=0, atol=1e-9)
+    res = c.inverse([10.0, 6.0, 8.0], q0=[1.0])
+    assert res.converged and res.q[0] == pytest.approx(10.0, abs=1e-9)

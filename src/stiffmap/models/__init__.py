@@ -8,6 +8,9 @@
 - :mod:`~stiffmap.models.legs`: :class:`LegRobot`, a translational parallel robot
   described by its legs in a TOML (virtual joint method; the Delta and the 3PRR are
   instances: ``robots/delta.toml``, ``robots/3prr.toml``);
+- :mod:`~stiffmap.models.legs6`: :class:`LegRobot6`, a parallel robot whose platform
+  turns (``dim = 6``: hexapods, 3-RPS), its 6 x 6 stiffness (``robots/hexapod.toml``,
+  ``robots/3rps.toml``);
 - :mod:`~stiffmap.models.serial`: :class:`SerialRobot`, a serial arm read from a URDF
   (kinematics through :mod:`~stiffmap.models.chain`, Pinocchio) with joint springs;
 - :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
@@ -32,6 +35,7 @@ from .joint_fit import (
     joint_identifiability,
 )
 from .legs import LegRobot, legs_toml
+from .legs6 import LegRobot6  # registers itself: LegRobot.from_toml of a dim = 6 file builds one
 from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
 from .prr3 import PRR3
 from .serial import SerialRobot
@@ -46,6 +50,7 @@ __all__ = [
     "PRR3",
     "SerialRobot",
     "LegRobot",
+    "LegRobot6",
     "legs_toml",
     "paper48",
     "prr3_points22",

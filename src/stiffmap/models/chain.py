@@ -400,7 +400,7 @@ class Chain:
         """
         qq = self._config(self.check_q(q))
         J = pin.computeFrameJacobian(self._model, self._data, qq, self._fid, pin.LOCAL_WORLD_ALIGNED)
-        return np.array(J)
+        return np.array(J).reshape(6, self.n)  # Pinocchio gives a one-joint chain's as a vector
 
     def forward_many(self, Q) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`forward` of many configurations: positions (N, 3) mm, rotations (N, 3, 3)."""

@@ -3,7 +3,8 @@
 Formats (CSV with a header; column names case-insensitive; ``#`` lines are comments):
 
 **Points** (``stiffmap model --points``): columns ``x, y`` (3PRR) or ``x, y, z``
-(Delta), mm, in the mechanism's base frame.
+(Delta), mm, in the mechanism's base frame; for a robot whose platform turns (a legs TOML
+with ``dim = 6``) also ``roll_deg, pitch_deg, yaw_deg`` (all three or none: 0), degrees.
 
 **Static-error measurements** (``stiffmap fit``; the sensor path): one row per
 reading of one displacement component:
@@ -48,7 +49,7 @@ from ..errors import InputError
 from ..io import read_csv_columns, read_text_file, sniff_delimiter
 from ..loads import MAX_FORCE_N
 from ..stiffness import MAX_DISPLACEMENT_MM, MAX_POSITION_MM, MAX_STIFFNESS_N_PER_MM
-from .base import Mechanism, ModelMap, PoseError, format_pose
+from .base import POSE_DIM, Mechanism, ModelMap, PoseError, format_pose
 from .fit import ModelFit, fit_static_errors, fit_stiffness
 from .serial import SerialRobot
 
@@ -61,6 +62,7 @@ __all__ = [
     "map_records",
     "map_csv",
     "AXIS_NAMES",
+    "ORIENTATION_COLUMNS",
     "configuration_columns",
     "read_configurations",
     "read_configuration_rows",
@@ -69,6 +71,8 @@ __all__ = [
 ]
 
 AXIS_NAMES = ("x", "y", "z")
+#: A pose's orientation columns (degrees): roll about x, pitch about y, yaw about z.
+ORIENTATION_COLUMNS = ("roll_deg", "pitch_deg", "yaw_deg")
 #: Largest joint angle a configurations file may hold (ten turns), degrees.
 MAX_JOINT_ANGLE_DEG = 3600.0
 _JOINT_COLUMN = re.compile(r"q(\d+)(_.*)?$")
@@ -77,18 +81,46 @@ _JOINT_COLUMN = re.compile(r"q(\d+)(_.*)?$")
 def read_points(path: str | os.PathLike, dim: int) -> np.ndarray:
     """Positions (mm) from a CSV with columns ``x, y`` (dim 2) or ``x, y, z`` (dim 3).
 
+    For ``dim = 6`` (a robot whose platform turns) poses: ``x, y, z`` (mm) and, all three or
+    none (then 0), ``roll_deg, pitch_deg, yaw_deg`` (degrees within +-180; R = Rz(yaw)
+    Ry(pitch) Rx(roll), URDF's convention), returned in rad.
+
     Returns
     -------
-    ndarray, shape (N, dim), mm
+    ndarray, shape (N, dim)
+        mm (and rad for the orientation of a pose).
 
     Raises
     ------
     InputError
-        Naming the file, line and column of a bad cell.
+        Naming the file, line and column of a bad cell; for poses, an orientation column
+        without the others.
     """
+    if dim == POSE_DIM:
+        return _read_poses(path)
     t = read_csv_columns(path, AXIS_NAMES[:dim])
     t.check_magnitude(AXIS_NAMES[:dim], MAX_POSITION_MM, "mm", "position")
     return t.stack(AXIS_NAMES[:dim]).T.copy()
+
+
+def _read_poses(path: str | os.PathLike) -> np.ndarray:
+    """Poses (N, 6): x, y, z mm and roll, pitch, yaw rad, from a CSV (:func:`read_points`)."""
+    t = read_csv_columns(path, AXIS_NAMES, ORIENTATION_COLUMNS)
+    t.check_magnitude(AXIS_NAMES, MAX_POSITION_MM, "mm", "position")
+    given = [c for c in ORIENTATION_COLUMNS if t.has(c)]
+    if given and len(given) < 3:
+        missing = [c for c in ORIENTATION_COLUMNS if c not in given]
+        raise InputError(
+            f"has {', '.join(given)} but not {', '.join(missing)}: give the orientation's three columns "
+            f"({', '.join(ORIENTATION_COLUMNS)}, degrees) or none (0)",
+            source=str(path),
+        )
+    t.check_magnitude(given, 180.0, "deg", "roll, pitch or yaw")
+    out = np.zeros((len(t), POSE_DIM))
+    out[:, :3] = t.stack(AXIS_NAMES).T
+    if given:
+        out[:, 3:] = np.radians(t.stack(ORIENTATION_COLUMNS).T)
+    return out
 
 
 @dataclass(frozen=True)
