@@ -20,6 +20,7 @@ from scipy.optimize import least_squares
 from stiffmap.errors import InputError
 from stiffmap.models import PRR3, DeltaRobot, Mechanism, PoseError
 from stiffmap.models.base import arm_map, as_points, platform_stiffness6
+from stiffmap.models.fit import fit_stiffness
 from stiffmap.models.io import read_points
 from stiffmap.models.legs import LegDescription, LegJoint, LegRobot, _toml_text
 from stiffmap.models.legs6 import (
@@ -483,3 +484,26 @@ def test_mutated_6d_leg_files_load_or_are_refused_by_name(data):
     home = {6: [0.0, 0.0, 280.0, 0.0, 0.02, 0.0], 3: [0.0, 0.0, 280.0], 2: [0.0, 0.0]}[lr.dim]
     m = lr.evaluate(np.array([home]))
     assert m.valid[0] or m.reasons[0].startswith(("unreachable: ", "singular: "))
+
+
+def test_fit_recovers_the_six_leg_stiffnesses_from_K6(hexapods):
+    # The identified K6 of a campaign fitted by the model's K6: noiseless data give the legs'
+    # stiffnesses back; noisy entries (independent, 0.5 % of sqrt(K_ii K_jj)) give estimates
+    # within 4 of their standard errors.
+    robot, base, attach, k, h = hexapods[0]
+    rng = np.random.default_rng(30)
+    P = np.zeros((8, 6))
+    P[:, :3] = [0.0, 0.0, h] + rng.uniform(-30.0, 30.0, size=(8, 3))
+    P[:, 3:] = np.radians(rng.uniform(-8.0, 8.0, size=(8, 3)))
+    K6 = np.array([_closed_form_ups(base, attach, k, p) for p in P])
+    start = robot.with_params(**dict.fromkeys(robot.param_names(), 1000.0))
+    names = robot.param_names()
+    f = fit_stiffness(start, P, K6, params=names)
+    assert f.kind == "stiffness6"
+    np.testing.assert_allclose(f.estimate, k, rtol=1e-8)
+    d = np.sqrt(np.abs(np.einsum("nii->ni", K6)))
+    std = 0.005 * d[:, :, None] * d[:, None, :]
+    noisy = K6 + std * rng.normal(size=K6.shape)
+    f = fit_stiffness(start, P, noisy, params=names, K_std=std, absolute_sigma=True)
+    assert np.all(np.abs(f.estimate - k) < 4 * f.std), (f.estimate, k, f.std)
+    assert np.all(f.std < 0.02 * k)

@@ -43,7 +43,7 @@ import numpy as np
 
 from ..errors import DesignError, IllConditionedWarning
 from ..stats import chi2_sf
-from .base import Mechanism, PoseError, as_points, format_pose
+from .base import POSE_DIM, Mechanism, PoseError, as_points, format_pose
 
 __all__ = [
     "ModelFit",
@@ -94,7 +94,8 @@ class ModelFit:
         Per observation (mm for static errors; N/mm for stiffness entries, row-major
         K of each pose in turn).
     sigma : ndarray, shape (n_obs,)
-        Standard errors used as weights (1 where none were given).
+        Standard errors used as weights (1 where none were given; for K6 without them, the
+        relative weights of :func:`fit_stiffness`).
     residuals : ndarray, shape (n_obs,)
         ``observed - predicted`` (mm or N/mm).
     residual_rms_per_pose : ndarray, shape (n_poses,)
@@ -276,12 +277,15 @@ def _fit(
     poses: np.ndarray,
     pose_index: np.ndarray,
     absolute_sigma: bool,
+    weights: np.ndarray | None = None,
 ) -> ModelFit:
+    """The fit; ``weights`` (relative, used only when ``sigma`` is None) scale observations of
+    mixed units (K6's blocks) without claiming to be their standard errors."""
     names, p0 = _check_names(model, params)
     n, p = y.size, len(names)
     if n < p:
         raise DesignError(f"{n} observation(s) cannot determine {p} parameters ({', '.join(names)})")
-    w = np.ones(n) if sigma is None else sigma
+    w = (np.ones(n) if weights is None else weights) if sigma is None else sigma
     notes: list[str] = []
     if sigma is None and absolute_sigma:
         raise ValueError("absolute_sigma=True needs the standard errors of the observations")
@@ -440,18 +444,24 @@ def fit_stiffness(
     points : array_like, shape (n, dim), mm
         Poses of the measurements (base frame).
     K : array_like, shape (n, dim, dim), N/mm
-        Measured stiffness at each pose (all entries are observations).
+        Measured stiffness at each pose (all entries are observations). For a robot whose
+        platform turns (``dim = 6``, poses x, y, z mm, roll, pitch, yaw rad): K6, shape
+        (n, 6, 6) (N/mm, N and N*mm/rad blocks; fitted to the model's ``K6``), or K of a pure
+        force, shape (n, 3, 3).
     params : sequence of str
         Parameters to fit (names of ``model.params()``).
-    K_std : array_like, shape (n, dim, dim), N/mm, optional
-        Standard errors of the entries (unit weights when omitted).
+    K_std : array_like, shape of K, optional
+        Standard errors of the entries (unit weights when omitted; for K6, weights
+        ``s_i s_j`` with s = (1, 1, 1, L, L, L), L the model's ``length_mm`` (or 100 mm): the
+        entries in mm and rad-as-L-mm alike).
     absolute_sigma : bool
         Take ``K_std`` as exact (do not rescale the covariance by the reduced chi-square).
 
     Returns
     -------
     ModelFit
-        With ``kind = "stiffness"``; observations are the entries of each K, row-major.
+        With ``kind = "stiffness"`` (``"stiffness6"`` for K6); observations are the entries of
+        each K, row-major.
 
     Raises
     ------
@@ -460,25 +470,32 @@ def fit_stiffness(
     DesignError
         The data cannot determine the parameters (see module docstring).
     """
-    dim = model.dim
-    P, _ = as_points(points, dim)
+    P, _ = as_points(points, model.dim)
     Km = np.asarray(K, dtype=np.float64)
+    six = model.dim == POSE_DIM and Km.shape[1:] == (6, 6)
+    dim = 6 if six else (3 if model.dim == POSE_DIM else model.dim)
     if Km.shape != (P.shape[0], dim, dim):
+        also = f" or ({P.shape[0]}, 6, 6) (K6)" if model.dim == POSE_DIM else ""
         raise ValueError(
-            f"K must have shape ({P.shape[0]}, {dim}, {dim}) (one matrix per pose), got {Km.shape}"
+            f"K must have shape ({P.shape[0]}, {dim}, {dim}){also} (one matrix per pose), got {Km.shape}"
         )
     if not np.all(np.isfinite(Km)):
         i = int(np.flatnonzero(~np.all(np.isfinite(Km), axis=(1, 2)))[0])
         raise ValueError(f"K of pose {i} contains NaN or infinite values")
     S = _check_sigma(K_std, Km.shape, "K_std")
+    weights = None
+    if six and S is None:  # K6's entries in mm and rad-as-L-mm alike
+        s = np.array([1.0, 1.0, 1.0, *(3 * [float(getattr(model, "length_mm", 100.0))])])
+        weights = np.broadcast_to(np.outer(s, s), Km.shape).reshape(-1)
     _check_valid_poses(model, P, "pose")
 
     def predict(m: Mechanism) -> np.ndarray:
-        return m.evaluate(P).K.reshape(-1)
+        mm = m.evaluate(P)
+        return (mm.K6 if six else mm.K).reshape(-1)
 
     idx = np.repeat(np.arange(P.shape[0]), dim * dim)
     return _fit(
-        "stiffness",
+        "stiffness6" if six else "stiffness",
         model,
         params,
         predict,
@@ -487,6 +504,7 @@ def fit_stiffness(
         P,
         idx,
         absolute_sigma,
+        weights,
     )
 
 

@@ -39,7 +39,7 @@ losing rank: :func:`~stiffmap.models.base.held_wrench_condition`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -71,6 +71,8 @@ __all__ = [
     "RPS3",
 ]
 
+#: Above this many remembered poses the inverse-kinematics memo is cleared.
+MEMO_MAX = 100_000
 #: How far (rad) a universal platform joint's two axes may be from perpendicular (its cross)
 #: at a pose before the joint cannot be assembled there.
 UNIVERSAL_TOL_RAD = 1e-6
@@ -105,6 +107,10 @@ class LegRobot6(LegRobot):
     ``stiffness`` K, :meth:`stiffness6` K6, ``static_error`` a pure force's translation,
     :meth:`static_error6` a wrench's (u, rotation).
     """
+
+    #: The legs at the poses seen so far (their kinematics only: shared by ``with_params``
+    #: copies, so that a fit of stiffnesses solves each pose's inverse kinematics once).
+    _memo: dict = field(default_factory=dict, repr=False, compare=False)
 
     _FOR_DIM: ClassVar[int | None] = POSE_DIM
     _PARALLEL_SINGULARITY: ClassVar[str] = (
@@ -176,10 +182,15 @@ class LegRobot6(LegRobot):
         passive = np.full((n, nl, 6, counts["passive"] + 3), np.nan)
         joints = [np.full((n, lg.chain.n), np.nan) for lg in self._legs]
         reasons = [""] * n
+        if len(self._memo) > MEMO_MAX:
+            self._memo.clear()
         for i in range(n):
             bad = []
+            key = P[i].tobytes()
+            if key not in self._memo:
+                self._memo[key] = [self._leg_at(k, P[i, :3] + arms[i, k], R[i]) for k in range(nl)]
             for k, lg in enumerate(self._legs):
-                got, why = self._leg_at(k, P[i, :3] + arms[i, k], R[i])
+                got, why = self._memo[key][k]
                 if got is None:
                     sep = " " if why.startswith(("cannot", "its")) else ": "
                     bad.append(f"leg {k + 1} ({lg.name}){sep}{why}")
