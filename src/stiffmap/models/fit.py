@@ -551,8 +551,10 @@ def fit_static_errors(
     ----------
     model : Mechanism
     points : array_like, shape (n, dim), mm
-    forces : array_like, shape (n, dim), N
-    directions : array_like, shape (n, dim)
+        (For ``dim = 6``: poses, x, y, z mm and roll, pitch, yaw rad.)
+    forces : array_like, shape (n, dim) (n, 3 for dim = 6), N
+        At the tool point.
+    directions : array_like, shape (n, dim) (n, 3 for dim = 6)
         Measurement directions (unit vectors; refused when not of unit length within 1e-6).
     values : array_like, shape (n,), mm
     params : sequence of str
@@ -580,9 +582,10 @@ def fit_static_errors(
     F = np.asarray(forces, dtype=np.float64)
     U = np.asarray(directions, dtype=np.float64)
     y = np.asarray(values, dtype=np.float64)
+    fdim = 3 if dim == POSE_DIM else dim  # a turning platform's poses: forces still 3-D
     for a, name in ((F, "forces"), (U, "directions")):
-        if a.shape != (n, dim):
-            raise ValueError(f"{name} must have shape ({n}, {dim}), got {a.shape}")
+        if a.shape != (n, fdim):
+            raise ValueError(f"{name} must have shape ({n}, {fdim}), got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{name} contains NaN or infinite values")
     if y.shape != (n,) or not np.all(np.isfinite(y)):
