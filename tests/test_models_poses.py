@@ -155,3 +155,34 @@ def test_measurement_files_of_the_wrong_kind_are_named(tmp_path, dim, header, me
     with pytest.raises(InputError, match=message) as e:
         read_measurements(path, dim)
     assert str(path) in str(e.value)
+
+
+def test_6dof_deflections_under_wrenches_fit_back_to_the_legs(hexapod, poses):
+    # Nine loads hung at three points of the platform (20 N along x, y, -z at each): wrenches
+    # (F, r x F) spanning all six directions; the deflections (u, rotation) = K6^-1 w.
+    from stiffmap.models.fit import fit_deflections6
+
+    robot, base, attach = hexapod
+    P = poses[::2]
+    pts = np.array([[0.0, 0.0, -80.0], [120.0, 0.0, -80.0], [0.0, 120.0, -80.0]])
+    forces = 20.0 * np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, -1.0]])
+    rows, W, D = [], [], []
+    for p in P:
+        R, K6 = _rot(*p[3:]), _closed_form(base, attach, K_LEGS, p)
+        for r in pts:
+            for F in forces:
+                w = np.concatenate([F, np.cross(R @ r, F)])
+                rows.append(p)
+                W.append(w)
+                D.append(np.linalg.solve(K6, w))
+    names = robot.param_names()
+    start = robot.with_params(**dict.fromkeys(names, 1000.0))
+    f = fit_deflections6(start, rows, W, D, params=names)
+    assert f.kind == "deflection6"
+    np.testing.assert_allclose(f.estimate, K_LEGS, rtol=1e-8)
+    rng = np.random.default_rng(7)
+    std = np.tile([2e-4, 2e-4, 2e-4, 5e-6, 5e-6, 5e-6], (len(D), 1))  # 0.2 um, 5 urad
+    noisy = np.array(D) + std * rng.normal(size=std.shape)
+    f = fit_deflections6(start, rows, W, noisy, params=names, std=std, absolute_sigma=True)
+    assert np.all(np.abs(f.estimate - K_LEGS) < 4 * f.std), (f.estimate, f.std)
+    assert np.all(f.std < 0.01 * K_LEGS)

@@ -49,6 +49,7 @@ __all__ = [
     "ModelFit",
     "fit_stiffness",
     "fit_static_errors",
+    "fit_deflections6",
     "static_error_predictions",
     "MIN_RELATIVE_SENSITIVITY",
     "MIN_INVERSE_CONDITION",
@@ -72,7 +73,8 @@ class ModelFit:
     Attributes
     ----------
     kind : str
-        ``"stiffness"`` or ``"static_error"``.
+        ``"stiffness"``, ``"static_error"``, ``"stiffness6"`` (K6 entries) or ``"deflection6"``
+        (6-DOF deflections under wrenches: :func:`fit_deflections6`).
     names : tuple of str
         The fitted parameters.
     estimate : ndarray, shape (p,)
@@ -604,3 +606,79 @@ def fit_static_errors(
         return static_error_predictions(m, P, F, U)
 
     return _fit("static_error", model, params, predict, y, s, poses, idx, absolute_sigma)
+
+
+def fit_deflections6(
+    model: Mechanism,
+    points,
+    wrenches,
+    deflections,
+    *,
+    params: Sequence[str],
+    std=None,
+    absolute_sigma: bool = False,
+) -> ModelFit:
+    """Fit parameters of a robot whose platform turns to its measured 6-DOF deflections.
+
+    Observation i: at pose ``points[i]`` the wrench ``wrenches[i]`` at the tool point moves
+    the platform by ``K6^-1 w`` (u mm, rotation vector rad), measured as ``deflections[i]``
+    (the six components are six observations). A camera measures both; loads hung off the
+    tool point give moments, so the fit sees the rotational block too (the hexapod analogue
+    of :func:`~stiffmap.models.joint_fit.fit_joint_compliances`).
+
+    Parameters
+    ----------
+    model : Mechanism
+        With ``dim = 6`` (poses) and ``K6`` in its maps (:class:`~stiffmap.models.legs6.LegRobot6`).
+    points : array_like, shape (n, 6)
+        Poses: x, y, z (mm), roll, pitch, yaw (rad).
+    wrenches : array_like, shape (n, 6)
+        Force (N) and moment (N*mm) at the tool point, base frame.
+    deflections : array_like, shape (n, 6)
+        u (mm) and rotation vector (rad), base frame.
+    params : sequence of str
+    std : array_like, shape (n, 6), optional
+        Standard errors of the deflections' components (mm, rad). Without them the
+        rotations weigh as the robot's size in mm (``length_mm``, else 100 mm) per rad.
+    absolute_sigma : bool
+
+    Returns
+    -------
+    ModelFit
+        With ``kind = "deflection6"``; observations row-major (u then rotation per wrench).
+
+    Raises
+    ------
+    PoseError, DesignError
+        As :func:`fit_stiffness`.
+    """
+    if model.dim != POSE_DIM:
+        raise ValueError(f"{model.name}: 6-DOF deflections need a platform that turns (dim = 6)")
+    P, _ = as_points(points, POSE_DIM)
+    n = P.shape[0]
+    W = np.asarray(wrenches, dtype=np.float64)
+    D = np.asarray(deflections, dtype=np.float64)
+    for a, name in ((W, "wrenches"), (D, "deflections")):
+        if a.shape != (n, 6):
+            raise ValueError(f"{name} must have shape ({n}, 6), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} contains NaN or infinite values")
+    if np.all(W == 0):
+        raise DesignError("every wrench is zero: deflections without load cannot determine stiffness")
+    S = _check_sigma(std, (n, 6), "std")
+    weights = None
+    if S is None:
+        L = float(getattr(model, "length_mm", 100.0))
+        weights = np.tile([1.0, 1.0, 1.0, 1 / L, 1 / L, 1 / L], n)
+    _check_valid_poses(model, P, "observation")
+    poses, idx = _group_poses(P)
+
+    def predict(m: Mechanism) -> np.ndarray:
+        K6 = m.evaluate(poses).K6[idx]
+        return np.linalg.solve(K6, W[..., None])[..., 0].reshape(-1)
+
+    y = D.reshape(-1)
+    sigma = None if S is None else S.reshape(-1)
+    return _fit(
+        "deflection6", model, params, predict, y, sigma, poses, np.repeat(idx, 6), absolute_sigma, weights
+    )
