@@ -43,6 +43,9 @@ __all__ = [
     "translational_stiffness",
     "serial_robot",
     "arm6_robot",
+    "PlatformField",
+    "platform_robot",
+    "LEGS_NAME",
     "URDF_NAME",
 ]
 
@@ -380,3 +383,57 @@ def arm6_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
         :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
     """
     return serial_robot(arm6.model().with_params(**(params or {})), **kw)
+
+
+@dataclass(frozen=True)
+class PlatformField:
+    """The 6x6 stiffness field of a parallel robot whose platform turns (a picklable callable):
+    K6 at the tool point (N/mm, N, N*mm/rad blocks, base axes) of the pose that puts the tool
+    point at each position with the platform at ``rpy`` (roll, pitch, yaw, rad)."""
+
+    model: Any
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __call__(self, points) -> np.ndarray:
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        poses = np.concatenate([P, np.tile(np.asarray(self.rpy, dtype=np.float64), (P.shape[0], 1))], axis=1)
+        m = self.model.evaluate(poses)
+        for i in np.flatnonzero(~m.valid):
+            raise ValueError(f"the robot cannot hold its platform at {P[i].tolist()} mm: {m.reasons[i]}")
+        return m.K6
+
+
+#: The name of a legs TOML in a simulated campaign's folder.
+LEGS_NAME = "robot.toml"
+
+
+def platform_robot(model, **kw) -> VirtualRobot:
+    """A parallel robot whose platform turns as a virtual robot (a ``dim = 6`` legs TOML:
+    :class:`~stiffmap.models.legs6.LegRobot6`).
+
+    Its field is K6 at the tool point with the platform level (:class:`PlatformField`): under
+    a load the platform turns as well as moves, and a load off the tool point
+    (``load_point_mm``) turns it more. The campaign it writes is ``robot.model = "legs"``
+    with its TOML copied into the folder (:data:`LEGS_NAME`).
+
+    Parameters
+    ----------
+    model : LegRobot6
+        Read from its TOML (``model.source``), with its parameters.
+    **kw
+        :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
+    """
+    if getattr(model, "dim", None) != 6 or not getattr(model, "source", None):
+        raise ValueError("platform_robot needs a robot read from a dim = 6 legs TOML")
+    if any(d.urdf for d in model.description):
+        raise ValueError(
+            "platform_robot copies the legs TOML alone: its legs must be given by joints, not URDFs"
+        )
+    return VirtualRobot(
+        field=PlatformField(model),
+        model="legs",
+        params={k: float(v) for k, v in model.params().items()},
+        spec={"legs": LEGS_NAME},
+        files={LEGS_NAME: str(model.source)},
+        **kw,
+    )

@@ -31,6 +31,8 @@ __all__ = [
     "demo_scene",
     "arm_scene",
     "ARM_SCENE_SHIFT_MM",
+    "hexapod_scene",
+    "HEXAPOD_SCENE_SHIFT_MM",
     "with_cameras",
     "two_camera_rig",
     "FIXED2BASE_REFERENCE",
@@ -221,6 +223,26 @@ def arm_scene(camera: CameraModel | None = None) -> Scene:
     """
     sc = demo_scene(camera)
     shift = transform_from(np.eye(3), ARM_SCENE_SHIFT_MM)
+    return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
+
+
+#: Where the hexapod's scene puts the demo scene's base frame, in the hexapod's base frame
+#: (mm): the demo's view of the Delta's grid (z -200 ... -400) becomes a view of the space
+#: above the hexapod's base (z 400 ... 200), where its platform moves.
+HEXAPOD_SCENE_SHIFT_MM = (0.0, 0.0, 600.0)
+
+
+def hexapod_scene(camera: CameraModel | None = None) -> Scene:
+    """A hexapod's scene: :func:`demo_scene` moved above the hexapod's base.
+
+    The same camera, boards and mounting of the mobile board on the platform as the demo
+    (a 15x14 board 50 mm in front of the tool point, the centre of the platform), all moved
+    up by :data:`HEXAPOD_SCENE_SHIFT_MM`; the fixed board stands on a post behind the
+    hexapod. The test-bed keeps the platform's orientation (level, yaw 0), so the tcp
+    frame keeps the base's axes.
+    """
+    sc = demo_scene(camera)
+    shift = transform_from(np.eye(3), HEXAPOD_SCENE_SHIFT_MM)
     return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
 
 
