@@ -22,7 +22,7 @@ from stiffmap.models import PRR3, DeltaRobot, Mechanism, PoseError
 from stiffmap.models.base import arm_map, as_points, platform_stiffness6
 from stiffmap.models.fit import fit_stiffness
 from stiffmap.models.io import read_points
-from stiffmap.models.legs import LegDescription, LegJoint, LegRobot, _toml_text
+from stiffmap.models.legs import LegRobot
 from stiffmap.models.legs6 import (
     RPS3,
     LegRobot6,
@@ -31,6 +31,7 @@ from stiffmap.models.legs6 import (
     rps3_toml,
     ups_legs,
 )
+from stiffmap.models.legs_file import LegDescription, LegJoint, legs_text
 
 ROBOTS = files("stiffmap.models") / "robots"
 BEFORE = Path(__file__).with_name("data") / "legs_before_6d.json"
@@ -87,7 +88,7 @@ def _relative(A, B, length_mm: float | None = None) -> float:
 
 
 def _robot(legs, params: dict, name: str = "test") -> LegRobot6:
-    r = LegRobot.from_toml_text(_toml_text(name, 6, params, tuple(legs), 1e-3), source=f"{name}.toml")
+    r = LegRobot.from_toml_text(legs_text(name, 6, params, tuple(legs), 1e-3), source=f"{name}.toml")
     assert isinstance(r, LegRobot6)
     return r
 
@@ -384,7 +385,7 @@ def test_shipped_files_are_what_the_builders_write():
     K6 = hexa.stiffness6([0.0, 0.0, 300.0, 0.0, 0.0, 0.0])
     # The semi-regular hexapod at home: symmetric about z, x and y alike.
     assert K6[0, 0] == pytest.approx(K6[1, 1], rel=1e-9) and K6[3, 3] == pytest.approx(K6[4, 4], rel=1e-9)
-    again = LegRobot.from_toml_text(_toml_text(hexa.name, 6, hexa.params(), hexa.description, 1e-3))
+    again = LegRobot.from_toml_text(legs_text(hexa.name, 6, hexa.params(), hexa.description, 1e-3))
     np.testing.assert_allclose(again.stiffness6([0.0, 0.0, 300.0, 0.0, 0.0, 0.0]), K6, rtol=1e-12)
 
 

@@ -10,8 +10,9 @@ import pytest
 from stiffmap.errors import InputError
 from stiffmap.models import DeltaRobot
 from stiffmap.models.io import fit_measurements_file, map_csv, map_records, read_measurements
-from stiffmap.models.legs import LegRobot, _toml_text
+from stiffmap.models.legs import LegRobot
 from stiffmap.models.legs6 import gough_stewart_points, ups_legs
+from stiffmap.models.legs_file import legs_text
 from stiffmap.models.poses import orientations_from_text, poses_from
 
 K_LEGS = np.array([420.0, 610.0, 380.0, 900.0, 505.0, 730.0])  # N/mm, six different legs
@@ -46,7 +47,7 @@ def hexapod():
     base, attach = gough_stewart_points(250.0, 150.0, 20.0, 100.0)
     names = tuple(f"k_leg{i}" for i in range(1, 7))
     legs = ups_legs(base, attach, HOME, names)
-    text = _toml_text("hex", 6, dict(zip(names, K_LEGS, strict=True)), legs, 1e-3)
+    text = legs_text("hex", 6, dict(zip(names, K_LEGS, strict=True)), legs, 1e-3)
     return LegRobot.from_toml_text(text, source="hex.toml"), base, attach
 
 

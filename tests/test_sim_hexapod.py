@@ -21,7 +21,7 @@ def hexapod():
 
 def test_platform_field_is_K6_at_level_poses_and_turns_under_an_offset_load(hexapod):
     P = np.array([[0.0, 0.0, 300.0], [30.0, -20.0, 280.0]])
-    vr = platform_robot(hexapod, load_point_mm=(40.0, 0.0, -60.0))
+    vr = platform_robot(hexapod, "legs", "legs", load_point_mm=(40.0, 0.0, -60.0))
     K = vr.stiffness(P)
     np.testing.assert_array_equal(K, hexapod.stiffness6(np.c_[P, np.zeros((2, 3))]))
     F = np.array([0.0, 5.0, -20.0])
@@ -41,7 +41,7 @@ def test_platform_field_names_a_position_the_legs_cannot_reach(hexapod):
 
 def test_platform_robot_needs_a_turning_platform():
     with pytest.raises(ValueError, match="dim = 6 legs TOML"):
-        platform_robot(LegRobot.from_toml(ROBOTS / "delta.toml"))
+        platform_robot(LegRobot.from_toml(ROBOTS / "delta.toml"), "legs", "legs")
 
 
 def test_hexapod_scene_sees_both_boards_over_the_platforms_workspace():

@@ -56,7 +56,8 @@ from .base import (
     platform_stiffness6,
     raise_first_invalid,
 )
-from .legs import ROLES, LegDescription, LegJoint, LegRobot, LegStates, _toml_text
+from .legs import LegRobot, LegStates
+from .legs_file import ROLES, LegDescription, LegJoint, legs_text
 
 __all__ = [
     "LegRobot6",
@@ -486,7 +487,7 @@ def hexapod_toml(params: dict | None = None, *, name: str = "hexapod") -> str:
     )
     names = tuple(f"k_leg{i}" for i in range(1, 7))
     legs = ups_legs(base, platform, (0.0, 0.0, p["height_mm"]), names, stroke_mm=p["stroke_mm"])
-    return _toml_text(name, 6, dict.fromkeys(names, p["k_leg"]), legs, SINGULAR_TOL, _HEXAPOD_HEADER)
+    return legs_text(name, 6, dict.fromkeys(names, p["k_leg"]), legs, SINGULAR_TOL, _HEXAPOD_HEADER)
 
 
 def rps3_toml(params: dict | None = None, *, name: str = "3rps") -> str:
@@ -510,4 +511,4 @@ def rps3_toml(params: dict | None = None, *, name: str = "3rps") -> str:
         stroke_mm=p["stroke_mm"],
     )
     params = {**dict.fromkeys(ks, p["k_leg"]), **dict.fromkeys(kb, p["k_bend"])}
-    return _toml_text(name, 6, params, legs, SINGULAR_TOL, _RPS3_HEADER)
+    return legs_text(name, 6, params, legs, SINGULAR_TOL, _RPS3_HEADER)

@@ -300,6 +300,22 @@ class VirtualRobot:
         return T
 
 
+def mechanism_robot(model, **kw) -> VirtualRobot:
+    """Any mechanism with a 3x3 stiffness field as a virtual robot (the test-bed of its kind).
+
+    Parameters
+    ----------
+    model : Mechanism
+        Its ``stiffness(points)`` is the field (a picklable bound method: the image
+        workers receive it); its ``name`` the campaign's ``robot.model``, its finite
+        ``params()`` the campaign's ``robot.params``.
+    **kw
+        :class:`VirtualRobot` fields (repeatability_mm, jitter_mm, ...).
+    """
+    finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
+    return VirtualRobot(field=model.stiffness, model=model.name, params=finite, **kw)
+
+
 def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     """The Delta-type robot of :mod:`stiffmap.models.delta` as a virtual robot.
 
@@ -311,9 +327,7 @@ def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     **kw
         :class:`VirtualRobot` fields (repeatability_mm, jitter_mm, ...).
     """
-    model = DeltaRobot().with_params(**(params or {}))
-    finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
-    return VirtualRobot(field=model.stiffness, model="delta", params=finite, **kw)
+    return mechanism_robot(DeltaRobot().with_params(**(params or {})), **kw)
 
 
 @dataclass(frozen=True)
@@ -364,7 +378,7 @@ def serial_robot(model, **kw) -> VirtualRobot:
     }
     return VirtualRobot(
         field=SerialField(model),
-        model="urdf",
+        model=model.name,
         params={k: float(v) for k, v in model.params().items()},
         spec=spec,
         files={URDF_NAME: model.chain.source},
@@ -407,19 +421,21 @@ class PlatformField:
 LEGS_NAME = "robot.toml"
 
 
-def platform_robot(model, **kw) -> VirtualRobot:
+def platform_robot(model, kind: str, file_key: str, **kw) -> VirtualRobot:
     """A parallel robot whose platform turns as a virtual robot (a ``dim = 6`` legs TOML:
     :class:`~stiffmap.models.legs6.LegRobot6`).
 
     Its field is K6 at the tool point with the platform level (:class:`PlatformField`): under
     a load the platform turns as well as moves, and a load off the tool point
-    (``load_point_mm``) turns it more. The campaign it writes is ``robot.model = "legs"``
-    with its TOML copied into the folder (:data:`LEGS_NAME`).
+    (``load_point_mm``) turns it more. The campaign it writes is ``robot.model = kind`` with
+    its TOML copied into the folder (:data:`LEGS_NAME`) and named by ``robot.<file_key>``.
 
     Parameters
     ----------
     model : LegRobot6
         Read from its TOML (``model.source``), with its parameters.
+    kind, file_key : str
+        The robot kind (the registry's) and its campaign.toml key of the TOML.
     **kw
         :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
     """
@@ -431,9 +447,9 @@ def platform_robot(model, **kw) -> VirtualRobot:
         )
     return VirtualRobot(
         field=PlatformField(model),
-        model="legs",
+        model=kind,
         params={k: float(v) for k, v in model.params().items()},
-        spec={"legs": LEGS_NAME},
+        spec={file_key: LEGS_NAME},
         files={LEGS_NAME: str(model.source)},
         **kw,
     )
