@@ -20,11 +20,13 @@ from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
 from ..kinds import CONFIGS_OPTION, grid_from_text, kind_names, robot_from_command, robot_kind
 from ..kinds.options import command_names
-from ..loads import MAX_FORCE_N
+from ..loads import MAX_FORCE_N, MAX_MOMENT_NMM
+from ..models.base import POSE_DIM
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
+from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
 from ..textfmt import fmt, fmt_pm
-from .common import EXIT_PARTIAL, fail, from_option, options_named, out, print_json, warn
+from .common import EXIT_PARTIAL, fail, from_option, options_named, out, print_json, three_numbers, warn
 
 _KINDS_HELP = (
     "The robot kind: "
@@ -81,6 +83,19 @@ def model(
     tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
     tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
     configs: Path = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP),
+    orientation: str = typer.Option(
+        None,
+        "--orientation",
+        help="A platform that turns (a legs TOML with dim = 6): the platform's orientation at the "
+        "--grid positions, ROLL,PITCH,YAW in degrees (default 0,0,0; R = Rz(yaw) Ry(pitch) Rx(roll)); "
+        "each angle a value or START:STOP:N, e.g. -10:10:5,-10:10:5,0 maps 25 tilts of the tool.",
+    ),
+    moment: str = typer.Option(
+        None,
+        "--moment-nmm",
+        help="A platform that turns: a moment MX,MY,MZ (N*mm) at the tool point with the force; the "
+        "static error is then the wrench's, the platform's translation u (mm) and rotation (rad).",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
     as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
     output: Path = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead."),
@@ -94,6 +109,11 @@ def model(
     urdf (a serial robot): 'stiffmap model urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv
     --param k1=K1,...,kn=Kn' prints, per configuration, the measured point's position (mm,
     base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
+
+    legs with a dim = 6 TOML (a hexapod, a 3-RPS: robots/hexapod.toml): points are poses,
+    --points with x, y, z and roll_deg, pitch_deg, yaw_deg, or --grid positions at
+    --orientation; K is what a pure force sees (the platform free to turn), K_rot a pure
+    moment's (N*mm/rad); --json adds K6 (6x6 at the tool point, base frame) and K_rot.
     """
     kind = robot_kind_option(mechanism)
     if kind.configurations:
@@ -118,8 +138,13 @@ def model(
     if kind.configurations:
         _model_configurations(m, configs, as_json, output)
         return
+    six = m.dim == POSE_DIM
+    _turning_only(six, kind.name, orientation, moment, points)
     if points is not None:
         P = read_points(points, m.dim)
+    elif grid is not None and six:
+        at = from_option("--orientation", orientations_from_text, orientation or "0,0,0")
+        P = poses_from(from_option("--grid", grid_from_text, grid, kind.name, 3), at)
     elif grid is not None:
         P = from_option("--grid", grid_from_text, grid, kind.name, m.dim)
     elif kind.default_positions() is None:
@@ -128,12 +153,15 @@ def model(
         )
     else:
         P = kind.default_positions()
-    F = _force(kind, m.dim, load_n, direction)
+    F = _force(kind, 3 if six else m.dim, load_n, direction)
+    M = None if moment is None else _moment(moment)
     mp = m.evaluate(P)
     if as_json or as_csv:
-        _write_map(mp, F, as_json, output)
+        _write_map(mp, F, M, as_json, output)
     elif output is not None:
         raise InputError("--output needs --json or --csv")
+    elif six:
+        _print_map6(m, mp, F, M)
     else:
         _print_map(m, mp, F)
     nbad = len(mp) - mp.n_valid
@@ -214,13 +242,40 @@ def _force(kind, dim: int, load_n: float | None, direction: str | None) -> np.nd
     )
 
 
-def _write_map(mp, F: np.ndarray, as_json: bool, output: Path | None) -> None:
+def _turning_only(six: bool, kind: str, orientation, moment, points) -> None:
+    """Refuse ``--orientation`` and ``--moment-nmm`` for a platform that only translates, and
+    ``--orientation`` with ``--points`` (the file's poses give their orientations)."""
+    if not six:
+        for opt, v in (("--orientation", orientation), ("--moment-nmm", moment)):
+            if v is not None:
+                raise InputError(
+                    f"{opt} is for a platform that turns (a legs TOML with dim = 6); this {kind} "
+                    "robot's platform only translates"
+                )
+    elif orientation is not None and points is not None:
+        raise InputError(
+            "--orientation goes with --grid; the poses of --points give their own (columns roll_deg, "
+            "pitch_deg, yaw_deg)"
+        )
+
+
+def _moment(text: str) -> np.ndarray:
+    """``--moment-nmm MX,MY,MZ`` (N*mm)."""
+    M = three_numbers(text)
+    if M is None or not all(np.isfinite(M)):
+        raise InputError(f"--moment-nmm: expected MX,MY,MZ in N*mm (three numbers), got {text!r}")
+    if max(abs(v) for v in M) > MAX_MOMENT_NMM:
+        raise InputError(f"--moment-nmm {text}: beyond +-{MAX_MOMENT_NMM:g} N*mm, not a plausible load")
+    return np.array(M, dtype=float)
+
+
+def _write_map(mp, F: np.ndarray, M, as_json: bool, output: Path | None) -> None:
     """The map as JSON or CSV, on stdout or into ``output``."""
-    text = dumps_json(map_records(mp, F)) + "\n" if as_json else map_csv(mp, F)
+    text = dumps_json(map_records(mp, F, M)) + "\n" if as_json else map_csv(mp, F, M)
     if output is not None:
         atomic_write_text(output, text)
     elif as_json:
-        print_json(map_records(mp, F))
+        print_json(map_records(mp, F, M))
     else:
         sys.stdout.write(text)
         sys.stdout.flush()
@@ -264,6 +319,44 @@ def _print_map(m, mp, F) -> None:
             f"{mp.n_valid} point(s): |u| {fmt(np.min(np.linalg.norm(uu[v], axis=1)), 4)} to "
             f"{fmt(np.max(np.linalg.norm(uu[v], axis=1)), 4)} mm; det K {fmt(np.min(mp.det[v]), 4)} to "
             f"{fmt(np.max(mp.det[v]), 4)}"
+        )
+
+
+def _print_map6(m, mp, F, M) -> None:
+    """The map of a platform that turns: pose, the wrench's static error, K's and K_rot's softest."""
+    out.print(m.describe())
+    w = np.concatenate([F, np.zeros(3) if M is None else M])
+    out.print(
+        f"wrench at the tool point F = ({', '.join(fmt(v, 5) for v in w[:3])}) N, M = "
+        f"({', '.join(fmt(v, 5) for v in w[3:])}) N*mm; static error: translation u (mm) and rotation "
+        "(mrad) = K6^-1 w; k_min: smallest principal stiffness of K (a pure force's, N/mm), "
+        "kr_min: of K_rot (a pure moment's, N*mm/rad)"
+    )
+    t = Table()
+    for c in ("#", "x (mm)", "y (mm)", "z (mm)", "roll", "pitch", "yaw (deg)", "ux", "uy", "uz (mm)"):
+        t.add_column(c, justify="right")
+    for c in ("rx", "ry", "rz (mrad)", "k_min", "kr_min"):
+        t.add_column(c, justify="right")
+    t.add_column("status")
+    d = mp.static_error6(w)
+    for i in range(len(mp)):
+        p = mp.points[i]
+        pose = [fmt(v, 6) for v in p[:3]] + [fmt(float(np.degrees(v)), 5) for v in p[3:]]
+        if mp.valid[i]:
+            u = [f"{v + 0.0:.4f}" if abs(v) >= 5e-5 else "0.0000" for v in d[i, :3]]
+            r = [f"{1e3 * v + 0.0:.4f}" if abs(v) >= 5e-8 else "0.0000" for v in d[i, 3:]]
+            k = [fmt(mp.min_principal[i], 4), fmt(mp.min_principal_rot[i], 4)]
+            t.add_row(str(i + 1), *pose, *u, *r, *k, "ok")
+        else:
+            t.add_row(str(i + 1), *pose, *([""] * 8), mp.reasons[i])
+    out.print(t)
+    if mp.n_valid:
+        v = mp.valid
+        un = np.linalg.norm(d[v, :3], axis=1)
+        k, kr = mp.min_principal[v], mp.min_principal_rot[v]
+        out.print(
+            f"{mp.n_valid} pose(s): |u| {fmt(un.min(), 4)} to {fmt(un.max(), 4)} mm; k_min {fmt(k.min(), 4)} "
+            f"to {fmt(k.max(), 4)} N/mm; kr_min {fmt(kr.min(), 4)} to {fmt(kr.max(), 4)} N*mm/rad"
         )
 
 
@@ -342,7 +435,7 @@ def fit(
 
 def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
     """The estimates, the fit's quality and the residual RMS per pose; its notes as warnings."""
-    unit = "mm" if f.kind == "static_error" else "N/mm"
+    unit = {"static_error": "mm", "stiffness6": "N/mm, N, N*mm/rad: K6's entries"}.get(f.kind, "N/mm")
     what = "static-error readings" if f.kind == "static_error" else "stiffness entries"
     out.print(f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}")
     t = Table("parameter", "initial", "estimate ± standard error", "relative")
@@ -359,11 +452,15 @@ def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
                 s.add_row(f"corr({f.names[a]}, {f.names[b]})", fmt(f.correlation[a, b], 3))
     out.print(s)
     r = Table(title=f"residual RMS per pose ({unit})")
-    for a in "xyz"[:dim]:
+    for a in "xyz"[: min(dim, 3)]:
         r.add_column(f"{a} (mm)", justify="right")
+    if dim == POSE_DIM:  # a platform that turns: the poses' orientations
+        for a in ("roll", "pitch", "yaw"):
+            r.add_column(f"{a} (deg)", justify="right")
     r.add_column("RMS", justify="right")
     for p, v in zip(f.poses, f.residual_rms_per_pose, strict=True):
-        r.add_row(*(fmt(x, 6) for x in p), fmt(v, 3))
+        cells = [*p[:3], *np.degrees(p[3:])]
+        r.add_row(*(fmt(float(x), 6) for x in cells), fmt(v, 3))
     out.print(r)
     for note in f.notes:
         warn(note)
