@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import json
 from importlib.resources import files
 
 import numpy as np
 import pytest
+from helpers.cli_process import run_in_process as _cli
 
+from stiffmap.campaign.platform import hung_force_stiffness, is_platform, level_poses
+from stiffmap.campaign.robot import campaign_model
+from stiffmap.campaign.spec import load_spec
+from stiffmap.campaign.store import DB_NAME, Store
+from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K
 from stiffmap.models.legs import LegRobot
 from stiffmap.sim.robot import LEGS_NAME, PlatformField, platform_robot
 from stiffmap.sim.scene import hexapod_scene
@@ -49,3 +56,43 @@ def test_hexapod_scene_sees_both_boards_over_the_platforms_workspace():
     hexapod_scene().check_visible(P, slack_mm=2.0)
     with pytest.raises(ValueError, match="leaves the image"):
         hexapod_scene().check_visible([[0.0, 0.0, 900.0]])
+
+
+@pytest.mark.slow  # 4-6 s: the test-bed's truth of two positions
+def test_simulate_robot_hexapod_writes_a_legs_campaign_with_its_true_K(monkeypatch, capsys, tmp_path):
+    # The truth K of each position is that of forces hung 100 mm below the tool point, from the
+    # test-bed legs' K6 (campaign.platform.hung_force_stiffness); the campaign's model is the legs
+    # robot it copied, built by the registry as stiffmap run builds it.
+    out = tmp_path / "hex"
+    code, _, err = _cli(
+        ["simulate", out, "--robot", "hexapod", "--truth-only", "--select", "1,14"], monkeypatch, capsys
+    )
+    assert code == 0, err
+    spec = load_spec(out / "campaign.toml")
+    model = campaign_model(spec, out)
+    assert is_platform(model) and spec.robot.model == "legs"
+    assert model.params() == {f"k_leg{i}": k for i, k in enumerate(HEXAPOD_TESTBED_K, start=1)}
+    truth = json.loads((out / "truth.json").read_text())
+    P = np.array([p["position"] for p in truth["positions"]])
+    np.testing.assert_array_equal(P, [[-40.0, -40.0, 280.0], [0.0, 0.0, 320.0]])
+    K6 = model.stiffness6(level_poses(P))
+    for p, k6 in zip(truth["positions"], K6, strict=True):
+        np.testing.assert_allclose(p["K_tcp"], k6, rtol=1e-12)
+        np.testing.assert_allclose(p["K"], hung_force_stiffness(k6, [0.0, 0.0, -100.0]), rtol=1e-10)
+
+
+@pytest.mark.long
+def test_hexapod_campaign_recovers_its_legs(monkeypatch, capsys, tmp_path):
+    # simulate then run, four positions, one repeat: the six legs within 1 % and 4 standard errors.
+    out = tmp_path / "hex"
+    args = ["simulate", out, "--robot", "hexapod", "--select", "1,9,10,18", "--repeats", "1"]
+    code, _, err = _cli([*args, "--workers", "2"], monkeypatch, capsys)
+    assert code == 0, err
+    code, _, err = _cli(["run", out, "--workers", "2"], monkeypatch, capsys)
+    assert code in (0, 1), err
+    with Store(out / DB_NAME) as st:
+        fit = st.model_fit("stiffness")
+    assert fit is not None and fit.status == "ok", fit
+    for i, k in enumerate(HEXAPOD_TESTBED_K, start=1):
+        est, std = fit.params[f"k_leg{i}"], fit.std[f"k_leg{i}"]
+        assert abs(est - k) < 0.01 * k and abs(est - k) < 4 * std, (i, est, std)

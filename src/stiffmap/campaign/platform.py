@@ -15,12 +15,14 @@ follow from the robot's 6 x 6 stiffness K6 at the tool point:
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from ..models.base import POSE_DIM, Mechanism
+from ..models.base import POSE_DIM, Mechanism, ModelMap
 from ..models.fit import ModelFit, fit_deflections6
 
-__all__ = ["is_platform", "level_poses", "hung_force_stiffness", "fit_platform"]
+__all__ = ["is_platform", "level_poses", "hung_force_stiffness", "platform_map", "fit_platform"]
 
 
 def is_platform(model: Mechanism) -> bool:
@@ -55,6 +57,36 @@ def hung_force_stiffness(K6, lever_mm) -> np.ndarray:
     """
     C = np.linalg.inv(np.asarray(K6, dtype=np.float64))
     return np.linalg.inv(C[..., :3, :3] + C[..., :3, 3:] @ _skew(np.asarray(lever_mm, dtype=np.float64)))
+
+
+def platform_map(model: Mechanism, positions, lever_mm) -> ModelMap:
+    """The model's map at the positions with the platform level, K the K of the loads hung at
+    ``lever_mm`` (:func:`hung_force_stiffness`: what the campaign identifies) and ``det``,
+    ``eigenvalues``, ``min_principal`` and ``condition`` those of that K; ``K6`` as the model's.
+
+    Parameters
+    ----------
+    model : Mechanism
+        With ``dim = 6``.
+    positions : array_like, shape (n, 3), mm
+    lever_mm : array_like, shape (3,)
+    """
+    mm = model.evaluate(level_poses(positions))
+    v = mm.valid
+    K = np.full_like(mm.K, np.nan)
+    if np.any(v):
+        K[v] = hung_force_stiffness(mm.K6[v], lever_mm)
+    safe = np.where(v[:, None, None], K, np.eye(3))
+    lam = np.linalg.eigvalsh(0.5 * (safe + np.swapaxes(safe, 1, 2)))
+    nan = np.where(v, 1.0, np.nan)
+    return replace(
+        mm,
+        K=K,
+        det=np.linalg.det(safe) * nan,
+        eigenvalues=lam * nan[:, None],
+        min_principal=lam[:, 0] * nan,
+        condition=lam[:, -1] / lam[:, 0] * nan,
+    )
 
 
 def fit_platform(

@@ -149,7 +149,8 @@ def testbed(name: str) -> tuple[RobotKind, TestBed]:
 def _positions(request: SimulationRequest, kind: RobotKind, tb: TestBed) -> np.ndarray:
     """The positions of the request (FieldError ``positions`` or ``select``)."""
     try:
-        P = positions_from_text(request.positions or tb.positions, kind.name)
+        # A kind whose description gives its dimension (legs): its platform's positions, 3-D.
+        P = positions_from_text(request.positions or tb.positions, kind.name, kind.dim or 3)
     except InputError:
         raise
     except ValueError as e:
