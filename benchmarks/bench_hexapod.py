@@ -19,9 +19,10 @@ standard errors the fit reports, the scatter over seeds, and the fitted model's 
 truth. Before that, the model's K6 at the 16 poses against Gosselin's closed form
 sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i), written here (an independent computation).
 
-The test-bed campaign through images (``stiffmap simulate --robot hexapod`` then ``stiffmap
-run``) is not in this version: the campaign runner identifies 3 x 3 stiffnesses from forces;
-this benchmark stands for its identification step with the rig's measured noise.
+This is the identification step alone, with the rig's measured noise and loads hung at three
+points (K6 itself identified); the test-bed campaign through rendered images (``stiffmap
+simulate --robot hexapod`` then ``stiffmap run``, loads hung at one point, the legs fitted to
+the displacements) is bench_hexapod_campaign.py.
 
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_hexapod.py [--seeds 10]
 Saves benchmarks/results/hexapod.md.
