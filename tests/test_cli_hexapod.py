@@ -125,3 +125,12 @@ def test_two_number_attach_mm_in_a_6d_file_names_file_and_key(monkeypatch, capsy
     code, _, err = _cli(["model", "legs", bad, "--grid", "0,0,300"], monkeypatch, capsys)
     assert code == 2 and err.count("\n") == 1
     assert f"{bad}: legs[1].attach_mm: expected 3 numbers (dim = 6" in err
+
+
+def test_the_shipped_hexapod_by_name(monkeypatch, capsys):
+    code, out, err = _cli(["model", "legs", "hexapod", "--grid", "0,0,300", "--json"], monkeypatch, capsys)
+    assert code == 0, err
+    (rec,) = json.loads(out)
+    np.testing.assert_allclose(
+        rec["K6"], LegRobot.from_toml(HEXAPOD).stiffness6([0, 0, 300, 0, 0, 0]), rtol=1e-12
+    )
