@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import math
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.fuzz import mutated_text
+from hypothesis import given
+from hypothesis import strategies as st
 
 from stiffmap.errors import InputError
 from stiffmap.models import DeltaRobot
-from stiffmap.models.io import fit_measurements_file, map_csv, map_records, read_measurements
+from stiffmap.models.io import fit_measurements_file, map_csv, map_records, read_measurements, read_points
 from stiffmap.models.legs import LegRobot
 from stiffmap.models.legs6 import gough_stewart_points, ups_legs
 from stiffmap.models.legs_file import legs_text
@@ -187,3 +192,44 @@ def test_6dof_deflections_under_wrenches_fit_back_to_the_legs(hexapod, poses):
     f = fit_deflections6(start, rows, W, noisy, params=names, std=std, absolute_sigma=True)
     assert np.all(np.abs(f.estimate - K_LEGS) < 4 * f.std), (f.estimate, f.std)
     assert np.all(f.std < 0.01 * K_LEGS)
+
+
+_POSES_SEED = "x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,300,0,0,0\n10,-5,310,3,-2,8\n"
+_K6_SEED = (
+    "x,y,z,roll_deg,pitch_deg,yaw_deg,"
+    + ",".join(f"k{i}{j}" for i in range(1, 7) for j in range(1, 7))
+    + "\n0,0,300,0,0,5,"
+    + ",".join("400" if i == j else "1" for i in range(6) for j in range(6))
+    + "\n"
+)
+
+
+@pytest.mark.fuzz
+@given(data=st.data())
+def test_mutated_pose_and_K6_files_are_read_or_refused_by_name(data):
+    # A malformed poses or K6 file is read as finite poses (rad within +-pi) and matrices, or
+    # refused with an InputError naming the file; never another exception.
+    kind = data.draw(st.sampled_from(["poses", "k6"]))
+    raw = data.draw(mutated_text(_POSES_SEED if kind == "poses" else _K6_SEED))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "f.csv"
+        path.write_bytes(raw)
+        try:
+            got = read_points(path, 6) if kind == "poses" else read_measurements(path, 6)
+        except InputError as e:
+            assert str(path) in str(e)
+            return
+    P = got if kind == "poses" else got.points
+    assert P.shape[1] == 6 and np.all(np.isfinite(P)) and np.all(np.abs(P[:, 3:]) <= math.pi)
+    if kind == "k6":
+        assert got.K.shape[1:] in ((6, 6), (3, 3)) and np.all(np.isfinite(got.K))
+
+
+@pytest.mark.fuzz
+@given(text=st.text(alphabet="0123456789:,.-+e x", max_size=30))
+def test_orientation_texts_give_angles_or_a_value_error(text):
+    try:
+        A = orientations_from_text(text)
+    except ValueError:
+        return
+    assert A.ndim == 2 and A.shape[1] == 3 and np.all(np.abs(A) <= math.pi + 1e-12)
