@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import gzip
-import json
-
 import numpy as np
 import pytest
 from helpers.board_scenes import scaled_camera
@@ -109,11 +106,11 @@ def test_the_report_shows_each_cameras_residuals(rig_campaign):
     # corners projected from the measured poses fall on the true corners the test-bed rendered.
     bi = data.board_image
     assert bi.scale == 3.0  # 1944 px wide, shown a third
-    raw = json.loads(gzip.decompress((out / "truth_corners.json.gz").read_bytes()))
-    true = next(im for im in raw["images"] if im["file"].replace("{camera}", "cam1") == bi.name)
+    corners = load_truth(out).corners()
+    true = next(c for f, c in corners.items() if f.replace("{camera}", "cam1") == bi.name)
     for board in ("mobile", "fixed"):
         px = bi.corners_px[[b.startswith(board) for b in bi.corner_board]]
-        t = np.asarray(true["cameras"]["cam1"][board]["corners_px"])
+        t = true["cameras"]["cam1"][board]["corners_px"]
         d = np.linalg.norm(t[:, None] - px[None], axis=2).min(axis=1)
         assert len(px) == len(t) and d.max() < 0.5, (board, d.max())  # px
     # The set-up summary counts what the store holds: 1 position x (6 loaded + 1 unloaded) sets.

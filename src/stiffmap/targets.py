@@ -99,6 +99,17 @@ class Chessboard:
         Inner corners along x and along y (``COLSxROWS``).
     square_mm : float
         Side of a square, mm.
+
+    Examples
+    --------
+    A board of 9x6 inner corners and 25 mm squares: 54 corners, row-major from the origin;
+    9 + 6 is odd, so the square colours fix the origin in every image.
+
+    >>> b = Chessboard.parse("9x6", 25.0)
+    >>> b.n_corners, b.orientation_from_colours
+    (54, True)
+    >>> b.object_points()[[0, 1, 9, 53]].tolist()  # corners (0, 0), (1, 0), (0, 1), (8, 5), mm
+    [[0.0, 0.0, 0.0], [25.0, 0.0, 0.0], [0.0, 25.0, 0.0], [200.0, 125.0, 0.0]]
     """
 
     cols: int

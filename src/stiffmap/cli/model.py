@@ -47,58 +47,76 @@ def _robot(cmd: str, mechanism: str, robot, param, tip, tip_offset, configs):
     return robot_from_command(mechanism, robot, param or [], options, configs=configs, command=cmd)
 
 
+# The options of `model` (declared here so that the command's signature reads at once).
+_OPT_MECHANISM = typer.Argument(..., metavar="KIND", help=_KINDS_HELP)
+_OPT_ROBOT = typer.Argument(
+    None,
+    metavar="[ROBOT]",
+    help="urdf: the robot's URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML "
+    "file describing a parallel robot's legs (docs/models.md). Required for those two only.",
+)
+_OPT_GRID = typer.Option(
+    None,
+    "--grid",
+    help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
+    "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
+)
+_OPT_POINTS = typer.Option(
+    None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
+)
+_OPT_LOAD_N = typer.Option(
+    None, "--load-n", help="Force magnitude, N (default 490.5 for 3prr: 50 kgf; 4.905 for delta: 0.5 kg)."
+)
+_OPT_DIRECTION = typer.Option(
+    None,
+    "--direction",
+    help="Force direction: x, y, z, -x, ... or comma-separated components (default y for 3prr, "
+    "-z for delta).",
+)
+_OPT_PARAM = typer.Option(
+    None,
+    "--param",
+    help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names). urdf: "
+    "k1=K1,...,kn=Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
+    "or k_theta=K for every joint.",
+)
+_OPT_TIP = typer.Option(None, "--tip", help=_TIP_HELP)
+_OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP)
+_OPT_CONFIGS = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP)
+_OPT_ORIENTATION = typer.Option(
+    None,
+    "--orientation",
+    help="A platform that turns (a legs TOML with dim = 6): the platform's orientation at the "
+    "--grid positions, ROLL,PITCH,YAW in degrees (default 0,0,0; R = Rz(yaw) Ry(pitch) Rx(roll)); "
+    "each angle a value or START:STOP:N, e.g. -10:10:5,-10:10:5,0 maps 25 tilts of the tool.",
+)
+_OPT_MOMENT = typer.Option(
+    None,
+    "--moment-nmm",
+    help="A platform that turns: a moment MX,MY,MZ (N*mm) at the tool point with the force; the "
+    "static error is then the wrench's, the platform's translation u (mm) and rotation (rad).",
+)
+_OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON list, one object per point.")
+_OPT_AS_CSV = typer.Option(False, "--csv", help="Print CSV, one row per point.")
+_OPT_OUTPUT = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead.")
+
+
 def model(
-    mechanism: str = typer.Argument(..., metavar="KIND", help=_KINDS_HELP),
-    robot: Path = typer.Argument(
-        None,
-        metavar="[ROBOT]",
-        help="urdf: the robot's URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML "
-        "file describing a parallel robot's legs (docs/models.md). Required for those two only.",
-    ),
-    grid: str = typer.Option(
-        None,
-        "--grid",
-        help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
-        "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
-    ),
-    points: Path = typer.Option(
-        None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
-    ),
-    load_n: float = typer.Option(
-        None, "--load-n", help="Force magnitude, N (default 490.5 for 3prr: 50 kgf; 4.905 for delta: 0.5 kg)."
-    ),
-    direction: str = typer.Option(
-        None,
-        "--direction",
-        help="Force direction: x, y, z, -x, ... or comma-separated components (default y for 3prr, "
-        "-z for delta).",
-    ),
-    param: list[str] = typer.Option(
-        None,
-        "--param",
-        help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names). urdf: "
-        "k1=K1,...,kn=Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
-        "or k_theta=K for every joint.",
-    ),
-    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
-    configs: Path = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP),
-    orientation: str = typer.Option(
-        None,
-        "--orientation",
-        help="A platform that turns (a legs TOML with dim = 6): the platform's orientation at the "
-        "--grid positions, ROLL,PITCH,YAW in degrees (default 0,0,0; R = Rz(yaw) Ry(pitch) Rx(roll)); "
-        "each angle a value or START:STOP:N, e.g. -10:10:5,-10:10:5,0 maps 25 tilts of the tool.",
-    ),
-    moment: str = typer.Option(
-        None,
-        "--moment-nmm",
-        help="A platform that turns: a moment MX,MY,MZ (N*mm) at the tool point with the force; the "
-        "static error is then the wrench's, the platform's translation u (mm) and rotation (rad).",
-    ),
-    as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
-    as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
-    output: Path = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead."),
+    mechanism: str = _OPT_MECHANISM,
+    robot: Path = _OPT_ROBOT,
+    grid: str = _OPT_GRID,
+    points: Path = _OPT_POINTS,
+    load_n: float = _OPT_LOAD_N,
+    direction: str = _OPT_DIRECTION,
+    param: list[str] = _OPT_PARAM,
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    configs: Path = _OPT_CONFIGS,
+    orientation: str = _OPT_ORIENTATION,
+    moment: str = _OPT_MOMENT,
+    as_json: bool = _OPT_AS_JSON,
+    as_csv: bool = _OPT_AS_CSV,
+    output: Path = _OPT_OUTPUT,
 ) -> None:
     """A model's stiffness K (N/mm) and static error u = K^-1 F (mm) at each position.
 
@@ -116,43 +134,14 @@ def model(
     moment's (N*mm/rad); --json adds K6 (6x6 at the tool point, base frame) and K_rot.
     """
     kind = robot_kind_option(mechanism)
-    if kind.configurations:
-        for opt, v in (
-            ("--grid", grid),
-            ("--points", points),
-            ("--load-n", load_n),
-            ("--direction", direction),
-        ):
-            if v is not None:
-                raise InputError(
-                    f"{opt} is for robots given by positions; {kind.name} evaluates the configurations "
-                    f"of {CONFIGS_OPTION}"
-                )
-        if as_csv:
-            raise InputError(f"--csv is for robots given by positions; {kind.name} prints --json")
-    elif as_json and as_csv:
-        raise InputError("--json and --csv are exclusive")
-    elif grid is not None and points is not None:
-        raise InputError("--grid and --points are exclusive")
+    _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json, as_csv)
     m = _robot("model", mechanism, robot, param, tip, tip_offset, configs)
     if kind.configurations:
         _model_configurations(m, configs, as_json, output)
         return
     six = m.dim == POSE_DIM
     _turning_only(six, kind.name, orientation, moment, points)
-    if points is not None:
-        P = read_points(points, m.dim)
-    elif grid is not None and six:
-        at = from_option("--orientation", orientations_from_text, orientation or "0,0,0")
-        P = poses_from(from_option("--grid", grid_from_text, grid, kind.name, 3), at)
-    elif grid is not None:
-        P = from_option("--grid", grid_from_text, grid, kind.name, m.dim)
-    elif kind.default_positions() is None:
-        raise InputError(
-            f"{kind.name}: give the positions, --points FILE.csv or --grid X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]"
-        )
-    else:
-        P = kind.default_positions()
+    P = _positions(kind, m.dim, grid, points, orientation)
     F = _force(kind, 3 if six else m.dim, load_n, direction)
     M = None if moment is None else _moment(moment)
     mp = m.evaluate(P)
@@ -173,6 +162,45 @@ def model(
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json: bool, as_csv: bool) -> None:
+    """Options that do not go together, or not with this kind (positions vs configurations)."""
+    if kind.configurations:
+        for opt, v in (
+            ("--grid", grid),
+            ("--points", points),
+            ("--load-n", load_n),
+            ("--direction", direction),
+        ):
+            if v is not None:
+                raise InputError(
+                    f"{opt} is for robots given by positions; {kind.name} evaluates the configurations "
+                    f"of {CONFIGS_OPTION}"
+                )
+        if as_csv:
+            raise InputError(f"--csv is for robots given by positions; {kind.name} prints --json")
+    elif as_json and as_csv:
+        raise InputError("--json and --csv are exclusive")
+    elif grid is not None and points is not None:
+        raise InputError("--grid and --points are exclusive")
+
+
+def _positions(kind, dim: int, grid: str | None, points: Path | None, orientation=None) -> np.ndarray:
+    """The positions of --points, --grid or the kind's default ones, shape (m, dim), mm; for a
+    platform that turns (dim = 6) poses, --grid's positions at each --orientation."""
+    if points is not None:
+        return read_points(points, dim)
+    if grid is not None and dim == POSE_DIM:
+        at = from_option("--orientation", orientations_from_text, orientation or "0,0,0")
+        return poses_from(from_option("--grid", grid_from_text, grid, kind.name, 3), at)
+    if grid is not None:
+        return from_option("--grid", grid_from_text, grid, kind.name, dim)
+    if kind.default_positions() is None:
+        raise InputError(
+            f"{kind.name}: give the positions, --points FILE.csv or --grid X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]"
+        )
+    return kind.default_positions()
 
 
 def robot_kind_option(name: str):

@@ -131,127 +131,155 @@ def _load_point(text: str | None):
     return lp
 
 
+# The options of `simulate` (declared here so that the command's signature reads at once).
+_OPT_OUT_DIR = typer.Argument(..., help="Directory to create (must be new or empty).", show_default=False)
+_OPT_ROBOT = typer.Option(
+    DEFAULT_TESTBED,
+    "--robot",
+    help="Test-bed robot giving the true stiffness field: "
+    + ", ".join(testbed_robots())
+    + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
+    "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
+    "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'.",
+)
+_OPT_POSITIONS = typer.Option(
+    None,
+    "--positions",
+    help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
+    "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
+    "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list.",
+    show_default=False,
+)
+_OPT_SELECT = typer.Option(
+    None, "--select", help="Keep only these positions, 1-based, e.g. 1,22,48.", show_default=False
+)
+_OPT_LOADS = typer.Option(
+    "paper9",
+    "--loads",
+    help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N).",
+)
+_OPT_REPEATS = typer.Option(
+    3,
+    "--repeats",
+    min=1,
+    help="Unloaded/loaded image pairs per load case (3PRR: recordings per point/axis).",
+)
+_OPT_DIRECTIONS = typer.Option(
+    "x,y", "--directions", help="3PRR: load and measurement axes at each point (x, y or x,y)."
+)
+_OPT_TRACE_FORMAT = typer.Option("csv", "--trace-format", help="3PRR: recording format (csv, tdms, mat).")
+_OPT_SEED = typer.Option(0, "--seed", min=0, help="Seed of every random draw (same seed, same files).")
+_OPT_WORKERS = typer.Option(
+    0, "--workers", min=0, help="Processes rendering images (0: one per available CPU)."
+)
+_OPT_FORCE = typer.Option(
+    False, "--force", help="Overwrite a previous simulation in OUT_DIR (never a real campaign)."
+)
+_OPT_IMAGE_FORMAT = typer.Option(ImageFormat.png, "--format", help="Image format.")
+_OPT_JPEG_QUALITY = typer.Option(95, "--jpeg-quality", min=1, max=100, help="JPEG quality.")
+_OPT_COLOUR = typer.Option(False, "--colour", help="A Bayer colour camera (demosaiced BGR images).")
+_OPT_CLUTTER = typer.Option(False, "--clutter", help="A cluttered background instead of a plain one.")
+_OPT_NOISE = typer.Option(True, "--noise/--no-noise", help="Sensor noise and vignetting.")
+_OPT_BLUR_PX = typer.Option(0.8, "--blur-px", min=0.0, help="Optics blur (Gaussian sigma), px.")
+_OPT_REPEATABILITY_MM = typer.Option(
+    0.02, "--repeatability-mm", min=0.0, help="Robot position repeatability, 1 sigma per axis, mm."
+)
+_OPT_JITTER_MM = typer.Option(
+    0.001, "--jitter-mm", min=0.0, help="Per-image position jitter (settling), 1 sigma per axis, mm."
+)
+_OPT_ROT_STIFFNESS = typer.Option(
+    None,
+    "--rot-stiffness-nmm-per-rad",
+    min=0.0,
+    help="Give the platform this rotational stiffness (N*mm/rad): a 6x6 field at the tool point.",
+    show_default=False,
+)
+_OPT_LOAD_POINT = typer.Option(
+    None,
+    "--load-point-mm",
+    help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
+    "150,100,-150 for arm6).",
+    show_default=False,
+)
+_OPT_PARAM = typer.Option(
+    [], "--param", help="Robot model parameter NAME=VALUE (repeatable), e.g. k_theta=3e5."
+)
+_OPT_CAMERA_FILE = typer.Option(
+    None, "--camera", help="camera.json to simulate instead of the reference camera.", show_default=False
+)
+_OPT_CALIBRATION_VIEWS = typer.Option(
+    DEFAULT_CALIBRATION_VIEWS,
+    "--calibration-views",
+    min=0,
+    help="Views of an 11x8 calibration board (25 mm squares) rendered first, at the poses a "
+    "careful user takes, from which camera.json is calibrated as `stiffmap calibrate` does "
+    "(0: the true camera; else at least 3).",
+)
+_OPT_TRUE_CAMERA = typer.Option(
+    False,
+    "--true-camera",
+    help="Give the campaign the true camera in camera.json (no calibration views; = --calibration-views 0).",
+)
+_OPT_TRUTH_ONLY = typer.Option(
+    False,
+    "--truth-only",
+    help="Write the spec, camera and truth but no images (fast; for tests). Nothing to "
+    "calibrate from: camera.json is the true camera.",
+)
+_OPT_CAMERAS = typer.Option(
+    1,
+    "--cameras",
+    min=1,
+    max=8,
+    help="Cameras looking at the robot: 2 or more make a rig (rig.json), about --camera-angle-deg "
+    "apart about the vertical, each image a set of one image per camera.",
+)
+_OPT_CAMERA_ANGLE_DEG = typer.Option(
+    60.0,
+    "--camera-angle-deg",
+    min=1.0,
+    max=120.0,
+    help="Angle between the first and last camera, degrees.",
+)
+_OPT_NAME = typer.Option(
+    None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
+)
+_OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON summary instead of a table.")
+
+
 def simulate(
     ctx: typer.Context,
-    out_dir: Path = typer.Argument(
-        ..., help="Directory to create (must be new or empty).", show_default=False
-    ),
-    robot: str = typer.Option(
-        DEFAULT_TESTBED,
-        "--robot",
-        help="Test-bed robot giving the true stiffness field: "
-        + ", ".join(testbed_robots())
-        + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
-        "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
-        "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'.",
-    ),
-    positions: str = typer.Option(
-        None,
-        "--positions",
-        help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
-        "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
-        "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list.",
-        show_default=False,
-    ),
-    select: str = typer.Option(
-        None, "--select", help="Keep only these positions, 1-based, e.g. 1,22,48.", show_default=False
-    ),
-    loads: str = typer.Option(
-        "paper9",
-        "--loads",
-        help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N).",
-    ),
-    repeats: int = typer.Option(
-        3,
-        "--repeats",
-        min=1,
-        help="Unloaded/loaded image pairs per load case (3PRR: recordings per point/axis).",
-    ),
-    directions: str = typer.Option(
-        "x,y", "--directions", help="3PRR: load and measurement axes at each point (x, y or x,y)."
-    ),
-    trace_format: str = typer.Option(
-        "csv", "--trace-format", help="3PRR: recording format (csv, tdms, mat)."
-    ),
-    seed: int = typer.Option(0, "--seed", min=0, help="Seed of every random draw (same seed, same files)."),
-    workers: int = typer.Option(
-        0, "--workers", min=0, help="Processes rendering images (0: one per available CPU)."
-    ),
+    out_dir: Path = _OPT_OUT_DIR,
+    robot: str = _OPT_ROBOT,
+    positions: str = _OPT_POSITIONS,
+    select: str = _OPT_SELECT,
+    loads: str = _OPT_LOADS,
+    repeats: int = _OPT_REPEATS,
+    directions: str = _OPT_DIRECTIONS,
+    trace_format: str = _OPT_TRACE_FORMAT,
+    seed: int = _OPT_SEED,
+    workers: int = _OPT_WORKERS,
     dask: str | None = dask_option("Render the images"),
-    force: bool = typer.Option(
-        False, "--force", help="Overwrite a previous simulation in OUT_DIR (never a real campaign)."
-    ),
-    image_format: ImageFormat = typer.Option(ImageFormat.png, "--format", help="Image format."),
-    jpeg_quality: int = typer.Option(95, "--jpeg-quality", min=1, max=100, help="JPEG quality."),
-    colour: bool = typer.Option(False, "--colour", help="A Bayer colour camera (demosaiced BGR images)."),
-    clutter: bool = typer.Option(False, "--clutter", help="A cluttered background instead of a plain one."),
-    noise: bool = typer.Option(True, "--noise/--no-noise", help="Sensor noise and vignetting."),
-    blur_px: float = typer.Option(0.8, "--blur-px", min=0.0, help="Optics blur (Gaussian sigma), px."),
-    repeatability_mm: float = typer.Option(
-        0.02, "--repeatability-mm", min=0.0, help="Robot position repeatability, 1 sigma per axis, mm."
-    ),
-    jitter_mm: float = typer.Option(
-        0.001, "--jitter-mm", min=0.0, help="Per-image position jitter (settling), 1 sigma per axis, mm."
-    ),
-    rot_stiffness: float = typer.Option(
-        None,
-        "--rot-stiffness-nmm-per-rad",
-        min=0.0,
-        help="Give the platform this rotational stiffness (N*mm/rad): a 6x6 field at the tool point.",
-        show_default=False,
-    ),
-    load_point: str = typer.Option(
-        None,
-        "--load-point-mm",
-        help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
-        "150,100,-150 for arm6).",
-        show_default=False,
-    ),
-    param: list[str] = typer.Option(
-        [], "--param", help="Robot model parameter NAME=VALUE (repeatable), e.g. k_theta=3e5."
-    ),
-    camera_file: Path = typer.Option(
-        None, "--camera", help="camera.json to simulate instead of the reference camera.", show_default=False
-    ),
-    calibration_views: int = typer.Option(
-        DEFAULT_CALIBRATION_VIEWS,
-        "--calibration-views",
-        min=0,
-        help="Views of an 11x8 calibration board (25 mm squares) rendered first, at the poses a "
-        "careful user takes, from which camera.json is calibrated as `stiffmap calibrate` does "
-        "(0: the true camera; else at least 3).",
-    ),
-    true_camera: bool = typer.Option(
-        False,
-        "--true-camera",
-        help="Give the campaign the true camera in camera.json (no calibration views; "
-        "= --calibration-views 0).",
-    ),
-    truth_only: bool = typer.Option(
-        False,
-        "--truth-only",
-        help="Write the spec, camera and truth but no images (fast; for tests). Nothing to "
-        "calibrate from: camera.json is the true camera.",
-    ),
-    cameras: int = typer.Option(
-        1,
-        "--cameras",
-        min=1,
-        max=8,
-        help="Cameras looking at the robot: 2 or more make a rig (rig.json), about --camera-angle-deg "
-        "apart about the vertical, each image a set of one image per camera.",
-    ),
-    camera_angle_deg: float = typer.Option(
-        60.0,
-        "--camera-angle-deg",
-        min=1.0,
-        max=120.0,
-        help="Angle between the first and last camera, degrees.",
-    ),
-    name: str = typer.Option(
-        None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
-    ),
-    as_json: bool = typer.Option(False, "--json", help="Print a JSON summary instead of a table."),
+    force: bool = _OPT_FORCE,
+    image_format: ImageFormat = _OPT_IMAGE_FORMAT,
+    jpeg_quality: int = _OPT_JPEG_QUALITY,
+    colour: bool = _OPT_COLOUR,
+    clutter: bool = _OPT_CLUTTER,
+    noise: bool = _OPT_NOISE,
+    blur_px: float = _OPT_BLUR_PX,
+    repeatability_mm: float = _OPT_REPEATABILITY_MM,
+    jitter_mm: float = _OPT_JITTER_MM,
+    rot_stiffness: float = _OPT_ROT_STIFFNESS,
+    load_point: str = _OPT_LOAD_POINT,
+    param: list[str] = _OPT_PARAM,
+    camera_file: Path = _OPT_CAMERA_FILE,
+    calibration_views: int = _OPT_CALIBRATION_VIEWS,
+    true_camera: bool = _OPT_TRUE_CAMERA,
+    truth_only: bool = _OPT_TRUTH_ONLY,
+    cameras: int = _OPT_CAMERAS,
+    camera_angle_deg: float = _OPT_CAMERA_ANGLE_DEG,
+    name: str = _OPT_NAME,
+    as_json: bool = _OPT_AS_JSON,
 ) -> None:
     """Simulate a vision campaign of a robot with known stiffness, seen by a known camera.
 
