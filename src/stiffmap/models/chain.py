@@ -336,6 +336,8 @@ class Chain:
         Joint limits (rad or mm; -inf / inf where the URDF gives none).
     link_names : tuple of str
         The links of the chain, from the base frame to the tip frame.
+    urdf_joint_names : tuple of str
+        Every joint of the URDF (for messages naming a joint that is not a coordinate).
     """
 
     def __init__(
@@ -353,6 +355,7 @@ class Chain:
         links: Mapping[str, tuple[int, pin.SE3]] | None = None,
         base_frame: str = "base",
         held: Sequence[str] = (),
+        all_joints: Sequence[str] = (),
     ):
         model = pin.Model()
         model.name = name
@@ -393,6 +396,7 @@ class Chain:
         self.mimics = tuple(mimics)
         self.base_frame = base_frame
         self.held_joints = tuple(held)
+        self.urdf_joint_names = tuple(all_joints)
         self._links = dict(links or {})
         self.link_names = tuple(self._links)
         self.joint_names = tuple(c.name for c in coords)
@@ -483,6 +487,7 @@ class Chain:
             links=links,
             base_frame=base,
             held=[h for h in held if tree.joints[h].type in MOVING_TYPES],
+            all_joints=tuple(tree.joints),
         )
 
     @classmethod
@@ -606,9 +611,8 @@ class Chain:
 
     def _full_jacobian(self, q) -> np.ndarray:
         qf = self.full_coordinates(q)
-        return np.array(
-            pin.computeFrameJacobian(self._model, self._data, qf, self._fid, pin.LOCAL_WORLD_ALIGNED)
-        )
+        J = pin.computeFrameJacobian(self._model, self._data, qf, self._fid, pin.LOCAL_WORLD_ALIGNED)
+        return np.array(J).reshape(6, -1)  # Pinocchio gives a vector for a one-joint chain
 
     def jacobian(self, q) -> np.ndarray:
         """The 6 x n Jacobian of the measured point, base frame.

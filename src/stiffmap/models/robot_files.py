@@ -30,16 +30,19 @@ import io as _io
 import math
 import os
 import threading
+import tomllib
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import xacro
 import xacro.substitution_args as xacro_subs
 
 from ..errors import InputError
 from ..io import read_text_file
+from .links import Beam, LinkSpring, check_beam, check_compliance_matrix
 
 __all__ = [
     "UrdfJoint",
@@ -54,6 +57,8 @@ __all__ = [
     "is_xacro",
     "find_package",
     "package_search_path",
+    "read_links_toml",
+    "links_from_tables",
 ]
 
 #: Joint types that move (one coordinate each; "continuous" is an unlimited revolute joint).
@@ -469,3 +474,115 @@ def read_urdf(
             )
         text = read_text_file(path, "URDF file")
     return parse_urdf(text, src)
+
+
+_LINK_KEYS = ("link", "name", "xyz_mm", "rpy", "beam", "compliance")
+_BEAM_KEYS = ("length_mm", "E_MPa", "G_MPa", "area_mm2", "Iy_mm4", "Iz_mm4", "J_mm4", "shear_factor", "axis")
+
+
+def _three(value, where: str) -> np.ndarray:
+    a = np.asarray(value, dtype=float) if isinstance(value, list) else None
+    if a is None or a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise InputError(f"{where}: expected three numbers, got {value!r}")
+    return a
+
+
+def _link_spring(t, where: str) -> LinkSpring:
+    """One ``[[links]]`` table as a LinkSpring (InputError naming ``where`` and the key)."""
+    if not isinstance(t, dict):
+        raise InputError(f"{where}: expected a table (link = ..., beam or compliance)")
+    unknown = sorted(set(t) - set(_LINK_KEYS))
+    if unknown:
+        raise InputError(f"{where}.{unknown[0]}: unknown key; valid: {', '.join(_LINK_KEYS)}")
+    link = t.get("link")
+    if not isinstance(link, str) or not link:
+        raise InputError(f"{where}.link: expected the name of a URDF link, got {link!r}")
+    name = t.get("name", link)
+    if not isinstance(name, str) or not name.replace("_", "a").isalnum():
+        raise InputError(
+            f"{where}.name: expected letters, digits and '_' (the parameters' suffix), got {name!r}"
+        )
+    origin = _three(t["xyz_mm"], f"{where}.xyz_mm") if "xyz_mm" in t else None
+    R = rpy_matrix(_three(t["rpy"], f"{where}.rpy")) if "rpy" in t else np.eye(3)
+    if ("beam" in t) == ("compliance" in t):
+        raise InputError(
+            f"{where}: give either beam (its data) or compliance (a 6 x 6 matrix), not both or none"
+        )
+    if "compliance" in t:
+        C = check_compliance_matrix(_matrix(t["compliance"], f"{where}.compliance"), f"{where}.compliance")
+        return LinkSpring(link, name, origin, R, compliance=C, where=where)
+    b = t["beam"]
+    if not isinstance(b, dict):
+        raise InputError(f"{where}.beam: expected a table of beam data ({', '.join(_BEAM_KEYS)})")
+    unknown = sorted(set(b) - set(_BEAM_KEYS))
+    if unknown:
+        raise InputError(f"{where}.beam.{unknown[0]}: unknown key; valid: {', '.join(_BEAM_KEYS)}")
+    missing = [k for k in _BEAM_KEYS[:7] if k not in b]
+    if missing:
+        raise InputError(f"{where}.beam: missing {', '.join(missing)} (N-mm-MPa)")
+    beam = Beam(**{k: b[k] for k in _BEAM_KEYS if k in b})
+    return LinkSpring(link, name, origin, R, beam=check_beam(beam, f"{where}.beam"), where=where)
+
+
+def _matrix(value, where: str) -> np.ndarray:
+    try:
+        A = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: expected a 6 x 6 matrix of numbers") from None
+    if A.shape != (6, 6):
+        raise InputError(
+            f"{where}: expected a 6 x 6 matrix of numbers (six rows of six), got shape {A.shape}"
+        )
+    return A
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    """URDF's roll-pitch-yaw (fixed axes x, y, z) as a rotation matrix."""
+    r, p, y = (float(v) for v in rpy)
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def links_from_tables(tables, source: str, key: str = "links") -> tuple[LinkSpring, ...]:
+    """Flexible links from parsed TOML tables (``[[links]]``; ``[[legs.links]]`` in a legs file).
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` and the table (``links[2].beam.E_MPa: expected a positive number``).
+    """
+    if not isinstance(tables, list):
+        raise InputError(f"{key}: expected an array of tables ([[{key}]])", source=source)
+    try:
+        return tuple(_link_spring(t, f"{key}[{i}]") for i, t in enumerate(tables, start=1))
+    except InputError as e:
+        raise e.with_source(source) from None
+
+
+def read_links_toml(path: str | os.PathLike) -> tuple[LinkSpring, ...]:
+    """A robot's flexible links from ``LINKS.toml`` (``[[links]]`` tables; docs/models.md).
+
+    Raises
+    ------
+    InputError
+        Naming the file and the table: not TOML, no ``[[links]]``, an unknown key, bad beam
+        data, a compliance matrix that is not 6 x 6, symmetric and positive definite.
+    """
+    src = str(path)
+    text = read_text_file(path, "TOML file")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"not valid TOML ({e})", source=src) from None
+    extra = sorted(set(data) - {"links"})
+    if extra:
+        raise InputError(f"{extra[0]}: unknown key; a links file holds [[links]] tables only", source=src)
+    if "links" not in data:
+        raise InputError("no [[links]] table: nothing bends", source=src)
+    return links_from_tables(data["links"], src)
