@@ -17,6 +17,7 @@ import contextlib
 import io
 import json
 import math
+import os
 import sys
 from importlib.metadata import distribution
 from pathlib import Path
@@ -26,6 +27,8 @@ import pytest
 from helpers import urdf_reference as ref
 
 from stiffmap.cli.main import run
+from stiffmap.errors import InputError
+from stiffmap.models.serial import SerialRobot
 
 OFFSET = (10.0, -20.0, 30.0)  # mm in the tip frame
 TOL = 1e-6  # relative, the issue's
@@ -214,3 +217,187 @@ def test_tip_position_k_and_k6_equal_an_independent_computation(sweep):
                 assert e6 < TOL, (name, e6)
                 checked_k6 += 1
     assert checked_k >= 100 and checked_k6 >= 60, (checked_k, checked_k6)
+
+
+CLUTTERED = Path(__file__).parent / "robots" / "cluttered_mm.urdf"
+
+
+def test_the_arm_inside_a_mobile_manipulator_with_a_mimic_finger(rng):
+    """base_link as the base frame (the planar joint above it held), the tip on the finger that
+    mimics the other (its leader off the path, a coordinate), a spring of the mimic joint's own:
+    position, Jacobian and K6 against the independent computation."""
+    links, joints = ref.read_joints(CLUTTERED.read_text())
+    chain = ref.path(joints, "r_finger_right", "base_link")
+    coords = ref.coordinates(joints, chain)
+    k = np.array([5e5, 4e8, 4e8, 2e8, 5e7, 5e7, 3e7, 2e5, 1e5])  # N/mm (lift, fingers), N*mm/rad
+    robot = SerialRobot.from_urdf(CLUTTERED, "r_finger_right", OFFSET, base_frame="base_link", k_theta=k)
+    ch = robot.chain
+    assert ch.joint_names == (
+        "torso_lift_joint",
+        *(f"r_joint_{i}" for i in range(1, 7)),
+        "r_finger_left_joint",
+    )
+    assert list(ch.joint_names) == coords and ch.mimic_names == ("r_finger_right_joint",)
+    assert robot.param_names() == tuple(f"k{i}" for i in range(1, 10))
+    lo, hi = _limits(joints, coords)
+    for q in rng.uniform(lo, hi, size=(4, len(coords))):
+        p, _ = ref.tip_pose_mm(joints, chain, coords, q, OFFSET)
+        J = ref.jacobian_fd(joints, chain, coords, q, OFFSET)
+        Jm = ref.joint_column_fd(joints, chain, coords, q, OFFSET, "r_finger_right_joint")
+        C = J @ np.diag(1 / k[:-1]) @ J.T + np.outer(Jm, Jm) / k[-1]
+        assert _rel(ch.forward(q)[0], p) < 1e-12
+        assert _rel(ch.jacobian(q), J) < 1e-8
+        assert _rel(robot.stiffness6(q), np.linalg.inv(C)) < TOL
+        assert _rel(robot.stiffness3(q), np.linalg.inv(C[:3, :3])) < TOL
+    # The mimic finger's coordinate: minus its leader's, within its own limits [-40, 0] mm.
+    q = np.zeros(len(coords))
+    q[-1] = 30.0
+    np.testing.assert_allclose(ch.mimic_coordinates(q), [-30.0])
+    q[-1] = -10.0  # the leader below its limit, the follower above its own
+    assert ch.beyond_limits(q) == [
+        "joint r_finger_left_joint at -10 mm beyond its limits [0, 40] mm",
+        "joint r_finger_right_joint at 10 mm beyond its limits [-40, 0] mm",
+    ]
+
+
+@pytest.mark.parametrize(
+    "tip, base, edit, message",
+    [
+        (
+            "r_tool0",
+            None,
+            None,
+            "joint 'base_planar' (on the chain from 'odom' to 'r_tool0') is planar (3 degrees of freedom, no "
+            "spring a stiffness model can give): choose a base frame below it (--base base_link",
+        ),
+        (
+            "caster",
+            "base_link",
+            None,
+            "joint 'caster_joint' (on the chain from 'base_link' to 'caster') is floating",
+        ),
+        (
+            "r_tool0",
+            "l_arm_base",
+            None,
+            "tip frame 'r_tool0' is not below base frame 'l_arm_base': the chain from the root 'odom' to "
+            "'r_tool0' passes through links odom, base_link, torso, r_arm_base",
+        ),
+        ("r_tool0", "l_arm", None, "no frame 'l_arm' for the base frame; the links are: odom, base_link"),
+        (
+            "r_finger_right",
+            "base_link",
+            ('<mimic joint="r_finger_left_joint"', '<mimic joint="r_finger_middle_joint"'),
+            "joint 'r_finger_right_joint': <mimic joint='r_finger_middle_joint'> names a joint the file "
+            "does not define",
+        ),
+        (
+            "r_finger_right",
+            "base_link",
+            (
+                '<limit lower="0" upper="0.04"',
+                '<mimic joint="r_finger_right_joint"/><limit lower="0" upper="0.04"',
+            ),
+            "joint 'r_finger_right_joint': mimic loop r_finger_right_joint -> r_finger_left_joint -> "
+            "r_finger_right_joint: no joint leads",
+        ),
+        (
+            "r_tool0",
+            "base_link",
+            (
+                '<origin xyz="0 0 0.3"/><axis xyz="0 1 0"/><limit lower="-2.5"',
+                '<origin xyz="1e300 0 0.3"/><axis xyz="0 1 0"/><limit lower="-2.5"',
+            ),
+            "joint 'r_joint_3' (on the chain from 'base_link' to 'r_tool0'): <origin xyz> 1e+300 0 0.3 m "
+            "is beyond",
+        ),
+    ],
+)
+def test_descriptions_that_cannot_be_modelled_are_named(tmp_path, tip, base, edit, message):
+    f = CLUTTERED
+    if edit is not None:
+        text = CLUTTERED.read_text()
+        assert edit[0] in text
+        f = tmp_path / "edited.urdf"
+        f.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(f, tip, base_frame=base, k_theta=1e8)
+    assert str(e.value).startswith(f"{f}: ") and message in str(e.value), str(e.value)
+    assert "\n" not in str(e.value)
+
+
+XACRO_WS = Path(__file__).parent / "robots" / "xacro_ws"
+ACME_XACRO = XACRO_WS / "acme_description" / "urdf" / "acme_rs6.urdf.xacro"
+ACME_URDF = Path(__file__).parent / "robots" / "acme_rs6.urdf"
+K_ACME = (4e8, 4e8, 2e8, 5e7, 5e7, 3e7)
+
+
+def test_a_xacro_description_gives_the_k_of_its_pre_expanded_urdf(rng, monkeypatch):
+    """Split over two packages (the shared one found by its package.xml's name, not its folder's),
+    with macros, properties, math, a conditional, includes through $(find PKG) and an argument
+    without default: the same K6 and K, to round-off, as the URDF written out by hand."""
+    xa = SerialRobot.from_urdf(
+        ACME_XACRO,
+        "tool0",
+        OFFSET,
+        k_theta=K_ACME,
+        xacro_args={"mount_height": "0.4"},
+        package_paths=[XACRO_WS],
+    )
+    plain = SerialRobot.from_urdf(ACME_URDF, "tool0", OFFSET, k_theta=K_ACME)
+    assert xa.chain.joint_names == plain.chain.joint_names == tuple(f"joint_{i}" for i in range(1, 7))
+    np.testing.assert_allclose(xa.chain.lower, plain.chain.lower, rtol=1e-15)
+    Q = rng.uniform(plain.chain.lower, plain.chain.upper, size=(5, 6))
+    assert _rel(xa.stiffness6(Q), plain.stiffness6(Q)) < 1e-12
+    assert _rel(xa.compliance6(Q), plain.compliance6(Q)) < 1e-12
+    # ROS_PACKAGE_PATH serves as well as --package-path.
+    monkeypatch.setenv("ROS_PACKAGE_PATH", f"/nonexistent{os.pathsep}{XACRO_WS}")
+    env = SerialRobot.from_urdf(
+        ACME_XACRO, "tool0", OFFSET, k_theta=K_ACME, xacro_args={"mount_height": "0.4"}
+    )
+    assert _rel(env.chain.forward(Q[0])[0], plain.chain.forward(Q[0])[0]) < 1e-15
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (
+            {"package_paths": [XACRO_WS]},
+            "xacro: argument 'mount_height' has no value: give it with --xacro-arg mount_height=VALUE",
+        ),
+        (
+            {"xacro_args": {"mount_height": "0.4"}},
+            "xacro: $(find acme_description): no package 'acme_description' in the package folders "
+            "(none given)",
+        ),
+        (
+            {"xacro_args": {"mount_height": "0.4"}, "package_paths": [XACRO_WS / "acme_description"]},
+            "xacro: $(find acme_resources): no package 'acme_resources' in the package folders (",
+        ),
+        (
+            {"xacro_args": {"mount_height": "zero"}, "package_paths": [XACRO_WS]},
+            "joint 'world-base_link' (on the chain from 'world' to 'tool0'): <origin xyz> is not three",
+        ),
+    ],
+)
+def test_xacro_that_cannot_be_expanded_is_one_line(monkeypatch, kwargs, message):
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(ACME_XACRO, "tool0", k_theta=1e8, **kwargs)
+    assert str(e.value).startswith(f"{ACME_XACRO}: ") and message in str(e.value), str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_xacro_errors_of_its_own_are_one_line(tmp_path):
+    broken = tmp_path / "broken.urdf.xacro"
+    broken.write_text(
+        '<robot name="b" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:include filename="missing_macros.xacro"/></robot>'
+    )
+    with pytest.raises(InputError, match=r"broken\.urdf\.xacro: xacro: .*missing_macros\.xacro") as e:
+        SerialRobot.from_urdf(broken, "tool0", k_theta=1e8)
+    assert "\n" not in str(e.value)
+    with pytest.raises(
+        InputError, match=r"acme_rs6\.urdf: xacro arguments \(mount_height\) given, but the file"
+    ):
+        SerialRobot.from_urdf(ACME_URDF, "tool0", k_theta=1e8, xacro_args={"mount_height": "0.4"})

@@ -172,3 +172,22 @@ def jacobian_fd(joints, chain, coords, q, offset_mm, h: float = 1e-6) -> np.ndar
         J[:3, k] = (pp - pm) / (2 * step)
         J[3:, k] = rotvec(Rp @ Rm.T) / (2 * step)
     return J
+
+
+def joint_column_fd(joints, chain, coords, q, offset_mm, joint: str, h: float = 1e-6) -> np.ndarray:
+    """The measured point's motion (mm, rad; base frame) per unit of one joint's own value
+    (rad or mm) with every other joint held: a mimic joint's spring of its own."""
+    q_file = [qi / 1000.0 if joints[c].type == "prismatic" else qi for c, qi in zip(coords, q, strict=True)]
+    vals = values_of(joints, chain, coords, q_file)
+    step = h * (1000.0 if joints[joint].type == "prismatic" else 1.0)
+    unit = 1000.0 if joints[joint].type == "prismatic" else 1.0  # file units per stiffmap unit
+
+    def pose(d):
+        v = dict(vals)
+        v[joint] += d / unit
+        T = transform(joints, chain, v)
+        return T[:3, 3] * 1000.0 + T[:3, :3] @ np.asarray(offset_mm, dtype=float), T[:3, :3]
+
+    pp, Rp = pose(step)
+    pm, Rm = pose(-step)
+    return np.concatenate([(pp - pm) / (2 * step), rotvec(Rp @ Rm.T) / (2 * step)])

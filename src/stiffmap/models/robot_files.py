@@ -397,7 +397,7 @@ def expand_xacro(
         d = find_package(pkg, search)
         if d is None:
             raise _Unresolved(pkg)
-        return str(d)
+        return str(d.resolve())
 
     p = Path(path)
     if not p.is_file():
@@ -408,32 +408,44 @@ def expand_xacro(
         xacro_subs._eval_find = find  # xacro finds packages through ament; here from the folders given
         xacro_subs._eval_dict["find"] = find
         try:
-            doc = xacro.process_file(str(p), mappings=dict(args or {}))
+            doc = xacro.process_file(str(p.resolve()), mappings=dict(args or {}))
             return doc.toxml()
-        except _Unresolved as e:
-            where = ", ".join(str(s) for s in search) or "none given"
-            raise InputError(
-                f"xacro: $(find {e.args[0]}): no package {e.args[0]!r} in the package folders ({where}); "
-                "give its folder with --package-path DIR (campaign.toml: package_paths) or ROS_PACKAGE_PATH",
-                source=src,
-            ) from None
         except Exception as e:  # noqa: BLE001  xacro raises many kinds; each becomes one line
+            missing = _cause(e, _Unresolved)
+            if missing is not None:
+                pkg = missing.args[0]
+                where = ", ".join(str(s) for s in search) or "none given"
+                raise InputError(
+                    f"xacro: $(find {pkg}): no package {pkg!r} in the package folders ({where}); give its "
+                    "folder with --package-path DIR (campaign.toml: package_paths) or ROS_PACKAGE_PATH",
+                    source=src,
+                ) from None
             raise InputError(f"xacro: {_xacro_message(e)}", source=src) from None
         finally:
             xacro_subs._eval_find, xacro_subs._eval_dict["find"] = saved
             xacro.init_stacks(None)
 
 
+def _cause(e: BaseException | None, kind) -> BaseException | None:
+    """The first exception of type ``kind`` (a class, or a class name) in ``e``'s chain."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if (isinstance(kind, str) and type(e).__name__ == kind) or (
+            isinstance(kind, type) and isinstance(e, kind)
+        ):
+            return e
+        e = getattr(e, "exc", None) or e.__cause__ or e.__context__
+    return None
+
+
 def _xacro_message(e: Exception) -> str:
     """xacro's exception as one line, an undefined argument said as such."""
-    inner = getattr(e, "exc", None)
-    for ex in (e, inner):
-        if ex is not None and type(ex).__name__ == "ArgException":
-            name = ex.args[0] if ex.args else "?"
-            return (
-                f"argument {name!r} has no value: give it with --xacro-arg {name}=VALUE "
-                "(campaign.toml: xacro_args)"
-            )
+    arg = _cause(e, "ArgException")
+    if arg is not None:
+        name = arg.args[0] if arg.args else "?"
+        how = f"--xacro-arg {name}=VALUE (campaign.toml: xacro_args)"
+        return f"argument {name!r} has no value: give it with {how}"
     text = " ".join(str(e).split())
     if isinstance(e, ET.ParseError) or type(e).__name__ == "ExpatError":
         return f"not valid XML ({text})"
