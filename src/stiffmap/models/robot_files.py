@@ -33,7 +33,7 @@ import threading
 import tomllib
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -572,9 +572,11 @@ def links_from_tables(tables, source: str, key: str = "links") -> tuple[LinkSpri
     if not isinstance(tables, list):
         raise InputError(f"{key}: expected an array of tables ([[{key}]])", source=source)
     try:
-        return tuple(_link_spring(t, f"{key}[{i}]") for i, t in enumerate(tables, start=1))
+        springs = [_link_spring(t, f"{key}[{i}]") for i, t in enumerate(tables, start=1)]
     except InputError as e:
         raise e.with_source(source) from None
+    # later messages (a link not on the chain) name the file and the table too
+    return tuple(replace(s, where=f"{source}: {s.where}") for s in springs)
 
 
 def read_links_toml(path: str | os.PathLike) -> tuple[LinkSpring, ...]:

@@ -130,7 +130,7 @@ def _resolved_links(chain: Chain, links) -> tuple[LinkSpring, ...]:
             )
         if lk.name in seen:
             raise InputError(f"{where}: name {lk.name!r} is already used by {seen[lk.name]}")
-        seen[lk.name] = where
+        seen[lk.name] = where.rsplit(": ", 1)[-1]  # the table, its file said once
         if lk.origin_mm is None:
             lk = replace(lk, origin_mm=chain.link_end(lk.link))
         out.append(resolve_axis(lk, lk.origin_mm))
