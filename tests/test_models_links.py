@@ -334,3 +334,63 @@ def test_mutated_links_files_load_or_are_refused_by_name(data):
             return
     C = robot.compliance6(np.radians([10.0, 20.0, -30.0, 10.0, 40.0, 0.0]))
     assert np.all(np.isfinite(C)) and np.linalg.eigvalsh(C)[0] > 0
+
+
+def _light_arm(**kw) -> SerialRobot:
+    """The test-bed's arm with aluminium tubes for upper arm and forearm (50 x 2 mm, 40 x 2 mm)."""
+    from stiffmap.models import arm6
+
+    def tube(length, D, t, **more):
+        I = math.pi * D**3 * t / 8
+        return Beam(length, 7.0e4, 2.6e4, math.pi * D * t, I, I, 2 * I, **more)
+
+    links = (
+        LinkSpring("link_2", "upper", None, np.eye(3), beam=tube(360.0, 50.0, 2.0)),
+        LinkSpring("link_3", "fore", None, np.eye(3), beam=tube(190.0, 40.0, 2.0, **kw)),
+    )
+    return SerialRobot(arm6.model().chain, arm6.K_THETA, links=links)
+
+
+def _design_rows(robot, rng, m: int = 20):
+    """m configurations (the test-bed arm's positions, by IK) x 9 loads from its bracket."""
+    from stiffmap.models import arm6
+
+    Q = arm6.model().configurations_for(arm6.positions20()[:m]).q
+    lever = np.asarray(arm6.LOAD_POINT_MM)
+    forces = [np.eye(3)[i] * s * 5.0 for i in range(3) for s in (1, -1)] + [
+        rng.normal(size=3) * 3 for _ in range(3)
+    ]
+    rows_q = np.repeat(Q, len(forces), axis=0)
+    W = np.array([np.concatenate([f, np.cross(lever, f)]) for _ in Q for f in forces])
+    return rows_q, W
+
+
+def test_joint_and_link_parameters_fitted_together_and_what_cannot_be_separated_is_named(rng):
+    from stiffmap.errors import DesignError
+    from stiffmap.models.joint_fit import fit_joint_compliances, joint_identifiability
+
+    robot = _light_arm()
+    Qr, W = _design_rows(robot, rng)
+    J = robot.chain.jacobian_many(Qr)
+    cols = robot.link_columns(Qr)
+    names = [f"k{i}" for i in range(1, 7)]
+    # An Euler-Bernoulli forearm twists at its end about joint 4's axis, through joint 4's origin:
+    # its G and k4 move the point alike.
+    rep = joint_identifiability(J, W, joint_names=names, links=cols)
+    assert not rep.determined and ("k4", "G_fore") in rep.confounded, rep.confounded
+    assert rep.message.startswith("joint and link parameters k4, G_fore cannot be determined")
+    with pytest.raises(DesignError, match="k4, G_fore change the measured displacements only in a fixed"):
+        fit_joint_compliances(J, W, robot.deflection(Qr, W), joint_names=names, links=cols)
+    # G_fore held at its value (1/G), the others fitted from noisy deflections: within 4 standard errors.
+    sd = np.array([1e-3, 1e-3, 1e-3, 1e-5, 1e-5, 1e-5])  # mm, rad
+    D = robot.deflection(Qr, W) + rng.normal(size=(len(W), 6)) * sd
+    f = fit_joint_compliances(
+        J, W, D, np.broadcast_to(sd, D.shape), joint_names=names, links=cols, fixed={"G_fore": 1 / 2.6e4}
+    )
+    true = dict(robot.params())
+    for name in (*names, "E_upper", "G_upper", "E_fore"):
+        j = f.names.index(name)
+        assert abs(f.stiffness[j] - true[name]) < 4 * f.stiffness_std[j], (name, f.stiffness[j], true[name])
+    assert f.stiffness_std[f.names.index("E_upper")] < 0.05 * 7e4  # the upper arm's E to a few %
+    assert 0.6 < f.reduced_chi2 < 1.5
+    np.testing.assert_allclose(D - f.predict(J, W, cols), f.residuals, atol=1e-12)

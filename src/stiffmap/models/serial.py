@@ -59,6 +59,7 @@ from .base import (
     stiffness_of,
 )
 from .chain import Chain
+from .joint_fit import LinkColumns
 from .links import LinkSpring, resolve_axis, spring_jacobians
 
 __all__ = ["SerialRobot", "MATCH_TOL_MM", "RIGID_RATIO"]
@@ -645,6 +646,31 @@ class SerialRobot:
         O, R = self.chain.link_poses(Q, frames)
         P, _ = self.chain.forward_many(Q)
         return spring_jacobians(P, O, R)
+
+    def link_columns(self, q) -> tuple[LinkColumns, ...]:
+        """The flexible links' parameters as the joint fit takes them (:class:`LinkColumns`).
+
+        For each parameter p of each link (``E_<name>``, ``G_<name>``: a beam's moduli, kind
+        "modulus"; ``f_<name>``: a given compliance's factor, kind "factor"), the point's
+        compliance per unit of ``1/p``: ``J_s B_p J_s^T`` at each configuration.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,) or (M, n)
+
+        Returns
+        -------
+        tuple of LinkColumns
+            In :meth:`link_param_names` order, bases of shape (M, 6, 6).
+        """
+        Js = self.link_jacobians(q)
+        out = []
+        for s, lk in enumerate(self.links):
+            kind = "modulus" if lk.beam is not None else "factor"
+            for name, B in zip(lk.param_names(), lk.basis(), strict=True):
+                basis = np.einsum("mij,jk,mlk->mil", Js[:, s], B, Js[:, s])
+                out.append(LinkColumns(name, 0.5 * (basis + np.swapaxes(basis, 1, 2)), kind))
+        return tuple(out)
 
     def _compliance(self, Q: np.ndarray, J: np.ndarray) -> np.ndarray:
         """C6 (M, 6, 6) at configurations Q with their spring columns J (M, 6, n + m)."""
