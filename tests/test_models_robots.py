@@ -25,6 +25,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers import urdf_reference as ref
+from helpers.cli_process import run_in_process as _cli
+from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
+from hypothesis import given
+from hypothesis import strategies as st
 
 from stiffmap.cli.main import run
 from stiffmap.errors import InputError
@@ -401,3 +405,91 @@ def test_xacro_errors_of_its_own_are_one_line(tmp_path):
         InputError, match=r"acme_rs6\.urdf: xacro arguments \(mount_height\) given, but the file"
     ):
         SerialRobot.from_urdf(ACME_URDF, "tool0", k_theta=1e8, xacro_args={"mount_height": "0.4"})
+
+
+ONE_JOINT = """<robot name="turntable"><link name="base"/><link name="plate"/>
+  <joint name="turn" type="continuous"><parent link="base"/><child link="plate"/><axis xyz="0 0 1"/></joint>
+</robot>"""
+
+
+def test_a_one_joint_description_and_absurd_numbers_are_answered(tmp_path, monkeypatch, capsys):
+    """Issue 27: a one-joint URDF (Pinocchio's Jacobian is then a vector) gives its Jacobian; a tip
+    offset of 1e300 mm is refused by name rather than failing deep in an SVD."""
+    f = tmp_path / "turntable.urdf"
+    f.write_text(ONE_JOINT)
+    robot = SerialRobot.from_urdf(f, "plate", (100.0, 0.0, 0.0), k_theta=1e6)
+    np.testing.assert_allclose(
+        robot.chain.jacobian([0.3]),
+        [[-100 * math.sin(0.3)], [100 * math.cos(0.3)], [0], [0], [0], [1]],
+        atol=1e-12,
+    )
+    cfg = tmp_path / "c.csv"
+    cfg.write_text("turn_deg\n30\n")
+    code, out, err = _cli(
+        [
+            "model",
+            "urdf",
+            f,
+            "--tip",
+            "plate",
+            "--tip-offset-mm",
+            "100,0,0",
+            "--configs",
+            cfg,
+            "--param",
+            "k_theta=1e6",
+            "--json",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    assert code == 2 and "singular: the joints cannot move the point along" in err and err.count("\n") == 1
+    code, out, err = _cli(
+        [
+            "model",
+            "urdf",
+            f,
+            "--tip",
+            "plate",
+            "--tip-offset-mm",
+            "1e300,0,0",
+            "--configs",
+            cfg,
+            "--param",
+            "k_theta=1e6",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    assert code == 2 and err.startswith(
+        f"error: {f}: tip offset must be three finite numbers within 1e+06 mm"
+    )
+
+
+_CFG = b"q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n10,20,-30,40,50,60\n"
+
+
+@pytest.mark.fuzz
+@given(raw=st.one_of(mutated_text(ACME_URDF.read_text()), mutated_text(CLUTTERED.read_text())))
+def test_mutated_descriptions_load_or_are_refused_by_name(raw):
+    """`stiffmap model urdf` on a mutated URDF: an answer, or one line naming the file."""
+    case = FuzzCase(
+        files={"robot.urdf": raw, "configs.csv": _CFG},
+        argv=(
+            "model",
+            "urdf",
+            "{dir}/robot.urdf",
+            "--tip",
+            "tool0",
+            "--configs",
+            "{dir}/configs.csv",
+            "--param",
+            "k_theta=1e8",
+            "--json",
+        ),
+        blamed="robot.urdf",
+    )
+    o = run_case(case)
+    if o.code in (1, 2) and o.stderr.startswith("error: ") and "configs.csv" in o.stderr:
+        return  # a mutation that changed the joints or made the configuration singular: said so
+    assert_handled(case, o)

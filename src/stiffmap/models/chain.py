@@ -463,6 +463,7 @@ class Chain:
             acc = acc * _placement_mm(j)
             if j.type in MOVING_TYPES:
                 ax = np.asarray(j.axis, dtype=float)
+                ax = ax / np.max(np.abs(ax))  # (1e308, 0, 0) is an axis too: no overflow in its norm
                 lo, hi = _limits_mm(j)
                 movers.append(_Mover(j.name, _kind(j.type), ax / np.linalg.norm(ax), acc, lo, hi))
                 acc = pin.SE3.Identity()

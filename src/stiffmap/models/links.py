@@ -70,6 +70,18 @@ AXES = {
 #: A given compliance whose smallest eigenvalue is below this fraction of its largest is
 #: not positive definite (a rigid direction, or a typing error).
 PD_RTOL = 1e-12
+#: Largest entry of a given compliance (mm/N, 1/N, rad/(N*mm)): beyond, not a link's.
+MAX_COMPLIANCE = 1e6
+#: Ranges of beam data taken (N-mm-MPa): a link of a robot, not of a bridge or a hair.
+BEAM_RANGES = {
+    "length_mm": (1e-3, 1e5),
+    "E_MPa": (1e-3, 1e7),
+    "G_MPa": (1e-3, 1e7),
+    "area_mm2": (1e-6, 1e8),
+    "Iy_mm4": (1e-9, 1e16),
+    "Iz_mm4": (1e-9, 1e16),
+    "J_mm4": (1e-9, 1e16),
+}
 
 
 @dataclass(frozen=True)
@@ -226,6 +238,10 @@ def check_compliance_matrix(C, where: str) -> np.ndarray:
     if A.shape != (6, 6) or not np.all(np.isfinite(A)):
         raise InputError(f"{where}: expected a 6 x 6 matrix of finite numbers, got shape {A.shape}")
     scale = float(np.max(np.abs(A)))
+    if scale > MAX_COMPLIANCE:
+        raise InputError(
+            f"{where}: an entry of {scale:g} is beyond {MAX_COMPLIANCE:g} (mm/N, 1/N, rad/(N*mm))"
+        )
     if scale == 0 or not np.allclose(A, A.T, rtol=1e-9, atol=1e-12 * scale):
         raise InputError(f"{where}: a compliance matrix must be symmetric (and not zero)")
     w = np.linalg.eigvalsh(0.5 * (A + A.T))
@@ -238,19 +254,23 @@ def check_compliance_matrix(C, where: str) -> np.ndarray:
 
 
 def check_beam(beam: Beam, where: str) -> Beam:
-    """Positive finite beam data, else InputError naming ``where`` and the field."""
-    for f in ("length_mm", "E_MPa", "G_MPa", "area_mm2", "Iy_mm4", "Iz_mm4", "J_mm4"):
+    """Beam data within :data:`BEAM_RANGES` (floats), else InputError naming ``where`` and the field."""
+    vals = {}
+    for f, (lo, hi) in BEAM_RANGES.items():
         v = getattr(beam, f)
-        if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
+        if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
             raise InputError(f"{where}.{f}: expected a positive number, got {v!r}")
+        if not lo <= v <= hi:
+            raise InputError(f"{where}.{f}: {v:g} is outside [{lo:g}, {hi:g}]: not a robot link's")
+        vals[f] = float(v)
     k = beam.shear_factor
-    if k is not None and not (isinstance(k, int | float) and math.isfinite(k) and 0 < k <= 1):
+    if k is not None and (isinstance(k, bool) or not (isinstance(k, int | float) and 0.01 <= k <= 1)):
         raise InputError(
-            f"{where}.shear_factor: expected a number in (0, 1] (5/6 for a rectangle), got {k!r}"
+            f"{where}.shear_factor: expected a number in [0.01, 1] (5/6 for a rectangle), got {k!r}"
         )
     if beam.axis is not None and beam.axis not in AXES:
         raise InputError(f"{where}.axis: expected one of {', '.join(AXES)}, got {beam.axis!r}")
-    return beam
+    return replace(beam, **vals, shear_factor=None if k is None else float(k))
 
 
 def resolve_axis(spring: LinkSpring, origin_mm: np.ndarray) -> LinkSpring:

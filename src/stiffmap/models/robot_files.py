@@ -163,6 +163,13 @@ class UrdfTree:
         return out[::-1]
 
 
+def _float(text: str) -> float:
+    """A number as XML writes it (Python's ``1_000`` is not one), else ValueError."""
+    if "_" in text:
+        raise ValueError(text)
+    return float(text)
+
+
 def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...] | None:
     """n finite numbers from an attribute (its default when absent); None when malformed."""
     if text is None:
@@ -171,7 +178,7 @@ def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float
     if len(parts) != n:
         return None
     try:
-        vals = tuple(float(p) for p in parts)
+        vals = tuple(_float(p) for p in parts)
     except ValueError:
         return None
     return vals if all(math.isfinite(v) for v in vals) else None
@@ -181,7 +188,7 @@ def _number(text: str | None, default: float) -> float | None:
     if text is None:
         return default
     try:
-        v = float(text)
+        v = _float(text)
     except ValueError:
         return None
     return v if not math.isnan(v) else None
@@ -493,9 +500,14 @@ _BEAM_KEYS = ("length_mm", "E_MPa", "G_MPa", "area_mm2", "Iy_mm4", "Iz_mm4", "J_
 
 
 def _three(value, where: str) -> np.ndarray:
-    a = np.asarray(value, dtype=float) if isinstance(value, list) else None
-    if a is None or a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise InputError(f"{where}: expected three numbers, got {value!r}")
+    ok = (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    )
+    a = np.asarray(value, dtype=float) if ok else None
+    if a is None or not np.all(np.isfinite(a)) or np.max(np.abs(a)) > MAX_ORIGIN_M * 1e3:
+        raise InputError(f"{where}: expected three finite numbers, got {value!r}")
     return a
 
 
@@ -537,10 +549,19 @@ def _link_spring(t, where: str) -> LinkSpring:
 
 
 def _matrix(value, where: str) -> np.ndarray:
+    rows = value if isinstance(value, list) else []
+    if (
+        not all(
+            isinstance(r, list) and all(isinstance(v, int | float) and not isinstance(v, bool) for v in r)
+            for r in rows
+        )
+        or not rows
+    ):
+        raise InputError(f"{where}: expected a 6 x 6 matrix of numbers (six rows of six)")
     try:
         A = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(f"{where}: expected a 6 x 6 matrix of numbers") from None
+        raise InputError(f"{where}: expected a 6 x 6 matrix of numbers (six rows of six)") from None
     if A.shape != (6, 6):
         raise InputError(
             f"{where}: expected a 6 x 6 matrix of numbers (six rows of six), got shape {A.shape}"
@@ -594,6 +615,10 @@ def read_links_toml(path: str | os.PathLike) -> tuple[LinkSpring, ...]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not valid TOML ({e})", source=src) from None
+    except RecursionError:
+        raise InputError("not valid TOML: arrays or tables nested too deeply", source=src) from None
+    except ValueError:  # an integer of thousands of digits
+        raise InputError("not a usable TOML file: a number has thousands of digits", source=src) from None
     extra = sorted(set(data) - {"links"})
     if extra:
         raise InputError(f"{extra[0]}: unknown key; a links file holds [[links]] tables only", source=src)
