@@ -336,8 +336,9 @@ def fit_parameter_names(name: str, items: Sequence[str] | None, model: Mechanism
     """The parameters of mechanism ``name`` to fit: ``items`` (each may be comma-separated), else
     ``DEFAULT_FIT[name]``.
 
-    For ``urdf`` (a :class:`SerialRobot` given as ``model``) the names are ``k1 ... kn`` and
-    the default is every joint.
+    For ``urdf`` (a :class:`SerialRobot` given as ``model``) the names are ``k1 ... kn`` (then
+    the mimic joints' springs and the flexible links' parameters) and the default is
+    :meth:`SerialRobot.default_fit` (every finite one).
 
     Raises
     ------
@@ -348,7 +349,7 @@ def fit_parameter_names(name: str, items: Sequence[str] | None, model: Mechanism
         if not isinstance(model, SerialRobot):
             raise TypeError("fit_parameter_names('urdf', ...) needs the SerialRobot as model")
         valid = model.param_names()
-        default = list(valid)
+        default = list(model.default_fit())  # not a rigid (inf) mimic joint's spring
     else:
         valid = MECHANISMS[name].param_names()
         default = list(DEFAULT_FIT[name])
