@@ -493,3 +493,15 @@ def test_mutated_descriptions_load_or_are_refused_by_name(raw):
     if o.code in (1, 2) and o.stderr.startswith("error: ") and "configs.csv" in o.stderr:
         return  # a mutation that changed the joints or made the configuration singular: said so
     assert_handled(case, o)
+
+
+def test_a_description_in_a_default_namespace_reads_as_without(tmp_path):
+    text = ACME_URDF.read_text().replace(
+        '<robot name="acme_rs6">', '<robot xmlns="http://www.ros.org" name="acme_rs6">'
+    )
+    f = tmp_path / "ns.urdf"
+    f.write_text(text)
+    ns = SerialRobot.from_urdf(f, "tool0", OFFSET, k_theta=K_ACME)
+    plain = SerialRobot.from_urdf(ACME_URDF, "tool0", OFFSET, k_theta=K_ACME)
+    q = np.radians([10.0, 20.0, -30.0, 40.0, 50.0, 60.0])
+    assert _rel(ns.stiffness6(q), plain.stiffness6(q)) < 1e-15

@@ -280,11 +280,17 @@ def parse_urdf(text: str, source: str = "URDF") -> UrdfTree:
         root = ET.fromstring(text)
     except ET.ParseError as e:
         raise InputError(f"not a valid XML file ({e})", source=source) from None
+    for el in root.iter():  # a default namespace (xacro:targetNamespace) is not part of the names
+        if isinstance(el.tag, str) and el.tag.startswith("{"):
+            el.tag = el.tag.split("}", 1)[1]
     if root.tag != "robot":
         raise InputError(f"not a URDF: the root element is <{root.tag}>, expected <robot>", source=source)
     links = tuple(el.get("name") or "" for el in root.findall("link"))
     if "" in links:
         raise InputError("not a URDF: a <link> has no name", source=source)
+    if len(set(links)) != len(links):
+        twice = next(lk for lk in links if links.count(lk) > 1)
+        raise InputError(f"not a URDF: two links are named {twice!r}", source=source)
     known = set(links)
     joints: dict[str, UrdfJoint] = {}
     parent_joint: dict[str, str] = {}
