@@ -398,3 +398,18 @@ def test_joint_and_link_parameters_fitted_together_and_what_cannot_be_separated_
     assert f.stiffness_std[f.names.index("E_upper")] < 0.05 * 7e4  # the upper arm's E to a few %
     assert 0.6 < f.reduced_chi2 < 1.5
     np.testing.assert_allclose(D - f.predict(J, W, cols), f.residuals, atol=1e-12)
+
+
+def test_spring_columns_carry_the_springs_compliance(rng):
+    """The form a leg's assembly takes a flexible link in: six columns of unit compliance."""
+    from stiffmap.models.links import spring_columns
+
+    J = rng.normal(size=(3, 2, 6, 6))
+    A = rng.normal(size=(2, 6, 6))
+    C = A @ np.swapaxes(A, 1, 2) + np.eye(6)
+    cols = spring_columns(J, C)
+    ref = np.einsum("nsij,sjk,nslk->nil", J, C, J)
+    assert cols.shape == (3, 6, 12)
+    np.testing.assert_allclose(
+        cols @ np.swapaxes(cols, 1, 2), ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max()
+    )

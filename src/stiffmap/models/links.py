@@ -50,6 +50,7 @@ __all__ = [
     "beam_compliance",
     "beam_basis",
     "spring_jacobians",
+    "spring_columns",
     "beam_axes",
     "resolve_axis",
     "check_beam",
@@ -317,3 +318,30 @@ def spring_jacobians(points: np.ndarray, origins: np.ndarray, rotations: np.ndar
     J[..., :3, 3:] = -X @ rotations
     J[..., 3:, 3:] = rotations
     return J
+
+
+def spring_columns(jacobians: np.ndarray, compliances: np.ndarray) -> np.ndarray:
+    """Springs as columns of unit compliance: ``J_s L_s`` with ``C_s = L_s L_s^T`` (Cholesky).
+
+    ``sum_k col_k col_k^T = sum_s J_s C_s J_s^T``: the form the virtual joint method's
+    assembly takes its springs in (``models.base.leg_stiffness``, stiffness 1 each), so a
+    flexible link of a leg adds six columns to its spring joints'.
+
+    Parameters
+    ----------
+    jacobians : ndarray, shape (N, S, 6, 6)
+        :func:`spring_jacobians`.
+    compliances : ndarray, shape (S, 6, 6)
+        Each spring's C_s (positive definite).
+
+    Returns
+    -------
+    ndarray, shape (N, 6, 6 S)
+    """
+    Js = np.asarray(jacobians, dtype=float)
+    N, S = Js.shape[:2]
+    if S == 0:
+        return np.zeros((N, 6, 0))
+    L = np.linalg.cholesky(np.asarray(compliances, dtype=float))  # (S, 6, 6)
+    cols = np.einsum("nsij,sjk->nsik", Js, L)  # (N, S, 6, 6)
+    return np.moveaxis(cols, 1, 2).reshape(N, 6, 6 * S)
