@@ -17,16 +17,26 @@ normalised coordinates x = X/Z, y = Y/Z; with r^2 = x^2 + y^2,
 order OpenCV uses; missing terms are zero. The tilted-sensor terms (14
 coefficients) are not supported.
 
+A fisheye or strong wide-angle lens takes OpenCV's fisheye model instead (``model``
+``"fisheye"``, :mod:`stiffmap.lens`): (x', y') = (theta_d / r) (x, y) with theta = atan(r)
+and theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8), ``dist`` =
+(k1, k2, k3, k4). It is one to one wherever theta_d grows with theta (up to 89.5 degrees off
+axis), so a calibrated fisheye model usually inverts over the whole image where the
+polynomial above folds over before the image corners.
+
 ``camera.json``::
 
     {"image_size": [w, h], "fx": ..., "fy": ..., "cx": ..., "cy": ...,
-     "dist": [k1, k2, p1, p2, k3],
+     "model": "opencv",                        # or "fisheye"; absent: "opencv"
+     "dist": [k1, k2, p1, p2, k3],             # fisheye: [k1, k2, k3, k4]
      "std": {"fx": ..., "fy": ..., "cx": ..., "cy": ..., "dist": [...]},   # 1 sigma
      "cov": {"params": ["fx", "fy", "cx", "cy", "k1", ...], "matrix": [[...], ...]},
      "rms_px": ..., "residual_std_px": [sx, sy],
      "views": [{"image": ..., "used": true, "rms_px": ..., "reason": ""}]}
 
-Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required. ``cov`` is the
+Only ``image_size``, ``fx``, ``fy``, ``cx``, ``cy`` and ``dist`` are required (``model`` is
+written only when it is not ``"opencv"``, so files of the pinhole model read and write as
+they always did). ``cov`` is the
 full covariance of the calibrated parameters (px and unitless, the order of ``params``, a
 subset of :meth:`CameraModel.param_names`; parameters it does not name are taken as exact):
 it must be square, symmetric and positive semi-definite. Without it, ``std`` gives a
@@ -63,9 +73,18 @@ import numpy as np
 
 from .errors import InputError
 from .io import dumps_json, read_json, replace_keeping_previous
+from .lens import (
+    FISHEYE_NAMES,
+    fisheye_coefficient_jacobian,
+    fisheye_distort,
+    fisheye_theta_d,
+    fisheye_theta_end,
+    fisheye_undistort,
+)
 
 __all__ = [
     "CameraModel",
+    "LENS_MODELS",
     "PixelRays",
     "UndistortionError",
     "InvertibleField",
@@ -79,6 +98,11 @@ __all__ = [
 ]
 
 _DIST_LENGTHS = (4, 5, 8, 12)
+#: Lens models of a camera (camera.json's ``model``): the pinhole model with OpenCV's
+#: polynomial distortion, and OpenCV's fisheye model (:mod:`stiffmap.lens`).
+LENS_MODELS = ("opencv", "fisheye")
+#: How many distortion coefficients each lens model takes.
+DIST_LENGTHS = {"opencv": _DIST_LENGTHS, "fisheye": (4,)}
 #: Names of the distortion coefficients, in OpenCV's order.
 DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
 #: Plausible ranges (camera.json's physical checks): focal length in image diagonals, the
@@ -99,6 +123,12 @@ class UndistortionError(ValueError):
     """
 
 
+def _lengths_text(model: str) -> str:
+    """How many coefficients ``dist`` holds for a lens model, in words ("4, 5, 8 or 12")."""
+    n = [str(v) for v in DIST_LENGTHS[model]]
+    return n[0] if len(n) == 1 else ", ".join(n[:-1]) + " or " + n[-1]
+
+
 def _dist12(dist: np.ndarray) -> np.ndarray:
     d = np.zeros(12)
     d[: dist.size] = dist
@@ -116,7 +146,8 @@ class CameraModel:
     fx, fy, cx, cy : float
         Focal lengths and principal point, px.
     dist : tuple of float
-        (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4]]]).
+        (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4]]]); with the fisheye model
+        (k1, k2, k3, k4).
     std : dict or None
         1-sigma uncertainties, same keys (``fx``, ``fy``, ``cx``, ``cy``, ``dist``).
     rms_px : float or None
@@ -128,6 +159,9 @@ class CameraModel:
     cov : ndarray, shape (n, n) or None
         Full covariance of the calibrated parameters, in the order of :attr:`param_names`
         (px and unitless); see :attr:`calibration_cov`.
+    model : str
+        The lens model, one of :data:`LENS_MODELS`: ``"opencv"`` (pinhole with OpenCV's
+        polynomial distortion, the default) or ``"fisheye"`` (:mod:`stiffmap.lens`).
     """
 
     image_size: tuple[int, int]
@@ -141,8 +175,11 @@ class CameraModel:
     residual_std_px: tuple[float, float] | None = None
     views: tuple[dict[str, Any], ...] = field(default_factory=tuple)
     cov: np.ndarray | None = field(default=None, compare=False)
+    model: str = "opencv"
 
     def __post_init__(self) -> None:
+        if self.model not in LENS_MODELS:
+            raise ValueError(f"model must be one of {list(LENS_MODELS)}, got {self.model!r}")
         w, h = (int(v) for v in self.image_size)
         if w <= 0 or h <= 0:
             raise ValueError(f"image_size must be positive [w, h], got {self.image_size}")
@@ -155,8 +192,11 @@ class CameraModel:
         if self.fx <= 0 or self.fy <= 0:
             raise ValueError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
         d = np.asarray(self.dist, dtype=np.float64).ravel()
-        if d.size not in _DIST_LENGTHS or not np.all(np.isfinite(d)):
-            raise ValueError(f"dist must hold 4, 5, 8 or 12 finite coefficients, got {list(self.dist)}")
+        if d.size not in DIST_LENGTHS[self.model] or not np.all(np.isfinite(d)):
+            raise ValueError(
+                f"dist must hold {_lengths_text(self.model)} finite coefficients (model {self.model}), "
+                f"got {list(self.dist)}"
+            )
         object.__setattr__(self, "dist", tuple(float(x) for x in d))
         object.__setattr__(self, "views", tuple(self.views))
         if self.cov is not None:
@@ -172,9 +212,14 @@ class CameraModel:
 
     # ------------------------------------------------------------ parameters
     @property
+    def dist_names(self) -> tuple[str, ...]:
+        """Names of the distortion coefficients: OpenCV's order, or (k1..k4) of the fisheye model."""
+        return FISHEYE_NAMES if self.model == "fisheye" else DIST_NAMES[: len(self.dist)]
+
+    @property
     def param_names(self) -> tuple[str, ...]:
         """Names of the calibrated parameters: ("fx", "fy", "cx", "cy", "k1", "k2", ...)."""
-        return ("fx", "fy", "cx", "cy", *DIST_NAMES[: len(self.dist)])
+        return ("fx", "fy", "cx", "cy", *self.dist_names)
 
     @property
     def params(self) -> np.ndarray:
@@ -186,7 +231,7 @@ class CameraModel:
         p = np.asarray(params, dtype=np.float64).ravel()
         if p.size != 4 + len(self.dist):
             raise ValueError(f"params must hold {4 + len(self.dist)} values {self.param_names}, got {p.size}")
-        return CameraModel(self.image_size, p[0], p[1], p[2], p[3], tuple(p[4:]))
+        return CameraModel(self.image_size, p[0], p[1], p[2], p[3], tuple(p[4:]), model=self.model)
 
     @property
     def calibration_cov(self) -> np.ndarray | None:
@@ -223,8 +268,11 @@ class CameraModel:
             d(u, v) / d(fx, fy, cx, cy, k1, k2, p1, p2[, k3...]), :attr:`param_names` order.
         """
         xy = np.asarray(xy, dtype=np.float64)
-        xd, _ = _distort(xy, _dist12(self.dist_array), jacobian=False)
-        Jd = _distort_coefficient_jacobian(xy, _dist12(self.dist_array))[..., : len(self.dist)]
+        xd = self.distort(xy)
+        if self.model == "fisheye":
+            Jd = fisheye_coefficient_jacobian(xy, self.dist_array)
+        else:
+            Jd = _distort_coefficient_jacobian(xy, _dist12(self.dist_array))[..., : len(self.dist)]
         J = np.zeros((*xy.shape[:-1], 2, 4 + len(self.dist)))
         J[..., 0, 0] = xd[..., 0]
         J[..., 1, 1] = xd[..., 1]
@@ -237,12 +285,12 @@ class CameraModel:
     # ------------------------------------------------------------------ arrays
     @property
     def key(self) -> tuple:
-        """What the pixel geometry depends on, hashable: (image_size, fx, fy, cx, cy, dist).
+        """What the pixel geometry depends on, hashable: (image_size, fx, fy, cx, cy, dist, model).
 
         Caches of per-pixel maps (:func:`pixel_rays`, the renderer's vignetting) are keyed
         by it: the uncertainties and the calibration's views do not matter there.
         """
-        return (self.image_size, self.fx, self.fy, self.cx, self.cy, self.dist)
+        return (self.image_size, self.fx, self.fy, self.cx, self.cy, self.dist, self.model)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -269,8 +317,7 @@ class CameraModel:
             Distorted normalised coordinates (x', y').
         """
         xy = np.asarray(xy, dtype=np.float64)
-        out, _ = _distort(xy, _dist12(self.dist_array), jacobian=False)
-        return out
+        return self._lens(xy, jacobian=False)[0]
 
     def distort_with_jacobian(self, xy) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`distort` and its Jacobian.
@@ -287,7 +334,13 @@ class CameraModel:
             d(x', y') / d(x, y).
         """
         xy = np.asarray(xy, dtype=np.float64)
-        return _distort(xy, _dist12(self.dist_array), jacobian=True)
+        return self._lens(xy, jacobian=True)
+
+    def _lens(self, xy: np.ndarray, *, jacobian: bool):
+        """The lens model's map of ideal to distorted normalised coordinates (and its Jacobian)."""
+        if self.model == "fisheye":
+            return fisheye_distort(xy, self.dist_array, jacobian=jacobian)
+        return _distort(xy, _dist12(self.dist_array), jacobian=jacobian)
 
     def undistort(self, xy_distorted, *, tol: float = 1e-14, max_iter: int = 50) -> np.ndarray:
         """Invert :meth:`distort` by Newton's method (vectorised).
@@ -319,7 +372,13 @@ class CameraModel:
     def _newton_undistort(
         self, target: np.ndarray, tol: float, max_iter: int
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Newton's method point by point (vectorised): the result and where it did not converge."""
+        """Newton's method point by point (vectorised): the result and where it did not converge.
+
+        The fisheye model is radial: its inverse is a one-dimensional root (:mod:`stiffmap.lens`),
+        undefined beyond the model's field (there ``bad``).
+        """
+        if self.model == "fisheye":
+            return fisheye_undistort(target, self.dist_array)
         d = _dist12(self.dist_array)
         x = target.copy()
         # Newton's steps may overflow where the model folds over: judged by the residual below.
@@ -432,10 +491,15 @@ class CameraModel:
         u, v = uv[k]
         n_bad = int(bad.sum())
         raise UndistortionError(
-            "the lens distortion model cannot be inverted at "
-            + (f"{n_bad} of the {bad.size} pixel positions asked, the nearest " if bad.size > 1 else "")
-            + f"at ({u:.0f}, {v:.0f}) px, {float(r[k]):.0f} px from the principal point (beyond the "
-            "calibrated field the distortion polynomial folds over)"
+            "the lens distortion model cannot be inverted "
+            + (f"at {n_bad} of the {bad.size} pixel positions asked, the nearest " if bad.size > 1 else "")
+            + f"at ({u:.0f}, {v:.0f}) px, {float(r[k]):.0f} px from the principal point ("
+            + (
+                "beyond the fisheye model's field: its polynomial folds over, or the ray is 90 "
+                "degrees or more off axis)"
+                if self.model == "fisheye"
+                else "beyond the calibrated field the distortion polynomial folds over)"
+            )
         )
 
     # -------------------------------------------------------------------- json
@@ -447,8 +511,10 @@ class CameraModel:
             "fy": self.fy,
             "cx": self.cx,
             "cy": self.cy,
-            "dist": list(self.dist),
         }
+        if self.model != "opencv":  # a pinhole camera's file stays as it always was
+            d["model"] = self.model
+        d["dist"] = list(self.dist)
         if self.std is not None:
             d["std"] = self.std
         if self.rms_px is not None:
@@ -510,19 +576,25 @@ class CameraModel:
                 f"{size[0]}x{size[1]} px is not a camera image (at most {MAX_IMAGE_PX} px per side)",
             )
         vals = {k: number(k, data[k], positive=k in ("fx", "fy")) for k in ("fx", "fy", "cx", "cy")}
+        model = data.get("model", "opencv")
+        if model not in LENS_MODELS:
+            models = ", ".join(repr(m) for m in LENS_MODELS)
+            raise bad("model", f"must be one of {models}, got {_short(model)}")
         dist = data["dist"]
-        if not isinstance(dist, list) or len(dist) not in _DIST_LENGTHS:
-            raise bad(
-                "dist",
-                f"must be a list of 4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...], got {_short(dist)}",
+        if not isinstance(dist, list) or len(dist) not in DIST_LENGTHS[model]:
+            expected = (
+                "4 numbers [k1, k2, k3, k4] (the fisheye model)"
+                if model == "fisheye"
+                else "4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...]"
             )
+            raise bad("dist", f"must be a list of {expected}, got {_short(dist)}")
         dist = [number(f"dist[{i}]", v) for i, v in enumerate(dist)]
         std = data.get("std")
         if std is not None:
             std = _check_std(std, len(dist), bad)
         cov = data.get("cov")
         if cov is not None:
-            cov = _check_cov(cov, len(dist), bad)
+            cov = _check_cov(cov, len(dist), bad, model)
         rms = data.get("rms_px")
         rms = number("rms_px", rms, nonnegative=True) if rms is not None else None
         rsd = data.get("residual_std_px")
@@ -544,6 +616,7 @@ class CameraModel:
             residual_std_px=rsd,
             views=tuple(views),
             cov=cov,
+            model=model,
             **vals,
         )
         problems = plausibility_problems(camera)
@@ -607,10 +680,11 @@ COV_SYMMETRY_TOL = 1e-6
 COV_PSD_TOL = 1e-8
 
 
-def _check_cov(cov: Any, n_dist: int, bad) -> np.ndarray:
+def _check_cov(cov: Any, n_dist: int, bad, model: str = "opencv") -> np.ndarray:
     """Validate the ``cov`` object; the full covariance over the camera's parameters."""
+    names = FISHEYE_NAMES if model == "fisheye" else DIST_NAMES[:n_dist]
     return check_cov_object(
-        cov, ("fx", "fy", "cx", "cy", *DIST_NAMES[:n_dist]), bad, hint=f"'dist' has {n_dist} coefficients"
+        cov, ("fx", "fy", "cx", "cy", *names), bad, hint=f"'dist' has {n_dist} coefficients"
     )
 
 
@@ -730,7 +804,7 @@ def _fold_near_centre(camera: CameraModel) -> str | None:
     rad = np.linspace(0.0, r_max, 65)[1:]
     xy = np.stack(np.broadcast_arrays(rad[:, None] * np.cos(ang), rad[:, None] * np.sin(ang)), axis=-1)
     with np.errstate(all="ignore"):
-        out, J = _distort(xy, _dist12(camera.dist_array), jacobian=True)
+        out, J = camera.distort_with_jacobian(xy)
         det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
         bad = ~(np.isfinite(det) & (det > 0) & np.all(np.isfinite(out), axis=-1))
     if not np.any(bad):
@@ -778,7 +852,7 @@ def plausibility_problems(camera: CameraModel) -> list[tuple[str, str]]:
                 )
             )
     for i, c in enumerate(camera.dist):
-        name = DIST_NAMES[i]
+        name = camera.dist_names[i]
         limit = MAX_RADIAL if name.startswith("k") else MAX_TANGENTIAL
         if abs(c) > limit:
             kind = (
@@ -929,7 +1003,10 @@ class InvertibleField:
     ----------
     phi, rho : ndarray, shape (n,)
     folds : bool
-        False when the model is one to one out to 80 degrees off axis in every direction.
+        False when the model is one to one out to 80 degrees off axis in every direction
+        (89.5 degrees with the fisheye model, whose field is a disc: there ``rho`` is the
+        same at every angle, ``theta_d`` at :data:`FIELD_SAFETY` times the angle off axis where
+        theta_d stops growing, or at :data:`stiffmap.lens.MAX_THETA`).
     """
 
     camera: CameraModel
@@ -965,6 +1042,12 @@ class InvertibleField:
     def describe(self) -> str:
         """One sentence: how far the field reaches and how much of the image it covers."""
         if not self.folds:
+            share = self.image_share() if self.camera.model == "fisheye" else 1.0
+            if share < 1.0:
+                return (
+                    f"the fisheye model reaches 89.5 degrees off axis, {100 * share:.1f} % of the image "
+                    "(the other pixels see rays 90 degrees or more off axis, which have no X/Z)"
+                )
             return "the lens model is one to one over the whole field of view"
         lo, hi = self.radius_px()
         share = self.image_share()
@@ -981,6 +1064,25 @@ def invertible_field(camera: CameraModel) -> InvertibleField:
     hit = _FIELD_CACHE.get(key)
     if hit is not None:
         return hit
+    field_ = _fisheye_field(camera) if camera.model == "fisheye" else _polynomial_field(camera)
+    _FIELD_CACHE[key] = field_
+    while len(_FIELD_CACHE) > _RAY_CACHE_SIZE:
+        _FIELD_CACHE.popitem(last=False)
+    return field_
+
+
+def _fisheye_field(camera: CameraModel) -> InvertibleField:
+    """The fisheye model's field: a disc, out to where theta_d stops growing (or 89.5 degrees)."""
+    theta_end, folds = fisheye_theta_end(camera.dist_array)
+    if folds:
+        theta_end *= FIELD_SAFETY
+    rho = float(fisheye_theta_d(theta_end, camera.dist_array)[0])
+    phi = np.linspace(-np.pi, np.pi, _FIELD_ANGLES, endpoint=False)
+    return InvertibleField(camera, phi, np.full(phi.shape, rho), folds)
+
+
+def _polynomial_field(camera: CameraModel) -> InvertibleField:
+    """The pinhole polynomial's field: along each direction, up to where its Jacobian folds."""
     theta = np.linspace(0.0, 2 * np.pi, _FIELD_ANGLES, endpoint=False)
     r = np.linspace(0.0, _FIELD_R_MAX, _FIELD_STEPS + 1)[1:]
     u = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
@@ -998,11 +1100,7 @@ def invertible_field(camera: CameraModel) -> InvertibleField:
     rho = np.hypot(edge[:, 0], edge[:, 1])
     ok = np.isfinite(phi) & np.isfinite(rho)
     order = np.argsort(phi[ok])
-    field_ = InvertibleField(camera, phi[ok][order], rho[ok][order], folds)
-    _FIELD_CACHE[key] = field_
-    while len(_FIELD_CACHE) > _RAY_CACHE_SIZE:
-        _FIELD_CACHE.popitem(last=False)
-    return field_
+    return InvertibleField(camera, phi[ok][order], rho[ok][order], folds)
 
 
 # ------------------------------------------------------------------ ray cache
@@ -1034,6 +1132,11 @@ class PixelRays:
     users need to look. (:meth:`block`, for the renderer, needs a camera that covers
     its image.)
 
+    The fisheye model's correction is no small one (tens of percent of the ray near a wide
+    lens's edge, a bicubic spline of it off by 1e-3 px), but its inverse is a one-dimensional
+    root that costs little (:func:`stiffmap.lens.fisheye_undistort`, 0.2 s a megapixel): for
+    it, :meth:`block` and :attr:`correction_maps` are exact rays, NaN beyond the field.
+
     Attributes
     ----------
     px : ndarray, shape (w,)
@@ -1051,11 +1154,22 @@ class PixelRays:
 
         self.camera = camera
         w, h = camera.image_size
+        self.px = (np.arange(w, dtype=np.float64) - camera.cx) / camera.fx
+        self.py = (np.arange(h, dtype=np.float64) - camera.cy) / camera.fy
+        self.px32 = self.px.astype(np.float32)
+        self.py32 = self.py.astype(np.float32)
+        self.field = invertible_field(camera)
+        self._valid: np.ndarray | None = None
+        self._maps: tuple[np.ndarray, np.ndarray] | None = None
+        # The fisheye model: exact rays everywhere (its inverse is cheap), no spline.
+        self._direct = camera.model == "fisheye"
+        self._exact = self._direct
+        if self._direct:
+            return
         us = np.arange(-_RAY_PAD_PX, w + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
         vs = np.arange(-_RAY_PAD_PX, h + _RAY_PAD_PX + _RAY_STEP_PX, _RAY_STEP_PX, dtype=np.float64)
         U, V = np.meshgrid(us, vs)
         uv = np.stack([U, V], axis=-1)
-        self.field = invertible_field(camera)
         ok = self.field.contains_pixels(uv)
         rays = np.zeros(uv.shape)
         x, bad = camera._newton_undistort(camera.normalized_from_pixels(uv[ok]), 1e-14, 50)
@@ -1063,20 +1177,14 @@ class PixelRays:
         ok[ok] = ~bad
         if not ok.any():  # pragma: no cover - the centre is always inside (plausibility checks)
             raise UndistortionError(f"no pixel of the image can be undistorted: {self.field.describe()}")
-        self.px = (np.arange(w, dtype=np.float64) - camera.cx) / camera.fx
-        self.py = (np.arange(h, dtype=np.float64) - camera.cy) / camera.fy
-        self.px32 = self.px.astype(np.float32)
-        self.py32 = self.py.astype(np.float32)
         corr_x = rays[..., 0] - (U - camera.cx) / camera.fx
         corr_y = rays[..., 1] - (V - camera.cy) / camera.fy
         if not ok.all():
             # Beyond the field: the nearest valid node's correction (keeps the spline tame).
             idx = distance_transform_edt(~ok, return_distances=False, return_indices=True)
             corr_x, corr_y = corr_x[idx[0], idx[1]], corr_y[idx[0], idx[1]]
-        self._valid: np.ndarray | None = None
         self._sx = RectBivariateSpline(vs, us, corr_x, kx=3, ky=3, s=0)
         self._sy = RectBivariateSpline(vs, us, corr_y, kx=3, ky=3, s=0)
-        self._maps: tuple[np.ndarray, np.ndarray] | None = None
         # Where the field ends inside the grid the correction bends sharply near the fold, beyond
         # a spline's reach: the maps are then the exact rays of every pixel (Newton, once).
         self._exact = not ok.all()
@@ -1090,6 +1198,10 @@ class PixelRays:
             x/z and y/z, float64.
         """
         c = self.camera
+        if self._direct:
+            uv = np.stack(np.meshgrid(cols, rows), axis=-1)
+            xy, _ = c._newton_undistort(c.normalized_from_pixels(uv), 1e-15, 20)
+            return xy[..., 0], xy[..., 1]
         rx = ((cols - c.cx) / c.fx)[None, :] + self._sx(rows, cols)
         ry = ((rows - c.cy) / c.fy)[:, None] + self._sy(rows, cols)
         return rx, ry

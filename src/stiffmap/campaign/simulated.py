@@ -93,6 +93,12 @@ _OWN_FILES = ("campaign.toml", "camera.json", RIG_NAME, TRUTH_NAME, CORNERS_NAME
 CALIBRATION_MODEL = "k3"
 
 
+def calibration_model(camera) -> str:
+    """The distortion model a simulated camera is calibrated with: ``fisheye`` for a fisheye lens,
+    else :data:`CALIBRATION_MODEL` (as a user who knows the lens calls ``stiffmap calibrate``)."""
+    return "fisheye" if camera.model == "fisheye" else CALIBRATION_MODEL
+
+
 @dataclass(frozen=True)
 class SimSummary:
     """What :func:`write_campaign` wrote.
@@ -353,7 +359,8 @@ def calibrate_from_views(
     """Render the calibration views into ``out`` and calibrate the camera from them.
 
     The calibration is ``stiffmap calibrate``'s (:func:`stiffmap.vision.files.calibrate_files`,
-    model ``k3``, views whose RMS is an outlier left out); the views are named relative to
+    model ``k3``, or ``fisheye`` for a fisheye camera, views whose RMS is an outlier left out);
+    the views are named relative to
     ``out`` in the camera's ``views``, as ``stiffmap calibrate calibration/*.png`` run in the
     campaign directory names them.
 
@@ -376,7 +383,7 @@ def calibrate_from_views(
     rendered = render_calibration_images(out, config, views, workers=workers, progress=progress)
     paths = [out / v.file for v in views]
     try:
-        res = calibrate_files(paths, CALIBRATION_BOARD, model=CALIBRATION_MODEL)
+        res = calibrate_files(paths, CALIBRATION_BOARD, model=calibration_model(config.scene.camera))
     except InputError as e:
         raise InputError(
             f"the camera could not be calibrated from the {len(views)} rendered calibration views: "
@@ -458,7 +465,7 @@ def calibrate_rig_from_views(
         res = calibrate_rig_files(
             [(c.name, out / CALIBRATION_DIR / c.name) for c in rig.cameras],
             CALIBRATION_BOARD,
-            model=CALIBRATION_MODEL,
+            model=calibration_model(rig.cameras[0].camera),
         )
     except InputError as e:
         raise InputError(

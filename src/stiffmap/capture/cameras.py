@@ -125,7 +125,9 @@ def _true_like(camera: CameraModel | None) -> CameraModel | None:
     """The campaign's camera without its uncertainty (the simulated camera renders through it)."""
     if camera is None:
         return None
-    return CameraModel(camera.image_size, camera.fx, camera.fy, camera.cx, camera.cy, camera.dist)
+    return CameraModel(
+        camera.image_size, camera.fx, camera.fy, camera.cx, camera.cy, camera.dist, model=camera.model
+    )
 
 
 def open_camera(option: str, root: Path, spec: CampaignSpec) -> CameraSource:

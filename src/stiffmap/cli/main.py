@@ -86,6 +86,9 @@ COMMANDS: dict[str, CommandEntry] = {
     ),
     "report": CommandEntry("report", "Write a self-contained HTML report (works offline) and PNG figures."),
     "demo": CommandEntry("demo", "Simulate the reference experiment and measure it with the whole chain."),
+    "compensate": CommandEntry(
+        "compensate", "Correct a machining program for the robot's deflection under the cutting force."
+    ),
 }
 
 _TYPER_SETTINGS = dict(add_completion=False, pretty_exceptions_enable=False, rich_markup_mode="rich")

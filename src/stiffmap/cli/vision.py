@@ -312,6 +312,12 @@ def calibrate(
     fix_k3: bool = typer.Option(False, "--fix-k3", help="Fix k3 = 0 (the Matlab toolbox's default)."),
     rational: bool = typer.Option(False, "--rational", help="Also estimate k4, k5, k6 (rational model)."),
     thin_prism: bool = typer.Option(False, "--thin-prism", help="Rational model plus thin-prism s1..s4."),
+    fisheye: bool = typer.Option(
+        False,
+        "--fisheye",
+        help="OpenCV's fisheye model (k1..k4 of the angle off axis) for a fisheye or strong "
+        "wide-angle lens: one to one over the whole image where the polynomial folds over.",
+    ),
     outlier_factor: float = typer.Option(
         3.0, "--outlier-factor", min=1.0, help="Leave out views whose RMS exceeds this times the median."
     ),
@@ -329,9 +335,10 @@ def calibrate(
     """
     try:
         b = _board(board, square_mm, charuco, marker_mm)
-        if sum([fix_k3, rational, thin_prism]) > 1:
-            raise InputError("choose at most one of --fix-k3, --rational, --thin-prism")
-        model = "fix-k3" if fix_k3 else "rational" if rational else "thin-prism" if thin_prism else "k3"
+        if sum([fix_k3, rational, thin_prism, fisheye]) > 1:
+            raise InputError("choose at most one of --fix-k3, --rational, --thin-prism, --fisheye")
+        model = {"fix-k3": fix_k3, "rational": rational, "thin-prism": thin_prism, "fisheye": fisheye}
+        model = next((k for k, on in model.items() if on), "k3")
         res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor)
         backup = save_camera(res.camera, out_path)
     except InputError as e:
@@ -342,6 +349,8 @@ def calibrate(
         if not v.used:
             warn(f"{v.image}: not used: {v.reason}")
     implausible = _warn_calibrated(res.camera, out_path)
+    if res.lens_advice:
+        warn(f"{out_path}: {res.lens_advice}")
     if as_json:
         print_json(res.to_dict())
     else:
@@ -372,8 +381,7 @@ def _print_calibration(res: CalibrationResult, out_path: Path) -> None:
     t.add_column("1 sigma")
     for k in ("fx", "fy", "cx", "cy"):
         t.add_row(f"{k} (px)", f"{getattr(c, k):.4f}", f"{s[k]:.4f}")
-    names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
-    for name, v, sd in zip(names, c.dist, s["dist"], strict=False):
+    for name, v, sd in zip(c.dist_names, c.dist, s["dist"], strict=False):
         t.add_row(name, f"{v:.6f}", f"{sd:.6f}")
     out.print(t)
     out.print(
@@ -402,7 +410,8 @@ _CAMERA_HELP = (
 )
 _MODEL_HELP = (
     "Distortion model of every camera: k3 (k1, k2, p1, p2, k3), fix-k3 (k3 = 0, the Matlab "
-    "toolbox's default), rational (+ k4, k5, k6) or thin-prism (rational + s1..s4)."
+    "toolbox's default), rational (+ k4, k5, k6), thin-prism (rational + s1..s4) or fisheye "
+    "(OpenCV's fisheye model, k1..k4 of the angle off axis)."
 )
 
 

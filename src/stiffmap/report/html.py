@@ -136,6 +136,9 @@ def _camera_table(cam: dict) -> str:
     dist = cam.get("dist", [])
     sd = std.get("dist") if isinstance(std, dict) else None
     names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
+    if cam.get("model") == "fisheye":  # OpenCV's fisheye model: k1..k4 of the angle off axis
+        names = ["k1", "k2", "k3", "k4"]
+        rows.append(("lens model", "fisheye (OpenCV's: equidistant, k1..k4)"))
     for j, v in enumerate(dist):
         s = sd[j] if isinstance(sd, list) and j < len(sd) and isinstance(sd[j], (int, float)) else np.nan
         rows.append((names[j], fmt_pm(v, s, 4, omit_unknown_std=True)))

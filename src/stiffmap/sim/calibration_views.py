@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..camera import CameraModel
+from ..camera import CameraModel, UndistortionError
 from ..geometry import invert_transform, mean_transform
 from ..rig import Rig
 from ..targets import Chessboard
@@ -234,8 +234,14 @@ def careful_poses(
         def inside(T: np.ndarray) -> bool:
             return _outline_inside(camera, T, extent, border_px) and (fits is None or fits(T))
 
+        def fits_at(pixel, dist: float) -> bool:
+            try:
+                return inside(pose(pixel, dist))
+            except UndistortionError:  # a fisheye's pixel that sees 90 degrees or more off axis
+                return False
+
         for _ in range(60):  # farther until the board fits at the image centre
-            if inside(pose(mid, dist)):
+            if fits_at(mid, dist):
                 break
             dist *= 1.06
         else:
@@ -246,7 +252,7 @@ def careful_poses(
         along_x, along_y = np.array([d[0], 0.0]) * half, np.array([0.0, d[1]]) * half
         for step in (d * half, along_x, along_y, along_x, along_y):
             if np.any(step):
-                t = _farthest(lambda t, p0=pixel, e=step, z=dist: inside(pose(p0 + t * e, z)))
+                t = _farthest(lambda t, p0=pixel, e=step, z=dist: fits_at(p0 + t * e, z))
                 pixel = pixel + t * step
         T = pose(pixel, dist)
         T.setflags(write=False)

@@ -149,6 +149,7 @@ def _supersampled_camera(camera: CameraModel, ss: int) -> CameraModel:
         camera.cx * ss + (ss - 1) / 2,
         camera.cy * ss + (ss - 1) / 2,
         camera.dist,
+        model=camera.model,
     )
 
 

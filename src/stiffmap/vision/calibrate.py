@@ -20,6 +20,15 @@ whose coefficients the views often determine only in combination, OpenCV's pseud
 drops the undetermined directions; this covariance keeps them (large variances of k4..k6
 along directions that move no corner of the calibrated field, so harmless for a pose).
 
+A fisheye or strong wide-angle lens (``model="fisheye"``: OpenCV's fisheye model,
+:mod:`stiffmap.lens`) is calibrated by OpenCV's ``fisheye.calibrate`` (the same least squares
+over intrinsics, the four coefficients and every view's pose, skew held at zero); its
+standard deviations and covariance come from :func:`model_calibration_covariance`, the same
+Schur complement computed from stiffmap's own NumPy Jacobians of the camera model (which
+give the pinhole models' covariance to 1e-6 too), and its views' residuals from the NumPy
+projection. OpenCV's optimum is the model's: Gauss-Newton steps of the NumPy model from it
+move no parameter by more than 1e-9 (on the udacity set).
+
 :meth:`CalibrationResult.matlab_text` prints the result the way the Camera
 Calibration Toolbox for Matlab does (values +/- three standard deviations), so
 its users can compare.
@@ -34,10 +43,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..camera import CameraModel
+from ..camera import CameraModel, invertible_field
 from ..errors import InputError
 from ..geometry import matrix_from_rotvec
+from ..posemath import projection_jacobian
 from .detection import Board, BoardDetection, grid_of
+from .pnp import solve_pnp
 
 __all__ = [
     "ViewResult",
@@ -45,6 +56,9 @@ __all__ = [
     "calibrate_camera",
     "calibration_covariance",
     "covariance_from_information",
+    "lens_model",
+    "model_calibration_covariance",
+    "fisheye_advice",
     "fixed_params",
     "matlab_camera_lines",
     "usable_views",
@@ -52,8 +66,16 @@ __all__ = [
     "MATLAB_NOTE",
 ]
 
-#: Distortion models: name -> number of coefficients.
-DIST_MODELS = {"k3": 5, "fix-k3": 5, "rational": 8, "thin-prism": 12}
+#: Distortion models: name -> number of coefficients. ``fisheye`` is OpenCV's fisheye model
+#: (camera.json's ``model`` ``"fisheye"``); the others are the pinhole polynomial's variants.
+DIST_MODELS = {"k3": 5, "fix-k3": 5, "rational": 8, "thin-prism": 12, "fisheye": 4}
+
+
+def lens_model(model: str) -> str:
+    """The camera's lens model (:data:`stiffmap.camera.LENS_MODELS`) of a distortion model."""
+    return "fisheye" if model == "fisheye" else "opencv"
+
+
 _MIN_VIEW_CORNERS = 6
 
 
@@ -107,6 +129,10 @@ class CalibrationResult:
     model : str
         Distortion model (a key of :data:`DIST_MODELS`).
     n_used : int
+    lens_advice : str
+        When the polynomial model is not one to one over the whole image and OpenCV's
+        fisheye model, fitted to the same views, covers more of it: one sentence saying so,
+        with both RMS (:func:`fisheye_advice`); else "".
     """
 
     camera: CameraModel
@@ -114,6 +140,7 @@ class CalibrationResult:
     residuals_px: np.ndarray
     model: str
     n_used: int
+    lens_advice: str = ""
 
     def to_dict(self) -> dict:
         """The ``camera.json`` object."""
@@ -165,8 +192,10 @@ def matlab_camera_lines(camera: CameraModel, suffix: str = "") -> list[str]:
         name += suffix
         return title + " " * max(1, 25 + len(suffix) - len(title) - len(name)) + name
 
-    kc = list(c.dist[:5]) + [0.0] * (5 - min(5, len(c.dist)))
-    skc = (sd[:5] + [0.0] * 5)[:5]
+    # The toolbox's fisheye mode prints its four theta coefficients as kc.
+    n_kc = 4 if c.model == "fisheye" else 5
+    kc = list(c.dist[:n_kc]) + [0.0] * (n_kc - min(n_kc, len(c.dist)))
+    skc = (sd[:n_kc] + [0.0] * n_kc)[:n_kc]
     rs = c.residual_std_px or (float("nan"), float("nan"))
     lines = [
         f"{label('Focal Length:', 'fc')} = [ {f(c.fx)}   {f(c.fy)} ] +/- "
@@ -182,7 +211,7 @@ def matlab_camera_lines(camera: CameraModel, suffix: str = "") -> list[str]:
         + " ]",
         f"{label('Pixel error:', 'err')} = [ {f(rs[0])}   {f(rs[1])} ]",
     ]
-    if len(c.dist) > 5:
+    if c.model != "fisheye" and len(c.dist) > 5:
         lines.insert(
             4,
             "Higher-order terms (k4, k5, k6[, s1..s4]) = [ "
@@ -206,7 +235,61 @@ def _flags(model: str) -> int:
     raise ValueError(f"model must be one of {sorted(DIST_MODELS)}, got {model!r}")
 
 
+def _fisheye_flag(name: str) -> int:
+    """An OpenCV fisheye calibration flag (``cv2.fisheye.X`` before OpenCV 5, ``cv2.X`` since)."""
+    return int(getattr(cv2.fisheye, name, None) or getattr(cv2, name))
+
+
+def _run_fisheye(obj, img, image_size):
+    """``cv2.fisheye.calibrate`` (skew fixed at 0) and the views' RMS, as :func:`_run` returns them.
+
+    The 1 sigma are NaN here: :func:`calibrate_camera` takes them from the covariance
+    (:func:`model_calibration_covariance`, on the corners in float64).
+    """
+    flags = _fisheye_flag("CALIB_RECOMPUTE_EXTRINSIC") | _fisheye_flag("CALIB_FIX_SKEW")
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    o = [np.asarray(x, dtype=np.float64).reshape(1, -1, 3) for x in obj]
+    i = [np.asarray(x, dtype=np.float64).reshape(1, -1, 2) for x in img]
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        _, K, D, rvecs, tvecs = cv2.fisheye.calibrate(
+            o, i, image_size, np.eye(3), np.zeros(4), flags=flags, criteria=crit
+        )
+    except cv2.error as e:
+        raise InputError(
+            "OpenCV's fisheye calibration failed on these views "
+            f"({str(e).strip().splitlines()[-1][:160]}): more views, or views that fill more of the image?"
+        ) from None
+    finally:
+        cv2.setNumThreads(threads)
+    dist = np.asarray(D, dtype=np.float64).ravel()[:4]
+    cam = CameraModel(image_size, K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(dist), model="fisheye")
+    poses = [_pose_matrix(rv, tv) for rv, tv in zip(rvecs, tvecs, strict=True)]
+    per_view = np.array([_view_rms(cam, q, uv, T) for q, uv, T in zip(obj, img, poses, strict=True)])
+    return K, dist, rvecs, tvecs, np.full(8, np.nan), per_view
+
+
+def _pose_matrix(rv, tv) -> np.ndarray:
+    """board2cam (4x4) of OpenCV's rotation and translation vectors."""
+    T = np.eye(4)
+    T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
+    T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
+    return T
+
+
+def _view_rms(camera: CameraModel, object_points, corners, board2cam) -> float:
+    """Reprojection RMS of a view with the NumPy camera model, px."""
+    q = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
+    e = np.asarray(corners, dtype=np.float64).reshape(-1, 2) - camera.project(
+        q @ board2cam[:3, :3].T + board2cam[:3, 3]
+    )
+    return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+
+
 def _run(obj, img, image_size, model):
+    if model == "fisheye":
+        return _run_fisheye(obj, img, image_size)
     nd = DIST_MODELS[model]
     crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     # On one thread: OpenCV's parallel sums make the result differ in the last digits from
@@ -225,6 +308,53 @@ def _run(obj, img, image_size, model):
 def fixed_params(model: str) -> tuple[int, ...]:
     """Indices (in the camera's parameter order) the model holds fixed."""
     return (8,) if model == "fix-k3" else ()
+
+
+def model_calibration_covariance(
+    camera: CameraModel, object_points, image_points, board2cams, fixed=()
+) -> np.ndarray:
+    """:func:`calibration_covariance` from stiffmap's own Jacobians of the camera model (any lens).
+
+    Parameters
+    ----------
+    camera : CameraModel
+        The calibrated camera (its :attr:`~stiffmap.camera.CameraModel.param_names`).
+    object_points, image_points : sequence of ndarray, shapes (m_v, 3) mm and (m_v, 2) px
+        The used views' board points and detected corners.
+    board2cams : sequence of ndarray, shape (4, 4)
+        The views' poses, mm.
+    fixed : sequence of int
+        Indices of parameters held fixed (0 variance).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        Over :attr:`~stiffmap.camera.CameraModel.param_names` (px and unitless).
+
+    Notes
+    -----
+    J_c is :meth:`~stiffmap.camera.CameraModel.projection_param_jacobian`, J_e the pose's
+    :func:`~stiffmap.posemath.projection_jacobian` (a perturbation (t, r) instead of OpenCV's
+    rotation vector: the Schur complement does not depend on how the pose is parametrised).
+    """
+    n = len(camera.param_names)
+    S = np.zeros((n, n))
+    sse = 0.0
+    n_res = 0
+    for q, uv, T in zip(object_points, image_points, board2cams, strict=True):
+        q = np.asarray(q, dtype=np.float64).reshape(-1, 3)
+        uv_p, Jp = projection_jacobian(T, q, camera, validate=False)
+        X = q @ T[:3, :3].T + T[:3, 3]
+        Jc = camera.projection_param_jacobian(X[:, :2] / X[:, 2:3]).reshape(-1, n)
+        Je = Jp.reshape(-1, 6)
+        e = np.asarray(uv, dtype=np.float64).reshape(-1, 2) - uv_p
+        sse += float(np.sum(e**2))
+        n_res += e.size
+        S += Jc.T @ Jc - Jc.T @ Je @ np.linalg.solve(Je.T @ Je, Je.T @ Jc)
+    free = [i for i in range(n) if i not in set(fixed)]
+    dof = n_res - len(free) - 6 * len(board2cams)
+    s2 = sse / dof if dof > 0 else float("nan")
+    return covariance_from_information(S, s2, free)
 
 
 def calibration_covariance(object_points, image_points, camera_matrix, dist, rvecs, tvecs, fixed=()):
@@ -336,15 +466,13 @@ def solve_view_pose(camera: CameraModel, object_points, corners) -> np.ndarray |
     """A view's board2cam (4x4, mm) from its corners with a calibrated camera (``cv2.solvePnP``).
 
     ``object_points`` (m, 3) mm in the board frame, ``corners`` (m, 2) px; None when OpenCV finds
-    no pose (a detection always has one).
+    no pose (a detection always has one), or when a corner has no ray (beyond the lens model's
+    field).
     """
-    ok, rv, tv = cv2.solvePnP(object_points, corners, camera.matrix, camera.dist_array)
+    ok, rv, tv = solve_pnp(camera, object_points, corners)
     if not ok:  # pragma: no cover - a detection always has a pose
         return None
-    T = np.eye(4)
-    T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
-    T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
-    return T
+    return _pose_matrix(rv, tv)
 
 
 def with_calibration_results(
@@ -386,6 +514,7 @@ def with_calibration_results(
         residual_std_px=(float(np.std(R[:, 0], ddof=1)), float(np.std(R[:, 1], ddof=1))),
         views=tuple(views),
         cov=cov,
+        model=camera.model,
     )
 
 
@@ -414,8 +543,9 @@ def calibrate_camera(
         Image names (default ``view1``, ``view2``...).
     model : str
         ``"k3"`` (k1, k2, p1, p2, k3; default), ``"fix-k3"`` (k3 = 0, as the Matlab
-        toolbox's default), ``"rational"`` (+ k4, k5, k6) or ``"thin-prism"``
-        (+ s1..s4).
+        toolbox's default), ``"rational"`` (+ k4, k5, k6), ``"thin-prism"``
+        (+ s1..s4), or ``"fisheye"`` (OpenCV's fisheye model, k1..k4 of the angle off axis:
+        a fisheye or strong wide-angle lens).
     outlier_factor : float
         A view is an outlier when its RMS exceeds ``outlier_factor`` times the
         median view RMS and ``outlier_min_px``; outliers are left out one at a
@@ -467,7 +597,7 @@ def calibrate_camera(
             continue
         break
     nd = DIST_MODELS[model]
-    cam = CameraModel((w, h), K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(dist))
+    cam = CameraModel((w, h), K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(dist), model=lens_model(model))
     # Residuals and per-view RMS of every detected view with the final camera.
     res_used = []
     views = []
@@ -488,8 +618,7 @@ def calibrate_camera(
                 views.append(ViewResult(names[k], False, float("nan"), reasons[k], d.n_corners))
                 continue
             rv, tv = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
-        proj, _ = cv2.projectPoints(obj_all[d.ids], rv, tv, cam.matrix, cam.dist_array)
-        e = d.corners - proj.reshape(-1, 2)
+        e = d.corners - _project_view(cam, obj_all[d.ids], rv, tv)
         rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
         if k in pose_of:
             res_used.append(e)
@@ -497,6 +626,67 @@ def calibrate_camera(
     R = np.concatenate(res_used)
     obj = [obj_all[detections[k].ids] for k in used]
     img = [detections[k].corners for k in used]
-    cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model))
+    if cam.model == "opencv":
+        cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model))
+    else:
+        poses = [_pose_matrix(rv, tv) for rv, tv in zip(rvecs, tvecs, strict=True)]
+        cov = model_calibration_covariance(cam, obj, img, poses, fixed_params(model))
+        sd_int = np.sqrt(np.maximum(np.diag(cov), 0.0))
     camera = with_calibration_results(cam, sd_int[: 4 + nd], R, [v.to_dict() for v in views], cov)
-    return CalibrationResult(camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used))
+    advice = fisheye_advice(camera, obj, img) if model != "fisheye" else ""
+    return CalibrationResult(
+        camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used), lens_advice=advice
+    )
+
+
+def fisheye_advice(camera: CameraModel, object_points, image_points) -> str:
+    """Whether OpenCV's fisheye model would serve a camera whose polynomial folds within the image.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        A calibrated pinhole camera (``model="opencv"``).
+    object_points, image_points : sequence of ndarray, shapes (m_v, 3) mm and (m_v, 2) px
+        The views it was calibrated from.
+
+    Returns
+    -------
+    str
+        "" when ``camera``'s model is one to one over the whole image, or the fisheye model
+        (fitted here to the same views) covers no more of it or cannot be fitted; else one
+        sentence with both models' RMS and how much of the image the fisheye model covers.
+    """
+    share = invertible_field(camera).image_share()
+    if camera.model != "opencv" or share >= 1.0:
+        return ""
+    try:
+        K, dist, rvecs, tvecs, _, _ = _run_fisheye(object_points, image_points, camera.image_size)
+    except InputError:
+        return ""
+    fish = CameraModel(camera.image_size, K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(dist), model="fisheye")
+    fish_share = invertible_field(fish).image_share()
+    if fish_share <= share:
+        return ""
+    e = np.concatenate(
+        [
+            np.asarray(uv, dtype=np.float64).reshape(-1, 2) - _project_view(fish, q, rv, tv)
+            for q, uv, rv, tv in zip(object_points, image_points, rvecs, tvecs, strict=True)
+        ]
+    )
+    rms = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+    where = "the whole image" if fish_share >= 1.0 else f"{100 * fish_share:.1f} % of the image"
+    return (
+        f"OpenCV's fisheye model (calibrate --fisheye) fits the same views with RMS {rms:.3f} px "
+        f"(this model {camera.rms_px:.3f} px) and is one to one over {where} (this model "
+        f"{100 * share:.1f} %)"
+    )
+
+
+def _project_view(camera: CameraModel, object_points, rvec, tvec) -> np.ndarray:
+    """Pixels (m, 2) of a view's board points: ``cv2.projectPoints`` for the pinhole models, else NumPy."""
+    q = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
+    if camera.model == "opencv":
+        proj, _ = cv2.projectPoints(q, rvec, tvec, camera.matrix, camera.dist_array)
+        return proj.reshape(-1, 2)
+    T = _pose_matrix(rvec, tvec)
+    return camera.project(q @ T[:3, :3].T + T[:3, 3])

@@ -62,6 +62,7 @@ from ..posemath import (
 from ..targets import Chessboard
 from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
 from .photometric import PhotometricError, PhotometricTrack, refine_pose_photometric
+from .pnp import solve_pnp
 
 __all__ = [
     "estimate_pose",
@@ -362,7 +363,7 @@ def _corner_pose(
     obj = detection.object_points()
     uv_obs = np.asarray(detection.corners, dtype=np.float64)
     if initial is None:
-        ok, rvec, tvec = cv2.solvePnP(obj, uv_obs, camera.matrix, camera.dist_array, flags=cv2.SOLVEPNP_IPPE)
+        ok, rvec, tvec = solve_pnp(camera, obj, uv_obs, flags=cv2.SOLVEPNP_IPPE)
         if not ok:
             raise DetectionError(
                 f"{board_label(board)}: no pose fits the corners", source=source, reason="partial"

@@ -296,7 +296,7 @@ def _unpack(p: _Problem, x: np.ndarray, layout):
     for k, cam in enumerate(p.cameras):
         params = cam.params.copy()
         params[p.free[k]] = x[cam_off[k] : cam_off[k] + len(p.free[k])]
-        cams.append(CameraModel(cam.image_size, *params[:4], tuple(params[4:])))
+        cams.append(cam.with_params(params))
         if k == 0:
             c2r.append(p.cam2rig[0])
             deltas.append(np.zeros(6))

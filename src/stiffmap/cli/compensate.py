@@ -1,0 +1,283 @@
+"""``stiffmap compensate``: a machining program corrected for the robot's deflection (docs/machining.md)."""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from enum import StrEnum
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+from ..campaign.fitted import fitted_model
+from ..errors import InputError
+from ..geometry import matrix_from_euler
+from ..machining import CompensateOptions, ForceSpec, ModelUncertainty, compensate_file
+from ..models import arm6
+from ..models.legs import LegRobot
+from ..models.presets import mechanism_from_params, serial_robot_from_options
+from ..report.compensation import write_compensation_figures
+from .common import err, float_values, from_option, out, parse_key_values, print_json, print_summary, warn
+
+
+class MechanismName(StrEnum):
+    delta = "delta"
+    prr3 = "3prr"
+    urdf = "urdf"
+    legs = "legs"
+
+
+def _numbers(text: str | None, option: str, counts: tuple[int, ...], unit: str) -> tuple[float, ...] | None:
+    """Comma-separated finite numbers (one of ``counts`` of them), or None for no text."""
+    if text is None:
+        return None
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) not in counts or not all(math.isfinite(x) for x in v):
+        n = " or ".join(str(c) for c in counts)
+        raise InputError(f"{option}: expected {n} comma-separated numbers ({unit}), got {text!r}")
+    return v
+
+
+def _mechanism(name, robot, params, tip, tip_offset, campaign):
+    """The model to compensate for, and its parameters' uncertainty (a campaign's fit), built as
+    ``stiffmap model`` builds it (one place: it moves to the registry of robot kinds)."""
+    if campaign is not None:
+        if name is not None or params:
+            raise InputError("--from-campaign takes the campaign's model: give no MECHANISM or --param")
+        f = fitted_model(campaign)
+        return f.mechanism, ModelUncertainty(f.names, f.cov)
+    if name is None:
+        raise InputError(
+            "give the MECHANISM (delta, 3prr, urdf ROBOT, legs ROBOT.toml) or --from-campaign DIR"
+        )
+    values = parse_key_values(params or [], "--param")
+    if name == "urdf":
+        if robot is None:
+            raise InputError("urdf needs the robot's URDF file (or arm6, stiffmap's six-joint test arm)")
+        is_arm6 = str(robot) == "arm6"
+        off = _numbers(tip_offset, "--tip-offset-mm", (3,), "mm") or (
+            arm6.TIP_OFFSET_MM if is_arm6 else (0, 0, 0)
+        )
+        items = [f"{k}={v}" for k, v in values.items()] or (
+            ["k_theta=" + ",".join(f"{k:g}" for k in arm6.K_THETA)] if is_arm6 else []
+        )
+        if not items:
+            raise InputError("urdf: give the joint stiffnesses, --param k_theta=K1,...,Kn (N*mm/rad)")
+        m, _ = from_option(
+            "--param:",
+            serial_robot_from_options,
+            robot,
+            tip or (arm6.TIP_FRAME if is_arm6 else None),
+            off,
+            None,
+            items,
+        )
+        if is_arm6:
+            m = m.with_params(tool_rotation=arm6.TOOL_ROTATION, q_seed=np.radians(arm6.Q_SEED_DEG))
+        return m, None
+    nums = float_values(values, "--param")
+    if name == "legs":
+        if robot is None:
+            raise InputError("legs needs the TOML file describing the legs")
+        m = LegRobot.from_toml(robot)
+        return (from_option("--param:", lambda: m.with_params(**nums)) if nums else m), None
+    if robot is not None:
+        raise InputError(f"{robot}: a robot file is only for urdf and legs; {name} takes none")
+    return from_option("--param:", mechanism_from_params, name, nums), None
+
+
+def _force(force_n, force_feed_n) -> ForceSpec | None:
+    if force_n is not None and force_feed_n is not None:
+        raise InputError("--force-n and --force-feed-n are exclusive")
+    if force_n is not None:
+        return ForceSpec.constant(_numbers(force_n, "--force-n", (2, 3), "N"))
+    if force_feed_n is not None:
+        return ForceSpec.feed_frame(_numbers(force_feed_n, "--force-feed-n", (2, 3), "N"))
+    return None
+
+
+def _region(text: str | None):
+    """``X0:X1,Y0:Y1[,Z0:Z1]`` (mm) as a box (lo, hi), unbounded along an axis not given."""
+    if text is None:
+        return None
+    lo, hi = np.full(3, -1e6), np.full(3, 1e6)
+    parts = text.split(",")
+    try:
+        pairs = [tuple(float(v) for v in p.split(":")) for p in parts]
+    except ValueError:
+        pairs = []
+    if len(pairs) not in (2, 3) or any(len(p) != 2 or not p[0] < p[1] for p in pairs):
+        raise InputError(f"--place-region: expected X0:X1,Y0:Y1[,Z0:Z1] in mm with X0 < X1, got {text!r}")
+    for k, (a, b) in enumerate(pairs):
+        lo[k], hi[k] = a, b
+    return lo, hi
+
+
+@contextmanager
+def _progress(show: bool):
+    if not show:
+        yield None
+        return
+    with Progress(
+        TextColumn("compensating"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("moves"),
+        TimeRemainingColumn(),
+        console=err,
+        transient=True,
+    ) as prog:
+        task = prog.add_task("moves", total=None)
+        yield lambda done, total: prog.update(task, completed=done, total=total)
+
+
+def compensate(
+    mechanism: MechanismName = typer.Argument(
+        None, help="delta, 3prr, urdf or legs (omit with --from-campaign)."
+    ),
+    robot: Path = typer.Argument(
+        None,
+        metavar="[ROBOT]",
+        help="urdf: the URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML.",
+    ),
+    path: Path = typer.Option(
+        ..., "--path", help="The program: G-code (RS274/NGC), or a .csv of points x,y,z[,fx,fy,fz]."
+    ),
+    out_file: Path = typer.Option(
+        ..., "--out", help="The corrected program (same format), written only on success."
+    ),
+    param: list[str] = typer.Option(
+        None, "--param", help="Model parameter NAME=VALUE (as for 'stiffmap model')."
+    ),
+    tip: str = typer.Option(None, "--tip", help="urdf: the link carrying the tool point (arm6: tool0)."),
+    tip_offset: str = typer.Option(
+        None, "--tip-offset-mm", help="urdf: the tool point in the tip frame, X,Y,Z mm."
+    ),
+    from_campaign: Path = typer.Option(
+        None,
+        "--from-campaign",
+        help="Use the model and parameters a campaign fitted (with their covariance).",
+    ),
+    place: str = typer.Option(
+        None, "--place", help="Where the program's origin lies in the base frame, X,Y[,Z] mm, or 'auto'."
+    ),
+    place_region: str = typer.Option(
+        None,
+        "--place-region",
+        help="--place auto: the box X0:X1,Y0:Y1[,Z0:Z1] (mm) the program must stay in.",
+    ),
+    objective: str = typer.Option(
+        "worst", "--objective", help="--place auto minimises the worst or rms deflection."
+    ),
+    force_n: str = typer.Option(
+        None, "--force-n", help="Constant force FX,FY[,FZ] in N, base frame (feed moves)."
+    ),
+    force_feed_n: str = typer.Option(
+        None, "--force-feed-n", help="Force FT,FN[,FZ] in N along the feed, across it, along z."
+    ),
+    force_file: Path = typer.Option(
+        None, "--force-file", help="CSV line,fx,fy[,fz] (N): one row per feed move of the program."
+    ),
+    tolerance_um: float = typer.Option(
+        1.0, "--tolerance-um", help="Largest distance of the deflected path from the programmed one, um."
+    ),
+    pass_through: bool = typer.Option(
+        False, "--pass-through", help="Keep lines that cannot be compensated unchanged (a warning each)."
+    ),
+    free_tool_spin: bool = typer.Option(
+        False, "--free-tool-spin", help="Serial arm: choose the spin about the tool axis that deflects least."
+    ),
+    tool_rpy_deg: str = typer.Option(
+        None, "--tool-rpy-deg", help="Serial arm: tool orientation held along the path, roll,pitch,yaw deg."
+    ),
+    q_seed_deg: str = typer.Option(
+        None, "--q-seed-deg", help="Serial arm: joint angles (deg) to start from (branch)."
+    ),
+    as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
+    figures: bool = typer.Option(
+        True, "--figures/--no-figures", help="Write OUT.deflection.png and OUT.html."
+    ),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+) -> None:
+    """Correct a machining program for the robot's deflection under the cutting force.
+
+    Each point of every feed move is commanded where the model's deflection under the
+    force brings the tool onto the programmed path; moves are subdivided (arcs stay arcs)
+    until the deflected path stays within --tolerance-um of the programmed one. Every
+    line that is not a move is kept verbatim. Exit status 2 on bad input (nothing
+    written): a construct that cannot be compensated, a point out of reach or at a
+    singularity (the first such line named), force rows that do not match the program.
+    """
+    mech, unc = _mechanism(
+        mechanism.value if mechanism else None, robot, param, tip, tip_offset, from_campaign
+    )
+    auto = place is not None and place.strip().lower() == "auto"
+    p = None if place is None or auto else _numbers(place, "--place", (2, 3), "mm")
+    rpy = _numbers(tool_rpy_deg, "--tool-rpy-deg", (3,), "deg")
+    seed = _numbers(q_seed_deg, "--q-seed-deg", tuple(range(1, 13)), "deg")
+    opts = CompensateOptions(
+        tolerance_um=tolerance_um,
+        place_mm=None if p is None else (tuple(p) + (0.0,))[:3],
+        place_auto=auto,
+        place_region_mm=_region(place_region),
+        objective=objective,
+        force=_force(force_n, force_feed_n),
+        force_file=force_file,
+        pass_through=pass_through,
+        free_tool_spin=free_tool_spin,
+        tool_rotation=None if rpy is None else matrix_from_euler(np.radians(rpy)),
+        q_seed=None if seed is None else np.radians(seed),
+    )
+    with _progress(not quiet and not as_json) as hook:
+        res = compensate_file(mech, path, out_file, opts, uncertainty=unc, progress=hook)
+    for w in res.warnings:
+        warn(w)
+    if figures:
+        res.summary["written"] += write_compensation_figures(res, out_file)
+    if as_json:
+        print_json(res.summary)
+    else:
+        _print(res.summary)
+
+
+def _print(s: dict) -> None:
+    rows = [
+        ("mechanism", s["mechanism"]),
+        ("force", s["force"]),
+        ("program origin in the base frame (mm)", ", ".join(f"{v:.3f}" for v in s["place_mm"])),
+        ("feed moves / moves", f"{s['feed_moves']} / {s['moves']}"),
+        ("points written", str(s["points_out"])),
+        (
+            "deflection uncompensated, worst / RMS (um)",
+            f"{s['deflection_before_um']['worst']:.2f} / {s['deflection_before_um']['rms']:.2f}",
+        ),
+        (
+            "worst predicted residual after (um)",
+            f"{s['residual_after_um']['worst']:.3f} (tolerance {s['tolerance_um']:g})",
+        ),
+    ]
+    if s.get("residual_band_95_um") is not None:
+        rows.append(("95 % band of the residual, model uncertainty (um)", f"{s['residual_band_95_um']:.3f}"))
+    if "placement" in s:
+        rows.append(
+            ("placement", f"chosen ({s['placement']['objective']} {s['placement']['value_um']:.2f} um)")
+        )
+    if "spin" in s:
+        rows.append(
+            (
+                "tool spin, worst at knots fixed / chosen (um)",
+                f"{s['spin']['worst_fixed_um']:.2f} / {s['spin']['worst_chosen_um']:.2f}",
+            )
+        )
+    rows.append(("written", ", ".join(s["written"])))
+    print_summary("stiffmap compensate", rows)
+    out.print()
+
+
+def register(app: typer.Typer) -> None:
+    app.command("compensate")(compensate)

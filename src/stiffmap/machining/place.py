@@ -1,0 +1,264 @@
+"""Where to cut: the placement of a program in the workspace that deflects least.
+
+A placement t (mm) puts the program's origin at t in the base frame (the program's axes
+parallel to the base's). Over a region (a box the whole program must stay in), the search
+looks for the t that minimises the worst (or RMS) deflection |delta| along the program's
+feed moves under its force, every programmed point (rapids' too) reachable and away from
+singularities: the model's conditioning at least :data:`MIN_CONDITIONING`.
+
+Method: the objective on a coarse grid of placements (:data:`GRID` per axis; a planar
+mechanism places in x, y only), at a subset of the program's points; then a compass
+search from the best three feasible grid points, on points at most :data:`DENSE_MM` apart
+along the feed moves, the step halved down to :data:`STEP_MM`. A placement is feasible
+when the programmed points and their commanded points (pushed :data:`REACH_MARGIN_MM`
+outwards: the optimum often lies on the edge of the workspace) are all evaluable. The
+grid's values are kept for the placement map.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..models.delta import DeltaRobot
+from ..models.prr3 import PRR3
+from ..models.serial import SerialRobot
+from .compensate import CHECK_SAMPLES
+from .forces import ForceSpec, force_at
+from .path import Toolpath
+
+__all__ = [
+    "Placement",
+    "place_program",
+    "default_region",
+    "program_samples",
+    "objective_at",
+    "MIN_CONDITIONING",
+]
+
+#: A placement is feasible when the model's conditioning (in [0, 1]) is at least this at every point.
+MIN_CONDITIONING = 0.05
+#: Coarse grid points per axis (planar, spatial).
+GRID = {2: 25, 3: 9}
+#: The compass search stops when its step is below this, mm.
+STEP_MM = 0.02
+#: Points of the program the coarse grid evaluates (a subset when there are more).
+COARSE_POINTS = 400
+#: The compass search checks the program's feed moves at least every this many mm.
+DENSE_MM = 1.0
+#: Commanded points are checked this far (mm) beyond where they are, away from the program's centre.
+REACH_MARGIN_MM = 0.01
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A placement and the search's grid.
+
+    Attributes
+    ----------
+    place : ndarray, shape (3,), mm
+        The program's origin in the base frame.
+    value : float, mm
+        The objective there (worst or RMS |delta|).
+    objective : str
+        ``"worst"`` or ``"rms"``.
+    grid : tuple of ndarray
+        The coarse grid's axes (mm), one per placed axis.
+    values : ndarray
+        The objective on the grid (NaN where infeasible), shape of the grid.
+    evaluations : int
+        Placements evaluated.
+    """
+
+    place: np.ndarray
+    value: float
+    objective: str
+    grid: tuple[np.ndarray, ...]
+    values: np.ndarray
+    evaluations: int
+
+
+def default_region(mechanism) -> tuple[np.ndarray, np.ndarray]:
+    """A box (lo, hi) in mm, base frame, that holds a mechanism's workspace.
+
+    Raises
+    ------
+    InputError
+        For a mechanism without a known workspace box (give ``--place-region``).
+    """
+    if isinstance(mechanism, PRR3):
+        return np.array([0.0, 0.0, -1e3]), np.array([mechanism.h, mechanism.h * math.sqrt(3) / 2, 1e3])
+    if isinstance(mechanism, DeltaRobot):
+        r = mechanism.base_radius + mechanism.arm_length
+        return np.array([-r, -r, -(mechanism.arm_length + mechanism.forearm_length)]), np.array([r, r, 0.0])
+    if isinstance(mechanism, SerialRobot):
+        L = 1.5 * mechanism.length
+        return np.array([-L, -L, -L]), np.array([L, L, L])
+    raise InputError(
+        f"--place auto: no default region for {mechanism.name}: give --place-region X0:X1,Y0:Y1[,Z0:Z1] (mm)"
+    )
+
+
+def program_samples(
+    path: Toolpath, forces: ForceSpec, per_move: int = CHECK_SAMPLES, dense_mm: float | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points where the objective is evaluated: every move's ends and ``per_move`` points inside
+    each feed move (at least one every ``dense_mm`` when given); with the force there (zero on
+    rapids) and whether it is a feed point.
+
+    Returns
+    -------
+    P : ndarray, shape (N, 3), mm, program frame
+    F : ndarray, shape (N, 3), N
+    feed : ndarray of bool, shape (N,)
+    """
+    n = len(path)
+    k = np.where(path.feed, per_move + 2, 2)
+    if dense_mm is not None:
+        k = np.where(path.feed, np.maximum(k, np.ceil(path.length() / dense_mm).astype(int) + 1), 2)
+    m = np.repeat(np.arange(n), k)
+    s = np.concatenate([np.linspace(0.0, 1.0, c) for c in k]) if n else np.zeros(0)
+    keep = path.feed[m] | (s == 0) | (s == 1)
+    keep &= np.where(s == 0, np.all(path.known_start[m], axis=1), np.all(path.known[m], axis=1))
+    m, s = m[keep], s[keep]
+    return path.point(m, s), force_at(path, forces, m, s), path.feed[m]
+
+
+def objective_at(fld, place, P, F, feed, objective: str) -> float:
+    """The objective (mm) at one placement: inf when a point is infeasible (:func:`_many`)."""
+    return float(_many(fld, np.asarray(place, dtype=float)[None], P, F, feed, objective)[0])
+
+
+def _evaluate(fld, T: np.ndarray, P: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Deflections (K, N, 3) at N points under K placements T (K, 3), and which placements are
+    feasible (every point valid, conditioning at least MIN_CONDITIONING). P is (N, 3), or
+    (K, N, 3) for points that differ per placement. One evaluation for a mechanism's map;
+    placement by placement for an arm (its inverse kinematics along the points, in order)."""
+    K = T.shape[0]
+    PK = np.broadcast_to(P, (K, *P.shape[-2:]))
+    N = PK.shape[1]
+    if hasattr(fld, "mechanism"):
+        res = fld.with_place(np.zeros(3))((PK + T[:, None]).reshape(-1, 3), np.tile(F, (K, 1)))
+        valid, cond, delta = res.valid, res.conditioning, res.delta
+    else:
+        out = [fld.with_place(t)(PK[i], F) for i, t in enumerate(T)]
+        valid = np.concatenate([r.valid for r in out])
+        cond = np.concatenate([r.conditioning for r in out])
+        delta = np.concatenate([r.delta for r in out])
+    ok = np.all(
+        valid.reshape(K, N) & (np.nan_to_num(cond, nan=-1.0).reshape(K, N) >= MIN_CONDITIONING), axis=1
+    )
+    return delta.reshape(K, N, 3), ok
+
+
+def _outward(P: np.ndarray, dims) -> np.ndarray:
+    """Unit directions (N, 3) from the program's centre to its points, in the placed axes."""
+    d = np.zeros_like(P)
+    d[:, dims] = P[:, dims] - P[:, dims].mean(axis=0)
+    n = np.linalg.norm(d, axis=1)
+    return np.divide(d, n[:, None], out=np.zeros_like(d), where=n[:, None] > 0)
+
+
+def _many(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
+    """The objective at many placements T (K, 3); inf where a programmed point, or the commanded
+    point ``c = p - delta(c)`` that compensates it (two fixed-point steps) pushed outwards by
+    :data:`REACH_MARGIN_MM`, is out of reach or too poorly conditioned."""
+    delta, ok = _evaluate(fld, T, P, F)
+    if np.any(ok):
+        sub = np.flatnonzero(ok)
+        d1, ok1 = _evaluate(fld, T[sub], P[None] - delta[sub], F)
+        C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
+        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F)[1]
+    d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
+    if d.shape[1] == 0:
+        val = np.zeros(T.shape[0])
+    else:
+        val = d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
+    return np.where(ok, val, np.inf)
+
+
+def place_program(
+    fld, path: Toolpath, forces: ForceSpec, *, region=None, objective: str = "worst"
+) -> Placement:
+    """The placement of the program that minimises the objective (module docstring).
+
+    Parameters
+    ----------
+    fld : MechanismField or ArmField
+    path : Toolpath
+    forces : ForceSpec
+    region : tuple (lo, hi) of array_like (3,), mm, optional
+        The box the program must stay in (default :func:`default_region`).
+    objective : str
+        ``"worst"`` or ``"rms"`` deflection along the feed moves.
+
+    Raises
+    ------
+    InputError
+        No feasible placement in the region, or the program does not fit in it.
+    """
+    if objective not in ("worst", "rms"):
+        raise InputError(f"--objective must be worst or rms, got {objective!r}")
+    dims = list(fld.corrected)
+    lo, hi = (
+        region
+        if region is not None
+        else default_region(getattr(fld, "mechanism", getattr(fld, "robot", None)))
+    )
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    P, F, feed = program_samples(path, forces)
+    bmin, bmax = P.min(axis=0), P.max(axis=0)
+    tlo, thi = lo - bmin, hi - bmax
+    if np.any(thi[dims] < tlo[dims]):
+        raise InputError("--place auto: the program is larger than the region it must stay in")
+    axes = tuple(np.linspace(tlo[k], thi[k], GRID[len(dims)]) for k in dims)
+    mesh = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(dims))
+    T = np.zeros((mesh.shape[0], 3))
+    T[:, dims] = mesh
+    sub = np.linspace(0, P.shape[0] - 1, min(P.shape[0], COARSE_POINTS)).round().astype(int)
+    coarse = _many(fld, T, P[sub], F[sub], feed[sub], objective)
+    values = np.where(np.isfinite(coarse), coarse, np.nan).reshape(tuple(a.size for a in axes))
+    if not np.any(np.isfinite(coarse)):
+        raise InputError(
+            "--place auto: no placement in the region keeps every point of the program reachable and away "
+            f"from singularities (conditioning >= {MIN_CONDITIONING:g})"
+        )
+    step0 = np.array([(a[1] - a[0]) if a.size > 1 else 1.0 for a in axes])
+    best_t, best_v, evals = None, math.inf, T.shape[0]
+    Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
+    for i in np.argsort(coarse)[:3]:
+        if not np.isfinite(coarse[i]):
+            break
+        t, v, n = _compass(fld, T[i], dims, step0 / 2, Pd, Fd, feedd, objective)
+        evals += n
+        if v < best_v:
+            best_t, best_v = t, v
+    if not np.isfinite(best_v):
+        raise InputError("--place auto: no feasible placement on all of the program's points")
+    return Placement(best_t, best_v, objective, axes, values, evals)
+
+
+def _compass(fld, t0, dims, step, P, F, feed, objective) -> tuple[np.ndarray, float, int]:
+    """Compass search from t0 on every point: the best neighbour along each axis, steps halved."""
+    t = t0.copy()
+    v = objective_at(fld, t, P, F, feed, objective)
+    n = 1
+    step = step.copy()
+    while np.max(step) > STEP_MM:
+        cand = []
+        for j, k in enumerate(dims):
+            for sgn in (-1.0, 1.0):
+                c = t.copy()
+                c[k] += sgn * step[j]
+                cand.append(c)
+        vals = _many(fld, np.array(cand), P, F, feed, objective)
+        n += len(cand)
+        i = int(np.argmin(vals))
+        if vals[i] < v:
+            t, v = cand[i], float(vals[i])
+        else:
+            step /= 2
+    return t, v, n

@@ -1,0 +1,313 @@
+"""``stiffmap compensate`` as one function: read the program, place it, compensate it, write it.
+
+:func:`compensate_file` is what the command calls (and what a script calls): it reads a
+G-code program or a CSV of points, builds the force along it, places it (given, or
+:func:`~stiffmap.machining.place.place_program`), chooses a serial arm's tool spin if
+asked (:func:`~stiffmap.machining.spin.choose_spin`), compensates every feed move
+(:func:`~stiffmap.machining.compensate.compensate_path`), and only then writes the
+corrected program (atomically; a failure anywhere writes nothing). The returned
+:class:`CompensationResult` holds the summary and the curves the report draws.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..models.base import Mechanism
+from ..stats import chi2_ppf
+from .compensate import Compensation, compensate_path
+from .field import ArmField, field_for
+from .forces import ForceSpec, force_at
+from .gcode import render_program
+from .io import is_points_file, read_force_file, read_points_path, read_program, write_text
+from .output import point_rows, program_pieces
+from .path import toolpath_from_moves, toolpath_from_points
+from .place import Placement, place_program
+from .spin import SpinPlan, choose_spin
+
+__all__ = [
+    "CompensateOptions",
+    "ModelUncertainty",
+    "CompensationResult",
+    "compensate_file",
+    "residual_band_mm",
+]
+
+#: Points (at most) at which the model's uncertainty is propagated.
+BAND_POINTS = 2000
+
+
+@dataclass(frozen=True)
+class ModelUncertainty:
+    """The covariance of a model's fitted parameters (a campaign's fit).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The parameters, in the covariance's order.
+    cov : ndarray, shape (p, p)
+        Their covariance (units of the parameters squared).
+    """
+
+    names: tuple[str, ...]
+    cov: np.ndarray
+
+
+@dataclass(frozen=True)
+class CompensateOptions:
+    """What ``stiffmap compensate`` was asked (units in the names).
+
+    Attributes
+    ----------
+    tolerance_um : float
+        Largest distance between the deflected and the programmed path, micrometres.
+    place_mm : tuple of 3 float, or None
+        The program's origin in the base frame; None with ``place_auto``, else (0, 0, 0).
+    place_auto : bool
+    place_region_mm : tuple (lo, hi) of 3-tuples, or None
+    objective : str
+        ``worst`` or ``rms`` (``--place auto``).
+    force : ForceSpec or None
+        Constant or feed-frame force (None: from ``force_file`` or the CSV's columns).
+    force_file : path or None
+    pass_through : bool
+    free_tool_spin : bool
+    tool_rotation : ndarray (3, 3) or None
+    q_seed : ndarray (n,) or None, rad or mm
+    """
+
+    tolerance_um: float = 1.0
+    place_mm: tuple[float, float, float] | None = None
+    place_auto: bool = False
+    place_region_mm: tuple | None = None
+    objective: str = "worst"
+    force: ForceSpec | None = None
+    force_file: str | os.PathLike | None = None
+    pass_through: bool = False
+    free_tool_spin: bool = False
+    tool_rotation: np.ndarray | None = None
+    q_seed: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class CompensationResult:
+    """What a compensation did: the summary (JSON-able) and the data of its figure."""
+
+    summary: dict
+    compensation: Compensation
+    placement: Placement | None = None
+    spin: SpinPlan | None = None
+    written: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = field(default=())
+
+
+def _forces_for_program(prog, path, opts: CompensateOptions) -> ForceSpec:
+    if opts.force_file is not None:
+        if opts.force is not None:
+            raise InputError("--force-file and --force-n/--force-feed-n are exclusive")
+        feed = np.flatnonzero(path.feed)
+        F = read_force_file(opts.force_file, path.line[feed])
+        start = np.zeros((len(path), 3))
+        start[feed] = F
+        return ForceSpec("per_move", start=start, end=start.copy())
+    if opts.force is None:
+        raise InputError("no force: give --force-n FX,FY[,FZ], --force-feed-n FT,FN[,FZ] or --force-file")
+    return opts.force
+
+
+def _load(program, dim: int, opts: CompensateOptions):
+    """The toolpath, the force, and how to write the output (program or points)."""
+    if is_points_file(program):
+        P, F, lines = read_points_path(program, dim)
+        path = toolpath_from_points(P, lines)
+        if F is not None:
+            if opts.force is not None or opts.force_file is not None:
+                raise InputError(
+                    f"{program} has force columns: do not give --force-n, --force-feed-n or --force-file"
+                )
+            spec = ForceSpec("per_move", start=F[:-1].copy(), end=F[1:].copy())
+        elif opts.force_file is not None:
+            raise InputError(
+                "--force-file is for a G-code program; a CSV of points takes fx, fy[, fz] columns"
+            )
+        elif opts.force is None:
+            raise InputError("no force: give --force-n, --force-feed-n, or fx, fy[, fz] columns in the CSV")
+        else:
+            spec = opts.force
+        return path, spec, None, P.shape[0], ()
+    prog, text = read_program(program, pass_through=opts.pass_through)
+    path = toolpath_from_moves(prog.moves)
+    return path, _forces_for_program(prog, path, opts), (prog, text), None, prog.warnings
+
+
+def compensate_file(
+    mechanism: Mechanism,
+    program: str | os.PathLike,
+    out: str | os.PathLike,
+    options: CompensateOptions,
+    *,
+    uncertainty: ModelUncertainty | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> CompensationResult:
+    """Compensate a program for a mechanism's deflection and write the corrected one (module docstring).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        The model (built-in, URDF, legs, or a campaign's fitted one).
+    program : path-like
+        G-code, or a ``.csv`` of points (``machining.io``).
+    out : path-like
+        The corrected program (same format); a serial arm's chosen spins go beside it in
+        ``OUT.spin.csv``.
+    options : CompensateOptions
+    uncertainty : ModelUncertainty, optional
+        The covariance of the model's parameters: the summary gets the 95 % band of the
+        residual it leaves.
+    progress : callable (done, total), optional
+
+    Raises
+    ------
+    InputError
+        Naming the file, line and field: a construct that cannot be compensated, a point
+        out of reach or at a singularity, force rows that do not match the program, a
+        tolerance that is not positive. Nothing is written then.
+    """
+    tol_um = float(options.tolerance_um)
+    if not (math.isfinite(tol_um) and tol_um > 0):
+        raise InputError(
+            f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
+        )
+    if options.free_tool_spin and not _is_arm(mechanism):
+        raise InputError(f"--free-tool-spin is for a serial arm (urdf); {mechanism.name} has no tool spin")
+    path, forces, gcode, n_csv, warnings = _load(program, mechanism.dim, options)
+    place = np.zeros(3) if options.place_mm is None else np.asarray(options.place_mm, dtype=float)
+    fld = field_for(mechanism, place, tool_rotation=options.tool_rotation, q_seed=options.q_seed)
+    placement = None
+    if options.place_auto:
+        placement = place_program(
+            fld, path, forces, region=options.place_region_mm, objective=options.objective
+        )
+        fld = fld.with_place(placement.place)
+    spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
+    comp = compensate_path(
+        fld, path, forces, tol_um * 1e-3, spin_of=None if spin is None else spin.spin_of, progress=progress
+    )
+    band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
+    if gcode is not None:
+        prog, text = gcode
+        outs, axes = program_pieces(prog, path, comp, fld.corrected)
+        body, encoding = render_program(prog, outs, axes), text.encoding
+    else:
+        rows = point_rows(comp, path, n_csv)
+        body, encoding = _points_csv(rows), "utf-8"
+    written = [str(out)]
+    write_text(out, body, encoding)
+    if spin is not None:
+        spin_file = str(out) + ".spin.csv"
+        write_text(spin_file, _spin_csv(path, spin))
+        written.append(spin_file)
+    summary = _summary(
+        mechanism, program, out, path, forces, comp, fld, placement, spin, band, options, warnings
+    )
+    summary["written"] = written
+    return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
+
+
+def _is_arm(mechanism) -> bool:
+    return isinstance(field_for(mechanism), ArmField)
+
+
+def _points_csv(rows: np.ndarray) -> str:
+    lines = ["x,y,z,row"]
+    lines += [f"{r[0]:.6f},{r[1]:.6f},{r[2]:.6f},{int(r[3])}" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _spin_csv(path, spin: SpinPlan) -> str:
+    lines = ["x,y,z,spin_deg,deflection_um,deflection_fixed_um"]
+    for p, k, d, f in zip(spin.points, spin.knots, spin.deflection, spin.fixed, strict=True):
+        lines.append(f"{p[0]:.4f},{p[1]:.4f},{p[2]:.4f},{math.degrees(k):.3f},{1e3 * d:.4f},{1e3 * f:.4f}")
+    return "\n".join(lines) + "\n"
+
+
+def residual_band_mm(fld, path, forces, comp: Compensation, unc: ModelUncertainty, spin) -> float:
+    """The 95 % bound (mm) on the residual a model with uncertain parameters leaves, worst point.
+
+    At the commanded points (at most :data:`BAND_POINTS`), the deflection's sensitivity to each
+    parameter (central differences, relative step 1e-4) propagates the parameters' covariance:
+    ``S = J cov J^T`` (d x d); the bound is ``sqrt(chi2_0.95(d) lambda_max(S))``, the largest
+    half-axis of the 95 % ellipsoid of the residual.
+    """
+    mv, C = [], []
+    for m, mp in comp.pieces.items():
+        if path.feed[m]:
+            mv.append(np.full(mp.s.size, m))
+            C.append(np.column_stack([mp.s, mp.points]))
+    if not mv:
+        return 0.0
+    m = np.concatenate(mv)
+    SC = np.vstack(C)
+    pick = np.linspace(0, m.size - 1, min(m.size, BAND_POINTS)).round().astype(int)
+    m, s, X = m[pick], SC[pick, 0], SC[pick, 1:]
+    F = force_at(path, forces, m, s)
+    sp = None if spin is None else spin.spin_of(m, s)
+    model = getattr(fld, "mechanism", None) or fld.robot
+    params = model.params()
+    d = len(fld.corrected)
+    cols = []
+    for name in unc.names:
+        h = 1e-4 * abs(params[name]) or 1e-6
+        plus = _shifted(fld, model, name, params[name] + h)(X, F, None, sp).delta
+        minus = _shifted(fld, model, name, params[name] - h)(X, F, None, sp).delta
+        cols.append((plus - minus)[:, :d] / (2 * h))
+    J = np.stack(cols, axis=2)  # (N, d, p)
+    S = J @ np.asarray(unc.cov, dtype=float) @ np.swapaxes(J, 1, 2)
+    lam = np.linalg.eigvalsh(0.5 * (S + np.swapaxes(S, 1, 2)))[:, -1]
+    return float(np.sqrt(chi2_ppf(0.95, d) * max(float(np.max(lam)), 0.0)))
+
+
+def _shifted(fld, model, name: str, value: float):
+    new = model.with_params(**{name: value})
+    if isinstance(fld, ArmField):
+        return ArmField(new, fld.place, fld.rotation, fld.q_seed)
+    return type(fld)(new, fld.place)
+
+
+def _summary(mechanism, program, out, path, forces, comp, fld, placement, spin, band, opts, warnings) -> dict:
+    um = 1e3
+    s = {
+        "program": str(program),
+        "output": str(out),
+        "mechanism": mechanism.describe() if hasattr(mechanism, "describe") else mechanism.name,
+        "moves": len(path),
+        "feed_moves": int(np.count_nonzero(path.feed)),
+        "points_out": comp.n_points,
+        "force": forces.describe(),
+        "tolerance_um": float(opts.tolerance_um),
+        "place_mm": [float(v) for v in fld.place],
+        "corrected_axes": "".join("xyz"[k] for k in fld.corrected),
+        "deflection_before_um": {"worst": um * comp.worst_before_mm, "rms": um * comp.rms_before_mm},
+        "residual_after_um": {"worst": um * comp.worst_after_mm},
+        "residual_band_95_um": None if band is None else um * band,
+        "warnings": list(warnings),
+    }
+    if placement is not None:
+        s["placement"] = {
+            "objective": placement.objective,
+            "value_um": um * placement.value,
+            "evaluations": placement.evaluations,
+        }
+    if spin is not None:
+        s["spin"] = {
+            "worst_fixed_um": um * float(np.nanmax(spin.fixed)),
+            "worst_chosen_um": um * float(np.nanmax(spin.deflection)),
+            "range_deg": [float(np.degrees(spin.knots.min())), float(np.degrees(spin.knots.max()))],
+        }
+    return s

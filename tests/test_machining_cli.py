@@ -1,0 +1,195 @@
+"""``stiffmap compensate``: bad input is one line naming what is wrong and nothing written; a good run
+writes the program, its figures and a summary; a campaign's fitted model compensates the test-bed.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers.cli_process import run_in_process, run_stiffmap
+from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
+from helpers.machining_checks import distance_to_path, output_samples, truss_3prr
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from stiffmap.machining.io import read_program
+from stiffmap.machining.path import toolpath_from_moves
+
+DATA = Path(__file__).parent / "data" / "gcode"
+PROGRAM = DATA / "own_cam_mm.nc"
+
+
+def _one_line(code, err, *needles):
+    assert code == 2, err
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    for n in needles:
+        assert n in lines[0], lines[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (
+            ["--place", "380,200", "--force-n", "0,-490.5", "--tolerance-um", "0"],
+            ["--tolerance-um", "positive"],
+        ),
+        (["--place", "0,0", "--force-n", "0,-490.5"], ["line 12:", "unreachable", "nothing written"]),
+        (["--place", "380,200", "--force-n", "0,-490.5,1,2"], ["--force-n", "2 or 3"]),
+        (["--place", "380,200"], ["no force"]),
+    ],
+)
+def test_bad_options_are_one_line_and_write_nothing(tmp_path, monkeypatch, capsys, args, needles):
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        ["compensate", "3prr", "--path", PROGRAM, "--out", out, "-q", *args], monkeypatch, capsys
+    )
+    _one_line(code, err, *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unsupported_construct_and_force_rows(tmp_path, monkeypatch, capsys):
+    prog = tmp_path / "cycle.nc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X10\nG81 X5 Y5 Z-2 R1\nG80\n")
+    out = tmp_path / "out.nc"
+    base = ["compensate", "3prr", "--path", prog, "--out", out, "-q", "--place", "380,200"]
+    code, _, err = run_in_process([*base, "--force-n", "0,-490.5"], monkeypatch, capsys)
+    _one_line(code, err, "cycle.nc: line 5:", "canned cycle G81", "--pass-through")
+    forces = tmp_path / "f.csv"
+    forces.write_text("line,fx,fy\n3,0,-400\n")
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X10\n")
+    code, _, err = run_in_process([*base, "--force-file", forces], monkeypatch, capsys)
+    _one_line(code, err, "f.csv", "1 force row(s), but the program has 2 feed move(s)")
+    assert not out.exists()
+    forces.write_text("line,fx,fy\n3,0,-400\n4,0,-400\n")
+    code, _, err = run_in_process([*base, "--force-file", forces, "--no-figures"], monkeypatch, capsys)
+    assert code == 0, err
+    assert out.exists()
+
+
+def test_a_good_run_writes_program_figures_and_summary(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out.nc"
+    code, stdout, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--param",
+            "area=100",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "--json",
+            "--place",
+            "380,200",
+            "--force-feed-n",
+            "300,200",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    assert code == 0, err
+    s = json.loads(stdout)
+    assert s["residual_after_um"]["worst"] <= 1.0 < s["deflection_before_um"]["worst"]
+    assert s["corrected_axes"] == "xy" and s["place_mm"] == [380.0, 200.0, 0.0]
+    assert sorted(Path(p).name for p in s["written"]) == ["out.nc", "out.nc.deflection.png", "out.nc.html"]
+    text = out.read_text()
+    assert text.splitlines()[:3] == PROGRAM.read_text().splitlines()[:3]  # header lines kept verbatim
+
+
+@pytest.mark.long  # a campaign simulated and run end to end: about 25 s
+def test_from_campaign_compensates_the_test_bed(tmp_path):
+    """A 3PRR sensor campaign on the test-bed (true kj 700 N/mm, not the published 525) identifies
+    the model; the program it compensates, cut by the true robot (the truss of the helpers), errs by
+    less than 10 % of the uncompensated program's worst error."""
+    camp = tmp_path / "camp"
+    sim = run_stiffmap(
+        "simulate",
+        camp,
+        "--robot",
+        "3prr",
+        "--seed",
+        "3",
+        "--select",
+        "2,8,19",
+        "--repeats",
+        "1",
+        "--param",
+        "kj=700",
+    )
+    assert sim.returncode == 0, sim.stderr
+    run = run_stiffmap("run", camp, "-q", "--no-report")
+    assert run.returncode == 0, run.stderr
+    out = tmp_path / "out.nc"
+    proc = run_stiffmap(
+        "compensate",
+        "--from-campaign",
+        camp,
+        "--path",
+        PROGRAM,
+        "--out",
+        out,
+        "--json",
+        "--place",
+        "380,200",
+        "--force-n",
+        "0,-490.5",
+        "--no-figures",
+        "--tolerance-um",
+        "2",
+    )
+    assert proc.returncode == 0, proc.stderr
+    s = json.loads(proc.stdout)
+    assert s["residual_band_95_um"] is not None and s["residual_band_95_um"] < 5.0
+    true = {"h": 800.0, "L": 250.0, "EA": 70000.0 * 200.0, "kj": 700.0, "kb": 9800.0}
+    F = np.array([0.0, -490.5])
+    prog = toolpath_from_moves(read_program(PROGRAM)[0].moves)
+    _, _, P = output_samples(prog)
+    before = np.linalg.norm(truss_3prr(P[:, :2] + [380.0, 200.0], F, **true), axis=1).max()
+    _, _, C = output_samples(toolpath_from_moves(read_program(out)[0].moves))
+    D = C.copy()
+    D[:, :2] += truss_3prr(C[:, :2] + [380.0, 200.0], F, **true)
+    after = distance_to_path(prog, D).max()
+    assert after < 0.1 * before, f"compensated {after:.4f} mm, uncompensated {before:.4f} mm"
+
+
+_FORCES = "line,fx,fy\n15,0,-490.5\n16,0,-490.5\n"
+
+
+@pytest.mark.fuzz
+@settings(max_examples=25, deadline=None)
+@given(
+    which=st.sampled_from(["program", "forces"]),
+    data=st.data(),
+)
+def test_malformed_inputs_are_handled(which, data):
+    """A mutated program or force file: a corrected program, or one clear error line (exit 2)."""
+    prog = PROGRAM.read_bytes()
+    short = b"".join(prog.splitlines(keepends=True)[:17])  # up to the second feed move (line 16)
+    forces = _FORCES.encode()
+    if which == "program":
+        short = data.draw(mutated_text(short.decode()))
+    else:
+        forces = data.draw(mutated_text(_FORCES))
+    case = FuzzCase(
+        {"p.nc": short, "f.csv": forces},
+        (
+            "compensate",
+            "3prr",
+            "--path",
+            "{dir}/p.nc",
+            "--out",
+            "{dir}/o.nc",
+            "--place",
+            "380,200",
+            "--force-file",
+            "{dir}/f.csv",
+            "-q",
+            "--no-figures",
+        ),
+        None,  # a mutated program can change its feed moves: the force file is then to blame
+    )
+    assert_handled(case, run_case(case))

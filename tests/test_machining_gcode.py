@@ -1,0 +1,224 @@
+"""The G-code reader and writer: moves and arcs computed by hand, lines kept verbatim, refusals named.
+
+Hand computations: the cncjs inch circle (MIT, tests/data/gcode/README.md) is four quarter
+arcs of radius 0.5 in = 12.7 mm about the origin; an R-format arc from (0, 0) to (10, 10)
+with R 10 counter-clockwise has its centre at (0, 10) (the left of the chord for G3 and
+R > 0), with R -10 at (10, 0); G18 arcs turn in the (Z, X) plane and G19 in (Y, Z), counter-
+clockwise seen from +Y and +X (RS274/NGC).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from stiffmap.errors import InputError
+from stiffmap.machining.gcode import (
+    ARC_CW,
+    LINE,
+    RAPID,
+    GcodeError,
+    Piece,
+    parse_program,
+    render_program,
+)
+from stiffmap.machining.io import read_force_file, read_program
+from stiffmap.machining.path import toolpath_from_moves
+
+DATA = Path(__file__).parent / "data" / "gcode"
+
+
+def test_inch_circle_arcs_by_hand():
+    prog, text = read_program(DATA / "cncjs_circle-inch.gcode")
+    assert text.text.count("\r\n") == 11  # CRLF kept for writing back
+    arcs = [m for m in prog.moves if m.kind == ARC_CW]
+    assert len(arcs) == 4
+    for m in arcs:
+        np.testing.assert_allclose(m.centre[:2], [0.0, 0.0], atol=1e-12)
+        assert math.hypot(*m.start[:2]) == pytest.approx(12.7, abs=1e-12)
+        assert m.inch
+    path = toolpath_from_moves(prog.moves)
+    i = prog.move_at_line[6]
+    assert path.sweep[i] == pytest.approx(-math.pi / 2)  # clockwise quarter turn
+    assert path.length()[i] == pytest.approx(12.7 * math.pi / 2, rel=1e-12)
+    np.testing.assert_allclose(
+        path.point([i], [0.5])[0, :2], 12.7 * np.array([-1, 1]) / math.sqrt(2), atol=1e-12
+    )
+
+
+def test_r_format_centres_and_planes():
+    p = parse_program("G21 G90\nG0 X0 Y0 Z0\nG3 X10 Y10 R10\nG0 X0 Y0\nG3 X10 Y10 R-10\n")
+    a, b = p.moves[1], p.moves[3]
+    np.testing.assert_allclose(a.centre[:2], [0.0, 10.0], atol=1e-12)
+    np.testing.assert_allclose(b.centre[:2], [10.0, 0.0], atol=1e-12)
+    path = toolpath_from_moves(p.moves)
+    assert path.sweep[1] == pytest.approx(math.pi / 2)
+    assert path.sweep[3] == pytest.approx(3 * math.pi / 2)  # R < 0: the long way round
+    q = parse_program("G0 X0 Y0 Z0\nG18 G2 X20 Z0 I10 K0\nG19 G3 Y10 Z10 J0 K10\n")
+    path = toolpath_from_moves(q.moves)
+    # G2 in (Z, X), clockwise seen from +Y (Z x X = Y): from x 0 to x 20 about x 10 through z = -10
+    mid = path.point([1], [0.5])[0]
+    np.testing.assert_allclose(mid, [10.0, 0.0, -10.0], atol=1e-12)
+    mid = path.point([2], [0.5])[0]  # G3 in (Y, Z) about (y 0, z 10), quarter turn from z 0 to y 10
+    np.testing.assert_allclose(mid, [20.0, 10 / math.sqrt(2), 10 - 10 / math.sqrt(2)], atol=1e-12)
+
+
+def test_lower_case_no_spaces_incremental_and_modal_motion():
+    p = parse_program("g21g91\ng0x1y2z3\ng1x1\ny-1f100\ng90x0y0\n")
+    ends = [m.end.tolist() for m in p.moves]
+    assert ends == [[1, 2, 3], [2, 2, 3], [2, 1, 3], [0, 0, 3]]
+    assert [m.kind for m in p.moves] == [RAPID, LINE, LINE, LINE]
+    assert all(m.lower and (m.compact or len(m.spans) == 1) for m in p.moves[:2])
+
+
+def test_unchanged_moves_write_the_same_text():
+    for name in ("cncjs_toolpath.nc", "own_cam_mm.nc", "own_inch_r_planes.nc", "cncjs_circle-inch.gcode"):
+        prog, text = read_program(DATA / name)
+        assert render_program(prog, {}, {}) == text.text
+
+
+def test_rewritten_lines_keep_words_comments_and_style():
+    p = parse_program("N5 g1x10.y2.f300(cut) ; ok\nN6 X20.\n")
+    out = render_program(p, {0: [Piece(LINE, np.array([10.5, 2.25, 0.0]))]}, {0: (0, 1, 2)})
+    first = out.splitlines()[0]
+    assert first == "N5 g1x10.5y2.25z0.f300(cut) ; ok"
+    # after an inserted G1 line, the next line that relied on the modal G2 gets its G2 back
+    p = parse_program("G0 X0 Y0 Z0\nG2 X10 Y0 I5 J0 F100\nX0 Y0 I-5 J0\n")
+    outs = {
+        1: [
+            Piece(ARC_CW, np.array([10.0, 0.0, 0.0]), np.array([5.0, 0.0, 0.0])),
+            Piece(LINE, np.array([9.0, 0.0, 0.0])),
+        ]
+    }
+    lines = render_program(p, outs, {1: (0, 1)}).splitlines()
+    assert lines[2] == "G1 X9. Y0."
+    assert lines[3] == "G2 X0 Y0 I-5 J0"  # kept verbatim, its motion word restored
+    outs[2] = [Piece(ARC_CW, np.array([0.0, 0.0, 0.0]), np.array([4.5, 0.0, 0.0]))]
+    lines = render_program(p, outs, {1: (0, 1), 2: (0, 1)}).splitlines()
+    assert lines[3] == "G2 X0. Y0. I-4.5 J0."  # the motion word restored
+
+
+def test_g28_leaves_z_unknown_until_given():
+    p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
+    assert p.moves[1].known == (True, True, False)
+    assert p.moves[2].known == (True, True, True)
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "what"),
+    [
+        ("G0 X0 Y0\no100 sub\n", 2, "O-words"),
+        ("G0 X0\nG1 X#1\n", 2, "'#' parameters"),
+        ("G0 X0\nG1 X[1+2]\n", 2, "expressions"),
+        ("G0 X0 Y0 Z5\nG81 X1 Y1 Z-2 R1 F50\n", 2, "canned cycle G81"),
+        ("G0 X0 Y0\nG41 D1 G1 X5\n", 2, "cutter-radius compensation"),
+        ("G93\nG1 X1 F2\n", 1, "inverse-time"),
+        ("G0 X0\nG92 X0\n", 2, "coordinate offset"),
+        ("G0 X0 Y0\nG55 G0 X1\n", 2, "work offset"),
+        ("G0 X0 Y0\nG2 X1 Y1\n", 2, "arc without its centre"),
+        ("G0 X0 Y0\nG2 X10 Y0 I1 J0\n", 2, "radius"),
+        ("G0 X0 Y0\nG2 X30 Y0 R10\n", 2, "less than half the chord"),
+        ("G0 X0 Y0\nG1 X1 (open\n", 2, "not closed"),
+        ("G0 X0 Y0\nG1 X1 E5\n", 2, "cannot read"),
+        ("G0 X0 Y0\nG5.1 X1 I1 J1\n", 2, "G5.1 is not supported"),
+        ("G0 X0 Y0\nM98 P100\n", 2, "subprogram"),
+    ],
+)
+def test_refusals_name_the_line(text, line, what):
+    with pytest.raises(GcodeError) as e:
+        parse_program(text, "prog.nc")
+    msg = str(e.value)
+    assert msg.startswith(f"prog.nc: line {line}: ") and what in msg
+    assert "\n" not in msg
+
+
+def test_pass_through_keeps_lines_and_warns():
+    text = "G21 G90\nG0 X0 Y0 Z5\nG81 X1 Y1 Z-2 R1 F50\nG80\nG41 D1\nG1 X5\nG40\nG0 X0 Y0 Z5\n"
+    p = parse_program(text, pass_through=True)
+    assert [w.split(":")[0] for w in p.warnings] == ["line 3", "line 5", "line 6"]
+    assert render_program(p, {}, {}) == text
+    assert p.moves[-1].known == (True, True, True)
+
+
+def test_force_file_rows_must_match_the_feed_moves(tmp_path):
+    f = tmp_path / "forces.csv"
+    f.write_text("line,fx,fy\n3,10,0\n4,0,10\n")
+    F = read_force_file(f, np.array([3, 4]))
+    np.testing.assert_array_equal(F, [[10, 0, 0], [0, 10, 0]])
+    with pytest.raises(InputError, match=r"forces.csv: 2 force row\(s\), but the program has 3 feed move"):
+        read_force_file(f, np.array([3, 4, 5]))
+    with pytest.raises(
+        InputError, match=r"line 3, column 'line': 4, but feed move 2 of the program is on line 6"
+    ):
+        read_force_file(f, np.array([3, 6]))
+
+
+def test_latin1_comments_are_written_back_byte_for_byte(tmp_path):
+    raw = "G21 G90 (Fräser Ø6)\nG0 X0 Y0 Z5\nG1 Z0 F100\n".encode("latin-1")
+    f = tmp_path / "p.nc"
+    f.write_bytes(raw)
+    prog, text = read_program(f)
+    assert text.encoding == "latin-1"
+    assert render_program(prog, {}, {}).encode(text.encoding) == raw
+
+
+_WORDS = st.sampled_from(
+    [
+        "G0",
+        "G1",
+        "G2",
+        "G3",
+        "G17",
+        "G18",
+        "G91",
+        "G90",
+        "X1",
+        "Y-2.5",
+        "Z.5",
+        "I1",
+        "J0",
+        "R3",
+        "F100",
+        "M3",
+        "#1",
+        "[",
+        "(c)",
+        ";x",
+        "O1",
+        "N10",
+        "G81",
+        "T1",
+        "Q",
+        "%",
+        "/",
+        "g1x1",
+    ]
+)
+
+
+@pytest.mark.fuzz
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.lists(_WORDS, max_size=6).map(" ".join), max_size=8))
+def test_malformed_programs_raise_input_errors_only(lines):
+    """Any jumble of words: a parsed program or a one-line InputError, never another exception."""
+    text = "\n".join(lines)
+    for passing in (False, True):
+        try:
+            p = parse_program(text, "x.nc", pass_through=passing)
+        except InputError as e:
+            assert "\n" not in str(e)
+            continue
+        assert render_program(p, {}, {}) == "\n".join(text.splitlines()) + (
+            "\n" if text.endswith("\n") else ""
+        )
+
+
+def test_public_r_format_program_without_centre_is_refused_at_its_line():
+    """cncjs's arc-r.nc writes 'X0Y20' in G02 mode without I/J/R: an arc whose centre no word gives."""
+    with pytest.raises(GcodeError, match=r"cncjs_arc-r.nc: line 3: arc without its centre"):
+        read_program(DATA / "cncjs_arc-r.nc")
