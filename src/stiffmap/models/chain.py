@@ -326,6 +326,10 @@ class Chain:
         The joints on the chain that follow another (:attr:`mimic_names`).
     base_frame : str
         The link the base frame is (the URDF's root, or the one chosen).
+    root_frame : str
+        The root of the URDF's tree above the tip (the base frame when none is chosen).
+    urdf_text : str
+        The URDF the chain was read from (a xacro file expanded; "" for :meth:`from_joints`).
     held_joints : tuple of str
         Moving joints between the root and the base frame (held; not coordinates).
     tip_frame : str
@@ -354,8 +358,10 @@ class Chain:
         mimic_rows: Sequence[int] = (),
         links: Mapping[str, tuple[int, pin.SE3]] | None = None,
         base_frame: str = "base",
+        root_frame: str | None = None,
         held: Sequence[str] = (),
         all_joints: Sequence[str] = (),
+        urdf_text: str = "",
     ):
         model = pin.Model()
         model.name = name
@@ -395,6 +401,8 @@ class Chain:
         self.tip_offset_mm.setflags(write=False)
         self.mimics = tuple(mimics)
         self.base_frame = base_frame
+        self.root_frame = base_frame if root_frame is None else root_frame
+        self.urdf_text = urdf_text
         self.held_joints = tuple(held)
         self.urdf_joint_names = tuple(all_joints)
         self._links = dict(links or {})
@@ -487,8 +495,10 @@ class Chain:
             mimic_rows=rows,
             links=links,
             base_frame=base,
+            root_frame=tree.joints[held[0]].parent if held else base,
             held=[h for h in held if tree.joints[h].type in MOVING_TYPES],
             all_joints=tuple(tree.joints),
+            urdf_text=tree.text,
         )
 
     @classmethod

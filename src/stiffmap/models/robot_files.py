@@ -133,6 +133,9 @@ class UrdfTree:
         By name, in the file's order.
     parent_joint : dict of str to str
         For each link that is a child, the joint above it.
+    text : str
+        The URDF it was read from (a xacro file's expansion): what a simulated campaign's
+        folder gets, so that it needs neither xacro nor the packages.
     """
 
     name: str
@@ -140,6 +143,7 @@ class UrdfTree:
     links: tuple[str, ...]
     joints: dict[str, UrdfJoint]
     parent_joint: dict[str, str] = field(default_factory=dict)
+    text: str = field(default="", repr=False)
 
     @property
     def roots(self) -> tuple[str, ...]:
@@ -312,7 +316,7 @@ def parse_urdf(text: str, source: str = "URDF") -> UrdfTree:
             )
         joints[j.name] = j
         parent_joint[j.child] = j.name
-    tree = UrdfTree(root.get("name") or "robot", source, links, joints, parent_joint)
+    tree = UrdfTree(root.get("name") or "robot", source, links, joints, parent_joint, text)
     for lk in links:  # a loop has no root: walking up from any of its links never ends
         at, seen = lk, set()
         while at in parent_joint:
