@@ -214,6 +214,16 @@ def prepare_output_dir(out: Path, force: bool) -> None:
 # ------------------------------------------------------------------ spec/truth
 
 
+def _positions_table(config: SimConfig) -> dict[str, Any]:
+    """campaign.toml's ``[positions]``: the points, or a serial robot's joint configurations at
+    them when it was given configurations (its inverse kinematics may not find those again)."""
+    q_deg = getattr(config.robot.field, "positions_q_deg", None)
+    q = None if q_deg is None else q_deg(config.positions)
+    if q is not None:
+        return {"q_deg": q}
+    return {"list": [[float(v) for v in p] for p in config.positions]}
+
+
 def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
     """The ``campaign.toml`` content (a dict for :class:`stiffmap.campaign.spec.CampaignSpec`)."""
     sc = config.scene
@@ -238,7 +248,7 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
                 "mobile2tcp": sc.mobile2tcp.tolist(),
             },
         },
-        "positions": {"list": [[float(v) for v in p] for p in config.positions]},
+        "positions": _positions_table(config),
         "loads": {
             "cases": [
                 {"force_n": [float(v) for v in ld.force], "label": ld.label or f"load {i}"}

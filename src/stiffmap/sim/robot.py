@@ -329,6 +329,18 @@ class SerialField:
             raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
         return np.array([self.model.stiffness6(q) for q in ik.q]).reshape(-1, 6, 6)
 
+    def positions_q_deg(self, points) -> list[list[float]] | None:
+        """The joint configurations of ``points`` when the model was given configurations
+        (campaign.toml's ``positions.q_deg``: degrees, mm for a prismatic joint), else None
+        (the campaign finds them by inverse kinematics, as the test-bed did)."""
+        if self.model.configurations is None:
+            return None
+        ik = self.model.configurations_for(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        rev = np.array([t == "revolute" for t in self.model.chain.joint_types])
+        return [
+            [round(float(v), 9) + 0.0 for v in np.where(rev, np.degrees(q), q)] for q in np.atleast_2d(ik.q)
+        ]
+
 
 def _degrees(a) -> list[float]:
     """Angles in rad as degrees for campaign.toml, rounded to 1e-9 degree (no -0.0)."""
