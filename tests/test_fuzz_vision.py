@@ -195,7 +195,12 @@ def _pose(d, camera, *images, extra=()):
     [
         ({"fx": 1e-308}, "'fx'", "not a plausible focal length"),
         ({"fy": 5e6}, "'fy'", "0.1 to 100 times the image diagonal"),
-        ({"cx": 1e6}, "'cx'", "far outside the 320x240 px image"),
+        ({"cx": 1e6}, "'cx'", "is outside the 320x240 px image"),
+        # The camera.json of issue 26 (Bouguet's 13x12 board calibrated as 9x6): fx 4410, fy 1433,
+        # cx 760 on a 640-px-wide image, RMS 10.9 px; each rule alone refuses it.
+        ({"fx": 4410.0, "fy": 1433.0}, "'fy'", "is not a camera's pixel aspect"),
+        ({"cx": 330.0}, "'cx'", "principal point 330 px is outside the 320x240 px image"),
+        ({"rms_px": 10.9}, "'rms_px'", "reprojection RMS 10.9 px is far above"),
         ({"dist": [1e10, 0.0, 0.0, 0.0, 0.0]}, "'dist[0]'", "k1 = 1e+10 is not a plausible"),
         ({"dist": [0.0, 0.0, 5.0, 0.0, 0.0]}, "'dist[2]'", "p1 = 5"),
         ({"dist": [0.0] * 5 + [-1000.0, 0.0, 0.0], "std": None}, "'dist'", "folds over (or has a pole)"),

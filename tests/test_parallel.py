@@ -6,10 +6,17 @@ worker) are in tests/test_campaign_run.py, on the quick demo.
 
 from __future__ import annotations
 
+import logging
 import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import fake_servers
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -130,3 +137,80 @@ def test_any_scheduler_address_is_an_input_error_or_connects(address, monkeypatc
         return
     with pytest.raises(InputError):
         parallel.Cluster(address)
+
+
+@pytest.mark.parametrize("kind", fake_servers.KINDS)
+def test_a_server_that_is_not_a_dask_scheduler_is_named_in_one_line(kind, monkeypatch):
+    """Programs found at an address taken for a scheduler's (a web server, SSH, one that hangs up,
+    binary bytes read as a frame length of exbibytes): one line naming the address, no MemoryError."""
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(parallel, "CONNECT_TIMEOUT_S", 0.5)
+    address = fake_servers.server(kind)
+    level = logging.getLogger("distributed.client").level
+    t0 = time.perf_counter()
+    with pytest.raises(InputError) as e:
+        parallel.Cluster(address)
+    assert time.perf_counter() - t0 < 5.0  # the 0.5 s time limit, and Dask's own of the same
+    msg = str(e.value)
+    assert msg.startswith(f"--dask {address}: what answers there is not a Dask scheduler (")
+    assert "\n" not in msg
+    assert logging.getLogger("distributed.client").level == level  # left as it was
+
+
+def _slow_square(ctx, x: int) -> int:
+    time.sleep(ctx)
+    return x * x
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.long
+def test_a_scheduler_that_dies_during_the_work_is_an_input_error_not_a_hang(tmp_path):
+    """The scheduler stopped while tasks run: Dask's client tries to reconnect, gives up and
+    closes; its futures never finish. The caller gets one line naming the address (about 20 s:
+    Dask's reconnection time), with the results received before it."""
+    pytest.importorskip("distributed")
+    dask = Path(sys.executable).parent / "dask"
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    # Both read this module's task function from the task graph.
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "env": env}
+    sched = subprocess.Popen([dask, "scheduler", "--port", str(port), "--no-dashboard"], **quiet)
+    worker = None
+    try:
+        for _ in range(100):
+            try:
+                socket.create_connection(("127.0.0.1", port), 1).close()
+                break
+            except OSError:
+                time.sleep(0.2)
+        worker = subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard"], **quiet)
+        got = []
+        t0 = time.perf_counter()
+        with pytest.raises(InputError) as e:
+            for x, r in map_unordered(_slow_square, 0.3, range(200), Backend(dask=address)):
+                got.append((x, r))
+                if len(got) == 3:
+                    sched.kill()
+        assert time.perf_counter() - t0 < 120
+        assert str(e.value).startswith(f"--dask {address}: the connection to the Dask scheduler failed")
+        assert len(got) >= 3 and all(r == x * x for x, r in got)
+    finally:
+        for p in (worker, sched):
+            if p is not None:
+                p.kill()
+                p.wait()
+
+
+def test_a_host_name_too_long_for_dns_is_named(monkeypatch):
+    """A 300-letter host name is refused by the IDNA codec (UnicodeError, not an OSError)."""
+    monkeypatch.setattr(parallel, "CONNECT_TIMEOUT_S", 0.5)
+    address = "tcp://" + "a" * 300 + ":8786"
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler") as e:
+        parallel.Cluster(address)
+    assert str(e.value).startswith(f"--dask {address}: ")

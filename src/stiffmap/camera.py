@@ -44,10 +44,15 @@ diagonal covariance (correlations unknown); without either the calibration's unc
 unknown (:attr:`CameraModel.calibration_cov` is None). Reading one
 (:meth:`CameraModel.from_dict`, :func:`load_camera`) also checks that it describes a
 physical camera (:func:`plausibility_problems`): an image of 1 to 100 000 px per side, focal
-lengths of 0.1 to 100 times the image diagonal, the principal point within the image widened
-by half its size on each side, distortion coefficients of sane magnitude (radial k1..k6
-within +/-1000, tangential p1, p2 and thin-prism s1..s4 within +/-1), and non-negative
-uncertainties. Each problem is an :class:`~stiffmap.errors.InputError` naming the file and
+lengths of 0.1 to 100 times the image diagonal with fx / fy within 1/2.1 to 2.1, the principal
+point inside the image, distortion coefficients of sane magnitude (radial k1..k6 within
++/-1000, tangential p1, p2 and thin-prism s1..s4 within +/-1) that are one to one near the
+image centre, a reprojection RMS below 0.5 % of the image diagonal, and non-negative
+uncertainties no larger than any calibration leaves (:func:`sigma_limits`: a 1-sigma of a
+focal length or principal point above the largest plausible focal length, or of a coefficient
+above its largest plausible value, says nothing; such numbers, 1e10 or 1e200, made the pose
+covariances overflow or singular). Each problem is an :class:`~stiffmap.errors.InputError`
+naming the file and
 the key.
 
 The distortion polynomial is invertible only near the image centre for a strong lens (it
@@ -91,6 +96,7 @@ __all__ = [
     "invertible_field",
     "pixel_rays",
     "plausibility_problems",
+    "sigma_limits",
     "reference_camera",
     "load_camera",
     "save_camera",
@@ -106,12 +112,19 @@ DIST_LENGTHS = {"opencv": _DIST_LENGTHS, "fisheye": (4,)}
 #: Names of the distortion coefficients, in OpenCV's order.
 DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
 #: Plausible ranges (camera.json's physical checks): focal length in image diagonals, the
-#: principal point's margin outside the image in image sizes, the largest radial (k) and
-#: tangential / thin-prism (p, s) coefficients, the largest image side in px.
+#: principal point's margin outside the image in image sizes (0: inside the image, as on
+#: every camera whose image was not cropped off-centre), the largest ratio fx / fy (or fy /
+#: fx: square pixels give 1, digitised video 1.1, a 2:1 anamorphic lens or binning 2), the
+#: largest radial (k) and tangential / thin-prism (p, s) coefficients, the largest
+#: reprojection RMS as a share of the image diagonal (a calibration whose corners miss its
+#: model by 0.5 % of the image did not describe the camera: 3.2 px at 640x480, where real
+#: calibrations give 0.1-1 px), the largest image side in px.
 FOCAL_DIAGONALS = (0.1, 100.0)
-PRINCIPAL_MARGIN = 0.5
+PRINCIPAL_MARGIN = 0.0
+MAX_ASPECT = 2.1
 MAX_RADIAL = 1e3
 MAX_TANGENTIAL = 1.0
+MAX_RMS_DIAGONAL = 0.005
 MAX_IMAGE_PX = 100_000
 
 
@@ -206,7 +219,7 @@ class CameraModel:
                 raise ValueError(
                     f"cov must be a finite ({n}, {n}) matrix over {self.param_names}, got {C.shape}"
                 )
-            C = 0.5 * (C + C.T)
+            C = 0.5 * C + 0.5 * C.T  # (C + C.T) / 2 would overflow near 1e308
             C.setflags(write=False)
             object.__setattr__(self, "cov", C)
 
@@ -762,7 +775,7 @@ def check_cov_object(
             f"is not symmetric: [{i}][{j}] = {C[i, j]:.6g} but [{j}][{i}] = {C[j, i]:.6g} "
             f"({params[i]}, {params[j]})",
         )
-    C = 0.5 * (C + C.T)
+    C = 0.5 * C + 0.5 * C.T  # (C + C.T) / 2 would overflow near 1e308
     nz = s > 0
     off = float(np.abs(C[~nz]).max()) if np.any(~nz) else 0.0
     if off > 0:
@@ -822,8 +835,10 @@ def plausibility_problems(camera: CameraModel) -> list[tuple[str, str]]:
     """What makes a camera physically implausible: (key, message) pairs, empty when none.
 
     The checks of a ``camera.json`` (see the module docstring): focal lengths of 0.1 to 100
-    image diagonals, the principal point within the image widened by half its size on each
-    side, radial coefficients within +/-1000, tangential and thin-prism ones within +/-1.
+    image diagonals and fx / fy within 1/2.1 to 2.1 (:data:`MAX_ASPECT`), the principal point
+    inside the image, radial coefficients within +/-1000, tangential and thin-prism ones within
+    +/-1, a reprojection RMS (when given) below 0.5 % of the image diagonal, and a distortion
+    one to one near the image centre.
     """
     w, h = camera.image_size
     diag = math.hypot(w, h)
@@ -840,17 +855,37 @@ def plausibility_problems(camera: CameraModel) -> list[tuple[str, str]]:
                     "the image diagonal; a focal length in mm instead of px?)",
                 )
             )
+    if not out and not 1 / MAX_ASPECT <= camera.fx / camera.fy <= MAX_ASPECT:
+        out.append(
+            (
+                "fy",
+                f"fx / fy = {camera.fx:.6g} / {camera.fy:.6g} = {camera.fx / camera.fy:.3g} is not a "
+                f"camera's pixel aspect (expected {1 / MAX_ASPECT:.2g} to {MAX_ASPECT:g}: 1 for square "
+                "pixels; a calibration from views that do not constrain it, e.g. a wrong --board?)",
+            )
+        )
     for k, n in (("cx", w), ("cy", h)):
         c = getattr(camera, k)
         m = PRINCIPAL_MARGIN * n
-        if not -m <= c <= n + m:
+        if not -0.5 - m <= c <= n - 0.5 + m:
             out.append(
                 (
                     k,
-                    f"principal point {c:.6g} px is far outside the {w}x{h} px image (expected "
-                    f"{-m:.4g} to {n + m:.4g} px: within the image, or at most half its size beyond)",
+                    f"principal point {c:.6g} px is outside the {w}x{h} px image (expected "
+                    f"{-0.5 - m:.4g} to {n - 0.5 + m:.4g} px: the optical axis meets the image "
+                    "inside it on any camera)",
                 )
             )
+    rms_limit = MAX_RMS_DIAGONAL * diag
+    if camera.rms_px is not None and camera.rms_px > rms_limit:
+        out.append(
+            (
+                "rms_px",
+                f"reprojection RMS {camera.rms_px:.3g} px is far above what a calibration leaves (at "
+                f"most {rms_limit:.2g} px, {100 * MAX_RMS_DIAGONAL:g} % of the image diagonal): the "
+                "model does not describe the views (a wrong board size, or mis-detected corners?)",
+            )
+        )
     for i, c in enumerate(camera.dist):
         name = camera.dist_names[i]
         limit = MAX_RADIAL if name.startswith("k") else MAX_TANGENTIAL
@@ -869,7 +904,58 @@ def plausibility_problems(camera: CameraModel) -> list[tuple[str, str]]:
         fold = _fold_near_centre(camera)
         if fold is not None:
             out.append(("dist", fold))
-    return out
+    return out + _uncertainty_problems(camera)
+
+
+def sigma_limits(camera: CameraModel) -> np.ndarray:
+    """The largest plausible 1-sigma of each calibrated parameter, :attr:`CameraModel.param_names` order.
+
+    The width of the range the parameter itself may take (:func:`plausibility_problems`): a
+    focal length's or the principal point's, the largest plausible focal length (100 image
+    diagonals, px); a distortion coefficient's, twice its largest magnitude (radial
+    :data:`MAX_RADIAL`, others :data:`MAX_TANGENTIAL`). An uncertainty beyond says nothing a
+    calibration could have measured (a variance where a standard deviation belongs, a unit
+    slip), and it made the pose covariances that carry it overflow or turn singular.
+    """
+    px = FOCAL_DIAGONALS[1] * math.hypot(*camera.image_size)
+    return np.array(
+        [
+            px if n in ("fx", "fy", "cx", "cy") else 2 * (MAX_RADIAL if n.startswith("k") else MAX_TANGENTIAL)
+            for n in camera.param_names
+        ]
+    )
+
+
+def _uncertainty_problems(camera: CameraModel) -> list[tuple[str, str]]:
+    """The first uncertainty (``std`` or ``cov``) beyond :func:`sigma_limits`, as (key, message)."""
+    if camera.cov is not None:
+        s = np.sqrt(np.abs(np.diag(camera.cov)))
+    elif camera.std is not None:  # the std themselves: their squares could overflow
+        sd = camera.std.get("dist") or [None] * len(camera.dist)
+        s = np.array(
+            [0.0 if x is None else float(x) for x in [*map(camera.std.get, ("fx", "fy", "cx", "cy")), *sd]]
+        )
+    else:
+        return []
+    limits = sigma_limits(camera)
+    over = np.flatnonzero(~(s <= limits))
+    if not over.size:
+        return []
+    k = int(over[0])
+    name = camera.param_names[k]
+    if camera.calibration_cov_source == "cov":
+        key = "cov.matrix"
+    else:
+        key = f"std.{name}" if k < 4 else f"std.dist[{k - 4}]"
+    unit = " px" if k < 4 else ""
+    return [
+        (
+            key,
+            f"a 1-sigma of {s[k]:.3g}{unit} for {name} is not a calibration's uncertainty (at most "
+            f"{limits[k]:.3g}{unit}, the width of the range {name} itself may take; a variance where a "
+            "standard deviation belongs, or another unit? null says 'unknown')",
+        )
+    ]
 
 
 def _distort(xy: np.ndarray, d: np.ndarray, *, jacobian: bool):

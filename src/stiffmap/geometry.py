@@ -77,6 +77,11 @@ def as_transform(a2b, name: str = "transform", *, atol: float = 1e-6) -> np.ndar
     if not np.all(np.abs(T[..., 3, :] - _LAST_ROW) <= atol):
         raise ValueError(f"{name}: last row must be [0, 0, 0, 1], got {T[..., 3, :].tolist()}")
     R = T[..., :3, :3]
+    big = float(np.abs(R).max())
+    if big > 1.0 + atol:  # before R^T R, which would overflow for entries near 1e308
+        raise ValueError(
+            f"{name}: the 3x3 block is not a rotation matrix (an entry of {big:.3g}, beyond +-1)"
+        )
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max()
     if err > atol or np.any(np.linalg.det(R) <= 0):
         raise ValueError(

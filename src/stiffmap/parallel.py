@@ -42,8 +42,11 @@ import hashlib
 import logging
 import os
 import pickle
+import signal
 import socket
 import sys
+import threading
+import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, CancelledError, ProcessPoolExecutor, wait
@@ -146,15 +149,33 @@ class Cluster:
         self.address = address
         self._cluster = None
         self._dist = distributed
+        self.client = None
+        #: What happened to the cluster during the work (workers that left), one line each.
+        self.events: list[str] = []
+        # The client's own log lines ("Failed to reconnect to scheduler...") would come beside
+        # stiffmap's one-line message of the same event: quiet while this cluster is open.
+        self._log = logging.getLogger("distributed.client")
+        self._log_level = self._log.level
+        self._log.setLevel(logging.CRITICAL)
+        try:
+            self._connect(workers)
+        except BaseException:
+            self.close()
+            raise
+
+    def _connect(self, workers: int) -> None:
+        """Start the local cluster or check the scheduler, connect the client, wait for a worker."""
+        distributed, address = self._dist, self.address
         if address == "local":
             try:
-                self._cluster = distributed.LocalCluster(
-                    n_workers=max(1, int(workers)),
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0",  # a free port: none named, none taken from another cluster
-                    silence_logs=logging.ERROR,
-                )
+                with _ctrl_c_ignored():  # its processes inherit it: Ctrl-C is this process's to handle
+                    self._cluster = distributed.LocalCluster(
+                        n_workers=max(1, int(workers)),
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=":0",  # a free port, none taken from another cluster
+                        silence_logs=logging.ERROR,
+                    )
             except (OSError, RuntimeError, TimeoutError) as e:
                 raise InputError(
                     f"--dask local: could not start a local Dask cluster ({_one_line(e)})"
@@ -166,24 +187,23 @@ class Cluster:
         failure = None
         try:
             self.client = distributed.Client(target, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as e:
+        except Exception as e:  # noqa: BLE001 - whatever the client meets there, said in one line
             failure = _one_line(e)
         if failure is not None:
             with _quiet_unraisable():  # the half-made client complains as it is collected
                 gc.collect()
-            self._close_cluster()
             raise InputError(f"--dask {address}: no Dask scheduler answers there ({failure}); " + _START_HINT)
-        #: What happened to the cluster during the work (workers that left), one line each.
-        self.events: list[str] = []
         try:
             self.client.wait_for_workers(1, timeout=WORKERS_TIMEOUT_S)
-        except (OSError, TimeoutError) as e:
-            self.close()
+        except TimeoutError as e:
             raise InputError(
                 f"--dask {address}: the scheduler has no worker after {WORKERS_TIMEOUT_S:.0f} s "
                 f"({_one_line(e)}); start workers with 'dask worker {address}'"
             ) from None
-        self._known = set(self.client.scheduler_info().get("workers", {}))
+        except Exception as e:  # noqa: BLE001 - the scheduler went away, or was not one after all
+            raise self.lost(e) from None
+        with self.talking():
+            self._known = set(self.client.scheduler_info().get("workers", {}))
 
     def __enter__(self) -> Cluster:
         return self
@@ -192,9 +212,11 @@ class Cluster:
         self.close()
 
     def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self.client.close()
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                self.client.close()
         self._close_cluster()
+        self._log.setLevel(self._log_level)
 
     def _close_cluster(self) -> None:
         if self._cluster is not None:
@@ -202,9 +224,28 @@ class Cluster:
                 self._cluster.close()
             self._cluster = None
 
+    def lost(self, e: BaseException) -> InputError:
+        """The error of a connection to the scheduler that failed after it was made."""
+        return InputError(
+            f"--dask {self.address}: the connection to the Dask scheduler failed ({_one_line(e)}); "
+            "is it still running? The results received before are kept"
+        )
+
+    @contextlib.contextmanager
+    def talking(self) -> Iterator[None]:
+        """A block talking to the scheduler: a lost connection (or a server that stops speaking
+        Dask) is an InputError naming the address, not a traceback."""
+        comm_closed = getattr(getattr(self._dist, "comm", None), "CommClosedError", OSError)
+        closed_client = getattr(getattr(self._dist, "client", None), "ClosedClientError", OSError)
+        try:
+            yield
+        except (OSError, TimeoutError, comm_closed, closed_client) as e:
+            raise self.lost(e) from None
+
     def note_departures(self) -> list[str]:
         """Workers that left the cluster since the last call, each said once in :attr:`events`."""
-        now = set(self.client.scheduler_info().get("workers", {}))
+        with self.talking():
+            now = set(self.client.scheduler_info().get("workers", {}))
         gone = sorted(self._known - now)
         self._known |= now
         self._known -= set(gone)
@@ -218,18 +259,21 @@ class Cluster:
     @property
     def n_workers(self) -> int:
         """Threads over all workers (tasks that can run at once)."""
-        workers = self.client.scheduler_info().get("workers", {})
+        with self.talking():
+            workers = self.client.scheduler_info().get("workers", {})
         return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
 
     def sees(self, path: str | os.PathLike) -> bool:
         """Whether every worker reads the same file at ``path`` (same size, same first 64 KiB)."""
         digest = file_digest(path)
-        answers = self.client.run(_same_file, str(Path(path).resolve()), digest)
+        with self.talking():
+            answers = self.client.run(_same_file, str(Path(path).resolve()), digest)
         return bool(answers) and all(answers.values())
 
     def share(self, ctx: Any) -> Any:
         """``ctx`` sent once to every worker; pass the result to tasks in its place."""
-        return self.client.scatter(ctx, broadcast=True, hash=False)
+        with self.talking():
+            return self.client.scatter(ctx, broadcast=True, hash=False)
 
     def lost_reason(self, exc: BaseException) -> str | None:
         """One line when ``exc`` is the cluster giving a task up (its workers died), else None."""
@@ -258,9 +302,13 @@ def _check_reachable(distributed, address: str) -> None:
     if scheme not in ("tcp", "tls"):
         raise InputError(f"--dask {address}: scheme {scheme!r}; expected tcp://HOST:PORT or tls://HOST:PORT")
     try:
-        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S).close()
-    except OSError as e:
-        raise InputError(f"--dask {address}: cannot reach the Dask scheduler ({e}); " + _START_HINT) from None
+        greeting = _greeting(host, int(port)) if scheme == "tcp" else None
+    except (OSError, UnicodeError, ValueError, OverflowError) as e:  # refused, no such host, not a name
+        raise InputError(
+            f"--dask {address}: cannot reach the Dask scheduler ({_one_line(e)}); " + _START_HINT
+        ) from None
+    if greeting is not None:
+        raise _not_dask(address, greeting)
 
     async def identity() -> Any:
         comm = await distributed.comm.connect(address, timeout=CONNECT_TIMEOUT_S)
@@ -273,7 +321,7 @@ def _check_reachable(distributed, address: str) -> None:
     # Something answers there; a Dask client would wait for ever on a server that is not Dask's.
     try:
         answer = asyncio.run(asyncio.wait_for(identity(), CONNECT_TIMEOUT_S))
-    except (OSError, TimeoutError, ValueError, TypeError) as e:
+    except Exception as e:  # noqa: BLE001 - whatever a server that is not Dask's makes Dask raise
         answer = e
     if isinstance(answer, dict) and answer.get("type") == "Scheduler":
         return
@@ -285,7 +333,74 @@ def _check_reachable(distributed, address: str) -> None:
         )
     else:
         what = f"it says it is a {answer.get('type', '?')}" if isinstance(answer, dict) else "no identity"
-    raise InputError(f"--dask {address}: what answers there is not a Dask scheduler ({what}); " + _START_HINT)
+    raise _not_dask(address, what)
+
+
+def _not_dask(address: str, what: str) -> InputError:
+    what = f"--dask {address}: what answers there is not a Dask scheduler ({what}); "
+    return InputError(what + _START_HINT)
+
+
+#: The longest first message of a Dask server (its handshake: a few dozen bytes), bytes.
+MAX_GREETING_BYTES = 1 << 20
+
+
+def _greeting(host: str, port: int) -> str | None:
+    """None when the server at (host, port) opens as a Dask server does, else what it did instead.
+
+    A Dask server speaks first: on accepting a connection it sends its handshake, one frame
+    whose 8-byte length (little-endian) is a few dozen bytes. Read here from a bare socket,
+    before Dask's client sees the server: Dask would take any 8 bytes for a frame's length,
+    and the first bytes of an HTTP or SSH server's answer make it allocate exbibytes.
+
+    Raises
+    ------
+    OSError
+        Nothing accepts connections there (refused, unknown host, unreachable).
+    """
+    with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S) as s:
+        head, ended = b"", "closed the connection"
+        try:
+            while len(head) < 8:
+                chunk = s.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+        except TimeoutError:
+            ended = f"said nothing more in {CONNECT_TIMEOUT_S:g} s"
+            if not head:
+                return (
+                    f"it says nothing in {CONNECT_TIMEOUT_S:g} s, where a Dask scheduler greets at once: "
+                    "a web server waiting for a request?"
+                )
+        except OSError as e:
+            return f"it dropped the connection: {_one_line(e)}"
+    if len(head) < 8:
+        return f"it {ended}" + (f" after {len(head)} byte(s)" if head else " without a word")
+    n = int.from_bytes(head, "little")
+    if 0 < n <= MAX_GREETING_BYTES:
+        return None
+    text = head.decode("ascii", errors="replace")
+    said = f"it begins with {text!r}" if text.isprintable() else f"it begins with the bytes {head.hex(' ')}"
+    return f"{said}, not a Dask handshake"
+
+
+@contextlib.contextmanager
+def _ctrl_c_ignored() -> Iterator[None]:
+    """SIGINT ignored for the block (in the main thread; elsewhere nothing changes).
+
+    Processes started in the block inherit the ignored signal (it survives ``exec``): a Ctrl-C
+    in the terminal then stops this process, which closes them, instead of each printing its
+    own traceback. A Ctrl-C during the block itself is lost.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 @contextlib.contextmanager
@@ -313,6 +428,25 @@ def _init_process(init: Callable[[Any], None] | None, ctx: Any) -> None:
     _CTX["ctx"] = ctx
     if init is not None:
         init(ctx)
+
+
+def _init_pool_process(init: Callable[[Any], None] | None, ctx: Any) -> None:
+    """A pool worker's start: Ctrl-C is the parent's to handle (it stops the pool), not each worker's
+    (whose tracebacks would fill the terminal)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _init_process(init, ctx)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now (Ctrl-C): its queued tasks cancelled, its running ones' processes ended.
+
+    Workers only compute (the caller is the only writer of results): nothing is lost that a
+    re-run does not redo.
+    """
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(Exception):
+            proc.terminate()
 
 
 def _call_in_process(fn: Callable[[Any, Any], Any], item: Any) -> Any:
@@ -416,7 +550,7 @@ def map_unordered(
     mp = get_context(backend.start_method) if backend.start_method else None
     limit = window or len(items)
     with ProcessPoolExecutor(
-        max_workers=backend.workers, mp_context=mp, initializer=_init_process, initargs=(init, ctx)
+        max_workers=backend.workers, mp_context=mp, initializer=_init_pool_process, initargs=(init, ctx)
     ) as pool:
         queue = iter(items)
         pending: dict[Any, Any] = {}
@@ -433,6 +567,9 @@ def map_unordered(
                     for nxt in queue:
                         pending[pool.submit(_call_in_process, fn, prep(nxt))] = nxt
                         break
+        except KeyboardInterrupt:
+            _stop_pool(pool)
+            raise
         finally:
             for fut in pending:
                 fut.cancel()
@@ -449,7 +586,6 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
     files' bytes) lives on one worker and dies with it: such a task is cancelled by Dask,
     and submitted again from here (``prepare`` called again), up to :data:`MAX_SUBMISSIONS`.
     """
-    dist = cluster._dist
     client = cluster.client
     shared = cluster.share(_pack(ctx))
     token = uuid.uuid4().hex
@@ -462,9 +598,10 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
         arg = prep(items[k])
         large = _is_large(arg)
         arg = _pack(arg)
-        if large:  # big data goes beside the task graph, not inside it
-            [arg] = client.scatter([arg], hash=False)
-        fut = client.submit(_call_on_worker, fn, init, token, shared, arg, pure=False)
+        with cluster.talking():
+            if large:  # big data goes beside the task graph, not inside it
+                [arg] = client.scatter([arg], hash=False)
+            fut = client.submit(_call_on_worker, fn, init, token, shared, arg, pure=False)
         pending[fut.key] = (fut, k)
         submissions[k] += 1
         return fut
@@ -474,9 +611,10 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
         first.append(submit(k))
         if len(pending) >= limit:
             break
-    futures = dist.as_completed(first, loop=client.loop)
+    futures = cluster._dist.as_completed(first, loop=client.loop)
     try:
-        for fut in futures:
+        while pending:
+            fut = _next_done(cluster, futures)
             _, k = pending.pop(fut.key)
             try:
                 result = pickle.loads(fut.result())
@@ -499,7 +637,23 @@ def _on_cluster(cluster: Cluster, fn, ctx, items, init, prep, window) -> Iterato
                 break
     finally:
         for fut, _ in pending.values():
-            fut.cancel()
+            with contextlib.suppress(Exception):  # a closed client refuses to cancel
+                fut.cancel()
+
+
+#: Seconds between two looks at the client's connection while waiting for a task.
+POLL_S = 0.05
+
+
+def _next_done(cluster: Cluster, futures) -> Any:
+    """The next finished future of ``futures`` (an ``as_completed``); an InputError when the
+    client has lost its scheduler: Dask's client gives up reconnecting after a while, and the
+    futures of a closed client never finish."""
+    while not futures.has_ready():
+        if cluster.client.status not in ("running", "connecting", "newly-created"):
+            raise cluster.lost(ConnectionError(f"the client is {cluster.client.status}"))
+        time.sleep(POLL_S)
+    return next(futures)
 
 
 def _is_large(arg: Any, limit: int = 1 << 20) -> bool:

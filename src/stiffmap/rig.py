@@ -41,12 +41,21 @@ from typing import Any
 
 import numpy as np
 
-from .camera import CameraModel, check_cov_object
+from .camera import CameraModel, check_cov_object, sigma_limits
 from .errors import InputError
 from .geometry import as_transform
 from .io import dumps_json, read_json, replace_keeping_previous
 
-__all__ = ["RigCamera", "Rig", "load_rig", "save_rig", "EXTRINSIC_NAMES", "CAMERA_FIELD", "camera_path"]
+__all__ = [
+    "RigCamera",
+    "Rig",
+    "load_rig",
+    "save_rig",
+    "EXTRINSIC_NAMES",
+    "CAMERA_FIELD",
+    "MAX_RIG_MM",
+    "camera_path",
+]
 
 #: The perturbation of a camera's ``cam2rig``: translation (mm) and left rotation (rad), rig frame.
 EXTRINSIC_NAMES = ("tx", "ty", "tz", "rx", "ry", "rz")
@@ -59,8 +68,14 @@ def camera_path(image_set: str, camera: str) -> str:
     return image_set.replace(CAMERA_FIELD, camera)
 
 
+#: Characters a camera's name may not hold: it is put into file names for ``{camera}``.
+_NOT_IN_NAMES = ("/", "\\", "{", "}")
 #: Tolerance on the first camera's ``cam2rig`` being the identity, and on rotations.
 _IDENTITY_TOL = 1e-6
+#: The farthest a camera of a rig may be from the first one, mm (100 m: a rig of cameras looking
+#: at one robot; a translation beyond is a unit slip or a broken file, and reached the fusion's
+#: linear algebra as an overflow).
+MAX_RIG_MM = 1e5
 
 
 @dataclass(frozen=True)
@@ -125,7 +140,7 @@ class Rig:
             n = len(self.param_names)
             if C.shape != (n, n) or not np.all(np.isfinite(C)):
                 raise ValueError(f"cov must be a finite ({n}, {n}) matrix over param_names, got {C.shape}")
-            C = 0.5 * (C + C.T)
+            C = 0.5 * C + 0.5 * C.T  # (C + C.T) / 2 would overflow near 1e308
             C.setflags(write=False)
             object.__setattr__(self, "cov", C)
 
@@ -179,6 +194,17 @@ class Rig:
             return None
         s = self.intrinsic_slice(k)
         return slice(s.stop, s.stop + 6)
+
+    def sigma_limits(self) -> np.ndarray:
+        """The largest plausible 1-sigma of each of :attr:`param_names`: the width of the range
+        the parameter may take, the cameras' own (:func:`~stiffmap.camera.sigma_limits`), twice
+        :data:`MAX_RIG_MM` for a ``cam2rig`` translation and 2 pi for its rotation."""
+        out: list[float] = []
+        for k, c in enumerate(self.cameras):
+            out += list(sigma_limits(c.camera))
+            if k > 0:
+                out += [2 * MAX_RIG_MM] * 3 + [2 * math.pi] * 3
+        return np.array(out)
 
     @cached_property
     def calibration_cov(self) -> np.ndarray | None:
@@ -260,6 +286,12 @@ class Rig:
             name = item.get("name")
             if not isinstance(name, str) or not name.strip() or name != name.strip():
                 raise bad(f"{key}.name", f"must be a non-empty name without outer spaces, got {name!r}")
+            if not name.isprintable() or any(c in name for c in _NOT_IN_NAMES):
+                raise bad(
+                    f"{key}.name",
+                    f"{name!r} cannot name a camera's image files (it stands for {CAMERA_FIELD} in "
+                    "their names: no / \\ { } or unprintable characters)",
+                )
             if name in seen:
                 raise bad(f"{key}.name", f"{name!r} is the name of an earlier camera: names must differ")
             seen.add(name)
@@ -279,8 +311,23 @@ class Rig:
         cov = None
         if data.get("cov") is not None:
             cov = check_cov_object(data["cov"], rig.param_names, bad, of="this rig")
+            _check_sigmas(rig, cov, bad)
         info = {k: v for k, v in data.items() if k not in ("cameras", "cov")}
         return cls(rig.cameras, cov=cov, info=info)
+
+
+def _check_sigmas(rig: Rig, cov: np.ndarray, bad) -> None:
+    """InputError at the first parameter whose 1-sigma in ``cov`` is beyond :meth:`Rig.sigma_limits`."""
+    s = np.sqrt(np.abs(np.diag(cov)))
+    limits = rig.sigma_limits()
+    over = np.flatnonzero(~(s <= limits))
+    if over.size:
+        k = int(over[0])
+        raise bad(
+            "cov.matrix",
+            f"a 1-sigma of {s[k]:.3g} for {rig.param_names[k]} is not a calibration's uncertainty (at "
+            f"most {limits[k]:.3g}; a variance where a standard deviation belongs, or another unit?)",
+        )
 
 
 def _transform(v: Any, key: str, bad) -> np.ndarray:
@@ -293,8 +340,16 @@ def _transform(v: Any, key: str, bad) -> np.ndarray:
         )
     ):
         raise bad(key, "must be a 4x4 list of finite numbers (a rigid transform, mm)")
+    T = np.array(v, dtype=np.float64)
+    far = float(np.abs(T[:3, 3]).max())
+    if far > MAX_RIG_MM:
+        raise bad(
+            key,
+            f"a camera {far:.3g} mm from the first one: not a rig (at most {MAX_RIG_MM:g} mm, 100 m; "
+            "a translation in um, or a broken file?)",
+        )
     try:
-        return as_transform(np.array(v, dtype=np.float64), key)
+        return as_transform(T, key)
     except ValueError as e:
         raise bad(key, str(e).split(": ", 1)[-1]) from None
 

@@ -60,6 +60,7 @@ __all__ = [
     "FUZZ_CLASSES",
     "RUN",
     "vision_seed",
+    "bare_vision_seed",
     "vision_seed_with_results",
     "sensor_seed",
     "toml_dumps",
@@ -130,6 +131,18 @@ def vision_seed() -> dict[str, bytes]:
     d = Path(tempfile.mkdtemp(prefix="stiffmap-seed-"))
     try:
         write_campaign(d / "c", small_vision_config(), workers=1)
+        return _read_tree(d / "c")
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+@functools.cache
+def bare_vision_seed() -> dict[str, bytes]:
+    """:func:`vision_seed` without its calibration views (its camera.json has no uncertainty):
+    the same positions and images, written in a fifth of the time."""
+    d = Path(tempfile.mkdtemp(prefix="stiffmap-seed-"))
+    try:
+        write_campaign(d / "c", dataclasses.replace(small_vision_config(), calibration_views=0), workers=1)
         return _read_tree(d / "c")
     finally:
         shutil.rmtree(d, ignore_errors=True)

@@ -188,6 +188,9 @@ class Store:
     def __init__(self, path: str | Path, *, read_only: bool = False, timeout: float = 60) -> None:
         self.path = Path(path)
         self.conn = None
+        self._trusted = False  # its values checked (or written here): see close()
+        # As this process left it (before this connection writes anything: WAL files change).
+        self._known = self.path.is_file() and _TRUSTED.get(self.path.resolve()) == _file_state(self.path)
         if self.path.is_dir():
             raise InputError(
                 "is a folder; the results database must be a file (move it away)", source=str(path)
@@ -199,13 +202,16 @@ class Store:
                 self.conn = sqlite3.connect(f"file:{os.fspath(self.path)}?mode=ro", uri=True, timeout=timeout)
                 self.conn.row_factory = sqlite3.Row
                 self._check_file()
+                _check_owner(self.conn, self.path)
+                self._check_values()
                 return
             existed = self.path.is_file() and self.path.stat().st_size > 0
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self.conn = sqlite3.connect(self.path, timeout=timeout, isolation_level=None)
             self.conn.row_factory = sqlite3.Row
-            if existed:
+            if existed:  # before anything is written to it (WAL mode, tables)
                 self._check_file()
+                _check_owner(self.conn, self.path)
             self.conn.execute("PRAGMA journal_mode=WAL")
             self.conn.execute("PRAGMA synchronous=NORMAL")
             self.conn.execute("PRAGMA foreign_keys=ON")
@@ -228,6 +234,9 @@ class Store:
                         source=str(self.path),
                     )
             self._check_layout()
+            if existed:
+                self._check_values()
+            self._trusted = True
         except InputError:
             self.close()
             raise
@@ -291,10 +300,19 @@ class Store:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def _check_values(self) -> None:
+        """:func:`_check_values`, once per state of the file in this process (a command opens its
+        database several times; the check reads every measured value, 0.2 s per 1000 images)."""
+        if not self._known:
+            _check_values(self.conn, self.path)
+        self._trusted = True
+
     def close(self) -> None:
         if self.conn is not None:
             self.conn.close()
             self.conn = None
+            if self._trusted:  # what it holds now was checked or written by stiffmap
+                _TRUSTED[self.path.resolve()] = _file_state(self.path)
 
     @contextlib.contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
@@ -512,6 +530,221 @@ def _guarded(method):
 for _name, _method in list(vars(Store).items()):
     if not _name.startswith("_") and _name not in ("close", "transaction") and callable(_method):
         setattr(Store, _name, _guarded(_method))
+
+
+def _move_away(path: Path, what: str) -> InputError:
+    return InputError(
+        f"{what}; move it away (nothing was changed in it: stiffmap never deletes it) and run again",
+        source=str(path),
+    )
+
+
+def _check_owner(conn: sqlite3.Connection, path: Path) -> None:
+    """InputError unless the database is stiffmap's, or empty: checked before anything is written.
+
+    Stiffmap's holds a ``meta`` table with its schema version and no object of another
+    program's (table, view, trigger, index of a table that is not stiffmap's). An empty SQLite
+    file (no object at all) is taken: nothing in it can be lost.
+    """
+    objects = [
+        (r[0], r[1], r[2])
+        for r in conn.execute("SELECT type, name, tbl_name FROM sqlite_master")
+        if not str(r[1]).startswith("sqlite_")
+    ]
+    if not objects:
+        return
+    ours = set(_columns())
+    foreign = [f"{kind} {name!r}" for kind, name, table in objects if table not in ours]
+    if foreign:
+        raise _move_away(
+            path,
+            f"not a stiffmap results database: it holds {', '.join(foreign[:3])}"
+            f"{' ...' if len(foreign) > 3 else ''} (another program's file named {DB_NAME}?)",
+        )
+    tables = {name for kind, name, _ in objects if kind == "table"}
+    added = {c for cols in _ADDED_COLUMNS.values() for c in cols}
+    for table in sorted(tables):
+        have = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+        ours = set(_columns()[table])
+        need = {c for c in ours if (table, c) not in added}
+        if not need <= have <= ours:
+            odd = sorted(have - ours) or sorted(need - have)
+            raise _move_away(
+                path,
+                f"not a stiffmap results database: its table {table!r} has other columns than "
+                f"stiffmap's ({', '.join(odd)})",
+            )
+    row = None
+    if "meta" in tables:
+        row = conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+    if row is None:
+        raise _move_away(
+            path,
+            "not a stiffmap results database: it has tables but no stiffmap schema version "
+            "(another program's file, or one edited by hand)",
+        )
+    if str(row[0]) not in {str(v) for v in range(1, SCHEMA_VERSION + 1)}:
+        raise _move_away(
+            path, f"database schema {str(row[0])[:20]!r} but this stiffmap uses {SCHEMA_VERSION}"
+        )
+
+
+#: The JSON columns stiffmap reads back as numbers: per table, the rows that hold them (an SQL
+#: condition), the key naming a row, and each column's kind (:func:`_value_problem`); "!" after
+#: a kind: never NULL in those rows.
+_VALUES: tuple[tuple[str, str, str, dict[str, str]], ...] = (
+    (
+        "stiffness",
+        "status = 'ok'",
+        "position",
+        {
+            "K": "matrix!",
+            "K_std": "sigmas",
+            "K_cov": "cov",
+            "K_cov_calibration": "cov",
+            "eigenvalues": "vector",
+            "residual_rms": "any",
+        },
+    ),
+    ("model_stiffness", "1", "position", {"K": "matrix"}),
+    ("model_stiffness", "valid = 1", "position", {"K": "matrix!"}),
+    ("model_fit", "status = 'ok'", "name", {"params": "numbers!", "std": "sigma numbers", "cov": "cov"}),
+    (
+        "displacements",
+        "status = 'ok'",
+        "position, load, repeat",
+        {"d": "displacement!", "cov": "displacement cov", "cov_calibration": "displacement cov"},
+    ),
+    (
+        "measurements",
+        "status = 'ok'",
+        "image",
+        {
+            "mobile2cam": "pose",
+            "fixed2cam": "pose",
+            "mobile_cov": "cov",
+            "fixed_cov": "cov",
+        },
+    ),
+)
+
+#: What ``typeof()`` may give in a column of each declared type (another is a damaged file:
+#: bytes in a text column, text in a number's).
+_TYPES = {"TEXT": ("text", "null"), "REAL": ("real", "integer", "null"), "INTEGER": ("integer", "null")}
+
+
+#: Databases whose values this process checked or wrote, with the state their files were left in.
+_TRUSTED: dict[Path, tuple] = {}
+
+
+def _file_state(path: Path) -> tuple:
+    """(size, mtime) of the database and its WAL file: any change by another process shows in it."""
+    out = []
+    for p in (path, path.with_name(path.name + "-wal")):
+        try:
+            st = p.stat()
+            out.append((st.st_size, st.st_mtime_ns))
+        except OSError:
+            out.append(None)
+    return tuple(out)
+
+
+def _check_values(conn: sqlite3.Connection, path: Path) -> None:
+    """InputError naming the table, row and column of the first stored value that is not what
+    stiffmap writes there (a NULL, NaN or 2x2 K of a measured position, an edited model row)."""
+    _check_types(conn, path)
+    dims: dict[str, int] = {}  # the size of K, the same in every table
+    for table, where, key, columns in _VALUES:
+        keys = [k.strip() for k in key.split(",")]
+        for r in conn.execute(f"SELECT {key}, {', '.join(columns)} FROM {table} WHERE {where}"):
+            for col, kind, text in zip(columns, columns.values(), r[len(keys) :], strict=True):
+                what = _value_problem(text, kind, dims)
+                if what is not None:
+                    row = ", ".join(f"{k} {v}" for k, v in zip(keys, r, strict=False))
+                    raise _move_away(path, f"damaged or edited: table {table!r}, {row}: {col} {what}")
+
+
+def _check_types(conn: sqlite3.Connection, path: Path) -> None:
+    """InputError naming the first value whose SQLite type is not its column's (one scan per table)."""
+    for table in _columns():
+        cols = [(r[1], str(r[2]).upper()) for r in conn.execute(f"PRAGMA table_info({table})")]
+        cols = [(c, t) for c, t in cols if t in _TYPES]
+        odd = " OR ".join(f"typeof({c}) NOT IN ({', '.join(map(repr, _TYPES[t]))})" for c, t in cols)
+        row = conn.execute(f"SELECT rowid, * FROM {table} WHERE {odd} LIMIT 1").fetchone() if odd else None
+        if row is not None:
+            col, declared = next((c, t) for c, t in cols if _sql_type(row[c]) not in _TYPES[t])
+            raise _move_away(
+                path,
+                f"damaged or edited: table {table!r}, row {row[0]}: {col} holds {_sql_type(row[col])} "
+                f"where {_TYPES_SAID[declared]} belongs",
+            )
+
+
+_TYPES_SAID = {"TEXT": "text", "REAL": "a number", "INTEGER": "an integer"}
+
+
+def _sql_type(v: Any) -> str:
+    """The ``typeof()`` of a value as sqlite3 returns it."""
+    return {bytes: "blob", str: "text", float: "real", int: "integer", type(None): "null"}.get(type(v), "?")
+
+
+def _value_problem(text: Any, kind: str, dims: dict[str, int]) -> str | None:
+    """What is wrong with one stored value of ``kind``, or None (see :data:`_VALUES`)."""
+    required = kind.endswith("!")
+    kind = kind.rstrip("!")
+    if text is None:
+        return "is NULL where a value belongs" if required else None
+    if kind == "any":
+        return None
+    try:
+        v = json.loads(text)
+    except (ValueError, TypeError, RecursionError):
+        return f"is not JSON ({str(text)[:40]!r})"
+    if kind.endswith("numbers"):
+        ok = isinstance(v, dict) and all(
+            isinstance(x, (int, float))
+            and not isinstance(x, bool)
+            and (np.isfinite(x) or kind != "numbers")
+            or (x is None and kind != "numbers")
+            for x in v.values()
+        )
+        return None if ok else f"is not an object of parameter values ({str(text)[:60]})"
+    try:
+        a = np.array(v, dtype=float)
+    except (ValueError, TypeError, OverflowError):
+        return f"is not an array of numbers ({str(text)[:60]})"
+    return _array_problem(a, kind, dims, str(text)[:60])
+
+
+def _array_problem(a: np.ndarray, kind: str, dims: dict[str, int], text: str) -> str | None:
+    """What is wrong with a stored array of ``kind`` (sizes agreeing across rows through ``dims``)."""
+    square = a.ndim == 2 and a.shape[0] == a.shape[1] and a.size > 0
+    if kind == "pose":
+        good = a.shape == (4, 4) and bool(np.all(np.isfinite(a)))
+        return None if good else f"is not a 4x4 transform ({text})"
+    if kind in ("matrix", "sigmas"):
+        d = dims.setdefault("K", a.shape[0] if square else -1)
+        if not square:
+            return f"is not a square matrix ({text})"
+        if a.shape[0] != d:
+            return f"is {a.shape[0]}x{a.shape[0]} where the stiffness matrices are {d}x{d} ({text})"
+        if kind == "matrix" and not np.all(np.isfinite(a)):
+            return f"holds NaN or infinite entries where the stiffness is measured ({text})"
+        if kind == "sigmas" and np.any(a < 0):
+            return f"holds negative standard deviations ({text})"
+        return None
+    if kind == "displacement":
+        good = a.ndim == 1 and a.size in (3, 6) and bool(np.all(np.isfinite(a)))
+        dims["d"] = a.size
+        return None if good else f"is not a displacement (3 or 6 finite numbers: {text})"
+    if kind == "cov":
+        return None if square and not np.any(np.isinf(a)) else f"is not a square covariance ({text})"
+    if kind == "displacement cov":
+        n = dims.get("d", 0)
+        good = a.shape == (n, n) and not np.any(np.isinf(a))
+        return None if good else f"is not the {n}x{n} covariance of the displacement ({text})"
+    good = a.ndim == 1 and a.size > 0 and bool(np.all(np.isfinite(a)))
+    return None if good else f"is not a list of finite numbers ({text})"
 
 
 @functools.cache

@@ -108,10 +108,74 @@ def load_commands(module: str) -> tuple[click.Command, ...]:
     sub = typer.Typer(**_TYPER_SETTINGS)
     importlib.import_module(f"{__package__}.{module}").register(sub)
     _literal_brackets(sub)
-    return tuple(
+    commands = tuple(
         typer.main.get_command_from_info(info, pretty_exceptions_short=True, rich_markup_mode="rich")
         for info in sub.registered_commands
     )
+    for cmd in commands:
+        cmd.callback = _interruptible(cmd.name, cmd.callback)
+    return commands
+
+
+class Interrupted(Exception):
+    """Ctrl-C during a command, seen before typer turns it into a silent exit 130.
+
+    ``command`` is the command's name, ``params`` its parameters (for :func:`interrupted_line`).
+    """
+
+    def __init__(self, command: str, params: dict) -> None:
+        super().__init__(command)
+        self.command = command
+        self.params = params
+
+
+def _interruptible(name: str, callback):
+    """``callback`` with Ctrl-C (KeyboardInterrupt) raised as :class:`Interrupted`."""
+
+    @functools.wraps(callback)
+    def call(*args, **kwargs):
+        try:
+            return callback(*args, **kwargs)
+        except KeyboardInterrupt:
+            raise Interrupted(name, kwargs) from None
+
+    return call
+
+
+#: Exit status of a command interrupted by Ctrl-C (128 + SIGINT, as shells report it).
+EXIT_INTERRUPTED = 130
+
+#: What an interrupted command has kept and how to go on; ``{...}`` are its parameters.
+INTERRUPTED_NOTES = {
+    "run": (
+        "what was finished before is kept in {campaign}/stiffmap.db (each position and recording "
+        "is written whole or not at all); run the same command again to resume: it does only what "
+        "is missing"
+    ),
+    "capture": (
+        "the images saved before are kept in {campaign} (capture_log.jsonl lists them); run the same "
+        "command again to go on at the first missing image"
+    ),
+    "simulate": (
+        "{out_dir} holds an unfinished simulation; run the same command with --force to make it again"
+    ),
+}
+_DEFAULT_NOTE = (
+    "no file was left half-written (stiffmap writes each file whole, or not at all); run the "
+    "command again to start over"
+)
+
+
+def interrupted_line(e: Interrupted, args: Sequence[str]) -> str:
+    """The one line said of a command interrupted by Ctrl-C: what it kept, how to go on."""
+    if not e.command:
+        return f"interrupted (Ctrl-C) before 'stiffmap {shlex.join(args)[:200]}' began: nothing was done"
+    note = INTERRUPTED_NOTES.get(e.command, _DEFAULT_NOTE)
+    try:
+        note = note.format(**{k: v for k, v in e.params.items() if v is not None})
+    except (KeyError, IndexError, ValueError):
+        note = _DEFAULT_NOTE
+    return f"interrupted (Ctrl-C) during 'stiffmap {shlex.join(args)[:200]}': {note}"
 
 
 class _LazyCommands(TyperGroup):
@@ -124,8 +188,11 @@ class _LazyCommands(TyperGroup):
 
     def resolve_command(self, ctx: click.Context, args: list[str]):
         if args and isinstance(self.commands.get(args[0]), _CommandStub):
-            for cmd in load_commands(COMMANDS[args[0]].module):
-                self.commands[cmd.name] = cmd
+            try:
+                for cmd in load_commands(COMMANDS[args[0]].module):
+                    self.commands[cmd.name] = cmd
+            except KeyboardInterrupt:  # while the command's libraries load: it has not begun
+                raise Interrupted("", {}) from None
         return super().resolve_command(ctx, args)
 
 
@@ -245,9 +312,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{e.filename}: " if e.filename else ""
         fail(f"{where}{e.strerror or e}")
         return EXIT_INPUT
+    except Interrupted as e:
+        fail(interrupted_line(e, args), EXIT_INTERRUPTED)
+        return EXIT_INTERRUPTED
     except KeyboardInterrupt:
-        fail("interrupted", 130)
-        return 130
+        fail("interrupted (Ctrl-C)", EXIT_INTERRUPTED)
+        return EXIT_INTERRUPTED
     except Exception as e:  # the one place that turns a bug into a message
         if debug:
             traceback.print_exc()
@@ -260,6 +330,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             EXIT_BUG,
         )
         return EXIT_BUG
+    if rv == EXIT_INTERRUPTED:  # typer's silent exit of a Ctrl-C outside any command (parsing)
+        fail(f"interrupted (Ctrl-C) before 'stiffmap {shlex.join(args)[:200]}' began: nothing was done", rv)
     return rv if isinstance(rv, int) else 0
 
 

@@ -17,6 +17,7 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
+from ..loads import MAX_FORCE_N
 from ..models.io import configuration_records, fit_measurements_file, map_csv, map_records, read_points
 from ..models.legs import LegRobot
 from ..models.presets import (
@@ -274,6 +275,8 @@ def _force(mech: str, dim: int, load_n: float | None, direction: str | None) -> 
     if load_n is not None:
         if not np.isfinite(load_n):
             raise InputError(f"--load-n must be a finite number of N, got {load_n}")
+        if abs(load_n) > MAX_FORCE_N:
+            raise InputError(f"--load-n {load_n:g} N is beyond +-{MAX_FORCE_N:g} N: not a plausible load")
         mag = load_n
     return mag * _from_option(
         "--direction", force_direction, direction if direction is not None else dname, dim

@@ -25,7 +25,7 @@ from ..io import atomic_write_text
 from ..report.validation import stage_plot_svg
 from ..rig import Rig, load_rig, save_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
-from ..vision.calibrate import DIST_MODELS, CalibrationResult
+from ..vision.calibrate import DIST_MODELS, CalibrationResult, grouped_reasons
 from ..vision.displacement import ImageDisplacements, displacement_per_image
 from ..vision.files import (
     MAX_TRANSLATION_MM,
@@ -39,7 +39,7 @@ from ..vision.files import (
 )
 from ..vision.fuse import FusedPose
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
-from ..vision.sequence import ImageMeasurement
+from ..vision.sequence import ImageMeasurement, photometric_summary
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation, validate_stage_series
 from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, three_numbers, warn
 
@@ -137,15 +137,27 @@ def _pose_json(p) -> dict:
     return d
 
 
-def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
+def _warn_failures(
+    ms: list[ImageMeasurement], rig: Rig | None = None, refine: str = "photometric", as_json: bool = False
+) -> None:
     """One warning per image (set) that failed, or whose pose fell back to the corners (with why).
 
     With a rig, also one per camera whose image of a measured set could not be used, and one
-    per fused pose whose cameras disagree (a wrong rig file, a moved camera).
+    per fused pose whose cameras disagree (a wrong rig file, a moved camera). With the default
+    ``--refine auto`` a pose that keeps its corners is no warning: one note after the table sums
+    them up (none with ``--json``, whose poses each carry their ``fallback``).
     """
+    if refine == "auto" and not as_json:
+        note = photometric_summary(ms)
+        if note is not None:
+            out.print(f"note: {note}", markup=False)
+    failed = [m for m in ms if not m.ok]
+    # Images that failed for one reason (a wrong --board on every image) are one line.
+    reasons = [m.error.removeprefix(f"{m.image}: ") for m in failed]
+    for line in grouped_reasons([m.image for m in failed], reasons):
+        warn(line)
     for m in ms:
         if not m.ok:
-            warn(m.error)
             continue
         if rig is not None:
             for v in m.views:
@@ -154,7 +166,7 @@ def _warn_failures(ms: list[ImageMeasurement], rig: Rig | None = None) -> None:
             for w in m.consistency_warnings:
                 warn(f"{m.image}: {w}")
         for p in (m.mobile, m.fixed):
-            if p is not None and p.fallback:
+            if p is not None and p.fallback and refine != "auto":
                 warn(f"{m.image}: {p.fallback}")
 
 
@@ -339,34 +351,40 @@ def calibrate(
             raise InputError("choose at most one of --fix-k3, --rational, --thin-prism, --fisheye")
         model = {"fix-k3": fix_k3, "rational": rational, "thin-prism": thin_prism, "fisheye": fisheye}
         model = next((k for k, on in model.items() if on), "k3")
-        res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor)
+        # A bar on a terminal only (it would be a blank line in a log), gone once done.
+        with images_progress("finding the board", show=err.is_terminal, transient=True) as progress:
+            res = calibrate_files(images, b, model=model, outlier_factor=outlier_factor, progress=progress)
         backup = save_camera(res.camera, out_path)
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
         warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
-    for v in res.views:
-        if not v.used:
-            warn(f"{v.image}: not used: {v.reason}")
-    implausible = _warn_calibrated(res.camera, out_path)
+    unused = [v for v in res.views if not v.used]
+    for line in grouped_reasons([v.image for v in unused], [v.reason for v in unused]):
+        warn(f"not used: {line}")
+    implausible = _warn_calibrated(res.camera, out_path, field_warning=False)
+    for key, what in res.problems:
+        warn(f"{out_path}: {key}: {what}")
     if res.lens_advice:
         warn(f"{out_path}: {res.lens_advice}")
     if as_json:
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views) or implausible:
+    if res.n_used < len(res.views) or implausible or res.problems:
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _warn_calibrated(camera, out_path: Path, label: str = "") -> bool:
-    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model folds."""
+def _warn_calibrated(camera, out_path: Path, label: str = "", field_warning: bool = True) -> bool:
+    """Warn about a calibrated camera that fails camera.json's checks (True), or whose lens model
+    folds within the image (``field_warning``; ``calibrate`` flags a fold among its views' corners
+    instead, and prints the field)."""
     implausible = plausibility_problems(camera)
     for key, what in implausible:
         # The other commands refuse this camera.json: say so now, with the views to blame.
         warn(f"{out_path}: {label}key {key!r}: {what} (the views may not constrain the calibration)")
     field = invertible_field(camera)
-    if not implausible and field.image_share() < 1.0:
+    if field_warning and not implausible and field.image_share() < 1.0:
         warn(f"{out_path}: {label}{field.describe()}; pose measurements use no pixel beyond it")
     return bool(implausible)
 
@@ -603,7 +621,7 @@ def pose(
         _print_poses(ms, f"board2rig of the {size} board (rig frame: camera {the_rig.names[0]}'s), fused")
         _print_cameras(ms, the_rig)
         out.print(_rig_calibration_note(the_rig, str(rig)))
-    _warn_failures(ms, the_rig)
+    _warn_failures(ms, the_rig, refine, as_json)
     _exit_for(sum(m.ok for m in ms), len(ms), _measured_with(camera, board, rig), _camera_failures(ms) > 0)
 
 
@@ -727,7 +745,7 @@ def displacement(
         n_ref = len(refs)
     except InputError as e:
         raise fail(str(e)) from None
-    _warn_failures(ms, the_rig)
+    _warn_failures(ms, the_rig, refine, as_json)
     try:
         res = displacement_per_image(ms[:n_ref], ms[n_ref:], q)
     except InputError as e:

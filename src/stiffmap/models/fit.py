@@ -201,8 +201,9 @@ def _check_names(model: Mechanism, params: Sequence[str]) -> tuple[tuple[str, ..
     p0 = np.array([float(valid[n]) for n in names])
     if not np.all(np.isfinite(p0) & (p0 > 0)):
         k = int(np.flatnonzero(~(np.isfinite(p0) & (p0 > 0)))[0])
+        why = " (inf: a rigid element, which has nothing to fit; leave it out)" if np.isinf(p0[k]) else ""
         raise ValueError(
-            f"cannot fit {names[k]}: its starting value {p0[k]!r} is not a positive finite number"
+            f"cannot fit {names[k]}: its starting value {float(p0[k]):g} is not a positive finite number{why}"
         )
     return names, p0
 

@@ -1049,6 +1049,12 @@ def _solve(An: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, cov
 
 
+#: How far the extra translation variance of ``extra_noise`` is searched, in mean squared
+#: translation residuals: a million (an extra noise 1000 times the residuals' RMS), where the
+#: translations no longer weigh in the chi-square and what is left of it is the rotations'.
+EXTRA_NOISE_CAP = 1e6
+
+
 def fit_joint_compliances(
     jacobians,
     wrenches,
@@ -1165,8 +1171,20 @@ def fit_joint_compliances(
     if not (f0.dof > 0 and f0.reduced_chi2 > 1.0):
         return fit_with(0.0, quiet=False)
     hi = max(float(np.mean(f0.residuals[:, :3] ** 2)), 1e-300)
-    while fit_with(hi).reduced_chi2 > 1.0:
-        hi *= 4.0
+    cap = hi * EXTRA_NOISE_CAP
+    while (chi2_hi := fit_with(hi).reduced_chi2) > 1.0:
+        if hi >= cap:  # the translations weigh nothing any more: the misfit is in the rotations
+            f = fit_with(0.0, quiet=False)
+            note = (
+                f"the displacements scatter more than their covariances say (chi2/dof = "
+                f"{f0.reduced_chi2:.3g}), and no extra translation noise explains it: with "
+                f"{1e3 * np.sqrt(hi):.3g} um of it per axis, chi2/dof is still {chi2_hi:.3g}, the "
+                "rotations' misfit (their covariances too small, or the model wrong in rotation); "
+                "the given covariances were kept"
+                + ("" if absolute_sigma else ", the standard errors scaled by the scatter")
+            )
+            return replace(f, notes=(*f.notes, note))
+        hi = min(4.0 * hi, cap)
     lo = 0.0
     for _ in range(60):  # bisection on s^2: the reduced chi-square falls as s grows
         mid = 0.5 * (lo + hi)

@@ -59,7 +59,9 @@ __all__ = [
     "lens_model",
     "model_calibration_covariance",
     "fisheye_advice",
+    "calibration_problems",
     "fixed_params",
+    "grouped_reasons",
     "matlab_camera_lines",
     "usable_views",
     "DIST_MODELS",
@@ -133,6 +135,9 @@ class CalibrationResult:
         When the polynomial model is not one to one over the whole image and OpenCV's
         fisheye model, fitted to the same views, covers more of it: one sentence saying so,
         with both RMS (:func:`fisheye_advice`); else "".
+    problems : tuple of (str, str)
+        What makes the calibration suspect beyond camera.json's checks
+        (:func:`calibration_problems`): (key, message) pairs, empty when none.
     """
 
     camera: CameraModel
@@ -141,6 +146,7 @@ class CalibrationResult:
     model: str
     n_used: int
     lens_advice: str = ""
+    problems: tuple[tuple[str, str], ...] = ()
 
     def to_dict(self) -> dict:
         """The ``camera.json`` object."""
@@ -433,6 +439,35 @@ def covariance_from_information(S: np.ndarray, s2: float, free) -> np.ndarray:
     return 0.5 * (C + C.T)
 
 
+def grouped_reasons(names: Sequence[str], reasons: Sequence[str], shown: int = 3) -> list[str]:
+    """Images that share a reason, as one line per reason: ``"a.png, b.png (2 images): why"``.
+
+    Parameters
+    ----------
+    names, reasons : sequence of str
+        One per image; an empty reason is left out.
+    shown : int
+        Names written out per reason (the others counted: ``"a.png, b.png ... (16 images)"``).
+
+    Returns
+    -------
+    list of str
+        In the order each reason first occurs.
+    """
+    groups: dict[str, list[str]] = {}
+    for n, r in zip(names, reasons, strict=True):
+        if r:
+            groups.setdefault(r, []).append(n)
+    out = []
+    for r, ns in groups.items():
+        if len(ns) == 1:
+            out.append(f"{ns[0]}: {r}")
+            continue
+        head = ", ".join(ns[:shown]) + (f" ... {ns[-1]}" if len(ns) > shown else "")
+        out.append(f"{head} ({len(ns)} images): {r}")
+    return out
+
+
 def usable_views(detections: Sequence[BoardDetection | str], board: Board) -> tuple[list[str], list[int]]:
     """Which views can enter a calibration, and why the others cannot.
 
@@ -574,7 +609,7 @@ def calibrate_camera(
     grid = grid_of(board)
     reasons, usable = usable_views(detections, board)
     if len(usable) < min_views:
-        detail = "; ".join(f"{names[k]}: {reasons[k]}" for k in range(n_views) if reasons[k])
+        detail = "; ".join(grouped_reasons(names, reasons))
         raise InputError(
             f"calibration needs at least {min_views} views with the board found, got {len(usable)}"
             + (f" ({detail})" if detail else "")
@@ -634,8 +669,15 @@ def calibrate_camera(
         sd_int = np.sqrt(np.maximum(np.diag(cov), 0.0))
     camera = with_calibration_results(cam, sd_int[: 4 + nd], R, [v.to_dict() for v in views], cov)
     advice = fisheye_advice(camera, obj, img) if model != "fisheye" else ""
+    problems = calibration_problems(camera, [detections[k] for k in used], [views[k].rms_px for k in used])
     return CalibrationResult(
-        camera=camera, views=tuple(views), residuals_px=R, model=model, n_used=len(used), lens_advice=advice
+        camera=camera,
+        views=tuple(views),
+        residuals_px=R,
+        model=model,
+        n_used=len(used),
+        lens_advice=advice,
+        problems=problems,
     )
 
 
@@ -690,3 +732,65 @@ def _project_view(camera: CameraModel, object_points, rvec, tvec) -> np.ndarray:
         return proj.reshape(-1, 2)
     T = _pose_matrix(rvec, tvec)
     return camera.project(q @ T[:3, :3].T + T[:3, 3])
+
+
+#: A calibration is suspect when its median view RMS exceeds this many times the median RMS of
+#: the views' corners about a smooth board (the detection's own fit, no camera) ...
+VIEW_RMS_FACTOR = 5.0
+#: ... and this many px (corner noise and lens-model error stay well below on real cameras:
+#: 0.1-0.5 px on the four real sets of ``../shared/data``).
+VIEW_RMS_FLOOR_PX = 1.0
+
+
+def calibration_problems(
+    camera: CameraModel, detections: Sequence[BoardDetection], view_rms_px: Sequence[float]
+) -> tuple[tuple[str, str], ...]:
+    """What makes a calibration suspect although each parameter is plausible.
+
+    - The views fit the camera model far worse than their corners fit a smooth board (median
+      view RMS above :data:`VIEW_RMS_FACTOR` times the median of the detections' own
+      ``rms_residual_px`` and :data:`VIEW_RMS_FLOOR_PX`): grids that are not the board's
+      (a wrong board size), or a camera model that cannot describe the lens.
+    - The lens model folds over where the views saw corners (:func:`~stiffmap.camera.invertible_field`):
+      it is not one to one in the very field it was fitted to. Beyond the corners it may fold
+      (a polynomial extrapolated): poses then use no pixel there, which is said, not flagged.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    detections : sequence of BoardDetection
+        The used views' detections.
+    view_rms_px : sequence of float
+        Their reprojection RMS with ``camera``, px.
+
+    Returns
+    -------
+    tuple of (key, message)
+    """
+    out = []
+    own = [d.rms_residual_px for d in detections if np.isfinite(d.rms_residual_px)]
+    med_view = float(np.median(view_rms_px)) if len(view_rms_px) else float("nan")
+    med_own = float(np.median(own)) if own else float("nan")
+    if med_view > max(VIEW_RMS_FLOOR_PX, VIEW_RMS_FACTOR * med_own):
+        out.append(
+            (
+                "views",
+                f"the views fit the camera model to {med_view:.3g} px (median view RMS) where their "
+                f"corners fit a smooth board to {med_own:.3g} px: these grids are not what the model "
+                "describes (a wrong board size, mis-detected corners, or a lens this model cannot follow)",
+            )
+        )
+    corners = np.concatenate([d.corners for d in detections]) if detections else np.zeros((0, 2))
+    field = invertible_field(camera)
+    if field.folds and corners.size:
+        outside = ~field.contains_pixels(corners)
+        if outside.any():
+            out.append(
+                (
+                    "dist",
+                    f"the lens model folds over where the views saw corners ({int(outside.sum())} of "
+                    f"{len(corners)} corners lie beyond its invertible field: {field.describe()}): "
+                    "not a lens's distortion (too few views near the image's edges, or a wrong model)",
+                )
+            )
+    return tuple(out)

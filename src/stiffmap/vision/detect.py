@@ -142,7 +142,8 @@ def detect_boards(
             t_search = time.perf_counter()
             # Boards already found in this image (tracked, ChArUco) are hidden from the search.
             masks = [detection_mask(d) for d in out if d is not None and d.n_corners >= 4] + list(hidden)
-            found = search_chessboards(img, [boards[k] for k in todo_chess], scale, masks)
+            larger: dict = {}
+            found = search_chessboards(img, [boards[k] for k in todo_chess], scale, masks, larger)
             # The search time is shared by the boards it found.
             t_share = (time.perf_counter() - t_search) / max(len(found), 1)
             for j, k in enumerate(todo_chess):
@@ -154,10 +155,14 @@ def detect_boards(
             missing = [k for k in todo_chess if out[k] is None]
             if missing:
                 # Boards already found in this image are masked for the diagnosis.
-                errs = [diagnose(img, boards[k], masks, scale) for k in missing]
+                errs = [
+                    diagnose(img, boards[k], masks, scale, larger.get(todo_chess.index(k))) for k in missing
+                ]
                 if len(errs) == 1:
                     raise errs[0]
-                raise DetectionError("; ".join(e.detail for e in errs), reason=errs[0].reason)
+                raise DetectionError(
+                    "; ".join(e.detail for e in errs), reason=errs[0].reason, larger=errs[0].larger
+                )
     except DetectionError as e:
         err = e.with_source(source) if source else e
         # The boards that were found before the failure (a rig's other cameras may see the rest).

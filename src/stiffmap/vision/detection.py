@@ -31,17 +31,24 @@ class DetectionError(InputError):
     found : list of (BoardDetection or None) or None
         Set by :func:`~stiffmap.vision.detect.detect_boards`: the boards of the call that were
         found before it failed (None where not), in the order they were asked for.
+    larger : LargerBoard or None
+        With ``reason == "wrong_size"``: the printed board the image shows instead
+        (:class:`~stiffmap.vision.chessboard.LargerBoard`: its size, and whether it was seen
+        whole), when it could be followed.
     """
 
-    def __init__(self, message: str, *, source: str | None = None, reason: str = "not_found") -> None:
+    def __init__(
+        self, message: str, *, source: str | None = None, reason: str = "not_found", larger=None
+    ) -> None:
         super().__init__(message, source=source)
         self.reason = reason
         self.found: list | None = None
+        self.larger = larger
 
     def with_source(self, source: str) -> DetectionError:
         if self.source:
             return self
-        return DetectionError(self.detail, source=source, reason=self.reason)
+        return DetectionError(self.detail, source=source, reason=self.reason, larger=self.larger)
 
 
 def board_label(board: Board) -> str:

@@ -24,7 +24,8 @@ from ..geometry import as_transform
 from ..io import read_csv_columns, read_json
 from ..rig import Rig
 from .calibrate import CalibrationResult, calibrate_camera
-from .detect import Board, BoardDetection, detect_board
+from .detect import Board, BoardDetection, DetectionError, detect_board
+from .detection import grid_of
 from .images import read_image
 from .rig_calibration import RigCalibrationResult, calibrate_rig
 from .sequence import ImageMeasurement, measure_sequence
@@ -35,8 +36,10 @@ __all__ = [
     "read_transform",
     "read_stage_manifest",
     "StageRow",
+    "board_size_hint",
     "calibrate_files",
     "calibrate_rig_files",
+    "WRONG_SIZE_AFTER",
     "camera_images",
     "match_views",
     "measure_files",
@@ -76,8 +79,15 @@ def image_files(paths: Sequence[str | os.PathLike]) -> list[Path]:
             (q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES and q.is_file()), key=_natural_key
         )
         if not found:
+            subs = sorted((q.name for q in p.iterdir() if q.is_dir()), key=str.lower)
+            hint = (
+                f"; its sub-folders ({', '.join(subs[:5])}{' ...' if len(subs) > 5 else ''}) are not "
+                "searched: give the one of the camera to calibrate"
+                if subs
+                else ""
+            )
             raise InputError(
-                "the folder holds no image files (looked for " + ", ".join(IMAGE_SUFFIXES) + ")",
+                "the folder holds no image files (looked for " + ", ".join(IMAGE_SUFFIXES) + ")" + hint,
                 source=str(p),
             )
         out.extend(found)
@@ -243,24 +253,30 @@ def calibrate_files(
     model: str = "k3",
     outlier_factor: float = 3.0,
     scale: int | None = None,
-    progress: Callable[[], None] | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CalibrationResult:
     """Calibrate a camera from image files of a board (a folder stands for its images).
 
     Every image is read and searched; an unreadable image, one of another size
     or one without the board becomes a view with ``used = False`` and the
-    reason, and calibration goes on with the others. ``progress()`` is called after
-    each image.
+    reason, and calibration goes on with the others. ``progress(done, total)`` is called
+    after each image.
+
+    A wrong board size is answered early: when :data:`WRONG_SIZE_AFTER` images show one
+    larger printed board (whole) and none so far the board asked for, the search stops with
+    the size the images show.
 
     Raises
     ------
     InputError
-        When fewer than 3 views are usable (the message lists why).
+        When fewer than 3 views are usable (the message groups the images by reason and
+        names the board size the images show, if they agree on one), or early, on a wrong
+        board size.
     """
     if not paths:
         raise InputError("no calibration images given")
     paths = image_files(paths)
-    dets, sizes = _detect_files(paths, board, scale, progress)
+    dets, sizes, larger = _detect_files(paths, board, scale, _counting(progress, len(paths)), early=True)
     if all(sz is None for sz in sizes):
         raise InputError(
             f"none of the {len(paths)} images could be read: "
@@ -278,19 +294,82 @@ def calibrate_files(
                 f"image is {sz[0]}x{sz[1]} px, but {n_size} of the views are {size[0]}x{size[1]} px "
                 "(an image of another camera?)"
             )
+    if len(found) < 3:
+        hint = board_size_hint(larger, board, len(paths))
+        if hint is not None:
+            raise InputError(hint)
     return calibrate_camera(
         dets, board, size, names=[str(p) for p in paths], model=model, outlier_factor=outlier_factor
     )
 
 
+#: Images showing one larger printed board (whole), with none yet showing the board asked for,
+#: after which :func:`calibrate_files` stops and names the size the images show.
+WRONG_SIZE_AFTER = 3
+
+
+def board_size_hint(larger: Sequence, board: Board, n_images: int, done: int | None = None) -> str | None:
+    """One sentence naming the board size the images show, when they agree on one; else None.
+
+    Parameters
+    ----------
+    larger : sequence of LargerBoard or None
+        Per image searched, the larger printed board it showed (``DetectionError.larger``).
+    board : Chessboard or CharucoBoard
+        The board asked for.
+    n_images : int
+        Images given.
+    done : int, optional
+        Images searched so far (default all).
+    """
+    whole = [lb.size for lb in larger if lb is not None and lb.whole]
+    if not whole:
+        return None
+    best = max(dict.fromkeys(whole), key=whole.count)
+    cb = grid_of(board)
+    searched = n_images if done is None else done
+    where = f"{whole.count(best)} of the {searched} images searched" + (
+        f" (of {n_images})" if searched < n_images else ""
+    )
+    return (
+        f"no image shows a {cb.cols}x{cb.rows} chessboard (inner corners), but {where} show a "
+        f"{best} chessboard: did you mean --board {best}?"
+    )
+
+
+def _counting(progress: Callable[[int, int], None] | None, total: int) -> Callable[[], None] | None:
+    """A per-image tick that reports (done, total) to ``progress``."""
+    if progress is None:
+        return None
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        progress(done, total)
+
+    return tick
+
+
 def _detect_files(
-    paths: Sequence[Path], board: Board, scale: int | None, progress: Callable[[], None] | None = None
-) -> tuple[list[BoardDetection | str], list[tuple[int, int] | None]]:
-    """Read each image and find the board: its detection or why not, and its size (None: unreadable)."""
+    paths: Sequence[Path],
+    board: Board,
+    scale: int | None,
+    progress: Callable[[], None] | None = None,
+    early: bool = False,
+) -> tuple[list[BoardDetection | str], list[tuple[int, int] | None], list]:
+    """Read each image and find the board: its detection or why not, its size (None: unreadable),
+    and the larger printed board it showed instead (None when not).
+
+    ``early``: stop with an :class:`InputError` naming the size as soon as
+    :data:`WRONG_SIZE_AFTER` images agree on one larger board and none showed ``board``.
+    """
     dets: list[BoardDetection | str] = []
     sizes: list[tuple[int, int] | None] = []
+    larger: list = []
     for p in paths:
         src = str(p)
+        big = None
         try:
             img = read_image(p)
         except InputError as e:
@@ -301,11 +380,19 @@ def _detect_files(
             sizes.append((w, h))
             try:
                 dets.append(detect_board(img, board, scale=scale, source=src))
+            except DetectionError as e:
+                dets.append(e.detail)
+                big = e.larger
             except InputError as e:
                 dets.append(e.detail)
+        larger.append(big)
         if progress is not None:
             progress()
-    return dets, sizes
+        if early and not any(isinstance(d, BoardDetection) for d in dets):
+            whole = [lb.size for lb in larger if lb is not None and lb.whole]
+            if whole and max(whole.count(x) for x in whole) >= WRONG_SIZE_AFTER:
+                raise InputError(board_size_hint(larger, board, len(paths), len(dets)))
+    return dets, sizes, larger
 
 
 _GLOB_CHARS = re.compile(r"[*?\[]")
@@ -488,7 +575,7 @@ def calibrate_rig_files(
     sizes: list[tuple[int, int]] = []
     for name, row in zip(names, table, strict=True):
         paths = [p for p in row if p is not None]
-        d, sz = _detect_files(paths, board, scale, tick)
+        d, sz, _ = _detect_files(paths, board, scale, tick, early=True)
         seen = [s for s in sz if s is not None]
         if not seen:
             raise InputError(

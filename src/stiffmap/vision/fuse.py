@@ -73,6 +73,7 @@ from ..posemath import BoardPose, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
 from ..stats import chi2_ppf, chi2_sf
 from ..targets import CharucoBoard, Chessboard
+from .pose import corner_noise_factor
 
 __all__ = [
     "FusedPose",
@@ -317,7 +318,11 @@ def fuse_poses(
             se = rig.extrinsic_slice(k)
             if se is not None:
                 B[:, se] = extrinsic_jacobian(p.board2cam, C)
-        mapped.append([k, T, N, B, "none"])
+        # The consistency test's noise: what the corners can tell (a photometric pose's own
+        # covariance is too optimistic on real images), times their errors' correlation.
+        corner = getattr(p.photometric, "corner_cov", None)
+        Q = corner_noise_factor(p.residuals_px) * _sym(J @ (p.cov_noise if corner is None else corner) @ J.T)
+        mapped.append([k, T, N, B, "none", Q])
 
     # One board frame for all views: the symmetry nearest to the reference.
     ref = check_pose(reference, "reference") if reference is not None else mapped[0][1]
@@ -331,6 +336,7 @@ def fuse_poses(
                 M = point_jacobian(T, S[:3, 3])  # d(t, r of T S) / d(t, r of T)
                 v[1] = T @ S
                 v[2] = _sym(M @ v[2] @ M.T)
+                v[5] = _sym(M @ v[5] @ M.T)
                 v[3] = None if v[3] is None else M @ v[3]
                 v[4] = name
 
@@ -376,7 +382,8 @@ def fuse_poses(
         ViewPose(rig.names[v[0]], v[0], views_in[v[0]], v[1], v[2], off, v[4])
         for v, off in zip(mapped, offsets, strict=True)
     )
-    chi2, dof = _consistency(Ns, [v[3] for v in mapped], offsets, rig.calibration_cov if with_A else None)
+    Qs = [v[5] for v in mapped]
+    chi2, dof = _consistency(Qs, [v[3] for v in mapped], offsets, rig.calibration_cov if with_A else None)
     warning = _consistency_warning(views, chi2, dof, label)
     src = [views_in[k] for k in order]
     if len(src) == 1:

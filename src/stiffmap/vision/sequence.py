@@ -45,7 +45,17 @@ from .photometric import PhotometricError, PhotometricTrack
 from .pose import check_refine, estimate_pose, follow_pose
 from .tracking import followed_detection
 
-__all__ = ["CameraView", "ImageMeasurement", "PoseTracker", "measure_sequence", "mobile2base_from_poses"]
+__all__ = [
+    "CameraView",
+    "FALLBACK_CATEGORIES",
+    "ImageMeasurement",
+    "PoseTracker",
+    "fallback_category",
+    "measure_sequence",
+    "mobile2base_from_poses",
+    "photometric_counts",
+    "photometric_summary",
+]
 
 
 @dataclass(frozen=True)
@@ -735,3 +745,65 @@ def measure_sequence(
             tracker.measure(im, None if names is None else names[k], None if states is None else states[k])
         )
     return out
+
+
+#: Why a photometric refinement was not kept, by the words of its ``fallback`` (first match).
+FALLBACK_CATEGORIES = (
+    ("sigma from the corner pose", "disagrees with the corner pose beyond the two fits' uncertainty"),
+    ("contrast", "the fitted contrast fades over part of the board"),
+    ("did not converge", "did not converge"),
+    ("blur", "implausible blur"),
+    ("usable pixels", "too few usable pixels"),
+    ("do not fit the model", "too many pixels off the model"),
+)
+
+
+def fallback_category(fallback: str) -> str:
+    """The category of a photometric fallback (:data:`FALLBACK_CATEGORIES`, else ``"other"``)."""
+    for words, category in FALLBACK_CATEGORIES:
+        if words in fallback:
+            return category
+    return "other"
+
+
+def photometric_counts(ms: Sequence[ImageMeasurement]) -> tuple[int, int, dict[str, int]]:
+    """Poses refined photometrically, poses tried, and why the others kept their corner pose.
+
+    Counts every board pose of every camera (a rig's per-camera poses, not the fused ones) whose
+    photometric refinement was tried (chessboards with their image).
+
+    Returns
+    -------
+    kept : int
+    tried : int
+    why : dict of str to int
+        :func:`fallback_category` -> number of poses.
+    """
+    kept = tried = 0
+    why: dict[str, int] = {}
+    for m in ms:
+        for v in m.views or (m,):
+            for p in (v.mobile, v.fixed):
+                if p is None:
+                    continue
+                if p.method == "photometric":
+                    kept += 1
+                    tried += 1
+                elif p.fallback and "corner pose kept" in p.fallback and "ChArUco" not in p.fallback:
+                    tried += 1
+                    c = fallback_category(p.fallback)
+                    why[c] = why.get(c, 0) + 1
+    return kept, tried, why
+
+
+def photometric_summary(ms: Sequence[ImageMeasurement]) -> str | None:
+    """One sentence: on how many poses the photometric refinement was kept, and why not on the
+    others (None when it was kept on all, or never tried)."""
+    kept, tried, why = photometric_counts(ms)
+    if tried == 0 or kept == tried:
+        return None
+    reasons = "; ".join(f"{c}: {n}" for c, n in sorted(why.items(), key=lambda cn: -cn[1]))
+    return (
+        f"photometric refinement kept on {kept} of {tried} poses; the corner pose, the better "
+        f"estimate there, on the other {tried - kept} ({reasons}; --json gives each 'fallback')"
+    )

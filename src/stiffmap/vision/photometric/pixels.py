@@ -231,6 +231,7 @@ def prepare_pixels(
     exclude=(),
     saturation: int | None = None,
     phase: int = 0,
+    inner_only: bool = False,
 ) -> PhotometricSetup:
     """Select the pixels of a board for the photometric fit at a starting pose.
 
@@ -262,6 +263,10 @@ def prepare_pixels(
     phase : {0, 1}
         Colour phase of the board: square (i, j) is black when i + j + phase is even
         (:attr:`~stiffmap.vision.detection.BoardDetection.phase`).
+    inner_only : bool
+        Only the edges between the inner corners (the inner squares' sides): what every
+        printed chessboard has, whatever its outer squares are (cut short, as on OpenCV's
+        stereo samples, or framed by a margin that is not white).
 
     Returns
     -------
@@ -381,6 +386,9 @@ def prepare_pixels(
         if not outer_edges:
             near_x &= (kx > -1) & (kx < cols) & (outside(Y, rows, isY) < -band)
             near_y &= (ky > -1) & (ky < rows) & (outside(X, cols, isX) < -band)
+        if inner_only:
+            near_x &= (kx > -1) & (kx < cols) & (Y >= 0) & (Y <= (rows - 1) * sf)
+            near_y &= (ky > -1) & (ky < rows) & (X >= 0) & (X <= (cols - 1) * sf)
         sel = (near_x | near_y) & ~((dX < cz) & (dY < cz)) & (w2 > 0)
     vals = img.ravel().take(v_i * w + u_i)
     sat = np.iinfo(img.dtype).max if saturation is None else int(saturation)

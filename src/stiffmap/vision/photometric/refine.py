@@ -75,6 +75,14 @@ class PhotometricFit:
     seconds : float
     warm_start : bool
         The fit started from the previous image's fit of the board (:class:`PhotometricTrack`).
+    corner_cov : ndarray, shape (6, 6), or None
+        The noise covariance of the corner pose the fit was checked against
+        (:func:`~stiffmap.vision.pose.estimate_pose` sets it): what the corners alone can tell,
+        used where the pixels' own covariance is too optimistic on real images (a rig's
+        consistency test, :mod:`~stiffmap.vision.fuse`).
+    inner_only : bool
+        The fit used only the edges between the inner corners (the whole board's model did not
+        fit: outer squares cut short, a margin that is not white).
     """
 
     rms_dn: float
@@ -93,6 +101,8 @@ class PhotometricFit:
     converged: bool
     seconds: float
     warm_start: bool = False
+    corner_cov: np.ndarray | None = None
+    inner_only: bool = False
 
 
 #: The previous image's pixel set is reused while the start pose moves the board's outline by
@@ -140,6 +150,9 @@ class PhotometricTrack:
     def __init__(self) -> None:
         self._last: dict | None = None
         self._sensitivity: tuple | None = None
+        #: The board's fits keep to its inner squares (the whole board's model did not fit it:
+        #: :func:`~stiffmap.vision.pose.estimate_pose`); kept across :meth:`clear`.
+        self.inner_only = False
 
     def clear(self) -> None:
         """Forget the last fit (the next one is cold)."""
@@ -411,6 +424,7 @@ def refine_pose_photometric(
     phase: int | None = None,
     track: PhotometricTrack | None = None,
     warm_only: bool = False,
+    inner_only: bool = False,
 ):
     """Refine a chessboard's pose by fitting a model of the blurred board to its pixels.
 
@@ -461,6 +475,9 @@ def refine_pose_photometric(
         (``track`` unchanged) instead of fitting from the start when there is no warm start or
         it fails, when the fitted outline moved :data:`FOLLOW_PX` px or more from the start,
         or when s^2 grew more than :data:`S2_GROWTH` times over the previous fit's.
+    inner_only : bool
+        Fit only the edges between the inner corners (see
+        :func:`~stiffmap.vision.photometric.pixels.prepare_pixels`).
 
     Returns
     -------
@@ -493,7 +510,7 @@ def refine_pose_photometric(
     def fail(msg: str) -> PhotometricError:
         return PhotometricError(f"{board.size} chessboard: photometric fit: {msg}", source=source)
 
-    options = (band_px, int(shading_degree), bool(outer_edges), colour_phase)
+    options = (band_px, int(shading_degree), bool(outer_edges), colour_phase, bool(inner_only))
 
     def select(T, sig) -> PhotometricSetup:
         try:
@@ -508,6 +525,7 @@ def refine_pose_photometric(
                 outer_edges=outer_edges,
                 exclude=exclude,
                 phase=colour_phase,
+                inner_only=inner_only,
             )
         except PhotometricError as e:
             raise fail(e.detail) from None
@@ -573,6 +591,7 @@ def refine_pose_photometric(
         converged=sol.converged,
         seconds=time.perf_counter() - t_start,
         warm_start=warm is not None,
+        inner_only=bool(inner_only),
     )
     if track is not None:
         if warm is None:
