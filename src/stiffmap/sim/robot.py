@@ -378,9 +378,10 @@ def serial_robot(model, *, links_file=None, **kw) -> VirtualRobot:
         "urdf": URDF_NAME,
         "tip_frame": ch.tip_frame,
         "tip_offset_mm": [float(v) for v in ch.tip_offset_mm],
-        "tool_rpy_deg": _degrees(euler_from_matrix(model.tool_rotation)),
         "q_seed_deg": _degrees(model.q_seed),
     }
+    if model.tool_rotation is not None:
+        spec["tool_rpy_deg"] = _degrees(euler_from_matrix(model.tool_rotation))
     if ch.base_frame != ch.root_frame:
         spec["base_frame"] = ch.base_frame
     files: dict[str, str | bytes] = {URDF_NAME: ch.urdf_text.encode() if ch.urdf_text else ch.source}
