@@ -30,7 +30,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from _table import save  # noqa: E402
 
-from stiffmap.campaign.store import DB_NAME, Store, from_json  # noqa: E402
+from stiffmap.campaign.store import DB_NAME, Store  # noqa: E402
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
 from stiffmap.models import arm6  # noqa: E402
 
@@ -48,10 +48,10 @@ def campaign(root: Path, seed: int, workers: int) -> dict:
     t_run = time.perf_counter() - t0
     with Store(root / DB_NAME) as st:
         fit = st.model_fit("stiffness")
-    if fit is None or fit["status"] != "ok":
+    if fit is None or fit.status != "ok":
         raise SystemExit(f"seed {seed}: the joint fit failed: {None if fit is None else fit['error']}")
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False)
+    est = fit.params
+    std = fit.std
     names = [f"k{i}" for i in range(1, 7)]
     return {
         "k": np.array([est[n] for n in names]),

@@ -27,7 +27,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from _table import write  # noqa: E402
 
-from stiffmap.campaign.store import DB_NAME, Store, from_json  # noqa: E402
+from stiffmap.campaign.store import DB_NAME, Store  # noqa: E402
 from stiffmap.campaign.truth import load_truth  # noqa: E402
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
 
@@ -52,9 +52,9 @@ def campaign(root: Path, cameras: int, select: str, seed: int, workers: int) -> 
         rows = st.stiffness_rows()
     err = np.full(len(rows), np.nan)
     for i, (r, Kt) in enumerate(zip(rows, truth.K, strict=True)):
-        if r["status"] == "ok":
-            err[i] = np.linalg.norm(from_json(r["K"]) - Kt) / np.linalg.norm(Kt)
-    xyz = np.array([[r["x"], r["y"], r["z"]] for r in rows])
+        if r.status == "ok":
+            err[i] = np.linalg.norm(r.K - Kt) / np.linalg.norm(Kt)
+    xyz = np.array([[r.x, r.y, r.z] for r in rows])
     return {"err": err, "xyz": xyz, "simulate_s": t_sim, "run_s": t_run}
 
 

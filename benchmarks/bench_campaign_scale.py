@@ -6,7 +6,7 @@ of two boards; by default 10 positions of ``paper48``, the nine ``paper9`` load 
 then, in one run on the same files:
 
 - the decode floor: ``cv2.imread`` of every image, grey, in one process and in two;
-- ``run_campaign`` with 1 process, 2 processes, and on a ``distributed.LocalCluster``
+- ``run_vision_campaign`` with 1 process, 2 processes, and on a ``distributed.LocalCluster``
   of 2 single-threaded workers (``stiffmap run --dask local --workers 2``), each from
   an empty database: detection, tracking, photometric poses, displacements, K, model fit;
 - that the three databases hold the same rows (``dump_content``);
@@ -35,7 +35,7 @@ from _table import RESULTS, markdown, write
 
 from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, dump_content
@@ -106,7 +106,7 @@ def main() -> None:
             for f in out.glob(DB_NAME + "*"):
                 os.unlink(f)
             t = time.perf_counter()
-            summary = run_campaign(out, workers=workers, dask=dask)
+            summary = run_vision_campaign(out, workers=workers, dask=dask)
             dt = time.perf_counter() - t
             assert summary.images == n and not summary.failures, summary.failures[:3]
             rates[(label, workers)] = n / dt

@@ -35,9 +35,10 @@ import numpy as np
 from _table import markdown, write
 
 from stiffmap.campaign.demo import run_demo
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.robot import campaign_positions
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.spec import load_spec
-from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.campaign.store import DB_NAME, Store
 from stiffmap.campaign.truth import load_truth
 from stiffmap.capture.cameras import open_camera
 from stiffmap.capture.session import LOG_NAME, monitor_for, run_capture
@@ -57,9 +58,9 @@ def k_errors(root: Path) -> np.ndarray:
     err = np.full(len(truth.K), np.nan)
     with Store(root / DB_NAME, read_only=True) as store:
         for r in store.stiffness_rows():
-            if r["status"] == "ok":
-                Kt = truth.K[r["position"] - 1]
-                err[r["position"] - 1] = np.linalg.norm(from_json(r["K"]) - Kt) / np.linalg.norm(Kt)
+            if r.status == "ok":
+                Kt = truth.K[r.position - 1]
+                err[r.position - 1] = np.linalg.norm(r.K - Kt) / np.linalg.norm(Kt)
     return err
 
 
@@ -74,7 +75,7 @@ def frame_speed(root: Path, frames: int = 8) -> dict[str, float]:
         mon = monitor_for(spec, root)
         tg, tc = [], []
         with cam:
-            for p in spec.position_points(root)[:3]:
+            for p in campaign_positions(spec, root)[:3]:
                 cam.move_to(p)
                 mon.reset()
                 for k in range(frames + 1):
@@ -125,7 +126,7 @@ def main() -> None:
         t_cap = time.perf_counter() - t0
         assert summary.stopped is None and not summary.missing, summary
         t0 = time.perf_counter()
-        run_campaign(cap, workers=args.workers)
+        run_vision_campaign(cap, workers=args.workers)
         t_run = time.perf_counter() - t0
         saved = [
             r

@@ -40,6 +40,7 @@ from _table import markdown, write  # noqa: E402
 from stiffmap.campaign.fitted import fitted_model  # noqa: E402
 from stiffmap.campaign.truth import load_truth  # noqa: E402
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
+from stiffmap.kinds import RobotDescription, build_robot  # noqa: E402
 from stiffmap.machining import CompensateOptions, ForceSpec, compensate_file  # noqa: E402
 from stiffmap.machining.field import field_for  # noqa: E402
 from stiffmap.machining.forces import force_at  # noqa: E402
@@ -47,7 +48,6 @@ from stiffmap.machining.io import read_program  # noqa: E402
 from stiffmap.machining.path import toolpath_from_moves  # noqa: E402
 from stiffmap.models import arm6  # noqa: E402
 from stiffmap.models.delta import DeltaRobot  # noqa: E402
-from stiffmap.models.presets import mechanism_from_params  # noqa: E402
 from stiffmap.models.prr3 import PRR3  # noqa: E402
 from stiffmap.models.serial import SerialRobot  # noqa: E402
 
@@ -266,7 +266,7 @@ def _true_model(truth, fitted):
     params = {k: float(v) for k, v in robot["params"].items()}
     if isinstance(fitted, SerialRobot):
         return fitted.with_params(**{k: v for k, v in params.items() if k in fitted.param_names()})
-    return mechanism_from_params(robot["model"], params)
+    return build_robot(RobotDescription(robot["model"], params))
 
 
 def _nominal(fitted):

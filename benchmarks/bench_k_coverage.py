@@ -36,9 +36,9 @@ sys.path.insert(0, str(HERE))
 from _table import write  # noqa: E402
 
 from stiffmap.campaign.demo import demo_config  # noqa: E402
-from stiffmap.campaign.runner import run_campaign  # noqa: E402
+from stiffmap.campaign.runner import run_vision_campaign  # noqa: E402
 from stiffmap.campaign.simulated import write_campaign  # noqa: E402
-from stiffmap.campaign.store import DB_NAME, Store, from_json  # noqa: E402
+from stiffmap.campaign.store import DB_NAME, Store  # noqa: E402
 from stiffmap.campaign.truth import load_truth  # noqa: E402
 
 OUT = HERE / "results" / "k_coverage.md"
@@ -56,21 +56,21 @@ def one_campaign(root: Path, seed: int, n_positions: int, repeats: int, workers:
     t0 = time.perf_counter()
     write_campaign(root, cfg, workers=workers)
     t1 = time.perf_counter()
-    summary = run_campaign(root, workers=workers)
+    summary = run_vision_campaign(root, workers=workers)
     t2 = time.perf_counter()
     truth = load_truth(root)
     rows = []
     with Store(root / DB_NAME, read_only=True) as store:
         for r in store.stiffness_rows():
-            if r["status"] != "ok":
+            if r.status != "ok":
                 rows.append(None)
                 continue
-            K = from_json(r["K"])
-            Kt = truth.K[r["position"] - 1]
-            cov = from_json(r["K_cov"])
-            cal = from_json(r["K_cov_calibration"])
+            K = r.K
+            Kt = truth.K[r.position - 1]
+            cov = r.K_cov
+            cal = r.K_cov_calibration
             cal = np.zeros_like(cov) if cal is None else cal
-            q = stats.t.ppf(0.975, r["dof"])
+            q = stats.t.ppf(0.975, r.dof)
             s_all = np.sqrt(np.diag(cov)).reshape(3, 3)
             s_noise = np.sqrt(np.clip(np.diag(cov - cal), 0, None)).reshape(3, 3)
             err = np.abs(K - Kt)
@@ -83,7 +83,7 @@ def one_campaign(root: Path, seed: int, n_positions: int, repeats: int, workers:
                     share,
                     float(np.linalg.norm(K - Kt) / np.linalg.norm(Kt)),
                     (K - Kt) / s_all,  # standardised error: mean ~0 and RMS ~ sqrt(dof/(dof-2)) if right
-                    r["dof"],
+                    r.dof,
                 )
             )
     cam = truth.camera

@@ -36,9 +36,10 @@ from helpers.opencv_corners import opencv_corners_near  # noqa: E402
 from stiffmap.campaign.derive import derive_position  # noqa: E402
 from stiffmap.campaign.measure import ImageRow  # noqa: E402
 from stiffmap.campaign.positions import plan  # noqa: E402
+from stiffmap.campaign.records import DisplacementRecord, StiffnessRecord  # noqa: E402
 from stiffmap.campaign.simulated import write_campaign  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
-from stiffmap.campaign.store import from_json  # noqa: E402
+from stiffmap.campaign.store import record_of  # noqa: E402
 from stiffmap.campaign.truth import load_truth  # noqa: E402
 from stiffmap.loads import paper9  # noqa: E402
 from stiffmap.sim.robot import delta_robot  # noqa: E402
@@ -89,7 +90,8 @@ def image_round_trip(root: Path):
     res = []
     for task in plan(spec, root):
         r = derive_position(task, rows, loads, spec, "compliance", "", "")
-        res.append((from_json(r.stiffness["K"]), from_json(r.stiffness["K_std"]), truth.K[task.index - 1]))
+        s = record_of(StiffnessRecord, r.stiffness)
+        res.append((s.K, s.K_std, truth.K[task.index - 1]))
     E = np.concatenate(errs)
     return res, failed, float(np.sqrt(np.mean(np.sum(E**2, axis=1))))
 
@@ -101,7 +103,8 @@ def disp_noise(root: Path, noise: float) -> np.ndarray:
     for task, r in derived:
         Kt = truth.K[task.index - 1]
         for d in r.displacements:
-            dev.append(np.asarray(from_json(d["d"]))[:3] - np.linalg.solve(Kt, loads[d["load"] - 1].force))
+            rec = record_of(DisplacementRecord, d)  # the row as it is stored, decoded
+            dev.append(np.asarray(rec.d)[:3] - np.linalg.solve(Kt, loads[rec.load - 1].force))
     return np.asarray(dev).std(axis=0)
 
 

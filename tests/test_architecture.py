@@ -2,7 +2,10 @@
 
 The layers and the absence of import cycles are checked by import-linter (the contracts in
 pyproject.toml, run by ``make test``); these tests check the two rules it cannot see:
-every module's stiffmap dependencies stand at its top, and only the store speaks SQL.
+every module's stiffmap dependencies stand at its top, and only the store speaks SQL; and
+the registries' rule: only the registry of robot kinds (and each kind's own modules) names a
+robot kind, only the instruments' registry (and the spec, its schema) branches on what a
+campaign measures with.
 """
 
 from __future__ import annotations
@@ -12,6 +15,8 @@ import re
 from pathlib import Path
 
 import pytest
+
+from stiffmap.kinds import ROBOT_KINDS
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "stiffmap"
 MODULES = sorted(SRC.rglob("*.py"))
@@ -76,6 +81,87 @@ def test_only_the_store_speaks_sql(path):
     assert not sql, "SQL outside campaign/store.py:\n" + "\n".join(sql)
 
 
+#: Where a robot kind's name may stand: the registry and the mechanisms' own modules.
+KIND_HOMES = (
+    "stiffmap/kinds/",
+    "stiffmap/models/delta.py",
+    "stiffmap/models/prr3.py",
+    "stiffmap/models/serial.py",
+    "stiffmap/models/arm6.py",
+    "stiffmap/models/legs.py",
+    "stiffmap/models/legs_file.py",
+)
+#: Other places that hold a kind's name, and why (module, name) -> reason.
+KIND_NAME_REASONS: dict[tuple[str, str], str] = {
+    (
+        "stiffmap/sim/robot.py",
+        "urdf",
+    ): "the campaign.toml key of a URDF robot's file (robot.urdf), not the kind",
+    ("stiffmap/geometry.py", "delta"): "the name of a displacement argument (delta) in a message",
+}
+#: Where a campaign's kind ("vision", "sensor") may be compared: the instruments' registry and
+#: the spec (its schema); others with their reason.
+INSTRUMENT_HOMES = ("stiffmap/campaign/instruments.py", "stiffmap/campaign/spec.py")
+INSTRUMENT_REASONS: dict[str, str] = {
+    "stiffmap/campaign/runner.py": "the cameras' runner refuses another instrument's campaign",
+    "stiffmap/campaign/truth.py": "truth.json's own 'kind' field (a file format)",
+    "stiffmap/capture/plan.py": "stiffmap capture drives one camera: the camera instrument's tool",
+    "stiffmap/capture/cameras.py": "truth.json's own 'kind' field (a file format)",
+    "stiffmap/report/data.py": "the report's data contract checks its own 'kind' field",
+}
+
+
+def _kind_names() -> set[str]:
+    return {k.name for k in ROBOT_KINDS.values()} | {
+        k.testbed.name for k in ROBOT_KINDS.values() if k.testbed is not None
+    }
+
+
+def _named(path: Path, names: set[str]) -> list[tuple[int, str]]:
+    """(line, name) of every string constant of ``path`` that is one of ``names``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    return [
+        (n.lineno, n.value)
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and n.value in names
+    ]
+
+
+def _compared(path: Path, names: set[str]) -> list[tuple[int, str]]:
+    """(line, name) of every comparison of something with one of ``names`` (==, !=, in)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for n in ast.walk(tree):
+        if isinstance(n, ast.Compare):
+            for c in ast.walk(n):
+                if isinstance(c, ast.Constant) and isinstance(c.value, str) and c.value in names:
+                    out.append((n.lineno, c.value))
+    return out
+
+
+@pytest.mark.parametrize("path", MODULES, ids=_rel)
+def test_only_the_registry_names_robot_kinds(path):
+    """A kind's name outside the registry is a branch the next kind would have to find."""
+    rel = _rel(path)
+    if rel.startswith(KIND_HOMES):
+        return
+    found = [
+        f"{rel}:{line}: {name!r}"
+        for line, name in _named(path, _kind_names())
+        if (rel, name) not in KIND_NAME_REASONS
+    ]
+    assert not found, "robot kinds named outside stiffmap.kinds:\n" + "\n".join(found)
+
+
+@pytest.mark.parametrize("path", MODULES, ids=_rel)
+def test_only_the_instruments_registry_branches_on_the_campaign_kind(path):
+    rel = _rel(path)
+    if rel in INSTRUMENT_HOMES or rel in INSTRUMENT_REASONS:
+        return
+    found = [f"{rel}:{line}: {name!r}" for line, name in _compared(path, {"vision", "sensor"})]
+    assert not found, "campaign kinds compared outside campaign.instruments:\n" + "\n".join(found)
+
+
 def test_the_rules_see_violations(tmp_path):
     """The checks above find what they look for, on a made-up module."""
     bad = tmp_path / "bad.py"
@@ -89,3 +175,9 @@ def test_the_rules_see_violations(tmp_path):
     assert _function_level_imports(bad) == [(3, ".geometry"), (4, "stiffmap.camera")]
     assert SQL.search("SELECT x FROM t") and SQL.search("INSERT OR REPLACE INTO images")
     assert not SQL.search("Select the board") and not SQL.search("update the selection")
+    branchy = tmp_path / "branchy.py"
+    branchy.write_text(
+        "def f(spec):\n    if spec.kind == 'vision' and spec.robot.model in ('delta', 'x'):\n        pass\n"
+    )
+    assert _named(branchy, {"delta", "3prr"}) == [(2, "delta")]
+    assert _compared(branchy, {"vision", "sensor"}) == [(2, "vision")]

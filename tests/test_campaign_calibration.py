@@ -20,10 +20,11 @@ from stiffmap.campaign.derive import derive_position
 from stiffmap.campaign.export import read_tables
 from stiffmap.campaign.measure import MeasureContext, measure_position
 from stiffmap.campaign.positions import plan
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.records import DisplacementRecord, StiffnessRecord
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
 from stiffmap.campaign.spec import load_spec
-from stiffmap.campaign.store import DB_NAME, SCHEMA_VERSION, Store, from_json
+from stiffmap.campaign.store import DB_NAME, SCHEMA_VERSION, Store, record_of
 from stiffmap.report.campaign import write_campaign_report
 
 pytestmark = pytest.mark.slow
@@ -76,19 +77,24 @@ def test_calibration_share_of_displacements_and_K_matches_finite_differences(one
     minus = _derive(root, cam.with_params(cam.params - h * u), None)
 
     for row, rp, rm in zip(res.displacements, plus.displacements, minus.displacements, strict=True):
-        v = (from_json(rp["d"]) - from_json(rm["d"])) / (2 * h)
-        pred = from_json(row["cov_calibration"])
+        v = (record_of(DisplacementRecord, rp).d - record_of(DisplacementRecord, rm).d) / (2 * h)
+        pred = record_of(DisplacementRecord, row).cov_calibration
         # A displacement's sensitivity is the difference of two poses' ~1000 times larger ones
         # (0.15 mm per sigma each, which agree with re-measurement to ~1e-5 of themselves): it
         # is known to 3 % or 0.5 nm per sigma, far below any displacement's noise (um).
         np.testing.assert_allclose(np.sqrt(np.diag(pred))[:3], np.abs(v[:3]), rtol=0.03, atol=5e-7)
-    v = (from_json(plus.stiffness["K"]) - from_json(minus.stiffness["K"])).ravel() / (2 * h)
-    pred = from_json(res.stiffness["K_cov_calibration"])
+    v = (
+        record_of(StiffnessRecord, plus.stiffness).K - record_of(StiffnessRecord, minus.stiffness).K
+    ).ravel() / (2 * h)
+    pred = record_of(StiffnessRecord, res.stiffness).K_cov_calibration
     assert np.linalg.norm(pred - np.outer(v, v)) < 0.05 * np.linalg.norm(np.outer(v, v))
     # The total covariance holds the share on top of the noise's.
     noise = _derive(root, cam, None)
     np.testing.assert_allclose(
-        from_json(res.stiffness["K_cov"]), from_json(noise.stiffness["K_cov"]) + pred, rtol=1e-9, atol=1e-15
+        record_of(StiffnessRecord, res.stiffness).K_cov,
+        record_of(StiffnessRecord, noise.stiffness).K_cov + pred,
+        rtol=1e-9,
+        atol=1e-15,
     )
 
 
@@ -98,14 +104,14 @@ def test_run_stores_and_exports_the_calibration_share(one_position, tmp_path):
 
     work = tmp_path / "c"
     shutil.copytree(root, work)
-    summary = run_campaign(work, workers=1)
+    summary = run_vision_campaign(work, workers=1)
     assert not summary.failures, summary.failures
     with Store(work / DB_NAME, read_only=True) as store:
         (st,) = store.stiffness_rows()
         tables = read_tables(store)
         for r in store.measurement_rows():
-            assert from_json(r["mobile_cal_jac"]).shape == (6, cam.params.size)
-    Kc = from_json(st["K_cov_calibration"])
+            assert r.mobile_cal_jac.shape == (6, cam.params.size)
+    Kc = st.K_cov_calibration
     assert Kc.shape == (9, 9) and np.all(np.diag(Kc) > 0)
     shares = [tables["stiffness"][0][f"cal_share_k{k}{k}"] for k in (1, 2, 3)]
     assert all(0 < s < 1 for s in shares), shares
@@ -128,15 +134,16 @@ def test_a_schema_1_database_gets_the_new_columns(tmp_path):
     conn.execute("ALTER TABLE measurements DROP COLUMN mobile_cal_jac")
     conn.execute("ALTER TABLE measurements DROP COLUMN per_camera")  # schema 3
     conn.execute(
-        "INSERT INTO stiffness (position, x, y, z, status, inputs_hash, params_hash, version) "
-        "VALUES (1, 0, 0, 0, 'ok', 'h', 'p', 'v')"
+        "INSERT INTO stiffness (position, x, y, z, K, status, inputs_hash, params_hash, version) "
+        "VALUES (1, 0, 0, 0, '[[1,0,0],[0,1,0],[0,0,1]]', 'ok', 'h', 'p', 'v')"
     )
     conn.execute("UPDATE meta SET value = '1' WHERE key = 'schema_version'")
     conn.commit()
     conn.close()
     with Store(db) as store:
         (row,) = store.stiffness_rows()
-        assert row["K_cov_calibration"] is None and row["status"] == "ok"
+        assert row.K_cov_calibration is None and row.status == "ok"
+        np.testing.assert_array_equal(row.K, np.eye(3))
         assert store.measurement_rows() == []
     conn = sqlite3.connect(db)
     cols = {r[1] for r in conn.execute("PRAGMA table_info(measurements)")}

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 from helpers.board_scenes import scaled_camera
 
 from stiffmap.camera import reference_camera
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
-from stiffmap.campaign.store import DB_NAME, Store, from_json
+from stiffmap.campaign.store import DB_NAME, Store
 from stiffmap.campaign.truth import load_truth
 from stiffmap.loads import paper9
 from stiffmap.rig import camera_path, load_rig
@@ -53,37 +51,37 @@ def _K(out):
 def test_a_two_camera_campaign_recovers_K_and_keeps_each_cameras_outcome(rig_campaign):
     out = rig_campaign
     rig = load_rig(out / "rig.json")
-    summary = run_campaign(out)
+    summary = run_vision_campaign(out)
     assert not summary.failures
     rows, meas = _K(out)
     truth = load_truth(out)
     for r, K_true in zip(rows, truth.K, strict=True):
-        assert r["status"] == "ok"
-        K = from_json(r["K"])
+        assert r.status == "ok"
+        K = r.K
         # Both cameras see each board; depth comes from the other camera's side view.
         # Measured 0.4 % (seed 11); 1.5 % leaves room for other seeds' noise, not for a wrong frame.
         assert np.linalg.norm(K - K_true) / np.linalg.norm(K_true) < 0.015
     for m in meas:
-        per = json.loads(m["per_camera"])
+        per = m.per_camera
         assert [c["name"] for c in per] == list(rig.names)
         assert all(c["ok"] and set(c["boards"]) == {"mobile", "fixed"} for c in per)
         # The stored calibration sensitivity spans the rig's parameters (both cameras and cam2rig).
-        assert from_json(m["mobile_cal_jac"]).shape == (6, len(rig.param_names))
+        assert m.mobile_cal_jac.shape == (6, len(rig.param_names))
 
 
 def test_an_image_missing_for_one_camera_is_named_and_the_set_measured_by_the_other(rig_campaign):
     out = rig_campaign
-    run_campaign(out)
+    run_vision_campaign(out)
     _, meas = _K(out)
-    victim = next(m["image"] for m in meas if "loaded" in m["image"] and "unloaded" not in m["image"])
+    victim = next(m.image for m in meas if "loaded" in m.image and "unloaded" not in m.image)
     (out / camera_path(victim, "cam2")).unlink()
-    summary = run_campaign(out)
+    summary = run_vision_campaign(out)
     assert not summary.failures
     rows, meas = _K(out)
-    assert all(r["status"] == "ok" for r in rows)
-    m = next(m for m in meas if m["image"] == victim)
-    assert m["status"] == "ok"
-    per = {c["name"]: c for c in json.loads(m["per_camera"])}
+    assert all(r.status == "ok" for r in rows)
+    m = next(m for m in meas if m.image == victim)
+    assert m.status == "ok"
+    per = {c["name"]: c for c in m.per_camera}
     assert per["cam1"]["ok"] and not per["cam2"]["ok"]
     assert camera_path(victim, "cam2").split("/")[-1] in per["cam2"]["error"]
 
@@ -93,7 +91,7 @@ def test_the_report_shows_each_cameras_residuals(rig_campaign):
     from stiffmap.report.campaign import report_data
 
     out = rig_campaign
-    run_campaign(out)
+    run_vision_campaign(out)
     with Store(out / DB_NAME) as store:
         data = report_data(out, load_spec(out), store, [])
     cams = data.calibration.cameras
@@ -110,7 +108,7 @@ def test_the_exported_measurements_say_what_each_camera_gave(rig_campaign):
     from stiffmap.campaign.export import read_tables
 
     out = rig_campaign
-    run_campaign(out)
+    run_vision_campaign(out)
     with Store(out / DB_NAME) as store:
         rows = read_tables(store)["measurements"]
     assert rows and all(r["cameras"].startswith("cam1: ") and "; cam2: " in r["cameras"] for r in rows)

@@ -23,9 +23,9 @@ from helpers.cli_process import run_in_process, run_stiffmap
 
 from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
-from stiffmap.campaign.runner import run_campaign
+from stiffmap.campaign.runner import run_vision_campaign
 from stiffmap.campaign.simulated import write_campaign
-from stiffmap.campaign.store import Store, dump_content, from_json
+from stiffmap.campaign.store import Store, dump_content
 from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main
 from stiffmap.errors import InputError
@@ -96,7 +96,11 @@ def test_missing_image_and_wrong_camera_size_are_named_and_the_rest_goes_on(camp
     assert any("l03_r01_loaded.png" in f for f in summary["failures"])
 
     cam = json.loads((c / "camera.json").read_text())
+    # The same camera at half the resolution (a file from another sensor mode): a plausible
+    # camera, but not the one that took these images.
     cam["image_size"] = [1296, 972]
+    for key in ("fx", "fy", "cx", "cy"):
+        cam[key] /= 2
     (c / "camera.json").write_text(json.dumps(cam))
     proc = _run(c)
     # No position can be measured: exit 2, one line, the images' reason first.
@@ -143,7 +147,7 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "1 re-derived (images unchanged), 1 unchanged" in proc.stdout
     with Store(c / "stiffmap.db", read_only=True) as st:
-        rows = [(r["position"], r["x"]) for r in st.stiffness_rows()]
+        rows = [(r.position, r.x) for r in st.stiffness_rows()]
         assert rows == [(1, pts[0][0]), (2, pts[1][0] + 10.0)]
         for table, kept in (
             ("measurements", st.measurement_rows()),
@@ -151,7 +155,7 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
             ("repeat_stats", st.repeat_stat_rows()),
             ("model_stiffness", st.model_stiffness_rows()),
         ):
-            assert max(r["position"] for r in kept) == 2, table
+            assert max(r.position for r in kept) == 2, table
     summary = json.loads((c / "exports" / "summary.json").read_text())
     assert [p["position"] for p in summary["positions"]] == [1, 2]
 
@@ -309,9 +313,9 @@ def test_capture_of_the_quick_demo_then_run_gives_the_demo_error(quick_demo, tmp
     ]
     err_demo = [rel(K, i) for i, K in enumerate(demo_K)]
     with Store(c / "stiffmap.db", read_only=True) as st:
-        got = {r["position"]: r for r in st.stiffness_rows()}
-    assert sorted(got) == [1, 2] and all(r["status"] == "ok" for r in got.values())
-    err_cap = [rel(from_json(got[k + 1]["K"]), i - 1) for k, i in enumerate(CAPTURED)]
+        got = {r.position: r for r in st.stiffness_rows()}
+    assert sorted(got) == [1, 2] and all(r.status == "ok" for r in got.values())
+    err_cap = [rel(got[k + 1].K, i - 1) for k, i in enumerate(CAPTURED)]
     # One capture is one draw of the camera's noise and the robot's jitter, as one rendering of
     # the demo is: in three full captures the worst position was 0.51-0.95 % against the demo's
     # 0.60 % (capture_demo.md: settled 1, 0.6 and 0.4 s). The demo's error is its worst
@@ -325,7 +329,7 @@ def test_capture_of_the_quick_demo_then_run_gives_the_demo_error(quick_demo, tmp
     # 0.83 captured; 0.31-1.85 over the demo's six positions, the largest entry 3.2 sigma).
     for k, i in enumerate(CAPTURED):
         r = got[k + 1]
-        z = (from_json(r["K"]) - truth.K[i - 1]) / from_json(r["K_std"])
+        z = (r.K - truth.K[i - 1]) / r.K_std
         assert np.sqrt(np.mean(z**2)) < 2.5 and np.abs(z).max() < 4.5, (i, z)
 
 
@@ -417,7 +421,7 @@ def test_a_worker_killed_during_a_run_loses_and_duplicates_nothing(campaign, cam
                 killed.extend(pid.values())
                 os.kill(killed[0], signal.SIGKILL)
 
-        summary = run_campaign(
+        summary = run_vision_campaign(
             c, workers=2, dask=cluster.scheduler_address, send_images=True, progress=progress
         )
     assert killed, "no worker was busy when the first position came in"

@@ -92,7 +92,7 @@ def test_nested_transactions_join_the_outer_one(tmp_path):
                 raise RuntimeError("killed after the inner transaction")
         assert st.repeat_stat_rows() == [] and st.stiffness_rows() == []
         st.save_position(1, displacements=[], repeat_stats=[row], stiffness=_stiffness_row(1))
-        assert [r["position"] for r in st.stiffness_rows()] == [1]
+        assert [r.position for r in st.stiffness_rows()] == [1]
         assert st.stiffness_inputs_hash(1) == "h1" and st.stiffness_inputs_hash(2) is None
         st.delete_positions_after(0)
         assert st.repeat_stat_rows() == [] and st.stiffness_rows() == []
@@ -103,7 +103,7 @@ def test_read_only_store_reads_and_never_writes(tmp_path):
     with Store(db) as st:
         st.save_position(1, displacements=[], repeat_stats=[], stiffness=_stiffness_row(1))
     with Store(db, read_only=True) as st:
-        assert [r["position"] for r in st.stiffness_rows()] == [1]
+        assert [r.position for r in st.stiffness_rows()] == [1]
         with pytest.raises(InputError, match="stiffmap.db: cannot write the results database: .*readonly"):
             st.delete_positions_after(0)
 

@@ -7,9 +7,10 @@ from importlib.resources import files
 import numpy as np
 import pytest
 
+from stiffmap.campaign.robot import campaign_model, campaign_positions, fitted_names
 from stiffmap.campaign.runner import fit_and_evaluate_model
 from stiffmap.campaign.spec import load_spec, parse_spec
-from stiffmap.campaign.store import DB_NAME, Store, from_json, to_json
+from stiffmap.campaign.store import DB_NAME, Store, to_json
 from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main as stiffmap
 from stiffmap.errors import InputError
@@ -67,10 +68,10 @@ def test_simulated_arm_campaign_is_self_contained_and_its_truth_is_the_model(arm
     spec = load_spec(root)
     assert spec.robot.model == "urdf" and (root / spec.robot.urdf).is_file()
     assert spec.loads.point_mm == pytest.approx(arm6.LOAD_POINT_MM)
-    model = spec.model(root)
+    model = campaign_model(spec, root)
     assert model.params() == pytest.approx({f"k{i + 1}": k for i, k in enumerate(arm6.K_THETA)})
     truth = load_truth(root)
-    P = spec.position_points(root)
+    P = campaign_positions(spec, root)
     np.testing.assert_allclose(P, arm6.positions20())
     ik = model.configurations_for(P)
     assert ik.reachable.all()
@@ -90,8 +91,8 @@ def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
     deflection of each load case (translations and rotations, base frame) with its covariance."""
     root = arm_campaign
     spec = load_spec(root)
-    truth_model = spec.model(root)
-    P = spec.position_points(root)
+    truth_model = campaign_model(spec, root)
+    P = campaign_positions(spec, root)
     ik = truth_model.configurations_for(P)
     loads = spec.loads.resolve(spec.g)
     lever = np.asarray(spec.loads.point_mm)
@@ -124,19 +125,19 @@ def test_run_fits_the_joint_stiffnesses_to_the_displacements(arm_campaign):
             update={"params": {k: 2 * v for k, v in spec.robot.params.items()}})}), root)  # fmt: skip
         fit = st.model_fit("stiffness")
         rows = st.model_stiffness_rows()
-    assert fit["status"] == "ok", fit["error"]
+    assert fit.status == "ok", fit.error
     assert not [p for p in problems if "outside the model" in p]
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False)
+    est = fit.params
+    std = fit.std
     for i, k_true in enumerate(arm6.K_THETA, start=1):
         k, s = est[f"k{i}"], std[f"k{i}"]
         assert abs(k - k_true) < 4 * s, (i, k, k_true, s)
         assert s / k_true < 0.02  # 540 displacements of this precision pin each joint within 2 %
-    assert len(rows) == 20 and all(r["valid"] for r in rows)
+    assert len(rows) == 20 and all(r.valid for r in rows)
     # The model's K beside the measured one: what forces hung at loads.point_mm see.
     C = truth_model.with_params(**est).compliance6(ik.q[0])
     S = np.array([[0.0, -lever[2], lever[1]], [lever[2], 0.0, -lever[0]], [-lever[1], lever[0], 0.0]])
-    np.testing.assert_allclose(from_json(rows[0]["K"]), np.linalg.inv(C[:3, :3] + C[:3, 3:] @ S), rtol=1e-9)
+    np.testing.assert_allclose(rows[0].K, np.linalg.inv(C[:3, :3] + C[:3, 3:] @ S), rtol=1e-9)
 
 
 def test_a_robot_described_by_its_legs_is_a_campaign_model(tmp_path):
@@ -148,14 +149,14 @@ def test_a_robot_described_by_its_legs_is_a_campaign_model(tmp_path):
         "[positions]\nlist = [[0.0, 0.0, -300.0]]\n" + _BASE
     )
     spec = parse_spec(text)
-    model = spec.model(tmp_path)
+    model = campaign_model(spec, tmp_path)
     np.testing.assert_allclose(
         model.stiffness([[0.0, 0.0, -300.0]]),
         DeltaRobot().stiffness([[0.0, 0.0, -300.0]]),
         rtol=1e-9,
         atol=1e-9,
     )
-    assert spec.robot.fitted_names(model) == tuple(model.param_names())
+    assert fitted_names(spec, model) == tuple(model.param_names())
     missing = r"nowhere\.toml: no such file \(named by campaign\.toml robot\.legs\)"
     with pytest.raises(InputError, match=missing):
-        parse_spec(text.replace("delta_legs.toml", "nowhere.toml")).model(tmp_path)
+        campaign_model(parse_spec(text.replace("delta_legs.toml", "nowhere.toml")), tmp_path)

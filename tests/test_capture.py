@@ -27,6 +27,7 @@ from helpers.cli_process import run_in_process
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from stiffmap.campaign.robot import campaign_positions
 from stiffmap.campaign.spec import load_spec, parse_spec
 from stiffmap.capture.cameras import open_camera
 from stiffmap.capture.plan import capture_steps
@@ -177,7 +178,7 @@ def test_a_camera_that_cannot_be_opened_and_a_video_that_ends_early(tmp_path, mo
     # A video of the rig at rest, unloaded, that ends before the loaded images.
     spec = load_spec(root)
     with open_camera(FAST_SIM, root, spec) as cam:
-        cam.move_to(spec.position_points(root)[0])
+        cam.move_to(campaign_positions(spec, root)[0])
         for _ in range(15):  # let the move's ring die out
             cam.grab()
         frames = [cam.grab().image for _ in range(6)]
@@ -357,7 +358,7 @@ def test_frames_kept_as_the_repeats_without_averaging(tmp_path, monkeypatch, cap
     # of two frames has sqrt(2) times one frame's noise).
     spec = load_spec(root)
     with open_camera(FAST_SIM, root, spec) as cam:
-        cam.move_to(spec.position_points(root)[0])
+        cam.move_to(campaign_positions(spec, root)[0])
         mask = _background_mask(cam, cam.pose_at(0.0))
     a, b = (cv2.imread(str(root / f), cv2.IMREAD_UNCHANGED).astype(np.float64) for f in saved[0]["files"])
     one = _pixel_noise(a, mask)
@@ -392,7 +393,7 @@ def test_move_command_runs_once_per_new_position_with_its_mm(tmp_path, monkeypat
     code, _, err = run_in_process(["capture", root, "--camera", FAST_SIM, "--yes"], monkeypatch, capsys)
     assert code == 0, err
     lines = (tmp_path / "moves.txt").read_text(encoding="utf-8").splitlines()
-    P = load_spec(root).position_points(root)
+    P = campaign_positions(load_spec(root), root)
     assert len(lines) == len(P) == 2  # 2 positions, 5 images each: one move each
     saved = [r for r in _log(root) if r["event"] == "saved"]
     assert [r["position"] for r in saved] == [1] * 5 + [2] * 5

@@ -58,7 +58,7 @@ def test_ctrl_c_in_run_keeps_the_positions_written_and_the_next_run_resumes(tmp_
     assert line.startswith(f"error: interrupted (Ctrl-C) during 'stiffmap {' '.join(argv)}'")
     assert f"kept in {root}/{DB_NAME}" in line and "run the same command again to resume" in line
     with Store(root / DB_NAME, read_only=True) as store:
-        assert [r["position"] for r in store.stiffness_rows()] == saved == [1]
+        assert [r.position for r in store.stiffness_rows()] == saved == [1]
     monkeypatch.undo()
     measured = []
     monkeypatch.setattr(runner, "measure_positions", _recording(runner.measure_positions, measured))

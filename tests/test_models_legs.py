@@ -19,7 +19,8 @@ from stiffmap.errors import InputError
 from stiffmap.models import PRR3, DeltaRobot, Mechanism, PoseError
 from stiffmap.models.base import constrained_directions, leg_stiffness
 from stiffmap.models.fit import fit_stiffness
-from stiffmap.models.legs import LegRobot, legs_toml
+from stiffmap.models.legs import LegRobot
+from stiffmap.models.legs_convert import legs_toml
 
 ROBOTS = files("stiffmap.models") / "robots"
 DELTA_BOX = ((-200.0, -200.0, -400.0), (200.0, 200.0, -200.0))  # holds the paper48 grid
@@ -388,6 +389,6 @@ def test_model_legs_command_prints_the_leg_described_robot(tmp_path, capsys):
     K = DeltaRobot().stiffness(np.array([[0.0, 0.0, -300.0], [50.0, 20.0, -250.0]]))
     np.testing.assert_allclose(np.array([r["K"] for r in recs]), K, rtol=1e-6, atol=1e-9 * np.abs(K).max())
     assert main(["model", "legs", "--points", str(pts)]) == 2
-    assert "needs the TOML file" in capsys.readouterr().err
+    assert "needs the robot's legs TOML file" in capsys.readouterr().err
     assert main(["model", "legs", str(ROBOTS / "delta.toml")]) == 2
     assert "give the positions" in capsys.readouterr().err

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from stiffmap.errors import InputError
-from stiffmap.models.presets import paper48, positions_from_text, prr3_points22, select_positions
+from stiffmap.kinds import positions_from_text
+from stiffmap.models.presets import paper48, prr3_points22, select_positions
 
 
 def test_presets_files_and_lists(tmp_path):

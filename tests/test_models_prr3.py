@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from helpers.mechanism_checks import assert_jacobian_matches_fd, random_reachable_poses
 
+from stiffmap.kinds import position_presets, preset_points
 from stiffmap.models import PRR3, Mechanism, PoseError
-from stiffmap.models.presets import POSITION_PRESETS, PRR3_MIDDLE_LINE, paper48, preset_points, prr3_points22
+from stiffmap.models.presets import PRR3_MIDDLE_LINE, paper48, prr3_points22
 from stiffmap.models.prr3 import K_B_PUBLISHED, K_J_PUBLISHED
 
 BOX_LO = (100.0, -50.0)
@@ -154,7 +155,7 @@ def test_points22_reconstruction():
     s, p = m.singularity_measures(P)
     assert s.min() >= 0.25 and p.min() >= 0.25
     np.testing.assert_array_equal(preset_points("points22"), P)
-    assert POSITION_PRESETS["points22"][0] == "3prr" and POSITION_PRESETS["paper48"][0] == "delta"
+    assert position_presets()["points22"][0] == "3prr" and position_presets()["paper48"][0] == "delta"
 
 
 def test_paper48_grid():

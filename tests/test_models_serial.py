@@ -308,12 +308,18 @@ def test_fit_urdf_recovers_joint_stiffnesses_from_a_matrices_file(tmp_path, monk
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--tip", "tool0", "--configs", "{cfg}"], "--param k_theta=K1,...,Kn is required for urdf"),
+        (
+            ["--tip", "tool0", "--configs", "{cfg}"],
+            "--param: give the stiffness of every joint of stiffmap_arm6: k1",
+        ),
         (
             ["--tip", "tool0", "--configs", "{cfg}", "--param", "k_theta=1,2,3"],
             "--param: k_theta has 3 values; {urdf} (stiffmap_arm6) has 6 joints (joint_1",
         ),
-        (["--configs", "{cfg}", "--param", "k_theta=1e9"], "--tip FRAME is required for urdf"),
+        (
+            ["--configs", "{cfg}", "--param", "k_theta=1e9"],
+            "--tip is required for urdf: the link that carries the measured point",
+        ),
         (
             ["--tip", "tool9", "--configs", "{cfg}", "--param", "k_theta=1e9"],
             "{urdf}: no frame 'tool9' for the measured point; the links are: base_link",

@@ -60,7 +60,7 @@ def test_json_reports_each_recording_and_the_bad_one_with_its_span(three_files):
     v = sat.recording.displacement_v
     assert t0 == pytest.approx(sat.recording.time_s[np.flatnonzero(np.abs(v) >= 7.99)[0]], abs=2e-3)
     # The mirrored one without --axis-sign: analysed, but flagged.
-    assert any("--axis-sign -1" in f for f in objs[2]["flags"])
+    assert any("sensor axis sign (-1 behind a mirror)" in f for f in objs[2]["flags"])
 
 
 def test_text_output_exit_codes_and_options(three_files, tmp_path):

@@ -9,7 +9,7 @@ import pytest
 
 from stiffmap.campaign.spec import load_spec
 from stiffmap.geometry import invert_transform, transform_from
-from stiffmap.models.presets import preset_points
+from stiffmap.kinds import preset_points
 from stiffmap.rig import load_rig
 from stiffmap.sim.plan import RIG_MARGIN_PX, rig_scene
 from stiffmap.sim.scene import default_scene, demo_scene, with_cameras

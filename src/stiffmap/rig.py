@@ -55,6 +55,7 @@ __all__ = [
     "CAMERA_FIELD",
     "MAX_RIG_MM",
     "camera_path",
+    "parse_named_pattern",
 ]
 
 #: The perturbation of a camera's ``cam2rig``: translation (mm) and left rotation (rad), rig frame.
@@ -66,6 +67,36 @@ CAMERA_FIELD = "{camera}"
 def camera_path(image_set: str, camera: str) -> str:
     """The file of ``camera`` in the image set ``image_set`` (a path holding ``{camera}``)."""
     return image_set.replace(CAMERA_FIELD, camera)
+
+
+def parse_named_pattern(text: str) -> tuple[str, str]:
+    """``NAME=GLOB`` (a camera's name and its images) -> ``(name, pattern)``, both stripped.
+
+    The one parser of a camera's images given by name (``calibrate-rig --camera``,
+    ``--images``, ``displacement --reference``).
+
+    Raises
+    ------
+    ValueError
+        Saying what is missing (the '=', the name, the images) or that the name holds
+        characters that cannot be printed; the caller names the option or key.
+
+    Examples
+    --------
+    >>> parse_named_pattern("left = img/left*.png")
+    ('left', 'img/left*.png')
+    """
+    name, sep, pattern = str(text).partition("=")
+    name, pattern = name.strip(), pattern.strip()
+    if not sep:
+        raise ValueError("expected NAME=GLOB, a camera's name and its images")
+    if not name:
+        raise ValueError("the camera's name before '=' is missing")
+    if not name.isprintable():
+        raise ValueError(f"the camera's name {name!r} holds characters that cannot be printed")
+    if not pattern:
+        raise ValueError("the images after '=' are missing")
+    return name, pattern
 
 
 #: Characters a camera's name may not hold: it is put into file names for ``{camera}``.

@@ -16,8 +16,9 @@ from stiffmap.camera import CameraModel
 from stiffmap.campaign.derive import derive_position
 from stiffmap.campaign.measure import ImageRow
 from stiffmap.campaign.positions import plan
+from stiffmap.campaign.records import StiffnessRecord
 from stiffmap.campaign.spec import load_spec
-from stiffmap.campaign.store import from_json
+from stiffmap.campaign.store import record_of
 from stiffmap.campaign.truth import load_truth
 from stiffmap.geometry import matrix_from_rotvec, transform_from
 from stiffmap.targets import Chessboard
@@ -98,6 +99,10 @@ def round_trip_from_true_corners(root, noise_px: float = 0.0, seed: int = 0):
     for task, res in derived:
         assert res.stiffness["status"] == "ok", res.problems
         out.append(
-            (from_json(res.stiffness["K"]), from_json(res.stiffness["K_std"]), truth.K[task.index - 1])
+            (
+                record_of(StiffnessRecord, res.stiffness).K,
+                record_of(StiffnessRecord, res.stiffness).K_std,
+                truth.K[task.index - 1],
+            )
         )
     return out

@@ -3,7 +3,7 @@
 :func:`run_demo` simulates the reference vision study — the Delta-type robot at
 the 48 ``paper48`` positions, the nine ``paper9`` load cases, repeats — as
 rendered camera images (:mod:`stiffmap.sim`), runs the campaign exactly as a
-user's (:func:`stiffmap.campaign.runner.run_campaign`: detection, poses,
+user's (:func:`stiffmap.campaign.runner.run_vision_campaign`: detection, poses,
 displacements, identification, model fit), writes the exports and the report,
 and compares the recovered stiffness with the truth the simulation kept.
 
@@ -41,10 +41,10 @@ from ..sim.robot import delta_robot
 from ..sim.scene import demo_scene
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS, SimConfig
 from .export import export_tables
-from .runner import run_campaign
+from .runner import run_vision_campaign
 from .simulated import write_campaign
 from .spec import load_spec
-from .store import DB_NAME, Store, from_json, remove_database
+from .store import DB_NAME, Store, remove_database
 from .truth import TRUTH_NAME, CalibrationSummary, load_truth
 
 __all__ = ["DemoResult", "run_demo", "demo_config", "demo_command", "QUICK_POSITIONS"]
@@ -194,7 +194,7 @@ def run_demo(
         write_campaign(out, config, workers=workers, force=True, progress=sim_progress, command=command)
         simulated = True
     t1 = time.perf_counter()
-    summary = run_campaign(out, workers=workers, progress=run_progress)
+    summary = run_vision_campaign(out, workers=workers, progress=run_progress)
     spec = load_spec(out)
     truth = load_truth(out)
     with Store(out / DB_NAME) as store:
@@ -204,8 +204,8 @@ def run_demo(
     n = len(truth.K)
     K = np.full((n, 3, 3), np.nan)
     for r in rows:
-        if r["status"] == "ok" and 1 <= r["position"] <= n:
-            K[r["position"] - 1] = from_json(r["K"])
+        if r.status == "ok" and 1 <= r.position <= n:
+            K[r.position - 1] = r.K
     err = np.linalg.norm(K - truth.K, axis=(1, 2)) / np.linalg.norm(truth.K, axis=(1, 2))
     return DemoResult(
         out_dir=out,

@@ -25,6 +25,7 @@ Tables (one row each):
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 from pathlib import Path
 from typing import Any
@@ -33,7 +34,7 @@ import numpy as np
 
 from .. import __version__
 from ..io import atomic_write_bytes, atomic_write_text, dumps_json
-from .store import Store, from_json
+from .store import Store
 
 __all__ = ["export_tables", "summary_dict", "read_tables", "calibration_share_of_K"]
 
@@ -59,8 +60,8 @@ def calibration_share_of_K(store: Store) -> tuple[float, float] | None:
     the positions (0..1); None when no position carries it (camera.json without uncertainty)."""
     shares = []
     for r in store.stiffness_rows():
-        sh = _share(from_json(r["K_cov_calibration"]), from_json(r["K_cov"]))
-        if r["status"] == "ok" and np.all(np.isfinite(sh[[0, 4, 8]])):
+        sh = _share(r.K_cov_calibration, r.K_cov)
+        if r.status == "ok" and np.all(np.isfinite(sh[[0, 4, 8]])):
             shares.extend(sh[[0, 4, 8]])
     return (float(np.median(shares)), float(np.max(shares))) if shares else None
 
@@ -74,31 +75,31 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
     out: dict[str, list[dict[str, Any]]] = {}
     rows = []
     for r in store.stiffness_rows():
-        K = from_json(r["K"])
-        S = from_json(r["K_std"])
-        share_K = _share(from_json(r["K_cov_calibration"]), from_json(r["K_cov"]))
-        eig = from_json(r["eigenvalues"])
-        flags = from_json(r["flags"], array=False) or []
+        K = r.K
+        S = r.K_std
+        share_K = _share(r.K_cov_calibration, r.K_cov)
+        eig = r.eigenvalues
+        flags = r.flags or []
         row: dict[str, Any] = {
-            "position": r["position"],
-            "x_mm": r["x"],
-            "y_mm": r["y"],
-            "z_mm": r["z"],
-            "status": r["status"],
-            "error": r["error"],
-            "method": r["method"],
+            "position": r.position,
+            "x_mm": r.x,
+            "y_mm": r.y,
+            "z_mm": r.z,
+            "status": r.status,
+            "error": r.error,
+            "method": r.method,
         }
         for i, j in _IJ:
             row[f"k{i + 1}{j + 1}_n_per_mm"] = None if K is None else float(K[i, j])
         for i, j in _IJ:
             row[f"s{i + 1}{j + 1}_n_per_mm"] = None if S is None else float(S[i, j])
         row.update(
-            det=r["det"],
-            min_principal_n_per_mm=r["min_principal"],
+            det=r.det,
+            min_principal_n_per_mm=r.min_principal,
             **{f"principal{k + 1}_n_per_mm": (None if eig is None else float(eig[k])) for k in range(3)},
-            K_condition=r["K_condition"],
-            design_condition=r["design_condition"],
-            n_obs=r["n_obs"],
+            K_condition=r.K_condition,
+            design_condition=r.design_condition,
+            n_obs=r.n_obs,
             **{f"cal_share_k{k + 1}{k + 1}": _num(share_K[4 * k]) for k in range(3)},
             flags=" | ".join(flags),
         )
@@ -106,61 +107,61 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
     out["stiffness"] = rows
     rows = []
     for r in store.displacement_rows():
-        d = from_json(r["d"]) if r["d"] is not None else np.full(6, np.nan)
-        cov = from_json(r["cov"]) if r["cov"] is not None else np.full((6, 6), np.nan)
+        d = r.d if r.d is not None else np.full(6, np.nan)
+        cov = r.cov if r.cov is not None else np.full((6, 6), np.nan)
         s = np.sqrt(np.clip(np.diag(cov), 0, None))
-        share_d = _share(from_json(r["cov_calibration"]), cov)
-        row = {"position": r["position"], "load": r["load"], "repeat": r["repeat"], "frame": r["frame"]}
+        share_d = _share(r.cov_calibration, cov)
+        row = {"position": r.position, "load": r.load, "repeat": r.repeat, "frame": r.frame}
         for k, name in enumerate(("dx_mm", "dy_mm", "dz_mm", "rx_rad", "ry_rad", "rz_rad")):
             row[name] = None if np.isnan(d[k]) else float(d[k])
         for k, name in enumerate(("sx_mm", "sy_mm", "sz_mm", "srx_rad", "sry_rad", "srz_rad")):
             row[name] = None if np.isnan(s[k]) else float(s[k])
         for k, name in enumerate(("cal_share_dx", "cal_share_dy", "cal_share_dz")):
             row[name] = _num(share_d[k])
-        row.update(status=r["status"], error=r["error"], unloaded=r["unloaded"], loaded=r["loaded"])
+        row.update(status=r.status, error=r.error, unloaded=r.unloaded, loaded=r.loaded)
         rows.append(row)
     out["displacements"] = rows
-    out["repeat_stats"] = [dict(r) for r in store.repeat_stat_rows()]
+    out["repeat_stats"] = [dataclasses.asdict(r) for r in store.repeat_stat_rows()]
     out["measurements"] = [
         {
-            "image": r["image"],
-            "position": r["position"],
-            "status": r["status"],
-            "error": r["error"],
-            "rms_px": r["rms_px"],
-            "n_corners": r["n_corners"],
-            "tracked": bool(r["tracked"]) if r["tracked"] is not None else None,
-            "cameras": _cameras_text(r["per_camera"]),
+            "image": r.image,
+            "position": r.position,
+            "status": r.status,
+            "error": r.error,
+            "rms_px": r.rms_px,
+            "n_corners": r.n_corners,
+            "tracked": bool(r.tracked) if r.tracked is not None else None,
+            "cameras": _cameras_text(r.per_camera),
         }
         for r in store.measurement_rows()
     ]
     rows = []
     for r in store.model_stiffness_rows():
-        K = from_json(r["K"])
+        K = r.K
         row = {
-            "position": r["position"],
-            "model": r["model"],
-            "valid": bool(r["valid"]),
-            "reason": r["reason"],
+            "position": r.position,
+            "model": r.model,
+            "valid": bool(r.valid),
+            "reason": r.reason,
         }
         for i, j in _IJ:
             row[f"k{i + 1}{j + 1}_n_per_mm"] = None if K is None else float(K[i, j])
-        row.update(det=r["det"], min_principal_n_per_mm=r["min_principal"])
+        row.update(det=r.det, min_principal_n_per_mm=r.min_principal)
         rows.append(row)
     out["model_stiffness"] = rows
     pred = store.model_static_errors()
     rows = []
     for r in store.sensor_result_rows():
-        res = from_json(r["result"], array=False) or {}
-        pt = from_json(r["point"], array=False) or []
-        predicted = pred.get(r["recording"])
+        res = r.result or {}
+        pt = r.point or []
+        predicted = pred.get(r.recording)
         rows.append(
             {
-                "file": r["recording"],
+                "file": r.recording,
                 **{f"{a}_mm": (pt[k] if k < len(pt) else None) for k, a in enumerate("xyz")},
-                "direction": r["direction"],
-                "status": r["status"],
-                "error": r["error"],
+                "direction": r.direction,
+                "status": r.status,
+                "error": r.error,
                 "static_error_um": res.get("static_error_um"),
                 "static_error_std_um": res.get("static_error_std_um"),
                 "stiffness_n_per_mm": res.get("stiffness_n_per_mm"),
@@ -199,29 +200,29 @@ def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]
     for r in store.stiffness_rows():
         positions.append(
             {
-                "position": r["position"],
-                "xyz_mm": [r["x"], r["y"], r["z"]],
-                "status": r["status"],
-                "error": r["error"],
-                "K": from_json(r["K"]),
-                "K_std": from_json(r["K_std"]),
-                "K_std_calibration": _std_matrix(from_json(r["K_cov_calibration"])),
-                "det": r["det"],
-                "min_principal": r["min_principal"],
-                "flags": from_json(r["flags"], array=False) or [],
+                "position": r.position,
+                "xyz_mm": [r.x, r.y, r.z],
+                "status": r.status,
+                "error": r.error,
+                "K": r.K,
+                "K_std": r.K_std,
+                "K_std_calibration": _std_matrix(r.K_cov_calibration),
+                "det": r.det,
+                "min_principal": r.min_principal,
+                "flags": r.flags or [],
             }
         )
     fits = []
     for r in store.model_fit_rows():
         fits.append(
             {
-                "name": r["name"],
-                "model": r["model"],
-                "status": r["status"],
-                "error": r["error"],
-                "params": from_json(r["params"], array=False),
-                "std": from_json(r["std"], array=False),
-                "condition": r["condition"],
+                "name": r.name,
+                "model": r.model,
+                "status": r.status,
+                "error": r.error,
+                "params": r.params,
+                "std": r.std,
+                "condition": r.condition,
             }
         )
     sensors = [
@@ -252,9 +253,8 @@ def export_tables(store: Store, out_dir: str | Path, name: str, failures: list[s
     return written
 
 
-def _cameras_text(per_camera: str | None) -> str | None:
+def _cameras_text(per: list | None) -> str | None:
     """With several cameras, what each gave for an image set: ``cam1: 0.031 px; cam2: <its error>``."""
-    per = from_json(per_camera, array=False) if per_camera else None
     if not isinstance(per, list):
         return None
     parts = []

@@ -17,9 +17,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..models.base import Mechanism
+from .robot import robot_model
 from .run import campaign_root
 from .spec import load_spec
-from .store import DB_NAME, Store, from_json
+from .store import DB_NAME, Store
 
 __all__ = ["FittedModel", "fitted_model"]
 
@@ -73,25 +74,25 @@ def fitted_model(directory: str | Path) -> FittedModel:
         raise InputError(
             "no model fit in the results database: run 'stiffmap run' on the campaign first", source=str(db)
         )
-    ok = [r for r in rows if r["status"] == "ok"]
+    ok = [r for r in rows if r.status == "ok"]
     if not ok:
-        raise InputError(f"the campaign's model fit failed: {rows[0]['error']}", source=str(db))
+        raise InputError(f"the campaign's model fit failed: {rows[0].error}", source=str(db))
     row = ok[0]
-    params = from_json(row["params"], array=False) or {}
-    std = from_json(row["std"], array=False) or {}
-    cov = np.atleast_2d(from_json(row["cov"]))
+    params = row.params or {}
+    std = row.std or {}
+    cov = np.atleast_2d(row.cov)
     names = tuple(params)
     if cov.shape != (len(names), len(names)):
         raise InputError(
-            f"model_fit {row['name']}: covariance of shape {cov.shape} for {len(names)} "
+            f"model_fit {row.name}: covariance of shape {cov.shape} for {len(names)} "
             "parameter(s): the database was edited or damaged",
             source=str(db),
         )
     q = None if spec.positions is None else spec.positions.q_deg
     try:
-        model = spec.robot.mechanism(root, configurations_deg=q).with_params(
+        model = robot_model(spec.robot, root, configurations_deg=q).with_params(
             **{k: float(v) for k, v in params.items()}
         )
     except ValueError as e:
         raise InputError(f"campaign.toml robot: {e}", source=str(root)) from None
-    return FittedModel(model, names, cov, {k: float(v) for k, v in std.items()}, row["name"], str(root))
+    return FittedModel(model, names, cov, {k: float(v) for k, v in std.items()}, row.name, str(root))

@@ -20,6 +20,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..rig import camera_path
 from .paths import campaign_file
+from .robot import campaign_positions
 from .spec import SPEC_NAME, CampaignSpec
 
 __all__ = ["Pair", "PositionTask", "plan"]
@@ -67,7 +68,7 @@ def plan(
         two roles (a loaded image that is also an unloaded one, or one file for two
         positions or two load cases), naming the key and the two uses.
     """
-    positions = spec.position_points(root)
+    positions = campaign_positions(spec, root)
     n_loads = len(spec.loads.resolve(spec.g))
     roles: dict[str, tuple[str, int, int, int]] = {}
     resolved: dict = {}  # folders resolved once for all the images

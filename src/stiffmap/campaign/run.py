@@ -1,10 +1,12 @@
-"""``stiffmap run`` on a campaign of either kind: run it, then export its tables.
+"""``stiffmap run`` on any campaign: run it with its instrument, then export its tables.
 
-:func:`run_and_export` reads the campaign's kind from ``campaign.toml`` and runs
-it with the vision runner (:func:`stiffmap.campaign.runner.run_campaign`) or
-the sensor runner (:func:`stiffmap.campaign.sensor_runner.run_sensor_campaign`),
-then writes the exports (:func:`stiffmap.campaign.export.export_tables`: CSV,
-Parquet and ``summary.json`` in ``exports/``). The report is the caller's to
+:func:`run_and_export` is the one entry point: it reads ``campaign.toml``, finds what the
+campaign measures with in the instruments' registry
+(:func:`stiffmap.campaign.instruments.instrument_of`: a camera or a rig, through
+:func:`stiffmap.campaign.runner.run_vision_campaign`; a sensor's recordings, through
+:func:`stiffmap.campaign.sensor_runner.run_sensor_campaign`), runs it, then writes the
+exports (:func:`stiffmap.campaign.export.export_tables`: CSV, Parquet and ``summary.json``
+in ``exports/``). The report is the caller's to
 write (:func:`stiffmap.report.campaign.write_campaign_report`): the report layer
 sits above this one.
 """
@@ -16,8 +18,9 @@ from pathlib import Path
 
 from ..errors import InputError
 from .export import export_tables
-from .runner import ProgressHook, RunSummary, run_campaign
-from .sensor_runner import SensorCampaignResult, check_recording_paths, run_sensor_campaign
+from .instruments import Instrument, RunOptions, instrument_of
+from .runner import ProgressHook, RunSummary
+from .sensor_runner import SensorCampaignResult
 from .spec import SPEC_NAME, CampaignSpec, load_spec
 from .store import DB_NAME, Store
 
@@ -36,19 +39,29 @@ class CampaignRun:
     root : Path
         The campaign directory (resolved).
     spec : CampaignSpec
-    vision : RunSummary or None
-        The vision runner's summary (None for a sensor campaign).
-    sensor : SensorCampaignResult or None
-        The sensor runner's result (None for a vision campaign).
+    instrument : Instrument
+        What the campaign measures with (:mod:`stiffmap.campaign.instruments`).
+    result : RunSummary or SensorCampaignResult
+        The instrument's runner's summary.
     failures : list of str
         Every image, position, recording or step that failed (the run went on past them).
     """
 
     root: Path
     spec: CampaignSpec
-    vision: RunSummary | None
-    sensor: SensorCampaignResult | None
+    instrument: Instrument
+    result: RunSummary | SensorCampaignResult
     failures: list[str]
+
+    @property
+    def vision(self) -> RunSummary | None:
+        """The vision runner's summary (None for another instrument's campaign)."""
+        return self.result if isinstance(self.result, RunSummary) else None
+
+    @property
+    def sensor(self) -> SensorCampaignResult | None:
+        """The sensor runner's result (None for another instrument's campaign)."""
+        return self.result if isinstance(self.result, SensorCampaignResult) else None
 
     @property
     def db(self) -> Path:
@@ -61,7 +74,7 @@ class CampaignRun:
         return self.root / EXPORTS_DIR
 
     def nothing_measured(self) -> str | None:
-        """Why no position (vision) or recording (sensor) has a result, or None when one has.
+        """Why no item (a position, a recording) has a result, or None when one has.
 
         Returns
         -------
@@ -69,18 +82,14 @@ class CampaignRun:
             "no position could be measured (n failed): " and the first failures.
         """
         with Store(self.db) as store:
-            if self.spec.kind == "vision":
-                rows = store.stiffness_rows()
-                what = "position"
-            else:
-                rows = store.sensor_result_rows()
-                what = "recording"
-        if any(r["status"] == "ok" for r in rows):
+            rows = self.instrument.rows(store)
+        if any(r.status == "ok" for r in rows):
             return None
         # The failures of files (images, recordings) first: they say why, the positions' follow.
         ranked = sorted(self.failures, key=lambda f: f.startswith(("position ", "model fit")))
         first = [f if len(f) <= 240 else f[:237] + "..." for f in ranked[:3]]
         more = f" (and {len(self.failures) - 3} more)" if len(self.failures) > 3 else ""
+        what = self.instrument.item
         verb = "measured" if what == "position" else "analysed"
         return (
             f"no {what} could be {verb} ({len(rows)} failed): "
@@ -109,9 +118,9 @@ def run_and_export(
     spec : CampaignSpec, optional
         ``load_spec(campaign_dir)`` if already read.
     workers, method, progress, dask, send_images
-        As :func:`~stiffmap.campaign.runner.run_campaign` (vision campaigns; a sensor
-        campaign is analysed in this process, without progress calls, and ``dask`` is
-        ignored: its recordings are light).
+        As :func:`~stiffmap.campaign.runner.run_vision_campaign` (campaigns measured by
+        cameras; a sensor campaign is analysed in this process, without progress calls, and
+        ``dask`` is ignored: its recordings are light).
     allow_outside : bool
         Let ``campaign.toml`` name files outside the campaign directory
         (:mod:`stiffmap.campaign.paths`).
@@ -130,26 +139,12 @@ def run_and_export(
     root = campaign_root(campaign_dir)
     if spec is None:
         spec = load_spec(root)
-    vision = sensor = None
-    if spec.kind == "vision":
-        vision = run_campaign(
-            root,
-            workers=workers,
-            method=method,
-            progress=progress,
-            allow_outside=allow_outside,
-            dask=dask,
-            send_images=send_images,
-        )
-        failures = vision.failures
-    else:
-        check_recording_paths(root, spec, allow_outside=allow_outside)  # before the database is made
-        with Store(root / DB_NAME) as store:
-            sensor = run_sensor_campaign(root, spec, store, allow_outside=allow_outside)
-        failures = sensor.failures or []
+    instrument = instrument_of(spec)
+    options = RunOptions(workers, method, progress, allow_outside, dask, send_images)
+    result, failures = instrument.run(root, spec, options)
     with Store(root / DB_NAME) as store:
         export_tables(store, root / EXPORTS_DIR, spec.name, failures)
-    return CampaignRun(root=root, spec=spec, vision=vision, sensor=sensor, failures=failures)
+    return CampaignRun(root=root, spec=spec, instrument=instrument, result=result, failures=failures)
 
 
 def campaign_root(path: str | Path) -> Path:

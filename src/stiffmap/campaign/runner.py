@@ -1,6 +1,6 @@
 """``stiffmap run``: measure -> identify -> fit for a vision campaign directory.
 
-:func:`run_campaign` follows ``docs/campaigns.md`` ("What ``stiffmap run`` does"):
+:func:`run_vision_campaign` follows ``docs/campaigns.md`` ("What ``stiffmap run`` does"):
 
 1. **plan** (:mod:`~stiffmap.campaign.positions`): the positions and their image
    files; then, against the database, which positions are unchanged since the
@@ -49,10 +49,12 @@ from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .positions import PositionTask, plan
+from .robot import campaign_model
+from .robot import fitted_names as campaign_fitted_names
 from .spec import SPEC_NAME, CampaignSpec, load_spec
-from .store import DB_NAME, Store, from_json, model_fit_columns, params_hash, to_json
+from .store import DB_NAME, Store, model_fit_columns, params_hash, to_json
 
-__all__ = ["RunSummary", "run_campaign", "fit_and_evaluate_model"]
+__all__ = ["RunSummary", "run_vision_campaign", "fit_and_evaluate_model"]
 
 #: Revisions of the code whose results the database keeps (with the stiffmap version in
 #: every hash): bump one when a change alters what it computes, so that a re-run
@@ -63,7 +65,7 @@ DERIVATION_REVISION = 3
 
 @dataclass
 class RunSummary:
-    """What ``run_campaign`` did."""
+    """What ``run_vision_campaign`` did."""
 
     campaign: str
     positions: int = 0
@@ -85,7 +87,7 @@ class RunSummary:
 ProgressHook = Callable[[int, int, int], None]
 
 
-def run_campaign(
+def run_vision_campaign(
     campaign_dir: str | Path,
     *,
     workers: int = 1,
@@ -319,9 +321,9 @@ def _plan_work(store: Store, campaign: _Campaign) -> _Work:
             work.inputs_hash[t.index] = params_hash(
                 {"derive": dphash, "xyz": list(t.xyz), "images": shas, "missing": t.missing}
             )
-            prev = {r["image"]: r for r in store.measurement_rows(t.index)}
+            prev = {r.image: r for r in store.measurement_rows(t.index)}
             complete = all(
-                rel in prev and prev[rel]["sha256"] == sha and prev[rel]["params_hash"] == mphash
+                rel in prev and prev[rel].sha256 == sha and prev[rel].params_hash == mphash
                 for rel, sha in shas.items()
             )
             if complete:
@@ -441,20 +443,20 @@ def _image_sha(store: Store, campaign: _Campaign, task: PositionTask, image: str
 def _image_row_from_db(r) -> ImageRow:
     """The :class:`ImageRow` of a stored ``measurements`` row."""
     return ImageRow(
-        image=r["image"],
-        ok=r["status"] == "ok",
-        error=r["error"],
-        mobile2cam=from_json(r["mobile2cam"]),
-        mobile_cov=from_json(r["mobile_cov"]),
-        fixed2cam=from_json(r["fixed2cam"]),
-        fixed_cov=from_json(r["fixed_cov"]),
-        mobile_cal_jac=from_json(r["mobile_cal_jac"]),
-        fixed_cal_jac=from_json(r["fixed_cal_jac"]),
-        rms_px=r["rms_px"],
-        n_corners=r["n_corners"],
-        tracked=bool(r["tracked"]),
-        seconds=r["seconds"] or 0.0,
-        cameras=json.loads(r["per_camera"]) if r["per_camera"] else None,
+        image=r.image,
+        ok=r.status == "ok",
+        error=r.error,
+        mobile2cam=r.mobile2cam,
+        mobile_cov=r.mobile_cov,
+        fixed2cam=r.fixed2cam,
+        fixed_cov=r.fixed_cov,
+        mobile_cal_jac=r.mobile_cal_jac,
+        fixed_cal_jac=r.fixed_cal_jac,
+        rms_px=r.rms_px,
+        n_corners=r.n_corners,
+        tracked=bool(r.tracked),
+        seconds=r.seconds or 0.0,
+        cameras=r.per_camera or None,
     )
 
 
@@ -508,20 +510,22 @@ class _Tally:
 def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list[str]:
     """Evaluate the campaign's model at every position, fit it to the measurements, store both.
 
-    The Delta and a robot described by its legs are fitted to the measured K
-    (:func:`~stiffmap.models.fit.fit_stiffness`); a URDF robot's joint stiffnesses to the
-    measured displacements themselves (:func:`~stiffmap.models.joint_fit.fit_joint_compliances`:
-    linear in the joint compliances, translations and rotations with their covariances).
+    A robot kind of parameters such as the Delta's or a robot described by its legs is
+    fitted to the measured K (:func:`~stiffmap.models.fit.fit_stiffness`); a kind of joint
+    stiffnesses (``joint_params``: a URDF robot's) to the measured displacements themselves
+    (:func:`~stiffmap.models.joint_fit.fit_joint_compliances`: linear in the joint
+    compliances, translations and rotations with their covariances).
     """
     problems: list[str] = []
     name = spec.robot.model
-    if name == "none" or spec.kind != "vision":
+    kind = spec.robot.kind
+    if kind is None:
         return problems
-    if name == "3prr":
+    if kind.dim is not None and kind.dim != 3:
         problems.append(f"robot model {name!r} has no 3D stiffness for a vision campaign; model step skipped")
         return problems
     try:
-        model = spec.model(root)
+        model = campaign_model(spec, root)
     except ValueError as e:  # InputError too: it names the file or the key
         where = "robot model" if isinstance(e, InputError) else "campaign.toml robot.params"
         problems.append(f"{where}: {e}")
@@ -532,17 +536,17 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     rows = store.stiffness_rows()
     if not rows:
         return problems
-    pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
-    ok = [r for r in rows if r["status"] == "ok"]
-    disp = store.displacement_rows(only_ok=True) if name == "urdf" else []
+    pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
+    ok = [r for r in rows if r.status == "ok"]
+    disp = store.displacement_rows(only_ok=True) if kind.joint_params else []
     ihash = params_hash(
         {
             "model": name,
             "params": spec.robot.params,
             "robot": spec.robot.model_dump(exclude={"params"}),
             "xyz": pts.tolist(),
-            "K": [r["K"] for r in ok],
-            "d": [(d["position"], d["load"], d["repeat"], d["d"], d["cov"]) for d in disp],
+            "K": [r.K for r in ok],
+            "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
         }
     )
     fit_row: dict[str, Any] = {
@@ -551,10 +555,10 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         "inputs_hash": ihash,
         "version": __version__,
     }
-    if name == "urdf":
+    if kind.joint_params:  # joint stiffnesses: fitted to the measured displacements themselves
         fitted = _fit_joints(model, spec, rows, disp, fit_row, problems)
     else:
-        fitted = _fit_to_measured(model, ok, spec.robot.fitted_names(model), fit_row, problems)
+        fitted = _fit_to_measured(model, ok, spec, fit_row, problems)
     mm = fitted.evaluate(pts)
     per_position = []
     for r, K, valid, reason, det, lam in zip(
@@ -562,7 +566,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     ):
         per_position.append(
             {
-                "position": r["position"],
+                "position": r.position,
                 "model": name,
                 "valid": int(bool(valid)),
                 "reason": reason or None,
@@ -573,8 +577,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             }
         )
         if not valid:
-            where = f"({r['x']:g}, {r['y']:g}, {r['z']:g})"
-            problems.append(f"position {r['position']} {where}: outside the model: {reason}")
+            where = f"({r.x:g}, {r.y:g}, {r.z:g})"
+            problems.append(f"position {r.position} {where}: outside the model: {reason}")
     store.save_model_stiffness(fit_row, per_position)
     return problems
 
@@ -587,28 +591,28 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             raise InputError("no measured displacement to fit the joint stiffnesses to")
         loads = spec.loads.resolve(spec.g)
         lever = np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float)
-        pts = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+        pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
         ik = model.configurations_for(pts)
-        at = {r["position"]: i for i, r in enumerate(rows)}
+        at = {r.position: i for i, r in enumerate(rows)}
         J_rows, W, D, C, cfg, labels = [], [], [], [], [], []
         jac: dict[int, np.ndarray] = {}
         for d in disp:
-            i = at.get(d["position"])
-            if i is None or not ik.reachable[i] or d["load"] > len(loads):
+            i = at.get(d.position)
+            if i is None or not ik.reachable[i] or d.load > len(loads):
                 continue
             if i not in jac:
                 jac[i] = model.chain.jacobian(ik.q[i])
-            F = loads[d["load"] - 1].force
+            F = loads[d.load - 1].force
             J_rows.append(jac[i])
             W.append(np.concatenate([F, np.cross(lever, F)]))
-            D.append(from_json(d["d"]))
-            C.append(from_json(d["cov"]))
+            D.append(d.d)
+            C.append(d.cov)
             cfg.append(i)
-            labels.append(loads[d["load"] - 1].label)
+            labels.append(loads[d.load - 1].label)
         if not D:
             raise InputError("no measured displacement at a position the robot model reaches")
         names = model.param_names()
-        fitted_names = spec.robot.fitted_names(model)
+        fitted_names = campaign_fitted_names(spec, model)
         fixed = {k: 1.0 / v for k, v in model.params().items() if k not in fitted_names}
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -647,7 +651,7 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
         return model
 
 
-def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict, problems: list[str]):
+def _fit_to_measured(model, ok: list, spec: CampaignSpec, fit_row: dict, problems: list[str]):
     """The model fitted to the measured K of the ``ok`` stiffness rows (``model`` when the fit fails).
 
     The fit's columns (or its failure) go into ``fit_row``, its problem into ``problems``.
@@ -657,16 +661,16 @@ def _fit_to_measured(model, ok: list, fit_names: tuple[str, ...], fit_row: dict,
         return model
     fitted = model
     try:
-        mm = model.evaluate(np.array([[r["x"], r["y"], r["z"]] for r in ok]))
+        mm = model.evaluate(np.array([[r.x, r.y, r.z] for r in ok]))
         good = [r for r, v in zip(ok, mm.valid, strict=True) if v]
         if not good:
             raise InputError("no measured position lies inside the model's workspace")
-        K_std = np.array([from_json(r["K_std"]) for r in good])
+        K_std = np.array([r.K_std for r in good])
         fit = fit_stiffness(
             model,
-            np.array([[r["x"], r["y"], r["z"]] for r in good]),
-            np.array([from_json(r["K"]) for r in good]),
-            params=fit_names,
+            np.array([[r.x, r.y, r.z] for r in good]),
+            np.array([r.K for r in good]),
+            params=campaign_fitted_names(spec, model),
             # Without residual degrees of freedom a position's K has no standard errors: the
             # fit then weighs every entry alike (and scales the covariance by its residuals).
             K_std=K_std if np.all(np.isfinite(K_std)) and np.all(K_std > 0) else None,

@@ -20,15 +20,16 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError
+from ..errors import FieldError, InputError
 from ..models.fit import fit_static_errors
 from ..sensors.analysis import SensorConfig, analyse_recording
 from ..sensors.batch import direction_from
 from ..sensors.io import read_recording
 from ..sensors.recording import ChannelMap, parse_channel_map
 from .paths import campaign_file
+from .robot import fitted_names, robot_model
 from .spec import SPEC_NAME, CampaignSpec, SensorRecordingSpec
-from .store import Store, from_json, model_fit_columns, params_hash, to_json
+from .store import Store, model_fit_columns, params_hash, to_json
 
 __all__ = ["run_sensor_campaign", "check_recording_paths", "sensor_config", "SensorCampaignResult"]
 
@@ -93,7 +94,7 @@ def run_sensor_campaign(
     store.delete_recordings_not_in([rec.file for rec in spec.sensor.recordings])
     for i, rec in enumerate(spec.sensor.recordings):
         _analyse_or_reuse(root, store, rec, i, cfg, cmap, phash, out)
-    out.failures.extend(_fit_model(spec, store))
+    out.failures.extend(_fit_model(spec, store, root))
     out.wall_seconds = time.perf_counter() - t0
     return out
 
@@ -103,6 +104,32 @@ def check_recording_paths(root: Path, spec: CampaignSpec, *, allow_outside: bool
     ``allow_outside``), naming its key (:func:`stiffmap.campaign.paths.campaign_file`)."""
     for i, rec in enumerate(spec.sensor.recordings):
         campaign_file(root, rec.file, f"sensor.recordings[{i}].file", allow_outside=allow_outside)
+
+
+def spec_keys(index: int) -> dict[str, str]:
+    """The analysis' fields as the campaign.toml keys that set them (recording ``index``'s own)."""
+    keys = {
+        f: f"sensor.{f}"
+        for f in (
+            "scale_um_per_v",
+            "range_v",
+            "load_unit",
+            "load_n_per_v",
+            "reference_load_n",
+            "window_s",
+            "min_plateau_s",
+            "threshold_sigma",
+            "exclude_bad_samples",
+            "channel_map",
+        )
+    }
+    keys.update(
+        steps="sensor.steps_kgf (or steps_n)",
+        step_times_s=f"sensor.recordings[{index}].step_times",
+        axis_sign=f"sensor.recordings[{index}].sign",
+        g="g",
+    )
+    return keys
 
 
 def _analyse_or_reuse(
@@ -134,13 +161,13 @@ def _analyse_or_reuse(
         return
     sha = store.sha256(path)
     prev = store.sensor_result(key)
-    if prev is not None and prev["sha256"] == sha and prev["params_hash"] == rhash:
+    if prev is not None and prev.sha256 == sha and prev.params_hash == rhash:
         out.reused += 1
-        if (prev["point"], prev["direction"]) != (row["point"], row["direction"]):
+        if (to_json(prev.point), prev.direction) != (row["point"], row["direction"]):
             # Where it was measured has been corrected.
             store.set_recording_place(key, row["point"], row["direction"])
-        if prev["status"] != "ok":
-            out.failures.append(prev["error"])
+        if prev.status != "ok":
+            out.failures.append(prev.error)
         return
     try:
         c = dataclasses.replace(
@@ -148,7 +175,9 @@ def _analyse_or_reuse(
             axis_sign=rec.sign,
             step_times_s=tuple(tuple(span) for span in rec.step_times) if rec.step_times else None,
         )
-    except ValueError as e:  # the spec checks these; a settings' check of the analysis says more
+    except FieldError as e:  # the spec checks these; a settings' check of the analysis says more
+        raise e.worded(spec_keys(index)).with_source(str(root / SPEC_NAME)) from None
+    except ValueError as e:
         raise InputError(f"key 'sensor.recordings[{index}]': {e}", source=str(root / SPEC_NAME)) from None
     try:
         res = analyse_recording(read_recording(path, cmap), c)
@@ -156,6 +185,9 @@ def _analyse_or_reuse(
         result["static_error_mm"] = res.static_error_mm
         result["static_error_std_mm"] = res.static_error_std_mm
         status, error = "ok", None
+    except FieldError as e:  # a setting the recording contradicts: named by its campaign.toml key
+        result, status, error = None, "failed", str(e.worded(spec_keys(index)).with_source(key))
+        out.failures.append(error)
     except InputError as e:
         result, status, error = None, "failed", str(e.with_source(key))
         out.failures.append(error)
@@ -182,11 +214,11 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
     stds = np.full(len(recs), np.nan)
     stiff = np.full(len(recs), np.nan)
     flags: list[list[str]] = [[] for _ in recs]
-    rows = {r["recording"]: r for r in store.sensor_result_rows()}
+    rows = {r.recording: r for r in store.sensor_result_rows()}
     for i, r in enumerate(recs):
         row = rows.get(r.file)
-        if row is not None and row["status"] == "ok":
-            res = from_json(row["result"], array=False)
+        if row is not None and row.status == "ok":
+            res = row.result
             vals[i] = res["static_error_mm"]
             stds[i] = res["static_error_std_mm"] if res["static_error_std_mm"] is not None else np.nan
             k = res.get("stiffness_n_per_mm")
@@ -205,15 +237,18 @@ def measured_static_errors(spec: CampaignSpec, store: Store) -> dict[str, np.nda
     }
 
 
-def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
+def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
     """Fit the campaign's model to the measured static errors; store the fit and its static errors."""
     name = spec.robot.model
-    if name == "none":
+    if spec.robot.kind is None:
         return []
     problems: list[str] = []
     m = measured_static_errors(spec, store)
     try:
-        model = spec.robot.mechanism()
+        model = robot_model(spec.robot, root)
+        fit_names = fitted_names(spec, model)
+    except InputError as e:  # it names the file or the key
+        return [f"robot model: {e}"]
     except ValueError as e:
         return [f"campaign.toml robot.params: {e}"]
     if m["points"].shape[1] != model.dim:
@@ -221,7 +256,6 @@ def _fit_model(spec: CampaignSpec, store: Store) -> list[str]:
         return [f"campaign.toml: sensor points have {n} coordinates but the {name} model has {model.dim}"]
     v = m["valid"]
     ref = m["reference_load_n"]
-    fit_names = spec.robot.fitted_names()
     ihash = params_hash(
         {
             "model": name,

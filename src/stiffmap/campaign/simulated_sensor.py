@@ -20,13 +20,13 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .. import __version__
-from ..errors import InputError
+from ..errors import FieldError, InputError
 from ..io import atomic_write_text, to_jsonable
 from ..models.base import PoseError
 from ..sim.traces import simulate_point_traces
@@ -53,6 +53,10 @@ class SensorSimSummary:
     bytes_written: int
     seconds: float
     static_error_range_mm: tuple[float, float]
+    #: The robot model's name and its finite parameters, and the recordings' format.
+    robot: str = ""
+    params: dict[str, float] = field(default_factory=dict)
+    format: str = "csv"
 
 
 def write_sensor_campaign(
@@ -100,7 +104,7 @@ def write_sensor_campaign(
         raise InputError(f"a planar mechanism needs points (x, y) in mm; got an array of shape {P.shape}")
     dirs = tuple(d.strip().lower() for d in directions)
     if not dirs or any(d not in _AXES for d in dirs) or len(set(dirs)) != len(dirs):
-        raise InputError(f"--directions must be x and/or y, got {directions!r}")
+        raise FieldError("directions", f"must be x and/or y, got {directions!r}", value=directions)
     if int(repeats) < 1:
         raise InputError(f"repeats must be >= 1, got {repeats}")
     if fmt not in ("csv", "tdms", "mat"):
@@ -113,7 +117,8 @@ def write_sensor_campaign(
         p = P[e.index]
         raise InputError(
             f"position {e.index + 1} ({p[0]:g}, {p[1]:g}) mm: the robot model has no stiffness there "
-            f"({e.reason or e.detail})"
+            f"({e.reason or e.detail})",
+            items={"position": e.index + 1},
         ) from None
     out = Path(out_dir)
     prepare_output_dir(out, force)
@@ -139,7 +144,7 @@ def write_sensor_campaign(
             "kind": "sensor",
             "g": G_REFERENCE_PAPER,
             "repeats": int(repeats),
-            "robot": {"model": getattr(model, "name", "3prr"), "params": params},
+            "robot": {"model": model.name, "params": params},
             "sensor": {
                 "scale_um_per_v": 640.0,
                 "range_v": 8.0,
@@ -158,7 +163,7 @@ def write_sensor_campaign(
         }
     )
     header = (
-        f"Simulated by 'stiffmap simulate --robot 3prr' (stiffmap {__version__}, seed {seed}).\n"
+        f"Simulated by 'stiffmap simulate --robot {model.name}' (stiffmap {__version__}, seed {seed}).\n"
         f"The ground truth (K and the static error at every point) is in {TRUTH_NAME}."
     )
     atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
@@ -175,7 +180,7 @@ def write_sensor_campaign(
         "generator": {"tool": "stiffmap simulate", "version": __version__, "command": command},
         "seed": int(seed),
         "units": "mm, N; K in N/mm (2x2, planar); static errors at reference_load_n along the load",
-        "robot": {"model": getattr(model, "name", "3prr"), "params": params},
+        "robot": {"model": model.name, "params": params},
         "reference_load_n": float(reference_load_n),
         "positions": positions,
         "recordings": [{**t.to_dict(), "file": f"recordings/{t.file}"} for t in truths],
@@ -192,4 +197,7 @@ def write_sensor_campaign(
         bytes_written=int(size),
         seconds=time.perf_counter() - t0,
         static_error_range_mm=(float(min(se)), float(max(se))),
+        robot=model.name,
+        params=params,
+        format=fmt,
     )

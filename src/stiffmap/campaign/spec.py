@@ -26,6 +26,7 @@ reported with its key, not a computation that overflows later.
 
 from __future__ import annotations
 
+import difflib
 import re
 import string
 import tomllib
@@ -45,15 +46,20 @@ from pydantic import (
     model_validator,
 )
 
-from ..errors import InputError
-from ..geometry import as_transform, matrix_from_euler
+from ..errors import FieldError, InputError
+from ..geometry import as_transform
+from ..kinds import (
+    NO_ROBOT,
+    ROBOT_KINDS,
+    RobotDescription,
+    RobotKind,
+    build_robot,
+    check_keys,
+    preset_points,
+    robot_kind,
+)
 from ..loads import LoadCase, load_from_mass, with_friction
 from ..loads import preset as load_preset
-from ..models import MECHANISMS
-from ..models.chain import Chain
-from ..models.legs import LegRobot
-from ..models.presets import preset_points, urdf_file
-from ..models.serial import SerialRobot
 from ..rig import CAMERA_FIELD
 from ..sensors.recording import parse_channel_map
 from ..targets import parse_board_size
@@ -188,7 +194,7 @@ def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
     return v
 
 
-#: Joint-stiffness parameters of a model from a URDF: k1, k2, ... (N*mm/rad or N/mm).
+#: Joint-stiffness parameters of a serial robot: k1, k2, ... (N*mm/rad or N/mm).
 _JOINT_PARAM = re.compile(r"k[1-9][0-9]?")
 Angle = Annotated[Finite, _between(-3600.0, 3600.0, "degrees")]
 
@@ -196,25 +202,39 @@ Angle = Annotated[Finite, _between(-3600.0, 3600.0, "degrees")]
 class RobotSpec(_Spec):
     """The robot: a model to fit and draw beside the measurements, or ``none``.
 
-    ``delta`` and ``3prr`` are stiffmap's built-in models; ``urdf`` a serial robot read from
-    its URDF (``urdf``, ``tip_frame``, ``tip_offset_mm``; joint stiffnesses ``params.k1`` ...
-    in N*mm/rad, or N/mm for a prismatic joint; positions reached by inverse kinematics with
-    the tool at ``tool_rpy_deg`` from ``q_seed_deg``, or given as ``positions.q_deg``);
-    ``legs`` a parallel robot described by its legs (``legs``: a TOML file, docs/models.md).
-    Files are relative to the campaign folder.
+    ``model`` is a robot kind of the registry (:mod:`stiffmap.kinds`: ``delta``, ``3prr``,
+    ``urdf``, ``legs``...). Besides ``params`` (its parameters, in their units) and ``fit``
+    (those fitted; default: the kind's), the section holds the kind's own keys: the file
+    that describes it (``urdf``, ``legs``: relative to the campaign folder) and what its
+    entry's ``keys`` name (a URDF robot's ``tip_frame``, ``tip_offset_mm``,
+    ``tool_rpy_deg``, ``q_seed_deg``; docs/campaigns.md). The model itself is built beside
+    the spec (:mod:`stiffmap.campaign.robot`).
     """
 
-    model: Literal["delta", "3prr", "urdf", "legs", "none"] = "none"
+    model_config = ConfigDict(extra="allow", frozen=True, strict=True)
+
+    model: Text = NO_ROBOT
     params: dict[str, Finite] = Field(default_factory=dict)
-    #: Parameters fitted to the measurements (default: k_theta for the Delta, kj for the 3PRR,
-    #: every joint of a URDF robot).
+    #: Parameters fitted to the measurements (default: the kind's, e.g. k_theta for the Delta,
+    #: kj for the 3PRR, every joint of a URDF robot).
     fit: list[Text] | None = None
-    urdf: Text | None = None
-    tip_frame: Text | None = None
-    tip_offset_mm: Annotated[tuple[Coord, Coord, Coord], Field(strict=False)] | None = None
-    tool_rpy_deg: Annotated[tuple[Angle, Angle, Angle], Field(strict=False)] | None = None
-    q_seed_deg: list[Angle] | None = None
-    legs: Text | None = None
+
+    @property
+    def keys(self) -> dict:
+        """The kind's own keys (the file's key included), as campaign.toml gives them."""
+        return dict(self.model_extra or {})
+
+    @property
+    def kind(self) -> RobotKind | None:
+        """The registry's entry of ``model`` (None for ``none``)."""
+        return None if self.model == NO_ROBOT else robot_kind(self.model)
+
+    @field_validator("model")
+    @classmethod
+    def _registered(cls, v: str) -> str:
+        if v != NO_ROBOT and v not in ROBOT_KINDS:
+            raise ValueError(f"Input should be {', '.join(map(repr, ROBOT_KINDS))} or {NO_ROBOT!r}")
+        return v
 
     @model_validator(mode="after")
     def _known(self):
@@ -227,133 +247,65 @@ class RobotSpec(_Spec):
                 )
         if self.fit is not None and len(set(self.fit)) != len(self.fit):
             raise ValueError("robot.fit = a parameter is listed twice")
-        own = {
-            "urdf": ("urdf", "tip_frame", "tip_offset_mm", "tool_rpy_deg", "q_seed_deg"),
-            "legs": ("legs",),
-        }
-        for model, keys in own.items():
-            if self.model != model:
-                given = [k for k in keys if getattr(self, k) is not None]
-                if given:
-                    raise ValueError(f'robot.{given[0]} is for model = "{model}", not "{self.model}"')
-        if self.model == "urdf":
-            missing = [k for k in ("urdf", "tip_frame") if getattr(self, k) is None]
-            if missing:
-                raise ValueError(f'model = "urdf" needs robot.{missing[0]}')
-            bad = [k for k in list(self.params) + list(self.fit or ()) if not _JOINT_PARAM.fullmatch(k)]
-            if bad:
-                raise ValueError(
-                    f"robot.params / robot.fit: {bad[0]!r} is not a joint stiffness of a URDF robot; "
-                    "its parameters are k1, k2, ... (N*mm/rad; N/mm for a prismatic joint)"
-                )
-            if any(v <= 0 for v in self.params.values()):
-                raise ValueError("robot.params: joint stiffnesses must be positive (N*mm/rad)")
-            _check_path_text(self.urdf, "robot.urdf")
+        kind = self.kind
+        self._check_own_keys(kind)
+        if kind is None:
             return self
-        if self.model == "legs":
-            if self.legs is None:
-                raise ValueError('model = "legs" needs robot.legs (the TOML file describing its legs)')
-            _check_path_text(self.legs, "robot.legs")
-            return self
-        if self.model == "none":
-            return self
-        names = MECHANISMS[self.model].param_names()
+        if kind.file_key is not None:
+            if self.keys.get(kind.file_key) is None:
+                raise ValueError(f'model = "{kind.name}" needs robot.{kind.file_key} (its {kind.file} file)')
+            value = self.keys[kind.file_key]
+            if not isinstance(value, str):
+                raise ValueError(f"robot.{kind.file_key} = expected a file name (text), got {value!r}")
+            _check_path_text(value, f"robot.{kind.file_key}")
         try:
-            self.mechanism()
-        except ValueError as e:
-            raise ValueError(f"robot.params = {e}") from None
-        bad = [n for n in self.fit or () if n not in names]
-        if bad:
-            raise ValueError(
-                f"robot.fit = unknown {self.model} parameter(s) {', '.join(map(repr, bad))}; "
-                f"valid: {', '.join(names)}"
-            )
+            check_keys(kind, {k: v for k, v in self.keys.items() if k != kind.file_key})
+        except FieldError as e:
+            if e.reason == "Field required":
+                raise ValueError(f'model = "{kind.name}" needs robot.{e.field}') from None
+            raise ValueError(f"robot.{e.field} = {e.reason}") from None
+        if kind.joint_params:
+            self._check_joint_params(kind)
+        elif kind.file_key is None:
+            self._check_by_building(kind)
         return self
 
-    def mechanism(self, root: Path | None = None, configurations_deg=None, **overrides: float):
-        """The model with ``params`` (then ``overrides``) applied.
+    def _check_own_keys(self, kind: RobotKind | None) -> None:
+        """Keys of another kind, or of none, are named: 'robot.tip_frame is for model = "urdf"'."""
+        own = set() if kind is None else {kind.file_key, *(kind.keys.model_fields if kind.keys else ())}
+        for key in self.keys:
+            if key in own:
+                continue
+            owners = [
+                k.name
+                for k in ROBOT_KINDS.values()
+                if key == k.file_key or (k.keys is not None and key in k.keys.model_fields)
+            ]
+            if owners:
+                raise ValueError(f'robot.{key} is for model = "{owners[0]}", not "{self.model}"')
+            known = sorted({"model", "params", "fit", *(k for k in own if k)})
+            close = difflib.get_close_matches(key, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (expected one of {', '.join(known)})"
+            raise ValueError(f"robot.{key} = unknown key{hint}")
 
-        Parameters
-        ----------
-        root : Path, optional
-            The campaign folder, where ``urdf`` and ``legs`` files are (needed for those models).
-        configurations_deg : array_like, shape (n, joints), optional
-            A URDF robot's joint configurations at the positions (``positions.q_deg``).
+    def _check_joint_params(self, kind: RobotKind) -> None:
+        """A serial robot's parameters are its joints' stiffnesses k1, k2, ..., positive."""
+        bad = [k for k in list(self.params) + list(self.fit or ()) if not _JOINT_PARAM.fullmatch(k)]
+        if bad:
+            raise ValueError(
+                f"robot.params / robot.fit: {bad[0]!r} is not a joint stiffness of a {kind.name} robot; "
+                "its parameters are k1, k2, ... (N*mm/rad; N/mm for a prismatic joint)"
+            )
+        if any(v <= 0 for v in self.params.values()):
+            raise ValueError("robot.params: joint stiffnesses must be positive (N*mm/rad)")
 
-        Raises
-        ------
-        ValueError
-            A bad parameter; InputError naming the file for a URDF or legs file that cannot
-            be read.
-        """
-        if self.model == "none":
-            raise ValueError("robot.model is 'none': the campaign has no model")
-        params = {**self.params, **overrides}
-        if self.model in ("urdf", "legs"):
-            if root is None:
-                raise ValueError(f"robot.model = {self.model!r} needs the campaign folder to find its file")
-            return self._described(Path(root), params, configurations_deg)
-        model = MECHANISMS[self.model]()
+    def _check_by_building(self, kind: RobotKind) -> None:
+        """A kind built without a file: its model is built now, so a bad parameter is named here."""
         try:
-            return model.with_params(**params) if params else model
-        except TypeError as e:
-            raise ValueError(str(e)) from None
-
-    def _described(self, root: Path, params: dict[str, float], configurations_deg):
-        """The URDF or legs model from its file in ``root``."""
-        where = f"{SPEC_NAME} robot.{self.model}"
-        if self.model == "legs":
-            model = _read_model_file(root / self.legs, where, LegRobot.from_toml)
-            return model.with_params(**params) if params else model
-        seed = None if self.q_seed_deg is None else np.radians(self.q_seed_deg)
-        rot = None if self.tool_rpy_deg is None else matrix_from_euler(np.radians(self.tool_rpy_deg))
-        q = None if configurations_deg is None else np.radians(np.asarray(configurations_deg, dtype=float))
-        path = root / self.urdf
-        if not path.exists() and urdf_file(self.urdf) != self.urdf:
-            path = Path(urdf_file(self.urdf))  # a URDF that ships with stiffmap
-        chain = _read_model_file(
-            path, where, lambda p: Chain.from_urdf(p, self.tip_frame, self.tip_offset_mm or (0.0, 0.0, 0.0))
-        )
-        names = [f"k{i}" for i in range(1, chain.n + 1)]
-        unknown = [k for k in list(params) + list(self.fit or ()) if k not in names]
-        if unknown:
-            raise InputError(
-                f"robot.params / robot.fit: {unknown[0]!r}: {chain.name} has {chain.n} joints "
-                f"(k1 .. k{chain.n})",
-                source=SPEC_NAME,
-            )
-        missing = [k for k in names if k not in params]
-        if missing:
-            raise InputError(
-                f"robot.params: give the stiffness of every joint of {chain.name} "
-                f"({', '.join(missing)} missing; N*mm/rad, the starting values of the fit)",
-                source=SPEC_NAME,
-            )
-        if q is not None and q.shape[1] != chain.n:
-            raise InputError(
-                f"positions.q_deg: {q.shape[1]} joint values per position; {chain.name} has {chain.n} "
-                f"joints ({', '.join(chain.joint_names)})",
-                source=SPEC_NAME,
-            )
-        k = tuple(float(params[n]) for n in names)
-        return SerialRobot(chain, k, configurations=q, tool_rotation=rot, q_seed=seed)
-
-    def fitted_names(self, model=None) -> tuple[str, ...]:
-        """The parameters to fit: ``fit``, or the model's default (every joint of a URDF robot, every
-        ``[params]`` stiffness of a robot described by its legs: ``model``'s, when given)."""
-        if self.fit:
-            return tuple(self.fit)
-        if self.model in ("urdf", "legs"):
-            names = model.param_names() if model is not None else sorted(self.params)
-            return tuple(names)
-        return ("kj",) if self.model == "3prr" else ("k_theta",)
-
-
-def _read_model_file(path: Path, where: str, read):
-    """``read(path)``; a missing file is an InputError naming the key of campaign.toml."""
-    if not path.is_file():
-        raise InputError(f"no such file (named by {where})", source=str(path))
-    return read(path)
+            model = build_robot(RobotDescription(kind.name, dict(self.params)))
+            kind.fitted_names(model, self.fit)
+        except FieldError as e:
+            raise ValueError(f"robot.{e.field} = {e.reason}") from None
 
 
 class CameraSpec(_Spec):
@@ -844,8 +796,8 @@ class SensorSpec(_Spec):
     def _channels(cls, v):
         try:
             parse_channel_map(",".join(f"{k}={c}" for k, c in v.items()) or None)
-        except ValueError as e:
-            raise ValueError(str(e).removeprefix("--channel-map: ")) from None
+        except FieldError as e:  # this key's own problem: its reason (the key is named by the spec)
+            raise ValueError(e.reason) from None
         if any("," in k or "=" in k or "," in c or "=" in c for k, c in v.items()):
             raise ValueError("a channel name holds ',' or '='")
         return v
@@ -899,29 +851,15 @@ class CampaignSpec(_Spec):
         """The ``[capture]`` section, or its defaults when there is none."""
         return self.capture if self.capture is not None else CaptureSpec()
 
-    def position_points(self, root: Path) -> np.ndarray:
-        """The positions, shape (n, 3) mm: as given, or where ``positions.q_deg`` puts the measured
-        point of the URDF robot (``root``: the campaign folder, where the URDF is)."""
-        if self.positions.q_deg is None:
-            return self.positions.resolve()
-        model = self.robot.mechanism(root, configurations_deg=self.positions.q_deg)
-        return model.chain.forward_many(model.configurations)[0]
-
-    def model(self, root: Path, **overrides: float):
-        """The campaign's robot model (``robot.mechanism`` with the configurations of
-        ``positions.q_deg``, if any; a URDF robot's maps give the K that forces hung at
-        ``loads.point_mm`` see, the K the campaign identifies)."""
-        q = None if self.positions is None else self.positions.q_deg
-        model = self.robot.mechanism(root, configurations_deg=q, **overrides)
-        if self.robot.model == "urdf" and self.loads is not None and self.loads.point_mm is not None:
-            # Its K is what the campaign identifies: forces hung at loads.point_mm.
-            model = model.with_params(load_offset_mm=self.loads.point_mm)
-        return model
-
     @model_validator(mode="after")
     def _complete(self):
-        if self.positions is not None and self.positions.q_deg is not None and self.robot.model != "urdf":
-            raise ValueError('positions.q_deg gives joint configurations: it needs robot.model = "urdf"')
+        if self.positions is not None and self.positions.q_deg is not None:
+            kind = self.robot.kind
+            if kind is None or not kind.configurations:
+                serial = " or ".join(f'"{k.name}"' for k in ROBOT_KINDS.values() if k.configurations)
+                raise ValueError(
+                    f"positions.q_deg gives joint configurations: it needs robot.model = {serial}"
+                )
         if self.kind == "vision":
             if self.camera is not None and self.cameras is not None:
                 raise ValueError("give [camera] (one camera) or [cameras] (a rig of several), not both")

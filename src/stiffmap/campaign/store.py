@@ -9,13 +9,15 @@ recomputes exactly what is missing or changed. Raw inputs are only ever read.
 Every SQL statement of stiffmap is in this module: the rest of the code reads
 and writes the results through :class:`Store`'s methods, named for what they
 mean. Arrays are stored as JSON text (row-major lists), readable from any SQLite
-client. :func:`dump_content` returns the content without run-dependent columns
-(timings, run ids, timestamps) for comparisons.
+client; what the methods return is typed (:mod:`stiffmap.campaign.records`: one frozen
+dataclass per table, its JSON columns decoded once, here). :func:`dump_content` returns the
+content without run-dependent columns (timings, run ids, timestamps) for comparisons.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import hashlib
 import json
@@ -31,6 +33,16 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..io import to_jsonable
+from .records import (
+    ARRAY,
+    DisplacementRecord,
+    MeasurementRecord,
+    ModelFitRecord,
+    ModelStiffnessRecord,
+    RepeatStatRecord,
+    SensorResultRecord,
+    StiffnessRecord,
+)
 
 __all__ = [
     "Store",
@@ -41,6 +53,7 @@ __all__ = [
     "model_fit_columns",
     "SCHEMA_VERSION",
     "remove_database",
+    "record_of",
 ]
 
 DB_NAME = "stiffmap.db"
@@ -146,6 +159,29 @@ def from_json(text: str | None, array: bool = True):
     if array:
         return np.array(v, dtype=float) if v is not None else None
     return v
+
+
+def _decoded(text: str | None, how: str):
+    value = from_json(text, array=how == ARRAY)
+    if isinstance(value, np.ndarray):
+        value.setflags(write=False)
+    return value
+
+
+def record_of(cls: type, row) -> Any:
+    """A record of ``cls`` (:mod:`~stiffmap.campaign.records`) from a row: a database row or a
+    dict of the columns as they are written (JSON text), its JSON columns decoded.
+
+    Raises
+    ------
+    InputError
+        A JSON column that does not hold what stiffmap wrote (an edited database).
+    """
+    keys = set(row.keys())
+    values = {f.name: row[f.name] if f.name in keys else None for f in dataclasses.fields(cls)}
+    for name, how in cls.JSON.items():
+        values[name] = _decoded(values[name], how)
+    return cls(**values)
 
 
 def model_fit_columns(fit, residuals) -> dict[str, Any]:
@@ -391,11 +427,13 @@ class Store:
             for table in POSITION_TABLES:
                 self.conn.execute(f"DELETE FROM {table} WHERE position > ?", (last,))
 
-    def measurement_rows(self, position: int | None = None) -> list[sqlite3.Row]:
-        """``measurements`` rows: of one position, or all of them by position and image."""
+    def measurement_rows(self, position: int | None = None) -> list[MeasurementRecord]:
+        """``measurements``: of one position, or all of them by position and image."""
         if position is not None:
-            return self._rows("SELECT * FROM measurements WHERE position=?", (position,))
-        return self._rows("SELECT * FROM measurements ORDER BY position, image")
+            rows = self._rows("SELECT * FROM measurements WHERE position=?", (position,))
+        else:
+            rows = self._rows("SELECT * FROM measurements ORDER BY position, image")
+        return [record_of(MeasurementRecord, r) for r in rows]
 
     def stiffness_inputs_hash(self, position: int) -> str | None:
         """The hash of the inputs the stored stiffness of a position was derived from."""
@@ -428,19 +466,22 @@ class Store:
                 self._upsert("repeat_stats", row)
             self._upsert("stiffness", stiffness)
 
-    def stiffness_rows(self) -> list[sqlite3.Row]:
-        """``stiffness`` rows by position."""
-        return self._rows("SELECT * FROM stiffness ORDER BY position")
+    def stiffness_rows(self) -> list[StiffnessRecord]:
+        """``stiffness`` by position."""
+        return [
+            record_of(StiffnessRecord, r) for r in self._rows("SELECT * FROM stiffness ORDER BY position")
+        ]
 
-    def displacement_rows(self, *, only_ok: bool = False) -> list[sqlite3.Row]:
-        """``displacements`` rows by position, load case and repeat (``only_ok``: the measured ones)."""
-        if only_ok:
-            return self._rows("SELECT * FROM displacements WHERE status='ok' ORDER BY position, load, repeat")
-        return self._rows("SELECT * FROM displacements ORDER BY position, load, repeat")
+    def displacement_rows(self, *, only_ok: bool = False) -> list[DisplacementRecord]:
+        """``displacements`` by position, load case and repeat (``only_ok``: the measured ones)."""
+        where = " WHERE status='ok'" if only_ok else ""
+        rows = self._rows(f"SELECT * FROM displacements{where} ORDER BY position, load, repeat")
+        return [record_of(DisplacementRecord, r) for r in rows]
 
-    def repeat_stat_rows(self) -> list[sqlite3.Row]:
-        """``repeat_stats`` rows by position, load case and quantity."""
-        return self._rows("SELECT * FROM repeat_stats ORDER BY position, load, quantity")
+    def repeat_stat_rows(self) -> list[RepeatStatRecord]:
+        """``repeat_stats`` by position, load case and quantity."""
+        rows = self._rows("SELECT * FROM repeat_stats ORDER BY position, load, quantity")
+        return [record_of(RepeatStatRecord, r) for r in rows]
 
     # ---------------------------------------------------------------- models
     def save_model_stiffness(self, fit: dict[str, Any], positions: list[dict[str, Any]]) -> None:
@@ -450,18 +491,19 @@ class Store:
             for row in positions:
                 self._upsert("model_stiffness", row)
 
-    def model_stiffness_rows(self) -> list[sqlite3.Row]:
-        """``model_stiffness`` rows by position."""
-        return self._rows("SELECT * FROM model_stiffness ORDER BY position")
+    def model_stiffness_rows(self) -> list[ModelStiffnessRecord]:
+        """``model_stiffness`` by position."""
+        rows = self._rows("SELECT * FROM model_stiffness ORDER BY position")
+        return [record_of(ModelStiffnessRecord, r) for r in rows]
 
-    def model_fit_rows(self) -> list[sqlite3.Row]:
-        """Every ``model_fit`` row (the stiffness fit, the static-error fit)."""
-        return self._rows("SELECT * FROM model_fit")
+    def model_fit_rows(self) -> list[ModelFitRecord]:
+        """Every ``model_fit`` (the stiffness fit, the static-error fit)."""
+        return [record_of(ModelFitRecord, r) for r in self._rows("SELECT * FROM model_fit")]
 
-    def model_fit(self, name: str) -> sqlite3.Row | None:
-        """The ``model_fit`` row called ``name`` ("stiffness" or "static_error"), if any."""
+    def model_fit(self, name: str) -> ModelFitRecord | None:
+        """The ``model_fit`` called ``name`` ("stiffness" or "static_error"), if any."""
         rows = self._rows("SELECT * FROM model_fit WHERE name=?", (name,))
-        return rows[0] if rows else None
+        return record_of(ModelFitRecord, rows[0]) if rows else None
 
     # --------------------------------------------------------------- sensors
     def delete_recordings_not_in(self, recordings: list[str]) -> None:
@@ -471,14 +513,17 @@ class Store:
                 if r["recording"] not in recordings:
                     self.conn.execute("DELETE FROM sensor_results WHERE recording=?", (r["recording"],))
 
-    def sensor_result(self, recording: str) -> sqlite3.Row | None:
-        """The ``sensor_results`` row of a recording, if any."""
+    def sensor_result(self, recording: str) -> SensorResultRecord | None:
+        """The ``sensor_results`` of a recording, if any."""
         rows = self._rows("SELECT * FROM sensor_results WHERE recording=?", (recording,))
-        return rows[0] if rows else None
+        return record_of(SensorResultRecord, rows[0]) if rows else None
 
-    def sensor_result_rows(self) -> list[sqlite3.Row]:
-        """Every ``sensor_results`` row, in the order they were written."""
-        return self._rows("SELECT * FROM sensor_results ORDER BY rowid")
+    def sensor_result_rows(self) -> list[SensorResultRecord]:
+        """Every ``sensor_results``, in the order they were written."""
+        return [
+            record_of(SensorResultRecord, r)
+            for r in self._rows("SELECT * FROM sensor_results ORDER BY rowid")
+        ]
 
     def save_sensor_result(self, row: dict[str, Any]) -> None:
         """Store (replace) one recording's result."""

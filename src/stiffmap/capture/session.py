@@ -38,7 +38,7 @@ import numpy as np
 
 from ..campaign.runner import read_cameras
 from ..campaign.spec import CampaignSpec
-from ..errors import InputError
+from ..errors import InputError, Stop
 from ..io import atomic_write_bytes, to_jsonable
 from ..targets import Chessboard, parse_board_size
 from .plan import capture_steps, load_instruction
@@ -99,8 +99,9 @@ class AutoOperator:
         return "quit"
 
 
-class CaptureStopped(InputError):
-    """The capture stopped before the end (a source that ended, a step that timed out, the operator)."""
+class CaptureStopped(Stop):
+    """The capture stopped before the end (a source that ended, a step that timed out, the operator):
+    a :class:`~stiffmap.errors.Stop`, not an input error; the images saved so far are kept."""
 
 
 @dataclass

@@ -32,7 +32,7 @@ from typing import Protocol, Self, runtime_checkable
 import cv2
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, Stop
 from ..vision.images import read_image
 
 __all__ = [
@@ -53,8 +53,9 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".pgm")
 GENICAM_EXTRA = "pip install 'stiffmap[genicam]'"
 
 
-class SourceEnded(InputError):
-    """The source has no more frames (a video file or a folder came to its end, a camera stopped)."""
+class SourceEnded(Stop):
+    """The source has no more frames (a video file or a folder came to its end, a camera stopped):
+    a :class:`~stiffmap.errors.Stop`."""
 
 
 @runtime_checkable

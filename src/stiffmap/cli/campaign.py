@@ -18,15 +18,17 @@ from rich.table import Table
 
 from ..campaign.demo import demo_config
 from ..campaign.export import calibration_share_of_K, summary_dict
+from ..campaign.instruments import STIFFNESS, instrument_of
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION
 from ..campaign.run import CampaignRun, campaign_root, run_and_export
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.simulated import check_output_dir, write_campaign
 from ..campaign.spec import SPEC_NAME, load_spec
 from ..campaign.spec_writer import EXAMPLE_TOML
-from ..campaign.store import Store, from_json
+from ..campaign.store import Store
 from ..errors import InputError
 from ..io import atomic_write_text
+from ..kinds import robot_kind
 from ..parallel import local_workers
 from ..report.campaign import write_campaign_report
 from ..textfmt import fmt_pm
@@ -100,19 +102,19 @@ def _summary_table(store: Store) -> Table:
     for col in ("#", "x, y, z (mm)", "K (rows)", "det K", "min principal", "flags"):
         t.add_column(col, no_wrap=col != "flags")
     for r in store.stiffness_rows():
-        xyz = f"{r['x']:.0f}, {r['y']:.0f}, {r['z']:.0f}"
-        if r["status"] != "ok":
-            t.add_row(str(r["position"]), xyz, "[red]failed[/]", "", "", r["error"] or "")
+        xyz = f"{r.x:.0f}, {r.y:.0f}, {r.z:.0f}"
+        if r.status != "ok":
+            t.add_row(str(r.position), xyz, "[red]failed[/]", "", "", r.error or "")
             continue
-        K = from_json(r["K"])
+        K = r.K
         rows = "\n".join(" ".join(f"{v:7.3f}" for v in row) for row in K)
-        flags = from_json(r["flags"], array=False) or []
+        flags = r.flags or []
         t.add_row(
-            str(r["position"]),
+            str(r.position),
             xyz,
             rows,
-            fmt(r["det"], 4),
-            fmt(r["min_principal"], 4),
+            fmt(r.det, 4),
+            fmt(r.min_principal, 4),
             "[yellow]" + "\n".join(flags) + "[/]" if flags else "none",
         )
     return t
@@ -121,11 +123,11 @@ def _summary_table(store: Store) -> Table:
 def _fit_table(store: Store, model: str) -> Table | None:
     """The model's parameters fitted to a vision campaign (None when there is no fit)."""
     fit = store.model_fit("stiffness")
-    if fit is None or fit["status"] != "ok":
+    if fit is None or fit.status != "ok":
         return None
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False) or {}
-    what = "joint stiffnesses (N*mm/rad)" if model == "urdf" else "parameters"
+    est = fit.params
+    std = fit.std or {}
+    what = "joint stiffnesses (N*mm/rad)" if robot_kind(model).joint_params else "parameters"
     t = Table(title=f"{model} model: {what} fitted", show_lines=False)
     t.add_column("parameter")
     t.add_column("estimate ± standard error", justify="right")
@@ -142,8 +144,8 @@ def _sensor_table(spec, store: Store) -> Table:
     fit = store.model_fit("static_error")
     title = f"static error at {fmt(m['reference_load_n'], 4)} N (um)"
     model_col = "model"
-    if fit is not None and fit["status"] == "ok":
-        est, std = from_json(fit["params"], array=False), from_json(fit["std"], array=False)
+    if fit is not None and fit.status == "ok":
+        est, std = fit.params, fit.std
         title += "; model fit: " + ", ".join(f"{k} = {fmt(v, 5)} ± {fmt(std[k], 2)}" for k, v in est.items())
         model_col = "model (fitted)"
     elif fit is not None:
@@ -212,7 +214,8 @@ def run(
     root = campaign_root(campaign)
     spec = load_spec(root)
     t0 = time.perf_counter()
-    with images_progress("measuring images", show=spec.kind == "vision" and not quiet) as hook:
+    instrument = instrument_of(spec)
+    with images_progress("measuring images", show=instrument.per_image and not quiet) as hook:
         done = run_and_export(
             root,
             spec=spec,
@@ -229,7 +232,7 @@ def run(
             print_json(summary_dict(store, spec.name, done.failures))
         elif nothing is not None:
             pass
-        elif spec.kind == "vision":
+        elif instrument.measures == STIFFNESS:
             out.print(_summary_table(store), width=max(out.width, 110))
             out.print(_calibration_line(calibration_share_of_K(store)))
             fitted = _fit_table(store, spec.robot.model)

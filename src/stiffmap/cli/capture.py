@@ -10,9 +10,9 @@ from rich.prompt import Confirm, Prompt
 
 from ..campaign.spec import load_spec
 from ..capture.cameras import open_camera
-from ..capture.session import LOG_NAME, ViewState, run_capture
+from ..capture.session import LOG_NAME, CaptureStopped, ViewState, run_capture
 from ..capture.view import render_view
-from .common import EXIT_PARTIAL, err, out
+from .common import EXIT_PARTIAL, err, fail, out
 
 
 class _ConsoleOperator:
@@ -109,6 +109,8 @@ def capture(
             live.start()
         try:
             summary = run_capture(root, spec, source, operator=operator, frames=frames, view=view)
+        except CaptureStopped as e:  # not an input error, but it ends the command as one: exit 2
+            raise fail(str(e)) from None
         finally:
             if live is not None:
                 live.stop()

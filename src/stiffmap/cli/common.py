@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from contextlib import contextmanager
 
 import typer
@@ -25,7 +25,7 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from ..errors import InputError
+from ..errors import FieldError, InputError
 from ..io import dumps_json
 
 # Re-exported for the commands that import it from here; its home is stiffmap.textfmt.
@@ -100,6 +100,20 @@ def float_values(given: dict[str, str], what: str) -> dict[str, float]:
         except ValueError:
             raise InputError(f"{what} {k}={v}: {v!r} is not a number") from None
     return values
+
+
+@contextmanager
+def options_named(names: Mapping[str, str]):
+    """Word a library's :class:`~stiffmap.errors.FieldError` in the command line's terms.
+
+    ``names`` maps the library's fields (``"params"``, ``"load_unit"``) to this command's
+    options (``"--param"``, ``"--load-unit"``); the error is raised again with its fields
+    named so (:meth:`~stiffmap.errors.FieldError.worded`).
+    """
+    try:
+        yield
+    except FieldError as e:
+        raise e.worded(names) from None
 
 
 def from_option(option: str, parse, *args):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from contextlib import contextmanager
-from enum import StrEnum
 from pathlib import Path
 
 import numpy as np
@@ -14,19 +13,10 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from ..campaign.fitted import fitted_model
 from ..errors import InputError
 from ..geometry import matrix_from_euler
+from ..kinds import kind_names, robot_from_command
 from ..machining import CompensateOptions, ForceSpec, ModelUncertainty, compensate_file
-from ..models import arm6
-from ..models.legs import LegRobot
-from ..models.presets import mechanism_from_params, serial_robot_from_options
 from ..report.compensation import write_compensation_figures
-from .common import err, float_values, from_option, out, parse_key_values, print_json, print_summary, warn
-
-
-class MechanismName(StrEnum):
-    delta = "delta"
-    prr3 = "3prr"
-    urdf = "urdf"
-    legs = "legs"
+from .common import err, out, print_json, print_summary, warn
 
 
 def _numbers(text: str | None, option: str, counts: tuple[int, ...], unit: str) -> tuple[float, ...] | None:
@@ -44,51 +34,27 @@ def _numbers(text: str | None, option: str, counts: tuple[int, ...], unit: str) 
 
 
 def _mechanism(name, robot, params, tip, tip_offset, campaign):
-    """The model to compensate for, and its parameters' uncertainty (a campaign's fit), built as
-    ``stiffmap model`` builds it (one place: it moves to the registry of robot kinds)."""
+    """The model to compensate for, and its parameters' uncertainty (a campaign's fit): any robot
+    kind of the registry, built as ``stiffmap model`` builds it; a file that ships with stiffmap
+    (``urdf arm6``) brings its own springs, tool point, tool orientation and seed."""
     if campaign is not None:
         if name is not None or params:
-            raise InputError("--from-campaign takes the campaign's model: give no MECHANISM or --param")
+            raise InputError("--from-campaign takes the campaign's model: give no KIND or --param")
         f = fitted_model(campaign)
         return f.mechanism, ModelUncertainty(f.names, f.cov)
     if name is None:
-        raise InputError(
-            "give the MECHANISM (delta, 3prr, urdf ROBOT, legs ROBOT.toml) or --from-campaign DIR"
-        )
-    values = parse_key_values(params or [], "--param")
-    if name == "urdf":
-        if robot is None:
-            raise InputError("urdf needs the robot's URDF file (or arm6, stiffmap's six-joint test arm)")
-        is_arm6 = str(robot) == "arm6"
-        off = _numbers(tip_offset, "--tip-offset-mm", (3,), "mm") or (
-            arm6.TIP_OFFSET_MM if is_arm6 else (0, 0, 0)
-        )
-        items = [f"{k}={v}" for k, v in values.items()] or (
-            ["k_theta=" + ",".join(f"{k:g}" for k in arm6.K_THETA)] if is_arm6 else []
-        )
-        if not items:
-            raise InputError("urdf: give the joint stiffnesses, --param k_theta=K1,...,Kn (N*mm/rad)")
-        m, _ = from_option(
-            "--param:",
-            serial_robot_from_options,
-            robot,
-            tip or (arm6.TIP_FRAME if is_arm6 else None),
-            off,
-            None,
-            items,
-        )
-        if is_arm6:
-            m = m.with_params(tool_rotation=arm6.TOOL_ROTATION, q_seed=np.radians(arm6.Q_SEED_DEG))
-        return m, None
-    nums = float_values(values, "--param")
-    if name == "legs":
-        if robot is None:
-            raise InputError("legs needs the TOML file describing the legs")
-        m = LegRobot.from_toml(robot)
-        return (from_option("--param:", lambda: m.with_params(**nums)) if nums else m), None
-    if robot is not None:
-        raise InputError(f"{robot}: a robot file is only for urdf and legs; {name} takes none")
-    return from_option("--param:", mechanism_from_params, name, nums), None
+        raise InputError(f"give the robot KIND ({', '.join(kind_names())}) or --from-campaign DIR")
+    options = {"--tip": tip, "--tip-offset-mm": tip_offset}
+    m = robot_from_command(
+        name,
+        robot,
+        params or [],
+        options,
+        command="compensate",
+        builtin_defaults=True,
+        configs_required=False,
+    )
+    return m, None
 
 
 def _force(force_n, force_feed_n) -> ForceSpec | None:
@@ -137,8 +103,10 @@ def _progress(show: bool):
 
 
 def compensate(
-    mechanism: MechanismName = typer.Argument(
-        None, help="delta, 3prr, urdf or legs (omit with --from-campaign)."
+    mechanism: str = typer.Argument(
+        None,
+        metavar="[KIND]",
+        help="The robot kind: " + ", ".join(kind_names()) + " (omit with --from-campaign).",
     ),
     robot: Path = typer.Argument(
         None,
@@ -213,9 +181,7 @@ def compensate(
     written): a construct that cannot be compensated, a point out of reach or at a
     singularity (the first such line named), force rows that do not match the program.
     """
-    mech, unc = _mechanism(
-        mechanism.value if mechanism else None, robot, param, tip, tip_offset, from_campaign
-    )
+    mech, unc = _mechanism(mechanism, robot, param, tip, tip_offset, from_campaign)
     auto = place is not None and place.strip().lower() == "auto"
     p = None if place is None or auto else _numbers(place, "--place", (2, 3), "mm")
     rpy = _numbers(tool_rpy_deg, "--tool-rpy-deg", (3,), "deg")

@@ -55,13 +55,13 @@ COMMANDS: dict[str, CommandEntry] = {
         "Calibrate a rig of cameras from views of a board seen at once: intrinsics, poses, covariance.",
     ),
     "pose": CommandEntry(
-        "vision", "Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS."
+        "pose", "Pose of the board in each image: board2cam (4x4, mm), its 6x6 covariance and the RMS."
     ),
     "displacement": CommandEntry(
-        "vision", "Displacement of the target in each image relative to the reference image(s)."
+        "displacement", "Displacement of the target in each image relative to the reference image(s)."
     ),
     "validate": CommandEntry(
-        "vision", "Validate against known stage displacements: measured vs nominal, mean +/- std per step."
+        "validate", "Validate against known stage displacements: measured vs nominal, mean +/- std per step."
     ),
     "model": CommandEntry(
         "model", "A model's stiffness K (N/mm) and static error u = K^-1 F (mm) at each position."

@@ -1,14 +1,15 @@
 """``stiffmap model`` (a model's stiffness and static error per point) and ``stiffmap fit``.
 
-Both take a built-in mechanism (``delta``, ``3prr``) or a serial robot read from a URDF
-(``urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv --param k_theta=K1,...,Kn``).
+Both take any robot kind of the registry (:mod:`stiffmap.kinds`: ``delta``, ``3prr``,
+``urdf``, ``legs``...): its name, its description file when it has one (``urdf ROBOT.urdf``,
+``legs ROBOT.toml``), ``--param NAME=VALUE`` and the kind's own options (``--tip`` ...),
+turned into the model by :func:`stiffmap.kinds.robot_from_command`.
 """
 
 from __future__ import annotations
 
 import sys
 import warnings
-from enum import StrEnum
 from pathlib import Path
 
 import numpy as np
@@ -17,42 +18,18 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
+from ..kinds import CONFIGS_OPTION, grid_from_text, kind_names, robot_from_command, robot_kind
+from ..kinds.options import command_names
 from ..loads import MAX_FORCE_N
-from ..models.io import configuration_records, fit_measurements_file, map_csv, map_records, read_points
-from ..models.legs import LegRobot
-from ..models.presets import (
-    DEFAULT_LOAD,
-    URDF_MODEL,
-    default_positions,
-    fit_parameter_names,
-    force_direction,
-    grid_points,
-    mechanism_from_params,
-    serial_robot_from_options,
-)
+from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
+from ..models.presets import force_direction
 from ..textfmt import fmt, fmt_pm
-from .common import (
-    EXIT_PARTIAL,
-    fail,
-    float_values,
-    from_option,
-    out,
-    parse_key_values,
-    print_json,
-    three_numbers,
-    warn,
-)
+from .common import EXIT_PARTIAL, fail, from_option, options_named, out, print_json, warn
 
-
-class MechanismName(StrEnum):
-    delta = "delta"
-    prr3 = "3prr"
-    urdf = "urdf"
-    legs = "legs"
-
-
-_URDF_USAGE = (
-    "stiffmap {cmd} urdf ROBOT.urdf {more}--tip FRAME --configs CONFIGS.csv --param k_theta=K1,...,Kn"
+_KINDS_HELP = (
+    "The robot kind: "
+    + ", ".join(kind_names())
+    + " (docs/models.md). urdf and legs take their file (ROBOT) after it."
 )
 _TIP_HELP = "urdf: the link (frame) of the URDF that carries the measured point."
 _OFFSET_HELP = "urdf: the measured point in the tip frame, X,Y,Z in mm (default 0,0,0)."
@@ -62,56 +39,14 @@ _CONFIGS_HELP = (
 )
 
 
-def _urdf_only(mech: str, **given) -> None:
-    """Refuse the urdf options (``--tip`` ...) for delta and 3prr."""
-    for opt, v in given.items():
-        if v is not None:
-            raise InputError(f"{opt} is for 'urdf' (a serial robot from its URDF), not {mech}")
-
-
-def _serial_robot(cmd: str, robot: Path | None, tip, tip_offset, configs, param, more: str = ""):
-    """The SerialRobot of ``stiffmap model|fit urdf`` from the options (InputError naming what is missing)."""
-    usage = _URDF_USAGE.format(cmd=cmd, more=more)
-    if robot is None:
-        raise InputError(f"urdf needs the robot's URDF file: {usage}")
-    if not tip:
-        raise InputError(
-            f"--tip FRAME is required for urdf: the link of {robot} that carries the measured point"
-        )
-    if configs is None:
-        raise InputError(
-            "--configs CONFIGS.csv is required for urdf: the joint configurations (columns q1_deg..qn_deg "
-            "in the URDF's joint order)"
-        )
-    offset = (0.0, 0.0, 0.0)
-    if tip_offset is not None:
-        offset = three_numbers(tip_offset)
-        if offset is None:
-            raise InputError(f"--tip-offset-mm: expected X,Y,Z in mm (three numbers), got {tip_offset!r}")
-    if not param:
-        raise InputError(
-            "--param k_theta=K1,...,Kn is required for urdf: the joint stiffnesses in the URDF's joint "
-            "order (N*mm/rad; N/mm for prismatic joints), or one value for all; there is no default"
-        )
-    return from_option("--param:", serial_robot_from_options, robot, tip, offset, configs, param)
-
-
-def _from_option(option: str, parse, *args):
-    """``parse(*args)``, with its ValueError as an InputError that starts with ``option``."""
-    try:
-        return parse(*args)
-    except ValueError as e:
-        raise InputError(f"{option} {e}") from None
-
-
-def _build_model(name: str, param_items: list[str]):
-    """The mechanism with ``--param NAME=VALUE`` overrides (InputError on bad names or values)."""
-    values = float_values(parse_key_values(param_items, "--param"), "--param")
-    return _from_option("--param:", mechanism_from_params, name, values)
+def _robot(cmd: str, mechanism: str, robot, param, tip, tip_offset, configs):
+    """The model of the command line's kind and options (InputError in the options' terms)."""
+    options = {"--tip": tip, "--tip-offset-mm": tip_offset}
+    return robot_from_command(mechanism, robot, param or [], options, configs=configs, command=cmd)
 
 
 def model(
-    mechanism: MechanismName = typer.Argument(..., help="delta, 3prr, urdf or legs."),
+    mechanism: str = typer.Argument(..., metavar="KIND", help=_KINDS_HELP),
     robot: Path = typer.Argument(
         None,
         metavar="[ROBOT]",
@@ -140,12 +75,12 @@ def model(
         None,
         "--param",
         help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names). urdf: "
-        "k_theta=K1,...,Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
-        "and k3=K for one joint.",
+        "k1=K1,...,kn=Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
+        "or k_theta=K for every joint.",
     ),
     tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
     tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
-    configs: Path = typer.Option(None, "--configs", help=_CONFIGS_HELP),
+    configs: Path = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
     as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
     output: Path = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead."),
@@ -157,11 +92,11 @@ def model(
     point can be evaluated).
 
     urdf (a serial robot): 'stiffmap model urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv
-    --param k_theta=K1,...,Kn' prints, per configuration, the measured point's position (mm,
+    --param k1=K1,...,kn=Kn' prints, per configuration, the measured point's position (mm,
     base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
     """
-    mech = mechanism.value
-    if mech == URDF_MODEL:
+    kind = robot_kind_option(mechanism)
+    if kind.configurations:
         for opt, v in (
             ("--grid", grid),
             ("--points", points),
@@ -170,32 +105,30 @@ def model(
         ):
             if v is not None:
                 raise InputError(
-                    f"{opt} is for delta and 3prr; urdf evaluates the configurations of --configs"
+                    f"{opt} is for robots given by positions; {kind.name} evaluates the configurations "
+                    f"of {CONFIGS_OPTION}"
                 )
         if as_csv:
-            raise InputError("--csv is for delta and 3prr; urdf prints --json")
-        _model_urdf(_serial_robot("model", robot, tip, tip_offset, configs, param), configs, as_json, output)
-        return
-    if robot is not None and mech != "legs":
-        raise InputError(
-            f"{robot}: a robot file is only for 'stiffmap model urdf ROBOT.urdf' and 'stiffmap model legs "
-            f"ROBOT.toml'; {mech} takes none (positions: --grid or --points)"
-        )
-    _urdf_only(mech, **{"--tip": tip, "--tip-offset-mm": tip_offset, "--configs": configs})
-    if as_json and as_csv:
+            raise InputError(f"--csv is for robots given by positions; {kind.name} prints --json")
+    elif as_json and as_csv:
         raise InputError("--json and --csv are exclusive")
-    if grid is not None and points is not None:
+    elif grid is not None and points is not None:
         raise InputError("--grid and --points are exclusive")
-    m = _legs_model(robot, param or []) if mech == "legs" else _build_model(mech, param or [])
+    m = _robot("model", mechanism, robot, param, tip, tip_offset, configs)
+    if kind.configurations:
+        _model_configurations(m, configs, as_json, output)
+        return
     if points is not None:
         P = read_points(points, m.dim)
     elif grid is not None:
-        P = _from_option("--grid", grid_points, grid, m.dim, mech)
-    elif mech == "legs":
-        raise InputError("legs: give the positions, --points FILE.csv or --grid X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]")
+        P = from_option("--grid", grid_from_text, grid, kind.name, m.dim)
+    elif kind.default_positions() is None:
+        raise InputError(
+            f"{kind.name}: give the positions, --points FILE.csv or --grid X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]"
+        )
     else:
-        P = default_positions(mech)
-    F = _force(mech, m.dim, load_n, direction)
+        P = kind.default_positions()
+    F = _force(kind, m.dim, load_n, direction)
     mp = m.evaluate(P)
     if as_json or as_csv:
         _write_map(mp, F, as_json, output)
@@ -206,16 +139,23 @@ def model(
     nbad = len(mp) - mp.n_valid
     of = f"; points from {points}" if points is not None else ""
     if nbad == len(mp):
-        raise fail(f"none of the {len(mp)} point(s) can be evaluated by the {mech} model (see 'error'){of}")
+        raise fail(
+            f"none of the {len(mp)} point(s) can be evaluated by the {kind.name} model (see 'error'){of}"
+        )
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
 
 
-def _model_urdf(built, configs: Path, as_json: bool, output: Path | None) -> None:
-    """``stiffmap model urdf``: position and stiffness per configuration; exit 1 or 2 when some fail."""
-    robot, lines = built
-    mp, recs = configuration_records(robot, robot.configurations, lines, str(configs))
+def robot_kind_option(name: str):
+    """The registry's kind of the KIND argument (InputError listing the kinds)."""
+    with options_named({"kind": "KIND"}):
+        return robot_kind(name)
+
+
+def _model_configurations(robot, configs: Path, as_json: bool, output: Path | None) -> None:
+    """A serial robot: position and stiffness per configuration; exit 1 or 2 when some fail."""
+    mp, recs, lines = configuration_file_records(robot, configs)
     if as_json:
         if output is not None:
             atomic_write_text(output, dumps_json(recs) + "\n")
@@ -259,26 +199,17 @@ def _print_configurations(robot, mp, recs, lines) -> None:
     out.print(t)
 
 
-def _legs_model(robot: Path | None, param_items: list[str]):
-    """``stiffmap model legs ROBOT.toml``: the robot its legs describe, with ``--param`` overrides."""
-    if robot is None:
-        raise InputError("legs needs the TOML file describing the legs: stiffmap model legs ROBOT.toml ...")
-    values = float_values(parse_key_values(param_items, "--param"), "--param")
-    m = LegRobot.from_toml(robot)
-    return _from_option("--param:", lambda: m.with_params(**values)) if values else m
-
-
-def _force(mech: str, dim: int, load_n: float | None, direction: str | None) -> np.ndarray:
-    """The force (N) of ``--load-n`` along ``--direction``, each defaulting to the mechanism's
-    (10 N along -z, or y in the plane, for a robot described by its legs)."""
-    mag, dname = DEFAULT_LOAD.get(mech, (10.0, "-z" if dim == 3 else "y"))
+def _force(kind, dim: int, load_n: float | None, direction: str | None) -> np.ndarray:
+    """The force (N) of ``--load-n`` along ``--direction``, each defaulting to the kind's
+    (10 N along -z, or y in the plane, for a kind without a default load)."""
+    mag, dname = kind.default_load or (10.0, "-z" if dim == 3 else "y")
     if load_n is not None:
         if not np.isfinite(load_n):
             raise InputError(f"--load-n must be a finite number of N, got {load_n}")
         if abs(load_n) > MAX_FORCE_N:
             raise InputError(f"--load-n {load_n:g} N is beyond +-{MAX_FORCE_N:g} N: not a plausible load")
         mag = load_n
-    return mag * _from_option(
+    return mag * from_option(
         "--direction", force_direction, direction if direction is not None else dname, dim
     )
 
@@ -337,11 +268,11 @@ def _print_map(m, mp, F) -> None:
 
 
 def fit(
-    mechanism: MechanismName = typer.Argument(..., help="delta, 3prr or urdf."),
+    mechanism: str = typer.Argument(..., metavar="KIND", help=_KINDS_HELP),
     files: list[Path] = typer.Argument(
         ...,
-        metavar="[ROBOT.urdf] MEASUREMENTS",
-        help="urdf: the robot's URDF, then the measurements; delta, 3prr: the measurements. "
+        metavar="[ROBOT] MEASUREMENTS",
+        help="urdf, legs: the robot's file, then the measurements; delta, 3prr: the measurements. "
         "MEASUREMENTS: CSV of static errors (x,y[,z], fx,fy[,fz], [nx,ny[,nz],] value_mm[, std_mm]) or "
         "of stiffness matrices (x,y[,z], k11..kdd[, k11_std..]); see docs/models.md.",
     ),
@@ -349,19 +280,19 @@ def fit(
         None,
         "--param-to-fit",
         help="Parameter to estimate (repeatable; default kj for 3prr, k_theta for delta, every joint "
-        "k1..kn for urdf).",
+        "k1..kn for urdf, every stiffness for legs).",
     ),
     param: list[str] = typer.Option(
         None,
         "--param",
         help="Fixed model parameter or starting value NAME=VALUE (repeatable). urdf: "
-        "k_theta=K1,...,Kn (required; N*mm/rad, N/mm for prismatic joints), k3=K for one joint.",
+        "k1=K1,...,kn=Kn (required; N*mm/rad, N/mm for prismatic joints) or k_theta=K for all.",
     ),
     tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
     tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
     configs: Path = typer.Option(
         None,
-        "--configs",
+        CONFIGS_OPTION,
         help=_CONFIGS_HELP + " The measurements' positions are matched to their measured points.",
     ),
     absolute_sigma: bool = typer.Option(
@@ -377,27 +308,27 @@ def fit(
     residual RMS per pose. Refuses parameters the data cannot determine.
 
     urdf: 'stiffmap fit urdf ROBOT.urdf MEASUREMENTS --tip FRAME --configs CONFIGS.csv --param
-    k_theta=K1,...,Kn [--param-to-fit k1 ...]' fits joint stiffnesses; each measured position is
+    k1=K1,...,kn=Kn [--param-to-fit k1 ...]' fits joint stiffnesses; each measured position is
     one of the configurations' measured points (or solved by inverse kinematics).
     """
-    mech = mechanism.value
-    if mech == URDF_MODEL:
+    kind = robot_kind_option(mechanism)
+    if kind.file:
         if len(files) != 2:
-            usage = _URDF_USAGE.format(cmd="fit", more="MEASUREMENTS ")
-            raise InputError(f"urdf takes two files, the robot's URDF then the measurements: {usage}")
+            raise InputError(
+                f"{kind.name} takes two files, the robot's {kind.file} then the measurements: stiffmap fit "
+                f"{kind.name} {kind.file_example} MEASUREMENTS ..."
+            )
         robot_file, measurements = files
-        m, _ = _serial_robot("fit", robot_file, tip, tip_offset, configs, param, more="MEASUREMENTS ")
-        names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit, m)
     else:
         if len(files) != 1:
             raise InputError(
-                f"{mech} takes one file, the measurements; a robot file is only for 'stiffmap fit urdf "
-                f"ROBOT.urdf MEASUREMENTS' (got {', '.join(map(str, files))})"
+                f"{kind.name} takes one file, the measurements; a robot file is only for kinds described "
+                f"by one ('stiffmap fit urdf ROBOT.urdf MEASUREMENTS'; got {', '.join(map(str, files))})"
             )
-        (measurements,) = files
-        _urdf_only(mech, **{"--tip": tip, "--tip-offset-mm": tip_offset, "--configs": configs})
-        m = _build_model(mech, param or [])
-        names = _from_option("--param-to-fit:", fit_parameter_names, mech, param_to_fit)
+        robot_file, (measurements,) = None, files
+    m = _robot("fit", mechanism, robot_file, param, tip, tip_offset, configs)
+    with options_named(command_names(kind)):
+        names = kind.fitted_names(m, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         f, _ = fit_measurements_file(m, measurements, names, absolute_sigma=absolute_sigma)
@@ -406,7 +337,7 @@ def fit(
     if as_json:
         print_json({**f.to_dict(), "file": str(measurements)})
     else:
-        _print_fit(f, mech, measurements, m.dim)
+        _print_fit(f, kind.name, measurements, m.dim)
 
 
 def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:

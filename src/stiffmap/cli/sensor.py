@@ -10,9 +10,10 @@ from rich.table import Table
 
 from ..errors import InputError
 from ..io import ALLOW_OUTSIDE_OPTION
-from ..sensors import analyse_batch, config_from_options, read_measurement_index
+from ..sensors import analyse_batch, read_measurement_index
 from ..textfmt import fmt, fmt_pm
 from .common import EXIT_INPUT, EXIT_PARTIAL, fail, out, print_json, warn
+from .sensor_options import config_from_options, sensor_option_names
 
 
 class LoadUnit(StrEnum):
@@ -173,7 +174,8 @@ def sensor(
         )
     except InputError as e:
         raise fail(str(e), EXIT_INPUT) from None
-    batch = analyse_batch(recordings or [], entries, cmap, cfg)
+    names = sensor_option_names(steps_n=bool(steps_n) and not steps_kgf)
+    batch = analyse_batch(recordings or [], entries, cmap, cfg, names)
     if as_json:
         print_json(batch.to_json())
         _warn_failed_recordings(batch)

@@ -1,13 +1,14 @@
-"""``stiffmap simulate``: write a virtual campaign (vision, or sensor for the 3PRR) with its ground truth.
+"""``stiffmap simulate``: write a virtual campaign (camera images, or sensor recordings) with its truth.
 
-The simulation is planned by :mod:`stiffmap.sim.plan` and written by
-:mod:`stiffmap.campaign.simulated` (vision) or :mod:`stiffmap.campaign.simulated_sensor`
-(3PRR); positions come from :mod:`stiffmap.models.presets`, loads from :mod:`stiffmap.loads`.
+Parses the options into a :class:`~stiffmap.campaign.simulate.SimulationRequest` and the
+options of the robot's instrument (:class:`~stiffmap.campaign.simulate.CameraSimOptions` or
+:class:`~stiffmap.campaign.simulate.SensorSimOptions`), calls
+:func:`stiffmap.campaign.simulate.simulate_campaign` and prints. The test-bed robots and what
+measures each are the robot kinds' registry's (:mod:`stiffmap.kinds`).
 """
 
 from __future__ import annotations
 
-import re
 import shlex
 import sys
 import time
@@ -25,37 +26,23 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from ..camera import load_camera
-from ..campaign.simulated import SimSummary, check_output_dir, write_campaign
-from ..campaign.simulated_sensor import SensorSimSummary, write_sensor_campaign
-from ..errors import InputError
-from ..loads import load_design
-from ..models import arm6
-from ..models.presets import positions_from_text, select_positions
-from ..models.prr3 import PRR3
-from ..parallel import Backend, local_workers
-from ..sim.plan import SimulationPlan, plan_simulation, vision_config
-from ..sim.robot import arm6_robot, delta_robot
-from ..sim.scene import arm_scene
-from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
-from ..units import G_REFERENCE_PAPER
-from .common import (
-    dask_option,
-    err,
-    float_values,
-    fmt,
-    from_option,
-    parse_key_values,
-    print_json,
-    print_summary,
-    three_numbers,
+from ..campaign.simulate import (
+    SENSOR,
+    CameraSimOptions,
+    SensorSimOptions,
+    SimulationRequest,
+    simulate_campaign,
+    testbed,
+    testbed_robots,
 )
-
-
-class RobotName(StrEnum):
-    delta = "delta"
-    prr3 = "3prr"
-    arm6 = "arm6"
+from ..campaign.simulated import SimSummary
+from ..campaign.simulated_sensor import SensorSimSummary
+from ..errors import InputError
+from ..kinds import DEFAULT_TESTBED, params_from_text
+from ..parallel import Backend
+from ..sim.plan import SimulationPlan
+from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
+from .common import dask_option, err, fmt, options_named, print_json, print_summary, three_numbers
 
 
 class ImageFormat(StrEnum):
@@ -63,8 +50,8 @@ class ImageFormat(StrEnum):
     jpeg = "jpeg"
 
 
-#: Options of one kind of simulation only (parameter name -> option), refused with the other.
-_VISION_ONLY = {
+#: Options of one instrument only (parameter name -> option), refused with the other.
+_CAMERA_ONLY = {
     "loads": "--loads",
     "camera_file": "--camera",
     "image_format": "--format",
@@ -82,16 +69,45 @@ _VISION_ONLY = {
     "dask": "--dask",
     "calibration_views": "--calibration-views",
     "true_camera": "--true-camera",
+    "cameras": "--cameras",
+    "camera_angle_deg": "--camera-angle-deg",
 }
 _SENSOR_ONLY = {"directions": "--directions", "trace_format": "--trace-format"}
-#: What a full disk's message suggests.
-_DISK_ADVICE = "use fewer --positions/--select/--repeats or --format jpeg"
+#: The library's fields as this command's options.
+_OPTION_NAMES = {
+    "robot": "--robot",
+    "positions": "--positions",
+    "select": "--select",
+    "params": "--param:",
+    "loads": "--loads",
+    "rot_stiffness_nmm_per_rad": "--rot-stiffness-nmm-per-rad",
+    "load_point_mm": "--load-point-mm",
+    "directions": "--directions",
+    "trace_format": "--trace-format",
+}
+
+
+def _given(ctx: typer.Context, name: str) -> bool:
+    """The option was on the command line (click's ParameterSource.COMMANDLINE, by name)."""
+    return getattr(ctx.get_parameter_source(name), "name", "") == "COMMANDLINE"
+
+
+def _refuse_options_of_the_other_instrument(ctx: typer.Context, robot: str, instrument: str) -> None:
+    """An option given for the other instrument is a mistake, not something to ignore."""
+    other = _CAMERA_ONLY if instrument == SENSOR else _SENSOR_ONLY
+    given = [opt for name, opt in other.items() if _given(ctx, name)]
+    if given:
+        what = f"the {robot}'s sensor traces" if instrument == SENSOR else f"the {robot}'s camera images"
+        raise InputError(
+            f"{', '.join(given)}: not used when simulating {what} (--robot {robot}); "
+            "leave out, or choose the other --robot"
+        )
 
 
 def _calibration_views(ctx: typer.Context, n: int, true_camera: bool) -> int:
     """The number of calibration views of ``--calibration-views`` and ``--true-camera``."""
     if true_camera:
-        if getattr(ctx.get_parameter_source("calibration_views"), "name", "") == "COMMANDLINE" and n:
+        if _given(ctx, "calibration_views") and n:
             raise InputError(
                 f"--true-camera and --calibration-views {n}: choose one (--true-camera means no "
                 "calibration views)"
@@ -105,69 +121,14 @@ def _calibration_views(ctx: typer.Context, n: int, true_camera: bool) -> int:
     return n
 
 
-def _refuse_options_of_the_other_robot(ctx: typer.Context, robot: RobotName) -> None:
-    """An option given for the other kind of simulation is a mistake, not something to ignore."""
-    other = _VISION_ONLY if robot is RobotName.prr3 else _SENSOR_ONLY
-
-    def on_command_line(name: str) -> bool:  # click's ParameterSource.COMMANDLINE, by name
-        return getattr(ctx.get_parameter_source(name), "name", "") == "COMMANDLINE"
-
-    given = [opt for name, opt in other.items() if on_command_line(name)]
-    if given:
-        what = "the 3PRR's sensor traces" if robot is RobotName.prr3 else f"the {robot.value}'s camera images"
-        raise InputError(
-            f"{', '.join(given)}: not used when simulating {what} (--robot {robot.value}); "
-            "leave out, or choose the other --robot"
-        )
-
-
-def _positions(text: str, select: str | None, mech: str):
-    """The positions of ``--positions`` (a preset, a CSV file or a list), those of ``--select`` only."""
-    P = from_option("--positions", positions_from_text, text, mech)
-    return from_option("--select", select_positions, P, select)
-
-
-@contextmanager
-def _naming_positions_file(text: str | None, select: str | None, loads: str | None = None):
-    """A ``position N ...`` error about positions read from a CSV file names that file.
-
-    The test-bed numbers the positions it refuses (unreachable, no stiffness); when they
-    come from ``--positions FILE`` (all of them, no ``--select``), N is the file's Nth row.
-    When the error is about a load case too (``load K``: a load that pushes the board out of
-    view) and the loads come from ``--loads FILE``, that file is named as well.
-    """
-    try:
-        yield
-    except InputError as e:
-        if e.source is not None:
-            raise
-        pos_file = None
-        if select is None and e.detail.startswith("position ") and text and Path(text).is_file():
-            pos_file = text
-        m = re.search(r"\bload (\d+)\b", e.detail)
-        load_file = loads if m and loads and Path(loads).is_file() else None
-        if pos_file and load_file:
-            k = m.group(1)
-            raise InputError(f"{e.detail} (load {k} from {load_file})", source=pos_file) from None
-        if pos_file or load_file:
-            raise e.with_source(pos_file or load_file) from None
-        raise
-
-
-def _load_point(text: str):
-    """``--load-point-mm`` as (x, y, z), mm."""
+def _load_point(text: str | None):
+    """``--load-point-mm`` as (x, y, z), mm (None: the test-bed's)."""
+    if text is None:
+        return None
     lp = three_numbers(text)
     if lp is None:
         raise InputError(f"--load-point-mm {text!r}: expected x,y,z in mm")
     return lp
-
-
-def _check_rotation_options(rot_stiffness: float | None, load_point) -> None:
-    if rot_stiffness is not None:
-        if rot_stiffness <= 0:
-            raise InputError("--rot-stiffness-nmm-per-rad must be positive")
-    elif any(load_point):
-        raise InputError("--load-point-mm needs --rot-stiffness-nmm-per-rad (a 3x3 field has no rotation)")
 
 
 def simulate(
@@ -175,14 +136,14 @@ def simulate(
     out_dir: Path = typer.Argument(
         ..., help="Directory to create (must be new or empty).", show_default=False
     ),
-    robot: RobotName = typer.Option(
-        RobotName.delta,
+    robot: str = typer.Option(
+        DEFAULT_TESTBED,
         "--robot",
-        help="Robot model giving the true stiffness field: delta (the Delta-type robot), 3prr (sensor "
-        "traces of the planar 3PRR) or arm6 (stiffmap's six-joint arm from its URDF, tool pointing down, "
-        "loads hung from a bracket at (150, 100, -150) mm from the measured point; its joint "
-        "stiffnesses k1..k6 are "
-        "fitted by 'stiffmap run').",
+        help="Test-bed robot giving the true stiffness field: "
+        + ", ".join(testbed_robots())
+        + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
+        "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
+        "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'.",
     ),
     positions: str = typer.Option(
         None,
@@ -287,7 +248,9 @@ def simulate(
         max=120.0,
         help="Angle between the first and last camera, degrees.",
     ),
-    name: str = typer.Option("virtual test-bed", "--name", help="Campaign name."),
+    name: str = typer.Option(
+        None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary instead of a table."),
 ) -> None:
     """Simulate a vision campaign of a robot with known stiffness, seen by a known camera.
@@ -301,85 +264,93 @@ def simulate(
     from views of the board seen by the cameras together, and one image per camera in each
     image set (campaign.toml's [cameras]).
     """
-    _refuse_options_of_the_other_robot(ctx, robot)
-    check_output_dir(out_dir, force)
+    with options_named(_OPTION_NAMES):
+        _, tb = testbed(robot)
+    _refuse_options_of_the_other_instrument(ctx, robot, tb.instrument)
     command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
-    if robot is RobotName.prr3:
-        args = (positions, select, directions, repeats, seed, trace_format, force, param, name, command)
-        _simulate_sensor(out_dir, *args, as_json)
+    with options_named(_OPTION_NAMES):
+        request = SimulationRequest(
+            robot=robot, positions=positions, select=select, repeats=repeats, seed=seed,
+            params=params_from_text(param), name=name, force=force, command=command,
+        )  # fmt: skip
+    if tb.instrument == SENSOR:
+        with options_named(_OPTION_NAMES):
+            s = simulate_campaign(out_dir, request, sensor=SensorSimOptions(directions, trace_format))
+        _print_sensor_summary(s, request.seed, as_json)
         return
-    arm = robot is RobotName.arm6
-    P = _positions(positions or ("arm20" if arm else "paper48"), select, "urdf" if arm else "delta")
-    load_cases = from_option("--loads", load_design, loads, G_REFERENCE_PAPER)
-    cam = load_camera(camera_file) if camera_file is not None else None
-    values = float_values(parse_key_values(param, "--param"), "--param")
-    lp = _load_point(load_point or (",".join(f"{v:g}" for v in arm6.LOAD_POINT_MM) if arm else "0,0,0"))
-    if arm:
-        if rot_stiffness is not None:
-            raise InputError(
-                "--rot-stiffness-nmm-per-rad: arm6's rotations come from its joints; leave it out"
-            )
-        base = from_option("--param:", arm6_robot, values)
-        scene = arm_scene(cam)
-    else:
-        base = from_option("--param:", delta_robot, values)
-        _check_rotation_options(rot_stiffness, lp)
-        scene = None
-    n_views = _calibration_views(ctx, calibration_views, true_camera)
-    cfg = vision_config(
-        base, P, load_cases, cam, rot_stiffness_nmm_per_rad=rot_stiffness, load_point_mm=lp,
-        repeatability_mm=repeatability_mm, jitter_mm=jitter_mm, noise=noise, blur_px=blur_px,
-        clutter=clutter, colour=colour, repeats=repeats, seed=seed, image_format=image_format.value,
-        jpeg_quality=jpeg_quality, name=name, calibration_views=n_views, cameras=cameras,
-        camera_angle_deg=camera_angle_deg, scene=scene,
+    options = CameraSimOptions(
+        loads=loads, camera_file=camera_file, image_format=image_format.value, jpeg_quality=jpeg_quality,
+        colour=colour, clutter=clutter, noise=noise, blur_px=blur_px, repeatability_mm=repeatability_mm,
+        jitter_mm=jitter_mm, rot_stiffness_nmm_per_rad=rot_stiffness, load_point_mm=_load_point(load_point),
+        calibration_views=_calibration_views(ctx, calibration_views, true_camera), cameras=cameras,
+        camera_angle_deg=camera_angle_deg, truth_only=truth_only, workers=workers, dask=dask,
     )  # fmt: skip
-    with _naming_positions_file(positions, select, loads):
-        sim = plan_simulation(cfg, out_dir, render_images=not truth_only, advice=_DISK_ADVICE)
-    n_workers = workers or local_workers()
-    if not as_json:
+    with _rendering(out_dir, show=not (as_json or truth_only)) as view, options_named(_OPTION_NAMES):
+        summary = simulate_campaign(
+            out_dir, request, camera=options, progress=view.progress, notify=view.notify
+        )
+    _print_vision_summary(summary, view.sim, as_json)
+
+
+class _Rendering:
+    """The command's view of a simulation: the plan's announcement and a progress bar on stderr."""
+
+    def __init__(self, out_dir: Path, show: bool) -> None:
+        self.out_dir, self.show = out_dir, show
+        self.sim: SimulationPlan | None = None
+        self.bar: Progress | None = None
+        self.t0 = time.perf_counter()
+
+    def notify(self, sim: SimulationPlan, backend: Backend) -> None:
+        """The plan is made: say what will be rendered where, start the bar."""
+        self.sim = sim
+        if not self.show:
+            return
+        cfg = sim.config
         views = f" + {sim.n_calibration_views} calibration views" if sim.n_calibration_views else ""
         err.print(
-            f"simulating {len(P)} position(s) x {len(load_cases)} load case(s) x {repeats} repeat(s): "
-            f"{sim.n_images} images{views} (~{sim.bytes_needed / 1e9:.2f} GB) on "
-            f"{Backend(n_workers, dask).describe()} -> {out_dir}",
+            f"simulating {len(cfg.positions)} position(s) x {len(cfg.loads)} load case(s) x {cfg.repeats} "
+            f"repeat(s): {sim.n_images} images{views} (~{sim.bytes_needed / 1e9:.2f} GB) on "
+            f"{backend.describe()} -> {self.out_dir}",
             highlight=False,
         )
-    with _rendering_progress(sim, show=not (as_json or truth_only)) as progress:
-        summary = write_campaign(
-            out_dir, cfg, workers=n_workers, force=force, render_images=not truth_only,
-            progress=progress, command=command, plan=sim.plan, dask=dask,
-        )  # fmt: skip
-    _print_vision_summary(summary, sim, as_json)
+        self.bar = Progress(
+            TextColumn("rendering"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[rate]}"),
+            TimeElapsedColumn(),
+            TextColumn("left"),
+            TimeRemainingColumn(),
+            console=err,
+        )
+        self.bar.start()
+        self.task = self.bar.add_task("images", total=(sim.n_images + sim.n_calibration_views) or 1, rate="")
+        self.t0 = time.perf_counter()
+
+    def progress(self, done: int, total: int) -> None:
+        if self.bar is None:
+            return
+        dt = time.perf_counter() - self.t0
+        rate = f"{done / dt:.2f} images/s" if done and dt > 0 else ""
+        self.bar.update(self.task, completed=done, total=total or 1, rate=rate)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
 
 
 @contextmanager
-def _rendering_progress(sim: SimulationPlan, show: bool):
-    """A progress bar of the rendered images on stderr, and its hook for write_campaign (None: no bar)."""
-    if not show:
-        yield None
-        return
-    t0 = time.perf_counter()
-    with Progress(
-        TextColumn("rendering"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]}"),
-        TimeElapsedColumn(),
-        TextColumn("left"),
-        TimeRemainingColumn(),
-        console=err,
-    ) as bar:
-        task = bar.add_task("images", total=(sim.n_images + sim.n_calibration_views) or 1, rate="")
-
-        def progress(done: int, total: int) -> None:
-            dt = time.perf_counter() - t0
-            rate = f"{done / dt:.2f} images/s" if done and dt > 0 else ""
-            bar.update(task, completed=done, total=total or 1, rate=rate)
-
-        yield progress
+def _rendering(out_dir: Path, show: bool):
+    view = _Rendering(out_dir, show)
+    try:
+        yield view
+    finally:
+        view.close()
 
 
 def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: bool) -> None:
+    """The simulated vision campaign: a table, or one JSON object."""
     cfg = sim.config
     vr = cfg.robot
     lo, hi = summary.principal_range
@@ -453,50 +424,10 @@ def _calibration_rows(summary: SimSummary) -> list[tuple[str, str]]:
     ]
 
 
-def _simulate_sensor(
-    out_dir: Path,
-    positions: str | None,
-    select: str | None,
-    directions: str,
-    repeats: int,
-    seed: int,
-    trace_format: str,
-    force: bool,
-    param: list[str],
-    name: str,
-    command: str,
-    as_json: bool,
-) -> None:
-    """The 3PRR: LDV recordings of stepped loads, written as a sensor campaign."""
-    P = _positions(positions or "points22", select, "3prr")
-    model = from_option("--param:", _prr3, parse_key_values(param, "--param"))
-    dirs = tuple(d.strip() for d in directions.split(",") if d.strip())
-    trace_fmt = trace_format.strip().lower()
-    if trace_fmt not in ("csv", "tdms", "mat"):
-        raise InputError(f"--trace-format {trace_format!r}: expected csv, tdms or mat")
-    with _naming_positions_file(positions, select):
-        s = write_sensor_campaign(
-            out_dir,
-            model,
-            P,
-            directions=dirs,
-            repeats=repeats,
-            seed=seed,
-            fmt=trace_fmt,
-            force=force,
-            name=name if name != "virtual test-bed" else "virtual test-bed (3PRR, LDV)",
-            command=command,
-        )
-    _print_sensor_summary(s, model.params(), trace_fmt, seed, as_json)
-
-
-def _prr3(given: dict[str, str]) -> PRR3:
-    """The 3PRR with the parameters of ``--param`` (ValueError naming a bad one)."""
-    return PRR3().with_params(**{k: float(v) for k, v in given.items()})
-
-
-def _print_sensor_summary(s: SensorSimSummary, params: dict, fmt_name: str, seed: int, as_json: bool) -> None:
+def _print_sensor_summary(s: SensorSimSummary, seed: int, as_json: bool) -> None:
+    """The simulated sensor campaign: a table, or one JSON object."""
     lo, hi = s.static_error_range_mm
+    params, fmt_name = s.params, s.format
     if as_json:
         print_json(
             {
@@ -510,7 +441,7 @@ def _print_sensor_summary(s: SensorSimSummary, params: dict, fmt_name: str, seed
                 "bytes": s.bytes_written,
                 "seconds": s.seconds,
                 "seed": seed,
-                "robot": "3prr",
+                "robot": s.robot,
                 "params": params,
                 "static_error_range_mm": [lo, hi],
                 "files": ["campaign.toml", "truth.json", "recordings/"],
@@ -522,7 +453,7 @@ def _print_sensor_summary(s: SensorSimSummary, params: dict, fmt_name: str, seed
         [
             ("recordings", f"{s.n_recordings} {fmt_name} ({s.bytes_written / 1e6:.1f} MB)"),
             ("points x axes x repeats", f"{s.n_points} x {len(s.directions)} x {s.repeats}"),
-            ("robot", f"3prr ({', '.join(f'{k}={v:g}' for k, v in params.items())})"),
+            ("robot", f"{s.robot} ({', '.join(f'{k}={v:g}' for k, v in params.items())})"),
             ("true static errors at 50 kgf", f"{fmt(lo, 4)} to {fmt(hi, 4)} mm"),
             ("seed", str(seed)),
             ("time", f"{s.seconds:.1f} s"),

@@ -7,11 +7,15 @@
   milling study (truss with flexible prismatic joints);
 - :mod:`~stiffmap.models.legs`: :class:`LegRobot`, a translational parallel robot
   described by its legs in a TOML (virtual joint method; the Delta and the 3PRR are
-  instances: ``robots/delta.toml``, ``robots/3prr.toml``);
+  instances: ``robots/delta.toml``, ``robots/3prr.toml``); its file, the legs TOML, is read
+  and written by :mod:`~stiffmap.models.legs_file`, the built-in robots converted to one by
+  :mod:`~stiffmap.models.legs_convert` (:func:`legs_toml`), its legs' chains built by
+  :mod:`~stiffmap.models.legs_chains`;
 - :mod:`~stiffmap.models.serial`: :class:`SerialRobot`, a serial arm read from a URDF
   (kinematics through :mod:`~stiffmap.models.chain`, Pinocchio) with joint springs;
-- :mod:`~stiffmap.models.presets`: the mechanisms by name, the reference studies'
-  position layouts, grids and load directions from text;
+- :mod:`~stiffmap.models.presets`: the reference studies' position layouts, grids, load
+  directions and joint stiffnesses from text (the robot kinds by name are the registry's,
+  :mod:`stiffmap.kinds`);
 - :mod:`~stiffmap.models.fit`: parameter fits to stiffness matrices or static errors;
 - :mod:`~stiffmap.models.joint_fit`: joint stiffnesses of a robot from measured deflections;
 - :mod:`~stiffmap.models.io`: the files of ``stiffmap model`` and ``stiffmap fit``.
@@ -31,8 +35,9 @@ from .joint_fit import (
     joint_deflections,
     joint_identifiability,
 )
-from .legs import LegRobot, legs_toml
-from .presets import MECHANISMS, POSITION_PRESETS, paper48, prr3_points22
+from .legs import LegRobot
+from .legs_convert import legs_toml
+from .presets import paper48, prr3_points22
 from .prr3 import PRR3
 from .serial import SerialRobot
 
@@ -49,8 +54,6 @@ __all__ = [
     "legs_toml",
     "paper48",
     "prr3_points22",
-    "POSITION_PRESETS",
-    "MECHANISMS",
     "ModelFit",
     "fit_stiffness",
     "fit_static_errors",

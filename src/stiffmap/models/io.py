@@ -68,6 +68,7 @@ __all__ = [
     "read_configurations",
     "read_configuration_rows",
     "configuration_records",
+    "configuration_file_records",
     "MAX_JOINT_ANGLE_DEG",
 ]
 
@@ -532,6 +533,21 @@ def _q_display(robot: SerialRobot, q: np.ndarray) -> list[float]:
         float(f"{float(v) if t == 'prismatic' else math.degrees(float(v)):.12g}")
         for v, t in zip(q, robot.chain.joint_types, strict=True)
     ]
+
+
+def configuration_file_records(robot: SerialRobot, path) -> tuple[ModelMap, list[dict], np.ndarray]:
+    """:func:`configuration_records` of the configurations in a CSV file (their lines kept).
+
+    Returns
+    -------
+    map : ModelMap
+    records : list of dict
+    lines : ndarray of int, shape (N,)
+        The line of each configuration in the file.
+    """
+    Q, lines = read_configuration_rows(path, robot.chain)
+    mp, recs = configuration_records(robot, Q, lines, str(path))
+    return mp, recs, lines
 
 
 def configuration_records(

@@ -23,7 +23,7 @@ is the virtual joint method's assembly (:func:`~stiffmap.models.base.platform_st
 with U an orthonormal basis of the directions the passive joints do not free (the
 complement of range J_p). The built-in :class:`~stiffmap.models.delta.DeltaRobot` and
 :class:`~stiffmap.models.prr3.PRR3` are the same assembly fed with closed-form columns;
-:func:`legs_toml` writes either as a legs TOML (the package ships them as
+:func:`~stiffmap.models.legs_convert.legs_toml` writes either as a legs TOML (the package ships them as
 ``robots/delta.toml`` and ``robots/3prr.toml``), and :class:`LegRobot` read from it equals
 the built-in model (tests: 1e-9 relative in K).
 
@@ -32,25 +32,15 @@ The TOML format is in ``docs/models.md`` ("Parallel robots from their legs").
 
 from __future__ import annotations
 
-import json
 import math
-import re
-import tempfile
-import tomllib
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Annotated, ClassVar, Literal
+from typing import ClassVar
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
 from ..errors import InputError
-from ..geometry import euler_from_matrix, matrix_from_euler
-from ..io import read_text_file
-from ..stiffness import MAX_POSITION_MM, MAX_ROTATION_RAD
 from .base import (
-    SINGULAR_TOL,
     IKSolution,
     LegMechanism,
     as_points,
@@ -58,533 +48,17 @@ from .base import (
     constrained_directions,
 )
 from .chain import Chain, JointSpec
-from .delta import DeltaRobot
-from .prr3 import PRR3
+from .legs_chains import urdf_without_springs, without_springs
+from .legs_file import ROLES, LegDescription, LegsFile, parse_legs_text, read_legs_file
 
-__all__ = [
-    "LegRobot",
-    "LegStates",
-    "LegJoint",
-    "LegDescription",
-    "legs_toml",
-    "ROLES",
-    "LIMIT_TOL",
-    "STIFFNESS_RANGE",
-    "MAX_TOML_BYTES",
-]
+__all__ = ["LegRobot", "LegStates", "LIMIT_TOL"]
 
-#: The roles of a leg's joints.
-ROLES = ("actuated", "passive", "spring")
 #: How far (rad or mm) an inverse-kinematics solution may lie beyond a joint limit (roundoff).
 LIMIT_TOL = 1e-9
 #: Most steps of the inverse kinematics' continuation from a leg's seed.
 MAX_STEPS = 100
-#: A legs TOML larger than this is refused unread (the Delta's is 3 kB).
-MAX_TOML_BYTES = 1024 * 1024
-#: The stiffnesses a legs TOML may give (N*mm/rad or N/mm), besides inf (rigid).
-STIFFNESS_RANGE = (1e-6, 1e12)
-
-# ---------------------------------------------------------------------- descriptions
-
-
-@dataclass(frozen=True)
-class LegJoint:
-    """One joint of a leg: its role and, for a leg given by joints, its kinematics.
-
-    Attributes
-    ----------
-    name : str
-    role : {"actuated", "passive", "spring"}
-    stiffness : str or None
-        The name of the parameter (``[params]``) that holds its stiffness: actuated and
-        spring joints (N*mm/rad for a revolute joint, N/mm for a prismatic one).
-    q0 : float or None
-        Seed of the inverse kinematics, rad or mm (None: 0); not for spring joints.
-    lower, upper : float or None
-        Joint limits, rad or mm (None: none, or the URDF's); not for spring joints.
-    type : {"revolute", "prismatic"} or None
-        None for a URDF leg (its joints come from the URDF).
-    axis, xyz_mm, rpy : tuple of 3 floats or None
-        As :class:`~stiffmap.models.chain.JointSpec` (axis in the joint's frame; origin in
-        the previous joint's frame, mm; roll, pitch, yaw in rad); None for a URDF leg.
-    """
-
-    name: str
-    role: str
-    stiffness: str | None = None
-    q0: float | None = None
-    lower: float | None = None
-    upper: float | None = None
-    type: str | None = None
-    axis: tuple[float, float, float] | None = None
-    xyz_mm: tuple[float, float, float] | None = None
-    rpy: tuple[float, float, float] | None = None
-
-
-@dataclass(frozen=True)
-class LegDescription:
-    """One leg as the TOML describes it.
-
-    Attributes
-    ----------
-    name : str
-    attach_mm : tuple of dim floats, mm
-        The leg's joint on the platform relative to the tool point, base axes.
-    joints : tuple of LegJoint
-        Base first (a leg given by joints), or the roles of some of the URDF's joints
-        (the others are passive, seed 0).
-    tip_offset_mm : tuple of 3 floats, mm
-        The platform joint in the last joint's frame (or in ``tip_frame``'s).
-    urdf : str or None
-        The leg's URDF (relative to the TOML's folder), or None.
-    tip_frame : str or None
-        The URDF frame carrying the platform joint.
-    """
-
-    name: str
-    attach_mm: tuple[float, ...]
-    joints: tuple[LegJoint, ...]
-    tip_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    urdf: str | None = None
-    tip_frame: str | None = None
-
-
-# ---------------------------------------------------------------------- the TOML schema
-
-
-def _number(v):
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise ValueError("expected a number")
-    return float(v)
-
-
-def _vector(counts: tuple[int, ...], words: str, bound: float, unit: str):
-    def check(v):
-        if (
-            not isinstance(v, list | tuple)
-            or len(v) not in counts
-            or any(isinstance(x, bool) or not isinstance(x, int | float) for x in v)
-        ):
-            raise ValueError(f"expected {words} numbers")
-        if not all(math.isfinite(x) for x in v):
-            raise ValueError(f"expected {words} finite numbers")
-        if any(abs(x) > bound for x in v):
-            raise ValueError(f"expected {words} numbers within +-{bound:g} {unit}".rstrip())
-        return tuple(float(x) for x in v)
-
-    return BeforeValidator(check)
-
-
-def _bounded(v):
-    v = _number(v)
-    if math.isfinite(v) and abs(v) > MAX_POSITION_MM:
-        raise ValueError(f"expected a number within +-{MAX_POSITION_MM:g} (rad or mm)")
-    return v
-
-
-_Num = Annotated[float, BeforeValidator(_number)]
-_Coord = Annotated[float, BeforeValidator(_bounded)]
-_Vec3 = Annotated[tuple[float, ...], _vector((3,), "three", MAX_POSITION_MM, "mm")]
-_VecD = Annotated[tuple[float, ...], _vector((2, 3), "two or three", MAX_POSITION_MM, "mm")]
-_Rpy = Annotated[tuple[float, ...], _vector((3,), "three", MAX_ROTATION_RAD * 16, "rad")]
-_Axis = Annotated[tuple[float, ...], _vector((3,), "three", math.inf, "")]
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
-
-
-class _JointIn(_Strict):
-    name: str = Field(min_length=1)
-    role: Literal["actuated", "passive", "spring"]
-    stiffness: str | None = None
-    q0: _Coord | None = None
-    lower: _Coord | None = None
-    upper: _Coord | None = None
-    type: Literal["revolute", "prismatic"] | None = None
-    axis: _Axis | None = None
-    xyz_mm: _Vec3 | None = None
-    rpy: _Rpy | None = None
-
-
-class _LegIn(_Strict):
-    name: str | None = Field(default=None, min_length=1)
-    attach_mm: _VecD
-    tip_offset_mm: _Vec3 | None = None
-    urdf: str | None = Field(default=None, min_length=1)
-    tip_frame: str | None = Field(default=None, min_length=1)
-    joints: list[_JointIn] = Field(min_length=1)
-
-
-class _RobotIn(_Strict):
-    name: str | None = Field(default=None, min_length=1)
-    dim: Literal[2, 3]
-    singular_tol: _Num = SINGULAR_TOL
-    params: dict[str, _Num]
-    legs: list[_LegIn] = Field(min_length=1)
-
-
-_TABLES = {"": _RobotIn, "legs": _LegIn, "joints": _JointIn}
-
-
-def _key(loc) -> str:
-    """A pydantic location as the TOML's key: ``legs[2].joints[1].axis`` (tables numbered from 1)."""
-    out = ""
-    for x in loc:
-        out += f"[{x + 1}]" if isinstance(x, int) else ("." if out else "") + str(x)
-    return out
-
-
-def _problem(err: dict) -> str:
-    loc = tuple(err["loc"])
-    kind = err["type"]
-    if kind == "extra_forbidden":
-        table = next((str(x) for x in reversed(loc[:-1]) if isinstance(x, str)), "")
-        known = ", ".join(_TABLES[table].model_fields) if table in _TABLES else ""
-        return f"{_key(loc)}: unknown key" + (f" (expected one of {known})" if known else "")
-    if kind == "missing":
-        return f"{_key(loc)}: missing key"
-    msg = err["msg"].removeprefix("Value error, ")
-    if "input" in err and not isinstance(err["input"], dict):
-        shown = repr(err["input"])
-        msg += f", got {shown[:57] + '...' if len(shown) > 60 else shown}"
-    return f"{_key(loc)}: {msg}"
-
-
-_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-
-
-def _descriptions(data: dict, source: str, default_name: str):
-    """Validate a parsed legs TOML: (name, dim, singular_tol, params, legs), else InputError."""
-    try:
-        spec = _RobotIn.model_validate(data)
-    except ValidationError as e:
-        raise InputError("; ".join(dict.fromkeys(_problem(x) for x in e.errors())), source=source) from None
-
-    def fail(key: str, msg: str):
-        raise InputError(f"{key}: {msg}", source=source)
-
-    for pname, value in spec.params.items():
-        if not _NAME.match(pname):
-            fail(f"params.{pname}", "a parameter name is letters, digits and _ (not starting with a digit)")
-        if math.isnan(value) or value <= 0:
-            fail(f"params.{pname}", f"a stiffness must be positive (or inf for rigid), got {value!r}")
-        if math.isfinite(value) and not (STIFFNESS_RANGE[0] <= value <= STIFFNESS_RANGE[1]):
-            fail(
-                f"params.{pname}",
-                f"a stiffness between {STIFFNESS_RANGE[0]:g} and {STIFFNESS_RANGE[1]:g} N*mm/rad or N/mm "
-                f"(or inf for rigid), got {value!r}",
-            )
-    used: dict[str, str] = {}
-    legs = []
-    leg_names: set[str] = set()
-    for i, lg in enumerate(spec.legs, start=1):
-        where = f"legs[{i}]"
-        if len(lg.attach_mm) != spec.dim:
-            fail(
-                f"{where}.attach_mm",
-                f"expected {spec.dim} numbers (dim = {spec.dim}), got {len(lg.attach_mm)}",
-            )
-        lname = lg.name or f"leg{i}"
-        if lname in leg_names:
-            fail(f"{where}.name", f"leg {lname!r} is named twice")
-        leg_names.add(lname)
-        if lg.urdf is not None and lg.tip_frame is None:
-            fail(f"{where}.tip_frame", "missing key: a URDF leg names the frame of its platform joint")
-        if lg.urdf is None and lg.tip_frame is not None:
-            fail(
-                f"{where}.tip_frame",
-                "only for a URDF leg (urdf = ...); a leg given by joints ends at its last joint",
-            )
-        joints = []
-        seen: set[str] = set()
-        for j, jt in enumerate(lg.joints, start=1):
-            jw = f"{where}.joints[{j}]"
-            if jt.name in seen:
-                fail(f"{jw}.name", f"joint {jt.name!r} is named twice in {lname}")
-            seen.add(jt.name)
-            kin = {"type": jt.type, "axis": jt.axis, "xyz_mm": jt.xyz_mm, "rpy": jt.rpy}
-            if lg.urdf is not None:
-                for k, v in kin.items():
-                    if v is not None:
-                        fail(
-                            f"{jw}.{k}",
-                            "a URDF leg's joints take their kinematics from the URDF: give name, role, "
-                            "stiffness, q0, lower, upper",
-                        )
-            else:
-                for k in ("type", "axis"):
-                    if kin[k] is None:
-                        fail(f"{jw}.{k}", "missing key")
-                big = max(abs(x) for x in jt.axis)
-                if big == 0:
-                    fail(f"{jw}.axis", "expected three numbers, not all zero")
-                jt = jt.model_copy(update={"axis": tuple(x / big for x in jt.axis)})
-            if jt.role == "passive":
-                if jt.stiffness is not None:
-                    fail(f"{jw}.stiffness", "a passive joint is free: no stiffness")
-            else:
-                if jt.stiffness is None:
-                    fail(
-                        f"{jw}.stiffness", f"missing key: an {jt.role} joint names its stiffness in [params]"
-                    )
-                if jt.stiffness not in spec.params:
-                    known = ", ".join(spec.params) or "none"
-                    fail(f"{jw}.stiffness", f"{jt.stiffness!r} is not in [params] ({known})")
-                if jt.role == "actuated" or jt.stiffness not in used:
-                    used[jt.stiffness] = jt.role
-            if jt.role == "spring":
-                for k in ("q0", "lower", "upper"):
-                    if getattr(jt, k) is not None:
-                        fail(
-                            f"{jw}.{k}",
-                            "a spring joint stays at rest (q = 0) in the kinematics: no q0, lower, upper",
-                        )
-            lo = -math.inf if jt.lower is None else jt.lower
-            hi = math.inf if jt.upper is None else jt.upper
-            if math.isnan(lo) or math.isnan(hi) or lo > hi:
-                fail(f"{jw}.upper", f"limits must satisfy lower <= upper, got [{lo!r}, {hi!r}]")
-            if jt.q0 is not None and not (lo <= jt.q0 <= hi):
-                fail(f"{jw}.q0", f"the seed {jt.q0!r} is outside the limits [{lo!r}, {hi!r}]")
-            if jt.q0 is not None and not math.isfinite(jt.q0):
-                fail(f"{jw}.q0", f"expected a finite number, got {jt.q0!r}")
-            joints.append(LegJoint(**jt.model_dump()))
-        legs.append(
-            LegDescription(
-                name=lname,
-                attach_mm=lg.attach_mm,
-                joints=tuple(joints),
-                tip_offset_mm=lg.tip_offset_mm or (0.0, 0.0, 0.0),
-                urdf=lg.urdf,
-                tip_frame=lg.tip_frame,
-            )
-        )
-    for pname in spec.params:
-        if pname not in used:
-            fail(f"params.{pname}", "no joint refers to it")
-        if used[pname] == "actuated" and math.isinf(spec.params[pname]):
-            fail(f"params.{pname}", "an actuated joint's stiffness must be finite")
-    if "actuated" not in used.values():
-        fail("legs", 'no actuated joint: give at least one joint role = "actuated"')
-    tol = spec.singular_tol
-    if not (0 <= tol < 1):
-        fail("singular_tol", f"expected a number in [0, 1), got {tol!r}")
-    return spec.name or default_name, spec.dim, tol, dict(spec.params), tuple(legs)
-
-
-# ---------------------------------------------------------------------- writing
-
-
-def _num(v: float) -> str:
-    """A float as TOML, 15 significant digits (roundoff below 1e-12 written as 0)."""
-    v = float(v)
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    if abs(v) < 1e-12:
-        return "0.0"
-    t = f"{v:.15g}"
-    return t if any(c in t for c in ".e") else t + ".0"
-
-
-def _vec(v) -> str:
-    return "[" + ", ".join(_num(x) for x in v) + "]"
-
-
-def _toml_text(
-    name: str | None,
-    dim: int,
-    params: dict[str, float],
-    legs: tuple[LegDescription, ...],
-    singular_tol: float,
-    header: str = "",
-) -> str:
-    out = [f"# {line}".rstrip() for line in header.splitlines()]
-    if out:
-        out.append("")
-    if name is not None:
-        out.append(f"name = {json.dumps(name)}")
-    out += [f"dim = {dim}", f"singular_tol = {_num(singular_tol)}", "", "[params]"]
-    out += [f"{k} = {_num(v)}" for k, v in params.items()]
-    for lg in legs:
-        out += ["", "[[legs]]", f"name = {json.dumps(lg.name)}", f"attach_mm = {_vec(lg.attach_mm)}"]
-        if lg.urdf is not None:
-            out += [f"urdf = {json.dumps(lg.urdf)}", f"tip_frame = {json.dumps(lg.tip_frame)}"]
-        out.append(f"tip_offset_mm = {_vec(lg.tip_offset_mm)}")
-        for jt in lg.joints:
-            out += ["", "[[legs.joints]]", f"name = {json.dumps(jt.name)}"]
-            if jt.type is not None:
-                out.append(f"type = {json.dumps(jt.type)}")
-            for k in ("axis", "xyz_mm", "rpy"):
-                if getattr(jt, k) is not None:
-                    out.append(f"{k} = {_vec(getattr(jt, k))}")
-            out.append(f"role = {json.dumps(jt.role)}")
-            if jt.stiffness is not None:
-                out.append(f"stiffness = {json.dumps(jt.stiffness)}")
-            for k in ("q0", "lower", "upper"):
-                if getattr(jt, k) is not None:
-                    out.append(f"{k} = {_num(getattr(jt, k))}")
-    return "\n".join(out) + "\n"
-
-
-def _yaw(phi: float) -> np.ndarray:
-    c, s = math.cos(phi), math.sin(phi)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _rot_y(t: float) -> np.ndarray:
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _delta_description(m: DeltaRobot) -> tuple[dict, tuple[LegDescription, ...]]:
-    """The Delta's legs: actuator, arm spring, elbow ball (y, x, z), forearm spring."""
-    R, r, a, b = m.base_radius, m.platform_radius, m.arm_length, m.forearm_length
-    seed = m.forward_kinematics([0.5, 0.5, 0.5])  # a central pose on the z axis
-    L = m.legs(seed)
-    legs, h = [], math.pi / 2
-    for i, phi in enumerate(m.leg_angles):
-        th = float(L.theta[0, i])
-        # Ball joint: n = R_leg Ry(theta) Ry(alpha) Rx(beta) (-z), so n.t = a cos(alpha) cos(beta):
-        # alpha, beta within +-90 deg is the elbow-out branch (and keeps the ball's lock, n along
-        # the actuator axis, out of reach).
-        v = (_yaw(phi) @ _rot_y(th)).T @ L.n[0, i]
-        alpha, beta = math.atan2(-v[0], -v[2]), math.asin(max(-1.0, min(1.0, v[1])))
-        e = (math.cos(phi), math.sin(phi), 0.0)
-        joints = (
-            LegJoint(
-                "actuator",
-                "actuated",
-                "k_theta",
-                th,
-                None,
-                None,
-                "revolute",
-                (0.0, 1.0, 0.0),
-                (R * e[0], R * e[1], 0.0),
-                (0.0, 0.0, phi),
-            ),
-            LegJoint("arm", "spring", "k_arm", type="prismatic", axis=(0.0, 0.0, -1.0), xyz_mm=(a, 0.0, 0.0)),
-            LegJoint("elbow_y", "passive", None, alpha, -h, h, "revolute", (0.0, 1.0, 0.0)),
-            LegJoint("elbow_x", "passive", None, beta, -h, h, "revolute", (1.0, 0.0, 0.0)),
-            LegJoint("elbow_z", "passive", q0=0.0, type="revolute", axis=(0.0, 0.0, 1.0)),
-            LegJoint("forearm", "spring", "k_forearm", type="prismatic", axis=(0.0, 0.0, -1.0)),
-        )
-        legs.append(LegDescription(f"leg{i + 1}", (r * e[0], r * e[1], 0.0), joints, (0.0, 0.0, -b)))
-    params = {"k_theta": m.k_theta, "k_arm": m.k_arm, "k_forearm": m.k_forearm}
-    return params, tuple(legs)
-
-
-def _prr3_description(m: PRR3) -> tuple[dict, tuple[LegDescription, ...]]:
-    """The 3PRR's legs: slider, bearing spring, pin, rod spring, pin at the tool."""
-    V, u = m.vertices, m.rail_directions
-    l0 = min(max(m.rail_length - m.L, 0.0), m.rail_length)  # the centre's slider position
-    legs = []
-    for i in range(3):
-        gamma = math.atan2(u[i, 1], u[i, 0])
-        joints = (
-            LegJoint(
-                "slider",
-                "actuated",
-                "kj",
-                l0,
-                0.0,
-                m.rail_length,
-                "prismatic",
-                (1.0, 0.0, 0.0),
-                (float(V[i, 0]), float(V[i, 1]), 0.0),
-                (0.0, 0.0, gamma),
-            ),
-            LegJoint("bearing", "spring", "kb", type="prismatic", axis=(0.0, 1.0, 0.0)),
-            LegJoint(
-                "pin_slider", "passive", None, 0.0, -math.pi / 2, math.pi / 2, "revolute", (0.0, 0.0, 1.0)
-            ),
-            LegJoint("rod", "spring", "k_rod", type="prismatic", axis=(1.0, 0.0, 0.0)),
-            LegJoint(
-                "pin_tool", "passive", q0=0.0, type="revolute", axis=(0.0, 0.0, 1.0), xyz_mm=(m.L, 0.0, 0.0)
-            ),
-        )
-        legs.append(LegDescription(f"leg{i + 1}", (0.0, 0.0), joints))
-    params = {"kj": m.kj, "kb": m.kb, "k_rod": m.E * m.area / m.L}
-    return params, tuple(legs)
-
-
-_DELTA_HEADER = """\
-The Delta robot of stiffmap.models.delta (DeltaRobot) described by its legs, the virtual
-joint method's input (docs/models.md, "Parallel robots from their legs"). Written by
-stiffmap.models.legs.legs_toml(DeltaRobot()); LegRobot.from_toml reads it.
-Each leg: the actuator (k_theta, N*mm/rad), the arm's transverse compliance at the elbow
-as a virtual prismatic spring (k_arm, N/mm), the elbow as a ball joint (three revolute
-joints; limits +-90 deg on the first two: the elbow-out branch), the forearm's axial
-compliance (k_forearm, N/mm). inf = rigid."""
-
-_PRR3_HEADER = """\
-The planar 3PRR of stiffmap.models.prr3 (PRR3) described by its legs, the virtual joint
-method's input (docs/models.md, "Parallel robots from their legs"). Written by
-stiffmap.models.legs.legs_toml(PRR3()); LegRobot.from_toml reads it.
-Each leg: the slider on its rail (kj, N/mm; limits the rail), the bearing across the rail
-(kb), the pin at the slider (limits +-90 deg: the rod leans towards the centre), the rod's
-axial stiffness (k_rod = E area / L, N/mm), the pin at the tool."""
-
-
-def legs_toml(model: DeltaRobot | PRR3 | LegRobot) -> str:
-    """The legs TOML that describes a robot with its current parameters.
-
-    Parameters
-    ----------
-    model : DeltaRobot, PRR3 or LegRobot
-        A built-in model (its legs' joints written from its geometry, the seeds from its
-        closed-form inverse kinematics at a central pose) or a :class:`LegRobot` (its
-        description, with its current parameters).
-
-    Returns
-    -------
-    str
-        TOML text (``LegRobot.from_toml_text`` reads it back). The package's
-        ``robots/delta.toml`` and ``robots/3prr.toml`` are this for the default models.
-    """
-    if isinstance(model, DeltaRobot):
-        params, legs = _delta_description(model)
-        return _toml_text(None, 3, params, legs, model.singular_tol, _DELTA_HEADER)
-    if isinstance(model, PRR3):
-        params, legs = _prr3_description(model)
-        return _toml_text(None, 2, params, legs, model.singular_tol, _PRR3_HEADER)
-    if isinstance(model, LegRobot):
-        return _toml_text(model.name, model.dim, model.params(), model.description, model.singular_tol)
-    raise TypeError(f"legs_toml takes a DeltaRobot, a PRR3 or a LegRobot, got {type(model).__name__}")
-
 
 # ---------------------------------------------------------------------- building the legs
-
-
-def _placement(xyz, rpy) -> tuple[np.ndarray, np.ndarray]:
-    return matrix_from_euler(np.asarray(rpy, dtype=float)), np.asarray(xyz, dtype=float)
-
-
-def _without_springs(joints: tuple[LegJoint, ...], tip) -> tuple[list[JointSpec], np.ndarray]:
-    """The leg's joints with its springs at rest folded into the next joint's origin (or the tip)."""
-    Rp, tp = np.eye(3), np.zeros(3)
-    out = []
-    for jt in joints:
-        R, t = _placement(jt.xyz_mm or (0.0, 0.0, 0.0), jt.rpy or (0.0, 0.0, 0.0))
-        R, t = Rp @ R, Rp @ t + tp
-        if jt.role == "spring":
-            Rp, tp = R, t
-            continue
-        out.append(JointSpec(jt.name, jt.type, jt.axis, tuple(t), tuple(euler_from_matrix(R))))
-        Rp, tp = np.eye(3), np.zeros(3)
-    return out, Rp @ np.asarray(tip, dtype=float) + tp
-
-
-def _urdf_without_springs(path: Path, springs: set[str], tip_frame: str, tip) -> Chain:
-    """The URDF's chain with its spring joints turned fixed (at rest), read through a temporary copy."""
-    root = ET.fromstring(read_text_file(path, "URDF file"))
-    for j in root.iter("joint"):
-        if j.get("name") in springs:
-            j.set("type", "fixed")
-    with tempfile.TemporaryDirectory() as tmp:
-        p = Path(tmp) / path.name
-        p.write_text(ET.tostring(root, encoding="unicode"), encoding="utf-8")
-        return Chain.from_urdf(p, tip_frame, tip)
 
 
 @dataclass(frozen=True, eq=False)
@@ -674,7 +148,7 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
             for jt in desc.joints
         ]
         chain = Chain.from_joints(specs, desc.tip_offset_mm, name=label)
-        rigid, tip = _without_springs(desc.joints, desc.tip_offset_mm)
+        rigid, tip = without_springs(desc.joints, desc.tip_offset_mm)
         if not rigid:
             raise InputError(
                 f"{where}: every joint is a spring; a leg needs actuated or passive joints", source=source
@@ -696,7 +170,7 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
                 )
         springs = {jt.name for jt in desc.joints if jt.role == "spring"}
         ik_chain = (
-            _urdf_without_springs(path, springs, desc.tip_frame, desc.tip_offset_mm) if springs else chain
+            urdf_without_springs(path, springs, desc.tip_frame, desc.tip_offset_mm) if springs else chain
         )
     roles = tuple(given[n].role if n in given else "passive" for n in chain.joint_names)
     stiffness = tuple(given[n].stiffness if n in given else None for n in chain.joint_names)
@@ -802,7 +276,8 @@ class LegRobot(LegMechanism):
 
     @classmethod
     def from_toml(cls, path) -> LegRobot:
-        """Read a legs TOML (``docs/models.md``); URDF paths in it are relative to its folder.
+        """Read a legs TOML (``docs/models.md``; :func:`~stiffmap.models.legs_file.read_legs_file`);
+        URDF paths in it are relative to its folder.
 
         Raises
         ------
@@ -810,39 +285,26 @@ class LegRobot(LegMechanism):
             Naming the file and the key (``legs[2].joints[1].axis: expected three numbers``),
             tables numbered from 1; a URDF's problems name the URDF.
         """
-        p = Path(path)
-        try:
-            size = p.stat().st_size
-        except OSError:
-            size = 0  # read_text_file says why it cannot be read
-        if size > MAX_TOML_BYTES:
-            raise InputError(
-                f"{size} bytes; a legs TOML of more than {MAX_TOML_BYTES} bytes is not one", source=str(p)
-            )
-        return cls.from_toml_text(
-            read_text_file(p, "legs TOML file"), source=str(p), base_dir=p.parent, default_name=p.stem
-        )
+        return cls.from_legs_file(read_legs_file(path))
 
     @classmethod
     def from_toml_text(
         cls, text: str, *, source: str = "legs.toml", base_dir=".", default_name: str = "legs"
     ) -> LegRobot:
         """:meth:`from_toml` of a TOML text (``source`` names it in messages)."""
-        try:
-            data = tomllib.loads(text.removeprefix("\ufeff"))
-        except tomllib.TOMLDecodeError as e:
-            raise InputError(f"not valid TOML: {e}", source=source) from None
-        except RecursionError:
-            raise InputError("not valid TOML: arrays or tables nested too deeply", source=source) from None
-        except ValueError:  # an integer of thousands of digits
-            raise InputError(
-                "not a usable TOML file: a number has thousands of digits", source=source
-            ) from None
-        name, dim, tol, params, legs = _descriptions(data, source, default_name)
-        built = tuple(
-            _build_leg(d, k, dim, Path(base_dir), source, name) for k, d in enumerate(legs, start=1)
+        return cls.from_legs_file(
+            parse_legs_text(text, source=source, base_dir=base_dir, default_name=default_name)
         )
-        return cls(name, dim, legs, tuple(params), tuple(params.values()), tol, source, built)
+
+    @classmethod
+    def from_legs_file(cls, f: LegsFile) -> LegRobot:
+        """The robot a checked legs TOML describes (its legs' chains built, URDFs read)."""
+        built = tuple(
+            _build_leg(d, k, f.dim, f.base_dir, f.source, f.name) for k, d in enumerate(f.legs, start=1)
+        )
+        return cls(
+            f.name, f.dim, f.legs, tuple(f.params), tuple(f.params.values()), f.singular_tol, f.source, built
+        )
 
     def __post_init__(self) -> None:
         self._check_singular_tol()

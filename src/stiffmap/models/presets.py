@@ -1,18 +1,14 @@
-"""The models by name: mechanisms and their defaults, position layouts, grids, load directions.
+"""Position layouts, grids and load directions from text; joint stiffnesses from text.
 
-These turn what a user writes (``stiffmap model 3prr --param kj=600 --grid
-200:600:9,20:420:9 --direction -x``, or the same texts from Python) into the
-library's objects; errors are ``ValueError`` saying what was expected, without
-the option's name (the command line adds it).
+These turn what a user writes (``--grid 200:600:9,20:420:9 --direction -x``, or the same
+texts from Python) into arrays; errors are ``ValueError`` saying what was expected, without
+the option's name (the command line adds it). Which kind of robot a layout belongs to, and
+its defaults, are in the registry of robot kinds (:mod:`stiffmap.kinds`).
 
-- ``MECHANISMS``: mechanism name (``delta``, ``3prr``) -> class;
-  :func:`mechanism_from_params` builds one with parameters checked by name;
-  ``DEFAULT_LOAD`` and ``DEFAULT_FIT`` are each mechanism's default load and
-  fitted parameters (:func:`fit_parameter_names`).
-- :func:`grid_points`: a preset's name or a regular grid ``X0:X1:NX,Y0:Y1:NY[,...]``;
-  :func:`positions_from_text`: a preset's name, a CSV file of positions or a list
-  ``x,y,z;x,y,z``, and :func:`select_positions` to keep some of them by number;
-  :func:`force_direction`: ``x``, ``-z`` or comma-separated components.
+- :func:`grid_points`: a regular grid ``X0:X1:NX,Y0:Y1:NY[,...]``;
+  :func:`positions_from_list`: a list ``x,y,z;x,y,z``, and :func:`select_positions` to keep
+  some of them by number; :func:`force_direction`: ``x``, ``-z`` or comma-separated components;
+  :func:`joint_stiffnesses_from_text`: a serial robot's ``k1`` .. ``kn``.
 
 Named sets of tool positions, the reference studies' measurement layouts:
 
@@ -45,67 +41,31 @@ Named sets of tool positions, the reference studies' measurement layouts:
 
   Row ``k`` of the array is point number ``k + 1``. Every point is reachable by
   the default geometry, with both singularity measures >= 0.25.
-- ``POSITION_PRESETS``: name -> (mechanism name, function); :func:`position_preset`
-  and :func:`default_positions` look them up for a mechanism.
-
-Serial robots from a URDF (``stiffmap model urdf ROBOT.urdf``; not in ``MECHANISMS``: a
-URDF model has no default to build without its file): :func:`serial_robot_from_options`
-reads the URDF, its configurations file and the joint stiffnesses of ``--param``
-(:func:`joint_stiffnesses_from_text`: ``k_theta=K1,...,Kn`` or one value for all, and
-``k<i>=K`` for one joint).
+- The robot kinds' entries (:mod:`stiffmap.kinds`) name these layouts: ``paper48`` (delta),
+  ``points22`` (3prr), ``arm20`` (urdf, :func:`stiffmap.models.arm6.positions20`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from pathlib import Path
+from collections.abc import Sequence
 
 import numpy as np
 
-from . import arm6
-from .base import Mechanism, check_positive
-from .chain import Chain
-from .delta import DeltaRobot
-from .io import AXIS_NAMES, read_configuration_rows, read_points
-from .prr3 import PRR3
-from .serial import SerialRobot
+from .base import check_positive
+from .io import AXIS_NAMES
 
 __all__ = [
     "paper48",
     "prr3_points22",
     "PRR3_MIDDLE_LINE",
-    "POSITION_PRESETS",
-    "preset_points",
-    "position_preset",
-    "default_positions",
     "grid_points",
-    "positions_from_text",
+    "positions_from_list",
     "select_positions",
     "MAX_GRID_POINTS",
-    "MECHANISMS",
-    "DEFAULT_LOAD",
-    "DEFAULT_FIT",
-    "mechanism_from_params",
-    "fit_parameter_names",
     "force_direction",
-    "URDF_MODEL",
-    "BUILTIN_URDFS",
-    "urdf_file",
     "joint_stiffnesses_from_text",
-    "serial_robot_from_options",
 ]
 
-#: Mechanism name (as on the command line) -> class.
-MECHANISMS: dict[str, type] = {"delta": DeltaRobot, "3prr": PRR3}
-#: Default load of each mechanism, (magnitude N, direction): the reference studies' largest
-#: loads (0.5 kg and 50 kgf, with the studies' g = 9.81 m/s^2).
-DEFAULT_LOAD: dict[str, tuple[float, str]] = {"delta": (4.905, "-z"), "3prr": (490.5, "y")}
-#: Parameters fitted when none are named.
-DEFAULT_FIT: dict[str, tuple[str, ...]] = {"delta": ("k_theta",), "3prr": ("kj",)}
-#: The name of serial robots read from a URDF (``stiffmap model urdf``).
-URDF_MODEL = "urdf"
-#: URDFs that ship with stiffmap, by name: ``stiffmap model urdf arm6 ...`` needs no file.
-BUILTIN_URDFS: dict[str, str] = {"arm6": arm6.URDF}
 #: Most points a grid may hold.
 MAX_GRID_POINTS = 1_000_000
 
@@ -150,54 +110,17 @@ def prr3_points22() -> np.ndarray:
     return np.array([pts[k] for k in range(1, 23)])
 
 
-#: Preset name -> (mechanism name, function returning the points).
-POSITION_PRESETS: dict[str, tuple[str, Callable[[], np.ndarray]]] = {
-    "paper48": ("delta", paper48),
-    "points22": ("3prr", prr3_points22),
-    "arm20": (URDF_MODEL, arm6.positions20),
-}
-
-
-def preset_points(name: str) -> np.ndarray:
-    """Points of a named preset (``POSITION_PRESETS``); unknown names list the valid ones."""
-    key = name.strip().lower()
-    if key not in POSITION_PRESETS:
-        raise ValueError(f"unknown position preset {name!r}; valid: {', '.join(POSITION_PRESETS)}")
-    return POSITION_PRESETS[key][1]()
-
-
-def position_preset(name: str, mechanism: str) -> np.ndarray | None:
-    """Points of the position preset ``name`` for ``mechanism``; None when ``name`` is no preset.
-
-    Raises
-    ------
-    ValueError
-        When the preset is another mechanism's.
-    """
-    key = name.strip().lower()
-    if key not in POSITION_PRESETS:
-        return None
-    owner, fn = POSITION_PRESETS[key]
-    if owner != mechanism:
-        raise ValueError(f"{name}: that preset is for the {owner} model, not {mechanism}")
-    return fn()
-
-
-def default_positions(mechanism: str) -> np.ndarray:
-    """The first position preset of ``mechanism`` (paper48 for delta, points22 for 3prr)."""
-    return next(fn() for owner, fn in POSITION_PRESETS.values() if owner == mechanism)
-
-
-def grid_points(spec: str, dim: int, mechanism: str) -> np.ndarray:
-    """Positions from a preset's name or a regular grid ``X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]``.
+def grid_points(spec: str, dim: int, presets: str = "") -> np.ndarray:
+    """Positions of a regular grid ``X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]``.
 
     Parameters
     ----------
     spec : str
-        A preset of ``mechanism`` (:data:`POSITION_PRESETS`) or ``dim`` comma-separated
-        axes, each ``START:STOP:N`` (N from 1 to 1 000 000) or a single value, mm.
+        ``dim`` comma-separated axes, each ``START:STOP:N`` (N from 1 to 1 000 000) or a
+        single value, mm.
     dim : {2, 3}
-    mechanism : str
+    presets : str
+        The names of layouts that would do instead, for the message.
 
     Returns
     -------
@@ -209,13 +132,15 @@ def grid_points(spec: str, dim: int, mechanism: str) -> np.ndarray:
     ValueError
         Naming the spec (as ``'spec': ...``), the bad axis and what is expected, or more
         than :data:`MAX_GRID_POINTS` points.
+
+    Examples
+    --------
+    >>> grid_points("0:10:3,5", 2).tolist()
+    [[0.0, 5.0], [5.0, 5.0], [10.0, 5.0]]
     """
-    preset = position_preset(spec, mechanism)
-    if preset is not None:
-        return preset
     parts = spec.split(",")
     hint = (
-        f"expected a preset ({', '.join(k for k, v in POSITION_PRESETS.items() if v[0] == mechanism)}) or "
+        f"expected a preset ({presets}) or "
         f"{dim} comma-separated axes, each START:STOP:N or a single value in mm "
         f"(e.g. {'-200:200:5,-200:200:5,-310' if dim == 3 else '200:600:9,20:420:9'})"
     )
@@ -245,47 +170,25 @@ def grid_points(spec: str, dim: int, mechanism: str) -> np.ndarray:
     return pts
 
 
-def positions_from_text(text: str, mechanism: str) -> np.ndarray:
-    """Positions from a preset's name, a CSV file, or a list ``x,y,z;x,y,z`` (``x,y;x,y`` in 2-D).
-
-    Parameters
-    ----------
-    text : str
-        A preset of ``mechanism`` (:data:`POSITION_PRESETS`); a CSV file (a ``.csv`` name,
-        or any existing file) with columns x, y[, z] in mm; or positions in mm, their
-        coordinates separated by commas and the positions by semicolons.
-    mechanism : str
-        ``delta`` (3-D positions) or ``3prr`` (2-D).
-
-    Returns
-    -------
-    ndarray, shape (N, dim), mm
+def positions_from_list(text: str, dim: int, robot: str = "the robot", presets: str = "") -> np.ndarray:
+    """Positions from a list ``x,y,z;x,y,z`` (``x,y;x,y`` in 2-D), mm.
 
     Raises
     ------
     ValueError
-        As ``'text': expected a preset ...`` (the command line puts the option's name in
-        front), or when the preset is another mechanism's.
-    InputError
-        Naming the CSV file and what is wrong in it.
+        As ``'text': expected a preset (PRESETS), a CSV file with columns x, y, z (mm), or
+        positions 'x,y,z;x,y,z' in mm for ROBOT`` (the command line puts its option in front).
     """
-    dim = SerialRobot.dim if mechanism == URDF_MODEL else MECHANISMS[mechanism].dim
-    preset = position_preset(text, mechanism)
-    if preset is not None:
-        return np.asarray(preset, dtype=np.float64)
-    if Path(text).suffix.lower() == ".csv" or Path(text).is_file():
-        return read_points(text, dim)
     try:
         P = np.array([[float(v) for v in item.split(",")] for item in text.split(";") if item.strip()])
     except ValueError:
         P = np.zeros((0, 0))
     if P.ndim != 2 or P.shape[0] == 0 or P.shape[1] != dim or not np.all(np.isfinite(P)):
-        presets = ", ".join(k for k, v in POSITION_PRESETS.items() if v[0] == mechanism)
         cols = AXIS_NAMES[:dim]
         c = ",".join(cols)
         raise ValueError(
             f"{text!r}: expected a preset ({presets}), a CSV file with columns "
-            f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for the {mechanism} robot"
+            f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for {robot}"
         )
     return P
 
@@ -311,55 +214,6 @@ def select_positions(points: np.ndarray, select: str | None) -> np.ndarray:
     if dup:
         raise ValueError(f"{select!r}: position {dup[0]} is given more than once")
     return points[[i - 1 for i in idx]]
-
-
-def mechanism_from_params(name: str, params: Mapping[str, float]) -> Mechanism:
-    """The mechanism ``name`` (:data:`MECHANISMS`) with some parameters set.
-
-    Raises
-    ------
-    ValueError
-        Naming unknown parameters and the valid ones, or a bad value.
-    """
-    cls = MECHANISMS[name]
-    valid = cls.param_names()
-    bad = sorted(set(params) - set(valid))
-    if bad:
-        raise ValueError(
-            f"unknown {name} parameter{'s' if len(bad) > 1 else ''} {', '.join(bad)}; "
-            f"valid: {', '.join(valid)}"
-        )
-    return cls(**params)
-
-
-def fit_parameter_names(name: str, items: Sequence[str] | None, model: Mechanism | None = None) -> list[str]:
-    """The parameters of mechanism ``name`` to fit: ``items`` (each may be comma-separated), else
-    ``DEFAULT_FIT[name]``.
-
-    For ``urdf`` (a :class:`SerialRobot` given as ``model``) the names are ``k1 ... kn`` (then
-    the mimic joints' springs and the flexible links' parameters) and the default is
-    :meth:`SerialRobot.default_fit` (every finite one).
-
-    Raises
-    ------
-    ValueError
-        Naming unknown parameters and the valid ones.
-    """
-    if name == URDF_MODEL:
-        if not isinstance(model, SerialRobot):
-            raise TypeError("fit_parameter_names('urdf', ...) needs the SerialRobot as model")
-        valid = model.param_names()
-        default = list(model.default_fit())  # not a rigid (inf) mimic joint's spring
-    else:
-        valid = MECHANISMS[name].param_names()
-        default = list(DEFAULT_FIT[name])
-    names: list[str] = []
-    for item in items or default:
-        names.extend(s.strip() for s in item.split(",") if s.strip())
-    bad = [n for n in names if n not in valid]
-    if bad:
-        raise ValueError(f"unknown {name} parameter(s) {', '.join(bad)}; valid: {', '.join(valid)}")
-    return names
 
 
 def force_direction(text: str, dim: int) -> np.ndarray:
@@ -400,9 +254,10 @@ def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...
     Parameters
     ----------
     items : sequence of str
-        Each ``NAME=VALUE[,NAME=VALUE...]``: ``k_theta=K1,K2,...,Kn`` (one per joint, the
-        URDF's joint order; or one value for all), ``k<i>=K`` (joint i alone, after
-        ``k_theta``); N*mm/rad for revolute joints, N/mm for prismatic ones, ``inf`` rigid.
+        Each ``NAME=VALUE[,NAME=VALUE...]``: ``k<i>=K`` (joint i, the URDF's joint order),
+        ``k_theta=K`` (one value for every joint, before the ``k<i>``); N*mm/rad for revolute
+        joints, N/mm for prismatic ones, ``inf`` rigid. ``k_theta=K1,K2,...,Kn``, a list in
+        the joints' order, is the old form of ``k1`` .. ``kn`` and still read.
     chain : Chain
         The robot (its joints, for the count and the messages).
 
@@ -432,14 +287,14 @@ def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...
                 key, text = (x.strip() for x in part.split("=", 1))
                 if key not in ("k_theta", *valid):
                     raise ValueError(
-                        f"unknown urdf parameter {key!r}; valid: k_theta (all {n} joints: {joints}) or "
-                        f"{valid[0]}..{valid[-1]} (one joint)"
+                        f"unknown urdf parameter {key!r}; valid: {valid[0]}..{valid[-1]} (one joint each: "
+                        f"{joints}) or k_theta (one value for all {n})"
                     )
                 given[key] = []
             elif key == "k_theta":
                 text = part
             else:
-                raise ValueError(f"{part!r} should look like NAME=VALUE (k_theta=K1,...,K{n} takes a list)")
+                raise ValueError(f"{part!r} should look like NAME=VALUE (k1=K1,k2=K2,...,k{n}=K{n})")
             try:
                 given[key].append(float(text))
             except ValueError:
@@ -460,61 +315,9 @@ def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...
     if missing:
         raise ValueError(
             f"no stiffness for joint(s) {', '.join(missing)} of {chain.source}: a URDF robot has no "
-            f"default; give k_theta=K1,...,K{n} for {joints} ({units}), or one value for all"
+            f"default; give k1=K1,...,k{n}=K{n} for {joints} ({units}), or k_theta=K for all"
         )
     return tuple(
         check_positive(f"k{i + 1} ({chain.joint_names[i]})", v, units.split(",")[0], allow_inf=True)
         for i, v in enumerate(k)
     )
-
-
-def urdf_file(urdf) -> str:
-    """The URDF file of ``urdf``: a path, or the name of one that ships with stiffmap
-    (:data:`BUILTIN_URDFS`, when no file of that name exists)."""
-    text = str(urdf)
-    if text in BUILTIN_URDFS and not Path(text).exists():
-        return BUILTIN_URDFS[text]
-    return text
-
-
-def serial_robot_from_options(
-    urdf,
-    tip_frame: str | None,
-    tip_offset_mm=(0.0, 0.0, 0.0),
-    configs=None,
-    params: Sequence[str] = (),
-) -> tuple[SerialRobot, np.ndarray | None]:
-    """The serial robot of ``stiffmap model urdf`` / ``stiffmap fit urdf``.
-
-    Parameters
-    ----------
-    urdf : path-like
-        The URDF, or the name of a built-in one (``arm6``).
-    tip_frame : str
-        The frame of the measured point.
-    tip_offset_mm : array_like, shape (3,), mm
-    configs : path-like, optional
-        A configurations file (``models.io.read_configuration_rows``).
-    params : sequence of str
-        The ``--param`` texts (:func:`joint_stiffnesses_from_text`).
-
-    Returns
-    -------
-    robot : SerialRobot
-        With the file's configurations.
-    lines : ndarray of int, shape (N,), or None
-        The line of each configuration in its file.
-
-    Raises
-    ------
-    InputError
-        A URDF or configurations file that cannot be read (naming it and the item).
-    ValueError
-        Bad ``params`` text (see :func:`joint_stiffnesses_from_text`).
-    """
-    if not tip_frame:
-        raise ValueError(f"no tip frame: give the link of {urdf} that carries the measured point")
-    chain = Chain.from_urdf(urdf_file(urdf), tip_frame, tip_offset_mm)
-    Q, lines = (None, None) if configs is None else read_configuration_rows(configs, chain)
-    k = joint_stiffnesses_from_text(params, chain)
-    return SerialRobot(chain, k, configurations=Q), lines

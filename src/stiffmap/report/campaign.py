@@ -12,11 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
+from ..campaign.robot import campaign_model
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
 from ..campaign.sensor_runner import measured_static_errors
 from ..campaign.spec import CampaignSpec, load_spec
-from ..campaign.store import DB_NAME, Store, from_json
+from ..campaign.store import DB_NAME, Store
 from ..campaign.truth import load_truth
 from ..errors import InputError
 from ..rig import Rig
@@ -35,52 +37,39 @@ def failures_as_items(failures: list[str]):
     return tuple(out)
 
 
-def _parameters(store: Store, name: str):
+def _parameters(store: Store, name: str, spec: CampaignSpec):
     fit = store.model_fit(name)
-    if fit is None or fit["status"] != "ok":
+    if fit is None or fit.status != "ok":
         return ()
-    est = from_json(fit["params"], array=False)
-    std = from_json(fit["std"], array=False)
-    units = {
-        "k_theta": "N*mm/rad",
-        "kj": "N/mm",
-        "kb": "N/mm",
-        "E": "MPa",
-        "area": "mm^2",
-        "h": "mm",
-        "L": "mm",
-    }
+    est = fit.params
+    std = fit.std
+    kind = spec.robot.kind
     return tuple(
-        contract.Parameter(k, float(v), float(std.get(k, np.nan)) if std else np.nan, _param_unit(units, k))
+        contract.Parameter(
+            k, float(v), float(std.get(k, np.nan)) if std else np.nan, kind.param_unit(k) if kind else ""
+        )
         for k, v in est.items()
     )
 
 
-def _param_unit(units: dict[str, str], name: str) -> str:
-    """The unit of a fitted parameter (a URDF robot's k1, k2, ...: N*mm/rad)."""
-    if name in units:
-        return units[name]
-    return "N*mm/rad" if name[:1] == "k" and name[1:].isdigit() else ""
-
-
 def _fitted_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str):
-    return spec.model(root, **{p.name: p.value for p in _parameters(store, fit_name)})
+    return campaign_model(spec, root, **{p.name: p.value for p in _parameters(store, fit_name, spec)})
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     rows = store.stiffness_rows()
     n = len(rows)
-    if not any(r["status"] == "ok" for r in rows):
+    if not any(r.status == "ok" for r in rows):
         return {}
-    pos = np.array([[r["x"], r["y"], r["z"]] for r in rows], dtype=float)
+    pos = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
     K = np.full((n, 3, 3), np.nan)
     S = np.full((n, 3, 3), np.nan)
     share = np.full((n, 3), np.nan)
     for i, r in enumerate(rows):
-        if r["status"] == "ok":
-            K[i] = from_json(r["K"])
-            S[i] = from_json(r["K_std"])
-            cal, cov = from_json(r["K_cov_calibration"]), from_json(r["K_cov"])
+        if r.status == "ok":
+            K[i] = r.K
+            S[i] = r.K_std
+            cal, cov = r.K_cov_calibration, r.K_cov
             if cal is not None and cov is not None:
                 with np.errstate(invalid="ignore", divide="ignore"):
                     share[i] = np.clip(np.diag(cal)[[0, 4, 8]] / np.diag(cov)[[0, 4, 8]], 0.0, 1.0)
@@ -88,28 +77,29 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         pos,
         K,
         S,
-        status=[r["status"] for r in rows],
-        messages=[r["error"] or "" for r in rows],
-        flags=[tuple(from_json(r["flags"], array=False) or ()) for r in rows],
+        status=[r.status for r in rows],
+        messages=[r.error or "" for r in rows],
+        flags=[tuple(r.flags or ()) for r in rows],
     )
     out: dict = {"measured": measured}
     loads = spec.loads.resolve(spec.g)
     norms = np.full((n, len(loads), spec.repeats), np.nan)
-    index = {r["position"]: i for i, r in enumerate(rows)}
+    index = {r.position: i for i, r in enumerate(rows)}
     for d in store.displacement_rows(only_ok=True):
-        i = index.get(d["position"])
-        if i is not None and d["load"] <= len(loads) and d["repeat"] <= spec.repeats:
-            norms[i, d["load"] - 1, d["repeat"] - 1] = float(np.linalg.norm(from_json(d["d"])[:3]))
+        i = index.get(d.position)
+        if i is not None and d.load <= len(loads) and d.repeat <= spec.repeats:
+            norms[i, d.load - 1, d.repeat - 1] = float(np.linalg.norm(d.d[:3]))
     out["loads"] = contract.LoadData(
         tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
     )
-    if spec.robot.model in ("delta", "urdf", "legs"):
+    kind = spec.robot.kind
+    if kind is not None and kind.dim != 2:  # a spatial model (a legs TOML says its own dim)
         model = _fitted_model(root, spec, store, "stiffness")
         Km = np.full((n, 3, 3), np.nan)
         for r in store.model_stiffness_rows():
-            i = index.get(r["position"])
-            if i is not None and r["valid"]:
-                Km[i] = from_json(r["K"])
+            i = index.get(r.position)
+            if i is not None and r.valid:
+                Km[i] = r.K
         # A dense map on the measured planes, over the measured x-y extent.
         grid = []
         for z in np.unique(pos[:, 2]):
@@ -123,7 +113,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
             g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
         )
         out["model"] = contract.ModelStiffness.from_K(
-            spec.robot.model, _parameters(store, "stiffness"), Km, map=dense
+            spec.robot.model, _parameters(store, "stiffness", spec), Km, map=dense
         )
     truth = _truth_K(root, n)
     if truth is not None:
@@ -147,7 +137,7 @@ def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:
     errors: dict[str, list[str]] = {n: [] for n in rig.names}
     n_sets = 0
     for r in store.measurement_rows():
-        per = from_json(r["per_camera"], array=False) if r["per_camera"] else None
+        per = r.per_camera
         if not isinstance(per, list):
             continue
         n_sets += 1
@@ -195,7 +185,7 @@ def _truth_K(root: Path, n: int) -> np.ndarray | None:
     return Kt
 
 
-def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
+def _sensor(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
     m = measured_static_errors(spec, store)
     if m["points"].shape[1] != 2:
         return {}
@@ -205,16 +195,13 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
     middle = None
     name = ""
     params: tuple = ()
-    if spec.robot.model == "3prr":
-        name = "3prr"
-        params = _parameters(store, "static_error")
+    kind = spec.robot.kind
+    if kind is not None and kind.report_grid is not None:  # a planar kind's map (the 3PRR's)
+        name = kind.name
+        params = _parameters(store, "static_error", spec)
         model_um = np.array([1e3 * pred[f] if pred.get(f) is not None else np.nan for f in m["files"]])
         model = _fitted_model(root, spec, store, "static_error")
-        h = model.params()["h"]
-        xs = np.linspace(0.0, h, 41)
-        ys = np.linspace(0.0, h * np.sqrt(3) / 2, 36)
-        X, Y = np.meshgrid(xs, ys)
-        g = np.c_[X.ravel(), Y.ravel()]
+        g, middle_x = kind.report_grid(model)
         mm = model.evaluate(g)
         ref = m["reference_load_n"]
         dirs = sorted({_axis(u) for u in m["directions"]})
@@ -223,8 +210,8 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store) -> dict:
             for a in dirs
             if a in ("x", "y")
         )
-        middle = np.abs(m["points"][:, 0] - h / 2) < 1e-6
-        if not middle.any():
+        middle = None if middle_x is None else np.abs(m["points"][:, 0] - middle_x) < 1e-6
+        if middle is not None and not middle.any():
             middle = None
     sr = contract.SensorResults(
         points=m["points"],
@@ -253,6 +240,10 @@ def _unit(axis: str) -> np.ndarray:
     return u
 
 
+#: The report's sections of what an instrument measures.
+_SECTIONS = {STIFFNESS: _vision, STATIC_ERROR: _sensor}
+
+
 def report_data(
     root: Path, spec: CampaignSpec, store: Store, failures: list[str], *, allow_outside: bool = False
 ):
@@ -266,24 +257,16 @@ def report_data(
     info = contract.CampaignInfo(
         name=spec.name, kind=spec.kind, date=date.today().isoformat(), campaign_dir=str(root)
     )
-    if spec.kind == "vision":
-        parts = _vision(root, spec, store, allow_outside)
-        if "measured" not in parts:
-            n_failed = len(store.stiffness_rows())
-            raise InputError(
-                f"no position has results in {DB_NAME} (none could be measured, {n_failed} "
-                f"failed: see {EXPORTS_DIR}/summary.json): nothing to report",
-                source=str(root),
-            )
-    else:
-        rows = store.sensor_result_rows()
-        if not any(r["status"] == "ok" for r in rows):
-            raise InputError(
-                f"no recording has results in {DB_NAME} (none could be analysed, {len(rows)} failed: see "
-                f"{EXPORTS_DIR}/summary.json): nothing to report",
-                source=str(root),
-            )
-        parts = _sensor(root, spec, store)
+    inst = instrument_of(spec)
+    rows = inst.rows(store)
+    if not any(r.status == "ok" for r in rows):
+        verb = "measured" if inst.item == "position" else "analysed"
+        raise InputError(
+            f"no {inst.item} has results in {DB_NAME} (none could be {verb}, {len(rows)} failed: see "
+            f"{EXPORTS_DIR}/summary.json): nothing to report",
+            source=str(root),
+        )
+    parts = _SECTIONS[inst.measures](root, spec, store, allow_outside)
     return contract.ReportData(campaign=info, failures=failures_as_items(failures), **parts)
 
 

@@ -8,8 +8,8 @@ The sensor path of stiffmap (see ``docs/sensors.md``)::
     [(point, direction, file), ...] --static_errors_from_files--> StaticErrorSet
         (per-point static errors for maps and model fits)
 
-    recordings + index --analyse_batch--> SensorBatch (what ``stiffmap sensor`` prints);
-    its option texts --config_from_options--> (ChannelMap, SensorConfig)
+    recordings + index --analyse_batch--> SensorBatch (what ``stiffmap sensor`` prints;
+    its option texts are read by ``stiffmap.cli.sensor_options``)
 
 Units inside are N and mm; volts, µm, kgf only at the boundary (``scale_um_per_v``,
 ``load_kgf``, ``static_error_um`` in JSON).
@@ -27,7 +27,6 @@ from .batch import (
 )
 from .fit import Hysteresis, LinearFit, fit_load_displacement
 from .io import read_recording, write_recording
-from .options import config_from_options
 from .plateaus import PlateauDetection, detect_plateaus
 from .recording import ChannelMap, Recording, parse_channel_map
 
@@ -47,7 +46,6 @@ __all__ = [
     "analyse_batch",
     "analyse_files",
     "analyse_recording",
-    "config_from_options",
     "detect_plateaus",
     "fit_load_displacement",
     "parse_channel_map",

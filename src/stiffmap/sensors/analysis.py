@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FieldError, InputError
 from ..loads import MAX_FORCE_N
 from ..stiffness import DISPLACEMENT_FLOOR_MM
 from ..units import G_REFERENCE_PAPER, newton_from_kgf
@@ -67,9 +67,9 @@ def _pos(name: str, x, allow_none: bool = False):
     try:
         xf = float(x)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {x!r}") from None
+        raise FieldError(name, f"{{{name}}} must be a number, got {x!r}", value=x) from None
     if not (math.isfinite(xf) and xf > 0):
-        raise ValueError(f"{name} must be a positive number, got {x!r}")
+        raise FieldError(name, f"{{{name}}} must be a positive number, got {x!r}", value=x)
     return xf
 
 
@@ -145,52 +145,72 @@ class SensorConfig:
         for name, (lo, hi, unit) in PLAUSIBLE.items():
             v = getattr(self, name)
             if v is not None and not (lo <= v <= hi):
-                raise ValueError(f"{name} must be between {lo:g} and {hi:g} {unit}, got {v:g}")
+                raise FieldError(
+                    name, f"{{{name}}} must be between {lo:g} and {hi:g} {unit}, got {v:g}", value=v
+                )
         m = float(self.saturation_margin_v)
         if not (math.isfinite(m) and 0 <= m < self.range_v):
-            raise ValueError(
-                f"range_v must exceed the saturation margin of {m:g} V, got {self.range_v:g}"
-                if math.isfinite(m) and m >= 0
-                else f"saturation_margin_v must be >= 0 V, got {self.saturation_margin_v!r}"
+            if math.isfinite(m) and m >= 0:
+                raise FieldError(
+                    "range_v",
+                    f"{{range_v}} must exceed the saturation margin of {m:g} V, got {self.range_v:g}",
+                )
+            raise FieldError(
+                "saturation_margin_v",
+                f"{{saturation_margin_v}} must be >= 0 V, got {self.saturation_margin_v!r}",
             )
         r = float(self.reference_load_n)
         if not math.isfinite(r) or r == 0:
-            raise ValueError(f"reference_load_n must be a non-zero number, got {self.reference_load_n!r}")
+            raise FieldError(
+                "reference_load_n",
+                f"{{reference_load_n}} must be a non-zero number, got {self.reference_load_n!r}",
+            )
         if abs(r) > MAX_FORCE_N:
-            raise ValueError(f"reference_load_n must be within +-{MAX_FORCE_N:g} N, got {r:g}")
+            raise FieldError(
+                "reference_load_n", f"{{reference_load_n}} must be within +-{MAX_FORCE_N:g} N, got {r:g}"
+            )
         object.__setattr__(self, "reference_load_n", r)
         if self.axis_sign not in (1, -1):
-            raise ValueError(f"axis_sign must be +1 or -1, got {self.axis_sign!r}")
+            raise FieldError("axis_sign", f"{{axis_sign}} must be +1 or -1, got {self.axis_sign!r}")
         if self.load_unit is not None and self.load_unit not in ("kgf", "N", "V"):
-            raise ValueError(f"load_unit must be 'kgf', 'N' or 'V', got {self.load_unit!r}")
+            raise FieldError("load_unit", f"{{load_unit}} must be 'kgf', 'N' or 'V', got {self.load_unit!r}")
         if self.steps_unit not in ("kgf", "N"):
-            raise ValueError(f"steps_unit must be 'kgf' or 'N', got {self.steps_unit!r}")
+            raise FieldError("steps_unit", f"{{steps_unit}} must be 'kgf' or 'N', got {self.steps_unit!r}")
         if self.detect_on not in _DETECT:
-            raise ValueError(f"detect_on must be one of {_DETECT}, got {self.detect_on!r}")
+            raise FieldError("detect_on", f"{{detect_on}} must be one of {_DETECT}, got {self.detect_on!r}")
         if not (0 < self.level < 1):
-            raise ValueError(f"level must be in (0, 1), got {self.level!r}")
+            raise FieldError("level", f"{{level}} must be in (0, 1), got {self.level!r}")
         if self.steps is not None:
             st = tuple(float(s) for s in self.steps)
             if len(st) < 2 or not all(math.isfinite(s) for s in st):
-                raise ValueError(f"steps must hold at least 2 finite loads, got {self.steps!r}")
+                raise FieldError("steps", f"{{steps}} must hold at least 2 finite loads, got {self.steps!r}")
             f = newton_from_kgf(1.0, self.g) if self.steps_unit == "kgf" else 1.0
             big = [s for s in st if abs(s) * f > MAX_FORCE_N]
             if big:
-                raise ValueError(
-                    f"steps: {big[0]:g} {self.steps_unit} is beyond +-{MAX_FORCE_N:g} N: not a plausible load"
+                raise FieldError(
+                    "steps",
+                    f"{{steps}}: {big[0]:g} {self.steps_unit} is beyond +-{MAX_FORCE_N:g} N: "
+                    "not a plausible load",
                 )
             object.__setattr__(self, "steps", st)
         if self.step_times_s is not None:
             tt = tuple((float(a), float(b)) for a, b in self.step_times_s)
             for a, b in tt:
                 if not (math.isfinite(a) and math.isfinite(b) and a < b):
-                    raise ValueError(f"each step time must be (start, end) with start < end, got ({a}, {b})")
+                    raise FieldError(
+                        "step_times_s",
+                        f"{{step_times_s}}: each step time must be (start, end) with start < end, "
+                        f"got ({a}, {b})",
+                    )
             for (_, b0), (a1, _) in zip(tt, tt[1:], strict=False):
                 if a1 < b0:
-                    raise ValueError(f"step times must be in time order and not overlap: {tt}")
+                    raise FieldError(
+                        "step_times_s",
+                        f"{{step_times_s}}: the step times must be in time order and not overlap: {tt}",
+                    )
             object.__setattr__(self, "step_times_s", tt)
         if self.guard_s is not None and not (math.isfinite(self.guard_s) and self.guard_s >= 0):
-            raise ValueError(f"guard_s must be >= 0, got {self.guard_s!r}")
+            raise FieldError("guard_s", f"{{guard_s}} must be >= 0, got {self.guard_s!r}")
         if self.zero_load_n is not None:
             object.__setattr__(self, "zero_load_n", _pos("zero_load_n", self.zero_load_n))
 
@@ -446,15 +466,17 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
         unit = cfg.load_unit or recording.load_unit or "kgf"
         hint = recording.load_unit
         if cfg.load_unit is not None and hint is not None and hint != cfg.load_unit:
-            raise InputError(
+            raise FieldError(
+                "load_unit",
                 f"load column {recording.load_name!r} says {hint} by its name but the load unit given is "
-                f"{cfg.load_unit}; rename the column or fix --load-unit (load_unit in campaign.toml)",
+                f"{cfg.load_unit}; rename the column or fix {{load_unit}}",
                 source=src,
             )
         if unit == "V" and cfg.load_n_per_v is None:
-            raise InputError(
+            raise FieldError(
+                "load_n_per_v",
                 f"load column {recording.load_name!r} is in volts; give the load-cell scale "
-                "(--load-n-per-v; load_n_per_v in campaign.toml)",
+                "({load_n_per_v})",
                 source=src,
             )
         with np.errstate(over="ignore"):
@@ -475,9 +497,10 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
                 spans.append(SampleSpan("dropout", int(a), int(b), float(t[a]), float(t[b - 1])))
     table = cfg.steps_n
     if load_n is None and table is None:
-        raise InputError(
+        raise FieldError(
+            "steps",
             f"no load: the file has no load channel ({recording.load_name or 'load_kgf'}) and no table of "
-            "steps was given (e.g. --steps-kgf 0,50,40,30,20,10,0)",
+            "steps was given ({steps}, e.g. 0,50,40,30,20,10,0 kgf)",
             source=src,
         )
     gaps = time_gaps(t)
@@ -493,10 +516,10 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
                 f"; the displacement reached the sensor range (+-{cfg.range_v:g} V x "
                 f"{cfg.scale_um_per_v:g} um/V = +-{lim:.4g} mm): re-centre the sensor or use a larger range"
             )
-        raise InputError(
+        raise FieldError(
+            "exclude_bad_samples",
             f"{' and '.join(kinds)} samples: {describe_spans(spans)}{hint}. These samples cannot be used "
-            "(--exclude-bad-samples, or exclude_bad_samples = true in campaign.toml, leaves missing samples "
-            "out of the plateaus)",
+            "({exclude_bad_samples} leaves missing samples out of the plateaus)",
             source=src,
         )
     valid = ~bad
@@ -541,11 +564,8 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
         if k < table.size:
             g0, g1 = _longest_gap(pspans, t) if k else (float(t[0]), float(t[-1]))
             msg += f"; the longest span without a plateau is {g0:.2f}-{g1:.2f} s"
-        msg += (
-            ". Give the plateaus by hand (--step-times; step_times in campaign.toml) or adjust "
-            "--min-plateau-s / --window-s (min_plateau_s / window_s)"
-        )
-        raise InputError(msg, source=src)
+        msg += ". Give the plateaus by hand ({step_times_s}) or adjust {min_plateau_s} / {window_s}"
+        raise FieldError(("step_times_s", "min_plateau_s", "window_s"), msg, source=src)
     if k < 2:
         raise InputError(
             f"found {k} plateau(s) ({_fmt_spans(pspans, t) or 'none'}); "
@@ -637,7 +657,7 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     if fit.compliance_mm_per_n < 0:
         flags.append(
             "the displacement decreases as the load grows (negative stiffness): check the sensor axis sign "
-            "(--axis-sign -1, or sign = -1 in campaign.toml, behind a mirror) and the load direction"
+            "(-1 behind a mirror) and the load direction"
         )
     if math.isfinite(fit.r2) and fit.r2 < 0.99:
         flags.append(f"R^2 = {fit.r2:.4f}: the plateaus are not on a line (hysteresis, slip, a bad plateau?)")

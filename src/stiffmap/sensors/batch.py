@@ -22,13 +22,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FieldError, InputError
 from ..io import ALLOW_OUTSIDE_OPTION, leaves_directory, read_csv_columns
 from ..stiffness import MAX_POSITION_MM
 from .analysis import SensorConfig, SensorResult, analyse_recording
@@ -124,18 +124,28 @@ def _entry(e) -> MeasurementEntry:
     )
 
 
+def _worded(e: InputError, names: Mapping[str, str] | None) -> InputError:
+    """``e`` with a :class:`~stiffmap.errors.FieldError`'s fields named as the caller names them."""
+    return e.worded(names) if names and isinstance(e, FieldError) else e
+
+
 def analyse_files(
     files: Iterable[str | os.PathLike],
     channel_map: ChannelMap | None = None,
     config: SensorConfig | None = None,
+    names: Mapping[str, str] | None = None,
 ) -> list[SensorResult | InputError]:
-    """Read and analyse each file; a bad file gives its InputError in its place, the others go on."""
+    """Read and analyse each file; a bad file gives its InputError in its place, the others go on.
+
+    ``names`` words the fields of a :class:`~stiffmap.errors.FieldError` (``load_unit``) as
+    the caller names them (``--load-unit``, ``sensor.load_unit``).
+    """
     out: list[SensorResult | InputError] = []
     for f in files:
         try:
             out.append(analyse_recording(read_recording(f, channel_map), config))
         except InputError as e:
-            out.append(e.with_source(str(f)))
+            out.append(_worded(e, names).with_source(str(f)))
     return out
 
 
@@ -223,6 +233,7 @@ def static_errors_from_files(
     entries: Iterable,
     channel_map: ChannelMap | None = None,
     config: SensorConfig | None = None,
+    names: Mapping[str, str] | None = None,
 ) -> StaticErrorSet:
     """Static error at each (point, direction) from its recording.
 
@@ -233,6 +244,8 @@ def static_errors_from_files(
     channel_map : ChannelMap, optional
     config : SensorConfig, optional
         Shared by all recordings; an entry's ``axis_sign`` overrides the config's.
+    names : mapping of str to str, optional
+        As :func:`analyse_files`.
 
     Returns
     -------
@@ -256,7 +269,7 @@ def static_errors_from_files(
         try:
             r = analyse_recording(read_recording(e.file, channel_map), c)
         except InputError as err:
-            reason = str(err.with_source(str(e.file)))
+            reason = str(_worded(err, names).with_source(str(e.file)))
             reasons.append(f"{reason} (listed in {e.origin})" if e.origin else reason)
             results.append(None)
             continue
@@ -335,6 +348,7 @@ def analyse_batch(
     entries: Iterable | None = None,
     channel_map: ChannelMap | None = None,
     config: SensorConfig | None = None,
+    names: Mapping[str, str] | None = None,
 ) -> SensorBatch:
     """Analyse recordings one by one (:func:`analyse_files`) and the entries of an index.
 
@@ -348,9 +362,11 @@ def analyse_batch(
     channel_map : ChannelMap, optional
     config : SensorConfig, optional
         Shared by all recordings.
+    names : mapping of str to str, optional
+        How the caller names the analysis' fields in messages (:func:`analyse_files`).
     """
-    results = analyse_files(files, channel_map, config) if files else []
-    ses = static_errors_from_files(entries, channel_map, config) if entries is not None else None
+    results = analyse_files(files, channel_map, config, names) if files else []
+    ses = static_errors_from_files(entries, channel_map, config, names) if entries is not None else None
     return SensorBatch(tuple(str(f) for f in files), tuple(results), ses)
 
 

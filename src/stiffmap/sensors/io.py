@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, StiffmapWarning
+from ..errors import FieldError, InputError, StiffmapWarning
 from ..io import atomic_write_bytes, atomic_write_text, read_csv_columns
 from .matfile import mat5_variables
 from .recording import ChannelMap, Recording, check_sample_rate, load_unit_from_name
@@ -57,9 +57,10 @@ def format_from_path(path: str | os.PathLike) -> str:
 
 def _time_from_rate(n: int, fs: float | None, src: str, where: str) -> np.ndarray:
     if fs is None:
-        raise InputError(
+        raise FieldError(
+            "channel_map",
             f"no time channel ({where}) and no sample rate; name the time column with "
-            "--channel-map time=COL or give rate=HZ",
+            "{channel_map} time=COL or give rate=HZ",
             source=src,
         )
     return np.arange(n) * (1.0 / fs)
@@ -269,9 +270,10 @@ def _read_tdms_quietly(path: Path, cmap: ChannelMap) -> Recording:
         if not hits:
             hits = [(g, c) for g in groups for c in g.channels() if c.name.lower() == name.lower()]
         if len(hits) > 1:
-            raise InputError(
+            raise FieldError(
+                "channel_map",
                 f"channel {name!r} is in several groups ({', '.join(repr(g.name) for g, _ in hits)}); "
-                "choose one with --channel-map group=NAME",
+                "choose one with {channel_map} group=NAME",
                 source=src,
             )
         if not hits:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FieldError, InputError
 
 __all__ = [
     "ChannelMap",
@@ -129,8 +129,10 @@ def parse_channel_map(text: str | None) -> ChannelMap:
 
     Raises
     ------
-    InputError
-        On an unknown key, a missing ``=`` or a rate that is not a positive number.
+    FieldError
+        Field ``"channel_map"``: an unknown key, a missing ``=`` or a rate that is not a
+        positive number (the command line words it ``--channel-map``, campaign.toml
+        ``sensor.channel_map``).
     """
     if text is None or not text.strip():
         return ChannelMap()
@@ -140,21 +142,21 @@ def parse_channel_map(text: str | None) -> ChannelMap:
         if not part:
             continue
         if "=" not in part:
-            raise InputError(f"--channel-map: {part!r} should look like NAME=COLUMN (e.g. load=force_n)")
+            raise FieldError("channel_map", f"{part!r} should look like NAME=COLUMN (e.g. load=force_n)")
         k, v = (s.strip() for s in part.split("=", 1))
         key = _MAP_KEYS.get(k.lower())
         if key is None:
-            raise InputError(
-                f"--channel-map: unknown key {k!r}; expected displacement, load, time, rate or group"
+            raise FieldError(
+                "channel_map", f"unknown key {k!r}; expected displacement, load, time, rate or group"
             )
         if key == "sample_rate_hz":
             try:
-                kw[key] = check_sample_rate(v, f"--channel-map: rate={v}")
+                kw[key] = check_sample_rate(v, f"rate={v}")
             except ValueError as e:
-                raise InputError(str(e)) from None
+                raise FieldError("channel_map", str(e)) from None
             continue
         if not v:
-            raise InputError(f"--channel-map: {k}= needs a column name")
+            raise FieldError("channel_map", f"{k}= needs a column name")
         if key in ("load", "time") and v.lower() == "none":
             kw[key] = None
             continue

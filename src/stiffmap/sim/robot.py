@@ -299,6 +299,22 @@ class VirtualRobot:
         return T
 
 
+def mechanism_robot(model, **kw) -> VirtualRobot:
+    """Any mechanism with a 3x3 stiffness field as a virtual robot (the test-bed of its kind).
+
+    Parameters
+    ----------
+    model : Mechanism
+        Its ``stiffness(points)`` is the field (a picklable bound method: the image
+        workers receive it); its ``name`` the campaign's ``robot.model``, its finite
+        ``params()`` the campaign's ``robot.params``.
+    **kw
+        :class:`VirtualRobot` fields (repeatability_mm, jitter_mm, ...).
+    """
+    finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
+    return VirtualRobot(field=model.stiffness, model=model.name, params=finite, **kw)
+
+
 def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     """The Delta-type robot of :mod:`stiffmap.models.delta` as a virtual robot.
 
@@ -310,9 +326,7 @@ def delta_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
     **kw
         :class:`VirtualRobot` fields (repeatability_mm, jitter_mm, ...).
     """
-    model = DeltaRobot().with_params(**(params or {}))
-    finite = {k: float(v) for k, v in model.params().items() if math.isfinite(v)}
-    return VirtualRobot(field=model.stiffness, model="delta", params=finite, **kw)
+    return mechanism_robot(DeltaRobot().with_params(**(params or {})), **kw)
 
 
 @dataclass(frozen=True)
@@ -392,7 +406,7 @@ def serial_robot(model, *, links_file=None, **kw) -> VirtualRobot:
         files[LINKS_NAME] = str(links_file)
     return VirtualRobot(
         field=SerialField(model),
-        model="urdf",
+        model=model.name,
         params={k: float(v) for k, v in model.params().items()},
         spec=spec,
         files=files,

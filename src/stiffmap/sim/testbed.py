@@ -239,7 +239,8 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
         p = P[e.index]
         raise InputError(
             f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the robot model has no "
-            f"stiffness there ({e.reason or e.detail})"
+            f"stiffness there ({e.reason or e.detail})",
+            items={"position": e.index + 1},
         ) from None
     K3 = translational_stiffness(K, cfg.robot.load_point_mm)
     pat_u, pat_l = cfg.patterns
@@ -262,7 +263,8 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
                     if why:
                         raise InputError(
                             f"position {ip} ({', '.join(f'{v:g}' for v in p)}) mm, load {il}, repeat {ir}, "
-                            f"{state}: {why}"
+                            f"{state}: {why}",
+                            items={"position": ip, "load": il, "repeat": ir},
                         )
                     T.setflags(write=False)
                     jobs.append(

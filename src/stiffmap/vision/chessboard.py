@@ -87,7 +87,9 @@ def is_board_grid(image: np.ndarray, grid: np.ndarray) -> tuple[bool, float]:
     contrast = grid_contrast(image, grid)
     if contrast < MIN_CONTRAST or grid_edge_fraction(image, grid) < MIN_EDGE_FRACTION:
         return False, contrast
-    sad = corner_saddles(image, grid)
+    # Sampled a quarter of a step from each corner: inside outer squares that a printed board
+    # cuts short (OpenCV's stereo samples: their centres fall on the margin, left05 failed).
+    sad = corner_saddles(image, grid, GROW_REACH)
     return bool(np.mean(sad >= 0.3 * np.median(sad)) >= MIN_SADDLE_SHARE), contrast
 
 

@@ -22,7 +22,7 @@ from ..camera import CameraModel
 from ..errors import InputError
 from ..geometry import as_transform
 from ..io import read_csv_columns, read_json
-from ..rig import Rig
+from ..rig import Rig, parse_named_pattern
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, DetectionError, detect_board
 from .detection import grid_of
@@ -736,17 +736,15 @@ def rig_image_sets(
     if per_camera:
         given: dict[str, list[Path]] = {}
         for item in per_camera:
-            name, sep, text = str(item).partition("=")
-            name = name.strip()
-            if not sep or not text.strip():
-                raise InputError(
-                    f"--images {item!r}: expected NAME=GLOB (a camera of the rig, then its images)"
-                )
+            try:
+                name, text = parse_named_pattern(item)
+            except ValueError as e:
+                raise InputError(f"--images {item!r}: {e} (a camera of the rig, then its images)") from None
             if name not in names:
                 raise InputError(
                     f"--images {item!r}: no camera {name!r} in the rig (cameras: {', '.join(names)})"
                 )
-            given.setdefault(name, []).extend(_camera_files(text.strip(), name, "--images")[0])
+            given.setdefault(name, []).extend(_camera_files(text, name, "--images")[0])
         lacking = [c for c in names if c not in given]
         if lacking:
             raise InputError(

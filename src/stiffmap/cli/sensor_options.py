@@ -1,25 +1,22 @@
-"""The options of a sensor analysis, as texts, turned into a channel map and a :class:`SensorConfig`.
+"""The options of ``stiffmap sensor``, as texts, turned into a channel map and a ``SensorConfig``.
 
 ``stiffmap sensor`` takes the table of applied loads as ``0,50,40,30,20,10,0``
 (kgf or N), plateaus picked by hand as ``0.5-4.2,6-9.5`` (s), the channel map
-as ``displacement=COL,load=COL,...`` and each :class:`SensorConfig` setting on
-its own. :func:`config_from_options` reads them all, in that order, and says
-what is wrong in the words of the command line: errors are
-:class:`~stiffmap.errors.InputError` naming the option (``--step-times``,
-``--window-s``), as :func:`~stiffmap.sensors.recording.parse_channel_map` does.
+as ``displacement=COL,load=COL,...`` and each :class:`~stiffmap.sensors.analysis.SensorConfig`
+setting on its own. :func:`config_from_options` reads them all, in that order; the library's
+:class:`~stiffmap.errors.FieldError` (a ``SensorConfig`` field, ``channel_map``) is worded as
+the option that sets it (:func:`sensor_option_names`), never by rewriting its text.
 """
 
 from __future__ import annotations
 
-import re
+from ..errors import FieldError, InputError
+from ..sensors.analysis import SensorConfig
+from ..sensors.recording import ChannelMap, parse_channel_map
 
-from ..errors import InputError
-from .analysis import SensorConfig
-from .recording import ChannelMap, parse_channel_map
+__all__ = ["config_from_options", "parse_loads", "parse_step_times", "OPTION_OF", "sensor_option_names"]
 
-__all__ = ["config_from_options", "parse_loads", "parse_step_times", "OPTION_OF"]
-
-#: SensorConfig fields and the options that set them, for messages about their values.
+#: SensorConfig fields (and the channel map) and the options that set them.
 OPTION_OF = {
     "scale_um_per_v": "--scale-um-per-v",
     "range_v": "--range-v",
@@ -32,14 +29,14 @@ OPTION_OF = {
     "threshold_sigma": "--threshold-sigma",
     "load_unit": "--load-unit",
     "g": "--g",
+    "exclude_bad_samples": "--exclude-bad-samples",
+    "channel_map": "--channel-map",
 }
 
 
-def _option_names(message: str, more: dict[str, str] | None = None) -> str:
-    """A SensorConfig message in the words of the command line (its options, not its fields)."""
-    for field, opt in {**OPTION_OF, **(more or {})}.items():
-        message = re.sub(rf"(?<![\w-]){field}(?![\w-])", opt, message)
-    return message
+def sensor_option_names(steps_n: bool = False) -> dict[str, str]:
+    """The fields of a sensor analysis as ``stiffmap sensor``'s options (``steps``: the table given)."""
+    return {**OPTION_OF, "steps": "--steps-n" if steps_n else "--steps-kgf"}
 
 
 def parse_loads(text: str, what: str) -> tuple[float, ...]:
@@ -121,8 +118,8 @@ def config_from_options(
     Raises
     ------
     InputError
-        Naming the option that is wrong (a field named in a SensorConfig message
-        is replaced by its option, see :data:`OPTION_OF`).
+        Naming the option that is wrong (a SensorConfig field is worded as its option,
+        :func:`sensor_option_names`).
     """
     if steps_kgf and steps_n:
         raise InputError("give either --steps-kgf or --steps-n, not both")
@@ -131,7 +128,11 @@ def config_from_options(
         steps, unit = parse_loads(steps_kgf, "--steps-kgf"), "kgf"
     elif steps_n:
         steps, unit = parse_loads(steps_n, "--steps-n"), "N"
-    cmap = parse_channel_map(channel_map)
+    names = sensor_option_names(steps_n=bool(steps_n) and not steps_kgf)
+    try:
+        cmap = parse_channel_map(channel_map)
+    except FieldError as e:
+        raise e.worded(names) from None
     if load_n_per_v is not None:
         if load_unit is not None and load_unit != "V":
             raise InputError(
@@ -157,7 +158,8 @@ def config_from_options(
             remove_drift=remove_drift,
             exclude_bad_samples=exclude_bad_samples,
         )
-    except ValueError as e:
-        steps_option = "--steps-kgf" if steps_kgf else "--steps-n"
-        raise InputError(_option_names(str(e), {"steps": steps_option})) from None
+    except FieldError as e:
+        raise e.worded(names) from None
+    except ValueError as e:  # a value SensorConfig cannot take that is no one field's
+        raise InputError(str(e)) from None
     return cmap, cfg

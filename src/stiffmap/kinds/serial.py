@@ -1,0 +1,170 @@
+"""Serial robots read from a URDF as a robot kind (``urdf``): joint springs ``k1`` .. ``kn``.
+
+The description: the URDF (a file, or the name of one that ships with stiffmap: ``arm6``,
+the test-bed's six-joint arm), the frame carrying the measured point (``tip_frame``) and the
+point in it (``tip_offset_mm``), the tool's orientation for inverse kinematics
+(``tool_rpy_deg``) and its seed (``q_seed_deg``), the joint configurations of the
+positions (``configurations_deg``, or a CSV file ``configs``), and the joint stiffnesses.
+
+Joint stiffnesses are ``k1`` .. ``kn`` (N*mm/rad; N/mm for a prismatic joint), in the URDF's
+joint order. The rule for ``k_theta``: one number sets every joint (``k_theta=1e9``), then
+``k<i>`` changes one; a list ``k_theta=K1,...,Kn`` -- the form of stiffmap before 0.x, kept
+so that old command lines and files still work -- is read as ``k1`` .. ``kn``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, Strict
+
+from ..errors import FieldError
+from ..geometry import matrix_from_euler
+from ..models import arm6
+from ..models.io import read_configuration_rows
+from ..models.presets import joint_stiffnesses_from_text
+from ..models.serial import SerialRobot
+from ..sim.robot import serial_robot
+from ..sim.scene import arm_scene
+from .registry import RobotDescription, RobotKind, TestBed, allow_keys
+
+__all__ = ["URDF_KIND", "BUILTIN_URDFS", "urdf_file", "UrdfKeys"]
+
+#: URDFs that ship with stiffmap, by name: ``stiffmap model urdf arm6 ...`` needs no file.
+BUILTIN_URDFS: dict[str, str] = {"arm6": arm6.URDF}
+
+_Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+_Angle = Annotated[_Finite, Field(ge=-3600.0, le=3600.0)]
+_Coord = Annotated[_Finite, Field(ge=-1e6, le=1e6)]
+
+
+class UrdfKeys(BaseModel):
+    """A URDF robot's own campaign.toml keys (``[robot]``), beside ``urdf``, ``params`` and ``fit``."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+    tip_frame: Annotated[
+        str,
+        Strict(),
+        Field(min_length=1, max_length=1000, description="the link that carries the measured point"),
+    ]
+    #: The measured point in that frame, mm.
+    tip_offset_mm: Annotated[tuple[_Coord, _Coord, _Coord], Field(strict=False)] | None = None
+    #: The tool's orientation (roll, pitch, yaw in degrees, base frame) for inverse kinematics.
+    tool_rpy_deg: Annotated[tuple[_Angle, _Angle, _Angle], Field(strict=False)] | None = None
+    #: The seed of inverse kinematics, degrees (mm for a prismatic joint).
+    q_seed_deg: list[_Angle] | None = None
+
+
+def urdf_file(urdf) -> str:
+    """The URDF file of ``urdf``: a path, or the name of one that ships with stiffmap
+    (:data:`BUILTIN_URDFS`, when no file of that name exists)."""
+    text = str(urdf)
+    if text in BUILTIN_URDFS and not Path(text).exists():
+        return BUILTIN_URDFS[text]
+    return text
+
+
+def _joint_stiffnesses(params: Mapping[str, float | str], robot: SerialRobot) -> tuple[float, ...]:
+    """k1 .. kn from ``params`` (the rule of the module docstring), FieldError naming ``params``."""
+    items = [f"{k}={v}" for k, v in params.items()]
+    if not items:
+        raise FieldError(
+            "params",
+            f"give the stiffness of every joint of {robot.chain.name}: k1=K1,...,k{robot.n}=K{robot.n} "
+            f"(N*mm/rad; N/mm for prismatic joints), or k_theta=K for all; there is no default",
+        )
+    try:
+        return joint_stiffnesses_from_text(items, robot.chain)
+    except FieldError:
+        raise
+    except ValueError as e:
+        raise FieldError("params", str(e)) from None
+
+
+def _build(d: RobotDescription) -> SerialRobot:
+    """The serial robot of a description (:class:`UrdfKeys`, ``configs`` or ``configurations_deg``)."""
+    allow_keys(d, *UrdfKeys.model_fields, "configs", "configurations_deg")
+    if not d.keys.get("tip_frame"):
+        raise FieldError(
+            "tip_frame", f"no tip frame: give the link of {d.file} that carries the measured point"
+        )
+    offset = d.keys.get("tip_offset_mm") or (0.0, 0.0, 0.0)
+    rpy = d.keys.get("tool_rpy_deg")
+    seed = d.keys.get("q_seed_deg")
+    robot = SerialRobot.from_urdf(
+        d.file,
+        d.keys["tip_frame"],
+        offset,
+        k_theta=1.0,
+        tool_rotation=None if rpy is None else matrix_from_euler(np.radians(rpy)),
+        q_seed=None if seed is None else np.radians(seed),
+    )
+    k = _joint_stiffnesses(d.params, robot)
+    Q = _configurations(d, robot)
+    return robot.with_params(k_theta=k, configurations=Q)
+
+
+def _configurations(d: RobotDescription, robot: SerialRobot) -> np.ndarray | None:
+    """The joint configurations of the positions: a file (``configs``) or degrees (rad out)."""
+    if d.keys.get("configs") is not None:
+        return read_configuration_rows(d.keys["configs"], robot.chain)[0]
+    q = d.keys.get("configurations_deg")
+    if q is None:
+        return None
+    Q = np.radians(np.asarray(q, dtype=float))
+    if Q.ndim != 2 or Q.shape[1] != robot.n:
+        raise FieldError(
+            "configurations_deg",
+            f"{Q.shape[-1] if Q.ndim else 0} joint values per position; {robot.chain.name} has "
+            f"{robot.n} joints ({', '.join(robot.chain.joint_names)})",
+        )
+    return Q
+
+
+def _arm6(params: Mapping[str, float] | None = None, **kw):
+    """stiffmap's six-joint arm as the test-bed's virtual robot (a 6x6 field)."""
+    return serial_robot(arm6.model().with_params(**(params or {})), **kw)
+
+
+URDF_KIND = RobotKind(
+    name=SerialRobot.name,
+    summary="a serial robot from its URDF, with a spring at every joint (k1 .. kn)",
+    build=_build,
+    dim=3,
+    file="URDF",
+    file_example="ROBOT.urdf",
+    file_key="urdf",
+    builtin_files=BUILTIN_URDFS,
+    builtin_defaults={
+        "arm6": RobotDescription(
+            SerialRobot.name,
+            {f"k{i}": k for i, k in enumerate(arm6.K_THETA, start=1)},
+            None,
+            {
+                "tip_frame": arm6.TIP_FRAME,
+                "tip_offset_mm": arm6.TIP_OFFSET_MM,
+                "tool_rpy_deg": (0.0, 180.0, 0.0),  # arm6.TOOL_ROTATION: the tool pointing down
+                "q_seed_deg": list(arm6.Q_SEED_DEG),
+            },
+        )
+    },
+    keys=UrdfKeys,
+    options={"--tip": "tip_frame", "--tip-offset-mm": "tip_offset_mm"},
+    positions={"arm20": arm6.positions20},
+    configurations=True,
+    joint_params=True,
+    takes_load_point=True,
+    testbed=TestBed(
+        name="arm6",
+        instrument="camera",
+        positions="arm20",
+        robot=_arm6,
+        scene=arm_scene,
+        load_point_mm=arm6.LOAD_POINT_MM,
+        rotations=True,
+    ),
+)
