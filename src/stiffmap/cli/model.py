@@ -39,10 +39,36 @@ _CONFIGS_HELP = (
 )
 
 
-def _robot(cmd: str, mechanism: str, robot, param, tip, tip_offset, configs):
+_BASE_HELP = (
+    "urdf: the link the measurements are expressed in, when it is not the URDF's root (a two-armed "
+    "robot's torso, a mobile manipulator's arm base); the joints above it are held, not fitted."
+)
+_XACRO_ARG_HELP = "urdf: an argument NAME=VALUE of a .xacro description (repeatable)."
+_PACKAGE_PATH_HELP = (
+    "urdf: a folder where a .xacro description's $(find PKG) looks (repeatable; then ROS_PACKAGE_PATH)."
+)
+_LINKS_HELP = (
+    "urdf: TOML of flexible links ([[links]]: beam data or a 6x6 compliance, docs/models.md); their "
+    "parameters E_<name>, G_<name>, f_<name> join the joints'."
+)
+
+
+def _robot(cmd: str, mechanism: str, robot, param, configs, options: dict):
     """The model of the command line's kind and options (InputError in the options' terms)."""
-    options = {"--tip": tip, "--tip-offset-mm": tip_offset}
-    return robot_from_command(mechanism, robot, param or [], options, configs=configs, command=cmd)
+    given = {k: (v or None) if isinstance(v, list) else v for k, v in options.items()}
+    return robot_from_command(mechanism, robot, param or [], given, configs=configs, command=cmd)
+
+
+def _options(tip, tip_offset, base, xacro_arg, package_path, links) -> dict:
+    """The kind-specific options of the command line, by their names."""
+    return {
+        "--tip": tip,
+        "--tip-offset-mm": tip_offset,
+        "--base": base,
+        "--xacro-arg": xacro_arg,
+        "--package-path": package_path,
+        "--links": None if links is None else str(links),
+    }
 
 
 def model(
@@ -80,6 +106,10 @@ def model(
     ),
     tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
     tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
+    base: str = typer.Option(None, "--base", help=_BASE_HELP),
+    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP),
+    package_path: list[str] = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP),
+    links: Path = typer.Option(None, "--links", help=_LINKS_HELP),
     configs: Path = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
     as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
@@ -114,7 +144,14 @@ def model(
         raise InputError("--json and --csv are exclusive")
     elif grid is not None and points is not None:
         raise InputError("--grid and --points are exclusive")
-    m = _robot("model", mechanism, robot, param, tip, tip_offset, configs)
+    m = _robot(
+        "model",
+        mechanism,
+        robot,
+        param,
+        configs,
+        _options(tip, tip_offset, base, xacro_arg, package_path, links),
+    )
     if kind.configurations:
         _model_configurations(m, configs, as_json, output)
         return
@@ -290,6 +327,10 @@ def fit(
     ),
     tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
     tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
+    base: str = typer.Option(None, "--base", help=_BASE_HELP),
+    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP),
+    package_path: list[str] = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP),
+    links: Path = typer.Option(None, "--links", help=_LINKS_HELP),
     configs: Path = typer.Option(
         None,
         CONFIGS_OPTION,
@@ -326,7 +367,14 @@ def fit(
                 f"by one ('stiffmap fit urdf ROBOT.urdf MEASUREMENTS'; got {', '.join(map(str, files))})"
             )
         robot_file, (measurements,) = None, files
-    m = _robot("fit", mechanism, robot_file, param, tip, tip_offset, configs)
+    m = _robot(
+        "fit",
+        mechanism,
+        robot_file,
+        param,
+        configs,
+        _options(tip, tip_offset, base, xacro_arg, package_path, links),
+    )
     with options_named(command_names(kind)):
         names = kind.fitted_names(m, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:

@@ -45,8 +45,11 @@ def refuse_options(kind: RobotKind, given: Mapping[str, object]) -> None:
         raise InputError(f"{opt} is for {takers}, not {kind.name}")
 
 
-def _option_value(text: str):
-    """An option's text as the kind's key takes it: numbers ``x,y,z`` as a tuple, else the text."""
+def _option_value(text):
+    """An option's text as the kind's key takes it: numbers ``x,y,z`` as a tuple, else the text;
+    a repeatable option's texts as a list of texts."""
+    if isinstance(text, (list, tuple)):
+        return [str(t) for t in text]
     parts = str(text).split(",")
     try:
         return tuple(float(p) for p in parts) if len(parts) > 1 else str(text)

@@ -146,7 +146,8 @@ class RobotKind:
         Unit of each parameter (N-mm-MPa); :meth:`param_unit` also knows ``k1`` .. ``kn``
         when :attr:`joint_params` is set.
     default_fit : tuple of str or None
-        Parameters fitted when none are named; None: every parameter of the model.
+        Parameters fitted when none are named; None: the model's ``default_fit()`` when it
+        has one, else every parameter of the model.
     default_load : (float, str) or None
         ``stiffmap model``'s force when none is given: magnitude (N) and direction.
     positions : mapping of str to callable
@@ -171,6 +172,10 @@ class RobotKind:
     keys : type of pydantic BaseModel, optional
         The kind's own campaign.toml keys beside ``model``, ``params``, ``fit`` and
         :attr:`file_key` (validated by it; their names are :class:`RobotDescription` keys).
+    path_keys : tuple of str
+        Its keys that name files or folders (a path, or a list of them): relative to the
+        campaign folder in campaign.toml (:mod:`stiffmap.campaign.robot` resolves them), to
+        the working directory on the command line.
     options : mapping of str to str
         The command-line options it takes beyond ``--param`` (option -> key), e.g.
         ``{"--tip": "tip_frame"}``; the others are refused for it.
@@ -204,6 +209,7 @@ class RobotKind:
     builtin_files: Mapping[str, str] = field(default_factory=dict)
     builtin_defaults: Mapping[str, RobotDescription] = field(default_factory=dict)
     keys: type[BaseModel] | None = None
+    path_keys: tuple[str, ...] = ()
     options: Mapping[str, str] = field(default_factory=dict)
     configurations: bool = False
     joint_params: bool = False
@@ -236,7 +242,12 @@ class RobotKind:
             Field ``"fit"``: a name that is not a parameter of ``model``.
         """
         valid = model.param_names() if hasattr(model, "param_names") else tuple(model.params())
-        default = list(self.default_fit) if self.default_fit is not None else list(valid)
+        if self.default_fit is not None:
+            default = list(self.default_fit)
+        elif hasattr(model, "default_fit"):  # the model's own (a URDF robot: not a rigid mimic spring)
+            default = list(model.default_fit())
+        else:
+            default = list(valid)
         names: list[str] = []
         for item in fit or default:
             names.extend(s.strip() for s in item.split(",") if s.strip())
