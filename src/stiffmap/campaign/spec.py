@@ -196,6 +196,7 @@ def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
 
 #: Joint-stiffness parameters of a serial robot: k1, k2, ... (N*mm/rad or N/mm).
 _JOINT_PARAM = re.compile(r"k[1-9][0-9]?")
+_LINK_PARAM = re.compile(r"[EGf]_[A-Za-z0-9_]{1,100}")
 Angle = Annotated[Finite, _between(-3600.0, 3600.0, "degrees")]
 
 
@@ -290,11 +291,17 @@ class RobotSpec(_Spec):
 
     def _check_joint_params(self, kind: RobotKind) -> None:
         """A serial robot's parameters are its joints' stiffnesses k1, k2, ..., positive."""
-        bad = [k for k in list(self.params) + list(self.fit or ()) if not _JOINT_PARAM.fullmatch(k)]
+        links = self.keys.get("links") is not None  # flexible links' E_<name>, G_<name>, f_<name> too
+        bad = [
+            k
+            for k in list(self.params) + list(self.fit or ())
+            if not (_JOINT_PARAM.fullmatch(k) or (links and _LINK_PARAM.fullmatch(k)))
+        ]
         if bad:
             raise ValueError(
                 f"robot.params / robot.fit: {bad[0]!r} is not a joint stiffness of a {kind.name} robot; "
                 "its parameters are k1, k2, ... (N*mm/rad; N/mm for a prismatic joint)"
+                + (", and its links' E_<name>, G_<name> (MPa), f_<name>" if links else "")
             )
         if any(v <= 0 for v in self.params.values()):
             raise ValueError("robot.params: joint stiffnesses must be positive (N*mm/rad)")

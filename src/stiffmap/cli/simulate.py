@@ -27,6 +27,7 @@ from rich.progress import (
 )
 
 from ..campaign.simulate import (
+    CAMERA,
     SENSOR,
     CameraSimOptions,
     SensorSimOptions,
@@ -38,11 +39,19 @@ from ..campaign.simulate import (
 from ..campaign.simulated import SimSummary
 from ..campaign.simulated_sensor import SensorSimSummary
 from ..errors import InputError
-from ..kinds import DEFAULT_TESTBED, params_from_text
+from ..kinds import (
+    CONFIGS_OPTION,
+    DEFAULT_TESTBED,
+    command_names,
+    description_from_command,
+    kind_of_file,
+    params_from_text,
+)
 from ..parallel import Backend
 from ..sim.plan import SimulationPlan
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from .common import dask_option, err, fmt, options_named, print_json, print_summary, three_numbers
+from .model import _BASE_HELP, _LINKS_HELP, _OFFSET_HELP, _PACKAGE_PATH_HELP, _TIP_HELP, _XACRO_ARG_HELP
 
 
 class ImageFormat(StrEnum):
@@ -129,6 +138,30 @@ def _load_point(text: str | None):
     if lp is None:
         raise InputError(f"--load-point-mm {text!r}: expected x,y,z in mm")
     return lp
+
+
+def _own_robot(robot: str, param, options: dict, configs):
+    """``--robot FILE``: the description of a robot of the user's own (None for a test-bed robot),
+    and the names of the library's fields as this command's options."""
+    kind = kind_of_file(robot) if robot not in testbed_robots() else None
+    given = {k: v for k, v in options.items() if v is not None}
+    if configs is not None:
+        given[CONFIGS_OPTION] = configs
+    if kind is None:
+        if given:
+            raise InputError(
+                f"{', '.join(given)}: for a robot of your own (--robot FILE.urdf or .xacro), not the "
+                f"test-bed's {robot}"
+            )
+        return None, _OPTION_NAMES
+    if not Path(robot).is_file():
+        raise InputError(
+            f"--robot {robot}: no such file (a test-bed robot is one of {', '.join(testbed_robots())})"
+        )
+    d = description_from_command(
+        kind.name, robot, param or [], options, configs=configs, command="simulate", configs_required=False
+    )
+    return d, {**_OPTION_NAMES, **command_names(kind), "file": "--robot"}
 
 
 def simulate(
@@ -251,6 +284,20 @@ def simulate(
     name: str = typer.Option(
         None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
     ),
+    tip: str = typer.Option(None, "--tip", help=f"--robot FILE: {_TIP_HELP}", show_default=False),
+    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=f"--robot FILE: {_OFFSET_HELP}"),
+    base: str = typer.Option(None, "--base", help=f"--robot FILE: {_BASE_HELP}"),
+    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=f"--robot FILE: {_XACRO_ARG_HELP}"),
+    package_path: list[str] = typer.Option(
+        None, "--package-path", help=f"--robot FILE: {_PACKAGE_PATH_HELP}"
+    ),
+    links: Path = typer.Option(None, "--links", help=f"--robot FILE: {_LINKS_HELP}"),
+    configs: Path = typer.Option(
+        None,
+        "--configs",
+        help="--robot FILE: CSV of joint configurations (columns named after the joints, or "
+        "q1_deg..qn_deg; mm for a prismatic joint): the positions, their measured points.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary instead of a table."),
 ) -> None:
     """Simulate a vision campaign of a robot with known stiffness, seen by a known camera.
@@ -264,17 +311,31 @@ def simulate(
     from views of the board seen by the cameras together, and one image per camera in each
     image set (campaign.toml's [cameras]).
     """
-    with options_named(_OPTION_NAMES):
-        _, tb = testbed(robot)
-    _refuse_options_of_the_other_instrument(ctx, robot, tb.instrument)
+    own = {
+        "--tip": tip,
+        "--tip-offset-mm": tip_offset,
+        "--base": base,
+        "--xacro-arg": xacro_arg or None,
+        "--package-path": package_path or None,
+        "--links": None if links is None else str(links),
+    }
+    description, names = _own_robot(robot, param, own, configs)
+    if description is None:
+        with options_named(_OPTION_NAMES):
+            _, tb = testbed(robot)
+        instrument = tb.instrument
+    else:
+        instrument = CAMERA
+    _refuse_options_of_the_other_instrument(ctx, robot, instrument)
     command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
-    with options_named(_OPTION_NAMES):
+    with options_named(names):
         request = SimulationRequest(
             robot=robot, positions=positions, select=select, repeats=repeats, seed=seed,
-            params=params_from_text(param), name=name, force=force, command=command,
+            params={} if description else params_from_text(param), name=name, force=force, command=command,
+            description=description,
         )  # fmt: skip
-    if tb.instrument == SENSOR:
-        with options_named(_OPTION_NAMES):
+    if instrument == SENSOR:
+        with options_named(names):
             s = simulate_campaign(out_dir, request, sensor=SensorSimOptions(directions, trace_format))
         _print_sensor_summary(s, request.seed, as_json)
         return
@@ -285,7 +346,7 @@ def simulate(
         calibration_views=_calibration_views(ctx, calibration_views, true_camera), cameras=cameras,
         camera_angle_deg=camera_angle_deg, truth_only=truth_only, workers=workers, dask=dask,
     )  # fmt: skip
-    with _rendering(out_dir, show=not (as_json or truth_only)) as view, options_named(_OPTION_NAMES):
+    with _rendering(out_dir, show=not (as_json or truth_only)) as view, options_named(names):
         summary = simulate_campaign(
             out_dir, request, camera=options, progress=view.progress, notify=view.notify
         )

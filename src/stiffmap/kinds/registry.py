@@ -47,6 +47,7 @@ __all__ = [
     "registered",
     "robot_kind",
     "kind_names",
+    "kind_of_file",
     "build_robot",
     "robot_from_options",
     "params_from_text",
@@ -111,6 +112,11 @@ class TestBed:
         refused.
     campaign_name : str
         The simulated campaign's name when none is given.
+    own : callable, optional
+        A user's own robot of the kind on the test-bed (``stiffmap simulate --robot FILE``):
+        ``own(model, description, **virtual_robot_fields)`` -> its virtual robot, seen by a
+        camera; its positions are its model's configurations' measured points (or points
+        given), the scene the demo's moved to look at them.
     """
 
     __test__ = False  # not a pytest test class
@@ -123,6 +129,7 @@ class TestBed:
     load_point_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotations: bool = False
     campaign_name: str = "virtual test-bed"
+    own: Callable[..., Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -161,6 +168,9 @@ class RobotKind:
         How usage texts show that file (``ROBOT.urdf``).
     file_key : str or None
         The campaign.toml key of that file (``robot.urdf``, ``robot.legs``).
+    file_suffixes : tuple of str
+        The endings of its files (``.urdf``, ``.xacro``), lower case: ``stiffmap simulate
+        --robot FILE`` takes a file so named as a robot of this kind (:func:`kind_of_file`).
     builtin_defaults : mapping of str to RobotDescription
         A shipped file's own parameters and keys (its springs, tool point, tool orientation,
         seed), by the file's name: what a command that offers them takes when the user names
@@ -206,6 +216,7 @@ class RobotKind:
     file: str | None = None
     file_example: str = "ROBOT"
     file_key: str | None = None
+    file_suffixes: tuple[str, ...] = ()
     builtin_files: Mapping[str, str] = field(default_factory=dict)
     builtin_defaults: Mapping[str, RobotDescription] = field(default_factory=dict)
     keys: type[BaseModel] | None = None
@@ -319,6 +330,12 @@ def robot_kind(name: str) -> RobotKind:
             "kind", f"unknown robot kind {name!r}; expected one of {', '.join(ROBOT_KINDS)}", value=name
         )
     return kind
+
+
+def kind_of_file(path: str | Path) -> RobotKind | None:
+    """The kind whose files end as ``path`` does (:attr:`RobotKind.file_suffixes`), or None."""
+    name = str(path).lower()
+    return next((k for k in ROBOT_KINDS.values() if any(name.endswith(x) for x in k.file_suffixes)), None)
 
 
 def params_from_text(items: Sequence[str]) -> dict[str, str]:

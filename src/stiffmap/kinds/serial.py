@@ -202,6 +202,11 @@ def _configurations(d: RobotDescription, robot: SerialRobot) -> np.ndarray | Non
     return _radians(Q, robot.chain.joint_types, "configurations_deg")
 
 
+def _own(model: SerialRobot, d: RobotDescription, **kw):
+    """A user's own URDF robot on the test-bed: its model's 6x6 field, its files for the campaign."""
+    return serial_robot(model, links_file=d.keys.get("links"), **kw)
+
+
 def _arm6(params: Mapping[str, float] | None = None, **kw):
     """stiffmap's six-joint arm as the test-bed's virtual robot (a 6x6 field)."""
     return serial_robot(arm6.model().with_params(**(params or {})), **kw)
@@ -215,6 +220,7 @@ URDF_KIND = RobotKind(
     file="URDF",
     file_example="ROBOT.urdf",
     file_key="urdf",
+    file_suffixes=(".urdf", ".xacro"),
     builtin_files=BUILTIN_URDFS,
     builtin_defaults={
         "arm6": RobotDescription(
@@ -251,5 +257,6 @@ URDF_KIND = RobotKind(
         scene=arm_scene,
         load_point_mm=arm6.LOAD_POINT_MM,
         rotations=True,
+        own=_own,
     ),
 )
