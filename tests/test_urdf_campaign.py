@@ -141,3 +141,29 @@ def test_a_xacro_description_with_a_flexible_link_makes_a_campaign_without_xacro
     rigid = campaign_model(spec.model_copy(update={"robot": spec.robot.model_copy(
         update={"params": {**spec.robot.params, "E_upper": 7e10, "G_upper": 2.6e10}})}), root)  # fmt: skip
     assert np.max(np.abs(rigid.evaluate(P).K / model.evaluate(P).K - 1)) > 0.01  # the link is felt
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--robot", "arm6", "--tip", "tool0"], "--tip: for a robot of your own (--robot FILE.urdf"),
+        (["--robot", "nowhere.urdf"], "--robot nowhere.urdf: no such file"),
+        (["--robot", str(CLUTTERED), "--base", "base_link", "--configs", str(CONFIGS)], "--tip is required"),
+        (["--robot", str(CLUTTERED), "--base", "base_link", "--tip", "r_tool0", "--param", "k_theta=1e7"],
+         "--positions: give the positions"),
+        (["--robot", str(CLUTTERED), "--base", "l_arm_base", "--tip", "r_tool0", "--configs", str(CONFIGS)],
+         "tip frame 'r_tool0' is not below base frame 'l_arm_base'"),
+    ],
+)  # fmt: skip
+def test_a_robot_of_ones_own_that_cannot_be_simulated_is_one_line(
+    tmp_path, monkeypatch, capsys, args, message
+):
+    from helpers.cli_process import run_in_process
+
+    code, out, err = run_in_process(
+        ["simulate", tmp_path / "out", *args, "--truth-only"], monkeypatch, capsys
+    )
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+    assert message in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()

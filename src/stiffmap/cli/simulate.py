@@ -53,6 +53,19 @@ from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from .common import dask_option, err, fmt, options_named, print_json, print_summary, three_numbers
 from .model import _BASE_HELP, _LINKS_HELP, _OFFSET_HELP, _PACKAGE_PATH_HELP, _TIP_HELP, _XACRO_ARG_HELP
 
+#: The help of the options of a robot of one's own (--robot FILE), as 'stiffmap model urdf' says them.
+_OWN_HELP = {
+    name: "--robot FILE: " + text.removeprefix("urdf: ")
+    for name, text in (
+        ("_TIP_HELP", _TIP_HELP),
+        ("_OFFSET_HELP", _OFFSET_HELP),
+        ("_BASE_HELP", _BASE_HELP),
+        ("_XACRO_ARG_HELP", _XACRO_ARG_HELP),
+        ("_PACKAGE_PATH_HELP", _PACKAGE_PATH_HELP),
+        ("_LINKS_HELP", _LINKS_HELP),
+    )
+}
+
 
 class ImageFormat(StrEnum):
     png = "png"
@@ -176,7 +189,9 @@ def simulate(
         + ", ".join(testbed_robots())
         + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
         "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
-        "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'.",
+        "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'. "
+        "Or a robot of your own, its description ROBOT.urdf or .xacro, with --tip, --configs, --param "
+        "k_theta=... (and --base, --xacro-arg, --package-path, --links as 'stiffmap model urdf').",
     ),
     positions: str = typer.Option(
         None,
@@ -284,14 +299,12 @@ def simulate(
     name: str = typer.Option(
         None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
     ),
-    tip: str = typer.Option(None, "--tip", help=f"--robot FILE: {_TIP_HELP}", show_default=False),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=f"--robot FILE: {_OFFSET_HELP}"),
-    base: str = typer.Option(None, "--base", help=f"--robot FILE: {_BASE_HELP}"),
-    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=f"--robot FILE: {_XACRO_ARG_HELP}"),
-    package_path: list[str] = typer.Option(
-        None, "--package-path", help=f"--robot FILE: {_PACKAGE_PATH_HELP}"
-    ),
-    links: Path = typer.Option(None, "--links", help=f"--robot FILE: {_LINKS_HELP}"),
+    tip: str = typer.Option(None, "--tip", help=_OWN_HELP["_TIP_HELP"], show_default=False),
+    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OWN_HELP["_OFFSET_HELP"]),
+    base: str = typer.Option(None, "--base", help=_OWN_HELP["_BASE_HELP"]),
+    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=_OWN_HELP["_XACRO_ARG_HELP"]),
+    package_path: list[str] = typer.Option(None, "--package-path", help=_OWN_HELP["_PACKAGE_PATH_HELP"]),
+    links: Path = typer.Option(None, "--links", help=_OWN_HELP["_LINKS_HELP"]),
     configs: Path = typer.Option(
         None,
         "--configs",
