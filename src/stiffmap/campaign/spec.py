@@ -259,6 +259,11 @@ class RobotSpec(_Spec):
             if not isinstance(value, str):
                 raise ValueError(f"robot.{kind.file_key} = expected a file name (text), got {value!r}")
             _check_path_text(value, f"robot.{kind.file_key}")
+        for key in kind.path_keys:  # files and folders named by the kind's own keys (a URDF's links)
+            value = self.keys.get(key)
+            for text in value if isinstance(value, list) else [value]:
+                if isinstance(text, str):
+                    _check_path_text(text, f"robot.{key}")
         try:
             check_keys(kind, {k: v for k, v in self.keys.items() if k != kind.file_key})
         except FieldError as e:
