@@ -21,6 +21,7 @@ from stiffmap.campaign.spec import load_spec
 from stiffmap.campaign.store import DB_NAME, Store, to_json
 from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main as stiffmap
+from stiffmap.errors import InputError
 from stiffmap.models.io import read_configuration_rows
 
 ROBOTS = Path(__file__).parent / "robots"
@@ -167,3 +168,38 @@ def test_a_robot_of_ones_own_that_cannot_be_simulated_is_one_line(
     assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
     assert message in lines[0], lines[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_campaign_toml_reads_a_xacro_description_with_its_packages_in_the_campaign_folder(
+    tmp_path, monkeypatch
+):
+    """urdf = a .xacro, xacro_args, package_paths relative to the campaign folder (not the working
+    directory): the K of the pre-expanded URDF; a wrong argument named by its key."""
+    import shutil
+
+    from stiffmap.models.serial import SerialRobot
+
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    monkeypatch.chdir(tmp_path)
+    root = tmp_path / "campaign"
+    shutil.copytree(XACRO_WS, root / "ws")
+    robot = (
+        '[robot]\nmodel = "urdf"\nurdf = "ws/acme_description/urdf/acme_rs6.urdf.xacro"\n'
+        'xacro_args = {mount_height = "0.4"}\npackage_paths = ["ws"]\ntip_frame = "tool0"\n'
+        "params = {k1 = 1e7, k2 = 1e7, k3 = 1e7, k4 = 1e7, k5 = 1e7, k6 = 1e7}\n"
+    )
+    rest = (
+        "[positions]\nq_deg = [[0.0, 20.0, 10.0, 30.0, 60.0, 0.0], [15.0, 10.0, 20.0, -30.0, 50.0, 40.0]]\n"
+        '[camera]\nfile = "camera.json"\n[targets.mobile]\nboard = "6x5"\nsquare_mm = 10.0\n'
+        '[loads]\npreset = "paper9"\n'
+    )
+    (root / "campaign.toml").write_text(f'name = "x"\nkind = "vision"\n{robot}{rest}')
+    spec = load_spec(root)
+    model = campaign_model(spec, root)
+    plain = SerialRobot.from_urdf(ROBOTS / "acme_rs6.urdf", "tool0", k_theta=1e7)
+    Q = np.radians([[0.0, 20.0, 10.0, 30.0, 60.0, 0.0], [15.0, 10.0, 20.0, -30.0, 50.0, 40.0]])
+    np.testing.assert_allclose(model.stiffness6(Q), plain.stiffness6(Q), rtol=1e-12)
+    (root / "campaign.toml").write_text(f'name = "x"\nkind = "vision"\n{robot.replace("0.4", "high")}{rest}')
+    with pytest.raises(InputError) as e:
+        campaign_model(load_spec(root), root)
+    assert "origin xyz" in str(e.value) and "\n" not in str(e.value), str(e.value)
