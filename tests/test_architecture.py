@@ -11,10 +11,9 @@ campaign measures with.
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
-
-import pytest
 
 from stiffmap.kinds import ROBOT_KINDS
 
@@ -35,13 +34,19 @@ SQL = re.compile(
 )
 
 
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    """A module's syntax tree, parsed once for all the rules."""
+    return ast.parse(path.read_text(encoding="utf-8"))
+
+
 def _rel(path: Path) -> str:
     return path.relative_to(SRC.parent).as_posix()
 
 
 def _function_level_imports(path: Path) -> list[tuple[int, str]]:
     """(line, module) of every stiffmap import made inside a function body."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    tree = _tree(path)
     found = []
 
     def visit(node: ast.AST, in_function: bool) -> None:
@@ -58,24 +63,22 @@ def _function_level_imports(path: Path) -> list[tuple[int, str]]:
     return found
 
 
-@pytest.mark.parametrize("path", MODULES, ids=_rel)
-def test_stiffmap_imports_stand_at_the_top(path):
+def test_stiffmap_imports_stand_at_the_top():
     late = [
         f"{_rel(path)}:{line} imports {mod} inside a function"
+        for path in MODULES
         for line, mod in _function_level_imports(path)
         if (_rel(path), mod) not in LAZY_IMPORTS
     ]
     assert not late, "\n".join(late)
 
 
-@pytest.mark.parametrize("path", MODULES, ids=_rel)
-def test_only_the_store_speaks_sql(path):
-    if _rel(path) == "stiffmap/campaign/store.py":
-        return
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+def test_only_the_store_speaks_sql():
     sql = [
         f"{_rel(path)}:{node.lineno}: {node.value.strip()[:60]!r}"
-        for node in ast.walk(tree)
+        for path in MODULES
+        if _rel(path) != "stiffmap/campaign/store.py"
+        for node in ast.walk(_tree(path))
         if isinstance(node, ast.Constant) and isinstance(node.value, str) and SQL.search(node.value)
     ]
     assert not sql, "SQL outside campaign/store.py:\n" + "\n".join(sql)
@@ -119,7 +122,7 @@ def _kind_names() -> set[str]:
 
 def _named(path: Path, names: set[str]) -> list[tuple[int, str]]:
     """(line, name) of every string constant of ``path`` that is one of ``names``."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    tree = _tree(path)
     return [
         (n.lineno, n.value)
         for n in ast.walk(tree)
@@ -129,7 +132,7 @@ def _named(path: Path, names: set[str]) -> list[tuple[int, str]]:
 
 def _compared(path: Path, names: set[str]) -> list[tuple[int, str]]:
     """(line, name) of every comparison of something with one of ``names`` (==, !=, in)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    tree = _tree(path)
     out = []
     for n in ast.walk(tree):
         if isinstance(n, ast.Compare):
@@ -139,26 +142,26 @@ def _compared(path: Path, names: set[str]) -> list[tuple[int, str]]:
     return out
 
 
-@pytest.mark.parametrize("path", MODULES, ids=_rel)
-def test_only_the_registry_names_robot_kinds(path):
+def test_only_the_registry_names_robot_kinds():
     """A kind's name outside the registry is a branch the next kind would have to find."""
-    rel = _rel(path)
-    if rel.startswith(KIND_HOMES):
-        return
+    names = _kind_names()
     found = [
-        f"{rel}:{line}: {name!r}"
-        for line, name in _named(path, _kind_names())
-        if (rel, name) not in KIND_NAME_REASONS
+        f"{_rel(path)}:{line}: {name!r}"
+        for path in MODULES
+        if not _rel(path).startswith(KIND_HOMES)
+        for line, name in _named(path, names)
+        if (_rel(path), name) not in KIND_NAME_REASONS
     ]
     assert not found, "robot kinds named outside stiffmap.kinds:\n" + "\n".join(found)
 
 
-@pytest.mark.parametrize("path", MODULES, ids=_rel)
-def test_only_the_instruments_registry_branches_on_the_campaign_kind(path):
-    rel = _rel(path)
-    if rel in INSTRUMENT_HOMES or rel in INSTRUMENT_REASONS:
-        return
-    found = [f"{rel}:{line}: {name!r}" for line, name in _compared(path, {"vision", "sensor"})]
+def test_only_the_instruments_registry_branches_on_the_campaign_kind():
+    found = [
+        f"{_rel(path)}:{line}: {name!r}"
+        for path in MODULES
+        if _rel(path) not in INSTRUMENT_HOMES and _rel(path) not in INSTRUMENT_REASONS
+        for line, name in _compared(path, {"vision", "sensor"})
+    ]
     assert not found, "campaign kinds compared outside campaign.instruments:\n" + "\n".join(found)
 
 

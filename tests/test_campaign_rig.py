@@ -102,6 +102,21 @@ def test_the_report_shows_each_cameras_residuals(rig_campaign):
     # cam2's pose: 60 degrees about the vertical from cam1.
     T = np.asarray(cams[1]["cam2rig"])
     assert np.degrees(np.arccos((np.trace(T[:3, :3]) - 1) / 2)) == pytest.approx(60.0, abs=1e-6)
+    # The image shown with its boards (the first camera's image of the first measured set): the
+    # corners projected from the measured poses fall on the true corners the test-bed rendered.
+    bi = data.board_image
+    assert bi.scale == 3.0  # 1944 px wide, shown a third
+    corners = load_truth(out).corners()
+    true = next(c for f, c in corners.items() if f.replace("{camera}", "cam1") == bi.name)
+    for board in ("mobile", "fixed"):
+        px = bi.corners_px[[b.startswith(board) for b in bi.corner_board]]
+        t = true["cameras"]["cam1"][board]["corners_px"]
+        d = np.linalg.norm(t[:, None] - px[None], axis=2).min(axis=1)
+        assert len(px) == len(t) and d.max() < 0.5, (board, d.max())  # px
+    # The set-up summary counts what the store holds: 1 position x (6 loaded + 1 unloaded) sets.
+    setup = {s.what: s.value for s in data.setup}
+    assert setup["images"] == "7 of 7 measured, 0 failed (1 position)"
+    assert setup["load cases"].startswith("6, 1 repeat(s) each: 1: 0.5 kg +y (0, 4.905, 0 N)")
 
 
 def test_the_exported_measurements_say_what_each_camera_gave(rig_campaign):

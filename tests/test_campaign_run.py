@@ -66,7 +66,7 @@ def _copy(src, dst):
 
 
 def _run(path, *args):
-    return run_stiffmap("run", path, "--quiet", "--no-report", *args)
+    return run_stiffmap("run", path, "--quiet", "--no-report", *args, columns=100)
 
 
 def test_killed_run_resumes_to_the_same_database(campaign, campaign_db, tmp_path):
@@ -179,7 +179,7 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
 @pytest.fixture(scope="module")
 def quick_demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "demo"
-    return run_stiffmap("demo", out, "--quick", "--workers", "2"), out
+    return run_stiffmap("demo", out, "--quick", "--workers", "2", columns=80), out
 
 
 @pytest.mark.long

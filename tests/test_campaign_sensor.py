@@ -11,6 +11,8 @@ from helpers.cli_process import run_stiffmap
 
 from stiffmap.models.presets import PRR3_MIDDLE_LINE, prr3_points22
 from stiffmap.models.prr3 import PRR3
+from stiffmap.report import load_report_data
+from stiffmap.report.figure_data import sensor_lines
 from stiffmap.sim.traces import simulate_point_traces
 
 
@@ -54,13 +56,24 @@ def test_sensor_campaign_recovers_kj_and_static_errors(tmp_path):
     assert fit["status"] == "ok"
     # The traces carry noise, drift and 16-bit quantisation; 16 recordings fix K_j well.
     assert fit["params"]["kj"] == pytest.approx(600.0, rel=0.01)
+    # The report's linearity figure: every recording's plateaus and the line fitted to them
+    # (least squares with an intercept: what it leaves sums to zero and is orthogonal to the load).
+    data = load_report_data(tmp_path / "report" / "data.json")
+    lin = sensor_lines(data)
+    assert len(lin.rows) == 16
+    for f, u, r in zip(lin.load, lin.displacement, lin.residual, strict=True):
+        assert len(f) >= 5 and np.ptp(f) > 400.0  # N: the stepped load up to 50 kgf
+        tol = 1e-9 * np.abs(u).max() * len(u)
+        assert abs(r.sum()) < tol and abs((r * (f - f.mean())).sum()) < tol * np.abs(f).max()
+    setup = {s.what: s.value for s in data.setup}
+    assert setup["recordings"] == "16 of 16 analysed, 0 failed" and setup["failures"] == "none"
     rows = {r["file"]: r for r in _csv(tmp_path / "exports" / "sensor_results.csv")}
     for i, t in enumerate(truths):
         measured_um = float(rows[f"rec/trace_{i:03d}.csv"]["static_error_um"])
         true_um = 1e3 * t.static_error_mm
         assert abs(measured_um - true_um) <= 1.0 + 0.01 * abs(true_um)
     # A second run reuses every recording.
-    again = run_stiffmap("run", tmp_path)
+    again = run_stiffmap("run", tmp_path, columns=80)
     assert again.returncode == 0, again.stderr
     assert "16 recordings: 0 analysed, 16 unchanged" in again.stdout
 
@@ -77,11 +90,19 @@ def test_a_bad_recording_is_named_and_the_others_go_on(tmp_path):
         cells[j] = "8.0"
         rows[k] = ",".join(cells)
     bad.write_text("\n".join([head, *rows]) + "\n")
-    proc = run_stiffmap("run", tmp_path)
+    proc = run_stiffmap("run", tmp_path, merged=True)  # stdout and stderr as a terminal shows them
     assert proc.returncode == 1
-    assert "rec/trace_003.csv" in proc.stderr and "satur" in proc.stderr
-    assert "Traceback" not in proc.stderr
-    assert "model fit" not in proc.stderr  # the fit went on with the 15 others
+    assert "rec/trace_003.csv" in proc.stdout and "satur" in proc.stdout
+    assert "Traceback" not in proc.stdout
+    warnings = [ln for ln in proc.stdout.splitlines() if ln.startswith("warning:")]
+    assert not any("model fit" in ln for ln in warnings)  # the fit went on with the 15 others
+    # The warnings come before the summary, which ends with "done" (issue 26: a warning after it).
+    lines = proc.stdout.strip().splitlines()
+    assert lines[-1].startswith("done in"), proc.stdout
+    assert max(i for i, ln in enumerate(lines) if ln.startswith("warning:")) < lines.index(lines[-1])
+    assert max(i for i, ln in enumerate(lines) if ln.startswith("warning:")) < min(
+        i for i, ln in enumerate(lines) if ln.startswith("results:")
+    )
 
 
 def test_sign_mistakes_and_unreachable_points_are_left_out_of_the_fit_by_name(tmp_path):

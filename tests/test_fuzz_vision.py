@@ -312,11 +312,11 @@ def test_a_bad_image_is_one_named_warning_without_decoder_noise(lab):
     r = run_stiffmap(
         "calibrate", *views, lab / "tiny.png", "--board", "7x6", "--square-mm", "20", "--out", lab / "c.json"
     )
-    assert r.returncode == 1 and "Traceback" not in r.stderr
-    assert [ln for ln in r.stderr.splitlines() if ln.startswith("warning")] == [
-        f"warning: {lab / 'tiny.png'}: not used: {lab / 'tiny.png'}: image is 2x2 px; a board image needs at "
-        "least 8x8 px"
-    ] or "tiny.png" in r.stderr
+    # A view left out of a good calibration is a note (status 0), not a warning.
+    assert r.returncode == 0 and "Traceback" not in r.stderr and "warning:" not in r.stderr, r.stderr
+    assert [ln for ln in r.stderr.splitlines() if ln.startswith("note")] == [
+        f"note: not used: {lab / 'tiny.png'}: image is 2x2 px; a board image needs at least 8x8 px"
+    ]
 
 
 @pytest.mark.parametrize(
@@ -391,5 +391,5 @@ def test_an_image_the_manifest_lists_but_that_is_missing_names_the_manifest_line
     measure = ["--camera", lab / "camera.json", "--board", "7x6", "--square-mm", "10"]
     r = run_stiffmap("validate", lab / "stage_absent.csv", *measure, "--json")
     assert r.returncode == 1  # the others measured
-    assert_one_line_error(r, "stage_absent.csv, line 4:", "absent.png: image file not found")
+    assert_one_line_error(r, "stage_absent.csv, line 4:", "absent.png: no such file or folder")
     assert [s["n"] for s in json.loads(r.stdout)["steps"]] == [1, 1]

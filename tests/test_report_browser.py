@@ -6,6 +6,8 @@ Skipped, with a message, when no Chromium is installed (``apt-get install chromi
 
 from __future__ import annotations
 
+import cv2
+import numpy as np
 import pytest
 from helpers.report_cases import all_positions_failed
 
@@ -35,7 +37,10 @@ _DRIVE = r"""
   sel.value = "44";
   sel.dispatchEvent(new Event("change"));
   const detail = document.getElementById("fig-load-detail");
-  for (let k = 0; k < 100 && !String(detail.layout.title.text).startsWith("P45"); k++)
+  const lin = document.getElementById("fig-linearity");
+  const res = document.getElementById("fig-residual-detail");
+  const drawn = (d) => String(d.layout.title.text).startsWith("P45");
+  for (let k = 0; k < 100 && !(drawn(detail) && drawn(lin) && drawn(res)); k++)
     await new Promise((r) => setTimeout(r, 50));
   const cb = document.getElementById("only-flagged");
   cb.checked = true;
@@ -50,6 +55,8 @@ _DRIVE = r"""
     bars: detail.data[0].y.length,
     repeats: detail.data[2].y.length,
     webgl: document.querySelectorAll("#fig-map3d canvas").length,
+    linearity: [String(lin.layout.title.text), lin.data.length],
+    residuals: [String(res.layout.title.text), res.data.map((t) => t.y.length)],
     shown: shown.map((tr) => tr.className),
   };
 })()
@@ -58,19 +65,31 @@ _DRIVE = r"""
 
 def test_vision_report_renders_without_console_error(chromium, tmp_path) -> None:
     index = write_report(example_vision(), tmp_path, png=False)
-    r = check_page(index, script=_DRIVE, chromium=chromium, timeout=90)
+    shots = ("#setup", "#principal", "#fig-linearity", "#fig-residuals", "#fig-truth", "#fig-calibration")
+    r = check_page(index, script=_DRIVE, chromium=chromium, timeout=90, elements=(*shots, "#nothing"))
     assert r.ready, "the page did not signal that its figures were drawn"
     assert r.errors == (), r.errors
     assert r.external_requests == (), r.external_requests
     # Nothing but the page itself was loaded (plotly.js draws some icons from data: URIs).
     assert [u for u in r.requests if not u.startswith("data:")] == [index.resolve().as_uri()]
     res = r.result
-    assert res["figs"] == res["rendered"] == 8
+    assert res["figs"] == res["rendered"] == 12  # 8, and the ellipsoids, linearity and two of residuals
     assert res["options"] == 48
     assert res["title"].startswith("P45 (-200, 200, -400)")
     assert res["bars"] == 9 and res["repeats"] == 10
     assert res["webgl"] >= 1  # the 3D stiffness map drew on a WebGL canvas
+    # The chosen position's linearity (3 directions x 3 components, dots and line) and residuals
+    # (its 9 load cases x 10 repeats per component) were redrawn for it.
+    assert res["linearity"][0].startswith("P45 (-200, 200, -400)") and res["linearity"][1] == 18
+    assert res["residuals"][0].startswith("P45") and res["residuals"][1] == [90, 90, 90]
     assert sorted(res["shown"]) == ["failed", "failed", "flagged"]
+    # What docs/img/report_screenshots.py saves: each diagnostic as drawn, whole (the ellipsoids'
+    # section is taller than nothing), not a blank; None for a selector that matches nothing.
+    assert r.shots[-1] is None
+    for sel, png in zip(shots, r.shots, strict=False):
+        img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_GRAYSCALE)
+        assert img.shape[1] > 1000 and img.shape[0] > 150, (sel, img.shape)  # 1280 px window
+        assert (img < 128).mean() > 0.002, sel  # some ink: text, axes, markers
 
 
 def test_sensor_report_renders_without_console_error(chromium, tmp_path) -> None:
@@ -83,7 +102,7 @@ def test_sensor_report_renders_without_console_error(chromium, tmp_path) -> None
     assert r.ready
     assert r.errors == (), r.errors
     assert r.external_requests == ()
-    assert r.result == [True, True]
+    assert r.result == [True, True, True]  # maps, middle line, linearity
 
 
 def test_the_check_catches_console_errors_exceptions_and_failed_loads(chromium, tmp_path) -> None:

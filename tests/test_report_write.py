@@ -70,6 +70,7 @@ def test_vision_report_files_and_pngs(tmp_path) -> None:
         "planes_min_principal.png",
         "planes_det.png",
         "loads_per_position.png",
+        "residuals_per_position.png",
         "model_vs_measured.png",
         "recovered_vs_true.png",
         "calibration.png",
@@ -215,7 +216,11 @@ def test_sensor_report(tmp_path) -> None:
     assert names == {"index.html", "data.json", "static_error_maps.png", "static_error_middle_line.png"}
     page = index.read_text(encoding="utf-8")
     figs = _figures(page)
-    assert set(figs) == {"fig-sensor-maps", "fig-sensor-line"}
+    assert set(figs) == {"fig-sensor-maps", "fig-sensor-line", "fig-sensor-linearity"}
+    # Linearity: one menu entry per analysed recording (43 of 44), each drawing its plateaus,
+    # its line and what the line leaves.
+    lin = figs["fig-sensor-linearity"]
+    assert len(lin["layout"]["updatemenus"][0]["buttons"]) == 43 and len(lin["data"]) == 3 * 43
     assert "kj = " in page and "N/mm" in page
     assert "rec_13_x.csv: saturated from 12.1 s to 14.3 s" in page
     # The middle-line comparison: the 8 marked points of each direction, ordered by y.

@@ -117,7 +117,7 @@ def test_a_camera_whose_images_differ_in_size_is_named(lab):
 # -------------------------------------------------------------------------------- command
 def test_calibrate_rig_writes_rig_json_and_prints_the_stereo_result(lab):
     out = lab / "rig.json"
-    p = run_stiffmap("calibrate-rig", *_cameras(lab), *BOARD_ARGS, "--out", out)
+    p = run_stiffmap("calibrate-rig", *_cameras(lab), *BOARD_ARGS, "--out", out, columns=100)
     assert p.returncode == 0, p.stderr
     assert p.stderr.strip() == ""
     rig = load_rig(out)
@@ -153,9 +153,9 @@ def test_calibrate_rig_from_folders_names_the_image_it_left_out(lab):
     out = lab / "rig.json"
     cams = ("--camera", f"left={lab}/left", "--camera", f"right={lab}/right")
     p = run_stiffmap("calibrate-rig", *cams, *BOARD_ARGS, "--out", out, "--json")
-    assert p.returncode == 1, p.stderr
+    assert p.returncode == 0, p.stderr  # a good calibration that left a view out: a note, status 0
     lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("warning: "), p.stderr
+    assert len(lines) == 1 and lines[0].startswith("note: "), p.stderr
     assert "left16.png: not used by camera left" in lines[0]
     # --json prints the object rig.json holds.
     obj = json.loads(p.stdout)

@@ -266,13 +266,13 @@ def test_pose_with_a_rig_names_each_bad_image_and_goes_on(files):
     assert [c["name"] for c in rows[1]["cameras"]] == ["left", "right"]
     assert rows[1]["cameras"][1]["error"] and rows[1]["cameras"][0]["mobile"]["method"] == "corners"
     warnings = p.stderr.strip().splitlines()
-    assert any("right_01.png" in w and "not found" in w for w in warnings)  # image missing: named
+    assert any("right_01.png" in w and "no such file or folder" in w for w in warnings)  # missing: named
     assert any("{camera}_02.png: no camera saw the mobile target" in w for w in warnings)  # no board
     assert "Traceback" not in p.stderr
 
 
 def test_a_rig_file_that_does_not_match_the_images_is_named(files):
-    p = run_stiffmap("pose", "--rig", "rig_wrong.json", "{camera}_00.png", *BOARD_ARGS, cwd=files)
+    p = run_stiffmap("pose", "--rig", "rig_wrong.json", "{camera}_00.png", *BOARD_ARGS, cwd=files, columns=80)
     assert p.returncode == 1, p.stderr
     line = next(w for w in p.stderr.splitlines() if "right_00.png" in w)
     for needle in ("camera right", "1280x960", "1024x960", "rig_wrong.json (camera 'right')"):

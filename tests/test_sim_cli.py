@@ -35,7 +35,7 @@ def test_truth_only_json_summary(tmp_path):
     # No images, nothing to calibrate from: camera.json is the true camera, and the summary says so.
     assert info["calibration"]["camera_json"] == "true camera" and "truth only" in info["calibration"]["note"]
     assert truth.calibrated_camera is None and load_camera(out / "camera.json") == truth.camera
-    table = run_stiffmap("simulate", tmp_path / "t", "--select", "1", "--truth-only")
+    table = run_stiffmap("simulate", tmp_path / "t", "--select", "1", "--truth-only", columns=80)
     assert table.returncode == 0 and "the true camera: truth only" in table.stdout
 
 

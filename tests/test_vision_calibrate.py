@@ -172,4 +172,4 @@ def test_unreadable_and_missing_images_do_not_stop_calibration(calib_images, tmp
         and "6 of the views" in v[str(stray)].reason
     )
     assert not v[str(bad)].used and "cannot decode" in v[str(bad)].reason
-    assert "not found" in v[str(tmp_path / "missing.tif")].reason
+    assert "no such file or folder" in v[str(tmp_path / "missing.tif")].reason

@@ -67,8 +67,8 @@ def data(tmp_path_factory):
     return d, truth
 
 
-def _invoke(args):
-    return run_stiffmap(*args)
+def _invoke(args, columns: int = 200):
+    return run_stiffmap(*args, columns=columns)
 
 
 def _measure(command, d, board="7x6", camera="camera.json"):
@@ -101,7 +101,10 @@ def test_calibrate_the_real_photographs(tmp_path):
     assert abs(cam["cx"] - 303.14) <= 1.5 and abs(cam["cy"] - 242.57) <= 1.5
     assert max(cam["residual_std_px"]) <= 0.13
     assert set(cam["std"]) == {"fx", "fy", "cx", "cy", "dist"}
-    r = _invoke(["calibrate", *files[:5], "--board", "13x12", "--square-mm", "30", "--out", out, "--fix-k3"])
+    r = _invoke(
+        ["calibrate", *files[:5], "--board", "13x12", "--square-mm", "30", "--out", out, "--fix-k3"],
+        columns=80,
+    )
     assert r.returncode == 0
     assert "Focal Length:          fc = [ 6" in r.stdout and "Pixel error:" in r.stdout
     # The second calibration replaced camera.json; the first is kept beside it, not lost.
@@ -157,7 +160,7 @@ def test_pose_json_and_every_bad_input(data):
     assert "800x600" in by["big.png"]["error"] and "640x480" in by["big.png"]["error"]
     assert "camera.json" in by["big.png"]["error"]
     assert "no complete 7x6 chessboard" in by["hidden.png"]["error"]
-    assert "not found" in by["missing.png"]["error"]
+    assert "no such file or folder" in by["missing.png"]["error"]
     for f in files[1:-1]:
         assert by[f]["error"].startswith(str(d / f) + ":")
     # One warning line per failed image on stderr, no traceback.
@@ -171,7 +174,7 @@ def test_pose_table_wrong_board_size_and_all_failed(data):
     # The rendered board is 7x6: its size is named (the test-bed's truth).
     assert "the image shows a 7x6 chessboard (inner corners), not 6x5: did you mean --board 7x6?" in r.stderr
     assert "error: none of the 1 image(s) could be measured" in r.stderr
-    r = _invoke([*_measure("pose", d), d / "ref0.png"])
+    r = _invoke([*_measure("pose", d), d / "ref0.png"], columns=80)
     assert r.returncode == 0 and "board2cam of the 7x6 board" in r.stdout and "failed" not in r.stdout
 
 
@@ -203,7 +206,7 @@ def test_displacement_camera_and_base_frames(data):
     assert r.returncode == 1  # blank.png failed
     # A reference that cannot be read is a failure too, not a silent exit 0.
     refs = ["--reference", d / "ref0.png", "--reference", d / "nope.png"]
-    r2 = _invoke([*_measure("displacement", d), *refs, d / "moved0.png"])
+    r2 = _invoke([*_measure("displacement", d), *refs, d / "moved0.png"], columns=100)
     assert r2.returncode == 1 and "nope.png" in r2.stderr
     rows = json.loads(r.stdout)
     truth = displacement_from_poses(t["M0"], moved_pose(t["M0"], t["delta"]))
@@ -274,7 +277,7 @@ def test_validate_table_json_and_plot(data):
     assert res["n_reference"] == 2
     root = ET.fromstring(plot.read_text())
     assert root.tag.endswith("svg") and len(root.findall(".//{http://www.w3.org/2000/svg}circle")) == 4
-    r = _invoke([*_measure("validate", d), d / "stage.csv"])
+    r = _invoke([*_measure("validate", d), d / "stage.csv"], columns=80)
     assert r.returncode == 0 and "nominal" in r.stdout and "RMS error" in r.stdout
 
 

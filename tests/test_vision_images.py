@@ -98,7 +98,7 @@ def test_empty_missing_and_directory(tmp_path):
     empty.write_bytes(b"")
     with pytest.raises(ImageError, match=r"empty\.tif: empty file"):
         read_image(empty)
-    with pytest.raises(ImageError, match=r"nope\.png: image file not found"):
+    with pytest.raises(ImageError, match=r"nope\.png: no such file or folder"):
         read_image(tmp_path / "nope.png")
     with pytest.raises(ImageError, match="is a directory"):
         read_image(tmp_path)

@@ -115,4 +115,4 @@ def _assert_no_traceback(proc) -> None:
     assert "Traceback" not in proc.stderr, proc.stderr
     assert "internal error" not in proc.stderr, proc.stderr
     for line in proc.stderr.splitlines():
-        assert line.startswith(("warning:", "error:")), line
+        assert line.startswith(("warning:", "error:", "note:")), line

@@ -92,6 +92,7 @@ __all__ = [
     "LENS_MODELS",
     "PixelRays",
     "UndistortionError",
+    "RigFileAsCamera",
     "InvertibleField",
     "invertible_field",
     "pixel_rays",
@@ -557,6 +558,8 @@ class CameraModel:
                 source=source,
             )
         missing = [k for k in ("image_size", "fx", "fy", "cx", "cy", "dist") if k not in data]
+        if missing and "cameras" in data:
+            raise RigFileAsCamera(_rig_names(data["cameras"]), source=source)
         if missing:
             raise InputError(
                 f"missing key{'s' if len(missing) > 1 else ''} {', '.join(repr(k) for k in missing)}",
@@ -1049,6 +1052,27 @@ def reference_camera() -> CameraModel:
     )
 
 
+class RigFileAsCamera(InputError):
+    """A ``rig.json`` (several cameras) given where one camera's ``camera.json`` is read.
+
+    Its message says what the file is; the command line adds which option takes it.
+    """
+
+    def __init__(self, cameras: str, *, source: str | None = None) -> None:
+        super().__init__(
+            f"this is a rig file ({cameras}), not one camera's camera.json: measure with it as a rig",
+            source=source,
+        )
+        self.cameras = cameras
+
+
+def _rig_names(items: Any) -> str:
+    """``cameras 'left', 'right'``: the cameras a rig file's ``cameras`` list names, as far as it does."""
+    names = [c.get("name") for c in items if isinstance(c, dict)] if isinstance(items, list) else []
+    names = [repr(n) for n in names if isinstance(n, str)]
+    return f"cameras {', '.join(names)}" if names else "key 'cameras'"
+
+
 def load_camera(path: str | Path) -> CameraModel:
     """Read and validate a ``camera.json`` file (InputError naming the file and key)."""
     return CameraModel.from_dict(read_json(path, "camera file"), source=str(path))
@@ -1059,7 +1083,7 @@ def save_camera(camera: CameraModel, path: str | Path) -> Path | None:
 
     Returns the backup written, or None.
     """
-    return replace_keeping_previous(path, dumps_json(camera.to_dict()) + "\n")
+    return replace_keeping_previous(path, dumps_json(camera.to_dict(), inline_numbers=True) + "\n")
 
 
 # ------------------------------------------------------------------ invertible field

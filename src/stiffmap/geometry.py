@@ -160,6 +160,14 @@ def concat(a2b, b2c) -> np.ndarray:
     Returns
     -------
     a2c : ndarray, shape (..., 4, 4)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tool2flange = transform_from(np.eye(3), [0, 0, 100])
+    >>> flange2base = transform_from(matrix_from_euler([0, 0, np.pi / 2]), [300, 0, 0])
+    >>> transform_points(concat(tool2flange, flange2base), [0, 0, 0]).round(6)
+    array([300.,   0., 100.])
     """
     return _as_array(b2c, (4, 4), "b2c") @ _as_array(a2b, (4, 4), "a2b")
 
@@ -177,6 +185,17 @@ def transform_points(a2b, points_a) -> np.ndarray:
     -------
     ndarray, shape (..., 3)
         The same points in frame ``b``, mm.
+
+    Examples
+    --------
+    A camera 500 mm above the base looking down (its z along the base's -z):
+
+    >>> import numpy as np
+    >>> cam2base = transform_from(matrix_from_euler([np.pi, 0, 0]), [0, 0, 500])
+    >>> transform_points(cam2base, [10, 20, 400]).round(6)  # 400 mm in front of it
+    array([ 10., -20., 100.])
+    >>> transform_points(invert_transform(cam2base), [10, -20, 100]).round(6)
+    array([ 10.,  20., 400.])
     """
     T = _as_array(a2b, (4, 4), "a2b")
     p = _as_array(points_a, (3,), "points_a")
@@ -225,6 +244,17 @@ def matrix_from_euler(angles) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3, 3)
+
+    Examples
+    --------
+    A quarter turn about Z maps x to y; :func:`euler_from_matrix` gives the angles back:
+
+    >>> import numpy as np
+    >>> R = matrix_from_euler([0.1, -0.2, np.pi / 2])
+    >>> (R @ [1, 0, 0]).round(3)
+    array([0.   , 0.98 , 0.199])
+    >>> euler_from_matrix(R).round(6)
+    array([ 0.1     , -0.2     ,  1.570796])
     """
     a = _as_array(angles, (3,), "angles")
     psi, phi, theta = a[..., 0], a[..., 1], a[..., 2]
@@ -455,6 +485,16 @@ def stiffness_in_frame(K, a2b) -> np.ndarray:
         For 3x3, R K R^T (a translational stiffness does not depend on the point).
         For 6x6, the stiffness at the origin of ``a`` (same physical point),
         rotated into ``b``'s axes: blockdiag(R, R) K blockdiag(R, R)^T.
+
+    Examples
+    --------
+    A tool frame turned a quarter turn about z: its stiff x axis is the base's y axis.
+
+    >>> import numpy as np
+    >>> K_tool = np.diag([300.0, 50.0, 80.0])  # N/mm
+    >>> tool2base = transform_from(matrix_from_euler([0, 0, np.pi / 2]), [0, 0, 0])
+    >>> np.diag(stiffness_in_frame(K_tool, tool2base)).round(6)
+    array([ 50., 300.,  80.])
     """
     T = as_transform(a2b, "a2b")
     K = np.asarray(K, dtype=np.float64)

@@ -49,6 +49,7 @@ Covariances of K are over ``K.ravel()`` (row-major).
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from dataclasses import dataclass, field
 from typing import Literal
@@ -74,6 +75,7 @@ __all__ = [
     "identify_stiffness",
     "stiffness_indices",
     "physical_flags",
+    "flipped_axes",
     "directional_stiffness",
     "compliance_from_stiffness",
     "stiffness_from_compliance",
@@ -136,7 +138,90 @@ def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG
         flags.append(f"not positive definite: symmetric part has eigenvalue(s) {bad}")
     if idx.det <= 0:
         flags.append(f"det <= 0: det(K) = {idx.det:.4g}")
+    if np.any(w <= 0):
+        flags.append(_sign_hint(K))
     return tuple(flags)
+
+
+#: K's axes by its size, and their names as displacement and as load components.
+AXES = {2: ("x", "y"), 3: ("x", "y", "z"), 6: ("x", "y", "z", "rx", "ry", "rz")}
+_DISP_NAME = {"x": "dx", "y": "dy", "z": "dz", "rx": "rx", "ry": "ry", "rz": "rz"}
+_LOAD_NAME = {"x": "fx", "y": "fy", "z": "fz", "rx": "mx", "ry": "my", "rz": "mz"}
+
+
+def flipped_axes(K) -> tuple[tuple[int, ...], ...]:
+    """The smallest sets of axes whose sign, reversed, would make ``K`` positive definite.
+
+    A displacement recorded with the wrong sign along the axes of S = diag(+-1) turns the
+    robot's K into K S (its columns negated: the diagonal terms of those axes negative,
+    det(K) of the other sign when their number is odd); a load applied the wrong way, into
+    S K. Both have symmetric parts congruent to each other, so the test cannot tell them
+    apart: it names the axes, not which of the two was reversed.
+
+    Parameters
+    ----------
+    K : array_like, shape (m, m), m in (2, 3, 6)
+        Stiffness (N/mm for 3x3).
+
+    Returns
+    -------
+    tuple of tuple of int
+        Each set (axis indices, ascending) of the smallest size for which the symmetric
+        part of K S is positive definite; ``()`` when K is positive definite already or
+        when no set of axes makes it so.
+    """
+    K = check_stiffness_matrix(K)
+    m = K.shape[0]
+
+    def positive(signs: np.ndarray) -> bool:
+        Ks = K * signs[None, :]
+        return bool(np.all(np.linalg.eigvalsh(0.5 * (Ks + Ks.T)) > 0))
+
+    if positive(np.ones(m)):
+        return ()
+    for size in range(1, m + 1):
+        found = []
+        for axes in itertools.combinations(range(m), size):
+            signs = np.ones(m)
+            signs[list(axes)] = -1.0
+            if positive(signs):
+                found.append(axes)
+        if found:
+            return tuple(found)
+    return ()
+
+
+def _sign_hint(K: np.ndarray) -> str:
+    """The flag that names the axis (or axes) whose sign looks reversed, with the evidence."""
+    names = AXES[K.shape[0]]
+    negative = [f"K[{names[i]},{names[i]}] = {K[i, i]:.4g}" for i in range(K.shape[0]) if K[i, i] < 0]
+    found = flipped_axes(K)
+    diag = f"{', '.join(negative)} < 0" if negative else ""
+    if not found:
+        return f"axis sign: no reversal of axis signs makes K positive definite{f' ({diag})' if diag else ''}"
+
+    def one(axes: tuple[int, ...]) -> str:
+        ax = [names[i] for i in axes]
+        disp = ", ".join(_DISP_NAME[a] for a in ax)
+        load = ", ".join(_LOAD_NAME[a] for a in ax)
+        return f"{'/'.join(ax)} {'axis' if len(ax) == 1 else 'axes'} ({disp} or {load} of the wrong sign)"
+
+    if len(found) == 1 and len(found[0]) == K.shape[0]:
+        return (
+            f"axis sign: every axis looks reversed ({diag}): -K is positive definite; displacements "
+            "taken unloaded minus loaded, or loads of the opposite sign?"
+        )
+    if len(found) == 1:
+        return (
+            f"axis sign: the {one(found[0])} {'looks' if len(found[0]) == 1 else 'look'} reversed"
+            f"{f'; {diag}' if diag else ''}: with {'its sign' if len(found[0]) == 1 else 'their signs'} "
+            "reversed K is positive definite; check it (a sensor or camera axis the other way, a "
+            "mirror, a load applied backwards)"
+        )
+    return (
+        f"axis sign: reversing any one of the {'; '.join(one(a) for a in found)} would make K "
+        f"positive definite{f' ({diag})' if diag else ''}; check those axes' signs"
+    )
 
 
 @dataclass(frozen=True)
@@ -234,6 +319,12 @@ def _as_design(F, D, force_name: str, disp_name: str) -> tuple[np.ndarray, np.nd
     F = np.asarray(F, dtype=np.float64)
     D = np.asarray(D, dtype=np.float64)
     for a, name in ((F, force_name), (D, disp_name)):
+        if a.ndim == 2 and a.shape[0] not in (3, 6) and a.shape[1] in (3, 6):
+            # The files hold one row per load case; the arrays one column (docs/conventions.md).
+            raise ValueError(
+                f"{name} has shape {a.shape}: one row per load case, as in the CSV files? The "
+                f"arrays take one column per load case, shape ({a.shape[1]}, n): pass {name}.T"
+            )
         if a.ndim != 2 or a.shape[0] not in (3, 6):
             raise ValueError(
                 f"{name} must have shape (3, n) or (6, n) (one column per load case), got {a.shape}"
@@ -441,7 +532,11 @@ def identify_stiffness(
     ----------
     F : array_like, shape (m, n)
         Applied forces (N), or wrenches (N, N*mm) for m = 6; one column per
-        load case (repeats are extra columns with the same force).
+        load case (repeats are extra columns with the same force). The CSV files
+        hold one row per load case (``identify_from_files`` reads them so); an
+        array of rows, shape (n, m), is refused with the hint to pass ``F.T``, but a
+        square one (exactly 3 load cases of a 3x3 K) cannot be told apart: it is read
+        as columns (``docs/conventions.md``, "Loads and stiffness").
     D : array_like, shape (m, n)
         Measured displacements (mm; rad for rotations), same order.
     method : {"compliance", "paper", "spd"}
@@ -494,6 +589,21 @@ def identify_stiffness(
     -----
     IllConditionedWarning
         When the normalised load design has a condition number above 1e3.
+
+    Examples
+    --------
+    Six load cases of 5 N along +-x, +-y, +-z, three times each, on a known K (N/mm);
+    the displacements (mm) carry 0.1 um of noise:
+
+    >>> import numpy as np
+    >>> K = np.array([[60.0, 4.0, -2.0], [4.0, 45.0, 3.0], [-2.0, 3.0, 200.0]])
+    >>> F = np.hstack([5 * np.eye(3), -5 * np.eye(3)] * 3)  # N, shape (3, 18)
+    >>> D = np.linalg.solve(K, F) + np.random.default_rng(0).normal(0, 1e-4, F.shape)
+    >>> fit = identify_stiffness(F, D)
+    >>> fit.K.round().astype(int).tolist()
+    [[60, 4, -2], [4, 45, 3], [-2, 3, 200]]
+    >>> bool(np.all(np.abs(fit.K - K) < 4 * fit.K_std))  # within 4 sigma of the truth
+    True
     """
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import csv
+import difflib
 import json
 import math
 import os
@@ -42,7 +43,26 @@ __all__ = [
     "dumps_json",
     "ALLOW_OUTSIDE_OPTION",
     "leaves_directory",
+    "no_such_path",
 ]
+
+
+def no_such_path(path: str | os.PathLike) -> str:
+    """What to say of a path that does not exist: ``no such file or folder``, and the closest
+    name beside it when there is one (a misspelt folder: ``did you mean 'calib_example'?``)."""
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    hint = ""
+    try:
+        if p.name and parent.is_dir():
+            names = [q.name for q in parent.iterdir()]
+            close = difflib.get_close_matches(p.name, names, n=1, cutoff=0.75)
+            hint = f" (did you mean {str(parent / close[0])!r}?)" if close else ""
+        elif not parent.exists():
+            hint = f" (the folder {str(parent)!r} does not exist either)"
+    except OSError:
+        pass
+    return f"no such file or folder{hint}"
 
 
 @dataclass(frozen=True)
@@ -399,9 +419,28 @@ def to_jsonable(obj):
     return obj
 
 
-def dumps_json(obj, *, indent: int | None = 2) -> str:
-    """JSON text of ``obj`` after :func:`to_jsonable`."""
-    return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False)
+def dumps_json(obj, *, indent: int | None = 2, inline_numbers: bool = False) -> str:
+    """JSON text of ``obj`` after :func:`to_jsonable`.
+
+    With ``inline_numbers`` (and an ``indent``), a list of numbers is written on one line
+    (a matrix: one row per line): a file of many coordinates stays a few times smaller and
+    readable.
+    """
+    value = to_jsonable(obj)
+    if inline_numbers and indent:
+        return _inline_json(value, indent, 0)
+    return json.dumps(value, indent=indent, allow_nan=False)
+
+
+def _inline_json(v, indent: int, level: int) -> str:
+    flat = isinstance(v, list) and all(x is None or isinstance(x, int | float) for x in v)
+    if not isinstance(v, dict | list) or not v or flat:
+        return json.dumps(v, allow_nan=False, separators=(", ", ": "))
+    pad, end = " " * (indent * (level + 1)), " " * (indent * level)
+    if isinstance(v, dict):
+        items = [f"{pad}{json.dumps(k)}: {_inline_json(x, indent, level + 1)}" for k, x in v.items()]
+        return "{\n" + ",\n".join(items) + "\n" + end + "}"
+    return "[\n" + ",\n".join(f"{pad}{_inline_json(x, indent, level + 1)}" for x in v) + "\n" + end + "]"
 
 
 #: The command-line option that lets a campaign.toml or an index file name files outside its directory.

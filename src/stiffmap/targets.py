@@ -24,7 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Chessboard", "CharucoBoard", "parse_board_size", "ARUCO_DICTIONARIES", "SQUARE_MM_RANGE"]
+__all__ = [
+    "Chessboard",
+    "CharucoBoard",
+    "as_board",
+    "parse_board_size",
+    "ARUCO_DICTIONARIES",
+    "SQUARE_MM_RANGE",
+]
 
 _SIZE = re.compile(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*$")
 
@@ -92,6 +99,17 @@ class Chessboard:
         Inner corners along x and along y (``COLSxROWS``).
     square_mm : float
         Side of a square, mm.
+
+    Examples
+    --------
+    A board of 9x6 inner corners and 25 mm squares: 54 corners, row-major from the origin;
+    9 + 6 is odd, so the square colours fix the origin in every image.
+
+    >>> b = Chessboard.parse("9x6", 25.0)
+    >>> b.n_corners, b.orientation_from_colours
+    (54, True)
+    >>> b.object_points()[[0, 1, 9, 53]].tolist()  # corners (0, 0), (1, 0), (0, 1), (8, 5), mm
+    [[0.0, 0.0, 0.0], [25.0, 0.0, 0.0], [0.0, 25.0, 0.0], [200.0, 125.0, 0.0]]
     """
 
     cols: int
@@ -212,3 +230,47 @@ class CharucoBoard:
     def object_points(self) -> np.ndarray:
         """Inner corners in the board frame, shape ((sx-1)(sy-1), 3), mm, row-major."""
         return self.chessboard.object_points()
+
+
+def as_board(board, square_mm: float | None = None, what: str = "board") -> Chessboard | CharucoBoard:
+    """The board a function was given: a :class:`Chessboard`, a :class:`CharucoBoard`, or a
+    chessboard's size ``"COLSxROWS"`` (inner corners, as the command line's ``--board``) with
+    its ``square_mm``.
+
+    Parameters
+    ----------
+    board : Chessboard, CharucoBoard or str
+    square_mm : float, optional
+        Side of a square, mm: needed with a size given as text (poses and calibration views
+        are in mm), and when given with a board object it must be that board's.
+    what : str
+        The argument's name, for the messages (``"board"``, ``"fixed_board"``).
+
+    Raises
+    ------
+    ValueError
+        Naming the argument and saying what was expected: text that is not ``COLSxROWS``,
+        a size without ``square_mm``, a square size that disagrees with the board's, or
+        something that is not a board.
+    """
+    if isinstance(board, Chessboard | CharucoBoard):
+        if square_mm is not None and not np.isclose(float(square_mm), board.square_mm):
+            raise ValueError(
+                f"{what}: square_mm={square_mm:g} but the board's squares are {board.square_mm:g} mm"
+            )
+        return board
+    if isinstance(board, str):
+        try:
+            cols, rows = parse_board_size(board)
+        except ValueError as e:
+            raise ValueError(f"{what} {board!r}: {e}") from None
+        if square_mm is None:
+            raise ValueError(
+                f"{what} {board!r}: a board given by its size also needs its square size, e.g. "
+                f"{what}={board!r}, square_mm=25.0 (mm), or {what}=Chessboard({cols}, {rows}, 25.0)"
+            )
+        return Chessboard(cols, rows, square_mm)
+    raise ValueError(
+        f"{what}: expected a Chessboard, a CharucoBoard or a size 'COLSxROWS' with square_mm, "
+        f"got {type(board).__name__}"
+    )

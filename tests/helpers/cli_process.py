@@ -13,22 +13,43 @@ from stiffmap.cli.main import run
 
 
 def run_stiffmap(
-    *args: str | Path, cwd: str | Path | None = None, timeout: float = 300
+    *args: str | Path,
+    cwd: str | Path | None = None,
+    timeout: float = 300,
+    columns: int = 200,
+    merged: bool = False,
 ) -> subprocess.CompletedProcess:
     """Run ``python -m stiffmap ARGS`` and return the completed process (text mode).
 
-    The child runs with warnings as errors (``PYTHONWARNINGS=error``), 200 columns and no
-    colour, so its output does not depend on the terminal.
+    The child runs with warnings as errors (``PYTHONWARNINGS=error``), ``columns`` columns
+    (200 unless said) and no colour, so its output does not depend on the terminal. With
+    ``merged``, stderr goes to stdout as on a terminal (``proc.stdout`` holds both, in the
+    order they were printed; ``proc.stderr`` is None).
     """
-    env = dict(os.environ, COLUMNS="200", NO_COLOR="1", PYTHONWARNINGS="error")
-    return subprocess.run(
+    env = dict(os.environ, COLUMNS=str(columns), NO_COLOR="1", PYTHONWARNINGS="error", PYTHONUNBUFFERED="1")
+    proc = subprocess.run(
         [sys.executable, "-m", "stiffmap", *map(str, args)],
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT if merged else subprocess.PIPE,
         text=True,
         cwd=cwd,
         env=env,
         timeout=timeout,
     )
+    assert_tables_fit(proc.stdout, columns)
+    return proc
+
+
+#: The first character of a line of a table (rich's boxes).
+_TABLE_LINE = tuple("│┃┏┡└┌├┍┗┢╭╰┣┝")
+
+
+def assert_tables_fit(stdout: str, columns: int) -> None:
+    """What every command prints: no ``…`` (a number or a name cut to fit) and no table line
+    wider than the terminal (``stiffmap.cli.common.fit_table``)."""
+    assert "…" not in stdout, f"something was cut to fit {columns} columns:\n{stdout}"
+    wide = [ln for ln in stdout.splitlines() if ln.startswith(_TABLE_LINE) and len(ln) > columns]
+    assert not wide, f"table lines wider than {columns} columns:\n" + "\n".join(wide)
 
 
 def assert_one_line_error(proc: subprocess.CompletedProcess, *needles: str) -> str:

@@ -13,6 +13,7 @@ that one case runs in tens of milliseconds.
 
 from __future__ import annotations
 
+import base64
 import functools
 import io
 import json
@@ -612,24 +613,38 @@ def report_data_json(kind: str = "sensor") -> str:
     """A small campaign's report data: ``sensor`` (four points, two directions, a fitted
     model) or ``vision`` (three positions of a Delta, three load cases, two repeats)."""
     from stiffmap.report.data import (
+        BoardImage,
         CampaignInfo,
         LoadData,
         MeasuredStiffness,
         Parameter,
         ReportData,
         SensorResults,
+        SetupItem,
     )
+    from stiffmap.report.png import grey_png
 
     if kind == "vision":
         P = np.array([[0.0, 0.0, -310.0], [66.67, -66.67, -200.0], [-200.0, 200.0, -400.0]])
         K = np.stack([K_TRUE * s for s in (1.0, 0.8, 1.3)])
         K[2, 0, 1] = np.nan  # a failed position
         F = forces_matrix(paper9()[:3]).T
-        norms = np.abs(np.linalg.solve(K_TRUE, F.T)).sum(axis=0)[None, :, None] * np.ones((3, 3, 2))
+        # With the diagnostics' data: displacement vectors and residuals, a set-up summary and
+        # an image with its boards (a 4 x 6 grey PNG).
+        vec = np.linalg.solve(K_TRUE, F.T).T[None, :, None, :] * np.ones((3, 3, 2, 3))
+        png = base64.b64encode(grey_png(np.arange(24, dtype=np.uint8).reshape(4, 6))).decode()
         data = ReportData(
             campaign=CampaignInfo(name="fuzz", kind="vision", date="2026-01-01"),
             measured=MeasuredStiffness.from_K(P, K, np.abs(K) * 0.02),
-            loads=LoadData(labels=("0.5 kg +y", "0.5 kg -x", "0.5 kg -z"), forces=F, norms=norms),
+            loads=LoadData(
+                labels=("0.5 kg +y", "0.5 kg -x", "0.5 kg -z"),
+                forces=F,
+                norms=np.linalg.norm(vec, axis=3),
+                vectors=vec,
+                residuals=vec * 0.01,
+            ),
+            setup=(SetupItem("robot", "delta"), SetupItem("images", "36 of 36 measured")),
+            board_image=BoardImage("i.png", png, np.array([12.0, 8.0]), 2.0, np.ones((2, 2)), ("m", "m")),
         )
         return json.dumps(data.to_dict())
 
@@ -645,6 +660,10 @@ def report_data_json(kind: str = "sensor") -> str:
             model_error_um=err * 1.02,
             model_name="3prr",
             parameters=(Parameter("kj", 1200.0, 35.0, "N/mm"),),
+            step_load_n=np.tile([0.0, 98.1, 196.2, np.nan], (8, 1)),
+            step_um=np.tile([0.1, 20.0, 40.2, np.nan], (8, 1)),
+            fit_um_per_n=np.full(8, 0.204),
+            fit_intercept_um=np.full(8, 0.05),
         ),
     )
     return json.dumps(data.to_dict())

@@ -13,11 +13,14 @@ Example, a small simulated campaign of the Delta (no images: its truth only)::
 
     >>> import tempfile
     >>> from stiffmap.campaign.simulate import SimulationRequest, CameraSimOptions, simulate_campaign
-    >>> out = tempfile.mkdtemp()
-    >>> s = simulate_campaign(out, SimulationRequest(select="1,2", repeats=1),
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> s = simulate_campaign(tmp.name, SimulationRequest(select="1,2", repeats=1),
     ...                       camera=CameraSimOptions(truth_only=True))
-    >>> (s.n_positions, s.n_loads, s.n_images)
-    (2, 9, 36)
+    >>> (s.n_positions, s.n_loads, s.n_images)  # 2 positions x 9 load cases, no image written
+    (2, 9, 0)
+    >>> sorted(s.files)
+    ['camera.json', 'campaign.toml', 'truth.json', 'truth_corners.json.gz']
+    >>> tmp.cleanup()
 """
 
 from __future__ import annotations

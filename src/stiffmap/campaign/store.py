@@ -46,6 +46,7 @@ from .records import (
 
 __all__ = [
     "Store",
+    "ImageCounts",
     "DB_NAME",
     "file_sha256",
     "params_hash",
@@ -182,6 +183,24 @@ def record_of(cls: type, row) -> Any:
     for name, how in cls.JSON.items():
         values[name] = _decoded(values[name], how)
     return cls(**values)
+
+
+@dataclasses.dataclass(frozen=True)
+class ImageCounts:
+    """The images (image sets, with a rig) of a vision campaign's measurements, by outcome.
+
+    Attributes
+    ----------
+    total, measured, failed : int
+        Images in the database; those with a pose of the mobile target; the others.
+    positions : int
+        Positions with at least one image.
+    """
+
+    total: int
+    measured: int
+    failed: int
+    positions: int
 
 
 def model_fit_columns(fit, residuals) -> dict[str, Any]:
@@ -434,6 +453,24 @@ class Store:
         else:
             rows = self._rows("SELECT * FROM measurements ORDER BY position, image")
         return [record_of(MeasurementRecord, r) for r in rows]
+
+    def image_counts(self) -> ImageCounts:
+        """How many images were measured and how many failed (the report's set-up summary)."""
+        rows = self._rows(
+            "SELECT COUNT(*) AS total, SUM(status='ok' AND mobile2cam IS NOT NULL) AS measured, "
+            "COUNT(DISTINCT position) AS positions FROM measurements"
+        )
+        r = rows[0]
+        total, measured = int(r["total"] or 0), int(r["measured"] or 0)
+        return ImageCounts(total, measured, total - measured, int(r["positions"] or 0))
+
+    def first_measured_image(self) -> MeasurementRecord | None:
+        """The first image (by position, then name) in which the mobile target was measured."""
+        rows = self._rows(
+            "SELECT * FROM measurements WHERE status='ok' AND mobile2cam IS NOT NULL "
+            "ORDER BY position, image LIMIT 1"
+        )
+        return record_of(MeasurementRecord, rows[0]) if rows else None
 
     def stiffness_inputs_hash(self, position: int) -> str | None:
         """The hash of the inputs the stored stiffness of a position was derived from."""

@@ -179,7 +179,10 @@ class SimTruth:
         return self.data["images"]
 
     def corners(self) -> dict[str, dict]:
-        """Per image file: ``{"fixed": {"board2cam", "corners_px"}, "mobile": {...}}`` (arrays)."""
+        """Per image file: ``{"fixed": {"board2cam", "corners_px"}, "mobile": {...}}`` (arrays).
+
+        A rig campaign's entries also hold ``"cameras": {name: {"fixed": ..., "mobile": ...}}``
+        (each camera's view; the top-level targets are the first camera's)."""
         name = self.data.get("corners_file", CORNERS_NAME)
         src = str(self.root / TRUTH_NAME)
         if not isinstance(name, str) or not name.strip():
@@ -197,14 +200,18 @@ class SimTruth:
         out = {}
         try:
             for im in raw["images"]:
-                out[im["file"]] = {
-                    k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()}
-                    for k, v in im.items()
-                    if k != "file"
-                }
+                entry = _targets_truth({k: v for k, v in im.items() if k not in ("file", "cameras")})
+                if "cameras" in im:  # a rig's images: each camera's own, the first's also at the top
+                    entry["cameras"] = {cam: _targets_truth(t) for cam, t in im["cameras"].items()}
+                out[im["file"]] = entry
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise InputError(f"malformed true corners: {type(e).__name__} {e}", source=str(p)) from None
         return out
+
+
+def _targets_truth(targets: dict) -> dict[str, dict[str, np.ndarray]]:
+    """``{target: {"board2cam", "corners_px"}}`` of one view with its values as arrays."""
+    return {k: {kk: np.asarray(vv, dtype=np.float64) for kk, vv in v.items()} for k, v in targets.items()}
 
 
 def load_truth(path: str | os.PathLike) -> SimTruth:

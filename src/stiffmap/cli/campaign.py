@@ -233,7 +233,7 @@ def run(
         elif nothing is not None:
             pass
         elif instrument.measures == STIFFNESS:
-            out.print(_summary_table(store), width=max(out.width, 110))
+            out.print(_summary_table(store))
             out.print(_calibration_line(calibration_share_of_K(store)))
             fitted = _fit_table(store, spec.robot.model)
             if fitted is not None:
@@ -245,16 +245,19 @@ def run(
     page = (
         write_campaign_report(done.root, done.failures, allow_outside=allow_outside_paths) if report else None
     )
+    # The warnings first, then the summary that ends with "done" (the last thing one reads).
+    for n in done.vision.notes if done.vision is not None else ():
+        warn(n)
+    for f in done.failures[:MAX_WARNINGS]:
+        warn(f)
+    if len(done.failures) > MAX_WARNINGS:
+        warn(
+            f"... and {len(done.failures) - MAX_WARNINGS} more failures, all listed in "
+            f"{done.exports / 'summary.json'}"
+        )
     if not as_json:
         _print_counts(done, page, time.perf_counter() - t0)
     if done.failures:
-        for f in done.failures[:MAX_WARNINGS]:
-            warn(f)
-        if len(done.failures) > MAX_WARNINGS:
-            warn(
-                f"... and {len(done.failures) - MAX_WARNINGS} more failures, all listed in "
-                f"{done.exports / 'summary.json'}"
-            )
         raise typer.Exit(EXIT_PARTIAL)
 
 
@@ -284,8 +287,6 @@ def _print_counts(done: CampaignRun, page: Path | None, seconds: float) -> None:
         )
         if summary.measured:
             out.print(f"measured on {summary.backend}", highlight=False)
-        for note in summary.notes:
-            warn(note)
     else:
         res = done.sensor
         out.print(f"{res.recordings} recordings: {res.analysed} analysed, {res.reused} unchanged")

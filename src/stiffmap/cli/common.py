@@ -1,10 +1,15 @@
-"""Shared pieces of the command-line interface: consoles, errors, option parsing.
+"""Shared pieces of the command-line interface: consoles, errors, option parsing, tables.
 
-Numbers are formatted by :mod:`stiffmap.textfmt`.
+Numbers are formatted by :mod:`stiffmap.textfmt`. Every table printed on :data:`out` or
+:data:`err` is fitted to the terminal's width by :func:`fit_table` (the consoles' render
+hook): it wraps cells at spaces, splits wide tables into column groups, or stacks each
+row, but never cuts a number. Exit statuses are the ``EXIT_*`` constants below
+(CONTRIBUTING.md, "Exit statuses").
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import sys
@@ -12,8 +17,9 @@ from collections.abc import Mapping, Sequence
 from contextlib import contextmanager
 
 import typer
-from rich.console import Console
+from rich.console import Console, ConsoleRenderable, Group, RenderableType, RenderHook
 from rich.markup import escape
+from rich.measure import Measurement
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -44,14 +50,204 @@ def _piped_width() -> int | None:
     return 160
 
 
-#: Results go to stdout (so ``--json`` output can be piped); messages to stderr.
-out = Console(highlight=False, soft_wrap=True, emoji=False, width=_piped_width())
-err = Console(stderr=True, highlight=False, soft_wrap=True, emoji=False)
+#: A column whose cells may be folded (file names, reasons: ``overflow="fold"``) takes at
+#: least this many characters when the table has to shrink; other columns keep their
+#: longest word, so that a number is never cut.
+FOLD_MIN_WIDTH = 12
 
-#: Exit status for a user mistake (bad file, bad option value).
+
+def _column_widths(table: Table, console: Console) -> list[tuple[int, int]]:
+    """Per column, the (minimum, maximum) width of its content (header and cells, no padding)."""
+    opts = console.options.update_width(10_000)
+    widths = []
+    for col in table.columns:
+        cells = list(col.cells) + ([col.header] if table.show_header else [])
+        lo, hi = 1, 1
+        for cell in cells:
+            m = Measurement.get(console, opts, cell)
+            lo, hi = max(lo, m.minimum), max(hi, m.maximum)
+        if col.overflow == "fold":
+            head = Measurement.get(console, opts, col.header).minimum if table.show_header else 1
+            lo = min(lo, max(FOLD_MIN_WIDTH, head))
+        widths.append((lo, hi))
+    return widths
+
+
+def _rebuild(table: Table, columns: Sequence[int], widths: Sequence[int] | None = None, title=None) -> Table:
+    """A copy of ``table`` with only ``columns`` (indices), each of a fixed width when given."""
+    new = copy.copy(table)
+    new.columns, new.rows = [], []
+    if title is not None:
+        new.title = title
+    for k, i in enumerate(columns):
+        col = copy.copy(table.columns[i])
+        col._cells = []
+        if widths is not None:
+            col.width, col.min_width, col.max_width, col.no_wrap = widths[k], None, None, False
+        col._index = k
+        new.columns.append(col)
+    cells = [list(table.columns[i].cells) for i in columns]
+    for r, row in enumerate(table.rows):
+        new.add_row(*(c[r] for c in cells), style=row.style, end_section=row.end_section)
+    return new
+
+
+def _overhead(table: Table, console: Console, content: int) -> int:
+    """Width taken by the borders and padding of ``table`` (its content being ``content`` wide)."""
+    return console.measure(table, options=console.options.update_width(10_000)).maximum - content
+
+
+def _wrapped(table: Table, console: Console, width: int) -> Table | None:
+    """``table`` with column widths that fit ``width``, every number whole; None if none do."""
+    ranges = _column_widths(table, console)
+    lo = sum(r[0] for r in ranges)
+    hi = sum(r[1] for r in ranges)
+    room = width - _overhead(table, console, hi)
+    if hi <= room:
+        return table
+    if lo > room:
+        return None
+
+    # Water filling: every column as wide as it wants up to a common cap (never below its
+    # longest word), the cap as high as the room allows: narrow columns (numbers, short
+    # headers) stay whole, the widest text shares what is left.
+    def widths_at(cap: int) -> list[int]:
+        return [min(b, max(a, cap)) for a, b in ranges]
+
+    cap = max(b for _, b in ranges)
+    while sum(widths_at(cap)) > room:
+        cap -= 1
+    widths = widths_at(cap)
+    for i in range(len(widths)):
+        if sum(widths) < room and widths[i] < ranges[i][1]:
+            widths[i] += 1
+    return _rebuild(table, range(len(ranges)), widths)
+
+
+def _column_groups(table: Table, console: Console, width: int) -> list[Table] | None:
+    """Tables of the first column (the rows' key) and as many others as fit; None if one does not."""
+    groups: list[list[int]] = []
+    current = [0]
+    for i in range(1, len(table.columns)):
+        if _wrapped(_rebuild(table, [*current, i]), console, width) is not None:
+            current.append(i)
+        elif len(current) > 1 and _wrapped(_rebuild(table, [0, i]), console, width) is not None:
+            groups.append(current)
+            current = [0, i]
+        else:
+            return None
+    groups.append(current)
+    groups = _balanced(table, console, width, groups)
+    title = table.title
+    return [
+        _wrapped(
+            _rebuild(table, g, title=title if k == 0 or not title else f"{title} (continued)"), console, width
+        )
+        for k, g in enumerate(groups)
+    ]
+
+
+def _balanced(table: Table, console: Console, width: int, groups: list[list[int]]) -> list[list[int]]:
+    """The same number of groups as the greedy ``groups``, with their columns shared evenly if that fits."""
+    n, rest = len(groups), list(range(1, len(table.columns)))
+    sizes = [len(rest) // n + (k < len(rest) % n) for k in range(n)]
+    even, start = [], 0
+    for size in sizes:
+        even.append([0, *rest[start : start + size]])
+        start += size
+    if all(_wrapped(_rebuild(table, g), console, width) is not None for g in even):
+        return even
+    return groups
+
+
+def _stacked(table: Table, console: Console, width: int) -> Table:
+    """Each row as a block of (column, value) lines (of values alone when the table has no
+    header): the last resort of a narrow terminal."""
+    named = table.show_header
+    t = Table(title=table.title, show_header=False, box=table.box, show_lines=False)
+    for _ in range(1 + named):
+        t.add_column(overflow="fold")
+    cells = [list(c.cells) for c in table.columns]
+    for r in range(len(table.rows)):
+        for i, col in enumerate(table.columns):
+            t.add_row(*([col.header] if named else []), cells[i][r], end_section=i == len(cells) - 1)
+    return _wrapped(t, console, width) or t
+
+
+def fit_table(table: Table, console: Console, width: int | None = None) -> RenderableType:
+    """``table`` made to fit ``width`` columns (default the console's) without cutting a number.
+
+    In order: the table as it is, if it fits; its cells wrapped at spaces (each column at
+    least as wide as its longest word, so ``-0.88549 ± 0.0012`` may wrap at the ``±`` but a
+    number is never cut); the table split into groups of columns, each repeating the
+    first column (the rows' key); each row stacked as (column, value) lines. Columns
+    declared ``overflow="fold"`` (file names, reasons) may be folded to
+    :data:`FOLD_MIN_WIDTH`.
+    """
+    width = console.width if width is None else width
+    if not table.columns or not table.rows:
+        return table
+    fitted = _wrapped(table, console, width)
+    if fitted is None:
+        keyed = table.show_header and len(table.columns) > 2
+        groups = _column_groups(table, console, width) if keyed else None
+        if groups is not None:
+            return Group(*(_wrapping_title(g, console) for g in groups))
+        fitted = _stacked(table, console, width)
+    return _wrapping_title(fitted, console)
+
+
+def _wrapping_title(table: Table, console: Console) -> Table:
+    """``table`` whose title wraps at its width (the consoles print with ``soft_wrap``, which
+    would otherwise leave a title longer than its table running past the terminal's edge)."""
+    if not isinstance(table.title, str):
+        return table
+    new = copy.copy(table)
+    title = console.render_str(table.title, style=table.title_style or "table.title", highlight=False)
+    title.no_wrap, title.overflow = False, "fold"
+    new.title = title
+    return new
+
+
+class _FitTables(RenderHook):
+    """The consoles' render hook: every :class:`~rich.table.Table` printed goes through :func:`fit_table`."""
+
+    def __init__(self, console: Console) -> None:
+        self.console = console
+
+    def process_renderables(self, renderables: list[ConsoleRenderable]) -> list[ConsoleRenderable]:
+        return [fit_table(r, self.console) if isinstance(r, Table) else r for r in renderables]
+
+
+def _console(**kwargs) -> Console:
+    console = Console(highlight=False, soft_wrap=True, emoji=False, **kwargs)
+    console.push_render_hook(_FitTables(console))
+    return console
+
+
+#: Results go to stdout (so ``--json`` output can be piped); messages to stderr.
+out = _console(width=_piped_width())
+err = _console(stderr=True)
+
+# Exit statuses, the same for every command (CONTRIBUTING.md, "Exit statuses"; README):
+#: Done; nothing to look at.
+EXIT_OK = 0
+#: Done, with warnings: some items left out (each named), or results flagged (a K that is
+#: not positive definite, an implausible camera). Every ``warning:`` line means this status:
+#: :func:`stiffmap.cli.main.main` returns it when a command that printed one ends with 0.
+EXIT_WARNINGS = 1
+#: The older name of :data:`EXIT_WARNINGS` (some items failed, the others were processed).
+EXIT_PARTIAL = EXIT_WARNINGS
+#: The user's input is wrong (a file, an option value): one ``error:`` line naming the file
+#: and the field; nothing or only what was safe was written.
 EXIT_INPUT = 2
-#: Exit status when some items failed but others were processed.
-EXIT_PARTIAL = 1
+#: A bug in stiffmap: one line that says so (the traceback with ``--debug``).
+EXIT_BUG = 3
+#: Interrupted by the user (Ctrl-C), as shells report SIGINT.
+EXIT_INTERRUPTED = 130
+
+#: ``warning:`` lines printed since :func:`reset_warnings` (the command line's exit status).
+_warnings_printed = 0
 
 
 def fail(message: str, code: int = EXIT_INPUT) -> typer.Exit:
@@ -61,8 +257,30 @@ def fail(message: str, code: int = EXIT_INPUT) -> typer.Exit:
 
 
 def warn(message: str) -> None:
-    """Print ``warning: message`` on stderr."""
+    """Print ``warning: message`` on stderr: something the user should look at.
+
+    The command then exits with :data:`EXIT_WARNINGS` (1) even if it ends normally; what
+    needs no action (a view left out of a good calibration, a backup kept) is a :func:`note`.
+    """
+    global _warnings_printed
+    _warnings_printed += 1
     err.print(f"[yellow]warning:[/] {escape(message)}", markup=True, highlight=False)
+
+
+def note(message: str) -> None:
+    """Print ``note: message`` on stderr: information that needs no action (exit status unchanged)."""
+    err.print(f"[cyan]note:[/] {escape(message)}", markup=True, highlight=False)
+
+
+def reset_warnings() -> None:
+    """Forget the warnings printed so far (a new command line starts)."""
+    global _warnings_printed
+    _warnings_printed = 0
+
+
+def warnings_printed() -> int:
+    """How many ``warning:`` lines were printed since :func:`reset_warnings`."""
+    return _warnings_printed
 
 
 def print_json(obj) -> None:

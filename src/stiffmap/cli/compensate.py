@@ -84,6 +84,23 @@ def _region(text: str | None):
     return lo, hi
 
 
+def _placement(place: str | None) -> dict:
+    """CompensateOptions' placement fields of --place: X,Y[,Z] mm, or auto."""
+    auto = place is not None and place.strip().lower() == "auto"
+    p = None if place is None or auto else _numbers(place, "--place", (2, 3), "mm")
+    return {"place_mm": None if p is None else (tuple(p) + (0.0,))[:3], "place_auto": auto}
+
+
+def _tool(tool_rpy_deg: str | None, q_seed_deg: str | None) -> dict:
+    """CompensateOptions' serial-arm fields: the tool's rotation matrix and the seed joints (rad)."""
+    rpy = _numbers(tool_rpy_deg, "--tool-rpy-deg", (3,), "deg")
+    seed = _numbers(q_seed_deg, "--q-seed-deg", tuple(range(1, 13)), "deg")
+    return {
+        "tool_rotation": None if rpy is None else matrix_from_euler(np.radians(rpy)),
+        "q_seed": None if seed is None else np.radians(seed),
+    }
+
+
 @contextmanager
 def _progress(show: bool):
     if not show:
@@ -102,75 +119,96 @@ def _progress(show: bool):
         yield lambda done, total: prog.update(task, completed=done, total=total)
 
 
+# The options of `compensate` (declared here so that the command's signature reads at once).
+_OPT_MECHANISM = typer.Argument(
+    None,
+    metavar="[KIND]",
+    help="The robot kind: " + ", ".join(kind_names()) + " (omit with --from-campaign).",
+)
+_OPT_ROBOT = typer.Argument(
+    None,
+    metavar="[ROBOT]",
+    help="urdf: the URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML.",
+)
+_OPT_PATH = typer.Option(
+    ..., "--path", help="The program: G-code (RS274/NGC), or a .csv of points x,y,z[,fx,fy,fz]."
+)
+_OPT_OUT_FILE = typer.Option(
+    ..., "--out", help="The corrected program (same format), written only on success."
+)
+_OPT_PARAM = typer.Option(None, "--param", help="Model parameter NAME=VALUE (as for 'stiffmap model').")
+_OPT_TIP = typer.Option(None, "--tip", help="urdf: the link carrying the tool point (arm6: tool0).")
+_OPT_TIP_OFFSET = typer.Option(
+    None, "--tip-offset-mm", help="urdf: the tool point in the tip frame, X,Y,Z mm."
+)
+_OPT_FROM_CAMPAIGN = typer.Option(
+    None,
+    "--from-campaign",
+    help="Use the model and parameters a campaign fitted (with their covariance).",
+)
+_OPT_PLACE = typer.Option(
+    None, "--place", help="Where the program's origin lies in the base frame, X,Y[,Z] mm, or 'auto'."
+)
+_OPT_PLACE_REGION = typer.Option(
+    None,
+    "--place-region",
+    help="--place auto: the box X0:X1,Y0:Y1[,Z0:Z1] (mm) the program must stay in.",
+)
+_OPT_OBJECTIVE = typer.Option(
+    "worst", "--objective", help="--place auto minimises the worst or rms deflection."
+)
+_OPT_FORCE_N = typer.Option(
+    None, "--force-n", help="Constant force FX,FY[,FZ] in N, base frame (feed moves)."
+)
+_OPT_FORCE_FEED_N = typer.Option(
+    None, "--force-feed-n", help="Force FT,FN[,FZ] in N along the feed, across it, along z."
+)
+_OPT_FORCE_FILE = typer.Option(
+    None, "--force-file", help="CSV line,fx,fy[,fz] (N): one row per feed move of the program."
+)
+_OPT_TOLERANCE_UM = typer.Option(
+    1.0, "--tolerance-um", help="Largest distance of the deflected path from the programmed one, um."
+)
+_OPT_PASS_THROUGH = typer.Option(
+    False, "--pass-through", help="Keep lines that cannot be compensated unchanged (a warning each)."
+)
+_OPT_FREE_TOOL_SPIN = typer.Option(
+    False, "--free-tool-spin", help="Serial arm: choose the spin about the tool axis that deflects least."
+)
+_OPT_TOOL_RPY_DEG = typer.Option(
+    None, "--tool-rpy-deg", help="Serial arm: tool orientation held along the path, roll,pitch,yaw deg."
+)
+_OPT_Q_SEED_DEG = typer.Option(
+    None, "--q-seed-deg", help="Serial arm: joint angles (deg) to start from (branch)."
+)
+_OPT_AS_JSON = typer.Option(False, "--json", help="Print the summary as JSON.")
+_OPT_FIGURES = typer.Option(True, "--figures/--no-figures", help="Write OUT.deflection.png and OUT.html.")
+_OPT_QUIET = typer.Option(False, "--quiet", "-q", help="No progress bar.")
+
+
 def compensate(
-    mechanism: str = typer.Argument(
-        None,
-        metavar="[KIND]",
-        help="The robot kind: " + ", ".join(kind_names()) + " (omit with --from-campaign).",
-    ),
-    robot: Path = typer.Argument(
-        None,
-        metavar="[ROBOT]",
-        help="urdf: the URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML.",
-    ),
-    path: Path = typer.Option(
-        ..., "--path", help="The program: G-code (RS274/NGC), or a .csv of points x,y,z[,fx,fy,fz]."
-    ),
-    out_file: Path = typer.Option(
-        ..., "--out", help="The corrected program (same format), written only on success."
-    ),
-    param: list[str] = typer.Option(
-        None, "--param", help="Model parameter NAME=VALUE (as for 'stiffmap model')."
-    ),
-    tip: str = typer.Option(None, "--tip", help="urdf: the link carrying the tool point (arm6: tool0)."),
-    tip_offset: str = typer.Option(
-        None, "--tip-offset-mm", help="urdf: the tool point in the tip frame, X,Y,Z mm."
-    ),
-    from_campaign: Path = typer.Option(
-        None,
-        "--from-campaign",
-        help="Use the model and parameters a campaign fitted (with their covariance).",
-    ),
-    place: str = typer.Option(
-        None, "--place", help="Where the program's origin lies in the base frame, X,Y[,Z] mm, or 'auto'."
-    ),
-    place_region: str = typer.Option(
-        None,
-        "--place-region",
-        help="--place auto: the box X0:X1,Y0:Y1[,Z0:Z1] (mm) the program must stay in.",
-    ),
-    objective: str = typer.Option(
-        "worst", "--objective", help="--place auto minimises the worst or rms deflection."
-    ),
-    force_n: str = typer.Option(
-        None, "--force-n", help="Constant force FX,FY[,FZ] in N, base frame (feed moves)."
-    ),
-    force_feed_n: str = typer.Option(
-        None, "--force-feed-n", help="Force FT,FN[,FZ] in N along the feed, across it, along z."
-    ),
-    force_file: Path = typer.Option(
-        None, "--force-file", help="CSV line,fx,fy[,fz] (N): one row per feed move of the program."
-    ),
-    tolerance_um: float = typer.Option(
-        1.0, "--tolerance-um", help="Largest distance of the deflected path from the programmed one, um."
-    ),
-    pass_through: bool = typer.Option(
-        False, "--pass-through", help="Keep lines that cannot be compensated unchanged (a warning each)."
-    ),
-    free_tool_spin: bool = typer.Option(
-        False, "--free-tool-spin", help="Serial arm: choose the spin about the tool axis that deflects least."
-    ),
-    tool_rpy_deg: str = typer.Option(
-        None, "--tool-rpy-deg", help="Serial arm: tool orientation held along the path, roll,pitch,yaw deg."
-    ),
-    q_seed_deg: str = typer.Option(
-        None, "--q-seed-deg", help="Serial arm: joint angles (deg) to start from (branch)."
-    ),
-    as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON."),
-    figures: bool = typer.Option(
-        True, "--figures/--no-figures", help="Write OUT.deflection.png and OUT.html."
-    ),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar."),
+    mechanism: str = _OPT_MECHANISM,
+    robot: Path = _OPT_ROBOT,
+    path: Path = _OPT_PATH,
+    out_file: Path = _OPT_OUT_FILE,
+    param: list[str] = _OPT_PARAM,
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    from_campaign: Path = _OPT_FROM_CAMPAIGN,
+    place: str = _OPT_PLACE,
+    place_region: str = _OPT_PLACE_REGION,
+    objective: str = _OPT_OBJECTIVE,
+    force_n: str = _OPT_FORCE_N,
+    force_feed_n: str = _OPT_FORCE_FEED_N,
+    force_file: Path = _OPT_FORCE_FILE,
+    tolerance_um: float = _OPT_TOLERANCE_UM,
+    pass_through: bool = _OPT_PASS_THROUGH,
+    free_tool_spin: bool = _OPT_FREE_TOOL_SPIN,
+    tool_rpy_deg: str = _OPT_TOOL_RPY_DEG,
+    q_seed_deg: str = _OPT_Q_SEED_DEG,
+    as_json: bool = _OPT_AS_JSON,
+    figures: bool = _OPT_FIGURES,
+    quiet: bool = _OPT_QUIET,
 ) -> None:
     """Correct a machining program for the robot's deflection under the cutting force.
 
@@ -182,22 +220,17 @@ def compensate(
     singularity (the first such line named), force rows that do not match the program.
     """
     mech, unc = _mechanism(mechanism, robot, param, tip, tip_offset, from_campaign)
-    auto = place is not None and place.strip().lower() == "auto"
-    p = None if place is None or auto else _numbers(place, "--place", (2, 3), "mm")
-    rpy = _numbers(tool_rpy_deg, "--tool-rpy-deg", (3,), "deg")
-    seed = _numbers(q_seed_deg, "--q-seed-deg", tuple(range(1, 13)), "deg")
+    placement, tool = _placement(place), _tool(tool_rpy_deg, q_seed_deg)
     opts = CompensateOptions(
         tolerance_um=tolerance_um,
-        place_mm=None if p is None else (tuple(p) + (0.0,))[:3],
-        place_auto=auto,
+        **placement,
         place_region_mm=_region(place_region),
         objective=objective,
         force=_force(force_n, force_feed_n),
         force_file=force_file,
         pass_through=pass_through,
         free_tool_spin=free_tool_spin,
-        tool_rotation=None if rpy is None else matrix_from_euler(np.radians(rpy)),
-        q_seed=None if seed is None else np.radians(seed),
+        **tool,
     )
     with _progress(not quiet and not as_json) as hook:
         res = compensate_file(mech, path, out_file, opts, uncertainty=unc, progress=hook)

@@ -6,11 +6,12 @@ from enum import StrEnum
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..campaign.identify_files import identify_from_files
 from ..textfmt import fmt, fmt_pm
-from .common import out, print_json, warn
+from .common import EXIT_WARNINGS, note, out, print_json, warn
 
 
 class MethodName(StrEnum):
@@ -39,14 +40,33 @@ def identify(
     """Identify the stiffness matrix K (N/mm) from load cases, with standard errors and checks.
 
     Prints K with the standard error of each entry, det(K), the principal stiffnesses, the
-    condition numbers and physical flags (asymmetry, not positive definite, det <= 0).
-    In --json, "condition" is the condition number of the load design and "K_condition" that of K.
+    condition numbers and physical flags (asymmetry, not positive definite, det <= 0, and
+    then which axis looks reversed). In --json, "condition" is the condition number of the
+    load design and "K_condition" that of K. Exit status 0 when K passes every check, 1 when
+    it is flagged (a warning line says so), 2 when the files are wrong.
     """
     rep = identify_from_files(forces, displacements, method=method.value)
+    for n in rep.notes:
+        note(n)
     if as_json:
         print_json(rep.to_dict(str(forces), str(displacements)))
     else:
         _print_identification(rep)
+    if rep.fit.flags:
+        warn(
+            _flagged(
+                rep.fit.flags, f"{forces} and {displacements}", "'flags' in the JSON" if as_json else "above"
+            )
+        )
+        raise typer.Exit(EXIT_WARNINGS)
+
+
+def _flagged(flags: tuple[str, ...], files: str, where: str) -> str:
+    """One warning line for a flagged K: how many flags, and the one that says what to check."""
+    sign = [f for f in flags if f.startswith("axis sign:")]
+    lead = sign[0] if sign else flags[0]
+    more = f" (and {len(flags) - 1} more flag(s): see {where})" if len(flags) > 1 else ""
+    return f"K from {files} is flagged: {lead}{more}"
 
 
 def _print_identification(rep) -> None:
@@ -55,8 +75,6 @@ def _print_identification(rep) -> None:
     idx = f.indices
     m = f.K.shape[0]
     unit = "N/mm" if m == 3 else "mixed units: N/mm, N/rad, N*mm/mm, N*mm/rad"
-    for note in rep.notes:
-        warn(note)
     t = Table(title=f"K ({unit}), method {f.method}, ± 1 standard error", show_header=False)
     for i in range(m):
         t.add_row(*(fmt_pm(f.K[i, j], f.K_std[i, j]) for j in range(m)))
@@ -87,7 +105,7 @@ def _print_identification(rep) -> None:
         out.print(r)
     if f.flags:
         for fl in f.flags:
-            out.print(f"[yellow]flag:[/] {fl}", markup=True)
+            out.print(f"[yellow]flag:[/] {escape(fl)}", markup=True)
     else:
         out.print("flags: none")
 

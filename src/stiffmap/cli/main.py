@@ -31,7 +31,16 @@ from typer.models import ParameterInfo
 
 from .. import __version__
 from ..errors import InputError
-from .common import EXIT_INPUT, fail, warn
+from .common import (
+    EXIT_BUG,
+    EXIT_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_WARNINGS,
+    fail,
+    reset_warnings,
+    warn,
+    warnings_printed,
+)
 
 
 class CommandEntry(NamedTuple):
@@ -142,9 +151,6 @@ def _interruptible(name: str, callback):
     return call
 
 
-#: Exit status of a command interrupted by Ctrl-C (128 + SIGINT, as shells report it).
-EXIT_INTERRUPTED = 130
-
 #: What an interrupted command has kept and how to go on; ``{...}`` are its parameters.
 INTERRUPTED_NOTES = {
     "run": (
@@ -209,8 +215,6 @@ app = typer.Typer(
 )
 
 
-#: Exit status of an unexpected error: a bug in stiffmap, not the user's mistake.
-EXIT_BUG = 3
 #: Where ``--debug`` is given (anywhere on the line) or set, a bug shows its traceback.
 DEBUG_FLAG = "--debug"
 DEBUG_ENV = "STIFFMAP_DEBUG"
@@ -282,12 +286,21 @@ def _one_line_warnings(message, category, filename, lineno, file=None, line=None
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``stiffmap`` on ``argv`` (default ``sys.argv[1:]``) and return its exit status.
 
-    A user error (:class:`~stiffmap.errors.InputError`, a file the system refuses, a command
-    line that does not parse) is one ``error:`` line and status 2. Anything else that escapes
-    a command is a bug: one line that says so, names the command line and the exception, and
-    status 3; the traceback only with ``--debug`` (anywhere on the command line) or
-    ``STIFFMAP_DEBUG=1``.
+    The statuses are the same for every command (``cli.common.EXIT_*``): 0 done; 1 done with
+    warnings (a command that printed a ``warning:`` line and would end with 0 ends with 1);
+    2 a user error (:class:`~stiffmap.errors.InputError`, a file the system refuses, a command
+    line that does not parse): one ``error:`` line; 3 a bug: anything else that escapes a
+    command, one line that says so, names the command line and the exception; the traceback
+    only with ``--debug`` (anywhere on the command line) or ``STIFFMAP_DEBUG=1``; 130
+    interrupted.
     """
+    reset_warnings()
+    code = _run(argv)
+    return EXIT_WARNINGS if code == 0 and warnings_printed() else code
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    """The command line's own exit status (before the warnings are counted)."""
     args = list(sys.argv[1:] if argv is None else argv)
     debug = DEBUG_FLAG in args or os.environ.get(DEBUG_ENV, "") not in ("", "0")
     args = [a for a in args if a != DEBUG_FLAG]

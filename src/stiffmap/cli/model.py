@@ -71,49 +71,69 @@ def _options(tip, tip_offset, base, xacro_arg, package_path, links) -> dict:
     }
 
 
+# The options of `model` (declared here so that the command's signature reads at once).
+_OPT_MECHANISM = typer.Argument(..., metavar="KIND", help=_KINDS_HELP)
+_OPT_ROBOT = typer.Argument(
+    None,
+    metavar="[ROBOT]",
+    help="urdf: the robot's URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML "
+    "file describing a parallel robot's legs (docs/models.md). Required for those two only.",
+)
+_OPT_GRID = typer.Option(
+    None,
+    "--grid",
+    help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
+    "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
+)
+_OPT_POINTS = typer.Option(
+    None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
+)
+_OPT_LOAD_N = typer.Option(
+    None, "--load-n", help="Force magnitude, N (default 490.5 for 3prr: 50 kgf; 4.905 for delta: 0.5 kg)."
+)
+_OPT_DIRECTION = typer.Option(
+    None,
+    "--direction",
+    help="Force direction: x, y, z, -x, ... or comma-separated components (default y for 3prr, "
+    "-z for delta).",
+)
+_OPT_PARAM = typer.Option(
+    None,
+    "--param",
+    help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names). urdf: "
+    "k1=K1,...,kn=Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
+    "or k_theta=K for every joint.",
+)
+_OPT_TIP = typer.Option(None, "--tip", help=_TIP_HELP)
+_OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP)
+_OPT_BASE = typer.Option(None, "--base", help=_BASE_HELP)
+_OPT_XACRO_ARG = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP)
+_OPT_PACKAGE_PATH = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP)
+_OPT_LINKS = typer.Option(None, "--links", help=_LINKS_HELP)
+_OPT_CONFIGS = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP)
+_OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON list, one object per point.")
+_OPT_AS_CSV = typer.Option(False, "--csv", help="Print CSV, one row per point.")
+_OPT_OUTPUT = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead.")
+
+
 def model(
-    mechanism: str = typer.Argument(..., metavar="KIND", help=_KINDS_HELP),
-    robot: Path = typer.Argument(
-        None,
-        metavar="[ROBOT]",
-        help="urdf: the robot's URDF file, or arm6 (stiffmap's six-joint test arm); legs: the TOML "
-        "file describing a parallel robot's legs (docs/models.md). Required for those two only.",
-    ),
-    grid: str = typer.Option(
-        None,
-        "--grid",
-        help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
-        "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
-    ),
-    points: Path = typer.Option(
-        None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
-    ),
-    load_n: float = typer.Option(
-        None, "--load-n", help="Force magnitude, N (default 490.5 for 3prr: 50 kgf; 4.905 for delta: 0.5 kg)."
-    ),
-    direction: str = typer.Option(
-        None,
-        "--direction",
-        help="Force direction: x, y, z, -x, ... or comma-separated components (default y for 3prr, "
-        "-z for delta).",
-    ),
-    param: list[str] = typer.Option(
-        None,
-        "--param",
-        help="Model parameter NAME=VALUE (repeatable; see docs/models.md for the names). urdf: "
-        "k1=K1,...,kn=Kn, the joint stiffnesses in N*mm/rad (N/mm for prismatic joints; required), "
-        "or k_theta=K for every joint.",
-    ),
-    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
-    base: str = typer.Option(None, "--base", help=_BASE_HELP),
-    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP),
-    package_path: list[str] = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP),
-    links: Path = typer.Option(None, "--links", help=_LINKS_HELP),
-    configs: Path = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP),
-    as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per point."),
-    as_csv: bool = typer.Option(False, "--csv", help="Print CSV, one row per point."),
-    output: Path = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead."),
+    mechanism: str = _OPT_MECHANISM,
+    robot: Path = _OPT_ROBOT,
+    grid: str = _OPT_GRID,
+    points: Path = _OPT_POINTS,
+    load_n: float = _OPT_LOAD_N,
+    direction: str = _OPT_DIRECTION,
+    param: list[str] = _OPT_PARAM,
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
+    configs: Path = _OPT_CONFIGS,
+    as_json: bool = _OPT_AS_JSON,
+    as_csv: bool = _OPT_AS_CSV,
+    output: Path = _OPT_OUTPUT,
 ) -> None:
     """A model's stiffness K (N/mm) and static error u = K^-1 F (mm) at each position.
 
@@ -126,6 +146,34 @@ def model(
     base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
     """
     kind = robot_kind_option(mechanism)
+    _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json, as_csv)
+    own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
+    m = _robot("model", mechanism, robot, param, configs, own)
+    if kind.configurations:
+        _model_configurations(m, configs, as_json, output)
+        return
+    P = _positions(kind, m.dim, grid, points)
+    F = _force(kind, m.dim, load_n, direction)
+    mp = m.evaluate(P)
+    if as_json or as_csv:
+        _write_map(mp, F, as_json, output)
+    elif output is not None:
+        raise InputError("--output needs --json or --csv")
+    else:
+        _print_map(m, mp, F)
+    nbad = len(mp) - mp.n_valid
+    of = f"; points from {points}" if points is not None else ""
+    if nbad == len(mp):
+        raise fail(
+            f"none of the {len(mp)} point(s) can be evaluated by the {kind.name} model (see 'error'){of}"
+        )
+    if nbad:
+        warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json: bool, as_csv: bool) -> None:
+    """Options that do not go together, or not with this kind (positions vs configurations)."""
     if kind.configurations:
         for opt, v in (
             ("--grid", grid),
@@ -144,44 +192,19 @@ def model(
         raise InputError("--json and --csv are exclusive")
     elif grid is not None and points is not None:
         raise InputError("--grid and --points are exclusive")
-    m = _robot(
-        "model",
-        mechanism,
-        robot,
-        param,
-        configs,
-        _options(tip, tip_offset, base, xacro_arg, package_path, links),
-    )
-    if kind.configurations:
-        _model_configurations(m, configs, as_json, output)
-        return
+
+
+def _positions(kind, dim: int, grid: str | None, points: Path | None) -> np.ndarray:
+    """The positions of --points, --grid or the kind's default ones, shape (m, dim), mm."""
     if points is not None:
-        P = read_points(points, m.dim)
-    elif grid is not None:
-        P = from_option("--grid", grid_from_text, grid, kind.name, m.dim)
-    elif kind.default_positions() is None:
+        return read_points(points, dim)
+    if grid is not None:
+        return from_option("--grid", grid_from_text, grid, kind.name, dim)
+    if kind.default_positions() is None:
         raise InputError(
             f"{kind.name}: give the positions, --points FILE.csv or --grid X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]"
         )
-    else:
-        P = kind.default_positions()
-    F = _force(kind, m.dim, load_n, direction)
-    mp = m.evaluate(P)
-    if as_json or as_csv:
-        _write_map(mp, F, as_json, output)
-    elif output is not None:
-        raise InputError("--output needs --json or --csv")
-    else:
-        _print_map(m, mp, F)
-    nbad = len(mp) - mp.n_valid
-    of = f"; points from {points}" if points is not None else ""
-    if nbad == len(mp):
-        raise fail(
-            f"none of the {len(mp)} point(s) can be evaluated by the {kind.name} model (see 'error'){of}"
-        )
-    if nbad:
-        warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
-        raise typer.Exit(EXIT_PARTIAL)
+    return kind.default_positions()
 
 
 def robot_kind_option(name: str):
@@ -325,12 +348,12 @@ def fit(
         help="Fixed model parameter or starting value NAME=VALUE (repeatable). urdf: "
         "k1=K1,...,kn=Kn (required; N*mm/rad, N/mm for prismatic joints) or k_theta=K for all.",
     ),
-    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
-    base: str = typer.Option(None, "--base", help=_BASE_HELP),
-    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP),
-    package_path: list[str] = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP),
-    links: Path = typer.Option(None, "--links", help=_LINKS_HELP),
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
     configs: Path = typer.Option(
         None,
         CONFIGS_OPTION,
@@ -367,14 +390,8 @@ def fit(
                 f"by one ('stiffmap fit urdf ROBOT.urdf MEASUREMENTS'; got {', '.join(map(str, files))})"
             )
         robot_file, (measurements,) = None, files
-    m = _robot(
-        "fit",
-        mechanism,
-        robot_file,
-        param,
-        configs,
-        _options(tip, tip_offset, base, xacro_arg, package_path, links),
-    )
+    own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
+    m = _robot("fit", mechanism, robot_file, param, configs, own)
     with options_named(command_names(kind)):
         names = kind.fitted_names(m, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:

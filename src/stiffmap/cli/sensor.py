@@ -72,70 +72,87 @@ def _print_result(r) -> None:
     out.print(s)
 
 
+# The options of `sensor` (declared here so that the command's signature reads at once).
+_OPT_RECORDINGS = typer.Argument(
+    None,
+    help="Recordings (.csv, .tdms, .mat) of a displacement sensor (V) and a load channel, during a "
+    "stepped load. Default CSV columns: time_s, displacement_v, load_kgf.",
+    show_default=False,
+)
+_OPT_SCALE_UM_PER_V = typer.Option(
+    640.0, "--scale-um-per-v", help="Displacement sensor scale, um/V (the milling study's LDV: 640)."
+)
+_OPT_CHANNEL_MAP = typer.Option(
+    None,
+    "--channel-map",
+    help="Which column is what: displacement=COL,load=COL,time=COL[,rate=HZ][,group=NAME]. "
+    "load=none: no load channel; time=none with rate=HZ: no time column.",
+)
+_OPT_LOAD_UNIT = typer.Option(
+    None,
+    "--load-unit",
+    help="Unit of the load channel (default: from its name, load_kgf / force_n; else kgf).",
+)
+_OPT_LOAD_N_PER_V = typer.Option(None, "--load-n-per-v", help="Load-cell scale when the load is in V, N/V.")
+_OPT_STEPS_KGF = typer.Option(
+    None, "--steps-kgf", help="Table of the applied loads in time order, kgf (e.g. 0,50,40,30,20,10,0)."
+)
+_OPT_STEPS_N = typer.Option(None, "--steps-n", help="Table of the applied loads in time order, N.")
+_OPT_STEP_TIMES = typer.Option(
+    None, "--step-times", help="Plateaus by hand, START-END in s, comma-separated (e.g. 0.5-4,6-9.5)."
+)
+_OPT_AXIS_SIGN = typer.Option(1, "--axis-sign", help="-1 when a mirror flips the beam.")
+_OPT_RANGE_V = typer.Option(8.0, "--range-v", help="Sensor analog output range, +-V (saturation).")
+_OPT_G = typer.Option(9.81, "--g", help="Gravity for kgf, m/s^2 (9.81 as the milling study).")
+_OPT_REFERENCE_LOAD_N = typer.Option(
+    490.5, "--reference-load-n", help="Load of the static error, N (50 kgf = 490.5 N)."
+)
+_OPT_EXCLUDE_BAD_SAMPLES = typer.Option(
+    False,
+    "--exclude-bad-samples",
+    help="Leave missing samples (dropouts) out of the plateaus instead of refusing the recording; "
+    "saturated plateaus are still refused.",
+)
+_OPT_NO_DRIFT = typer.Option(False, "--no-drift-removal", help="Do not remove drift via zero-load plateaus.")
+_OPT_WINDOW_S = typer.Option(0.25, "--window-s", help="Window of the step detector, s.")
+_OPT_MIN_PLATEAU_S = typer.Option(0.5, "--min-plateau-s", help="Shortest plateau kept, s.")
+_OPT_THRESHOLD_SIGMA = typer.Option(5.0, "--threshold-sigma", help="Step detector threshold, in sigma.")
+_OPT_INDEX = typer.Option(
+    None,
+    "--index",
+    help="A campaign index CSV (x, y[, z], direction or ux, uy[, uz], file[, axis_sign]): print the "
+    "static error per point and direction.",
+)
+_OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON list, one object per recording.")
+_OPT_ALLOW_OUTSIDE_PATHS = typer.Option(
+    False,
+    ALLOW_OUTSIDE_OPTION,
+    help="Let the --index file name recordings outside its folder (absolute paths, '..', symbolic "
+    "links leading out); without it such a name is refused.",
+)
+
+
 def sensor(
-    recordings: list[Path] = typer.Argument(
-        None,
-        help="Recordings (.csv, .tdms, .mat) of a displacement sensor (V) and a load channel, during a "
-        "stepped load. Default CSV columns: time_s, displacement_v, load_kgf.",
-        show_default=False,
-    ),
-    scale_um_per_v: float = typer.Option(
-        640.0, "--scale-um-per-v", help="Displacement sensor scale, um/V (the milling study's LDV: 640)."
-    ),
-    channel_map: str = typer.Option(
-        None,
-        "--channel-map",
-        help="Which column is what: displacement=COL,load=COL,time=COL[,rate=HZ][,group=NAME]. "
-        "load=none: no load channel; time=none with rate=HZ: no time column.",
-    ),
-    load_unit: LoadUnit = typer.Option(
-        None,
-        "--load-unit",
-        help="Unit of the load channel (default: from its name, load_kgf / force_n; else kgf).",
-    ),
-    load_n_per_v: float = typer.Option(
-        None, "--load-n-per-v", help="Load-cell scale when the load is in V, N/V."
-    ),
-    steps_kgf: str = typer.Option(
-        None, "--steps-kgf", help="Table of the applied loads in time order, kgf (e.g. 0,50,40,30,20,10,0)."
-    ),
-    steps_n: str = typer.Option(None, "--steps-n", help="Table of the applied loads in time order, N."),
-    step_times: str = typer.Option(
-        None, "--step-times", help="Plateaus by hand, START-END in s, comma-separated (e.g. 0.5-4,6-9.5)."
-    ),
-    axis_sign: int = typer.Option(1, "--axis-sign", help="-1 when a mirror flips the beam."),
-    range_v: float = typer.Option(8.0, "--range-v", help="Sensor analog output range, +-V (saturation)."),
-    g: float = typer.Option(9.81, "--g", help="Gravity for kgf, m/s^2 (9.81 as the milling study)."),
-    reference_load_n: float = typer.Option(
-        490.5, "--reference-load-n", help="Load of the static error, N (50 kgf = 490.5 N)."
-    ),
-    exclude_bad_samples: bool = typer.Option(
-        False,
-        "--exclude-bad-samples",
-        help="Leave missing samples (dropouts) out of the plateaus instead of refusing the recording; "
-        "saturated plateaus are still refused.",
-    ),
-    no_drift: bool = typer.Option(
-        False, "--no-drift-removal", help="Do not remove drift via zero-load plateaus."
-    ),
-    window_s: float = typer.Option(0.25, "--window-s", help="Window of the step detector, s."),
-    min_plateau_s: float = typer.Option(0.5, "--min-plateau-s", help="Shortest plateau kept, s."),
-    threshold_sigma: float = typer.Option(
-        5.0, "--threshold-sigma", help="Step detector threshold, in sigma."
-    ),
-    index: Path = typer.Option(
-        None,
-        "--index",
-        help="A campaign index CSV (x, y[, z], direction or ux, uy[, uz], file[, axis_sign]): print the "
-        "static error per point and direction.",
-    ),
-    as_json: bool = typer.Option(False, "--json", help="Print a JSON list, one object per recording."),
-    allow_outside_paths: bool = typer.Option(
-        False,
-        ALLOW_OUTSIDE_OPTION,
-        help="Let the --index file name recordings outside its folder (absolute paths, '..', symbolic "
-        "links leading out); without it such a name is refused.",
-    ),
+    recordings: list[Path] = _OPT_RECORDINGS,
+    scale_um_per_v: float = _OPT_SCALE_UM_PER_V,
+    channel_map: str = _OPT_CHANNEL_MAP,
+    load_unit: LoadUnit = _OPT_LOAD_UNIT,
+    load_n_per_v: float = _OPT_LOAD_N_PER_V,
+    steps_kgf: str = _OPT_STEPS_KGF,
+    steps_n: str = _OPT_STEPS_N,
+    step_times: str = _OPT_STEP_TIMES,
+    axis_sign: int = _OPT_AXIS_SIGN,
+    range_v: float = _OPT_RANGE_V,
+    g: float = _OPT_G,
+    reference_load_n: float = _OPT_REFERENCE_LOAD_N,
+    exclude_bad_samples: bool = _OPT_EXCLUDE_BAD_SAMPLES,
+    no_drift: bool = _OPT_NO_DRIFT,
+    window_s: float = _OPT_WINDOW_S,
+    min_plateau_s: float = _OPT_MIN_PLATEAU_S,
+    threshold_sigma: float = _OPT_THRESHOLD_SIGMA,
+    index: Path = _OPT_INDEX,
+    as_json: bool = _OPT_AS_JSON,
+    allow_outside_paths: bool = _OPT_ALLOW_OUTSIDE_PATHS,
 ) -> None:
     """Plateaus, load-displacement fit, stiffness and static error of stepped-load recordings.
 

@@ -53,19 +53,6 @@ from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from .common import dask_option, err, fmt, options_named, print_json, print_summary, three_numbers
 from .model import _BASE_HELP, _LINKS_HELP, _OFFSET_HELP, _PACKAGE_PATH_HELP, _TIP_HELP, _XACRO_ARG_HELP
 
-#: The help of the options of a robot of one's own (--robot FILE), as 'stiffmap model urdf' says them.
-_OWN_HELP = {
-    name: "--robot FILE: " + text.removeprefix("urdf: ")
-    for name, text in (
-        ("_TIP_HELP", _TIP_HELP),
-        ("_OFFSET_HELP", _OFFSET_HELP),
-        ("_BASE_HELP", _BASE_HELP),
-        ("_XACRO_ARG_HELP", _XACRO_ARG_HELP),
-        ("_PACKAGE_PATH_HELP", _PACKAGE_PATH_HELP),
-        ("_LINKS_HELP", _LINKS_HELP),
-    )
-}
-
 
 class ImageFormat(StrEnum):
     png = "png"
@@ -153,6 +140,140 @@ def _load_point(text: str | None):
     return lp
 
 
+# The options of `simulate` (declared here so that the command's signature reads at once).
+_OPT_OUT_DIR = typer.Argument(..., help="Directory to create (must be new or empty).", show_default=False)
+_OPT_ROBOT = typer.Option(
+    DEFAULT_TESTBED,
+    "--robot",
+    help="Test-bed robot giving the true stiffness field: "
+    + ", ".join(testbed_robots())
+    + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
+    "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
+    "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'. "
+    "Or a robot of your own, its description ROBOT.urdf or .xacro, with --tip, --configs, --param "
+    "k_theta=... (and --base, --xacro-arg, --package-path, --links as 'stiffmap model urdf').",
+)
+_OPT_POSITIONS = typer.Option(
+    None,
+    "--positions",
+    help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
+    "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
+    "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list.",
+    show_default=False,
+)
+_OPT_SELECT = typer.Option(
+    None, "--select", help="Keep only these positions, 1-based, e.g. 1,22,48.", show_default=False
+)
+_OPT_LOADS = typer.Option(
+    "paper9",
+    "--loads",
+    help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N).",
+)
+_OPT_REPEATS = typer.Option(
+    3,
+    "--repeats",
+    min=1,
+    help="Unloaded/loaded image pairs per load case (3PRR: recordings per point/axis).",
+)
+_OPT_DIRECTIONS = typer.Option(
+    "x,y", "--directions", help="3PRR: load and measurement axes at each point (x, y or x,y)."
+)
+_OPT_TRACE_FORMAT = typer.Option("csv", "--trace-format", help="3PRR: recording format (csv, tdms, mat).")
+_OPT_SEED = typer.Option(0, "--seed", min=0, help="Seed of every random draw (same seed, same files).")
+_OPT_WORKERS = typer.Option(
+    0, "--workers", min=0, help="Processes rendering images (0: one per available CPU)."
+)
+_OPT_FORCE = typer.Option(
+    False, "--force", help="Overwrite a previous simulation in OUT_DIR (never a real campaign)."
+)
+_OPT_IMAGE_FORMAT = typer.Option(ImageFormat.png, "--format", help="Image format.")
+_OPT_JPEG_QUALITY = typer.Option(95, "--jpeg-quality", min=1, max=100, help="JPEG quality.")
+_OPT_COLOUR = typer.Option(False, "--colour", help="A Bayer colour camera (demosaiced BGR images).")
+_OPT_CLUTTER = typer.Option(False, "--clutter", help="A cluttered background instead of a plain one.")
+_OPT_NOISE = typer.Option(True, "--noise/--no-noise", help="Sensor noise and vignetting.")
+_OPT_BLUR_PX = typer.Option(0.8, "--blur-px", min=0.0, help="Optics blur (Gaussian sigma), px.")
+_OPT_REPEATABILITY_MM = typer.Option(
+    0.02, "--repeatability-mm", min=0.0, help="Robot position repeatability, 1 sigma per axis, mm."
+)
+_OPT_JITTER_MM = typer.Option(
+    0.001, "--jitter-mm", min=0.0, help="Per-image position jitter (settling), 1 sigma per axis, mm."
+)
+_OPT_ROT_STIFFNESS = typer.Option(
+    None,
+    "--rot-stiffness-nmm-per-rad",
+    min=0.0,
+    help="Give the platform this rotational stiffness (N*mm/rad): a 6x6 field at the tool point.",
+    show_default=False,
+)
+_OPT_LOAD_POINT = typer.Option(
+    None,
+    "--load-point-mm",
+    help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
+    "150,100,-150 for arm6).",
+    show_default=False,
+)
+_OPT_PARAM = typer.Option(
+    [], "--param", help="Robot model parameter NAME=VALUE (repeatable), e.g. k_theta=3e5."
+)
+_OPT_CAMERA_FILE = typer.Option(
+    None, "--camera", help="camera.json to simulate instead of the reference camera.", show_default=False
+)
+_OPT_CALIBRATION_VIEWS = typer.Option(
+    DEFAULT_CALIBRATION_VIEWS,
+    "--calibration-views",
+    min=0,
+    help="Views of an 11x8 calibration board (25 mm squares) rendered first, at the poses a "
+    "careful user takes, from which camera.json is calibrated as `stiffmap calibrate` does "
+    "(0: the true camera; else at least 3).",
+)
+_OPT_TRUE_CAMERA = typer.Option(
+    False,
+    "--true-camera",
+    help="Give the campaign the true camera in camera.json (no calibration views; = --calibration-views 0).",
+)
+_OPT_TRUTH_ONLY = typer.Option(
+    False,
+    "--truth-only",
+    help="Write the spec, camera and truth but no images (fast; for tests). Nothing to "
+    "calibrate from: camera.json is the true camera.",
+)
+_OPT_CAMERAS = typer.Option(
+    1,
+    "--cameras",
+    min=1,
+    max=8,
+    help="Cameras looking at the robot: 2 or more make a rig (rig.json), about --camera-angle-deg "
+    "apart about the vertical, each image a set of one image per camera.",
+)
+_OPT_CAMERA_ANGLE_DEG = typer.Option(
+    60.0,
+    "--camera-angle-deg",
+    min=1.0,
+    max=120.0,
+    help="Angle between the first and last camera, degrees.",
+)
+_OPT_NAME = typer.Option(
+    None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
+)
+_OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON summary instead of a table.")
+#: The options of a robot of one's own (--robot FILE), as 'stiffmap model urdf' says them.
+_OWN = "--robot FILE: "
+_OPT_TIP = typer.Option(None, "--tip", help=_OWN + _TIP_HELP.removeprefix("urdf: "), show_default=False)
+_OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OWN + _OFFSET_HELP.removeprefix("urdf: "))
+_OPT_BASE = typer.Option(None, "--base", help=_OWN + _BASE_HELP.removeprefix("urdf: "))
+_OPT_XACRO_ARG = typer.Option(None, "--xacro-arg", help=_OWN + _XACRO_ARG_HELP.removeprefix("urdf: "))
+_OPT_PACKAGE_PATH = typer.Option(
+    None, "--package-path", help=_OWN + _PACKAGE_PATH_HELP.removeprefix("urdf: ")
+)
+_OPT_LINKS = typer.Option(None, "--links", help=_OWN + _LINKS_HELP.removeprefix("urdf: "))
+_OPT_CONFIGS = typer.Option(
+    None,
+    "--configs",
+    help=_OWN + "CSV of joint configurations (columns named after the joints, or q1_deg..qn_deg; mm "
+    "for a prismatic joint): the positions, their measured points.",
+)
+
+
 def _own_robot(robot: str, param, options: dict, configs):
     """``--robot FILE``: the description of a robot of the user's own (None for a test-bed robot),
     and the names of the library's fields as this command's options."""
@@ -177,141 +298,64 @@ def _own_robot(robot: str, param, options: dict, configs):
     return d, {**_OPTION_NAMES, **command_names(kind), "file": "--robot"}
 
 
+def _instrument(robot: str) -> str:
+    """What measures test-bed robot ``robot`` (InputError naming --robot when there is none)."""
+    with options_named(_OPTION_NAMES):
+        return testbed(robot)[1].instrument
+
+
+def _own_options(tip, tip_offset, base, xacro_arg, package_path, links) -> dict:
+    """The options of a robot of one's own, by their names (None: not given)."""
+    return {
+        "--tip": tip,
+        "--tip-offset-mm": tip_offset,
+        "--base": base,
+        "--xacro-arg": xacro_arg or None,
+        "--package-path": package_path or None,
+        "--links": None if links is None else str(links),
+    }
+
+
 def simulate(
     ctx: typer.Context,
-    out_dir: Path = typer.Argument(
-        ..., help="Directory to create (must be new or empty).", show_default=False
-    ),
-    robot: str = typer.Option(
-        DEFAULT_TESTBED,
-        "--robot",
-        help="Test-bed robot giving the true stiffness field: "
-        + ", ".join(testbed_robots())
-        + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
-        "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
-        "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'. "
-        "Or a robot of your own, its description ROBOT.urdf or .xacro, with --tip, --configs, --param "
-        "k_theta=... (and --base, --xacro-arg, --package-path, --links as 'stiffmap model urdf').",
-    ),
-    positions: str = typer.Option(
-        None,
-        "--positions",
-        help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
-        "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
-        "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list.",
-        show_default=False,
-    ),
-    select: str = typer.Option(
-        None, "--select", help="Keep only these positions, 1-based, e.g. 1,22,48.", show_default=False
-    ),
-    loads: str = typer.Option(
-        "paper9",
-        "--loads",
-        help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N).",
-    ),
-    repeats: int = typer.Option(
-        3,
-        "--repeats",
-        min=1,
-        help="Unloaded/loaded image pairs per load case (3PRR: recordings per point/axis).",
-    ),
-    directions: str = typer.Option(
-        "x,y", "--directions", help="3PRR: load and measurement axes at each point (x, y or x,y)."
-    ),
-    trace_format: str = typer.Option(
-        "csv", "--trace-format", help="3PRR: recording format (csv, tdms, mat)."
-    ),
-    seed: int = typer.Option(0, "--seed", min=0, help="Seed of every random draw (same seed, same files)."),
-    workers: int = typer.Option(
-        0, "--workers", min=0, help="Processes rendering images (0: one per available CPU)."
-    ),
+    out_dir: Path = _OPT_OUT_DIR,
+    robot: str = _OPT_ROBOT,
+    positions: str = _OPT_POSITIONS,
+    select: str = _OPT_SELECT,
+    loads: str = _OPT_LOADS,
+    repeats: int = _OPT_REPEATS,
+    directions: str = _OPT_DIRECTIONS,
+    trace_format: str = _OPT_TRACE_FORMAT,
+    seed: int = _OPT_SEED,
+    workers: int = _OPT_WORKERS,
     dask: str | None = dask_option("Render the images"),
-    force: bool = typer.Option(
-        False, "--force", help="Overwrite a previous simulation in OUT_DIR (never a real campaign)."
-    ),
-    image_format: ImageFormat = typer.Option(ImageFormat.png, "--format", help="Image format."),
-    jpeg_quality: int = typer.Option(95, "--jpeg-quality", min=1, max=100, help="JPEG quality."),
-    colour: bool = typer.Option(False, "--colour", help="A Bayer colour camera (demosaiced BGR images)."),
-    clutter: bool = typer.Option(False, "--clutter", help="A cluttered background instead of a plain one."),
-    noise: bool = typer.Option(True, "--noise/--no-noise", help="Sensor noise and vignetting."),
-    blur_px: float = typer.Option(0.8, "--blur-px", min=0.0, help="Optics blur (Gaussian sigma), px."),
-    repeatability_mm: float = typer.Option(
-        0.02, "--repeatability-mm", min=0.0, help="Robot position repeatability, 1 sigma per axis, mm."
-    ),
-    jitter_mm: float = typer.Option(
-        0.001, "--jitter-mm", min=0.0, help="Per-image position jitter (settling), 1 sigma per axis, mm."
-    ),
-    rot_stiffness: float = typer.Option(
-        None,
-        "--rot-stiffness-nmm-per-rad",
-        min=0.0,
-        help="Give the platform this rotational stiffness (N*mm/rad): a 6x6 field at the tool point.",
-        show_default=False,
-    ),
-    load_point: str = typer.Option(
-        None,
-        "--load-point-mm",
-        help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
-        "150,100,-150 for arm6).",
-        show_default=False,
-    ),
-    param: list[str] = typer.Option(
-        [], "--param", help="Robot model parameter NAME=VALUE (repeatable), e.g. k_theta=3e5."
-    ),
-    camera_file: Path = typer.Option(
-        None, "--camera", help="camera.json to simulate instead of the reference camera.", show_default=False
-    ),
-    calibration_views: int = typer.Option(
-        DEFAULT_CALIBRATION_VIEWS,
-        "--calibration-views",
-        min=0,
-        help="Views of an 11x8 calibration board (25 mm squares) rendered first, at the poses a "
-        "careful user takes, from which camera.json is calibrated as `stiffmap calibrate` does "
-        "(0: the true camera; else at least 3).",
-    ),
-    true_camera: bool = typer.Option(
-        False,
-        "--true-camera",
-        help="Give the campaign the true camera in camera.json (no calibration views; "
-        "= --calibration-views 0).",
-    ),
-    truth_only: bool = typer.Option(
-        False,
-        "--truth-only",
-        help="Write the spec, camera and truth but no images (fast; for tests). Nothing to "
-        "calibrate from: camera.json is the true camera.",
-    ),
-    cameras: int = typer.Option(
-        1,
-        "--cameras",
-        min=1,
-        max=8,
-        help="Cameras looking at the robot: 2 or more make a rig (rig.json), about --camera-angle-deg "
-        "apart about the vertical, each image a set of one image per camera.",
-    ),
-    camera_angle_deg: float = typer.Option(
-        60.0,
-        "--camera-angle-deg",
-        min=1.0,
-        max=120.0,
-        help="Angle between the first and last camera, degrees.",
-    ),
-    name: str = typer.Option(
-        None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
-    ),
-    tip: str = typer.Option(None, "--tip", help=_OWN_HELP["_TIP_HELP"], show_default=False),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OWN_HELP["_OFFSET_HELP"]),
-    base: str = typer.Option(None, "--base", help=_OWN_HELP["_BASE_HELP"]),
-    xacro_arg: list[str] = typer.Option(None, "--xacro-arg", help=_OWN_HELP["_XACRO_ARG_HELP"]),
-    package_path: list[str] = typer.Option(None, "--package-path", help=_OWN_HELP["_PACKAGE_PATH_HELP"]),
-    links: Path = typer.Option(None, "--links", help=_OWN_HELP["_LINKS_HELP"]),
-    configs: Path = typer.Option(
-        None,
-        "--configs",
-        help="--robot FILE: CSV of joint configurations (columns named after the joints, or "
-        "q1_deg..qn_deg; mm for a prismatic joint): the positions, their measured points.",
-    ),
-    as_json: bool = typer.Option(False, "--json", help="Print a JSON summary instead of a table."),
+    force: bool = _OPT_FORCE,
+    image_format: ImageFormat = _OPT_IMAGE_FORMAT,
+    jpeg_quality: int = _OPT_JPEG_QUALITY,
+    colour: bool = _OPT_COLOUR,
+    clutter: bool = _OPT_CLUTTER,
+    noise: bool = _OPT_NOISE,
+    blur_px: float = _OPT_BLUR_PX,
+    repeatability_mm: float = _OPT_REPEATABILITY_MM,
+    jitter_mm: float = _OPT_JITTER_MM,
+    rot_stiffness: float = _OPT_ROT_STIFFNESS,
+    load_point: str = _OPT_LOAD_POINT,
+    param: list[str] = _OPT_PARAM,
+    camera_file: Path = _OPT_CAMERA_FILE,
+    calibration_views: int = _OPT_CALIBRATION_VIEWS,
+    true_camera: bool = _OPT_TRUE_CAMERA,
+    truth_only: bool = _OPT_TRUTH_ONLY,
+    cameras: int = _OPT_CAMERAS,
+    camera_angle_deg: float = _OPT_CAMERA_ANGLE_DEG,
+    name: str = _OPT_NAME,
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
+    configs: Path = _OPT_CONFIGS,
+    as_json: bool = _OPT_AS_JSON,
 ) -> None:
     """Simulate a vision campaign of a robot with known stiffness, seen by a known camera.
 
@@ -324,21 +368,9 @@ def simulate(
     from views of the board seen by the cameras together, and one image per camera in each
     image set (campaign.toml's [cameras]).
     """
-    own = {
-        "--tip": tip,
-        "--tip-offset-mm": tip_offset,
-        "--base": base,
-        "--xacro-arg": xacro_arg or None,
-        "--package-path": package_path or None,
-        "--links": None if links is None else str(links),
-    }
+    own = _own_options(tip, tip_offset, base, xacro_arg, package_path, links)
     description, names = _own_robot(robot, param, own, configs)
-    if description is None:
-        with options_named(_OPTION_NAMES):
-            _, tb = testbed(robot)
-        instrument = tb.instrument
-    else:
-        instrument = CAMERA
+    instrument = CAMERA if description is not None else _instrument(robot)
     _refuse_options_of_the_other_instrument(ctx, robot, instrument)
     command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
     with options_named(names):

@@ -11,7 +11,6 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ..camera import load_camera
 from ..errors import InputError
 from ..io import atomic_write_text
 from ..report.validation import stage_plot_svg
@@ -25,6 +24,7 @@ from .vision_options import (
     REFINE_HELP,
     board_option,
     exit_for,
+    load_camera_option,
     measured_with,
     refine_option,
 )
@@ -58,7 +58,7 @@ def validate(
         b = board_option(board, square_mm, charuco, marker_mm)
         run = validate_files(
             manifest,
-            load_camera(camera),
+            load_camera_option(camera, rig_option=False),
             b,
             refine=refine_option(refine),
             allow_outside=allow_outside,

@@ -23,7 +23,7 @@ from ..rig import parse_named_pattern, save_rig
 from ..vision.calibrate import DIST_MODELS, CalibrationResult, grouped_reasons
 from ..vision.files import calibrate_files, calibrate_rig_files
 from ..vision.rig_calibration import NO_IMAGE, RigCalibrationResult
-from .common import EXIT_PARTIAL, err, fail, fmt, images_progress, out, print_json, warn
+from .common import EXIT_WARNINGS, err, fail, fmt, images_progress, note, out, print_json, warn
 from .vision_options import BOARD_HELP, CHARUCO_HELP, board_option
 
 
@@ -54,10 +54,10 @@ def calibrate(
     """Calibrate a camera from images of a board (Zhang's method): intrinsics, distortion, 1-sigma.
 
     Views where the board is not found, or whose RMS is an outlier, are left out with the
-    reason. Also printed the way the Camera Calibration Toolbox for Matlab does (+/- 3 sigma).
-    Exit status 1 when some images were left out (each named) or the result fails camera.json's
-    plausibility checks (a warning per key: the other commands will refuse it), 2 when no
-    calibration was possible.
+    reason (a note each). Also printed the way the Camera Calibration Toolbox for Matlab does
+    (+/- 3 sigma). Exit status 0 for a good calibration (also when some views were left out),
+    1 when it comes with warnings (it fails camera.json's plausibility checks: a warning per
+    key, the other commands will refuse it), 2 when no calibration was possible.
     """
     try:
         b = board_option(board, square_mm, charuco, marker_mm)
@@ -72,10 +72,10 @@ def calibrate(
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
-        warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
+        note(f"{out_path} replaced; the previous calibration is kept as {backup}")
     unused = [v for v in res.views if not v.used]
     for line in grouped_reasons([v.image for v in unused], [v.reason for v in unused]):
-        warn(f"not used: {line}")
+        note(f"not used: {line}")  # a good calibration leaves some views out: said, not a warning
     implausible = _warn_calibrated(res.camera, out_path, field_warning=False)
     for key, what in res.problems:
         warn(f"{out_path}: {key}: {what}")
@@ -85,8 +85,8 @@ def calibrate(
         print_json(res.to_dict())
     else:
         _print_calibration(res, out_path)
-    if res.n_used < len(res.views) or implausible or res.problems:
-        raise typer.Exit(EXIT_PARTIAL)
+    if implausible or res.problems:
+        raise typer.Exit(EXIT_WARNINGS)
 
 
 def _warn_calibrated(camera, out_path: Path, label: str = "", field_warning: bool = True) -> bool:
@@ -175,9 +175,9 @@ def calibrate_rig(
     intrinsics. Each camera's intrinsics and distortion and its pose in the rig frame (the
     first camera's) are refined together (bundle adjustment) with their joint covariance,
     and printed also the way the Camera Calibration Toolbox for Matlab prints a stereo
-    calibration (om, T +/- 3 sigma). Exit status 1 when some images were left out (each
-    named) or a camera fails camera.json's plausibility checks, 2 when no calibration was
-    possible.
+    calibration (om, T +/- 3 sigma). Exit status 0 for a good calibration (also when some
+    views were left out: a note each), 1 when a camera fails camera.json's plausibility
+    checks (a warning each), 2 when no calibration was possible.
     """
     try:
         b = board_option(board, square_mm, charuco, marker_mm)
@@ -193,20 +193,18 @@ def calibrate_rig(
     except InputError as e:
         raise fail(str(e)) from None
     if backup is not None:
-        warn(f"{out_path} replaced; the previous calibration is kept as {backup}")
-    left_out = 0
+        note(f"{out_path} replaced; the previous calibration is kept as {backup}")
     for c, views in zip(res.rig.cameras, res.views, strict=True):
         for v in views:
             if not v.used and v.reason != NO_IMAGE:
-                left_out += 1
-                warn(f"{v.image}: not used by camera {c.name}: {v.reason}")
+                note(f"{v.image}: not used by camera {c.name}: {v.reason}")
     implausible = [_warn_calibrated(c.camera, out_path, f"camera {c.name}: ") for c in res.rig.cameras]
     if as_json:
         print_json(res.to_dict())
     else:
         _print_rig_calibration(res, out_path)
-    if left_out or any(implausible):
-        raise typer.Exit(EXIT_PARTIAL)
+    if any(implausible):
+        raise typer.Exit(EXIT_WARNINGS)
 
 
 def _print_rig_calibration(res: RigCalibrationResult, out_path: Path) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from ..camera import CameraModel, load_camera
+from ..camera import CameraModel, RigFileAsCamera, load_camera
 from ..errors import InputError
 from ..rig import Rig, load_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
@@ -171,7 +171,18 @@ def camera_or_rig(camera: Path | None, rig: Path | None) -> tuple[CameraModel | 
         raise InputError("give --camera camera.json (one camera) or --rig rig.json (several)")
     if rig is not None:
         return load_rig(rig), str(rig)
-    return load_camera(camera), str(camera)
+    return load_camera_option(camera), str(camera)
+
+
+def load_camera_option(camera: Path, rig_option: bool = True) -> CameraModel:
+    """``--camera``'s camera.json; a rig file there is answered with the option that takes it."""
+    try:
+        return load_camera(camera)
+    except RigFileAsCamera as e:
+        what = f"--camera {camera}: this is a rig file ({e.cameras})"
+        if rig_option:
+            raise InputError(f"{what}: use --rig {camera}") from None
+        raise InputError(f"{what}: this command takes one camera's camera.json") from None
 
 
 def print_cameras(ms: list[ImageMeasurement], rig: Rig) -> None:

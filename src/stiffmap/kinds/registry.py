@@ -438,6 +438,18 @@ def robot_from_options(
     ------
     FieldError, InputError
         As :func:`build_robot`.
+
+    Examples
+    --------
+    The milling study's 3PRR with joint stiffness kj = 600 N/mm, and its stiffness at
+    (400, 270) mm:
+
+    >>> import numpy as np
+    >>> m = robot_from_options("3prr", params=["kj=600"])
+    >>> m.name, m.dim, m.params()["kj"]
+    ('3prr', 2, 600.0)
+    >>> np.diag(m.stiffness([400.0, 270.0])).round(1)  # N/mm along x and y
+    array([ 754.6, 1046.9])
     """
     given = params_from_text(params) if not isinstance(params, Mapping) else dict(params)
     path = None if file is None else Path(file)

@@ -733,6 +733,17 @@ class LegMechanism:
         ModelMap
             K (N/mm) at the tool point in the base frame; ``q`` the actuated joint
             coordinates (rad or mm).
+
+        Examples
+        --------
+        The Delta's stiffness map at two poses, the second out of reach:
+
+        >>> from stiffmap.models.delta import DeltaRobot
+        >>> mp = DeltaRobot().evaluate([[0, 0, -400], [0, 0, -2000]])  # mm
+        >>> mp.valid.tolist(), mp.reasons[1].split(":")[0]
+        ([True, False], 'unreachable')
+        >>> round(float(mp.min_principal[0]), 2)  # N/mm, along the softest direction
+        3.18
         """
         return self._map_from_legs(points, self.legs(points))
 

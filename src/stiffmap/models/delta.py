@@ -18,7 +18,9 @@ Constraint of leg i: ``|C_i - B_i| = b``. Inverse kinematics (closed form, the
 elbow-out branch everywhere): with ``D = P - (R - r) e_i``, ``rho = D.e_i``,
 ``zeta = D.z``, ``M = (|D|^2 + a^2 - b^2) / (2 a)``, ``G = sqrt(rho^2 + zeta^2)``,
 ``beta = atan2(zeta, rho)``: ``theta_i = -beta - acos(M / G)``; reachable iff
-``|M| <= G``.
+``|M| <= G`` and the tool is below the base (z < 0: at or above the base plane the
+closed form has a mirror solution, the arms folded up through the base, which is refused
+by name).
 
 Jacobian: differentiating the constraint, ``dtheta_i = n_i . dP / (n_i . t_i)``
 with ``n_i = (C_i - B_i) / b`` the forearm direction and ``t_i = dB_i/dtheta_i``;
@@ -219,7 +221,9 @@ class DeltaRobot(LegMechanism):
         G = np.hypot(rho, zeta)
         with np.errstate(invalid="ignore", divide="ignore"):
             c = M / G
-        ok_leg = np.abs(c) <= 1.0
+        # The platform hangs below the base (z < 0): a point at or above the base plane has
+        # a mirror solution (the arms folded up through the base) that no Delta can take.
+        ok_leg = (np.abs(c) <= 1.0) & (P[:, 2] < 0.0)[:, None]
         theta = np.where(ok_leg, -np.arctan2(zeta, rho) - np.arccos(np.clip(c, -1.0, 1.0)), np.nan)
         theta = np.where(ok_leg, (theta + np.pi) % (2 * np.pi) - np.pi, np.nan)
         ct, st = np.cos(theta), np.sin(theta)
@@ -260,14 +264,19 @@ class DeltaRobot(LegMechanism):
             dist = np.linalg.norm(P[i][None, :] + self.platform_radius * e - self.base_radius * e, axis=1)
             parts = []
             for k in range(3):
-                if np.isfinite(L.theta[i, k]):
-                    continue
                 D = P[i] - (self.base_radius - self.platform_radius) * e[k]
-                far = (D @ D + a * a - b * b) / (2 * a) > 0
+                M = (D @ D + a * a - b * b) / (2 * a)
+                if abs(M) <= math.hypot(D @ e[k], D[2]):
+                    continue  # this leg reaches
                 parts.append(
                     f"leg {k + 1} "
-                    + ("too far" if far else "too close")
+                    + ("too far" if M > 0 else "too close")
                     + f" ({dist[k]:.4g} mm from its actuator; arm {a:g} mm, forearm {b:g} mm)"
+                )
+            if not parts:  # every leg reaches, but above the base: the mirror solution
+                parts.append(
+                    f"z = {P[i, 2]:+.4g} mm is at or above the base: the Delta's workspace is below "
+                    "its base (z < 0 in the base frame, z up; a sign of z flipped?)"
                 )
             reasons[i] = "unreachable: " + "; ".join(parts)
         return reasons

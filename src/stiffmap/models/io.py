@@ -168,8 +168,23 @@ def read_measurements(path: str | os.PathLike, dim: int) -> StaticErrorMeasureme
     """
     src = str(path)
     header = _header(path)
+    _refuse_other_dimension(header, dim, src)
+    if "value_mm" in header:
+        return _static_error_measurements(path, header, dim)
+    if "k11" in header:
+        return _stiffness_measurements(path, header, dim)
     ax = AXIS_NAMES[:dim]
-    # A file made for a mechanism of the other dimension (z, fz, nz or k13.. columns).
+    raise InputError(
+        "cannot tell the kind of measurements: expected a 'value_mm' column (static errors: "
+        f"{', '.join(ax)}, {', '.join('f' + a for a in ax)}, value_mm[, std_mm]) or 'k11' "
+        f"(stiffness matrices: {', '.join(ax)}, k11..k{dim}{dim}); header has "
+        f"{', '.join(repr(h) for h in header)}",
+        source=src,
+    )
+
+
+def _refuse_other_dimension(header: list[str], dim: int, src: str) -> None:
+    """A file made for a mechanism of the other dimension (z, fz, nz or k13.. columns)."""
     extra = [c for c in header if c in ("z", "fz", "nz") or (len(c) == 3 and c[0] == "k" and "3" in c[1:])]
     if dim == 2 and extra:
         raise InputError(
@@ -181,94 +196,100 @@ def read_measurements(path: str | os.PathLike, dim: int) -> StaticErrorMeasureme
         raise InputError(
             "stiffness columns stop at k22 (a planar 2x2 K); this model needs k11..k33", source=src
         )
-    if "value_mm" in header:
-        fcols = [f"f{a}" for a in ax]
-        ncols = [f"n{a}" for a in ax]
-        has_n = any(c in header for c in ncols)
-        t = read_csv_columns(path, [*ax, *fcols, "value_mm"] + (ncols if has_n else []), ["std_mm"])
-        t.check_magnitude(ax, MAX_POSITION_MM, "mm", "position")
-        t.check_magnitude(fcols, MAX_FORCE_N, "N", "force")
-        t.check_magnitude(("value_mm", "std_mm"), MAX_DISPLACEMENT_MM, "mm", "static error")
-        F = t.stack(fcols).T.copy()
-        fn = np.linalg.norm(F, axis=1)
-        if has_n:
-            U = t.stack(ncols).T.copy()
-            un = np.linalg.norm(U, axis=1)
-            bad = np.flatnonzero(un == 0)
-            if bad.size:
-                raise InputError(
-                    f"line {t.lines[bad[0]]}: the direction ({', '.join(ncols)}) is zero", source=src
-                )
-            far = np.flatnonzero(np.abs(un - 1) > 0.01)
-            if far.size:
-                i = far[0]
-                raise InputError(
-                    f"line {t.lines[i]}: the direction ({', '.join(ncols)}) has length {un[i]:.4g}; "
-                    "expected a unit vector",
-                    source=src,
-                )
-            U = U / un[:, None]
-        else:
-            bad = np.flatnonzero(fn == 0)
-            if bad.size:
-                raise InputError(
-                    f"line {t.lines[bad[0]]}: zero force and no nx, ny columns: the measured direction "
-                    "is unknown",
-                    source=src,
-                )
-            U = F / fn[:, None]
-        std = t.columns.get("std_mm")
-        if std is not None:
-            bad = np.flatnonzero(~(std > 0))
-            if bad.size:
-                raise InputError(
-                    f"line {t.lines[bad[0]]}, column 'std_mm': {std[bad[0]]:g} is not a positive number",
-                    source=src,
-                )
-        return StaticErrorMeasurements(
-            points=t.stack(ax).T.copy(),
-            forces=F,
-            directions=U,
-            values=t.columns["value_mm"].copy(),
-            std=None if std is None else std.copy(),
-            lines=t.lines,
-            source=src,
-        )
-    if "k11" in header:
-        kcols = [f"k{i + 1}{j + 1}" for i in range(dim) for j in range(dim)]
-        scols = [f"{c}_std" for c in kcols]
-        has_s = any(c in header for c in scols)
-        t = read_csv_columns(path, [*ax, *kcols] + (scols if has_s else []))
-        t.check_magnitude(ax, MAX_POSITION_MM, "mm", "position")
-        t.check_magnitude(kcols + scols, MAX_STIFFNESS_N_PER_MM, "N/mm", "stiffness")
-        n = len(t)
-        K = t.stack(kcols).T.reshape(n, dim, dim).copy()
-        zero = np.flatnonzero(~np.any(K.reshape(n, -1), axis=1))
-        if zero.size:
+
+
+def _static_error_measurements(path, header: list[str], dim: int) -> StaticErrorMeasurements:
+    """Static errors: position, force (N), value_mm[, std_mm][, measured direction n]."""
+    src = str(path)
+    ax = AXIS_NAMES[:dim]
+    fcols = [f"f{a}" for a in ax]
+    ncols = [f"n{a}" for a in ax]
+    has_n = any(c in header for c in ncols)
+    t = read_csv_columns(path, [*ax, *fcols, "value_mm"] + (ncols if has_n else []), ["std_mm"])
+    t.check_magnitude(ax, MAX_POSITION_MM, "mm", "position")
+    t.check_magnitude(fcols, MAX_FORCE_N, "N", "force")
+    t.check_magnitude(("value_mm", "std_mm"), MAX_DISPLACEMENT_MM, "mm", "static error")
+    F = t.stack(fcols).T.copy()
+    U = _measured_directions(t, ncols, src) if has_n else _force_directions(t, F, src)
+    std = t.columns.get("std_mm")
+    if std is not None:
+        bad = np.flatnonzero(~(std > 0))
+        if bad.size:
             raise InputError(
-                f"line {t.lines[zero[0]]}: every entry of K is zero: not a measured stiffness "
-                "(a failed identification written as zeros?)",
+                f"line {t.lines[bad[0]]}, column 'std_mm': {std[bad[0]]:g} is not a positive number",
                 source=src,
             )
-        S = None
-        if has_s:
-            S = t.stack(scols).T.reshape(n, dim, dim).copy()
-            bad = np.argwhere(~(S > 0))
-            if bad.size:
-                i, a, b = bad[0]
-                raise InputError(
-                    f"line {t.lines[i]}, column 'k{a + 1}{b + 1}_std': {S[i, a, b]:g} "
-                    "is not a positive number",
-                    source=src,
-                )
-        return StiffnessMeasurements(t.stack(ax).T.copy(), K, S, t.lines, src)
-    raise InputError(
-        "cannot tell the kind of measurements: expected a 'value_mm' column (static errors: "
-        f"{', '.join(ax)}, {', '.join('f' + a for a in ax)}, value_mm[, std_mm]) or 'k11' "
-        f"(stiffness matrices: {', '.join(ax)}, k11..k{dim}{dim}); header has "
-        f"{', '.join(repr(h) for h in header)}",
+    return StaticErrorMeasurements(
+        points=t.stack(ax).T.copy(),
+        forces=F,
+        directions=U,
+        values=t.columns["value_mm"].copy(),
+        std=None if std is None else std.copy(),
+        lines=t.lines,
         source=src,
     )
+
+
+def _measured_directions(t, ncols: list[str], src: str) -> np.ndarray:
+    """The unit directions of the n columns (within 1 % of unit length, then normalised)."""
+    U = t.stack(ncols).T.copy()
+    un = np.linalg.norm(U, axis=1)
+    bad = np.flatnonzero(un == 0)
+    if bad.size:
+        raise InputError(f"line {t.lines[bad[0]]}: the direction ({', '.join(ncols)}) is zero", source=src)
+    far = np.flatnonzero(np.abs(un - 1) > 0.01)
+    if far.size:
+        i = far[0]
+        raise InputError(
+            f"line {t.lines[i]}: the direction ({', '.join(ncols)}) has length {un[i]:.4g}; "
+            "expected a unit vector",
+            source=src,
+        )
+    return U / un[:, None]
+
+
+def _force_directions(t, F: np.ndarray, src: str) -> np.ndarray:
+    """Without n columns the static error is measured along the force: its unit vectors."""
+    fn = np.linalg.norm(F, axis=1)
+    bad = np.flatnonzero(fn == 0)
+    if bad.size:
+        raise InputError(
+            f"line {t.lines[bad[0]]}: zero force and no nx, ny columns: the measured direction is unknown",
+            source=src,
+        )
+    return F / fn[:, None]
+
+
+def _stiffness_measurements(path, header: list[str], dim: int) -> StiffnessMeasurements:
+    """Stiffness matrices: position, k11..k{dim}{dim} (N/mm)[, their _std columns]."""
+    src = str(path)
+    ax = AXIS_NAMES[:dim]
+    kcols = [f"k{i + 1}{j + 1}" for i in range(dim) for j in range(dim)]
+    scols = [f"{c}_std" for c in kcols]
+    has_s = any(c in header for c in scols)
+    t = read_csv_columns(path, [*ax, *kcols] + (scols if has_s else []))
+    t.check_magnitude(ax, MAX_POSITION_MM, "mm", "position")
+    t.check_magnitude(kcols + scols, MAX_STIFFNESS_N_PER_MM, "N/mm", "stiffness")
+    n = len(t)
+    K = t.stack(kcols).T.reshape(n, dim, dim).copy()
+    zero = np.flatnonzero(~np.any(K.reshape(n, -1), axis=1))
+    if zero.size:
+        raise InputError(
+            f"line {t.lines[zero[0]]}: every entry of K is zero: not a measured stiffness "
+            "(a failed identification written as zeros?)",
+            source=src,
+        )
+    S = None
+    if has_s:
+        S = t.stack(scols).T.reshape(n, dim, dim).copy()
+        bad = np.argwhere(~(S > 0))
+        if bad.size:
+            i, a, b = bad[0]
+            raise InputError(
+                f"line {t.lines[i]}, column 'k{a + 1}{b + 1}_std': {S[i, a, b]:g} is not a positive number",
+                source=src,
+            )
+    return StiffnessMeasurements(t.stack(ax).T.copy(), K, S, t.lines, src)
 
 
 def fit_measurements_file(

@@ -115,14 +115,77 @@ JS = r"""
       };
       return Plotly.react(detail, data, layout, config);
     }
-    pos.addEventListener("change", draw);
+    // Linearity and residuals of the chosen position (when the data hold the displacement vectors).
+    const linEl = document.getElementById("fig-linearity");
+    const resEl = document.getElementById("fig-residual-detail");
+    const COLOURS = ["#1f77b4", "#2ca02c", "#9467bd"], COMP = ["dx", "dy", "dz"];
+    function drawLinearity() {
+      if (!linEl || !D.vectors) return Promise.resolve();
+      const i = +pos.value, G = D.directions, data = [], layout = {
+        template: {layout: {paper_bgcolor: "white", plot_bgcolor: "white"}}, height: 380,
+        margin: {l: 60, r: 20, t: 50, b: 90}, showlegend: true, legend: {orientation: "h", x: 0, y: -0.22},
+        title: {text: D.positions[i] + ": displacement against the force, per load direction (dots: repeats; lines: d = C·F from the identified K)", x: 0.01, font: {size: 13}},
+        annotations: []};
+      G.forEach((g, k) => {
+        const ax = k === 0 ? "" : String(k + 1), w = 1 / G.length;
+        layout["xaxis" + ax] = {domain: [k * w + 0.04, (k + 1) * w - 0.03], anchor: "y" + ax, title: {text: "|F| (N), along " + g.label}, rangemode: "tozero", gridcolor: "#eee"};
+        layout["yaxis" + ax] = {anchor: "x" + ax, title: {text: k === 0 ? "displacement (mm)" : ""}, gridcolor: "#eee", zeroline: true};
+        for (let c = 0; c < 3; c++) {
+          const mx = [], my = [], lx = [], ly = [];
+          g.loads.forEach((j, q) => {
+            const f = g.magnitude[q];
+            let sum = 0, cnt = 0;
+            D.vectors[i][j].forEach((v, r) => {
+              if (v[c] === null) return;
+              mx.push(f); my.push(v[c]);
+              const e = D.residuals[i][j][r][c];
+              if (e !== null) { sum += v[c] - e; cnt++; }
+            });
+            if (cnt) { lx.push(f); ly.push(sum / cnt); }
+          });
+          data.push({type: "scatter", mode: "markers", x: mx, y: my, xaxis: "x" + ax, yaxis: "y" + ax, name: COMP[c],
+                     legendgroup: COMP[c], showlegend: k === 0, marker: {size: 6, color: COLOURS[c]},
+                     hovertemplate: COMP[c] + " %{y:.4g} mm at %{x:.4g} N<extra></extra>"});
+          data.push({type: "scatter", mode: "lines", x: lx, y: ly, xaxis: "x" + ax, yaxis: "y" + ax, name: COMP[c] + " = (C·F)",
+                     legendgroup: COMP[c], showlegend: false, line: {color: COLOURS[c], width: 1.5}, hoverinfo: "skip"});
+        }
+      });
+      return Plotly.react(linEl, data, layout, config);
+    }
+    function drawResiduals() {
+      if (!resEl || !D.residuals) return Promise.resolve();
+      const i = +pos.value, L = D.labels.length, data = [];
+      for (let c = 0; c < 3; c++) {
+        const x = [], y = [], t = [];
+        for (let j = 0; j < L; j++) {
+          const R = D.residuals[i][j].length;
+          D.residuals[i][j].forEach((v, r) => {
+            if (v[c] === null) return;
+            x.push(j + 1 + (c - 1) * 0.2 + 0.12 * (R > 1 ? r / (R - 1) - 0.5 : 0)); y.push(1000 * v[c]); t.push("load " + (j + 1) + ", repeat " + (r + 1));
+          });
+        }
+        data.push({type: "scatter", mode: "markers", x: x, y: y, text: t, name: COMP[c], marker: {size: 6, color: COLOURS[c]},
+                   hovertemplate: "%{text}: " + COMP[c] + " %{y:.3g} µm<extra></extra>"});
+      }
+      const layout = {
+        template: {layout: {paper_bgcolor: "white", plot_bgcolor: "white"}}, height: 340,
+        margin: {l: 60, r: 20, t: 50, b: 90}, legend: {orientation: "h", x: 0.75, y: 1.15},
+        title: {text: D.positions[i] + ": residuals of d = C·F per load case (µm; each repeat a dot)", x: 0.01, font: {size: 13}},
+        xaxis: {tickmode: "array", tickvals: D.labels.map((l, k) => k + 1), ticktext: D.labels.map((l, k) => (k + 1) + ": " + l),
+                tickangle: -30, range: [0.4, L + 0.6], gridcolor: "#eee", title: {text: "load case"}},
+        yaxis: {title: {text: "µm"}, zeroline: true, zerolinecolor: "#888", gridcolor: "#eee"},
+      };
+      return Plotly.react(resEl, data, layout, config);
+    }
+    const redraw = () => Promise.all([draw(), drawLinearity(), drawResiduals()]);
+    pos.addEventListener("change", redraw);
     load.addEventListener("change", draw);
-    jobs.push(draw());
+    jobs.push(redraw());
     const overview = document.getElementById("fig-loads-overview");
     Promise.all(jobs).then(() => {
       if (overview && overview.on) overview.on("plotly_click", (ev) => {
         const p = ev.points[0];
-        pos.value = p.pointIndex[1]; load.value = p.pointIndex[0]; draw();
+        pos.value = p.pointIndex[1]; load.value = p.pointIndex[0]; redraw();
       });
     });
   }

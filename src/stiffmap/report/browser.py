@@ -27,6 +27,7 @@ import struct
 import subprocess
 import tempfile
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -110,6 +111,9 @@ class PageCheck:
         JSON value returned by the script run after the page was ready (or None).
     screenshot : bytes or None
         PNG, when asked for.
+    shots : tuple of bytes or None
+        PNG of each element asked for (``elements``), whole even where taller than the
+        window; None for a selector that matched nothing.
     """
 
     url: str
@@ -118,6 +122,7 @@ class PageCheck:
     requests: tuple[str, ...]
     result: Any = None
     screenshot: bytes | None = None
+    shots: tuple[bytes | None, ...] = ()
 
     @property
     def errors(self) -> tuple[ConsoleEntry, ...]:
@@ -340,6 +345,7 @@ def check_page(
     *,
     script: str | None = None,
     screenshot: bool = False,
+    elements: Sequence[str] = (),
     width: int = 1280,
     height: int = 900,
     timeout: float = 60.0,
@@ -357,6 +363,9 @@ def check_page(
         awaited. Its JSON value is :attr:`PageCheck.result`.
     screenshot : bool
         Take a PNG of the viewport (``width`` x ``height`` CSS px).
+    elements : sequence of str
+        CSS selectors: a PNG of each (the first element it matches), after the script
+        (:attr:`PageCheck.shots`).
     timeout : float
         Seconds for the whole check.
     settle : float
@@ -453,12 +462,13 @@ def check_page(
             shot = base64.b64decode(
                 cdp.call("Page.captureScreenshot", {"format": "png"}, session=sid)["data"]
             )
+        shots = tuple(_element_png(cdp, sid, sel) for sel in elements)
         entries, requests = _entries(cdp.events)
         try:
             cdp.call("Browser.close")
         except (BrowserError, OSError):
             pass
-        return PageCheck(url, ready, tuple(entries), tuple(requests), result, shot)
+        return PageCheck(url, ready, tuple(entries), tuple(requests), result, shot, shots)
     except OSError as e:
         raise BrowserError(f"talking to {exe}: {e}") from None
     finally:
@@ -471,6 +481,24 @@ def check_page(
             proc.wait(timeout=5)
         log.close()
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def _element_png(cdp: _CDP, sid: str, selector: str) -> bytes | None:
+    """PNG of the first element matching ``selector`` (in page coordinates), None without one."""
+    where = (
+        f"(() => {{ const e = document.querySelector({json.dumps(selector)}); if (!e) return null;"
+        " const r = e.getBoundingClientRect();"
+        " return [r.left + scrollX, r.top + scrollY, r.width, r.height]; })()"
+    )
+    box = cdp.call("Runtime.evaluate", {"expression": where, "returnByValue": True}, sid)
+    box = box.get("result", {}).get("value")
+    if not box or box[2] < 1 or box[3] < 1:
+        return None
+    clip = dict(zip(("x", "y", "width", "height"), box, strict=True), scale=1)
+    shot = cdp.call(
+        "Page.captureScreenshot", {"format": "png", "clip": clip, "captureBeyondViewport": True}, sid
+    )
+    return base64.b64decode(shot["data"])
 
 
 def check_report(

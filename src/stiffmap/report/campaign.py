@@ -7,6 +7,7 @@ spec and ``stiffmap.db`` and fills :class:`stiffmap.report.data.ReportData`;
 
 from __future__ import annotations
 
+import base64
 from datetime import date
 from pathlib import Path
 
@@ -22,8 +23,13 @@ from ..campaign.store import DB_NAME, Store
 from ..campaign.truth import load_truth
 from ..errors import InputError
 from ..rig import Rig
+from ..targets import Chessboard
+from ..textfmt import fmt
+from ..vision.images import read_image
 from . import data as contract
 from . import write_report
+from .figure_data import displacement_residuals
+from .png import grey_png, reduce_image
 
 __all__ = ["report_data", "failures_as_items", "write_campaign_report"]
 
@@ -83,14 +89,20 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
     )
     out: dict = {"measured": measured}
     loads = spec.loads.resolve(spec.g)
-    norms = np.full((n, len(loads), spec.repeats), np.nan)
+    forces = np.stack([ld.force for ld in loads])
+    vectors = np.full((n, len(loads), spec.repeats, 3), np.nan)
     index = {r.position: i for i, r in enumerate(rows)}
     for d in store.displacement_rows(only_ok=True):
         i = index.get(d.position)
         if i is not None and d.load <= len(loads) and d.repeat <= spec.repeats:
-            norms[i, d.load - 1, d.repeat - 1] = float(np.linalg.norm(d.d[:3]))
+            vectors[i, d.load - 1, d.repeat - 1] = d.d[:3]
+    offset = spec.images.pairing == "mean-reference"
     out["loads"] = contract.LoadData(
-        tuple(ld.label for ld in loads), np.stack([ld.force for ld in loads]), norms
+        tuple(ld.label for ld in loads),
+        forces,
+        np.linalg.norm(vectors, axis=3),
+        vectors=vectors,
+        residuals=displacement_residuals(K, forces, vectors, offset=offset),
     )
     kind = spec.robot.kind
     if kind is not None and kind.dim != 2:  # a spatial model (a legs TOML says its own dim)
@@ -126,8 +138,51 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
             rig.cameras[0].camera.to_dict(), k_share=share, cameras=cameras
         )
     except (InputError, ValueError):
-        pass  # the report goes without the calibration section
+        return out  # the report goes without the calibration section and the board image
+    out["board_image"] = board_image(root, spec, store, rig)
     return out
+
+
+def board_image(root: Path, spec: CampaignSpec, store: Store, rig: Rig) -> contract.BoardImage | None:
+    """The first measured image with its boards where their measured poses put them.
+
+    The boards' inner corners are projected from the stored poses (``mobile2cam``,
+    ``fixed2cam``: camera frame, or the rig frame, which is the first camera's) through the
+    (first) camera. None when no image was measured or the file cannot be read any more.
+    """
+    mi = store.first_measured_image()
+    if mi is None or spec.targets is None:
+        return None
+    cam = rig.cameras[0]
+    name = mi.image.replace("{camera}", cam.name)
+    try:
+        image = read_image(root / name)
+    except InputError:
+        return None
+    corners, which = [], []
+    for label, target, T in (
+        ("mobile", spec.targets.mobile, mi.mobile2cam),
+        ("fixed", spec.targets.fixed, mi.fixed2cam),
+    ):
+        if target is None or T is None or not np.all(np.isfinite(T)):
+            continue
+        board = Chessboard.parse(target.board, target.square_mm)
+        P = board.object_points() @ T[:3, :3].T + T[:3, 3]
+        px = cam.camera.project(P)
+        corners.append(px)
+        which += [f"{label} {board.size}"] * len(px)
+    if not corners:
+        return None
+    small, k = reduce_image(image)
+    h, w = image.shape
+    return contract.BoardImage(
+        name=name,
+        png_base64=base64.b64encode(grey_png(small)).decode("ascii"),
+        image_size=np.array([w, h], dtype=float),
+        scale=float(k),
+        corners_px=np.concatenate(corners),
+        corner_board=tuple(which),
+    )
 
 
 def _per_camera(rig: Rig, store: Store) -> tuple[dict, ...]:
@@ -213,6 +268,7 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         middle = None if middle_x is None else np.abs(m["points"][:, 0] - middle_x) < 1e-6
         if middle is not None and not middle.any():
             middle = None
+    steps = _sensor_steps(spec, store)
     sr = contract.SensorResults(
         points=m["points"],
         direction=tuple(_axis(u) for u in m["directions"]),
@@ -225,8 +281,40 @@ def _sensor(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
         model_name=name,
         parameters=params,
         maps=maps,
+        **steps,
     )
     return {"sensor": sr}
+
+
+def _sensor_steps(spec: CampaignSpec, store: Store) -> dict:
+    """Each recording's plateaus (load, displacement) and fitted line, in spec order (NaN-padded)."""
+    recs = spec.sensor.recordings
+    rows = {r.recording: r for r in store.sensor_result_rows()}
+    results = []
+    for r in recs:
+        row = rows.get(r.file)
+        res = row.result if row is not None and row.status == "ok" else None
+        results.append(res if isinstance(res, dict) else None)
+    S = max((len(res.get("steps") or []) for res in results if res is not None), default=0)
+    if S == 0:
+        return {}
+    load = np.full((len(recs), S), np.nan)
+    disp = np.full((len(recs), S), np.nan)
+    slope = np.full(len(recs), np.nan)
+    icpt = np.full(len(recs), np.nan)
+    for i, res in enumerate(results):
+        if res is None:
+            continue
+        for k, st in enumerate(res.get("steps") or []):
+            load[i, k], disp[i, k] = _number(st.get("load_n")), _number(st.get("displacement_um"))
+        slope[i] = _number(res.get("compliance_um_per_n"))
+        icpt[i] = _number(res.get("intercept_um"))
+    return {"step_load_n": load, "step_um": disp, "fit_um_per_n": slope, "fit_intercept_um": icpt}
+
+
+def _number(v) -> float:
+    """A stored number, NaN for a missing one (null)."""
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else np.nan
 
 
 def _axis(u: np.ndarray) -> str:
@@ -267,7 +355,98 @@ def report_data(
             source=str(root),
         )
     parts = _SECTIONS[inst.measures](root, spec, store, allow_outside)
-    return contract.ReportData(campaign=info, failures=failures_as_items(failures), **parts)
+    setup = _SETUP[inst.measures](spec, store, parts)
+    setup.append(("failures", f"{len(failures)} (each listed under Failures)" if failures else "none"))
+    return contract.ReportData(
+        campaign=info,
+        failures=failures_as_items(failures),
+        setup=tuple(contract.SetupItem(a, b) for a, b in setup),
+        **parts,
+    )
+
+
+def _vision_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[str, str]]:
+    """The set-up summary of a vision campaign: what was loaded, imaged, measured, identified."""
+    m, ld = parts["measured"], parts["loads"]
+    z = np.unique(np.round(m.positions[:, 2], 6))
+    out = [
+        ("robot", spec.robot.model),
+        ("positions", f"{m.n} on {len(z)} plane(s) z = {', '.join(fmt(v, 5) for v in z[::-1])} mm"),
+        (
+            "load cases",
+            f"{len(ld.labels)}, {spec.repeats} repeat(s) each: "
+            + "; ".join(
+                f"{j + 1}: {lab} ({', '.join(fmt(f, 4) for f in ld.forces[j])} N)"
+                for j, lab in enumerate(ld.labels)
+            ),
+        ),
+    ]
+    c = store.image_counts()
+    where = f"{c.positions} position" + ("s" if c.positions != 1 else "")
+    out.append(("images", f"{c.measured} of {c.total} measured, {c.failed} failed ({where})"))
+    disp = store.displacement_rows()
+    n_ok = sum(1 for r in disp if r.status == "ok")
+    out.append(("load measurements", f"{n_ok} of {len(disp)} displacements measured"))
+    pairing = {
+        "pairs": "each loaded image against its own unloaded image",
+        "mean-reference": "against the mean of the position's unloaded images (the common offset estimated)",
+    }
+    out.append(("pairing", pairing[spec.images.pairing]))
+    t = spec.targets
+    if t is not None:
+        text = f"mobile {t.mobile.board}, {fmt(t.mobile.square_mm, 5)} mm squares"
+        if t.fixed is not None:
+            text += f"; fixed {t.fixed.board}, {fmt(t.fixed.square_mm, 5)} mm squares"
+        out.append(("targets", text))
+    cal = parts.get("calibration")
+    if cal is not None:
+        cam = cal.camera
+        views = cam.get("views") or []
+        used = sum(1 for v in views if v.get("used", True))
+        text = f"{cam['image_size'][0]}x{cam['image_size'][1]} px, {cam.get('model', 'opencv')} lens model"
+        if views:
+            text += f", calibrated from {used} of {len(views)} views"
+        if cam.get("rms_px") is not None:
+            text += f", RMS {fmt(cam['rms_px'], 3)} px"
+        if cal.cameras:
+            text = f"a rig of {len(cal.cameras)} cameras; the first: " + text
+        out.append(("camera", text))
+    methods = sorted({r.method for r in store.stiffness_rows() if r.method})
+    flagged = sum(1 for i in range(m.n) if m.ok[i] and m.flags[i])
+    out.append(
+        (
+            "stiffness",
+            f"{int(m.ok.sum())} of {m.n} positions identified ({', '.join(methods) or 'n/a'}), "
+            f"{flagged} flagged, {int((~m.ok).sum())} failed",
+        )
+    )
+    return out
+
+
+def _sensor_setup(spec: CampaignSpec, store: Store, parts: dict) -> list[tuple[str, str]]:
+    """The set-up summary of a sensor campaign: recordings, loads, conversion, results."""
+    sn = spec.sensor
+    rows = store.sensor_result_rows()
+    ok = sum(1 for r in rows if r.status == "ok")
+    s = parts["sensor"]
+    pts = {tuple(p) for p in np.round(s.points, 6)}
+    if sn.steps_kgf is not None:
+        steps = ", ".join(fmt(v, 4) for v in sn.steps_kgf) + " kgf"
+    elif sn.steps_n is not None:
+        steps = ", ".join(fmt(v, 4) for v in sn.steps_n) + " N"
+    else:
+        steps = f"read from the load channel ({sn.load_unit})"
+    return [
+        ("robot", spec.robot.model),
+        ("recordings", f"{ok} of {len(sn.recordings)} analysed, {len(sn.recordings) - ok} failed"),
+        ("points", f"{len(pts)}, loaded along {', '.join(s.directions)}"),
+        ("load steps", steps),
+        ("reference load", f"{fmt(sn.reference_load_n, 5)} N (the static error is given at it)"),
+        ("displacement sensor", f"{fmt(sn.scale_um_per_v, 5)} µm/V, range ±{fmt(sn.range_v, 4)} V"),
+    ]
+
+
+_SETUP = {STIFFNESS: _vision_setup, STATIC_ERROR: _sensor_setup}
 
 
 def write_campaign_report(

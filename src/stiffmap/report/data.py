@@ -19,7 +19,10 @@ what was expected.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import math
+import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
@@ -48,6 +51,8 @@ __all__ = [
     "SensorMap",
     "SensorResults",
     "Failure",
+    "SetupItem",
+    "BoardImage",
     "Residuals",
     "ReportData",
 ]
@@ -288,7 +293,7 @@ class MeasuredStiffness:
 
 @dataclass(frozen=True)
 class LoadData:
-    """Load cases and the displacement norm measured for each (the reference's Figs. 9-10).
+    """Load cases and the displacement measured for each (the reference's Figs. 9-10).
 
     Attributes
     ----------
@@ -299,11 +304,21 @@ class LoadData:
     norms : ndarray, shape (n, L, R), mm
         Norm of the compliant displacement per position, load case and repeat;
         NaN where a repeat is missing.
+    vectors : ndarray, shape (n, L, R, 3), mm, or None
+        The compliant displacement itself (translation, base frame), NaN where missing;
+        its norms are ``norms``. Drawn against the force (linearity, per load direction).
+    residuals : ndarray, shape (n, L, R, 3), mm, or None
+        What the identified K leaves of each displacement: d - C F (- b), with C = K^-1 and
+        b the offset the fit estimated when every displacement of a position was measured
+        against one (mean) reference (``identify_stiffness(offset=True)``); NaN where the
+        displacement or K is missing.
     """
 
     labels: tuple[str, ...]
     forces: np.ndarray
     norms: np.ndarray
+    vectors: np.ndarray | None = None
+    residuals: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
@@ -312,6 +327,15 @@ class LoadData:
         set_array(self, "norms", self.norms, ("n", "L", "R"), d, limit=DLIM)
         if np.any(self.norms < 0):
             raise ValueError("norms: a displacement norm is negative")
+        set_optional_array(self, "vectors", self.vectors, ("n", "L", "R", 3), d, limit=DLIM)
+        set_optional_array(self, "residuals", self.residuals, ("n", "L", "R", 3), d, limit=DLIM)
+        if self.vectors is not None:
+            nv = np.linalg.norm(self.vectors, axis=3)
+            both = np.isfinite(nv) & np.isfinite(self.norms)
+            if np.any(np.isfinite(nv) != np.isfinite(self.norms)) or not np.allclose(
+                nv[both], self.norms[both], rtol=1e-9, atol=1e-12
+            ):
+                raise ValueError("vectors: their norms are not the norms given (or NaN elsewhere)")
 
     def summary(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Mean and standard deviation (n - 1) over the repeats, and the count.
@@ -455,6 +479,7 @@ class CalibrationData:
         except InputError as e:
             raise ValueError(e.detail) from None
         object.__setattr__(self, "camera", dict(self.camera))
+        _check_view_corners(self.camera.get("views") or [])
         set_optional_array(
             self, "corner_residuals_px", self.corner_residuals_px, ("N", 2), {}, finite=True, limit=PXLIM
         )
@@ -468,6 +493,27 @@ class CalibrationData:
             except InputError as e:
                 raise ValueError(e.detail) from None
         object.__setattr__(self, "cameras", tuple(dict(c) for c in cams))
+
+
+def _check_view_corners(views: list) -> None:
+    """The corners and residuals a ``camera.json`` view may keep: (k, 2) finite px, as many of each."""
+    for i, v in enumerate(views):
+        if not isinstance(v, Mapping) or ("corners_px" not in v and "residuals_px" not in v):
+            continue
+        shapes = []
+        for key in ("corners_px", "residuals_px"):
+            where = f"camera.views[{i}].{key}"
+            try:
+                a = np.array(v.get(key), dtype=np.float64)
+            except (TypeError, ValueError, OverflowError):
+                raise ValueError(f"{where}: expected a list of [x, y] pixel pairs") from None
+            if a.ndim != 2 or a.shape[1] != 2 or not np.all(np.isfinite(a)) or np.any(np.abs(a) > PXLIM):
+                raise ValueError(
+                    f"{where}: expected a list of finite [x, y] pixel pairs, got shape {a.shape}"
+                )
+            shapes.append(a.shape)
+        if shapes[0] != shapes[1]:
+            raise ValueError(f"camera.views[{i}]: {shapes[0][0]} corners but {shapes[1][0]} residuals")
 
 
 @dataclass(frozen=True)
@@ -527,6 +573,13 @@ class SensorResults:
         Fitted model parameters (e.g. ``kj`` in N/mm with its standard error).
     maps : tuple of SensorMap
         Dense model maps, one per direction.
+    step_load_n : ndarray, shape (m, S), N, or None
+        The load of each static plateau of each recording (NaN-padded to S steps).
+    step_um : ndarray, shape (m, S), um, or None
+        The displacement on each plateau (along ``direction``).
+    fit_um_per_n, fit_intercept_um : ndarray, shape (m,), or None
+        The load-displacement line fitted to each recording's plateaus (um/N, um), whose
+        value at ``reference_load_n`` is its static error; NaN where it failed.
     """
 
     points: np.ndarray
@@ -540,6 +593,10 @@ class SensorResults:
     model_name: str = ""
     parameters: tuple[Parameter, ...] = ()
     maps: tuple[SensorMap, ...] = ()
+    step_load_n: np.ndarray | None = None
+    step_um: np.ndarray | None = None
+    fit_um_per_n: np.ndarray | None = None
+    fit_intercept_um: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         d: dict[str, int] = {}
@@ -568,6 +625,12 @@ class SensorResults:
         if not all(isinstance(s, SensorMap) for s in self.maps):
             raise ValueError("maps: expected SensorMap objects")
         object.__setattr__(self, "maps", tuple(self.maps))
+        set_optional_array(self, "step_load_n", self.step_load_n, ("m", "S"), d, limit=FLIM)
+        set_optional_array(self, "step_um", self.step_um, ("m", "S"), d, limit=UMLIM)
+        set_optional_array(self, "fit_um_per_n", self.fit_um_per_n, ("m",), d, limit=UMLIM)
+        set_optional_array(self, "fit_intercept_um", self.fit_intercept_um, ("m",), d, limit=UMLIM)
+        if (self.step_load_n is None) != (self.step_um is None):
+            raise ValueError("step_load_n and step_um: give both or neither")
 
     @property
     def m(self) -> int:
@@ -577,6 +640,78 @@ class SensorResults:
     def directions(self) -> tuple[str, ...]:
         """The distinct directions, in order of first appearance."""
         return tuple(dict.fromkeys(self.direction))
+
+
+@dataclass(frozen=True)
+class SetupItem:
+    """One line of the set-up summary: what, and its value as text (``"load cases"``, ``"9: ..."``)."""
+
+    what: str
+    value: str
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.what, str) or not self.what or not isinstance(self.value, str):
+            raise ValueError("what and value: expected strings (what not empty)")
+
+
+#: Largest embedded image (base64 characters): a downsampled grey photograph is far below it.
+MAX_IMAGE_B64 = 8_000_000
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@dataclass(frozen=True)
+class BoardImage:
+    """One image of the campaign with its boards drawn where their measured poses put them.
+
+    Attributes
+    ----------
+    name : str
+        The image file (as the campaign names it).
+    png_base64 : str
+        The image, grey, reduced by ``scale``: a PNG file, base64-encoded.
+    image_size : ndarray, shape (2,), px
+        [w, h] of the image file.
+    scale : float
+        Image pixels per pixel of the PNG (>= 1).
+    corners_px : ndarray, shape (N, 2), px
+        The boards' inner corners projected from their measured poses (board2cam) through
+        the camera, in the image file's pixels (x right, y down).
+    corner_board : tuple of str, (N,)
+        Which board each corner belongs to (``"mobile 15x14"``, ``"fixed 9x6"``).
+    """
+
+    name: str
+    png_base64: str
+    image_size: np.ndarray
+    scale: float
+    corners_px: np.ndarray
+    corner_board: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not isinstance(self.png_base64, str):
+            raise ValueError("name and png_base64: expected strings")
+        if len(self.png_base64) > MAX_IMAGE_B64:
+            raise ValueError(f"png_base64: {len(self.png_base64)} characters, more than an image needs")
+        try:
+            png = base64.b64decode(self.png_base64, validate=True)
+        except (binascii.Error, ValueError):
+            raise ValueError("png_base64: not base64") from None
+        if png[:8] != _PNG_SIGNATURE or len(png) < 33 or png[12:16] != b"IHDR":
+            raise ValueError("png_base64: not a PNG image")
+        w, h = struct.unpack(">II", png[16:24])
+        d: dict[str, int] = {}
+        set_array(self, "image_size", self.image_size, (2,), d, finite=True, limit=1e5)
+        set_float(self, "scale", self.scale, positive=True)
+        W, H = self.image_size
+        if abs(w * self.scale - W) > self.scale or abs(h * self.scale - H) > self.scale:
+            raise ValueError(f"png_base64: a {w}x{h} PNG at scale {self.scale:g} is not a {W:g}x{H:g} image")
+        set_array(self, "corners_px", self.corners_px, ("N", 2), d, finite=True, limit=PXLIM)
+        set_strings(self, "corner_board", self.corner_board, d["N"])
+
+    @property
+    def png(self) -> bytes:
+        """The PNG file."""
+        return base64.b64decode(self.png_base64)
 
 
 @dataclass(frozen=True)
@@ -615,6 +750,10 @@ class ReportData:
         Required for a sensor campaign.
     failures : tuple of Failure
         Every item that failed, listed in the report.
+    setup : tuple of SetupItem
+        What the campaign did: loads, images or recordings, boards, camera, failures.
+    board_image : BoardImage or None
+        One image with the detected boards drawn on it.
     """
 
     campaign: CampaignInfo
@@ -625,6 +764,8 @@ class ReportData:
     calibration: CalibrationData | None = None
     sensor: SensorResults | None = None
     failures: tuple[Failure, ...] = ()
+    setup: tuple[SetupItem, ...] = ()
+    board_image: BoardImage | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.campaign, CampaignInfo):
@@ -649,6 +790,11 @@ class ReportData:
         if not all(isinstance(f, Failure) for f in self.failures):
             raise ValueError("failures: expected Failure objects")
         object.__setattr__(self, "failures", tuple(self.failures))
+        if not all(isinstance(x, SetupItem) for x in self.setup):
+            raise ValueError("setup: expected SetupItem objects")
+        object.__setattr__(self, "setup", tuple(self.setup))
+        if self.board_image is not None and not isinstance(self.board_image, BoardImage):
+            raise ValueError("board_image: expected a BoardImage")
 
     # ------------------------------------------------------------------ derived
     @property
@@ -710,12 +856,14 @@ _NESTED: dict[tuple[type, str], type] = {
     (ReportData, "calibration"): CalibrationData,
     (ReportData, "sensor"): SensorResults,
     (ModelStiffness, "map"): ModelMap,
+    (ReportData, "board_image"): BoardImage,
 }
 _NESTED_LISTS: dict[tuple[type, str], type] = {
     (ReportData, "failures"): Failure,
     (ModelStiffness, "parameters"): Parameter,
     (SensorResults, "parameters"): Parameter,
     (SensorResults, "maps"): SensorMap,
+    (ReportData, "setup"): SetupItem,
 }
 
 
@@ -735,6 +883,14 @@ _ARRAY_FIELDS = {
     "error_um",
     "error_std_um",
     "model_error_um",
+    "vectors",
+    "residuals",
+    "step_load_n",
+    "step_um",
+    "fit_um_per_n",
+    "fit_intercept_um",
+    "image_size",
+    "corners_px",
 }
 
 

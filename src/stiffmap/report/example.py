@@ -31,6 +31,7 @@ from .. import __version__
 from ..identify import identify_stiffness
 from ..loads import forces_matrix, paper9
 from . import data as rd  # the report's data contract
+from .figure_data import displacement_residuals
 
 __all__ = ["example_vision", "example_sensor", "example_field", "REFERENCE_PLANES_Z"]
 
@@ -69,15 +70,22 @@ def example_field(points, *, soften: float = 0.55, coupling: float = 1.0) -> np.
 
 def _camera(rng: np.random.Generator) -> tuple[dict, np.ndarray]:
     views, res = [], []
+    grid = np.array([(i, j) for j in range(6) for i in range(9)], dtype=float) - (4.0, 2.5)
     for v in range(15):
         r = rng.normal(0.0, rng.uniform(0.12, 0.3), size=(54, 2))
         res.append(r)
+        # A 9x6 board somewhere in the 2928 x 1808 image, turned and scaled (the coverage map).
+        a, s = rng.uniform(-0.5, 0.5), rng.uniform(60.0, 110.0)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        centre = rng.uniform((500.0, 350.0), (2428.0, 1458.0))
         views.append(
             {
                 "image": f"calib_{v + 1:02d}.png",
                 "used": True,
                 "rms_px": float(np.sqrt(np.mean(r**2) * 2)),
                 "reason": "",
+                "corners_px": np.round(centre + s * grid @ rot.T, 3).tolist(),
+                "residuals_px": np.round(r, 3).tolist(),
             }
         )
     views.append({"image": "calib_16.png", "used": False, "rms_px": None, "reason": "board not found"})
@@ -128,19 +136,17 @@ def example_vision(
     K_std = np.full((n, 3, 3), np.nan)
     flags: list[tuple[str, ...]] = []
     status, messages = [], []
-    norms = np.full((n, L, repeats), np.nan)
+    vectors = np.full((n, L, repeats, 3), np.nan)
     for i in range(n):
         Fi = F.copy()
         if i == swapped:
             Fi[:, 0], Fi[:, 1] = F[:, 1].copy(), F[:, 0].copy()  # two load cases swapped by the operator
         D = np.linalg.solve(Kt[i], Fi)[:, :, None] + rng.normal(0.0, noise_mm, size=(3, L, repeats))
-        nrm = np.linalg.norm(D, axis=0)
         if i == 5:
-            nrm[2, 8:] = np.nan  # two repeats lost
-            D[:, 2, 8:] = np.nan
-        norms[i] = nrm
+            D[:, 2, 8:] = np.nan  # two repeats lost
+        vectors[i] = np.moveaxis(D, 0, -1)
         if i in failed:
-            norms[i, 4 if i == 13 else 1, :] = np.nan
+            vectors[i, 4 if i == 13 else 1, :] = np.nan
             status.append("failed")
             messages.append(failed[i])
             flags.append(())
@@ -188,12 +194,33 @@ def example_vision(
             ),
         ),
         measured=measured,
-        loads=rd.LoadData(tuple(ld.label for ld in loads), F.T, norms),
+        loads=rd.LoadData(
+            tuple(ld.label for ld in loads),
+            F.T,
+            np.linalg.norm(vectors, axis=3),
+            vectors=vectors,
+            residuals=displacement_residuals(K, F.T, vectors, offset=False),
+        ),
         model=model,
         truth=rd.TruthStiffness(Kt),
         calibration=rd.CalibrationData(cam, res),
         failures=tuple(rd.Failure(f"position {i + 1}", m) for i, m in failed.items())
         + (rd.Failure("calib_16.png", "board not found; view not used"),),
+        setup=tuple(
+            rd.SetupItem(a, b)
+            for a, b in (
+                ("robot", "example (a smooth synthetic field)"),
+                ("positions", f"{n} on {len(planes)} plane(s) z = {', '.join(f'{z:g}' for z in planes)} mm"),
+                (
+                    "load cases",
+                    f"{L}, {repeats} repeat(s) each: "
+                    + "; ".join(f"{j + 1}: {ld.label}" for j, ld in enumerate(loads)),
+                ),
+                ("camera", "2928x1808 px, the reference study's Table IV, calibrated from 15 of 16 views"),
+                ("stiffness", f"{int(measured.ok.sum())} of {n} positions identified, {len(failed)} failed"),
+                ("failures", f"{len(failed) + 1} (each listed under Failures)"),
+            )
+        ),  # fmt: skip
     )
 
 
@@ -248,6 +275,13 @@ def example_sensor(seed: int = 0) -> rd.ReportData:
     maps = tuple(
         rd.SensorMap(d, grid, np.where(reach, shape_um(grid, d) * 525.0 / kj, np.nan)) for d in ("x", "y")
     )
+    # Each recording's plateaus (0, 10, ..., 50 kgf) and the least-squares line through them.
+    loads_n = np.arange(6) * 98.1
+    steps = np.where(ok[:, None], err[:, None] * loads_n / 490.5, np.nan)
+    steps = steps + rng.normal(0.0, 0.8, steps.shape) + rng.normal(0.0, 1.5, (len(err), 1))
+    slope, icpt = np.full(len(err), np.nan), np.full(len(err), np.nan)
+    for k in np.flatnonzero(ok):
+        slope[k], icpt[k] = np.polyfit(loads_n, steps[k], 1)
     return rd.ReportData(
         campaign=rd.CampaignInfo(
             name="Example sensor campaign (synthetic)",
@@ -269,6 +303,17 @@ def example_sensor(seed: int = 0) -> rd.ReportData:
             model_name="illustrative 3PRR-like field (example)",
             parameters=(rd.Parameter("kj", kj, kj_std, "N/mm"), rd.Parameter("kb", 9800.0, unit="N/mm")),
             maps=maps,
+            step_load_n=np.where(ok[:, None], loads_n, np.nan),
+            step_um=steps,
+            fit_um_per_n=slope,
+            fit_intercept_um=icpt,
         ),
         failures=(rd.Failure("point 13, x", "rec_13_x.csv: saturated from 12.1 s to 14.3 s"),),
+        setup=(
+            rd.SetupItem("robot", "example (an illustrative 3PRR-like field)"),
+            rd.SetupItem("recordings", f"{int(ok.sum())} of {len(err)} analysed, {int((~ok).sum())} failed"),
+            rd.SetupItem("points", f"{len(pts)}, loaded along x, y"),
+            rd.SetupItem("load steps", "0, 10, 20, 30, 40, 50 kgf"),
+            rd.SetupItem("reference load", "490.5 N (the static error is given at it)"),
+        ),
     )

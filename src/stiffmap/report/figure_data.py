@@ -350,7 +350,7 @@ def truth_entries(data: ReportData) -> TruthEntries | None:
 
 @dataclass(frozen=True)
 class CalibrationPanels:
-    """The calibration figure's data: per-view RMS and corner residuals (px).
+    """The calibration figure's data: per-view RMS, corner residuals and coverage (px).
 
     Attributes
     ----------
@@ -363,8 +363,10 @@ class CalibrationPanels:
         Every corner's residual, observed - projected.
     residual_range : float, px
         Half-width of the residual panel's axes (before its 5 % margin).
+    corners : CalibrationCorners or None
+        Where the used views put their corners in the image (the coverage panel).
     panels : int
-        1 or 2.
+        1 to 3: the views' RMS, the residuals, the coverage, those present.
     """
 
     views: list
@@ -372,6 +374,7 @@ class CalibrationPanels:
     used: np.ndarray
     residuals: np.ndarray | None
     residual_range: float
+    corners: CalibrationCorners | None
     panels: int
 
 
@@ -381,12 +384,16 @@ def calibration_panels(data: ReportData) -> CalibrationPanels | None:
     if c is None:
         return None
     views = c.camera.get("views") or []
+    cc = calibration_corners(data)
     r = c.corner_residuals_px
+    if r is None and cc is not None:  # the residuals camera.json keeps per view
+        r = cc.residuals
     if not views and r is None:
         return None
     rms, used = view_rms(views)
     half = symmetric_range(r) if r is not None else 1.0
-    return CalibrationPanels(views, rms, used, r, half, int(bool(views)) + int(r is not None))
+    panels = int(bool(views)) + int(r is not None) + int(cc is not None)
+    return CalibrationPanels(views, rms, used, r, half, cc, panels)
 
 
 def sensor_has_model(data: ReportData) -> bool:
@@ -438,6 +445,16 @@ def sensor_direction(data: ReportData, direction: str) -> SensorDirection:
     return SensorDirection(idx, s.points[idx], e, model, dense, grid, lo, hi)
 
 
+def view_names(views: list[dict]) -> list[str]:
+    """The views' image names without the folder they share (``calibrate`` keeps the paths given)."""
+    names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
+    parts = [n.replace("\\", "/").split("/") for n in names]
+    common = 0
+    while len(names) > 1 and all(len(p) > common + 1 and p[common] == parts[0][common] for p in parts):
+        common += 1
+    return ["/".join(p[common:]) for p in parts]
+
+
 def view_rms(views: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     """Per-view RMS reprojection error (px, NaN when absent) and the used mask of ``camera.json`` views."""
     rms = np.array(
@@ -446,3 +463,320 @@ def view_rms(views: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     )
     used = np.array([bool(v.get("used", True)) for v in views])
     return rms, used
+
+
+# --------------------------------------------------------------------------- reviewer's diagnostics
+def error_axis(values: np.ndarray, outlier: float = 4.0) -> tuple[float, np.ndarray]:
+    """A linear axis from zero for non-negative values (errors, %): its top and the values above it.
+
+    The axis is 15 % above the largest value, unless some values exceed ``outlier`` times the
+    90th percentile: those are drawn at the top of an axis fitted to the others (and say their
+    value), so that one mislabelled position does not flatten every other dot onto zero.
+
+    Returns
+    -------
+    top : float
+    above : ndarray of bool, shape of ``values``
+        The values drawn at the top, beyond the axis.
+    """
+    v = np.asarray(values, dtype=float)
+    ok = np.isfinite(v)
+    above = np.zeros(v.shape, dtype=bool)
+    if not ok.any():
+        return 1.0, above
+    q = float(np.percentile(v[ok], 90))
+    if q > 0:
+        above = ok & (v > outlier * q)
+    rest = v[ok & ~above]
+    top = 1.15 * float(rest.max() if rest.size else v[ok].max())
+    return (top if top > 0 else 1.0), above
+
+
+def position_dtick(n: int, most: int = 24) -> int:
+    """Step of the position axis' ticks: a whole number (positions are counted), at most ``most`` ticks."""
+    return max(1, -(-int(n) // most))
+
+
+@dataclass(frozen=True)
+class LoadDirection:
+    """Load cases along one direction: their displacement against the force (linearity).
+
+    Attributes
+    ----------
+    label : str
+        ``"+y"``, ``"-x"`` for an axis, else the unit vector (``"(0.6, 0.8, 0)"``).
+    unit : ndarray, shape (3,)
+        The direction of the force.
+    loads : ndarray of int, shape (k,)
+        The load cases along it, by increasing force.
+    magnitude : ndarray, shape (k,), N
+        Their force magnitudes.
+    """
+
+    label: str
+    unit: np.ndarray
+    loads: np.ndarray
+    magnitude: np.ndarray
+
+
+def load_directions(forces: np.ndarray) -> list[LoadDirection]:
+    """The load cases grouped by the direction of their force (zero forces left out), in order."""
+    F = np.asarray(forces, dtype=float)
+    mag = np.linalg.norm(F, axis=1)
+    groups: dict[tuple, list[int]] = {}
+    for j in np.flatnonzero(mag > 0):
+        groups.setdefault(tuple(np.round(F[j] / mag[j], 6)), []).append(int(j))
+    out = []
+    for key, loads in groups.items():
+        u = np.array(key)
+        order = np.argsort(mag[loads], kind="stable")
+        idx = np.array(loads)[order]
+        axis = np.flatnonzero(np.abs(u) > 1 - 1e-9)
+        if axis.size == 1:
+            label = ("+" if u[axis[0]] > 0 else "-") + "xyz"[axis[0]]
+        else:
+            label = "(" + ", ".join(f"{v:.3g}" for v in u) + ")"
+        out.append(LoadDirection(label, u, idx, mag[idx]))
+    return out
+
+
+def displacement_residuals(
+    K: np.ndarray, forces: np.ndarray, vectors: np.ndarray, *, offset: bool
+) -> np.ndarray:
+    """What each position's identified K leaves of its displacements: d - C F (- b).
+
+    Parameters
+    ----------
+    K : ndarray, shape (n, 3, 3), N/mm
+        NaN for a position without a stiffness.
+    forces : ndarray, shape (L, 3), N
+    vectors : ndarray, shape (n, L, R, 3), mm
+        The displacements (NaN where missing).
+    offset : bool
+        The displacements were measured against one (mean) reference per position, so the
+        fit also estimated their common offset b (``identify_stiffness(offset=True)``):
+        given C, its least-squares value is the mean of d - C F, which is taken out.
+
+    Returns
+    -------
+    ndarray, shape (n, L, R, 3), mm
+        NaN where the displacement or K is missing.
+    """
+    out = np.full(vectors.shape, np.nan)
+    for i in np.flatnonzero(np.all(np.isfinite(K), axis=(1, 2))):
+        r = vectors[i] - (np.linalg.solve(K[i], forces.T).T)[:, None, :]  # (L, R, 3)
+        if offset and np.isfinite(r).any():
+            r = r - np.nanmean(r.reshape(-1, 3), axis=0)
+        out[i] = r
+    return out
+
+
+def residual_rms(data: ReportData) -> np.ndarray | None:
+    """RMS over load cases and repeats of each residual component of d = C F, shape (n, 3), mm.
+
+    NaN for a position without residuals; None when the data hold none.
+    """
+    ld = data.loads
+    if ld is None or ld.residuals is None:
+        return None
+    r = ld.residuals
+    cnt = np.sum(np.isfinite(r), axis=(1, 2))
+    ss = np.nansum(r**2, axis=(1, 2))
+    out = np.full(cnt.shape, np.nan)
+    np.divide(ss, cnt, out=out, where=cnt > 0)
+    return np.sqrt(out)
+
+
+@dataclass(frozen=True)
+class Ellipsoids:
+    """Compliance ellipsoids at the positions whose K is positive definite.
+
+    The ellipsoid of a position has the principal directions of the symmetric part of K
+    as axes and the principal compliances 1/k (mm/N) as semi-axes, times ``scale`` (the
+    same for every position, so sizes compare): the displacement a unit force in each
+    direction causes, drawn at the position.
+
+    Attributes
+    ----------
+    index : ndarray of int, shape (k,)
+        The positions drawn.
+    centers : ndarray, shape (k, 3), mm
+    directions : ndarray, shape (k, 3, 3)
+        Columns: the principal directions (unit), stiffest last.
+    stiffness : ndarray, shape (k, 3), N/mm
+        Principal stiffnesses, ascending.
+    scale : float
+        Drawing length per compliance, mm per (mm/N).
+    skipped : ndarray of int
+        Positions with a K that is not positive definite (no ellipsoid).
+    """
+
+    index: np.ndarray
+    centers: np.ndarray
+    directions: np.ndarray
+    stiffness: np.ndarray
+    scale: float
+    skipped: np.ndarray
+
+    def semi_axes(self) -> np.ndarray:
+        """Drawn semi-axes, shape (k, 3), mm."""
+        return self.scale / self.stiffness
+
+    def mesh(self, k: int, nu: int = 18, nv: int = 10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x, y, z (mm) of ellipsoid ``k``'s surface, each shape (nv, nu)."""
+        u = np.linspace(0.0, 2 * np.pi, nu)
+        v = np.linspace(0.0, np.pi, nv)
+        sphere = np.stack(
+            [np.outer(np.sin(v), np.cos(u)), np.outer(np.sin(v), np.sin(u)), np.outer(np.cos(v), np.ones(nu))]
+        )
+        pts = np.einsum("ij,j,jab->iab", self.directions[k], self.semi_axes()[k], sphere)
+        return tuple(pts[i] + self.centers[k, i] for i in range(3))
+
+    def triangles(self, nu: int = 14, nv: int = 8) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every ellipsoid as one triangle mesh (one plot trace draws them all).
+
+        Returns
+        -------
+        vertices : ndarray, shape (k * nv * nu, 3), mm
+        faces : ndarray of int, shape (k * 2 * (nv - 1) * (nu - 1), 3)
+            Vertex indices of each triangle.
+        owner : ndarray of int, shape (k * nv * nu,)
+            The ellipsoid (row of ``index``) of each vertex.
+        """
+        a = np.arange(nv * nu).reshape(nv, nu)
+        p, q, r, s = a[:-1, :-1].ravel(), a[:-1, 1:].ravel(), a[1:, :-1].ravel(), a[1:, 1:].ravel()
+        quad = np.concatenate([np.stack([p, q, s], 1), np.stack([p, s, r], 1)])
+        verts, faces = [], []
+        for k in range(len(self.index)):
+            verts.append(np.stack([c.ravel() for c in self.mesh(k, nu, nv)], axis=1))
+            faces.append(quad + k * nv * nu)
+        owner = np.repeat(np.arange(len(self.index)), nv * nu)
+        return np.concatenate(verts), np.concatenate(faces), owner
+
+
+def compliance_ellipsoids(data: ReportData, fill: float = 0.45) -> Ellipsoids | None:
+    """The ellipsoids of the measured K (None without a positive definite one).
+
+    ``fill``: the largest semi-axis drawn, as a share of the smallest distance between two
+    positions (of the positions' extent with one position).
+    """
+    m = data.measured
+    if m is None:
+        return None
+    keep, skipped, dirs, ks = [], [], [], []
+    for i in np.flatnonzero(m.ok):
+        w, V = np.linalg.eigh(0.5 * (m.K[i] + m.K[i].T))
+        if w[0] <= 0:
+            skipped.append(i)
+            continue
+        keep.append(i)
+        dirs.append(V)
+        ks.append(w)
+    if not keep:
+        return None
+    idx = np.array(keep)
+    P = m.positions[idx]
+    d = np.linalg.norm(P[:, None] - P[None], axis=2)
+    d = d[d > 1e-9]  # two positions at one place: not a spacing
+    spacing = float(d.min()) if d.size else 100.0
+    ks = np.array(ks)
+    scale = fill * spacing * float(ks.min())  # the softest direction's semi-axis = fill x spacing
+    return Ellipsoids(idx, P, np.array(dirs), ks, scale, np.array(skipped, dtype=int))
+
+
+@dataclass(frozen=True)
+class CalibrationCorners:
+    """Where the calibration's views put corners in the image, and their residuals.
+
+    Attributes
+    ----------
+    corners : ndarray, shape (N, 2), px
+    residuals : ndarray, shape (N, 2), px
+        Observed - projected.
+    view : ndarray of int, shape (N,)
+        The view (index in ``camera.json``'s ``views``) of each corner.
+    size : (int, int)
+        [w, h] of the image, px.
+    """
+
+    corners: np.ndarray
+    residuals: np.ndarray
+    view: np.ndarray
+    size: tuple[int, int]
+
+    def coverage(self, cells: int = 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Corners per cell of a grid over the image: counts (rows, cols), x edges, y edges (px).
+
+        ``cells`` along the longer side; square cells.
+        """
+        w, h = self.size
+        side = max(w, h) / cells
+        xe = np.linspace(0.0, w, max(1, round(w / side)) + 1)
+        ye = np.linspace(0.0, h, max(1, round(h / side)) + 1)
+        counts, _, _ = np.histogram2d(self.corners[:, 1], self.corners[:, 0], bins=[ye, xe])
+        return counts, xe, ye
+
+
+def calibration_corners(data: ReportData) -> CalibrationCorners | None:
+    """The used views' corners and residuals from ``camera.json`` (None when it keeps none)."""
+    c = data.calibration
+    if c is None:
+        return None
+    cs, rs, vs = [], [], []
+    for k, v in enumerate(c.camera.get("views") or []):
+        if not v.get("used", True) or "corners_px" not in v:
+            continue
+        cs.append(np.asarray(v["corners_px"], dtype=float).reshape(-1, 2))
+        rs.append(np.asarray(v["residuals_px"], dtype=float).reshape(-1, 2))
+        vs.append(np.full(len(cs[-1]), k))
+    if not cs:
+        return None
+    w, h = c.camera["image_size"]
+    return CalibrationCorners(np.concatenate(cs), np.concatenate(rs), np.concatenate(vs), (int(w), int(h)))
+
+
+@dataclass(frozen=True)
+class SensorLines:
+    """The sensor recordings' plateaus against the load, with their fitted lines.
+
+    Attributes
+    ----------
+    rows : ndarray of int, shape (k,)
+        The recordings (rows of ``SensorResults``) with plateaus and a fitted line.
+    load, displacement, residual : list of ndarray
+        Per recording: each plateau's load (N), displacement (um) and what the line leaves
+        of it (um).
+    line_load, line_um : list of ndarray, shape (2,)
+        The fitted line's ends, from no load to the largest (N, um).
+    """
+
+    rows: np.ndarray
+    load: list
+    displacement: list
+    residual: list
+    line_load: list
+    line_um: list
+
+
+def sensor_lines(data: ReportData) -> SensorLines | None:
+    """What the linearity figures of a sensor campaign draw; None without plateaus."""
+    s = data.sensor
+    if s is None or s.step_load_n is None or s.fit_um_per_n is None:
+        return None
+    rows, load, disp, res, ll, lu = [], [], [], [], [], []
+    for i in range(s.m):
+        f, u = s.step_load_n[i], s.step_um[i]
+        ok = np.isfinite(f) & np.isfinite(u)
+        a, b = s.fit_um_per_n[i], s.fit_intercept_um[i] if s.fit_intercept_um is not None else 0.0
+        if not ok.any() or not (np.isfinite(a) and np.isfinite(b)):
+            continue
+        rows.append(i)
+        load.append(f[ok])
+        disp.append(u[ok])
+        res.append(u[ok] - (b + a * f[ok]))
+        ends = np.array([0.0, max(float(f[ok].max()), 0.0)])
+        ll.append(ends)
+        lu.append(b + a * ends)
+    if not rows:
+        return None
+    return SensorLines(np.array(rows), load, disp, res, ll, lu)

@@ -22,12 +22,16 @@ from ._assets import CSS, JS
 from .data import ReportData
 from .figure_data import position_labels
 from .interactive_figures import (
+    board_image_figure,
     calibration_figure,
+    ellipsoid_figure,
     loads_overview,
     loads_payload,
     model_scatter,
     plane_maps,
+    residual_figure,
     sensor_line,
+    sensor_linearity,
     sensor_maps,
     stiffness_map_3d,
     truth_figure,
@@ -309,6 +313,20 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
         return f"<div class=fig id='{fid}'></div>" + (f"<p class=note>{note}</p>" if note else "")
 
     sections.append(("summary", "Summary", f"<p>{_summary(data)}</p>"))
+    if data.setup:
+        rows = "".join(f"<tr><td>{_e(x.what)}</td><td>{_e(x.value)}</td></tr>" for x in data.setup)
+        sections.append(("setup", "Set-up", f"<table class=kv>{rows}</table>"))
+    if data.board_image is not None:
+        body = fig_div(
+            "fig-board-image",
+            board_image_figure(data),
+            "The boards' inner corners projected from the poses measured in this image through the "
+            "calibrated camera: where they fall on the printed corners, detection, pose and camera agree. "
+            "The image is shown reduced"
+            + (f" {data.board_image.scale:g} times" if data.board_image.scale > 1 else "")
+            + "; coordinates are those of the full image.",
+        )
+        sections.append(("image", "An image and its boards", body))
     m = data.measured
     if m is not None:
         body = fig_div(
@@ -332,6 +350,17 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             ),
         )
         sections.append(("map", "Stiffness map", body))
+        body = fig_div(
+            "fig-ellipsoids",
+            ellipsoid_figure(data),
+            "At each position, the compliance ellipsoid of the symmetric part of K: its axes are the "
+            "principal directions, its semi-axes the principal compliances 1/k (mm/N), on one scale for "
+            "every position (the longest, the softest direction anywhere, fills about half the spacing "
+            "of the positions). Colour: the smallest principal stiffness. Hover for the principal "
+            "stiffnesses and directions; a red cross marks a K that is not positive definite.",
+        )
+        if body:
+            sections.append(("principal", "Principal directions", body))
     if data.loads is not None:
         body = fig_div("fig-loads-overview", loads_overview(data))
         body += (
@@ -342,8 +371,24 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             "with every repeat as a dot (the reference's Fig. 10). "
             "Right: the repeats of the chosen load case "
             "with their mean (red line) ± std (band) (its Fig. 9).</p>"
-            f"<script type='application/json' id=loads-data>{_json_block(loads_payload(data))}</script>"
         )
+        if data.loads.vectors is not None and data.loads.residuals is not None:
+            body += (
+                "<div class=fig id=fig-linearity></div>"
+                "<p class=note>Linearity: for each direction in which loads were applied, every component "
+                "of the measured displacement against the force's magnitude (a dot per repeat), and the line "
+                "the identified K predicts (d = C·F, C = K⁻¹, with the common offset when the position was "
+                "measured against one reference). A linear, elastic robot puts the dots on the lines.</p>"
+                "<div class=fig id=fig-residual-detail></div>"
+            )
+            body += fig_div(
+                "fig-residuals",
+                residual_figure(data),
+                "The residuals of d = C·F: what K does not explain (noise, non-linearity, a load case "
+                "mislabelled). Above: the chosen position's, per load case. Here: their RMS per position "
+                "and component, on an axis from zero.",
+            )
+        body += f"<script type='application/json' id=loads-data>{_json_block(loads_payload(data))}</script>"
         sections.append(("loads", "Load cases per position", body))
     if data.model is not None:
         mod = data.model
@@ -391,6 +436,13 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             "Same colour scale in a row. After the milling study's Figs. 13-14.",
         )
         body += fig_div("fig-sensor-line", sensor_line(data), "After the milling study's Figs. 11-12.")
+        body += fig_div(
+            "fig-sensor-linearity",
+            sensor_linearity(data),
+            "Linearity of each recording (choose it above the figure): the displacement on every static "
+            "plateau of the stepped load against the load, the line fitted to them (its value at the "
+            "reference load is the static error) and what the line leaves of each plateau.",
+        )
         body += f"<div class=tablewrap>{_sensor_table(data)}</div>"
         sections.append(("sensor", "Static error", body))
     if data.failures:

@@ -19,17 +19,24 @@ from ..textfmt import fmt
 from .data import ReportData
 from .figure_data import (
     calibration_panels,
+    compliance_ellipsoids,
     det_markers,
+    error_axis,
     interpolate_measured,
+    load_directions,
     middle_line_order,
     model_plane_grid,
     model_vs_measured,
     on_plane,
     plane_map_values,
+    position_dtick,
     position_labels,
+    residual_rms,
     sensor_direction,
     sensor_has_model,
+    sensor_lines,
     truth_entries,
+    view_names,
 )
 
 TEMPLATE = "plotly_white"
@@ -37,6 +44,14 @@ SEQ = "Viridis"
 DIV = "RdBu_r"
 FAILED = "#9a9a9a"
 BAD = "#d62728"
+#: Colours of the displacement components dx, dy, dz, and of the boards drawn on an image.
+COMPONENT_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd")
+BOARD_COLOURS = ("#ff7f0e", "#17becf", "#e377c2")
+
+
+def position_axis(n: int) -> dict:
+    """A position axis (positions 1..n): ticks on whole numbers only."""
+    return dict(tickmode="linear", tick0=1, dtick=position_dtick(n), range=[0.5, n + 0.5])
 
 
 def _hover_positions(data: ReportData) -> list[str]:
@@ -313,7 +328,7 @@ def loads_overview(data: ReportData) -> go.Figure | None:
         height=120 + 26 * L,
         margin=dict(l=110, r=20, t=40, b=50),
         title=dict(text="Mean displacement norm (mm) per position and load case — click a cell", x=0.01),
-        xaxis=dict(title="position", dtick=1 if n <= 60 else None, tickfont=dict(size=9)),
+        xaxis=dict(title="position", tickfont=dict(size=9), **position_axis(n)),
         yaxis=dict(autorange="reversed"),
     )
     return fig
@@ -325,7 +340,7 @@ def loads_payload(data: ReportData) -> dict | None:
         return None
     ld = data.loads
     mean, std, cnt = ld.summary()
-    return {
+    out = {
         "labels": list(ld.labels),
         "forces": ld.forces,
         "positions": position_labels(data),
@@ -336,6 +351,14 @@ def loads_payload(data: ReportData) -> dict | None:
         "std": std,
         "count": cnt,
     }
+    if ld.vectors is not None and ld.residuals is not None:
+        # To the nanometre: the page carries every repeat's vector (a few characters each).
+        out["vectors"] = np.round(ld.vectors, 6)
+        out["residuals"] = np.round(ld.residuals, 6)
+        out["directions"] = [
+            {"label": g.label, "loads": g.loads, "magnitude": g.magnitude} for g in load_directions(ld.forces)
+        ]
+    return out
 
 
 # --------------------------------------------------------------------------- model / truth
@@ -416,12 +439,19 @@ def truth_figure(data: ReportData) -> go.Figure | None:
             col=1,
         )
     labels = np.array(position_labels(data))
+    # A dot per position on a linear axis from zero: the dots' heights compare (a bar from
+    # an arbitrary baseline of a log axis would not). An outlier sits at the top, with its value.
+    pct = 100 * err
+    top, above = error_axis(pct)
+    x = np.arange(1, m.n + 1)
+    inside = ~above
     fig.add_trace(
-        go.Bar(
-            x=np.arange(1, m.n + 1),
-            y=100 * err,
-            marker=dict(color=np.where(te.flagged, BAD, "#2ca02c")),
-            hovertext=labels,
+        go.Scatter(
+            x=x[inside],
+            y=pct[inside],
+            mode="markers",
+            marker=dict(size=8, color=np.where(te.flagged, BAD, "#2ca02c")[inside]),
+            hovertext=labels[inside],
             hovertemplate="%{hovertext}<br>%{y:.3g} %<extra></extra>",
             name="relative error",
             showlegend=False,
@@ -429,21 +459,27 @@ def truth_figure(data: ReportData) -> go.Figure | None:
         row=1,
         col=2,
     )
-    if te.worst is not None:
+    if above.any():
+        fig.add_trace(
+            go.Scatter(
+                x=x[above], y=np.full(int(above.sum()), 0.97 * top), mode="markers+text",
+                marker=dict(size=10, symbol="triangle-up", color=BAD),
+                text=[f"{v:.3g} %" for v in pct[above]], textposition="middle left",
+                hovertext=labels[above], customdata=pct[above],
+                hovertemplate="%{hovertext}<br>%{customdata:.3g} % (beyond the axis)<extra></extra>",
+                name="beyond the axis", showlegend=False,
+            ),
+            row=1, col=2,
+        )  # fmt: skip
+    if te.worst is not None and not above[te.worst]:
         w = te.worst
-        # On a log axis an annotation's y is log10 of the value.
         fig.add_annotation(
-            x=w + 1,
-            y=float(np.log10(100 * err[w])),
-            text=f"worst {100 * err[w]:.3g} % (P{w + 1})",
-            showarrow=True,
-            row=1,
-            col=2,
+            x=w + 1, y=float(pct[w]), text=f"worst {pct[w]:.3g} % (P{w + 1})", showarrow=True, row=1, col=2
         )
     fig.update_xaxes(title_text="true (N/mm)", row=1, col=1)
     fig.update_yaxes(title_text="recovered (N/mm)", row=1, col=1)
-    fig.update_xaxes(title_text="position", row=1, col=2)
-    fig.update_yaxes(title_text="%", type="log", row=1, col=2)
+    fig.update_xaxes(title_text="position", row=1, col=2, **position_axis(m.n))
+    fig.update_yaxes(title_text="%", type="linear", range=[0.0, top], row=1, col=2)
     fig.update_layout(
         template=TEMPLATE, height=440, margin=dict(l=60, r=20, t=50, b=50), legend=dict(x=0.01, y=1.0)
     )
@@ -459,15 +495,24 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
     views, rms, used = cp.views, cp.rms, cp.used
     has_res = cp.residuals is not None
     cols = cp.panels
-    titles = (["RMS reprojection error per view (px)"] if views else []) + (
-        ["corner residuals, observed − projected (px)"] if has_res else []
+    titles = (
+        (["RMS reprojection error per view (px)"] if views else [])
+        + (
+            [
+                "corner residuals, observed − projected (px)"
+                if cols < 3
+                else "residuals, observed − projected (px)"
+            ]
+            if has_res
+            else []
+        )
+        + (["coverage: corners in the image (px)"] if cp.corners is not None else [])
     )
-    fig = make_subplots(
-        rows=1, cols=cols, subplot_titles=titles, column_widths=[0.6, 0.4][:cols] if cols == 2 else None
-    )
+    widths = {1: None, 2: [0.6, 0.4], 3: [0.4, 0.27, 0.33]}[cols]
+    fig = make_subplots(rows=1, cols=cols, subplot_titles=titles, column_widths=widths)
     col = 1
     if views:
-        names = [str(v.get("image", f"view {k + 1}")) for k, v in enumerate(views)]
+        names = view_names(views)
         reason = [str(v.get("reason", "")) for v in views]
         fig.add_trace(
             go.Bar(
@@ -514,8 +559,44 @@ def calibration_figure(data: ReportData) -> go.Figure | None:
         a = cp.residual_range
         fig.update_xaxes(title_text="Δu (px)", range=[-a * 1.05, a * 1.05], row=1, col=col)
         fig.update_yaxes(title_text="Δv (px)", range=[-a * 1.05, a * 1.05], row=1, col=col)
-    fig.update_layout(template=TEMPLATE, height=380, margin=dict(l=60, r=20, t=50, b=80), showlegend=False)
+        col += 1
+    if cp.corners is not None:
+        _coverage_panel(fig, cp.corners, col)
+    fig.update_layout(template=TEMPLATE, height=400, margin=dict(l=60, r=20, t=50, b=80), showlegend=False)
     return fig
+
+
+def _coverage_panel(fig: go.Figure, cc, col: int) -> None:
+    """Corners per cell of the image (heat map; empty cells: no corner there) and the corners."""
+    counts, xe, ye = cc.coverage()
+    w, h = cc.size
+    fig.add_trace(
+        go.Heatmap(
+            x=0.5 * (xe[1:] + xe[:-1]),
+            y=0.5 * (ye[1:] + ye[:-1]),
+            z=counts,
+            colorscale="Blues",
+            showscale=False,
+            hovertemplate="%{z:.0f} corners around (%{x:.0f}, %{y:.0f}) px<extra></extra>",
+        ),
+        row=1,
+        col=col,
+    )
+    fig.add_trace(
+        go.Scattergl(
+            x=cc.corners[:, 0],
+            y=cc.corners[:, 1],
+            mode="markers",
+            marker=dict(size=2, color="#d95f02", opacity=0.6),
+            customdata=cc.view + 1,
+            hovertemplate="view %{customdata}: (%{x:.1f}, %{y:.1f}) px<extra></extra>",
+        ),
+        row=1,
+        col=col,
+    )
+    axis = "x" if col == 1 else f"x{col}"
+    fig.update_xaxes(title_text="x (px)", range=[0, w], constrain="domain", row=1, col=col)
+    fig.update_yaxes(title_text="y (px)", range=[h, 0], scaleanchor=axis, row=1, col=col)
 
 
 # --------------------------------------------------------------------------- sensor
@@ -697,3 +778,180 @@ def sensor_line(data: ReportData) -> go.Figure | None:
         template=TEMPLATE, height=420, margin=dict(l=60, r=20, t=50, b=90), legend=dict(x=0.01, y=1.0)
     )
     return fig
+
+
+# --------------------------------------------------------------------------- reviewer's diagnostics
+def residual_figure(data: ReportData) -> go.Figure | None:
+    """RMS per position of each component of d − C F (µm), dots on an axis from zero."""
+    rr = residual_rms(data)
+    if rr is None or not np.isfinite(rr).any():
+        return None
+    n = rr.shape[0]
+    labels = np.array(position_labels(data))
+    fig = go.Figure()
+    for c, (name, color) in enumerate(zip(("dx", "dy", "dz"), COMPONENT_COLOURS, strict=True)):
+        fig.add_trace(
+            go.Scatter(
+                x=np.arange(1, n + 1) + (c - 1) * 0.15,
+                y=1e3 * rr[:, c],
+                mode="markers",
+                marker=dict(size=7, color=color),
+                name=name,
+                text=labels,
+                hovertemplate="%{text}<br>" + name + " residual RMS %{y:.3g} µm<extra></extra>",
+            )
+        )
+    top = 1.15 * 1e3 * float(np.nanmax(rr))
+    fig.update_layout(
+        template=TEMPLATE,
+        height=330,
+        margin=dict(l=60, r=20, t=50, b=50),
+        title=dict(text="What K leaves of the displacements: RMS of d − C·F per position (µm)", x=0.01),
+        xaxis=dict(title="position", **position_axis(n)),
+        yaxis=dict(title="µm", range=[0.0, top]),
+        legend=dict(orientation="h", x=0.7, y=1.12),
+    )
+    return fig
+
+
+def ellipsoid_figure(data: ReportData) -> go.Figure | None:
+    """Compliance ellipsoids at the positions: principal directions, semi-axes ∝ 1/k (mm/N)."""
+    el = compliance_ellipsoids(data)
+    if el is None:
+        return None
+    labels = position_labels(data)
+    kmin = el.stiffness[:, 0]
+    lo, hi = float(kmin.min()), float(kmin.max())
+    hi = hi if hi > lo else lo + 1.0
+    V, faces, owner = el.triangles()
+    # One mesh for every ellipsoid; what its hover shows rides on each vertex as a few float32
+    # numbers (position, principal stiffnesses, softest direction), not text: a page stays small.
+    soft = el.directions[:, :, 0]
+    info = np.column_stack([el.index + 1, el.stiffness, soft])[owner].astype(np.float32)
+    fig = go.Figure(
+        go.Mesh3d(
+            x=V[:, 0].astype(np.float32), y=V[:, 1].astype(np.float32), z=V[:, 2].astype(np.float32),
+            i=faces[:, 0].astype(np.int32), j=faces[:, 1].astype(np.int32), k=faces[:, 2].astype(np.int32),
+            intensity=kmin[owner].astype(np.float32), cmin=lo, cmax=hi, colorscale=SEQ, customdata=info,
+            colorbar=dict(title=dict(text="smallest<br>principal<br>N/mm")), name="compliance ellipsoids",
+            hovertemplate=(
+                "P%{customdata[0]:.0f}<br>principal stiffnesses %{customdata[1]:.4g}, %{customdata[2]:.4g}, "
+                "%{customdata[3]:.4g} N/mm<br>softest along (%{customdata[4]:+.2f}, %{customdata[5]:+.2f}, "
+                "%{customdata[6]:+.2f})<extra></extra>"
+            ),
+        )
+    )  # fmt: skip
+    if el.skipped.size:
+        p = data.measured.positions[el.skipped]
+        fig.add_trace(
+            go.Scatter3d(
+                x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="markers", marker=dict(symbol="x", size=8, color=BAD),
+                text=[labels[i] for i in el.skipped], name="K not positive definite",
+                hovertemplate="%{text}: K not positive definite (no ellipsoid)<extra></extra>",
+            )
+        )  # fmt: skip
+    fig.update_layout(
+        template=TEMPLATE,
+        height=560,
+        margin=dict(l=0, r=0, t=40, b=0),
+        title=dict(
+            text="Compliance ellipsoids: principal directions, semi-axes ∝ 1/k (drag to rotate)", x=0.01
+        ),
+        scene=dict(xaxis_title="x (mm)", yaxis_title="y (mm)", zaxis_title="z (mm)", aspectmode="data"),
+    )
+    return fig
+
+
+def board_image_figure(data: ReportData) -> go.Figure | None:
+    """One image of the campaign with the boards' corners where their measured poses put them."""
+    bi = data.board_image
+    if bi is None:
+        return None
+    w, h = (float(v) for v in bi.image_size)
+    fig = go.Figure()
+    boards = list(dict.fromkeys(bi.corner_board))
+    for k, name in enumerate(boards):
+        sel = np.array([b == name for b in bi.corner_board])
+        fig.add_trace(
+            go.Scatter(
+                x=bi.corners_px[sel, 0],
+                y=bi.corners_px[sel, 1],
+                mode="markers",
+                marker=dict(size=5, color=BOARD_COLOURS[k % len(BOARD_COLOURS)], symbol="circle-open"),
+                name=name,
+                hovertemplate=name + ": (%{x:.1f}, %{y:.1f}) px<extra></extra>",
+            )
+        )
+    fig.add_layout_image(
+        dict(
+            source="data:image/png;base64," + bi.png_base64,
+            xref="x", yref="y", x=0, y=0, sizex=w, sizey=h, sizing="stretch", layer="below",
+        )
+    )  # fmt: skip
+    fig.update_layout(
+        template=TEMPLATE,
+        height=min(640, int(60 + 880 * h / w)),
+        margin=dict(l=50, r=20, t=50, b=40),
+        title=dict(text=f"{bi.name}: the boards where their measured poses put them", x=0.01),
+        xaxis=dict(range=[0, w], showgrid=False, title="x (px)", constrain="domain"),
+        yaxis=dict(range=[h, 0], showgrid=False, title="y (px)", scaleanchor="x"),
+        legend=dict(orientation="h", x=0.0, y=-0.08),
+    )
+    return fig
+
+
+def sensor_linearity(data: ReportData) -> go.Figure | None:
+    """Each recording's plateaus against the load with the fitted line, and what the line leaves."""
+    lin = sensor_lines(data)
+    if lin is None:
+        return None
+    s = data.sensor
+    fig = make_subplots(
+        rows=1,
+        cols=2,
+        column_widths=[0.6, 0.4],
+        subplot_titles=["displacement on each plateau (µm) against the load (N)", "plateau − line (µm)"],
+    )
+    buttons = []
+    for k, i in enumerate(lin.rows):
+        show = k == 0
+        dots = dict(mode="markers", visible=show)
+        fig.add_trace(
+            go.Scatter(x=lin.load[k], y=lin.displacement[k], marker=dict(size=8, color="#1f77b4"), **dots,
+                       hovertemplate="%{x:.4g} N: %{y:.5g} µm<extra>plateau</extra>"),
+            row=1, col=1,
+        )  # fmt: skip
+        fig.add_trace(
+            go.Scatter(x=lin.line_load[k], y=lin.line_um[k], mode="lines", line=dict(color=BAD),
+                       visible=show, hoverinfo="skip"),
+            row=1, col=1,
+        )  # fmt: skip
+        fig.add_trace(
+            go.Scatter(x=lin.load[k], y=lin.residual[k], marker=dict(size=8, color="#444"), **dots,
+                       hovertemplate="%{x:.4g} N: %{y:.3g} µm<extra>plateau − line</extra>"),
+            row=1, col=2,
+        )  # fmt: skip
+        vis = [False] * (3 * len(lin.rows))
+        vis[3 * k : 3 * k + 3] = [True] * 3
+        label = f"{s.labels[i]} ({s.direction[i]})"
+        buttons.append(
+            dict(label=label, method="update", args=[{"visible": vis}, {"title.text": _lin_title(s, i)}])
+        )
+    fig.update_xaxes(title_text="load (N)", rangemode="tozero", row=1, col=1)
+    fig.update_yaxes(title_text="µm", row=1, col=1)
+    fig.update_xaxes(title_text="load (N)", rangemode="tozero", row=1, col=2)
+    fig.update_yaxes(title_text="µm", zeroline=True, row=1, col=2)
+    fig.update_layout(
+        template=TEMPLATE,
+        height=420,
+        margin=dict(l=60, r=20, t=90, b=50),
+        showlegend=False,
+        title=dict(text=_lin_title(s, int(lin.rows[0])), x=0.01, y=0.97),
+        updatemenus=[dict(buttons=buttons, x=1.0, xanchor="right", y=1.22, yanchor="top", active=0)],
+    )
+    return fig
+
+
+def _lin_title(s, i: int) -> str:
+    x, y = s.points[i]
+    return f"recording {s.labels[i]}: point ({x:g}, {y:g}) mm, load along {s.direction[i]}"

@@ -15,22 +15,27 @@ import io
 import numpy as np
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter, MultipleLocator
 
 from .data import ReportData
 from .figure_data import (
     QUANTITIES,
     calibration_panels,
     det_markers,
+    error_axis,
     middle_line_order,
     model_plane_grid,
     model_vs_measured,
     on_plane,
     plane_map_values,
+    position_dtick,
     position_labels,
+    residual_rms,
     sensor_direction,
     sensor_has_model,
     spans_plane,
     truth_entries,
+    view_names,
 )
 
 __all__ = [
@@ -41,6 +46,7 @@ __all__ = [
     "model_scatter",
     "truth_figure",
     "calibration_figure",
+    "residual_figure",
     "sensor_maps",
     "sensor_line",
     "ALL_FIGURES",
@@ -51,6 +57,13 @@ DIV = "RdBu_r"
 BAD = "#d62728"
 FAILED = "#9a9a9a"
 DPI = 150
+
+
+def _position_axis(ax, n: int) -> None:
+    """Positions 1..n on the x axis: ticks on whole numbers only."""
+    ax.set_xlim(0.5, n + 0.5)
+    ax.xaxis.set_major_locator(MultipleLocator(position_dtick(n)))
+    ax.xaxis.set_major_formatter(FormatStrFormatter("%d"))
 
 
 def png_bytes(fig: Figure, dpi: int = DPI) -> bytes:
@@ -246,8 +259,18 @@ def truth_figure(data: ReportData) -> Figure | None:
     a1.set_ylabel("recovered K entry (N/mm)")
     a1.legend(fontsize=8)
     colors = np.where(te.flagged, BAD, "#2ca02c")
-    a2.bar(np.arange(1, m.n + 1), 100 * np.nan_to_num(err, nan=0.0), color=colors)
-    a2.set_yscale("log")
+    pct = 100 * err
+    top, above = error_axis(pct)
+    ok = np.isfinite(pct) & ~above
+    x = np.arange(1, m.n + 1)
+    # A dot per position on a linear axis from zero (a bar from a log axis' baseline would
+    # mislead); an outlier at the top, with its value.
+    a2.scatter(x[ok], pct[ok], c=colors[ok], s=22, zorder=3)
+    a2.scatter(x[above], np.full(int(above.sum()), 0.97 * top), marker="^", c=BAD, s=40, zorder=3)
+    for i in np.flatnonzero(above):
+        a2.annotate(f"{pct[i]:.3g} % ", (x[i], 0.97 * top), ha="right", va="center", fontsize=7, color=BAD)
+    a2.set_ylim(0.0, top)
+    _position_axis(a2, m.n)
     a2.set_xlabel("position")
     a2.set_ylabel("|K − K_true|_F / |K_true|_F (%)")
     if te.worst is not None:
@@ -268,7 +291,7 @@ def truth_figure(data: ReportData) -> Figure | None:
 
 
 def calibration_figure(data: ReportData) -> Figure | None:
-    """Per-view RMS reprojection error and corner residuals (px)."""
+    """Per-view RMS reprojection error, corner residuals (px) and the coverage of the image."""
     cp = calibration_panels(data)
     if cp is None:
         return None
@@ -282,9 +305,7 @@ def calibration_figure(data: ReportData) -> Figure | None:
         ax.bar(x[used], rms[used], color="#1f77b4", label="used")
         if (~used).any():
             ax.plot(x[~used], np.zeros((~used).sum()), "x", color=BAD, ms=8, label="not used")
-        ax.set_xticks(
-            x, [str(v.get("image", i + 1)) for i, v in enumerate(views)], rotation=60, ha="right", fontsize=6
-        )
+        ax.set_xticks(x, view_names(views), rotation=60, ha="right", fontsize=6)
         ax.set_ylabel("RMS reprojection error (px)")
         ax.legend(fontsize=8)
         k += 1
@@ -298,7 +319,40 @@ def calibration_figure(data: ReportData) -> Figure | None:
         ax.set_xlabel("Δu (px)")
         ax.set_ylabel("Δv (px)")
         ax.set_title("corner residuals, observed − projected", fontsize=10)
+        k += 1
+    if cp.corners is not None:
+        ax = axes[k]
+        counts, xe, ye = cp.corners.coverage()
+        ax.pcolormesh(xe, ye, np.where(counts > 0, counts, np.nan), cmap="Blues")
+        ax.plot(cp.corners.corners[:, 0], cp.corners.corners[:, 1], ".", ms=1, color="#d95f02", alpha=0.6)
+        w, h = cp.corners.size
+        ax.set_xlim(0, w)
+        ax.set_ylim(h, 0)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (px)")
+        ax.set_ylabel("y (px)")
+        ax.set_title("coverage: corners in the image", fontsize=10)
     fig.suptitle("Camera calibration residuals")
+    return fig
+
+
+def residual_figure(data: ReportData) -> Figure | None:
+    """RMS per position of each component of d − C F (µm), dots on an axis from zero."""
+    rr = residual_rms(data)
+    if rr is None or not np.isfinite(rr).any():
+        return None
+    n = rr.shape[0]
+    fig = Figure(figsize=(max(6.0, 0.18 * n + 3), 3.6), layout="constrained")
+    ax = fig.subplots()
+    colours = ("#1f77b4", "#2ca02c", "#9467bd")
+    for c, (name, color) in enumerate(zip(("dx", "dy", "dz"), colours, strict=True)):
+        ax.plot(np.arange(1, n + 1) + (c - 1) * 0.15, 1e3 * rr[:, c], "o", ms=4, color=color, label=name)
+    ax.set_ylim(0.0, 1.15 * 1e3 * float(np.nanmax(rr)))
+    _position_axis(ax, n)
+    ax.set_xlabel("position")
+    ax.set_ylabel("RMS of d − C·F (µm)")
+    ax.set_title("What K leaves of the displacements, per position and component", fontsize=10)
+    ax.legend(fontsize=8, ncols=3)
     return fig
 
 
@@ -393,6 +447,7 @@ ALL_FIGURES = (
     ("planes_min_principal.png", lambda d: plane_maps(d, "min_principal")),
     ("planes_det.png", lambda d: plane_maps(d, "det")),
     ("loads_per_position.png", loads_small_multiples),
+    ("residuals_per_position.png", residual_figure),
     ("model_vs_measured.png", model_scatter),
     ("recovered_vs_true.png", truth_figure),
     ("calibration.png", calibration_figure),

@@ -437,131 +437,212 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
         missing samples (unless ``exclude_bad_samples``; a saturated plateau always),
         a plateau count that differs from the table of steps, no load, fewer than
         two plateaus at different loads.
+
+    Examples
+    --------
+    A noise-free staircase of 0, 100, 200, 0 N on a 1 N/um structure (640 um/V sensor):
+
+    >>> import numpy as np
+    >>> t = np.arange(0, 8, 0.01)
+    >>> load = np.select([t < 2, t < 4, t < 6], [0.0, 100.0, 200.0], 0.0)
+    >>> rec = Recording("staircase.csv", t, load / 1000 / 0.640, load, "N", "load_n")
+    >>> r = analyse_recording(rec)
+    >>> len(r.plateaus), round(r.stiffness_n_per_mm)
+    (4, 1000)
     """
     cfg = config or SensorConfig()
     src = recording.source or "recording"
     t = recording.time_s
-    disp_what = _displacement_channel(recording)
-    _refuse_raw_codes(recording.displacement_v, cfg.range_v, src, disp_what)
-    n = t.size
-    fs = recording.sample_rate_hz
-    flags: list[str] = []
+    conv = _displacement(recording, cfg, src)
+    load_n = _load_channel_n(recording, cfg, src)
+    bad, spans, gaps = _bad_samples(conv, load_n, t)
+    if spans and not cfg.exclude_bad_samples:
+        _refuse_bad_samples(spans, cfg, src)
+    valid = ~bad
+    x = conv.displacement_mm
+    if cfg.step_times_s is not None:
+        pspans, use, noise_mm = _manual_plateaus(cfg.step_times_s, t, x, valid, src)
+    else:
+        pspans, use, noise_mm = _detected_plateaus(cfg, x, load_n, valid, recording.sample_rate_hz, src)
+    _check_plateau_count(pspans, cfg, t, src)
+    excluded, flags = _check_plateau_samples(
+        pspans, conv.saturated | conv.out_of_range, valid, use, spans, gaps, t, src
+    )
+    stats, more_flags = _plateau_statistics(pspans, use, t, x, load_n, cfg)
+    flags += more_flags
+    try:
+        fit = fit_load_displacement(stats.load_n, stats.displacement_mm, level=cfg.level)
+    except ValueError as e:
+        raise InputError(f"{e} (plateaus at {_fmt_spans(pspans, t)})", source=src) from None
+    fmax = float(np.abs(stats.load_n).max())
+    tol_n = max(0.01 * fmax, 1e-9)
+    labels = branches(stats.load_n, tol_n=tol_n)
+    e, se = fit.static_error_mm(cfg.reference_load_n)
+    return SensorResult(
+        source=src,
+        plateaus=_plateaus(pspans, t, stats, labels, excluded),
+        fit=fit,
+        reference_load_n=cfg.reference_load_n,
+        static_error_mm=float(e),
+        static_error_std_mm=float(se),
+        hysteresis=hysteresis(stats.load_n, stats.displacement_mm, labels, tol_n=tol_n),
+        drift_mm=stats.drift_mm,
+        noise_mm=noise_mm,
+        sample_rate_hz=recording.sample_rate_hz,
+        bad_spans=tuple(spans),
+        flags=tuple(flags + _fit_flags(fit, cfg.reference_load_n, fmax)),
+    )
 
+
+def _displacement(recording: Recording, cfg: SensorConfig, src: str):
+    """The displacement channel in mm with its bad-sample flags; raw codes and a constant refused."""
+    what = _displacement_channel(recording)
+    _refuse_raw_codes(recording.displacement_v, cfg.range_v, src, what)
     conv = displacement_from_volts(
         recording.displacement_v,
-        t,
+        recording.time_s,
         scale_um_per_v=cfg.scale_um_per_v,
         range_v=cfg.range_v,
         axis_sign=cfg.axis_sign,
         saturation_margin_v=cfg.saturation_margin_v,
     )
-    x = conv.displacement_mm
+    _refuse_constant_displacement(recording.displacement_v, conv.displacement_mm, ~conv.bad, src, what)
+    return conv
+
+
+def _load_channel_n(recording: Recording, cfg: SensorConfig, src: str) -> np.ndarray | None:
+    """The load channel in N (NaN where missing), or None without one (then a table of steps is needed).
+
+    Its unit comes from ``load_unit`` or the column name (kgf by default); a unit that
+    contradicts the column name, volts without a load-cell scale and loads beyond
+    :data:`~stiffmap.loads.MAX_FORCE_N` are refused.
+    """
+    if recording.load is None:
+        if cfg.steps is None:
+            raise FieldError(
+                "steps",
+                f"no load: the file has no load channel ({recording.load_name or 'load_kgf'}) and no table "
+                "of steps was given ({steps}, e.g. 0,50,40,30,20,10,0 kgf)",
+                source=src,
+            )
+        return None
+    unit = cfg.load_unit or recording.load_unit or "kgf"
+    hint = recording.load_unit
+    if cfg.load_unit is not None and hint is not None and hint != cfg.load_unit:
+        raise FieldError(
+            "load_unit",
+            f"load column {recording.load_name!r} says {hint} by its name but the load unit given is "
+            f"{cfg.load_unit}; rename the column or fix {{load_unit}}",
+            source=src,
+        )
+    if unit == "V" and cfg.load_n_per_v is None:
+        raise FieldError(
+            "load_n_per_v",
+            f"load column {recording.load_name!r} is in volts; give the load-cell scale ({{load_n_per_v}})",
+            source=src,
+        )
+    with np.errstate(over="ignore"):
+        load_n = newton_from_load(recording.load, unit, g=cfg.g, n_per_v=cfg.load_n_per_v)
+    huge = np.isfinite(recording.load) & ~(np.abs(load_n) <= MAX_FORCE_N)
+    if huge.any():
+        i = int(np.flatnonzero(huge)[0])
+        raise InputError(
+            f"load channel {recording.load_name or 'load'!r}: {recording.load[i]:.6g} {unit} at "
+            f"{recording.time_s[i]:.3f} s is beyond +-{MAX_FORCE_N:g} N: not a plausible load (wrong unit or "
+            "load-cell scale?)",
+            source=src,
+        )
+    return load_n
+
+
+def _bad_samples(conv, load_n: np.ndarray | None, t: np.ndarray):
+    """Samples not to use and the spans that name them, in time order, and the time gaps.
+
+    Returns
+    -------
+    bad : ndarray of bool, shape (n,)
+        Saturated, out-of-range or missing displacement, or missing load.
+    spans : list of SampleSpan
+        Every flagged span, time gaps included, sorted by start time.
+    gaps : list of SampleSpan
+        The jumps in the time stamps.
+    """
     bad = conv.bad.copy()
     spans = list(conv.spans)
-    _refuse_constant_displacement(recording.displacement_v, x, ~bad, src, disp_what)
-
-    # Loads: a channel, a table, or both (the table rules, the channel is checked against it).
-    load_n = None
-    if recording.load is not None:
-        unit = cfg.load_unit or recording.load_unit or "kgf"
-        hint = recording.load_unit
-        if cfg.load_unit is not None and hint is not None and hint != cfg.load_unit:
-            raise FieldError(
-                "load_unit",
-                f"load column {recording.load_name!r} says {hint} by its name but the load unit given is "
-                f"{cfg.load_unit}; rename the column or fix {{load_unit}}",
-                source=src,
-            )
-        if unit == "V" and cfg.load_n_per_v is None:
-            raise FieldError(
-                "load_n_per_v",
-                f"load column {recording.load_name!r} is in volts; give the load-cell scale "
-                "({load_n_per_v})",
-                source=src,
-            )
-        with np.errstate(over="ignore"):
-            load_n = newton_from_load(recording.load, unit, g=cfg.g, n_per_v=cfg.load_n_per_v)
-        huge = np.isfinite(recording.load) & ~(np.abs(load_n) <= MAX_FORCE_N)
-        if huge.any():
-            i = int(np.flatnonzero(huge)[0])
-            raise InputError(
-                f"load channel {recording.load_name or 'load'!r}: {recording.load[i]:.6g} {unit} at "
-                f"{t[i]:.3f} s is beyond +-{MAX_FORCE_N:g} N: not a plausible load (wrong unit or "
-                "load-cell scale?)",
-                source=src,
-            )
+    if load_n is not None:
         lmiss = ~np.isfinite(load_n)
         if lmiss.any():
             bad |= lmiss
             for a, b in spans_from_mask(lmiss):
                 spans.append(SampleSpan("dropout", int(a), int(b), float(t[a]), float(t[b - 1])))
-    table = cfg.steps_n
-    if load_n is None and table is None:
-        raise FieldError(
-            "steps",
-            f"no load: the file has no load channel ({recording.load_name or 'load_kgf'}) and no table of "
-            "steps was given ({steps}, e.g. 0,50,40,30,20,10,0 kgf)",
-            source=src,
-        )
     gaps = time_gaps(t)
     spans += gaps
     spans.sort(key=lambda s: s.t_start_s)
-    sat_mask = conv.saturated | conv.out_of_range
-    if spans and not cfg.exclude_bad_samples:
-        kinds = sorted({s.kind for s in spans})
-        hint = ""
-        if "saturated" in kinds or "out of range" in kinds:
-            lim = cfg.range_v * cfg.scale_um_per_v * 1e-3
-            hint = (
-                f"; the displacement reached the sensor range (+-{cfg.range_v:g} V x "
-                f"{cfg.scale_um_per_v:g} um/V = +-{lim:.4g} mm): re-centre the sensor or use a larger range"
-            )
-        raise FieldError(
-            "exclude_bad_samples",
-            f"{' and '.join(kinds)} samples: {describe_spans(spans)}{hint}. These samples cannot be used "
-            "({exclude_bad_samples} leaves missing samples out of the plateaus)",
-            source=src,
-        )
-    valid = ~bad
+    return bad, spans, gaps
 
-    # Plateaus: by hand or detected.
-    noise_mm = float("nan")
-    if cfg.step_times_s is not None:
-        pspans = _manual_spans(cfg.step_times_s, t, src)
-        use = np.zeros(n, dtype=bool)
-        for a, b in pspans:
-            use[a:b] = valid[a:b]
-        d = np.diff(x[valid])
-        if d.size:
-            noise_mm = float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2))
-    else:
-        mode = cfg.detect_on
-        if mode == "auto":
-            mode = "both" if load_n is not None else "displacement"
-        if mode in ("load", "both") and load_n is None:
-            raise InputError(
-                f"detect_on={cfg.detect_on!r} needs a load channel; the file has none", source=src
-            )
-        sig = {"load": [load_n], "displacement": [x], "both": [x, load_n]}[mode]
-        det = detect_plateaus(
-            sig,
-            fs,
-            valid=valid,
-            window_s=cfg.window_s,
-            min_plateau_s=cfg.min_plateau_s,
-            guard_s=cfg.guard_s,
-            threshold_sigma=cfg.threshold_sigma,
+
+def _refuse_bad_samples(spans: list[SampleSpan], cfg: SensorConfig, src: str) -> None:
+    """Bad samples are an error unless ``exclude_bad_samples``: name them, and the range when saturated."""
+    kinds = sorted({s.kind for s in spans})
+    hint = ""
+    if "saturated" in kinds or "out of range" in kinds:
+        lim = cfg.range_v * cfg.scale_um_per_v * 1e-3
+        hint = (
+            f"; the displacement reached the sensor range (+-{cfg.range_v:g} V x "
+            f"{cfg.scale_um_per_v:g} um/V = +-{lim:.4g} mm): re-centre the sensor or use a larger range"
         )
-        pspans, use = det.spans, det.use
-        if mode != "load" and det.noise:
-            noise_mm = det.noise[0]
+    raise FieldError(
+        "exclude_bad_samples",
+        f"{' and '.join(kinds)} samples: {describe_spans(spans)}{hint}. These samples cannot be used "
+        "({exclude_bad_samples} leaves missing samples out of the plateaus)",
+        source=src,
+    )
+
+
+def _manual_plateaus(times, t: np.ndarray, x: np.ndarray, valid: np.ndarray, src: str):
+    """The plateaus given by hand: ``(spans, use, noise_mm)``, the noise from the first differences."""
+    pspans = _manual_spans(times, t, src)
+    use = np.zeros(t.size, dtype=bool)
+    for a, b in pspans:
+        use[a:b] = valid[a:b]
+    noise_mm = float("nan")
+    d = np.diff(x[valid])
+    if d.size:
+        noise_mm = float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2))
+    return pspans, use, noise_mm
+
+
+def _detected_plateaus(cfg: SensorConfig, x, load_n, valid: np.ndarray, fs: float, src: str):
+    """The plateaus found on the channels ``detect_on`` names: ``(spans, use, noise_mm)``."""
+    mode = cfg.detect_on
+    if mode == "auto":
+        mode = "both" if load_n is not None else "displacement"
+    if mode in ("load", "both") and load_n is None:
+        raise InputError(f"detect_on={cfg.detect_on!r} needs a load channel; the file has none", source=src)
+    sig = {"load": [load_n], "displacement": [x], "both": [x, load_n]}[mode]
+    det = detect_plateaus(
+        sig,
+        fs,
+        valid=valid,
+        window_s=cfg.window_s,
+        min_plateau_s=cfg.min_plateau_s,
+        guard_s=cfg.guard_s,
+        threshold_sigma=cfg.threshold_sigma,
+    )
+    noise_mm = det.noise[0] if mode != "load" and det.noise else float("nan")
+    return det.spans, det.use, noise_mm
+
+
+def _check_plateau_count(pspans: np.ndarray, cfg: SensorConfig, t: np.ndarray, src: str) -> None:
+    """As many plateaus as the table of steps has (if any), and at least two."""
     k = pspans.shape[0]
-    if table is not None and k != table.size:
-        tab = ", ".join(f"{s:g}" for s in cfg.steps)
-        msg = f"found {k} plateau(s) but the table of steps has {table.size} ({tab} {cfg.steps_unit})"
+    table = cfg.steps
+    if table is not None and k != len(table):
+        tab = ", ".join(f"{s:g}" for s in table)
+        msg = f"found {k} plateau(s) but the table of steps has {len(table)} ({tab} {cfg.steps_unit})"
         if k:
             msg += f"; plateaus at {_fmt_spans(pspans, t)}"
-        if k < table.size:
+        if k < len(table):
             g0, g1 = _longest_gap(pspans, t) if k else (float(t[0]), float(t[-1]))
             msg += f"; the longest span without a plateau is {g0:.2f}-{g1:.2f} s"
         msg += ". Give the plateaus by hand ({step_times_s}) or adjust {min_plateau_s} / {window_s}"
@@ -573,8 +654,18 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
             source=src,
         )
 
-    # Bad samples inside plateaus (exclude mode): saturation is an error, dropouts are left out.
-    excluded = []
+
+def _check_plateau_samples(pspans, sat_mask, valid, use, spans, gaps, t, src) -> tuple[list[int], list[str]]:
+    """Bad samples inside the plateaus (exclude mode): saturation is an error, dropouts are left out.
+
+    Returns
+    -------
+    excluded : list of int
+        Missing samples left out of each plateau.
+    flags : list of str
+        Plateaus with samples left out or time gaps; flagged spans outside every plateau.
+    """
+    excluded, flags = [], []
     for i, (a, b) in enumerate(pspans):
         if sat_mask[a:b].any():
             inside = [s for s in spans if s.kind != "dropout" and s.start < b and s.stop > a]
@@ -598,60 +689,94 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
     outside = [s for s in spans if not any(a <= s.start and s.stop <= b for a, b in pspans)]
     if outside:
         flags.append(f"not used (outside the plateaus): {describe_spans(outside)}")
+    return excluded, flags
 
-    # Per plateau: load and raw displacement.
-    masks = [np.zeros(n, dtype=bool) for _ in range(k)]
+
+@dataclass(frozen=True)
+class _PlateauStats:
+    """Per-plateau means, shape (k,) each: load (N), displacement before/after drift removal (mm)."""
+
+    counts: np.ndarray
+    load_n: np.ndarray
+    load_std_n: np.ndarray
+    raw_displacement_mm: np.ndarray
+    displacement_mm: np.ndarray
+    std_mm: np.ndarray
+    drift_mm: float
+
+
+def _plateau_statistics(pspans, use, t, x, load_n, cfg: SensorConfig) -> tuple[_PlateauStats, list[str]]:
+    """Each plateau's load and displacement, the drift through the zero-load plateaus removed."""
+    masks = [np.zeros(t.size, dtype=bool) for _ in range(pspans.shape[0])]
     for i, (a, b) in enumerate(pspans):
         masks[i][a:b] = use[a:b]
     t_mid = np.array([t[m].mean() for m in masks])
     x_raw = np.array([x[m].mean() for m in masks])
-    if table is not None:
-        F = table.copy()
-        F_std = np.full(k, np.nan)
-        if load_n is not None:
-            Fc = np.array([load_n[m].mean() for m in masks])
-            tol = max(0.02 * float(np.abs(F).max()), 1e-9)
-            for i in np.flatnonzero(np.abs(Fc - F) > tol):
-                flags.append(
-                    f"plateau {i + 1} ({t_mid[i]:.2f} s): the load channel reads {Fc[i]:.4g} N, the table "
-                    f"says {F[i]:.4g} N"
-                )
-    else:
+    F, F_std, flags = _plateau_loads(masks, cfg.steps_n, load_n, t_mid)
+    drift, drift_mm, drift_flags = _drift(cfg, t, t_mid, x_raw, F)
+    xc = x - drift
+    stats = _PlateauStats(
+        counts=np.array([int(m.sum()) for m in masks]),
+        load_n=F,
+        load_std_n=F_std,
+        raw_displacement_mm=x_raw,
+        displacement_mm=np.array([xc[m].mean() for m in masks]),
+        std_mm=np.array([xc[m].std(ddof=1) for m in masks]),
+        drift_mm=drift_mm,
+    )
+    return stats, flags + drift_flags
+
+
+def _plateau_loads(masks, table, load_n, t_mid) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Each plateau's load and its std, N: the table's (checked against the channel) or the channel's."""
+    flags = []
+    if table is None:
         F = np.array([load_n[m].mean() for m in masks])
         F_std = np.array([load_n[m].std(ddof=1) for m in masks])
-    fmax = float(np.abs(F).max())
+        return F, F_std, flags
+    F = table.copy()
+    F_std = np.full(len(masks), np.nan)
+    if load_n is not None:
+        Fc = np.array([load_n[m].mean() for m in masks])
+        tol = max(0.02 * float(np.abs(F).max()), 1e-9)
+        for i in np.flatnonzero(np.abs(Fc - F) > tol):
+            flags.append(
+                f"plateau {i + 1} ({t_mid[i]:.2f} s): the load channel reads {Fc[i]:.4g} N, the table "
+                f"says {F[i]:.4g} N"
+            )
+    return F, F_std, flags
 
-    # Drift through the zero-load plateaus.
+
+def _drift(cfg: SensorConfig, t, t_mid, x_raw, F) -> tuple[np.ndarray, float, list[str]]:
+    """The drift (mm, per sample) through the zero-load plateaus, its total, and flags when not removed.
+
+    Piecewise linear in time between the zero-load plateaus, constant beyond; one zero-load
+    plateau gives a constant offset; none, no drift removed.
+    """
+    fmax = float(np.abs(F).max())
     zero_tol = cfg.zero_load_n if cfg.zero_load_n is not None else max(0.01 * fmax, 1e-9)
     zeros = np.flatnonzero(np.abs(F) <= zero_tol)
-    drift = np.zeros(n)
-    drift_mm = float("nan")
-    if cfg.remove_drift:
-        if zeros.size >= 2:
-            drift = np.interp(t, t_mid[zeros], x_raw[zeros])
-            drift_mm = float(x_raw[zeros[-1]] - x_raw[zeros[0]])
-        elif zeros.size == 1:
-            drift = np.full(n, x_raw[zeros[0]])
-            flags.append(
+    drift = np.zeros(t.size)
+    if not cfg.remove_drift:
+        return drift, float("nan"), []
+    if zeros.size >= 2:
+        drift = np.interp(t, t_mid[zeros], x_raw[zeros])
+        return drift, float(x_raw[zeros[-1]] - x_raw[zeros[0]]), []
+    if zeros.size == 1:
+        return (
+            np.full(t.size, x_raw[zeros[0]]),
+            float("nan"),
+            [
                 "drift not removed: only one zero-load plateau "
                 "(record one before loading and one after unloading)"
-            )
-        else:
-            flags.append("drift not removed: no zero-load plateau")
-    xc = x - drift
-    X = np.array([xc[m].mean() for m in masks])
-    X_std = np.array([xc[m].std(ddof=1) for m in masks])
-    counts = np.array([int(m.sum()) for m in masks])
+            ],
+        )
+    return drift, float("nan"), ["drift not removed: no zero-load plateau"]
 
-    try:
-        fit = fit_load_displacement(F, X, level=cfg.level)
-    except ValueError as e:
-        raise InputError(f"{e} (plateaus at {_fmt_spans(pspans, t)})", source=src) from None
-    tol_n = max(0.01 * fmax, 1e-9)
-    labels = branches(F, tol_n=tol_n)
-    hyst = hysteresis(F, X, labels, tol_n=tol_n)
-    e, se = fit.static_error_mm(cfg.reference_load_n)
 
+def _fit_flags(fit: LinearFit, reference_load_n: float, fmax: float) -> list[str]:
+    """What is doubtful in the fit: no standard error, negative stiffness, poor R^2, extrapolation."""
+    flags = []
     if fit.dof == 0:
         flags.append("only 2 plateaus: no standard error or confidence interval")
     if fit.compliance_mm_per_n < 0:
@@ -661,37 +786,27 @@ def analyse_recording(recording: Recording, config: SensorConfig | None = None) 
         )
     if math.isfinite(fit.r2) and fit.r2 < 0.99:
         flags.append(f"R^2 = {fit.r2:.4f}: the plateaus are not on a line (hysteresis, slip, a bad plateau?)")
-    if abs(cfg.reference_load_n) > 1.05 * fmax:
+    if abs(reference_load_n) > 1.05 * fmax:
         flags.append(
-            f"static error extrapolated: reference load {cfg.reference_load_n:g} N beyond the largest "
+            f"static error extrapolated: reference load {reference_load_n:g} N beyond the largest "
             f"plateau load {fmax:.4g} N"
         )
-    plateaus = tuple(
+    return flags
+
+
+def _plateaus(pspans, t, stats: _PlateauStats, labels, excluded) -> tuple[Plateau, ...]:
+    return tuple(
         Plateau(
             t_start_s=float(t[a]),
             t_end_s=float(t[b - 1]),
-            n=int(counts[i]),
-            load_n=float(F[i]),
-            load_std_n=float(F_std[i]),
-            displacement_mm=float(X[i]),
-            std_mm=float(X_std[i]),
-            raw_displacement_mm=float(x_raw[i]),
+            n=int(stats.counts[i]),
+            load_n=float(stats.load_n[i]),
+            load_std_n=float(stats.load_std_n[i]),
+            displacement_mm=float(stats.displacement_mm[i]),
+            std_mm=float(stats.std_mm[i]),
+            raw_displacement_mm=float(stats.raw_displacement_mm[i]),
             branch=labels[i],
             excluded=excluded[i],
         )
         for i, (a, b) in enumerate(pspans)
-    )
-    return SensorResult(
-        source=src,
-        plateaus=plateaus,
-        fit=fit,
-        reference_load_n=cfg.reference_load_n,
-        static_error_mm=float(e),
-        static_error_std_mm=float(se),
-        hysteresis=hyst,
-        drift_mm=drift_mm,
-        noise_mm=noise_mm,
-        sample_rate_hz=fs,
-        bad_spans=tuple(spans),
-        flags=tuple(flags),
     )

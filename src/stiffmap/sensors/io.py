@@ -506,7 +506,14 @@ def write_recording(
 
         buf = io.BytesIO()
         scipy.io.savemat(buf, {k: v.reshape(-1, 1) for k, v in cols.items()}, oned_as="column")
-        atomic_write_bytes(p, buf.getvalue())
+        atomic_write_bytes(p, _fixed_mat_header(buf.getvalue()))
     else:
         raise ValueError(f"fmt must be 'csv', 'tdms' or 'mat', got {fmt!r}")
     return p
+
+
+def _fixed_mat_header(data: bytes) -> bytes:
+    """A MAT 5 file with its 116-byte descriptive text fixed (SciPy writes the time of day there):
+    the same recording gives the same bytes, as ``simulate``'s seed promises."""
+    text = b"MATLAB 5.0 MAT-file, written by stiffmap"
+    return text.ljust(116, b" ") + data[116:]

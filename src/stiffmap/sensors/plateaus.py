@@ -195,10 +195,41 @@ def detect_plateaus(
     Returns
     -------
     PlateauDetection
+
+    Examples
+    --------
+    Three steps of 2 s at 100 Hz (0-2, 2-4, 4-6 s): three plateaus, each inside its
+    step, a guard band of about ``window_s / 2`` trimmed next to each transition.
+
+    >>> import numpy as np
+    >>> y = np.repeat([0.0, 1.0, 0.5], 200)
+    >>> det = detect_plateaus([y], 100.0)
+    >>> [(a / 100, b / 100) for a, b in det.spans.tolist()]  # [start, stop) in s
+    [(0.0, 1.89), (2.17, 3.89), (4.17, 6.0)]
     """
     fs = float(sample_rate_hz)
     if not (math.isfinite(fs) and fs > 0):
         raise ValueError(f"sample_rate_hz must be positive, got {sample_rate_hz!r}")
+    ys, ok = _signals_and_valid(signals, valid)
+    w, min_len, guard = _samples_of(fs, window_s, min_plateau_s, guard_s, threshold_sigma)
+    n = ok.size
+    if ok.sum() < 2 * w:
+        empty = np.zeros((0, 2), dtype=int)
+        return PlateauDetection(empty, np.zeros(n, bool), np.zeros(n, bool), (), w, ())
+    ch, stable = _channels(ys, ok, w, threshold_sigma, min_step_fraction, split_fraction)
+    _split_slow_transitions(ch, stable)
+    runs = _quiet_runs(stable, w)
+    merged = _merge_runs(ch, stable, runs)
+    _widen_edges(ch, stable, merged)
+    spans = _trimmed(merged, min_len, guard, n)
+    use = np.zeros(n, dtype=bool)
+    for a, b in spans:
+        use[a:b] = stable[a:b] & ok[a:b]
+    return PlateauDetection(spans, use, stable, tuple(ch.noise), w, tuple(ch.thresholds))
+
+
+def _signals_and_valid(signals: Sequence, valid) -> tuple[list[np.ndarray], np.ndarray]:
+    """The channels as float arrays of one length, and the samples valid and finite in all."""
     ys = [np.asarray(s, dtype=np.float64).ravel() for s in signals]
     if not ys:
         raise ValueError("at least one signal is needed")
@@ -210,6 +241,11 @@ def detect_plateaus(
         raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
     for y in ys:
         ok &= np.isfinite(y)
+    return ys, ok
+
+
+def _samples_of(fs: float, window_s, min_plateau_s, guard_s, threshold_sigma) -> tuple[int, int, int]:
+    """The window, the shortest plateau and the guard band in samples (the settings checked)."""
     for name, x in (
         ("window_s", window_s),
         ("min_plateau_s", min_plateau_s),
@@ -222,104 +258,155 @@ def detect_plateaus(
     guard = int(round((window_s / 2 if guard_s is None else guard_s) * fs))
     if guard < 0:
         raise ValueError(f"guard_s must be >= 0, got {guard_s!r}")
-    empty = np.zeros((0, 2), dtype=int)
-    if ok.sum() < 2 * w:
-        return PlateauDetection(empty, np.zeros(n, bool), np.zeros(n, bool), (), w, ())
+    return w, min_len, guard
 
-    unstable = np.zeros(n, dtype=bool)
-    filled, noise, thr_full, floors, drifts, split_floors = [], [], [], [], [], []
-    for y in ys:
-        yf = _filled(y, ok)
-        D, scale = step_statistic(yf, w)
-        sigma, med = _noise_and_centre(yf, D, scale, w, threshold_sigma)
-        q = _quantum(yf[ok])
-        sigma = max(sigma, q / math.sqrt(12.0))
-        lo, hi = np.percentile(yf[ok], [0.5, 99.5])
-        floor = min_step_fraction * float(hi - lo)
-        thr = np.maximum(threshold_sigma * sigma * scale, floor)
-        unstable |= np.abs(D - med) > thr
-        filled.append(yf)
-        noise.append(sigma)
-        thr_full.append(float(max(threshold_sigma * sigma * math.sqrt(2.0 / w), floor)))
-        floors.append(floor)
-        split_floors.append(max(floor, split_fraction * float(hi - lo)))
-        drifts.append(med / w)  # drift per sample
-    stable = ~unstable
-    # Slow transitions hide from the short window: look inside each stable run with
-    # longer windows (cut at the run's ends, so nothing outside it counts) and split
-    # it where a step shows that is also a sizeable part of the signal's span.
-    mult = 2
-    while True:
-        w2 = w * mult
-        runs = [r for r in spans_from_mask(stable) if r[1] - r[0] >= 2 * w2]
-        if not runs:
-            break
-        for a, b in runs:
-            for k in range(len(ys)):
-                D2, sc2 = step_statistic(filled[k][a:b], w2)
-                thr2 = np.maximum(threshold_sigma * noise[k] * sc2, split_floors[k])
-                stable[a:b] &= np.abs(D2 - drifts[k] * w2) <= thr2
-        mult *= 2
-    runs = []
-    for r in spans_from_mask(stable):
-        if r[1] - r[0] >= max(3, w // 4):
-            runs.append(list(r))
-        else:
-            stable[r[0] : r[1]] = False  # a few quiet samples amid a spike or a transition
 
-    def level(k: int, a: int, b: int) -> tuple[float, int]:
-        m = stable[a:b] & ok[a:b]
+@dataclass(frozen=True)
+class _Channels:
+    """What the detector knows of each channel (lists over the channels, in their units).
+
+    ``filled``: the samples, invalid ones interpolated; ``noise``: 1 sigma per sample;
+    ``thresholds``: on ``|D - median(D)|`` for full windows; ``floors``: the smallest step
+    told apart from noise; ``split_floors``: the smallest step that splits a stable run;
+    ``drifts``: drift per sample. ``ok``: valid samples; ``w``: the window, samples;
+    ``k``: ``threshold_sigma``.
+    """
+
+    filled: list[np.ndarray]
+    noise: list[float]
+    thresholds: list[float]
+    floors: list[float]
+    split_floors: list[float]
+    drifts: list[float]
+    ok: np.ndarray
+    w: int
+    k: float
+
+    def level(self, c: int, stable: np.ndarray, a: int, b: int) -> tuple[float, int]:
+        """Mean of channel ``c`` over the stable valid samples of ``[a, b)``, and their count."""
+        m = stable[a:b] & self.ok[a:b]
         cnt = int(m.sum())
-        return (float(filled[k][a:b][m].mean()) if cnt else float("nan")), cnt
+        return (float(self.filled[c][a:b][m].mean()) if cnt else float("nan")), cnt
 
-    def gap_stays(k: int, a: int, b: int, ref: float, tol: float) -> bool:
+    def gap_stays(self, c: int, a: int, b: int, ref: float, tol: float) -> bool:
         """Do the running medians of y[a:b] stay within tol of ref (no excursion in the gap)?
 
         Medians over w samples: a spike shorter than w/2 does not move them, an excursion
         that holds longer does.
         """
-        g = filled[k][a:b]
+        g = self.filled[c][a:b]
         if g.size == 0:
             return True
-        wg = min(w, g.size)
+        wg = min(self.w, g.size)
         med = np.median(np.lib.stride_tricks.sliding_window_view(g, wg), axis=1)
-        return bool(np.abs(med - ref).max() <= tol + 1.25 * threshold_sigma * noise[k] / math.sqrt(wg))
+        return bool(np.abs(med - ref).max() <= tol + 1.25 * self.k * self.noise[c] / math.sqrt(wg))
 
-    # Merge neighbouring runs at the same level whose gap stays at that level (a
-    # spike, a false split); a real excursion between two equal plateaus is kept.
+
+def _channels(ys, ok, w: int, k: float, min_step_fraction: float, split_fraction: float):
+    """Each channel's noise, drift and thresholds, and the samples stable in every channel."""
+    unstable = np.zeros(ok.size, dtype=bool)
+    filled, noise, thr_full, floors, drifts, split_floors = [], [], [], [], [], []
+    for y in ys:
+        yf = _filled(y, ok)
+        D, scale = step_statistic(yf, w)
+        sigma, med = _noise_and_centre(yf, D, scale, w, k)
+        q = _quantum(yf[ok])
+        sigma = max(sigma, q / math.sqrt(12.0))
+        lo, hi = np.percentile(yf[ok], [0.5, 99.5])
+        floor = min_step_fraction * float(hi - lo)
+        thr = np.maximum(k * sigma * scale, floor)
+        unstable |= np.abs(D - med) > thr
+        filled.append(yf)
+        noise.append(sigma)
+        thr_full.append(float(max(k * sigma * math.sqrt(2.0 / w), floor)))
+        floors.append(floor)
+        split_floors.append(max(floor, split_fraction * float(hi - lo)))
+        drifts.append(med / w)  # drift per sample
+    ch = _Channels(filled, noise, thr_full, floors, split_floors, drifts, ok, w, k)
+    return ch, ~unstable
+
+
+def _split_slow_transitions(ch: _Channels, stable: np.ndarray) -> None:
+    """Split the stable runs (in ``stable``) where a longer window sees a slow transition.
+
+    Slow transitions hide from the short window: look inside each stable run with
+    longer windows (cut at the run's ends, so nothing outside it counts) and split
+    it where a step shows that is also a sizeable part of the signal's span.
+    """
+    mult = 2
+    while True:
+        w2 = ch.w * mult
+        runs = [r for r in spans_from_mask(stable) if r[1] - r[0] >= 2 * w2]
+        if not runs:
+            break
+        for a, b in runs:
+            for c in range(len(ch.filled)):
+                D2, sc2 = step_statistic(ch.filled[c][a:b], w2)
+                thr2 = np.maximum(ch.k * ch.noise[c] * sc2, ch.split_floors[c])
+                stable[a:b] &= np.abs(D2 - ch.drifts[c] * w2) <= thr2
+        mult *= 2
+
+
+def _quiet_runs(stable: np.ndarray, w: int) -> list[list[int]]:
+    """The runs of stable samples; a few quiet samples amid a spike or a transition are unmarked."""
+    runs = []
+    for r in spans_from_mask(stable):
+        if r[1] - r[0] >= max(3, w // 4):
+            runs.append(list(r))
+        else:
+            stable[r[0] : r[1]] = False
+    return runs
+
+
+def _merge_runs(ch: _Channels, stable: np.ndarray, runs: list[list[int]]) -> list[list[int]]:
+    """Merge neighbouring runs at the same level whose gap stays at that level.
+
+    The gap is a spike or a false split; a real excursion between two equal plateaus
+    is kept.
+    """
     merged: list[list[int]] = []
     for r in runs:
-        if merged:
-            a0, b0 = merged[-1]
-            same = True
-            for k in range(len(ys)):
-                la, na = level(k, a0, b0)
-                lb, nb = level(k, r[0], r[1])
-                if na == 0 or nb == 0:
-                    continue
-                dist = 0.5 * ((r[0] + r[1]) - (a0 + b0))
-                tol = threshold_sigma * noise[k] * math.sqrt(1 / na + 1 / nb) + abs(drifts[k]) * dist
-                tol = max(tol, floors[k])
-                if abs(la - lb) > tol or not gap_stays(k, b0, r[0], 0.5 * (la + lb), tol):
-                    same = False
-                    break
-            if same:
-                merged[-1][1] = r[1]
-                continue
-        merged.append(r)
-    # The step statistic stops a run up to w samples before a transition; move each
-    # edge out (by at most w) while the next few samples still sit at the plateau's level.
+        if merged and _same_level(ch, stable, merged[-1], r):
+            merged[-1][1] = r[1]
+        else:
+            merged.append(r)
+    return merged
+
+
+def _same_level(ch: _Channels, stable: np.ndarray, prev: list[int], r: list[int]) -> bool:
+    """Are two runs at one level in every channel (within noise, drift and floor), the gap too?"""
+    a0, b0 = prev
+    for c in range(len(ch.filled)):
+        la, na = ch.level(c, stable, a0, b0)
+        lb, nb = ch.level(c, stable, r[0], r[1])
+        if na == 0 or nb == 0:
+            continue
+        dist = 0.5 * ((r[0] + r[1]) - (a0 + b0))
+        tol = ch.k * ch.noise[c] * math.sqrt(1 / na + 1 / nb) + abs(ch.drifts[c]) * dist
+        tol = max(tol, ch.floors[c])
+        if abs(la - lb) > tol or not ch.gap_stays(c, b0, r[0], 0.5 * (la + lb), tol):
+            return False
+    return True
+
+
+def _widen_edges(ch: _Channels, stable: np.ndarray, merged: list[list[int]]) -> None:
+    """Move each run's edges out (by at most w) while the next samples sit at its level.
+
+    The step statistic stops a run up to w samples before a transition; the edges move
+    by ``max(5, w // 5)`` samples at a time (``merged`` and ``stable`` are updated).
+    """
+    w, n, nch = ch.w, ch.ok.size, len(ch.filled)
     m = max(5, w // 5)
     for j, r in enumerate(merged):
         lo_lim = merged[j - 1][1] if j > 0 else 0
         hi_lim = merged[j + 1][0] if j + 1 < len(merged) else n
-        lv = [level(k, r[0], r[1])[0] for k in range(len(ys))]
-        tols = [threshold_sigma * noise[k] / math.sqrt(m) for k in range(len(ys))]
+        lv = [ch.level(c, stable, r[0], r[1])[0] for c in range(nch)]
+        tols = [ch.k * ch.noise[c] / math.sqrt(m) for c in range(nch)]
 
         def fits(a: int, b: int, lv=lv, tols=tols) -> bool:
-            if not ok[a:b].all():
+            if not ch.ok[a:b].all():
                 return False
-            return all(abs(filled[k][a:b].mean() - lv[k]) <= tols[k] for k in range(len(ys)))
+            return all(abs(ch.filled[c][a:b].mean() - lv[c]) <= tols[c] for c in range(nch))
 
         a = r[0]
         while a - m >= max(lo_lim, r[0] - w) and fits(a - m, a):
@@ -330,6 +417,10 @@ def detect_plateaus(
         stable[a : r[0]] = True
         stable[r[1] : b] = True
         r[0], r[1] = a, b
+
+
+def _trimmed(merged: list[list[int]], min_len: int, guard: int, n: int) -> np.ndarray:
+    """The runs long enough, a guard band trimmed at each side next to a transition: shape (k, 2)."""
     keep = []
     for a, b in merged:
         if b - a < min_len:
@@ -339,8 +430,4 @@ def detect_plateaus(
         if b2 - a2 < 2:
             continue
         keep.append((a2, b2))
-    spans = np.asarray(keep, dtype=int).reshape(-1, 2)
-    use = np.zeros(n, dtype=bool)
-    for a, b in spans:
-        use[a:b] = stable[a:b] & ok[a:b]
-    return PlateauDetection(spans, use, stable, tuple(noise), w, tuple(thr_full))
+    return np.asarray(keep, dtype=int).reshape(-1, 2)

@@ -47,6 +47,7 @@ from ..camera import CameraModel, invertible_field
 from ..errors import InputError
 from ..geometry import matrix_from_rotvec
 from ..posemath import projection_jacobian
+from ..targets import as_board
 from .detection import Board, BoardDetection, grid_of
 from .pnp import solve_pnp
 
@@ -97,6 +98,10 @@ class ViewResult:
     n_corners : int
     board2cam : ndarray, shape (4, 4) or None
         The view's pose (used views).
+    corners_px : ndarray, shape (k, 2), px, or None
+        The corners found in the view (where the views put corners: the report's coverage map).
+    residuals_px : ndarray, shape (k, 2), px, or None
+        Their reprojection residuals (observed - projected) with the final camera.
     """
 
     image: str
@@ -105,15 +110,21 @@ class ViewResult:
     reason: str
     n_corners: int = 0
     board2cam: np.ndarray | None = None
+    corners_px: np.ndarray | None = None
+    residuals_px: np.ndarray | None = None
 
     def to_dict(self) -> dict:
-        """The ``camera.json`` ``views`` entry."""
-        return {
+        """The ``camera.json`` ``views`` entry (corners rounded to 1e-3 px, residuals to 1e-4 px)."""
+        d = {
             "image": self.image,
             "used": self.used,
             "rms_px": None if not math.isfinite(self.rms_px) else self.rms_px,
             "reason": self.reason,
         }
+        if self.corners_px is not None and self.residuals_px is not None:
+            d["corners_px"] = np.round(self.corners_px, 3).tolist()
+            d["residuals_px"] = np.round(self.residuals_px, 4).tolist()
+        return d
 
 
 @dataclass(frozen=True)
@@ -563,6 +574,7 @@ def calibrate_camera(
     outlier_factor: float = 3.0,
     outlier_min_px: float = 0.3,
     min_views: int = 3,
+    square_mm: float | None = None,
 ) -> CalibrationResult:
     """Calibrate a camera from board detections in several views.
 
@@ -572,6 +584,7 @@ def calibrate_camera(
         One entry per image: its detection, or the reason it has none
         (e.g. the message of the detection error).
     board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
     image_size : (int, int)
         [w, h] of the images, px.
     names : sequence of str, optional
@@ -599,6 +612,7 @@ def calibrate_camera(
     InputError
         Fewer than ``min_views`` usable views (the message lists why each failed).
     """
+    board = as_board(board, square_mm, "board")
     if model not in DIST_MODELS:
         raise ValueError(f"model must be one of {sorted(DIST_MODELS)}, got {model!r}")
     n_views = len(detections)
@@ -657,7 +671,7 @@ def calibrate_camera(
         rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
         if k in pose_of:
             res_used.append(e)
-        views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T))
+        views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T, d.corners, e))
     R = np.concatenate(res_used)
     obj = [obj_all[detections[k].ids] for k in used]
     img = [detections[k].corners for k in used]

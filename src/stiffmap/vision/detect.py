@@ -41,7 +41,7 @@ import time
 from collections.abc import Sequence
 
 from ..camera import CameraModel
-from ..targets import CharucoBoard, Chessboard
+from ..targets import CharucoBoard, Chessboard, as_board
 from .board_plane import REJECT_PX, detection_mask
 from .charuco import detect_charuco
 from .chessboard import diagnose, finish_chessboard, search_chessboards
@@ -182,6 +182,7 @@ def detect_board(
     reject_px: float = REJECT_PX,
     min_corners: int = 6,
     source: str | None = None,
+    square_mm: float | None = None,
 ) -> BoardDetection:
     """Find one board in an image (see :func:`detect_boards`).
 
@@ -189,6 +190,7 @@ def detect_board(
     ----------
     image : ndarray, shape (h, w), uint8
     board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
     previous : BoardDetection, optional
         The board in the previous image: tracked first, full search on failure.
     reference : BoardDetection, optional
@@ -206,6 +208,7 @@ def detect_board(
         The board is not in the image, partly hidden, or the printed board has a
         different size.
     """
+    board = as_board(board, square_mm, "board")
     return detect_boards(
         image,
         [board],

@@ -23,6 +23,7 @@ from ..errors import InputError
 from ..geometry import as_transform
 from ..io import read_csv_columns, read_json
 from ..rig import Rig, parse_named_pattern
+from ..targets import as_board
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, DetectionError, detect_board
 from .detection import grid_of
@@ -254,6 +255,7 @@ def calibrate_files(
     outlier_factor: float = 3.0,
     scale: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    square_mm: float | None = None,
 ) -> CalibrationResult:
     """Calibrate a camera from image files of a board (a folder stands for its images).
 
@@ -273,6 +275,7 @@ def calibrate_files(
         names the board size the images show, if they agree on one), or early, on a wrong
         board size.
     """
+    board = as_board(board, square_mm, "board")
     if not paths:
         raise InputError("no calibration images given")
     paths = image_files(paths)
@@ -518,6 +521,7 @@ def calibrate_rig_files(
     outlier_factor: float = 3.0,
     scale: int | None = None,
     progress: Callable[[int, int], None] | None = None,
+    square_mm: float | None = None,
 ) -> RigCalibrationResult:
     """Calibrate a rig of cameras from their image files of one board (see :func:`calibrate_rig`).
 
@@ -527,6 +531,7 @@ def calibrate_rig_files(
         Each camera's name and its images: a file pattern (``img/left*.jpg``), a folder, or
         one file. The first camera's frame is the rig frame.
     board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
     model, outlier_factor
         As in :func:`~stiffmap.vision.rig_calibration.calibrate_rig`.
     scale : int, optional
@@ -551,6 +556,7 @@ def calibrate_rig_files(
         cannot be matched into views, a camera whose images differ in size, a camera with
         fewer than 3 usable views or fewer than 2 shared with the others.
     """
+    board = as_board(board, square_mm, "board")
     if not cameras:
         raise InputError("no cameras given")
     names = [str(n) for n, _ in cameras]
@@ -615,6 +621,8 @@ def measure_files(
     scale: int | None = None,
     camera_source: str = "camera.json",
     refine: str = "auto",
+    square_mm: float | None = None,
+    fixed_square_mm: float | None = None,
 ) -> list[ImageMeasurement]:
     """Poses in each image file (tracking along the list; a folder stands for its images).
 
@@ -622,6 +630,8 @@ def measure_files(
 
     ``refine`` as in :class:`~stiffmap.vision.sequence.PoseTracker`.
     """
+    board = as_board(board, square_mm, "board")
+    fixed_board = None if fixed_board is None else as_board(fixed_board, fixed_square_mm, "fixed_board")
     return measure_sequence(
         image_files(paths),
         camera,
@@ -772,6 +782,8 @@ def measure_image_sets(
     scale: int | None = None,
     rig_source: str = "rig.json",
     refine: str = "auto",
+    square_mm: float | None = None,
+    fixed_square_mm: float | None = None,
 ) -> list[ImageMeasurement]:
     """Fused poses in each image set of a rig (tracking along the list in every camera).
 
@@ -779,6 +791,8 @@ def measure_image_sets(
     wrong-sized image is named in its view and the others go on; a set where no camera saw a
     target gives an ``error`` entry (:class:`~stiffmap.vision.sequence.PoseTracker`).
     """
+    board = as_board(board, square_mm, "board")
+    fixed_board = None if fixed_board is None else as_board(fixed_board, fixed_square_mm, "fixed_board")
     return measure_sequence(
         [dict(views) for _, views in sets],
         rig,

@@ -39,6 +39,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError, StiffmapWarning
+from ..io import no_such_path
 
 __all__ = [
     "ImageError",
@@ -255,7 +256,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     Raises
     ------
     ImageError
-        Naming the file and what is wrong: not found, a directory, empty,
+        Naming the file and what is wrong: no such file or folder, a directory, empty,
         truncated or corrupt (with what the decoder says), not an image,
         unsupported format, undecodable, or smaller than 8x8 px.
 
@@ -267,7 +268,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     p = Path(path)
     src = str(path)
     if not p.exists():
-        raise ImageError("image file not found", source=src)
+        raise ImageError(no_such_path(p), source=src)
     if p.is_dir():
         raise ImageError("is a directory, expected an image file", source=src)
     try:

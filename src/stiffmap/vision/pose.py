@@ -59,7 +59,7 @@ from ..posemath import (
     perturb_pose,
     projection_jacobian,
 )
-from ..targets import Chessboard
+from ..targets import Chessboard, as_board
 from .detection import Board, BoardDetection, DetectionError, board_label, grid_of
 from .photometric import PhotometricError, PhotometricTrack, refine_pose_photometric
 from .pnp import solve_pnp
@@ -165,6 +165,7 @@ def estimate_pose(
     exclude=(),
     max_shift_sigma: float = MAX_REFINE_SHIFT_SIGMA,
     track: PhotometricTrack | None = None,
+    square_mm: float | None = None,
 ) -> BoardPose:
     """Pose of a detected board in the camera frame, with its covariance.
 
@@ -172,6 +173,7 @@ def estimate_pose(
     ----------
     detection : BoardDetection
     board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
         The board the detection is of (checked against ``detection.board``).
     camera : CameraModel
     initial : ndarray, shape (4, 4), optional
@@ -210,6 +212,7 @@ def estimate_pose(
     DetectionError
         Fewer than 4 corners, or a degenerate layout.
     """
+    board = as_board(board, square_mm, "board")
     check_refine(refine)
     corner_only = refine == "corners" or (
         refine == "auto" and (image is None or not isinstance(board, Chessboard))

@@ -68,6 +68,7 @@ from ..errors import InputError
 from ..geometry import invert_transform, mean_transform, rotvec_from_matrix
 from ..posemath import perturb_pose, projection_jacobian, skew
 from ..rig import Rig, RigCamera
+from ..targets import as_board
 from .calibrate import (
     DIST_MODELS,
     MATLAB_NOTE,
@@ -542,6 +543,7 @@ def calibrate_rig(
     outlier_factor: float = 3.0,
     outlier_min_px: float = 0.3,
     min_views: int = 3,
+    square_mm: float | None = None,
 ) -> RigCalibrationResult:
     """Calibrate a rig of cameras from views of a board seen by several cameras at once.
 
@@ -552,6 +554,7 @@ def calibrate_rig(
         cameras: view v is one pose of the board), or the reason it has none (a string), or
         None when camera k has no image of view v.
     board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
     image_sizes : sequence of (int, int)
         [w, h] of each camera's images, px.
     camera_names : sequence of str
@@ -581,6 +584,7 @@ def calibrate_rig(
     ValueError
         Inconsistent arguments (lengths, names, model).
     """
+    board = as_board(board, square_mm, "board")
     if model not in DIST_MODELS:
         raise ValueError(f"model must be one of {sorted(DIST_MODELS)}, got {model!r}")
     n_cam = len(detections)

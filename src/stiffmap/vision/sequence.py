@@ -36,7 +36,7 @@ from ..errors import InputError
 from ..geometry import as_transform, invert_transform
 from ..posemath import BoardPose, skew
 from ..rig import Rig
-from ..targets import Chessboard
+from ..targets import Chessboard, as_board
 from .board_plane import detection_mask
 from .detect import Board, BoardDetection, DetectionError, board_label, detect_boards
 from .fuse import FusedPose, fuse_poses
@@ -273,8 +273,10 @@ class PoseTracker:
         :meth:`measure`). A camera is measured as the rig of that one camera.
     mobile_board : Chessboard or CharucoBoard
         The target on the moving platform.
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (:func:`~stiffmap.targets.as_board`).
     fixed_board : Chessboard or CharucoBoard, optional
-        The target on the robot base (a different size from the mobile one).
+        The target on the robot base (a different size from the mobile one); as text
+        ``"COLSxROWS"`` with ``fixed_square_mm``.
     fixed2base : array_like, shape (4, 4), optional
         Known pose of the fixed target in the robot base frame, mm.
     scale : int, optional
@@ -307,7 +309,11 @@ class PoseTracker:
         camera_source: str = "camera.json",
         refine: str = "auto",
         refine_fixed: str | None = None,
+        square_mm: float | None = None,
+        fixed_square_mm: float | None = None,
     ) -> None:
+        mobile_board = as_board(mobile_board, square_mm, "mobile_board")
+        fixed_board = None if fixed_board is None else as_board(fixed_board, fixed_square_mm, "fixed_board")
         check_refine(refine)
         if refine_fixed is not None:
             check_refine(refine_fixed)
@@ -701,6 +707,8 @@ def measure_sequence(
     refine: str = "auto",
     refine_fixed: str | None = None,
     states: Sequence[Hashable] | None = None,
+    square_mm: float | None = None,
+    fixed_square_mm: float | None = None,
 ) -> list[ImageMeasurement]:
     """Measure a sequence of images of one robot position (see :class:`PoseTracker`).
 
@@ -711,6 +719,8 @@ def measure_sequence(
         one per camera in the rig's order (:meth:`PoseTracker.measure`).
     camera : CameraModel or Rig
     mobile_board, fixed_board : Chessboard or CharucoBoard
+        Or a chessboard's size ``"COLSxROWS"`` with ``square_mm`` (and ``fixed_square_mm``)
+        (:func:`~stiffmap.targets.as_board`).
     fixed2base : array_like, shape (4, 4), optional
     names : sequence of str, optional
         Labels of array images (of image sets).
@@ -728,6 +738,8 @@ def measure_sequence(
     list of ImageMeasurement
         One per image (set), in order; failed ones have ``error`` set.
     """
+    mobile_board = as_board(mobile_board, square_mm, "mobile_board")
+    fixed_board = None if fixed_board is None else as_board(fixed_board, fixed_square_mm, "fixed_board")
     tracker = PoseTracker(
         camera,
         mobile_board,
