@@ -104,7 +104,9 @@ def test_bad_urdfs_are_named(tmp_path):
         "<child link='missing'/><axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'/>"
         "</joint></robot>"
     )
-    with pytest.raises(InputError, match=r"dangling\.urdf: not a URDF Pinocchio can read"):
+    with pytest.raises(
+        InputError, match=r"dangling\.urdf: joint 'j' names child link 'missing', which the file"
+    ):
         Chain.from_urdf(dangling, "a")
     with pytest.raises(InputError, match=r"arm6\.urdf: no frame 'flange9'.*links are: base_link, link_1"):
         Chain.from_urdf(ARM6, "flange9")
@@ -117,7 +119,9 @@ def test_bad_urdfs_are_named(tmp_path):
         "<robot name='x'><link name='a'/><link name='b'/><joint name='free' type='floating'>"
         "<parent link='a'/><child link='b'/></joint></robot>"
     )
-    with pytest.raises(InputError, match=r"float\.urdf: joint 'free' is of type 'floating'"):
+    with pytest.raises(
+        InputError, match=r"float\.urdf: joint 'free' \(on the chain from 'a' to 'b'\) is floating"
+    ):
         Chain.from_urdf(floating, "b")
     with pytest.raises(InputError, match=r"nowhere\.urdf: cannot read"):
         Chain.from_urdf(tmp_path / "nowhere.urdf", "a")

@@ -646,8 +646,8 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             i = at.get(d.position)
             if i is None or not ik.reachable[i] or d.load > len(loads):
                 continue
-            if i not in jac:
-                jac[i] = model.chain.jacobian(ik.q[i])
+            if i not in jac:  # every joint spring's column: the coordinates', a mimic joint's
+                jac[i] = model.spring_jacobians(ik.q[i])[0]
             F = loads[d.load - 1].force
             J_rows.append(jac[i])
             W.append(np.concatenate([F, np.cross(lever, F)]))
@@ -657,8 +657,8 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             labels.append(loads[d.load - 1].label)
         if not D:
             raise InputError("no measured displacement at a position the robot model reaches")
-        names = model.param_names()
         fitted_names = campaign_fitted_names(spec, model)
+        # A parameter not fitted is held: a joint's compliance 1/k, a flexible link's 1/p.
         fixed = {k: 1.0 / v for k, v in model.params().items() if k not in fitted_names}
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -667,15 +667,17 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
                 np.array(W),
                 np.array(D),
                 np.array(C),
-                joint_names=names,
+                joint_names=model.joint_param_names(),
                 fit=fitted_names,
                 fixed=fixed,
                 config_index=np.array(cfg),
                 labels=labels,
                 extra_noise=True,
+                links=model.link_columns(ik.q[np.array(cfg)]) if model.links else (),
             )
         problems.extend(f"model fit: {w.message}" for w in caught)
         problems.extend(f"model fit: {n}" for n in fit.notes)
+        names = list(fit.names)  # the joints', then the links' parameters
         fitted = model.with_params(**{k: float(fit.stiffness[names.index(k)]) for k in fitted_names})
         idx = [names.index(k) for k in fit.fitted]  # joint order, as fit.covariance
         with np.errstate(divide="ignore"):

@@ -41,10 +41,36 @@ _CONFIGS_HELP = (
 )
 
 
-def _robot(cmd: str, mechanism: str, robot, param, tip, tip_offset, configs):
+_BASE_HELP = (
+    "urdf: the link the measurements are expressed in, when it is not the URDF's root (a two-armed "
+    "robot's torso, a mobile manipulator's arm base); the joints above it are held, not fitted."
+)
+_XACRO_ARG_HELP = "urdf: an argument NAME=VALUE of a .xacro description (repeatable)."
+_PACKAGE_PATH_HELP = (
+    "urdf: a folder where a .xacro description's $(find PKG) looks (repeatable; then ROS_PACKAGE_PATH)."
+)
+_LINKS_HELP = (
+    "urdf: TOML of flexible links ([[links]]: beam data or a 6x6 compliance, docs/models.md); their "
+    "parameters E_<name>, G_<name>, f_<name> join the joints'."
+)
+
+
+def _robot(cmd: str, mechanism: str, robot, param, configs, options: dict):
     """The model of the command line's kind and options (InputError in the options' terms)."""
-    options = {"--tip": tip, "--tip-offset-mm": tip_offset}
-    return robot_from_command(mechanism, robot, param or [], options, configs=configs, command=cmd)
+    given = {k: (v or None) if isinstance(v, list) else v for k, v in options.items()}
+    return robot_from_command(mechanism, robot, param or [], given, configs=configs, command=cmd)
+
+
+def _options(tip, tip_offset, base, xacro_arg, package_path, links) -> dict:
+    """The kind-specific options of the command line, by their names."""
+    return {
+        "--tip": tip,
+        "--tip-offset-mm": tip_offset,
+        "--base": base,
+        "--xacro-arg": xacro_arg,
+        "--package-path": package_path,
+        "--links": None if links is None else str(links),
+    }
 
 
 # The options of `model` (declared here so that the command's signature reads at once).
@@ -82,6 +108,10 @@ _OPT_PARAM = typer.Option(
 )
 _OPT_TIP = typer.Option(None, "--tip", help=_TIP_HELP)
 _OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP)
+_OPT_BASE = typer.Option(None, "--base", help=_BASE_HELP)
+_OPT_XACRO_ARG = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP)
+_OPT_PACKAGE_PATH = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP)
+_OPT_LINKS = typer.Option(None, "--links", help=_LINKS_HELP)
 _OPT_CONFIGS = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP)
 _OPT_ORIENTATION = typer.Option(
     None,
@@ -111,6 +141,10 @@ def model(
     param: list[str] = _OPT_PARAM,
     tip: str = _OPT_TIP,
     tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
     configs: Path = _OPT_CONFIGS,
     orientation: str = _OPT_ORIENTATION,
     moment: str = _OPT_MOMENT,
@@ -135,7 +169,8 @@ def model(
     """
     kind = robot_kind_option(mechanism)
     _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json, as_csv)
-    m = _robot("model", mechanism, robot, param, tip, tip_offset, configs)
+    own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
+    m = _robot("model", mechanism, robot, param, configs, own)
     if kind.configurations:
         _model_configurations(m, configs, as_json, output)
         return
@@ -409,8 +444,12 @@ def fit(
         help="Fixed model parameter or starting value NAME=VALUE (repeatable). urdf: "
         "k1=K1,...,kn=Kn (required; N*mm/rad, N/mm for prismatic joints) or k_theta=K for all.",
     ),
-    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
     configs: Path = typer.Option(
         None,
         CONFIGS_OPTION,
@@ -447,7 +486,8 @@ def fit(
                 f"by one ('stiffmap fit urdf ROBOT.urdf MEASUREMENTS'; got {', '.join(map(str, files))})"
             )
         robot_file, (measurements,) = None, files
-    m = _robot("fit", mechanism, robot_file, param, tip, tip_offset, configs)
+    own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
+    m = _robot("fit", mechanism, robot_file, param, configs, own)
     with options_named(command_names(kind)):
         names = kind.fitted_names(m, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:

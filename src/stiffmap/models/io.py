@@ -34,11 +34,13 @@ those columns given to a robot whose platform only translates is refused. The ma
 such a robot (:func:`map_csv`) is a K6 file ``stiffmap fit`` reads back.
 
 **Joint configurations** of a serial robot (``stiffmap model urdf --configs``): one row
-per configuration, columns ``q1_deg ... qn_deg`` in the URDF's joint order
-(:attr:`~stiffmap.models.chain.Chain.joint_names`), degrees; a prismatic joint's column is
-``qk_mm`` (mm). Other columns (a label, the commanded pose) are ignored; a column named
-like a joint's (``q7_deg``, ``q2_mm`` for a revolute joint) that the robot does not have
-is refused.
+per configuration, columns ``q1_deg ... qn_deg`` in the chain's joint order
+(:attr:`~stiffmap.models.chain.Chain.joint_names`), degrees, a prismatic joint's column
+``qk_mm`` (mm); or columns named after those joints, ``shoulder_pan_joint_deg``,
+``torso_lift_joint_mm``, in any order. Other columns (a label, the commanded pose) are
+ignored; a column named like a joint's (``q7_deg``, ``q2_mm`` for a revolute joint, a
+mimic joint's or a joint off the chain) that is not one of the chain's coordinates is
+refused, and a missing one named.
 """
 
 from __future__ import annotations
@@ -71,6 +73,7 @@ __all__ = [
     "AXIS_NAMES",
     "ORIENTATION_COLUMNS",
     "configuration_columns",
+    "joint_name_columns",
     "read_configurations",
     "read_configuration_rows",
     "configuration_records",
@@ -531,37 +534,84 @@ def _first_header(path: str | os.PathLike, expected: str) -> list[str]:
     raise InputError(f"empty file; expected a header with columns {expected}", source=src)
 
 
+def joint_name_columns(chain) -> list[str]:
+    """The named columns of a configurations file: ``<joint>_deg`` (``<joint>_mm`` for prismatic)."""
+    return [
+        f"{n}_{'mm' if t == 'prismatic' else 'deg'}"
+        for n, t in zip(chain.joint_names, chain.joint_types, strict=True)
+    ]
+
+
+def _named_problem(chain, header: list[str]) -> str | None:
+    """Why a header naming joints does not give the chain's coordinates (None when it does)."""
+    want = [c.lower() for c in joint_name_columns(chain)]
+    missing = [c for c in want if c not in header]
+    coords = {n.lower() for n in chain.joint_names}
+    others = {
+        m.name.lower(): f"follows joint {chain.joint_names[m.leader]} (mimic)"
+        if m.leader is not None
+        else "is held (its leader is above the base frame)"
+        for m in chain.mimics
+    }
+    others |= {h.lower(): "is between the URDF's root and the base frame (held)" for h in chain.held_joints}
+    for name in getattr(chain, "urdf_joint_names", ()):
+        if name.lower() not in coords and name.lower() not in others:
+            others[name.lower()] = f"is not on the chain from {chain.base_frame} to {chain.tip_frame}"
+    for c in header:
+        stem, _, unit = c.rpartition("_")
+        if unit in ("deg", "mm") and stem in others:
+            return f"column {c!r}: joint {stem} {others[stem]}: it is not a coordinate of the chain"
+        if unit in ("deg", "mm") and stem in coords and c not in want:
+            k = [n.lower() for n in chain.joint_names].index(stem)
+            right = want[k]
+            return (
+                f"column {c!r}: joint {chain.joint_names[k]} is {chain.joint_types[k]}: its column is {right}"
+            )
+    if missing:
+        return f"no column for joint(s) {', '.join(missing)} (expected {', '.join(want)})"
+    return None
+
+
 def read_configuration_rows(path: str | os.PathLike, chain) -> tuple[np.ndarray, np.ndarray]:
     """Joint configurations of a serial robot from a CSV, with the line of each row.
 
     Parameters
     ----------
     path : path-like
-        CSV with columns ``q1_deg ... qn_deg`` (``qk_mm`` for a prismatic joint), one row
-        per configuration (module docstring).
+        CSV with columns ``q1_deg ... qn_deg`` (``qk_mm`` for a prismatic joint), or named
+        after the chain's coordinates (``shoulder_pan_joint_deg``, ``torso_lift_joint_mm``),
+        one row per configuration (module docstring).
     chain : Chain
         The robot (its joint names and types; ``n`` columns expected).
 
     Returns
     -------
     Q : ndarray, shape (N, n)
-        rad (revolute), mm (prismatic).
+        rad (revolute), mm (prismatic), in the chain's joint order.
     lines : ndarray of int, shape (N,)
         The line of each row in the file.
 
     Raises
     ------
     InputError
-        Naming the file: missing or extra joint columns (what the robot expects), an empty
-        file, a cell that is not a number (line and column), a joint angle beyond ten turns.
+        Naming the file: missing or extra joint columns (what the robot expects), a column
+        naming a joint that is not a coordinate (a mimic joint, a joint off the chain), an
+        empty file, a cell that is not a number (line and column), a joint angle beyond ten
+        turns.
     """
     src = str(path)
     cols = configuration_columns(chain)
-    header = _first_header(path, _span(cols))
+    named = [c.lower() for c in joint_name_columns(chain)]
+    header = _first_header(path, f"{_span(cols)} (or {', '.join(named)})")
     found = sorted(
         (c for c in header if _JOINT_COLUMN.match(c)), key=lambda c: int(_JOINT_COLUMN.match(c).group(1))
     )
-    if found != cols:
+    if not found and any(c.rpartition("_")[2] in ("deg", "mm") for c in header):
+        why = _named_problem(chain, header)
+        if why:
+            raise InputError(why, source=src)
+        cols = named
+    elif found != cols:
         extra = [c for c in found if c not in cols]
         hint = ""
         for c in extra:
@@ -649,7 +699,7 @@ def configuration_records(
         ``error``: the reason, after ``FILE line L:`` when given.
     """
     m = robot.evaluate_configurations(Q)
-    six = robot.n >= 6 and int(np.count_nonzero(np.isfinite(robot.k_theta))) >= 6
+    six = robot.has_k6
     K6 = np.full((len(m), 6, 6), np.nan)
     if six and m.n_valid:
         K6[m.valid] = robot.stiffness6(m.q[m.valid])

@@ -47,6 +47,7 @@ __all__ = [
     "platform_robot",
     "LEGS_NAME",
     "URDF_NAME",
+    "LINKS_NAME",
 ]
 
 
@@ -177,7 +178,8 @@ class VirtualRobot:
     spec : dict
         More keys of campaign.toml's ``[robot]`` (a URDF robot's ``urdf``, ``tip_frame``, ...).
     files : dict
-        Files the campaign folder gets: name there -> the file to copy (a URDF robot's URDF).
+        Files the campaign folder gets: name there -> the file to copy, or its content as
+        bytes (a URDF robot's URDF, a xacro file's expansion; its flexible links' file).
     """
 
     field: Callable[[np.ndarray], np.ndarray]
@@ -188,7 +190,7 @@ class VirtualRobot:
     model: str = "none"
     params: dict[str, Any] = field(default_factory=dict)
     spec: dict[str, Any] = field(default_factory=dict)
-    files: dict[str, str] = field(default_factory=dict)
+    files: dict[str, str | bytes] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not callable(self.field):
@@ -344,6 +346,18 @@ class SerialField:
             raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
         return np.array([self.model.stiffness6(q) for q in ik.q]).reshape(-1, 6, 6)
 
+    def positions_q_deg(self, points) -> list[list[float]] | None:
+        """The joint configurations of ``points`` when the model was given configurations
+        (campaign.toml's ``positions.q_deg``: degrees, mm for a prismatic joint), else None
+        (the campaign finds them by inverse kinematics, as the test-bed did)."""
+        if self.model.configurations is None:
+            return None
+        ik = self.model.configurations_for(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        rev = np.array([t == "revolute" for t in self.model.chain.joint_types])
+        return [
+            [round(float(v), 9) + 0.0 for v in np.where(rev, np.degrees(q), q)] for q in np.atleast_2d(ik.q)
+        ]
+
 
 def _degrees(a) -> list[float]:
     """Angles in rad as degrees for campaign.toml, rounded to 1e-9 degree (no -0.0)."""
@@ -352,9 +366,11 @@ def _degrees(a) -> list[float]:
 
 #: The name of a URDF robot's URDF in a simulated campaign's folder.
 URDF_NAME = "robot.urdf"
+#: The name of its flexible links' file there.
+LINKS_NAME = "links.toml"
 
 
-def serial_robot(model, **kw) -> VirtualRobot:
+def serial_robot(model, *, links_file=None, **kw) -> VirtualRobot:
     """A serial robot from its URDF (:class:`~stiffmap.models.serial.SerialRobot`) as a virtual robot.
 
     Its field is the 6x6 stiffness at the measured point (N/mm, N, N*mm/rad blocks, base axes)
@@ -362,26 +378,41 @@ def serial_robot(model, **kw) -> VirtualRobot:
     inverse kinematics with its tool orientation): the platform turns under a load, and a
     load off the measured point (``load_point_mm``) turns the wrist joints too.
 
+    The campaign folder gets the URDF the model was read from (:data:`URDF_NAME`; a xacro
+    file's expansion, so the campaign needs neither xacro nor the packages), its base frame
+    when it is not the URDF's root, and its flexible links' file (:data:`LINKS_NAME`).
+
     Parameters
     ----------
     model : SerialRobot
+    links_file : path-like, optional
+        The TOML the model's flexible links were read from (needed when it has some).
     **kw
         :class:`VirtualRobot` fields (repeatability_mm, load_point_mm, ...).
     """
-
+    ch = model.chain
     spec = {
         "urdf": URDF_NAME,
-        "tip_frame": model.chain.tip_frame,
-        "tip_offset_mm": [float(v) for v in model.chain.tip_offset_mm],
-        "tool_rpy_deg": _degrees(euler_from_matrix(model.tool_rotation)),
+        "tip_frame": ch.tip_frame,
+        "tip_offset_mm": [float(v) for v in ch.tip_offset_mm],
         "q_seed_deg": _degrees(model.q_seed),
     }
+    if model.tool_rotation is not None:
+        spec["tool_rpy_deg"] = _degrees(euler_from_matrix(model.tool_rotation))
+    if ch.base_frame != ch.root_frame:
+        spec["base_frame"] = ch.base_frame
+    files: dict[str, str | bytes] = {URDF_NAME: ch.urdf_text.encode() if ch.urdf_text else ch.source}
+    if model.links:
+        if links_file is None:
+            raise ValueError("a robot with flexible links needs links_file, the TOML they were read from")
+        spec["links"] = LINKS_NAME
+        files[LINKS_NAME] = str(links_file)
     return VirtualRobot(
         field=SerialField(model),
         model=model.name,
         params={k: float(v) for k, v in model.params().items()},
         spec=spec,
-        files={URDF_NAME: model.chain.source},
+        files=files,
         **kw,
     )
 

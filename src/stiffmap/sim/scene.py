@@ -27,6 +27,7 @@ __all__ = [
     "board_pose_at_pixel",
     "spread_poses",
     "Scene",
+    "scene_around",
     "default_scene",
     "demo_scene",
     "arm_scene",
@@ -243,6 +244,33 @@ def hexapod_scene(camera: CameraModel | None = None) -> Scene:
     """
     sc = demo_scene(camera)
     shift = transform_from(np.eye(3), HEXAPOD_SCENE_SHIFT_MM)
+    return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
+
+
+#: The middle of the region the demo scene's camera sees well (the ``paper48`` grid's centre), mm.
+DEMO_VIEW_CENTRE_MM = (0.0, 0.0, -300.0)
+
+
+def scene_around(positions, camera: CameraModel | None = None) -> Scene:
+    """:func:`demo_scene` moved so that it looks at ``positions``: a user's robot on the test-bed.
+
+    The camera, the fixed board on its post and the mounting of the mobile board on the
+    platform (the tcp frame) are the demo's, all moved by the vector from
+    :data:`DEMO_VIEW_CENTRE_MM` to the middle of the positions' bounding box, as
+    :func:`arm_scene` does for the six-joint arm's box. The region seen well is the demo's,
+    about 400 x 400 x 200 mm (x, y, z); the campaign's plan names a position where a board
+    leaves the image.
+
+    Parameters
+    ----------
+    positions : array_like, shape (N, 3), mm
+        The measured point's positions, robot base frame.
+    camera : CameraModel, optional
+    """
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    centre = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    shift = transform_from(np.eye(3), centre - np.asarray(DEMO_VIEW_CENTRE_MM))
+    sc = demo_scene(camera)
     return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
 
 
