@@ -44,10 +44,10 @@ def main(argv: list[str] | None = None):
         print("true K (N/mm):\n", K_true)
     res = identify_from_files(a.forces, a.displacements)
     fit = res.fit
-    np.set_printoptions(precision=3, suppress=True)
-    print("K (N/mm):\n", fit.K)
-    print("1-sigma (N/mm):\n", fit.K_std)
-    print("principal stiffnesses (N/mm):", fit.indices.eigenvalues)
+    with np.printoptions(precision=3, suppress=True):
+        print("K (N/mm):\n", fit.K)
+        print("1-sigma (N/mm):\n", fit.K_std)
+        print("principal stiffnesses (N/mm):", fit.indices.eigenvalues)
     print("flags:", list(fit.flags) or "none")
     return res
 

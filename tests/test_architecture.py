@@ -101,6 +101,7 @@ KIND_NAME_REASONS: dict[tuple[str, str], str] = {
         "urdf",
     ): "the campaign.toml key of a URDF robot's file (robot.urdf), not the kind",
     ("stiffmap/geometry.py", "delta"): "the name of a displacement argument (delta) in a message",
+    ("stiffmap/models/legs6.py", "hexapod"): "the shipped hexapod TOML's robot name, not the test-bed's",
 }
 #: Where a campaign's kind ("vision", "sensor") may be compared: the instruments' registry and
 #: the spec (its schema); others with their reason.

@@ -104,7 +104,9 @@ def test_bad_urdfs_are_named(tmp_path):
         "<child link='missing'/><axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'/>"
         "</joint></robot>"
     )
-    with pytest.raises(InputError, match=r"dangling\.urdf: not a URDF Pinocchio can read"):
+    with pytest.raises(
+        InputError, match=r"dangling\.urdf: joint 'j' names child link 'missing', which the file"
+    ):
         Chain.from_urdf(dangling, "a")
     with pytest.raises(InputError, match=r"arm6\.urdf: no frame 'flange9'.*links are: base_link, link_1"):
         Chain.from_urdf(ARM6, "flange9")
@@ -117,7 +119,22 @@ def test_bad_urdfs_are_named(tmp_path):
         "<robot name='x'><link name='a'/><link name='b'/><joint name='free' type='floating'>"
         "<parent link='a'/><child link='b'/></joint></robot>"
     )
-    with pytest.raises(InputError, match=r"float\.urdf: joint 'free' is of type 'floating'"):
+    with pytest.raises(
+        InputError, match=r"float\.urdf: joint 'free' \(on the chain from 'a' to 'b'\) is floating"
+    ):
         Chain.from_urdf(floating, "b")
     with pytest.raises(InputError, match=r"nowhere\.urdf: cannot read"):
         Chain.from_urdf(tmp_path / "nowhere.urdf", "a")
+
+
+def test_a_one_joint_chain_has_a_six_by_one_jacobian():
+    # Pinocchio returns a one-joint chain's Jacobian as a vector; the chain keeps it 6 x 1
+    # (a leg reduced to its actuator, found by the legs TOML fuzz test).
+    c = Chain.from_joints([JointSpec("p", "prismatic", (0.0, 0.6, 0.8), (10.0, 0.0, 0.0))])
+    J = c.jacobian([5.0])
+    assert J.shape == (6, 1)
+    h = 1e-6
+    fd = (c.forward([5.0 + h])[0] - c.forward([5.0 - h])[0]) / (2 * h)
+    np.testing.assert_allclose(J[:3, 0], fd, rtol=0, atol=1e-9)
+    res = c.inverse([10.0, 6.0, 8.0], q0=[1.0])
+    assert res.converged and res.q[0] == pytest.approx(10.0, abs=1e-9)

@@ -314,7 +314,7 @@ def test_leg_robot_params_fit_and_write_back(tmp_path):
             'name = "elbow_z"\nstifness = "k"\ntype = "revolute"',
             r"legs\[1\]\.joints\[5\]\.stifness: unknown key \(expected one of name, role, stiffness",
         ),
-        ("dim = 3", "dim = 4", r"dim: Input should be 2 or 3, got 4"),
+        ("dim = 3", "dim = 4", r"dim: Input should be 2, 3 or 6, got 4"),
         (
             "attach_mm = [0.0, 40.0, 0.0]",
             "attach_mm = [0.0, 40.0]",

@@ -63,6 +63,11 @@ def robot_description(
     """The registry's description of the ``[robot]`` section (``overrides`` replace parameters)."""
     kind = _kind(robot)
     keys = {k: v for k, v in robot.keys.items() if k != kind.file_key}
+    if root is not None:  # files and folders the kind's keys name: in the campaign folder
+        for k in kind.path_keys:
+            if keys.get(k) is not None:
+                v = keys[k]
+                keys[k] = [Path(root) / p for p in v] if isinstance(v, (list, tuple)) else Path(root) / v
     if configurations_deg is not None:
         keys["configurations_deg"] = np.asarray(configurations_deg, dtype=float)
     return RobotDescription(kind.name, {**robot.params, **overrides}, _file(kind, robot, root), keys)

@@ -48,6 +48,7 @@ from ..rig import Rig, load_rig
 from .derive import derive_position
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
+from .platform import fit_platform, is_platform, platform_map
 from .positions import PositionTask, plan
 from .rig_checks import rig_failures
 from .robot import campaign_model
@@ -537,7 +538,10 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     fitted to the measured K (:func:`~stiffmap.models.fit.fit_stiffness`); a kind of joint
     stiffnesses (``joint_params``: a URDF robot's) to the measured displacements themselves
     (:func:`~stiffmap.models.joint_fit.fit_joint_compliances`: linear in the joint
-    compliances, translations and rotations with their covariances).
+    compliances, translations and rotations with their covariances); a robot whose platform
+    turns (a ``dim = 6`` legs TOML) to the measured 6-DOF displacements too
+    (:func:`~stiffmap.campaign.platform.fit_platform`), its K at each position the K of the
+    loads hung at ``loads.point_mm`` (the platform level).
     """
     problems: list[str] = []
     name = spec.robot.model
@@ -553,7 +557,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         where = "robot model" if isinstance(e, InputError) else "campaign.toml robot.params"
         problems.append(f"{where}: {e}")
         return problems
-    if model.dim != 3:
+    six = is_platform(model)
+    if model.dim != 3 and not six:
         problems.append(f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign")
         return problems
     rows = store.stiffness_rows()
@@ -561,7 +566,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         return problems
     pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
     ok = [r for r in rows if r.status == "ok"]
-    disp = store.displacement_rows(only_ok=True) if kind.joint_params else []
+    disp = store.displacement_rows(only_ok=True) if kind.joint_params or six else []
     ihash = params_hash(
         {
             "model": name,
@@ -580,9 +585,11 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     }
     if kind.joint_params:  # joint stiffnesses: fitted to the measured displacements themselves
         fitted = _fit_joints(model, spec, rows, disp, fit_row, problems)
+    elif six:  # a platform that turns: its legs fitted to the measured displacements too
+        fitted = _fit_platform(model, spec, rows, disp, fit_row, problems)
     else:
         fitted = _fit_to_measured(model, ok, spec, fit_row, problems)
-    mm = fitted.evaluate(pts)
+    mm = platform_map(fitted, pts, _lever(spec)) if six else fitted.evaluate(pts)
     per_position = []
     for r, K, valid, reason, det, lam in zip(
         rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
@@ -606,6 +613,45 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     return problems
 
 
+def _lever(spec: CampaignSpec) -> np.ndarray:
+    """Where the loads act from the tool point (``loads.point_mm``), mm."""
+    return np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float)
+
+
+def _fit_platform(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str]):
+    """A platform that turns with its parameters fitted to the measured 6-DOF displacements
+    (``model`` when the fit fails); the fit's columns (or its failure) into ``fit_row``."""
+    try:
+        if not disp:
+            raise InputError("no measured displacement to fit the legs' stiffnesses to")
+        loads = spec.loads.resolve(spec.g)
+        at = {r.position: i for i, r in enumerate(rows)}
+        keep = [d for d in disp if d.position in at and d.load <= len(loads)]
+        if not keep:
+            raise InputError("no measured displacement at a campaign position")
+        pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fit = fit_platform(
+                model,
+                pts,
+                [at[d.position] for d in keep],
+                [loads[d.load - 1].force for d in keep],
+                _lever(spec),
+                np.array([d.d for d in keep], dtype=float),
+                np.array([d.cov for d in keep], dtype=float),
+                campaign_fitted_names(spec, model),
+            )
+        problems.extend(f"model fit: {w.message}" for w in caught)
+        problems.extend(f"model fit: {n}" for n in fit.notes)
+        fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
+        return fit.model
+    except (InputError, ValueError) as e:
+        fit_row.update(status="failed", error=str(e))
+        problems.append(f"model fit: {e}")
+        return model
+
+
 def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str]):
     """A URDF robot with its joint stiffnesses fitted to the measured displacements (``model``
     when the fit fails); the fit's columns (or its failure) into ``fit_row``."""
@@ -623,8 +669,8 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             i = at.get(d.position)
             if i is None or not ik.reachable[i] or d.load > len(loads):
                 continue
-            if i not in jac:
-                jac[i] = model.chain.jacobian(ik.q[i])
+            if i not in jac:  # every joint spring's column: the coordinates', a mimic joint's
+                jac[i] = model.spring_jacobians(ik.q[i])[0]
             F = loads[d.load - 1].force
             J_rows.append(jac[i])
             W.append(np.concatenate([F, np.cross(lever, F)]))
@@ -634,8 +680,8 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             labels.append(loads[d.load - 1].label)
         if not D:
             raise InputError("no measured displacement at a position the robot model reaches")
-        names = model.param_names()
         fitted_names = campaign_fitted_names(spec, model)
+        # A parameter not fitted is held: a joint's compliance 1/k, a flexible link's 1/p.
         fixed = {k: 1.0 / v for k, v in model.params().items() if k not in fitted_names}
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -644,15 +690,17 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
                 np.array(W),
                 np.array(D),
                 np.array(C),
-                joint_names=names,
+                joint_names=model.joint_param_names(),
                 fit=fitted_names,
                 fixed=fixed,
                 config_index=np.array(cfg),
                 labels=labels,
                 extra_noise=True,
+                links=model.link_columns(ik.q[np.array(cfg)]) if model.links else (),
             )
         problems.extend(f"model fit: {w.message}" for w in caught)
         problems.extend(f"model fit: {n}" for n in fit.notes)
+        names = list(fit.names)  # the joints', then the links' parameters
         fitted = model.with_params(**{k: float(fit.stiffness[names.index(k)]) for k in fitted_names})
         idx = [names.index(k) for k in fit.fitted]  # joint order, as fit.covariance
         with np.errstate(divide="ignore"):

@@ -27,18 +27,29 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..camera import load_camera
 from ..errors import FieldError, InputError
-from ..kinds import DEFAULT_TESTBED, ROBOT_KINDS, RobotKind, TestBed, float_params, positions_from_text
+from ..kinds import (
+    DEFAULT_TESTBED,
+    ROBOT_KINDS,
+    RobotDescription,
+    RobotKind,
+    TestBed,
+    build_robot,
+    float_params,
+    positions_from_text,
+    robot_kind,
+)
 from ..loads import load_design
 from ..models.presets import select_positions
 from ..parallel import Backend, local_workers
 from ..sim.plan import SimulationPlan, plan_simulation, vision_config
+from ..sim.scene import scene_around
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from ..units import G_REFERENCE_PAPER
 from .simulated import SimSummary, check_output_dir, write_campaign
@@ -85,6 +96,11 @@ class SimulationRequest:
         Overwrite a previous simulation in the output folder.
     command : str
         The command line, recorded in truth.json.
+    description : RobotDescription, optional
+        A robot of the user's own instead of a test-bed robot (``robot`` is then its file):
+        its kind's test-bed takes it (:attr:`~stiffmap.kinds.registry.TestBed.own`), with its
+        parameters; its positions are its configurations' measured points unless
+        ``positions`` gives points.
     """
 
     robot: str = DEFAULT_TESTBED
@@ -96,6 +112,7 @@ class SimulationRequest:
     name: str | None = None
     force: bool = False
     command: str = ""
+    description: RobotDescription | None = None
 
 
 @dataclass(frozen=True)
@@ -149,10 +166,58 @@ def testbed(name: str) -> tuple[RobotKind, TestBed]:
     return table[name]
 
 
+def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.ndarray]:
+    """A user's own robot on its kind's test-bed: (kind, test-bed, positions (n, 3) mm).
+
+    Raises
+    ------
+    FieldError
+        ``robot``: its kind has no test-bed for a robot of one's own; ``positions``: none
+        given and no configurations; a wrong value of the description, naming its field.
+    """
+    d = request.description
+    kind = robot_kind(d.kind)
+    own = None if kind.testbed is None else kind.testbed.own
+    if own is None:
+        raise FieldError("robot", f"a {kind.name} robot of your own cannot be simulated (no test-bed for it)")
+    model = build_robot(d)
+    Q = getattr(model, "configurations", None)
+    if request.positions is not None:
+        P = _positions(request, kind, kind.testbed)
+    elif Q is not None:
+        try:
+            P = select_positions(model.chain.forward_many(Q)[0], request.select)
+        except ValueError as e:
+            raise FieldError("select", str(e), value=request.select) from None
+    else:
+        raise FieldError(
+            "positions", "give the positions: joint configurations (a CSV file) or points the robot reaches"
+        )
+    tb = replace(
+        kind.testbed,
+        name=str(request.robot),
+        positions="",
+        robot=lambda params, **kw: own(model, d, **kw),
+        scene=lambda camera: scene_around(P, camera),
+        load_point_mm=(0.0, 0.0, 0.0),
+        campaign_name=f"{getattr(model.chain, 'name', kind.name)} on the virtual test-bed",
+    )
+    return kind, tb, P
+
+
+def _request_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.ndarray | None]:
+    """The request's robot: a test-bed robot (its positions later), or the user's own."""
+    if request.description is not None:
+        return _own_testbed(request)
+    kind, tb = testbed(request.robot)
+    return kind, tb, None
+
+
 def _positions(request: SimulationRequest, kind: RobotKind, tb: TestBed) -> np.ndarray:
     """The positions of the request (FieldError ``positions`` or ``select``)."""
     try:
-        P = positions_from_text(request.positions or tb.positions, kind.name)
+        # A kind whose description gives its dimension (legs): its platform's positions, 3-D.
+        P = positions_from_text(request.positions or tb.positions, kind.name, kind.dim or 3)
     except InputError:
         raise
     except ValueError as e:
@@ -205,7 +270,7 @@ def simulate_campaign(
     InputError
         As :func:`simulate_camera_campaign` and :func:`simulate_sensor_campaign`.
     """
-    _, tb = testbed(request.robot)
+    _, tb, _ = _request_testbed(request)
     if tb.instrument == SENSOR:
         if camera is not None:
             raise FieldError("camera", f"not used when simulating {request.robot}'s sensor recordings")
@@ -275,9 +340,9 @@ def simulate_camera_campaign(
         leaves the image (naming the positions' or loads' file when they come from one);
         a disk too small.
     """
-    kind, tb = testbed(request.robot)
+    kind, tb, P = _request_testbed(request)
     check_output_dir(out_dir, request.force)
-    P = _positions(request, kind, tb)
+    P = _positions(request, kind, tb) if P is None else P
     try:
         load_cases = load_design(options.loads, G_REFERENCE_PAPER)
     except InputError:

@@ -61,7 +61,7 @@ from ..sim.calibration_views import (
 )
 from ..sim.render import encode_image
 from ..sim.render_pool import render_calibration_images, render_campaign_images
-from ..sim.robot import URDF_NAME
+from ..sim.robot import LINKS_NAME, URDF_NAME
 from ..sim.testbed import CampaignPlan, SimConfig, plan_campaign, seeded_generator
 from ..vision.calibrate import CalibrationResult
 from ..vision.files import calibrate_files, calibrate_rig_files
@@ -88,7 +88,7 @@ __all__ = [
 ]
 
 RIG_NAME = "rig.json"
-_OWN_FILES = ("campaign.toml", "camera.json", RIG_NAME, TRUTH_NAME, CORNERS_NAME, URDF_NAME)
+_OWN_FILES = ("campaign.toml", "camera.json", RIG_NAME, TRUTH_NAME, CORNERS_NAME, URDF_NAME, LINKS_NAME)
 #: The distortion model of the calibration (``stiffmap calibrate``'s default).
 CALIBRATION_MODEL = "k3"
 
@@ -214,6 +214,16 @@ def prepare_output_dir(out: Path, force: bool) -> None:
 # ------------------------------------------------------------------ spec/truth
 
 
+def _positions_table(config: SimConfig) -> dict[str, Any]:
+    """campaign.toml's ``[positions]``: the points, or a serial robot's joint configurations at
+    them when it was given configurations (its inverse kinematics may not find those again)."""
+    q_deg = getattr(config.robot.field, "positions_q_deg", None)
+    q = None if q_deg is None else q_deg(config.positions)
+    if q is not None:
+        return {"q_deg": q}
+    return {"list": [[float(v) for v in p] for p in config.positions]}
+
+
 def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
     """The ``campaign.toml`` content (a dict for :class:`stiffmap.campaign.spec.CampaignSpec`)."""
     sc = config.scene
@@ -238,7 +248,7 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
                 "mobile2tcp": sc.mobile2tcp.tolist(),
             },
         },
-        "positions": {"list": [[float(v) for v in p] for p in config.positions]},
+        "positions": _positions_table(config),
         "loads": {
             "cases": [
                 {"force_n": [float(v) for v in ld.force], "label": ld.label or f"load {i}"}
@@ -659,7 +669,7 @@ def _write_campaign(
     else:
         save_rig(rig if rig_result is None else rig_result.rig, out / RIG_NAME)
     for name, source in config.robot.files.items():  # the robot's own files (a URDF robot's URDF)
-        atomic_write_bytes(out / name, Path(source).read_bytes())
+        atomic_write_bytes(out / name, source if isinstance(source, bytes) else Path(source).read_bytes())
     spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
     header = (
         f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "

@@ -196,6 +196,7 @@ def _check_transform(v: list[list[float]], name: str) -> list[list[float]]:
 
 #: Joint-stiffness parameters of a serial robot: k1, k2, ... (N*mm/rad or N/mm).
 _JOINT_PARAM = re.compile(r"k[1-9][0-9]?")
+_LINK_PARAM = re.compile(r"[EGf]_[A-Za-z0-9_]{1,100}")
 Angle = Annotated[Finite, _between(-3600.0, 3600.0, "degrees")]
 
 
@@ -258,6 +259,11 @@ class RobotSpec(_Spec):
             if not isinstance(value, str):
                 raise ValueError(f"robot.{kind.file_key} = expected a file name (text), got {value!r}")
             _check_path_text(value, f"robot.{kind.file_key}")
+        for key in kind.path_keys:  # files and folders named by the kind's own keys (a URDF's links)
+            value = self.keys.get(key)
+            for text in value if isinstance(value, list) else [value]:
+                if isinstance(text, str):
+                    _check_path_text(text, f"robot.{key}")
         try:
             check_keys(kind, {k: v for k, v in self.keys.items() if k != kind.file_key})
         except FieldError as e:
@@ -290,11 +296,17 @@ class RobotSpec(_Spec):
 
     def _check_joint_params(self, kind: RobotKind) -> None:
         """A serial robot's parameters are its joints' stiffnesses k1, k2, ..., positive."""
-        bad = [k for k in list(self.params) + list(self.fit or ()) if not _JOINT_PARAM.fullmatch(k)]
+        links = self.keys.get("links") is not None  # flexible links' E_<name>, G_<name>, f_<name> too
+        bad = [
+            k
+            for k in list(self.params) + list(self.fit or ())
+            if not (_JOINT_PARAM.fullmatch(k) or (links and _LINK_PARAM.fullmatch(k)))
+        ]
         if bad:
             raise ValueError(
                 f"robot.params / robot.fit: {bad[0]!r} is not a joint stiffness of a {kind.name} robot; "
                 "its parameters are k1, k2, ... (N*mm/rad; N/mm for a prismatic joint)"
+                + (", and its links' E_<name>, G_<name> (MPa), f_<name>" if links else "")
             )
         if any(v <= 0 for v in self.params.values()):
             raise ValueError("robot.params: joint stiffnesses must be positive (N*mm/rad)")

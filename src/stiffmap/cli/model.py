@@ -28,12 +28,14 @@ from ..errors import InputError
 from ..io import atomic_write_text, dumps_json
 from ..kinds import CONFIGS_OPTION, grid_from_text, kind_names, robot_from_command, robot_kind
 from ..kinds.options import command_names
-from ..loads import MAX_FORCE_N
+from ..loads import MAX_FORCE_N, MAX_MOMENT_NMM
+from ..models.base import POSE_DIM
 from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
+from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
 from ..textfmt import fmt, fmt_pm
-from .common import EXIT_PARTIAL, err, fail, from_option, options_named, out, print_json, warn
+from .common import EXIT_PARTIAL, err, fail, from_option, options_named, out, print_json, three_numbers, warn
 
 _KINDS_HELP = (
     "The robot kind: "
@@ -48,10 +50,36 @@ _CONFIGS_HELP = (
 )
 
 
-def _robot(cmd: str, mechanism: str, robot, param, tip, tip_offset, configs):
+_BASE_HELP = (
+    "urdf: the link the measurements are expressed in, when it is not the URDF's root (a two-armed "
+    "robot's torso, a mobile manipulator's arm base); the joints above it are held, not fitted."
+)
+_XACRO_ARG_HELP = "urdf: an argument NAME=VALUE of a .xacro description (repeatable)."
+_PACKAGE_PATH_HELP = (
+    "urdf: a folder where a .xacro description's $(find PKG) looks (repeatable; then ROS_PACKAGE_PATH)."
+)
+_LINKS_HELP = (
+    "urdf: TOML of flexible links ([[links]]: beam data or a 6x6 compliance, docs/models.md); their "
+    "parameters E_<name>, G_<name>, f_<name> join the joints'."
+)
+
+
+def _robot(cmd: str, mechanism: str, robot, param, configs, options: dict):
     """The model of the command line's kind and options (InputError in the options' terms)."""
-    options = {"--tip": tip, "--tip-offset-mm": tip_offset}
-    return robot_from_command(mechanism, robot, param or [], options, configs=configs, command=cmd)
+    given = {k: (v or None) if isinstance(v, list) else v for k, v in options.items()}
+    return robot_from_command(mechanism, robot, param or [], given, configs=configs, command=cmd)
+
+
+def _options(tip, tip_offset, base, xacro_arg, package_path, links) -> dict:
+    """The kind-specific options of the command line, by their names."""
+    return {
+        "--tip": tip,
+        "--tip-offset-mm": tip_offset,
+        "--base": base,
+        "--xacro-arg": xacro_arg,
+        "--package-path": package_path,
+        "--links": None if links is None else str(links),
+    }
 
 
 # The options of `model` (declared here so that the command's signature reads at once).
@@ -89,7 +117,24 @@ _OPT_PARAM = typer.Option(
 )
 _OPT_TIP = typer.Option(None, "--tip", help=_TIP_HELP)
 _OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP)
+_OPT_BASE = typer.Option(None, "--base", help=_BASE_HELP)
+_OPT_XACRO_ARG = typer.Option(None, "--xacro-arg", help=_XACRO_ARG_HELP)
+_OPT_PACKAGE_PATH = typer.Option(None, "--package-path", help=_PACKAGE_PATH_HELP)
+_OPT_LINKS = typer.Option(None, "--links", help=_LINKS_HELP)
 _OPT_CONFIGS = typer.Option(None, CONFIGS_OPTION, help=_CONFIGS_HELP)
+_OPT_ORIENTATION = typer.Option(
+    None,
+    "--orientation",
+    help="A platform that turns (a legs TOML with dim = 6): the platform's orientation at the "
+    "--grid positions, ROLL,PITCH,YAW in degrees (default 0,0,0; R = Rz(yaw) Ry(pitch) Rx(roll)); "
+    "each angle a value or START:STOP:N, e.g. -10:10:5,-10:10:5,0 maps 25 tilts of the tool.",
+)
+_OPT_MOMENT = typer.Option(
+    None,
+    "--moment-nmm",
+    help="A platform that turns: a moment MX,MY,MZ (N*mm) at the tool point with the force; the "
+    "static error is then the wrench's, the platform's translation u (mm) and rotation (rad).",
+)
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON list, one object per point.")
 _OPT_AS_CSV = typer.Option(False, "--csv", help="Print CSV, one row per point.")
 _OPT_OUTPUT = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead.")
@@ -105,7 +150,13 @@ def model(
     param: list[str] = _OPT_PARAM,
     tip: str = _OPT_TIP,
     tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
     configs: Path = _OPT_CONFIGS,
+    orientation: str = _OPT_ORIENTATION,
+    moment: str = _OPT_MOMENT,
     as_json: bool = _OPT_AS_JSON,
     as_csv: bool = _OPT_AS_CSV,
     output: Path = _OPT_OUTPUT,
@@ -119,20 +170,31 @@ def model(
     urdf (a serial robot): 'stiffmap model urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv
     --param k1=K1,...,kn=Kn' prints, per configuration, the measured point's position (mm,
     base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
+
+    legs with a dim = 6 TOML (a hexapod, a 3-RPS: robots/hexapod.toml): points are poses,
+    --points with x, y, z and roll_deg, pitch_deg, yaw_deg, or --grid positions at
+    --orientation; K is what a pure force sees (the platform free to turn), K_rot a pure
+    moment's (N*mm/rad); --json adds K6 (6x6 at the tool point, base frame) and K_rot.
     """
     kind = robot_kind_option(mechanism)
     _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json, as_csv)
-    m = _robot("model", mechanism, robot, param, tip, tip_offset, configs)
+    own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
+    m = _robot("model", mechanism, robot, param, configs, own)
     if kind.configurations:
         _model_configurations(m, configs, as_json, output)
         return
-    P = _positions(kind, m.dim, grid, points)
-    F = _force(kind, m.dim, load_n, direction)
+    six = m.dim == POSE_DIM
+    _turning_only(six, kind.name, orientation, moment, points)
+    P = _positions(kind, m.dim, grid, points, orientation)
+    F = _force(kind, 3 if six else m.dim, load_n, direction)
+    M = None if moment is None else _moment(moment)
     mp = _evaluate(m, P)
     if as_json or as_csv:
-        _write_map(mp, F, as_json, output)
+        _write_map(mp, F, M, as_json, output)
     elif output is not None:
         raise InputError("--output needs --json or --csv")
+    elif six:
+        _print_map6(m, mp, F, M)
     else:
         _print_map(m, mp, F)
     nbad = len(mp) - mp.n_valid
@@ -168,10 +230,14 @@ def _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json: boo
         raise InputError("--grid and --points are exclusive")
 
 
-def _positions(kind, dim: int, grid: str | None, points: Path | None) -> np.ndarray:
-    """The positions of --points, --grid or the kind's default ones, shape (m, dim), mm."""
+def _positions(kind, dim: int, grid: str | None, points: Path | None, orientation=None) -> np.ndarray:
+    """The positions of --points, --grid or the kind's default ones, shape (m, dim), mm; for a
+    platform that turns (dim = 6) poses, --grid's positions at each --orientation."""
     if points is not None:
         return read_points(points, dim)
+    if grid is not None and dim == POSE_DIM:
+        at = from_option("--orientation", orientations_from_text, orientation or "0,0,0")
+        return poses_from(from_option("--grid", grid_from_text, grid, kind.name, 3), at)
     if grid is not None:
         return from_option("--grid", grid_from_text, grid, kind.name, dim)
     if kind.default_positions() is None:
@@ -265,13 +331,40 @@ def _force(kind, dim: int, load_n: float | None, direction: str | None) -> np.nd
     )
 
 
-def _write_map(mp, F: np.ndarray, as_json: bool, output: Path | None) -> None:
+def _turning_only(six: bool, kind: str, orientation, moment, points) -> None:
+    """Refuse ``--orientation`` and ``--moment-nmm`` for a platform that only translates, and
+    ``--orientation`` with ``--points`` (the file's poses give their orientations)."""
+    if not six:
+        for opt, v in (("--orientation", orientation), ("--moment-nmm", moment)):
+            if v is not None:
+                raise InputError(
+                    f"{opt} is for a platform that turns (a legs TOML with dim = 6); this {kind} "
+                    "robot's platform only translates"
+                )
+    elif orientation is not None and points is not None:
+        raise InputError(
+            "--orientation goes with --grid; the poses of --points give their own (columns roll_deg, "
+            "pitch_deg, yaw_deg)"
+        )
+
+
+def _moment(text: str) -> np.ndarray:
+    """``--moment-nmm MX,MY,MZ`` (N*mm)."""
+    M = three_numbers(text)
+    if M is None or not all(np.isfinite(M)):
+        raise InputError(f"--moment-nmm: expected MX,MY,MZ in N*mm (three numbers), got {text!r}")
+    if max(abs(v) for v in M) > MAX_MOMENT_NMM:
+        raise InputError(f"--moment-nmm {text}: beyond +-{MAX_MOMENT_NMM:g} N*mm, not a plausible load")
+    return np.array(M, dtype=float)
+
+
+def _write_map(mp, F: np.ndarray, M, as_json: bool, output: Path | None) -> None:
     """The map as JSON or CSV, on stdout or into ``output``."""
-    text = dumps_json(map_records(mp, F)) + "\n" if as_json else map_csv(mp, F)
+    text = dumps_json(map_records(mp, F, M)) + "\n" if as_json else map_csv(mp, F, M)
     if output is not None:
         atomic_write_text(output, text)
     elif as_json:
-        print_json(map_records(mp, F))
+        print_json(map_records(mp, F, M))
     else:
         sys.stdout.write(text)
         sys.stdout.flush()
@@ -318,6 +411,44 @@ def _print_map(m, mp, F) -> None:
         )
 
 
+def _print_map6(m, mp, F, M) -> None:
+    """The map of a platform that turns: pose, the wrench's static error, K's and K_rot's softest."""
+    out.print(m.describe())
+    w = np.concatenate([F, np.zeros(3) if M is None else M])
+    out.print(
+        f"wrench at the tool point F = ({', '.join(fmt(v, 5) for v in w[:3])}) N, M = "
+        f"({', '.join(fmt(v, 5) for v in w[3:])}) N*mm; static error: translation u (mm) and rotation "
+        "(mrad) = K6^-1 w; k_min: smallest principal stiffness of K (a pure force's, N/mm), "
+        "kr_min: of K_rot (a pure moment's, N*mm/rad)"
+    )
+    t = Table()
+    for c in ("#", "x (mm)", "y (mm)", "z (mm)", "roll", "pitch", "yaw (deg)", "ux", "uy", "uz (mm)"):
+        t.add_column(c, justify="right")
+    for c in ("rx", "ry", "rz (mrad)", "k_min", "kr_min"):
+        t.add_column(c, justify="right")
+    t.add_column("status")
+    d = mp.static_error6(w)
+    for i in range(len(mp)):
+        p = mp.points[i]
+        pose = [fmt(v, 6) for v in p[:3]] + [fmt(float(np.degrees(v)), 5) for v in p[3:]]
+        if mp.valid[i]:
+            u = [f"{v + 0.0:.4f}" if abs(v) >= 5e-5 else "0.0000" for v in d[i, :3]]
+            r = [f"{1e3 * v + 0.0:.4f}" if abs(v) >= 5e-8 else "0.0000" for v in d[i, 3:]]
+            k = [fmt(mp.min_principal[i], 4), fmt(mp.min_principal_rot[i], 4)]
+            t.add_row(str(i + 1), *pose, *u, *r, *k, "ok")
+        else:
+            t.add_row(str(i + 1), *pose, *([""] * 8), mp.reasons[i])
+    out.print(t)
+    if mp.n_valid:
+        v = mp.valid
+        un = np.linalg.norm(d[v, :3], axis=1)
+        k, kr = mp.min_principal[v], mp.min_principal_rot[v]
+        out.print(
+            f"{mp.n_valid} pose(s): |u| {fmt(un.min(), 4)} to {fmt(un.max(), 4)} mm; k_min {fmt(k.min(), 4)} "
+            f"to {fmt(k.max(), 4)} N/mm; kr_min {fmt(kr.min(), 4)} to {fmt(kr.max(), 4)} N*mm/rad"
+        )
+
+
 def fit(
     mechanism: str = typer.Argument(..., metavar="KIND", help=_KINDS_HELP),
     files: list[Path] = typer.Argument(
@@ -339,8 +470,12 @@ def fit(
         help="Fixed model parameter or starting value NAME=VALUE (repeatable). urdf: "
         "k1=K1,...,kn=Kn (required; N*mm/rad, N/mm for prismatic joints) or k_theta=K for all.",
     ),
-    tip: str = typer.Option(None, "--tip", help=_TIP_HELP),
-    tip_offset: str = typer.Option(None, "--tip-offset-mm", help=_OFFSET_HELP),
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
     configs: Path = typer.Option(
         None,
         CONFIGS_OPTION,
@@ -377,7 +512,8 @@ def fit(
                 f"by one ('stiffmap fit urdf ROBOT.urdf MEASUREMENTS'; got {', '.join(map(str, files))})"
             )
         robot_file, (measurements,) = None, files
-    m = _robot("fit", mechanism, robot_file, param, tip, tip_offset, configs)
+    own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
+    m = _robot("fit", mechanism, robot_file, param, configs, own)
     with options_named(command_names(kind)):
         names = kind.fitted_names(m, param_to_fit)
     with warnings.catch_warnings(record=True) as caught:
@@ -393,7 +529,7 @@ def fit(
 
 def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
     """The estimates, the fit's quality and the residual RMS per pose; its notes as warnings."""
-    unit = "mm" if f.kind == "static_error" else "N/mm"
+    unit = {"static_error": "mm", "stiffness6": "N/mm, N, N*mm/rad: K6's entries"}.get(f.kind, "N/mm")
     what = "static-error readings" if f.kind == "static_error" else "stiffness entries"
     out.print(f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}")
     t = Table("parameter", "initial", "estimate ± standard error", "relative")
@@ -410,11 +546,15 @@ def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
                 s.add_row(f"corr({f.names[a]}, {f.names[b]})", fmt(f.correlation[a, b], 3))
     out.print(s)
     r = Table(title=f"residual RMS per pose ({unit})")
-    for a in "xyz"[:dim]:
+    for a in "xyz"[: min(dim, 3)]:
         r.add_column(f"{a} (mm)", justify="right")
+    if dim == POSE_DIM:  # a platform that turns: the poses' orientations
+        for a in ("roll", "pitch", "yaw"):
+            r.add_column(f"{a} (deg)", justify="right")
     r.add_column("RMS", justify="right")
     for p, v in zip(f.poses, f.residual_rms_per_pose, strict=True):
-        r.add_row(*(fmt(x, 6) for x in p), fmt(v, 3))
+        cells = [*p[:3], *np.degrees(p[3:])]
+        r.add_row(*(fmt(float(x), 6) for x in cells), fmt(v, 3))
     out.print(r)
     for note in f.notes:
         warn(note)

@@ -27,6 +27,7 @@ from rich.progress import (
 )
 
 from ..campaign.simulate import (
+    CAMERA,
     SENSOR,
     CameraSimOptions,
     SensorSimOptions,
@@ -38,11 +39,19 @@ from ..campaign.simulate import (
 from ..campaign.simulated import SimSummary
 from ..campaign.simulated_sensor import SensorSimSummary
 from ..errors import InputError
-from ..kinds import DEFAULT_TESTBED, params_from_text
+from ..kinds import (
+    CONFIGS_OPTION,
+    DEFAULT_TESTBED,
+    command_names,
+    description_from_command,
+    kind_of_file,
+    params_from_text,
+)
 from ..parallel import Backend
 from ..sim.plan import SimulationPlan
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
 from .common import dask_option, err, fmt, options_named, print_json, print_summary, three_numbers
+from .model import _BASE_HELP, _LINKS_HELP, _OFFSET_HELP, _PACKAGE_PATH_HELP, _TIP_HELP, _XACRO_ARG_HELP
 
 
 class ImageFormat(StrEnum):
@@ -140,7 +149,9 @@ _OPT_ROBOT = typer.Option(
     + ", ".join(testbed_robots())
     + ". delta: the Delta-type robot; 3prr: sensor traces of the planar 3PRR; arm6: stiffmap's "
     "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
-    "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'.",
+    "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'. "
+    "Or a robot of your own, its description ROBOT.urdf or .xacro, with --tip, --configs, --param "
+    "k_theta=... (and --base, --xacro-arg, --package-path, --links as 'stiffmap model urdf').",
 )
 _OPT_POSITIONS = typer.Option(
     None,
@@ -245,6 +256,64 @@ _OPT_NAME = typer.Option(
     None, "--name", help="Campaign name (default: virtual test-bed).", show_default=False
 )
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON summary instead of a table.")
+#: The options of a robot of one's own (--robot FILE), as 'stiffmap model urdf' says them.
+_OWN = "--robot FILE: "
+_OPT_TIP = typer.Option(None, "--tip", help=_OWN + _TIP_HELP.removeprefix("urdf: "), show_default=False)
+_OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OWN + _OFFSET_HELP.removeprefix("urdf: "))
+_OPT_BASE = typer.Option(None, "--base", help=_OWN + _BASE_HELP.removeprefix("urdf: "))
+_OPT_XACRO_ARG = typer.Option(None, "--xacro-arg", help=_OWN + _XACRO_ARG_HELP.removeprefix("urdf: "))
+_OPT_PACKAGE_PATH = typer.Option(
+    None, "--package-path", help=_OWN + _PACKAGE_PATH_HELP.removeprefix("urdf: ")
+)
+_OPT_LINKS = typer.Option(None, "--links", help=_OWN + _LINKS_HELP.removeprefix("urdf: "))
+_OPT_CONFIGS = typer.Option(
+    None,
+    "--configs",
+    help=_OWN + "CSV of joint configurations (columns named after the joints, or q1_deg..qn_deg; mm "
+    "for a prismatic joint): the positions, their measured points.",
+)
+
+
+def _own_robot(robot: str, param, options: dict, configs):
+    """``--robot FILE``: the description of a robot of the user's own (None for a test-bed robot),
+    and the names of the library's fields as this command's options."""
+    kind = kind_of_file(robot) if robot not in testbed_robots() else None
+    given = {k: v for k, v in options.items() if v is not None}
+    if configs is not None:
+        given[CONFIGS_OPTION] = configs
+    if kind is None:
+        if given:
+            raise InputError(
+                f"{', '.join(given)}: for a robot of your own (--robot FILE.urdf or .xacro), not the "
+                f"test-bed's {robot}"
+            )
+        return None, _OPTION_NAMES
+    if not Path(robot).is_file():
+        raise InputError(
+            f"--robot {robot}: no such file (a test-bed robot is one of {', '.join(testbed_robots())})"
+        )
+    d = description_from_command(
+        kind.name, robot, param or [], options, configs=configs, command="simulate", configs_required=False
+    )
+    return d, {**_OPTION_NAMES, **command_names(kind), "file": "--robot"}
+
+
+def _instrument(robot: str) -> str:
+    """What measures test-bed robot ``robot`` (InputError naming --robot when there is none)."""
+    with options_named(_OPTION_NAMES):
+        return testbed(robot)[1].instrument
+
+
+def _own_options(tip, tip_offset, base, xacro_arg, package_path, links) -> dict:
+    """The options of a robot of one's own, by their names (None: not given)."""
+    return {
+        "--tip": tip,
+        "--tip-offset-mm": tip_offset,
+        "--base": base,
+        "--xacro-arg": xacro_arg or None,
+        "--package-path": package_path or None,
+        "--links": None if links is None else str(links),
+    }
 
 
 def simulate(
@@ -279,6 +348,13 @@ def simulate(
     cameras: int = _OPT_CAMERAS,
     camera_angle_deg: float = _OPT_CAMERA_ANGLE_DEG,
     name: str = _OPT_NAME,
+    tip: str = _OPT_TIP,
+    tip_offset: str = _OPT_TIP_OFFSET,
+    base: str = _OPT_BASE,
+    xacro_arg: list[str] = _OPT_XACRO_ARG,
+    package_path: list[str] = _OPT_PACKAGE_PATH,
+    links: Path = _OPT_LINKS,
+    configs: Path = _OPT_CONFIGS,
     as_json: bool = _OPT_AS_JSON,
 ) -> None:
     """Simulate a vision campaign of a robot with known stiffness, seen by a known camera.
@@ -292,17 +368,19 @@ def simulate(
     from views of the board seen by the cameras together, and one image per camera in each
     image set (campaign.toml's [cameras]).
     """
-    with options_named(_OPTION_NAMES):
-        _, tb = testbed(robot)
-    _refuse_options_of_the_other_instrument(ctx, robot, tb.instrument)
+    own = _own_options(tip, tip_offset, base, xacro_arg, package_path, links)
+    description, names = _own_robot(robot, param, own, configs)
+    instrument = CAMERA if description is not None else _instrument(robot)
+    _refuse_options_of_the_other_instrument(ctx, robot, instrument)
     command = "stiffmap " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv else ""
-    with options_named(_OPTION_NAMES):
+    with options_named(names):
         request = SimulationRequest(
             robot=robot, positions=positions, select=select, repeats=repeats, seed=seed,
-            params=params_from_text(param), name=name, force=force, command=command,
+            params={} if description else params_from_text(param), name=name, force=force, command=command,
+            description=description,
         )  # fmt: skip
-    if tb.instrument == SENSOR:
-        with options_named(_OPTION_NAMES):
+    if instrument == SENSOR:
+        with options_named(names):
             s = simulate_campaign(out_dir, request, sensor=SensorSimOptions(directions, trace_format))
         _print_sensor_summary(s, request.seed, as_json)
         return
@@ -313,7 +391,7 @@ def simulate(
         calibration_views=_calibration_views(ctx, calibration_views, true_camera), cameras=cameras,
         camera_angle_deg=camera_angle_deg, truth_only=truth_only, workers=workers, dask=dask,
     )  # fmt: skip
-    with _rendering(out_dir, show=not (as_json or truth_only)) as view, options_named(_OPTION_NAMES):
+    with _rendering(out_dir, show=not (as_json or truth_only)) as view, options_named(names):
         summary = simulate_campaign(
             out_dir, request, camera=options, progress=view.progress, notify=view.notify
         )

@@ -13,7 +13,13 @@ How to add a kind: CONTRIBUTING.md, "a mechanism"; ``docs/models.md``, "Robot ki
 
 from __future__ import annotations
 
-from .options import CONFIGS_OPTION, command_names, refuse_options, robot_from_command
+from .options import (
+    CONFIGS_OPTION,
+    command_names,
+    description_from_command,
+    refuse_options,
+    robot_from_command,
+)
 from .parallel import DELTA, LEGS, PRR3_KIND, build_with_params
 from .positions import grid_from_text, kind_dim, position_presets, positions_from_text, preset_points
 from .registry import (
@@ -27,6 +33,7 @@ from .registry import (
     check_keys,
     float_params,
     kind_names,
+    kind_of_file,
     params_from_text,
     register_robot_kind,
     registered,
@@ -55,6 +62,8 @@ __all__ = [
     "build_robot",
     "robot_from_options",
     "robot_from_command",
+    "description_from_command",
+    "kind_of_file",
     "command_names",
     "refuse_options",
     "CONFIGS_OPTION",

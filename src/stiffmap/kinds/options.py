@@ -18,7 +18,13 @@ from ..errors import FieldError, InputError
 from ..models.base import Mechanism
 from .registry import ROBOT_KINDS, RobotDescription, RobotKind, build_robot, params_from_text, robot_kind
 
-__all__ = ["robot_from_command", "command_names", "refuse_options", "CONFIGS_OPTION"]
+__all__ = [
+    "robot_from_command",
+    "description_from_command",
+    "command_names",
+    "refuse_options",
+    "CONFIGS_OPTION",
+]
 
 #: The option giving a serial robot's joint configurations (a CSV file).
 CONFIGS_OPTION = "--configs"
@@ -45,8 +51,11 @@ def refuse_options(kind: RobotKind, given: Mapping[str, object]) -> None:
         raise InputError(f"{opt} is for {takers}, not {kind.name}")
 
 
-def _option_value(text: str):
-    """An option's text as the kind's key takes it: numbers ``x,y,z`` as a tuple, else the text."""
+def _option_value(text):
+    """An option's text as the kind's key takes it: numbers ``x,y,z`` as a tuple, else the text;
+    a repeatable option's texts as a list of texts."""
+    if isinstance(text, (list, tuple)):
+        return [str(t) for t in text]
     parts = str(text).split(",")
     try:
         return tuple(float(p) for p in parts) if len(parts) > 1 else str(text)
@@ -97,6 +106,34 @@ def robot_from_command(
         In the command line's terms: an unknown kind, an option or file the kind does not
         take, a required one missing, a wrong value named by its option.
     """
+    description = description_from_command(
+        kind_name, robot, params, options, configs=configs, command=command,
+        builtin_defaults=builtin_defaults, configs_required=configs_required,
+    )  # fmt: skip
+    try:
+        return build_robot(description)
+    except FieldError as e:
+        raise e.worded(command_names(robot_kind(kind_name))) from None
+
+
+def description_from_command(
+    kind_name: str,
+    robot: str | Path | None,
+    params: Sequence[str] = (),
+    options: Mapping[str, str | None] | None = None,
+    *,
+    configs: str | Path | None = None,
+    command: str = "model",
+    builtin_defaults: bool = False,
+    configs_required: bool = True,
+) -> RobotDescription:
+    """The :class:`RobotDescription` of a command line (:func:`robot_from_command`, unbuilt).
+
+    Raises
+    ------
+    InputError
+        As :func:`robot_from_command`, but for the values the kind's builder checks.
+    """
     try:
         kind = robot_kind(kind_name)
     except FieldError as e:
@@ -121,18 +158,14 @@ def robot_from_command(
         keys = {**own.keys, **keys}
         values = values or dict(own.params)
     _require(kind, keys, robot)
-    if kind.configurations and configs_required:
-        if configs is None:
-            raise InputError(
-                f"{CONFIGS_OPTION} CONFIGS.csv is required for {kind.name}: the joint configurations "
-                "(columns q1_deg..qn_deg in the robot's joint order)"
-            )
+    if kind.configurations and configs_required and configs is None:
+        raise InputError(
+            f"{CONFIGS_OPTION} CONFIGS.csv is required for {kind.name}: the joint configurations "
+            "(columns q1_deg..qn_deg in the robot's joint order)"
+        )
+    if kind.configurations and configs is not None:
         keys["configs"] = Path(configs)
-    description = RobotDescription(kind.name, values, None if robot is None else Path(robot), keys)
-    try:
-        return build_robot(description)
-    except FieldError as e:
-        raise e.worded(command_names(kind)) from None
+    return RobotDescription(kind.name, values, None if robot is None else Path(robot), keys)
 
 
 def _require(kind: RobotKind, keys: Mapping[str, object], robot) -> None:

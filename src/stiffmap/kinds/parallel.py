@@ -10,6 +10,7 @@ its test-bed robot; the mechanisms themselves are in :mod:`stiffmap.models.delta
 from __future__ import annotations
 
 from collections.abc import Mapping
+from importlib.resources import files
 
 import numpy as np
 
@@ -18,10 +19,11 @@ from ..models.delta import DeltaRobot
 from ..models.legs import LegRobot
 from ..models.presets import paper48, prr3_points22
 from ..models.prr3 import PRR3
-from ..sim.robot import mechanism_robot
+from ..sim.robot import mechanism_robot, platform_robot
+from ..sim.scene import hexapod_scene
 from .registry import RobotDescription, RobotKind, TestBed, allow_keys, float_params
 
-__all__ = ["DELTA", "PRR3_KIND", "LEGS", "build_with_params"]
+__all__ = ["DELTA", "PRR3_KIND", "LEGS", "BUILTIN_LEGS", "HEXAPOD_TESTBED_K", "build_with_params"]
 
 
 def build_with_params(cls, description: RobotDescription):
@@ -110,6 +112,32 @@ PRR3_KIND = RobotKind(
 )
 
 
+_ROBOTS = files("stiffmap.models") / "robots"
+#: Legs TOMLs that ship with stiffmap, by name: ``stiffmap model legs hexapod ...`` needs no file.
+BUILTIN_LEGS: dict[str, str] = {
+    name: str(_ROBOTS / f"{name}.toml") for name in ("hexapod", "3rps", "delta", "3prr")
+}
+#: The test-bed's hexapod (``stiffmap simulate --robot hexapod``): the shipped 6-UPS on spring
+#: legs of six different stiffnesses (N/mm), soft enough that the reference study's loads move
+#: its platform by about a millimetre, as they move the Delta's.
+HEXAPOD_TESTBED_K = (9.0, 7.5, 11.0, 8.0, 10.5, 12.0)
+#: Its positions (mm): the platform level, a 3 x 3 grid 40 mm apart at two heights.
+HEXAPOD_TESTBED_POSITIONS = ";".join(
+    f"{x:g},{y:g},{z:g}" for z in (280.0, 320.0) for y in (-40.0, 0.0, 40.0) for x in (-40.0, 0.0, 40.0)
+)
+#: Where its loads hang, from the tool point (the platform's centre), mm: 100 mm below it, so
+#: that they turn the platform as well as move it.
+HEXAPOD_LOAD_POINT_MM = (0.0, 0.0, -100.0)
+_LEGS_NAME = "legs"
+
+
+def _hexapod(params: Mapping[str, float] | None = None, **kw):
+    """The test-bed's hexapod as a virtual robot (a 6x6 field: :func:`~stiffmap.sim.robot.platform_robot`)."""
+    defaults = {f"k_leg{i}": k for i, k in enumerate(HEXAPOD_TESTBED_K, start=1)}
+    model = LegRobot.from_toml(BUILTIN_LEGS["hexapod"]).with_params(**{**defaults, **(params or {})})
+    return platform_robot(model, _LEGS_NAME, _LEGS_NAME, **kw)
+
+
 def _legs(description: RobotDescription):
     """A parallel robot read from its legs TOML, with ``params`` overriding the file's."""
     allow_keys(description)
@@ -124,11 +152,23 @@ def _legs(description: RobotDescription):
 
 
 LEGS = RobotKind(
-    name="legs",
-    summary="a translational parallel robot described by its legs in a TOML (virtual joint method)",
+    name=_LEGS_NAME,
+    summary="a parallel robot described by its legs in a TOML (virtual joint method; dim = 6: a "
+    "platform that turns, a hexapod)",
     build=_legs,
     dim=None,
     file="legs TOML",
     file_example="ROBOT.toml",
-    file_key="legs",
+    file_key=_LEGS_NAME,
+    builtin_files=BUILTIN_LEGS,
+    testbed=TestBed(
+        name="hexapod",
+        instrument="camera",
+        positions=HEXAPOD_TESTBED_POSITIONS,
+        robot=_hexapod,
+        scene=hexapod_scene,
+        load_point_mm=HEXAPOD_LOAD_POINT_MM,
+        rotations=True,
+        campaign_name="virtual test-bed (hexapod)",
+    ),
 )

@@ -47,6 +47,7 @@ __all__ = [
     "registered",
     "robot_kind",
     "kind_names",
+    "kind_of_file",
     "build_robot",
     "robot_from_options",
     "params_from_text",
@@ -111,6 +112,11 @@ class TestBed:
         refused.
     campaign_name : str
         The simulated campaign's name when none is given.
+    own : callable, optional
+        A user's own robot of the kind on the test-bed (``stiffmap simulate --robot FILE``):
+        ``own(model, description, **virtual_robot_fields)`` -> its virtual robot, seen by a
+        camera; its positions are its model's configurations' measured points (or points
+        given), the scene the demo's moved to look at them.
     """
 
     __test__ = False  # not a pytest test class
@@ -123,6 +129,7 @@ class TestBed:
     load_point_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotations: bool = False
     campaign_name: str = "virtual test-bed"
+    own: Callable[..., Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -146,7 +153,8 @@ class RobotKind:
         Unit of each parameter (N-mm-MPa); :meth:`param_unit` also knows ``k1`` .. ``kn``
         when :attr:`joint_params` is set.
     default_fit : tuple of str or None
-        Parameters fitted when none are named; None: every parameter of the model.
+        Parameters fitted when none are named; None: the model's ``default_fit()`` when it
+        has one, else every parameter of the model.
     default_load : (float, str) or None
         ``stiffmap model``'s force when none is given: magnitude (N) and direction.
     positions : mapping of str to callable
@@ -160,6 +168,9 @@ class RobotKind:
         How usage texts show that file (``ROBOT.urdf``).
     file_key : str or None
         The campaign.toml key of that file (``robot.urdf``, ``robot.legs``).
+    file_suffixes : tuple of str
+        The endings of its files (``.urdf``, ``.xacro``), lower case: ``stiffmap simulate
+        --robot FILE`` takes a file so named as a robot of this kind (:func:`kind_of_file`).
     builtin_defaults : mapping of str to RobotDescription
         A shipped file's own parameters and keys (its springs, tool point, tool orientation,
         seed), by the file's name: what a command that offers them takes when the user names
@@ -171,6 +182,10 @@ class RobotKind:
     keys : type of pydantic BaseModel, optional
         The kind's own campaign.toml keys beside ``model``, ``params``, ``fit`` and
         :attr:`file_key` (validated by it; their names are :class:`RobotDescription` keys).
+    path_keys : tuple of str
+        Its keys that name files or folders (a path, or a list of them): relative to the
+        campaign folder in campaign.toml (:mod:`stiffmap.campaign.robot` resolves them), to
+        the working directory on the command line.
     options : mapping of str to str
         The command-line options it takes beyond ``--param`` (option -> key), e.g.
         ``{"--tip": "tip_frame"}``; the others are refused for it.
@@ -201,9 +216,11 @@ class RobotKind:
     file: str | None = None
     file_example: str = "ROBOT"
     file_key: str | None = None
+    file_suffixes: tuple[str, ...] = ()
     builtin_files: Mapping[str, str] = field(default_factory=dict)
     builtin_defaults: Mapping[str, RobotDescription] = field(default_factory=dict)
     keys: type[BaseModel] | None = None
+    path_keys: tuple[str, ...] = ()
     options: Mapping[str, str] = field(default_factory=dict)
     configurations: bool = False
     joint_params: bool = False
@@ -237,7 +254,12 @@ class RobotKind:
             Field ``"fit"``: a name that is not a parameter of ``model``.
         """
         valid = model.param_names() if hasattr(model, "param_names") else tuple(model.params())
-        default = list(self.default_fit) if self.default_fit is not None else list(valid)
+        if self.default_fit is not None:
+            default = list(self.default_fit)
+        elif hasattr(model, "default_fit"):  # the model's own (a URDF robot: not a rigid mimic spring)
+            default = list(model.default_fit())
+        else:
+            default = list(valid)
         # By default, not the rigid elements (inf: nothing to fit; a legs file's rigid arms).
         params = model.params()
         default = [n for n in default if not np.isinf(float(params.get(n, 0.0)))] or default
@@ -312,6 +334,12 @@ def robot_kind(name: str) -> RobotKind:
             "kind", f"unknown robot kind {name!r}; expected one of {', '.join(ROBOT_KINDS)}", value=name
         )
     return kind
+
+
+def kind_of_file(path: str | Path) -> RobotKind | None:
+    """The kind whose files end as ``path`` does (:attr:`RobotKind.file_suffixes`), or None."""
+    name = str(path).lower()
+    return next((k for k in ROBOT_KINDS.values() if any(name.endswith(x) for x in k.file_suffixes)), None)
 
 
 def params_from_text(items: Sequence[str]) -> dict[str, str]:

@@ -6,8 +6,14 @@ point in it (``tip_offset_mm``), the tool's orientation for inverse kinematics
 (``tool_rpy_deg``) and its seed (``q_seed_deg``), the joint configurations of the
 positions (``configurations_deg``, or a CSV file ``configs``), and the joint stiffnesses.
 
+A description as published (docs/models.md): ``base_frame`` (the link the measurements are
+expressed in, when not the URDF's root), a ``.xacro`` file with ``xacro_args`` and
+``package_paths`` (where ``$(find PKG)`` looks), flexible links from a TOML (``links``).
+
 Joint stiffnesses are ``k1`` .. ``kn`` (N*mm/rad; N/mm for a prismatic joint), in the URDF's
-joint order. The rule for ``k_theta``: one number sets every joint (``k_theta=1e9``), then
+joint order; a mimic joint's own spring ``k(n+1)`` ... and the flexible links' parameters
+(``E_<name>``, ``G_<name>``, ``f_<name>``) may be given too. The rule for ``k_theta``: one
+number sets every joint (``k_theta=1e9``), then
 ``k<i>`` changes one; a list ``k_theta=K1,...,Kn`` -- the form of stiffmap before 0.x, kept
 so that old command lines and files still work -- is read as ``k1`` .. ``kn``.
 """
@@ -24,8 +30,10 @@ from pydantic import BaseModel, ConfigDict, Field, Strict
 from ..errors import FieldError
 from ..geometry import matrix_from_euler
 from ..models import arm6
+from ..models.chain import Chain
 from ..models.io import read_configuration_rows
 from ..models.presets import joint_stiffnesses_from_text
+from ..models.robot_files import read_links_toml
 from ..models.serial import SerialRobot
 from ..sim.robot import serial_robot
 from ..sim.scene import arm_scene
@@ -39,6 +47,8 @@ BUILTIN_URDFS: dict[str, str] = {"arm6": arm6.URDF}
 _Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
 _Angle = Annotated[_Finite, Field(ge=-3600.0, le=3600.0)]
 _Coord = Annotated[_Finite, Field(ge=-1e6, le=1e6)]
+_Name = Annotated[str, Strict(), Field(min_length=1, max_length=1000)]
+_PathText = Annotated[str, Strict(), Field(min_length=1, max_length=4096)]
 
 
 class UrdfKeys(BaseModel):
@@ -57,6 +67,14 @@ class UrdfKeys(BaseModel):
     tool_rpy_deg: Annotated[tuple[_Angle, _Angle, _Angle], Field(strict=False)] | None = None
     #: The seed of inverse kinematics, degrees (mm for a prismatic joint).
     q_seed_deg: list[_Angle] | None = None
+    #: The link the measurements are expressed in, when it is not the URDF's root.
+    base_frame: _Name | None = None
+    #: A xacro description's arguments, ``$(arg NAME)``.
+    xacro_args: dict[_Name, Annotated[str, Strict(), Field(max_length=10000)]] | None = None
+    #: Folders where a xacro description's ``$(find PKG)`` looks (before ROS_PACKAGE_PATH).
+    package_paths: list[_PathText] | None = None
+    #: The flexible links' TOML (``[[links]]``, docs/models.md).
+    links: _PathText | None = None
 
 
 def urdf_file(urdf) -> str:
@@ -68,21 +86,57 @@ def urdf_file(urdf) -> str:
     return text
 
 
-def _joint_stiffnesses(params: Mapping[str, float | str], robot: SerialRobot) -> tuple[float, ...]:
-    """k1 .. kn from ``params`` (the rule of the module docstring), FieldError naming ``params``."""
-    items = [f"{k}={v}" for k, v in params.items()]
+def _joint_stiffnesses(params: Mapping[str, float | str], robot: SerialRobot) -> dict[str, object]:
+    """The parameters of ``params`` for :meth:`SerialRobot.with_params`: ``k_theta`` (k1 .. kn by
+    the rule of the module docstring), then a mimic joint's spring or a link's parameter.
+
+    Raises
+    ------
+    FieldError
+        ``params``: no joint stiffness, a name the robot does not have, a value not a number.
+    """
+    n = robot.n
+    coords = {"k_theta", *(f"k{i}" for i in range(1, n + 1))}
+    others = set(robot.param_names()) - coords
+    unknown = [k for k in params if k not in coords and k not in others]
+    if unknown:
+        valid = [f"k1..k{n}", *others] if n > 1 else ["k1", *others]
+        raise FieldError(
+            "params",
+            f"unknown urdf parameter {unknown[0]!r}; valid: {', '.join(valid)} (one joint each: "
+            f"{', '.join(robot.chain.joint_names)}), or k_theta (one value for all {n})",
+        )
+    items = [f"{k}={v}" for k, v in params.items() if k in coords]
     if not items:
         raise FieldError(
             "params",
-            f"give the stiffness of every joint of {robot.chain.name}: k1=K1,...,k{robot.n}=K{robot.n} "
+            f"give the stiffness of every joint of {robot.chain.name}: k1=K1,...,k{n}=K{n} "
             f"(N*mm/rad; N/mm for prismatic joints), or k_theta=K for all; there is no default",
         )
+    out: dict[str, object] = {}
     try:
-        return joint_stiffnesses_from_text(items, robot.chain)
+        out["k_theta"] = joint_stiffnesses_from_text(items, robot.chain)
+        for k, v in params.items():
+            if k in others:
+                out[k] = float(v)
     except FieldError:
         raise
     except ValueError as e:
         raise FieldError("params", str(e)) from None
+    return out
+
+
+def _xacro_args(value) -> dict[str, str] | None:
+    """``xacro_args`` as a mapping: campaign.toml's table, or the command line's NAME=VALUE texts."""
+    if value is None or isinstance(value, Mapping):
+        return None if value is None else {str(k): str(v) for k, v in value.items()}
+    out = {}
+    for text in value:
+        name, eq, v = str(text).partition("=")
+        if not eq or not name.strip():
+            raise FieldError("xacro_args", f"{text!r}: expected NAME=VALUE", value=text)
+        out[name.strip()] = v
+    return out
 
 
 def _build(d: RobotDescription) -> SerialRobot:
@@ -95,34 +149,62 @@ def _build(d: RobotDescription) -> SerialRobot:
     offset = d.keys.get("tip_offset_mm") or (0.0, 0.0, 0.0)
     rpy = d.keys.get("tool_rpy_deg")
     seed = d.keys.get("q_seed_deg")
-    robot = SerialRobot.from_urdf(
+    links = d.keys.get("links")
+    chain = Chain.from_urdf(
         d.file,
         d.keys["tip_frame"],
         offset,
-        k_theta=1.0,
-        tool_rotation=None if rpy is None else matrix_from_euler(np.radians(rpy)),
-        q_seed=None if seed is None else np.radians(seed),
+        base_frame=d.keys.get("base_frame"),
+        xacro_args=_xacro_args(d.keys.get("xacro_args")),
+        package_paths=list(d.keys.get("package_paths") or ()),
     )
-    k = _joint_stiffnesses(d.params, robot)
+    robot = SerialRobot(
+        chain,
+        1.0,
+        links=() if links is None else read_links_toml(links),
+        tool_rotation=None if rpy is None else matrix_from_euler(np.radians(rpy)),
+        q_seed=None if seed is None else _radians(seed, chain.joint_types, "q_seed_deg"),
+    )
+    params = _joint_stiffnesses(d.params, robot)
     Q = _configurations(d, robot)
-    return robot.with_params(k_theta=k, configurations=Q)
+    try:
+        return robot.with_params(**params, configurations=Q)
+    except ValueError as e:
+        raise FieldError("params", str(e)) from None
+
+
+def _radians(q, robot_types, field: str = "q_seed_deg") -> np.ndarray:
+    """Joint values in degrees (mm for a prismatic joint) as rad (mm), by the joints' types."""
+    a = np.asarray(q, dtype=float)
+    if a.shape[-1:] != (len(robot_types),):
+        raise FieldError(
+            field, f"{a.shape[-1] if a.ndim else 0} joint values; the robot has {len(robot_types)} joints"
+        )
+    rev = np.array([t != "prismatic" for t in robot_types])
+    return np.where(rev, np.radians(a), a)
 
 
 def _configurations(d: RobotDescription, robot: SerialRobot) -> np.ndarray | None:
-    """The joint configurations of the positions: a file (``configs``) or degrees (rad out)."""
+    """The joint configurations of the positions: a file (``configs``) or degrees, mm for a
+    prismatic joint (rad, mm out)."""
     if d.keys.get("configs") is not None:
         return read_configuration_rows(d.keys["configs"], robot.chain)[0]
     q = d.keys.get("configurations_deg")
     if q is None:
         return None
-    Q = np.radians(np.asarray(q, dtype=float))
+    Q = np.asarray(q, dtype=float)
     if Q.ndim != 2 or Q.shape[1] != robot.n:
         raise FieldError(
             "configurations_deg",
             f"{Q.shape[-1] if Q.ndim else 0} joint values per position; {robot.chain.name} has "
             f"{robot.n} joints ({', '.join(robot.chain.joint_names)})",
         )
-    return Q
+    return _radians(Q, robot.chain.joint_types, "configurations_deg")
+
+
+def _own(model: SerialRobot, d: RobotDescription, **kw):
+    """A user's own URDF robot on the test-bed: its model's 6x6 field, its files for the campaign."""
+    return serial_robot(model, links_file=d.keys.get("links"), **kw)
 
 
 def _arm6(params: Mapping[str, float] | None = None, **kw):
@@ -138,6 +220,7 @@ URDF_KIND = RobotKind(
     file="URDF",
     file_example="ROBOT.urdf",
     file_key="urdf",
+    file_suffixes=(".urdf", ".xacro"),
     builtin_files=BUILTIN_URDFS,
     builtin_defaults={
         "arm6": RobotDescription(
@@ -153,7 +236,15 @@ URDF_KIND = RobotKind(
         )
     },
     keys=UrdfKeys,
-    options={"--tip": "tip_frame", "--tip-offset-mm": "tip_offset_mm"},
+    path_keys=("package_paths", "links"),
+    options={
+        "--tip": "tip_frame",
+        "--tip-offset-mm": "tip_offset_mm",
+        "--base": "base_frame",
+        "--xacro-arg": "xacro_args",
+        "--package-path": "package_paths",
+        "--links": "links",
+    },
     positions={"arm20": arm6.positions20},
     configurations=True,
     joint_params=True,
@@ -166,5 +257,6 @@ URDF_KIND = RobotKind(
         scene=arm_scene,
         load_point_mm=arm6.LOAD_POINT_MM,
         rotations=True,
+        own=_own,
     ),
 )

@@ -11,6 +11,9 @@
   and written by :mod:`~stiffmap.models.legs_file`, the built-in robots converted to one by
   :mod:`~stiffmap.models.legs_convert` (:func:`legs_toml`), its legs' chains built by
   :mod:`~stiffmap.models.legs_chains`;
+- :mod:`~stiffmap.models.legs6`: :class:`LegRobot6`, a parallel robot whose platform
+  turns (``dim = 6``: hexapods, 3-RPS), its 6 x 6 stiffness (``robots/hexapod.toml``,
+  ``robots/3rps.toml``);
 - :mod:`~stiffmap.models.serial`: :class:`SerialRobot`, a serial arm read from a URDF
   (kinematics through :mod:`~stiffmap.models.chain`, Pinocchio) with joint springs;
 - :mod:`~stiffmap.models.presets`: the reference studies' position layouts, grids, load
@@ -36,6 +39,7 @@ from .joint_fit import (
     joint_identifiability,
 )
 from .legs import LegRobot
+from .legs6 import LegRobot6  # registers itself: LegRobot.from_toml of a dim = 6 file builds one
 from .legs_convert import legs_toml
 from .presets import paper48, prr3_points22
 from .prr3 import PRR3
@@ -51,6 +55,7 @@ __all__ = [
     "PRR3",
     "SerialRobot",
     "LegRobot",
+    "LegRobot6",
     "legs_toml",
     "paper48",
     "prr3_points22",

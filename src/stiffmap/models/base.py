@@ -54,7 +54,19 @@ __all__ = [
     "RIGID_RTOL",
     "stiffness_of",
     "static_error_of",
+    "POSE_DIM",
+    "as_wrenches",
+    "skew",
+    "arm_map",
+    "platform_stiffness6",
+    "held_wrench_condition",
+    "force_moment_stiffness",
 ]
+
+#: The ``dim`` of a robot whose platform turns: its poses are x, y, z (mm) and roll, pitch,
+#: yaw (rad; R = Rz(yaw) Ry(pitch) Rx(roll), URDF's convention), its K still the 3 x 3 stiffness
+#: a pure force sees, and its 6 x 6 stiffness K6 besides (:func:`platform_stiffness6`).
+POSE_DIM = 6
 
 #: Default threshold of the dimensionless singularity measures (a sine or an inverse
 #: condition number, 1 far from singularities, 0 at one) below which a pose is
@@ -186,6 +198,16 @@ class ModelMap:
         Smallest principal stiffness (the softest direction).
     condition : ndarray, shape (N,)
         Condition number of K (largest over smallest principal stiffness).
+    K6 : ndarray, shape (N, 6, 6), or None
+        For a robot whose platform turns (``dim = 6``, points are poses): the stiffness of
+        the platform at the tool point, base frame, mapping the small displacement
+        (u mm, rotation vector rad) to the wrench (F N, M N*mm): blocks N/mm, N (= N*mm/mm)
+        and N*mm/rad. NaN where invalid; None for a robot whose platform only translates.
+        K is then the stiffness a pure force sees, ``(C6[:3, :3])^-1`` with C6 = K6^-1.
+    K_rot : ndarray, shape (N, 3, 3), N*mm/rad, or None
+        The rotational stiffness a pure moment sees, ``(C6[3:, 3:])^-1`` (with K6).
+    min_principal_rot : ndarray, shape (N,), N*mm/rad, or None
+        Its smallest principal stiffness (the softest axis of rotation).
     """
 
     mechanism: str
@@ -200,13 +222,17 @@ class ModelMap:
     eigenvalues: np.ndarray
     min_principal: np.ndarray
     condition: np.ndarray
+    K6: np.ndarray | None = None
+    K_rot: np.ndarray | None = None
+    min_principal_rot: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.points.shape[0])
 
     @property
     def dim(self) -> int:
-        return int(self.points.shape[1])
+        """The translations K acts on: 2 or 3 (3 for a robot whose poses have six coordinates)."""
+        return int(self.K.shape[-1])
 
     @property
     def n_valid(self) -> int:
@@ -226,10 +252,39 @@ class ModelMap:
             u[v] = np.linalg.solve(self.K[v], F[v][..., None])[..., 0]
         return u
 
+    def static_error6(self, wrench) -> np.ndarray:
+        """Static error ``K6^-1 w`` (u mm, rotation vector rad) under a wrench at the tool point.
+
+        Only for a map with ``K6`` (a robot whose platform turns).
+
+        Parameters
+        ----------
+        wrench : array_like, shape (6,) or (N, 6)
+            Force (N) and moment (N*mm) at the tool point, base frame.
+
+        Returns
+        -------
+        ndarray, shape (N, 6)
+            NaN exactly where ``valid`` is False.
+        """
+        if self.K6 is None:
+            raise ValueError(f"{self.mechanism}: no 6 x 6 stiffness (the platform only translates)")
+        w = as_wrenches(wrench, len(self))
+        out = np.full((len(self), 6), np.nan)
+        v = self.valid
+        if np.any(v):
+            out[v] = np.linalg.solve(self.K6[v], w[v][..., None])[..., 0]
+        return out
+
 
 def format_pose(p) -> str:
-    """``(x, y[, z]) mm`` with up to 6 significant digits."""
-    return "(" + ", ".join(f"{float(v):.6g}" for v in np.ravel(p)) + ") mm"
+    """``(x, y[, z]) mm`` with up to 6 significant digits; a pose of six numbers (x, y, z mm, roll,
+    pitch, yaw rad) as ``(x, y, z) mm, roll-pitch-yaw (r, p, y) deg``."""
+    v = [float(x) for x in np.ravel(p)]
+    if len(v) == 6:
+        rpy = ", ".join(f"{math.degrees(x):.6g}" for x in v[3:])
+        return "(" + ", ".join(f"{x:.6g}" for x in v[:3]) + f") mm, roll-pitch-yaw ({rpy}) deg"
+    return "(" + ", ".join(f"{x:.6g}" for x in v) + ") mm"
 
 
 def as_points(points, dim: int, name: str = "points") -> tuple[np.ndarray, bool]:
@@ -238,6 +293,8 @@ def as_points(points, dim: int, name: str = "points") -> tuple[np.ndarray, bool]
     Parameters
     ----------
     points : array_like, shape (N, dim) or (dim,), mm
+        For ``dim = 6`` (:data:`POSE_DIM`, a robot whose platform turns) poses: x, y, z (mm)
+        and roll, pitch, yaw (rad, within +-pi; R = Rz(yaw) Ry(pitch) Rx(roll)).
     dim : int
 
     Returns
@@ -251,13 +308,23 @@ def as_points(points, dim: int, name: str = "points") -> tuple[np.ndarray, bool]
     if single:
         P = P[None, :]
     if P.ndim != 2 or P.shape[1] != dim:
-        raise ValueError(
-            f"{name} must have shape (N, {dim}) or ({dim},) (positions in mm), got {np.shape(points)}"
-        )
+        what = "poses: x, y, z mm, roll, pitch, yaw rad" if dim == POSE_DIM else "positions in mm"
+        raise ValueError(f"{name} must have shape (N, {dim}) or ({dim},) ({what}), got {np.shape(points)}")
     if not np.all(np.isfinite(P)):
         i = int(np.argwhere(~np.all(np.isfinite(P), axis=1))[0, 0])
         raise ValueError(f"{name}: row {i} is not finite: {P[i].tolist()}")
-    far = np.flatnonzero(np.any(np.abs(P) > MAX_POSITION_MM, axis=1))
+    if dim == POSE_DIM:
+        turned = np.flatnonzero(np.any(np.abs(P[:, 3:]) > math.pi, axis=1))
+        if turned.size:
+            i = int(turned[0])
+            raise ValueError(
+                f"{name}: row {i}: roll, pitch, yaw {P[i, 3:].tolist()} must be radians within +-pi "
+                "(degrees only at the boundary: files and command lines)"
+            )
+        P3 = P[:, :3]
+    else:
+        P3 = P
+    far = np.flatnonzero(np.any(np.abs(P3) > MAX_POSITION_MM, axis=1))
     if far.size:
         i = int(far[0])
         raise ValueError(
@@ -281,6 +348,21 @@ def as_forces(force, n: int, dim: int) -> np.ndarray:
     return F
 
 
+def as_wrenches(wrench, n: int) -> np.ndarray:
+    """A wrench (F N, M N*mm) broadcast to shape (n, 6), checked finite and plausible."""
+    w = np.asarray(wrench, dtype=np.float64)
+    if w.shape == (6,):
+        w = np.broadcast_to(w, (n, 6))
+    if w.shape != (n, 6):
+        raise ValueError(
+            f"wrench must have shape (6,) or ({n}, 6): force N and moment N*mm, got {np.shape(wrench)}"
+        )
+    if not np.all(np.isfinite(w)):
+        raise ValueError("wrench contains NaN or infinite values")
+    as_forces(w[:, :3], n, 3)  # the force's bound
+    return w
+
+
 def check_positive(name: str, value, unit: str, *, allow_inf: bool = False) -> float:
     """A strictly positive finite float (``inf`` too when ``allow_inf``), else ValueError."""
     try:
@@ -302,6 +384,7 @@ def model_map(
     reasons: Sequence[str],
     q: np.ndarray,
     conditioning: np.ndarray,
+    K6: np.ndarray | None = None,
 ) -> ModelMap:
     """Assemble a :class:`ModelMap`: blank K where invalid and compute the indices.
 
@@ -312,9 +395,14 @@ def model_map(
     Parameters
     ----------
     K : ndarray, shape (N, dim, dim), N/mm
-        Values where ``valid`` is False are ignored (set to NaN).
+        Values where ``valid`` is False are ignored (set to NaN); for a robot whose platform
+        turns, the 3 x 3 stiffness a pure force sees (:func:`force_moment_stiffness`).
+    K6 : ndarray, shape (N, 6, 6), optional
+        A robot whose platform turns: its 6 x 6 stiffness (:class:`ModelMap`); the map's
+        ``K_rot`` and ``min_principal_rot`` are computed from it.
     """
-    n, dim = points.shape
+    n = points.shape[0]
+    dim = np.shape(K)[-1]
     K = np.array(K, dtype=np.float64, copy=True)
     valid = np.asarray(valid, dtype=bool)
     K[~valid] = np.nan
@@ -328,7 +416,18 @@ def model_map(
         eig[valid] = w
         with np.errstate(divide="ignore"):
             cond[valid] = np.where(w[:, 0] > 0, w[:, -1] / np.where(w[:, 0] > 0, w[:, 0], 1.0), np.inf)
-    for a in (points, K, valid, q, conditioning, det, eig, cond):
+    six = {}
+    if K6 is not None:
+        K6 = np.array(K6, dtype=np.float64, copy=True)
+        K6[~valid] = np.nan
+        Kr = np.full((n, 3, 3), np.nan)
+        if np.any(valid):
+            Kr[valid] = force_moment_stiffness(K6[valid])[1]
+        mr = np.full(n, np.nan)
+        if np.any(valid):
+            mr[valid] = np.linalg.eigvalsh(Kr[valid])[:, 0]
+        six = {"K6": K6, "K_rot": Kr, "min_principal_rot": mr}
+    for a in (points, K, valid, q, conditioning, det, eig, cond, *six.values()):
         a.setflags(write=False)
     return ModelMap(
         mechanism=mechanism,
@@ -343,6 +442,7 @@ def model_map(
         eigenvalues=eig,
         min_principal=eig[:, 0].copy(),
         condition=cond,
+        **six,
     )
 
 
@@ -467,7 +567,7 @@ def constrained_directions(passive, *, rank_rtol: float = RANK_RTOL) -> tuple[np
     return U, np.arange(d) < (d - rank)[..., None]
 
 
-def leg_stiffness(springs, k, U, held) -> tuple[np.ndarray, np.ndarray]:
+def leg_stiffness(springs, k, U, held, compliance=None) -> tuple[np.ndarray, np.ndarray]:
     """A leg's stiffness at its tip, passive joints free: ``K = U_h (U_h^T C U_h)^-1 U_h^T``.
 
     ``C = J_s diag(1/k) J_s^T`` is the tip compliance with the passive joints locked; the
@@ -484,6 +584,10 @@ def leg_stiffness(springs, k, U, held) -> tuple[np.ndarray, np.ndarray]:
         Their stiffnesses, N*mm/rad (revolute) or N/mm (prismatic); ``inf`` for rigid.
     U, held : ndarray, shapes (..., d, d) and (..., d)
         From :func:`constrained_directions`.
+    compliance : array_like, shape (..., d, d), optional
+        A compliance of the leg at its tip added to ``C`` (symmetric positive semi-definite,
+        the units of C): what the spring columns do not describe, e.g. a link's 6-D compliance
+        carried to the tip.
 
     Returns
     -------
@@ -499,6 +603,9 @@ def leg_stiffness(springs, k, U, held) -> tuple[np.ndarray, np.ndarray]:
     h = held.astype(np.float64)
     W = (np.swapaxes(U, -1, -2) @ Js) * h[..., :, None]  # held rows of U^T J_s
     M = (W * w[..., None, :]) @ np.swapaxes(W, -1, -2)  # U^T C U on the held block, 0 elsewhere
+    if compliance is not None:
+        E = np.swapaxes(U, -1, -2) @ np.asarray(compliance, dtype=np.float64) @ U
+        M = M + 0.5 * (E + np.swapaxes(E, -1, -2)) * h[..., :, None] * h[..., None, :]
     c = np.count_nonzero(held, axis=-1)
     K = np.zeros(M.shape)
     rigid = np.zeros(c.shape, dtype=bool)
@@ -564,6 +671,176 @@ def platform_stiffness(springs, k, passive, valid) -> tuple[np.ndarray, np.ndarr
     return K, rigid
 
 
+# ---------------------------------------------------------------------- platforms that turn (6-D)
+
+
+def skew(r) -> np.ndarray:
+    """The cross-product matrix ``[r]x`` (``[r]x v = r x v``), shape (..., 3, 3)."""
+    r = np.asarray(r, dtype=np.float64)
+    S = np.zeros((*r.shape[:-1], 3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -r[..., 2], r[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = r[..., 2], -r[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -r[..., 1], r[..., 0]
+    return S
+
+
+def arm_map(r) -> np.ndarray:
+    """``A = [[I, -[r]x], [0, I]]``: a rigid body's small displacement carried from one point to another.
+
+    The body's displacement ``delta = (u mm, theta rad)`` at a point O (a translation and a
+    rotation vector, base frame) moves the point ``O + r`` by ``u + theta x r`` and turns it
+    by theta: ``(u + theta x r, theta) = A delta``. A wrench w at ``O + r`` is ``A^T w`` at O
+    (the moment gains ``r x F``).
+
+    Parameters
+    ----------
+    r : array_like, shape (..., 3), mm
+
+    Returns
+    -------
+    ndarray, shape (..., 6, 6)
+    """
+    r = np.asarray(r, dtype=np.float64)
+    A = np.zeros((*r.shape[:-1], 6, 6))
+    A[..., :3, :3] = np.eye(3)
+    A[..., 3:, 3:] = np.eye(3)
+    A[..., :3, 3:] = -skew(r)
+    return A
+
+
+def _rows_scale(length_mm: float) -> np.ndarray:
+    """``S = diag(1, 1, 1, L, L, L)``: a twist's rotation rows in mm (a rad counts as L mm)."""
+    return np.array([1.0, 1.0, 1.0, length_mm, length_mm, length_mm])
+
+
+def platform_stiffness6(
+    springs, k, passive, arms, valid, *, length_mm: float = 1.0, compliance=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The 6 x 6 stiffness of a platform that turns, from its legs: ``K6 = sum A_i^T K_leg,i A_i``.
+
+    Each leg's columns are 6-D at its platform joint (rows: the joint centre's velocity, mm
+    per joint unit, then the angular velocity, rad per joint unit, base frame), passive
+    columns including the platform joint's free rotations. :func:`leg_stiffness` in 6-D gives
+    the leg's stiffness at its platform joint over the wrenches it holds (a 6-UPS leg: its
+    axial force; a 3-RPS leg: the forces along it and across its plane; a universal platform
+    joint adds the moment about its cross's normal); :func:`arm_map` carries it to the tool
+    point, where the legs add up (the virtual joint method in 6-D).
+
+    Rank decisions (:func:`constrained_directions`) and rigidity judge a twist with its
+    rotation rows times ``length_mm``, so that rad and mm weigh alike at the robot's size; K6
+    itself does not depend on that length.
+
+    Parameters
+    ----------
+    springs : ndarray, shape (N, legs, 6, s)
+        Spring columns (actuated and spring joints) of every leg at every pose; pad with zero
+        columns, NaN allowed where ``valid`` is False.
+    k : array_like, shape (legs, s) or (N, legs, s)
+        Their stiffnesses, N*mm/rad or N/mm (``inf`` rigid, and for padding).
+    passive : ndarray, shape (N, legs, 6, p)
+        Passive columns, the platform joint's rotations among them (pad with zero columns).
+    arms : ndarray, shape (N, legs, 3), mm
+        From the tool point to each leg's platform joint, base frame.
+    valid : ndarray of bool, shape (N,)
+        Poses to assemble.
+    length_mm : float
+        The robot's size, for the rank decisions.
+    compliance : ndarray, shape (N, legs, 6, 6), optional
+        Extra compliance of each leg at its platform joint (:func:`leg_stiffness`), mm/N,
+        1/N and rad/(N*mm) blocks.
+
+    Returns
+    -------
+    K6 : ndarray, shape (N, 6, 6)
+        N/mm, N and N*mm/rad blocks, at the tool point, base frame; exactly symmetric; zero
+        where ``valid`` is False, NaN where a leg is rigid.
+    rigid : ndarray of bool, shape (N, legs)
+        Legs with no compliance along a wrench they hold (False where not ``valid``).
+    """
+    Js = np.asarray(springs, dtype=np.float64)
+    n, nlegs = Js.shape[:2]
+    kk = np.asarray(k, dtype=np.float64)
+    K6 = np.zeros((n, 6, 6))
+    rigid = np.zeros((n, nlegs), dtype=bool)
+    if not np.any(valid):
+        return K6, rigid
+    S = _rows_scale(float(length_mm))
+    Jp = np.asarray(passive, dtype=np.float64)[valid] * S[:, None]
+    U, held = constrained_directions(Jp)
+    extra = None
+    if compliance is not None:
+        extra = np.asarray(compliance, dtype=np.float64)[valid] * S[:, None] * S[None, :]
+    Kl, rl = leg_stiffness(Js[valid] * S[:, None], kk[valid] if kk.ndim == 3 else kk, U, held, extra)
+    Kl = Kl * S[:, None] * S[None, :]  # back from the scaled twists: K = S K' S
+    A = arm_map(np.asarray(arms, dtype=np.float64)[valid])
+    K = np.einsum("nlji,nljk,nlkm->nim", A, Kl, A)
+    K6[valid] = 0.5 * (K + np.swapaxes(K, 1, 2))
+    rigid[valid] = rl
+    return K6, rigid
+
+
+def held_wrench_condition(passive, arms, reachable, *, length_mm: float = 1.0) -> np.ndarray:
+    """The parallel-singularity measure of a platform that turns: the inverse condition number
+    of every leg's held wrenches carried to the tool point.
+
+    The wrenches a leg holds (the complement of its passive columns, :func:`constrained_directions`)
+    are what it can push the platform with; stacked over the legs at the tool point (moments
+    divided by ``length_mm``) they span the six directions away from a parallel singularity
+    (Gosselin and Angeles' type II: a hexapod's Jacobian losing rank), and their smallest over
+    largest singular value, counted over six, is 0 there (and where the legs hold fewer than six).
+
+    Parameters
+    ----------
+    passive : ndarray, shape (N, legs, 6, p)
+    arms : ndarray, shape (N, legs, 3), mm
+    reachable : ndarray of bool, shape (N,)
+    length_mm : float
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        In [0, 1]; NaN where not ``reachable``.
+    """
+    out = np.full(reachable.shape, np.nan)
+    if not np.any(reachable):
+        return out
+    S = _rows_scale(float(length_mm))
+    U, held = constrained_directions(np.asarray(passive, dtype=np.float64)[reachable] * S[:, None])
+    W = U * held[..., None, :]  # (n, legs, 6, 6): held wrenches (f, m / L) as columns
+    A = arm_map(np.asarray(arms, dtype=np.float64)[reachable] / float(length_mm))
+    Wt = np.swapaxes(A, -1, -2) @ W  # at the tool point: (f, m / L + (r / L) x f)
+    Z = np.swapaxes(Wt, 1, 2).reshape(Wt.shape[0], 6, -1)
+    lam = np.clip(np.linalg.eigvalsh(Z @ np.swapaxes(Z, 1, 2)), 0.0, None)
+    top = np.where(lam[:, -1] > 0, lam[:, -1], 1.0)
+    out[reachable] = np.where(lam[:, -1] > 0, np.sqrt(lam[:, 0] / top), 0.0)
+    return out
+
+
+def force_moment_stiffness(K6) -> tuple[np.ndarray, np.ndarray]:
+    """The stiffness a pure force sees and the one a pure moment sees, from K6.
+
+    ``C6 = K6^-1``; a pure force F moves the tool point by ``C6[:3, :3] F`` (the platform free
+    to turn), so ``K = (C6[:3, :3])^-1``, N/mm -- what the vision path measures with a force
+    at the tool point; a pure moment turns the platform by ``C6[3:, 3:] M``, so
+    ``K_rot = (C6[3:, 3:])^-1``, N*mm/rad. Neither is a block of K6 unless the blocks decouple.
+
+    Parameters
+    ----------
+    K6 : array_like, shape (..., 6, 6)
+        Invertible.
+
+    Returns
+    -------
+    K : ndarray, shape (..., 3, 3), N/mm
+    K_rot : ndarray, shape (..., 3, 3), N*mm/rad
+    """
+    K6 = np.asarray(K6, dtype=np.float64)
+    C = np.linalg.inv(K6)
+    K = np.linalg.inv(0.5 * (C[..., :3, :3] + np.swapaxes(C[..., :3, :3], -1, -2)))
+    Kr = np.linalg.inv(0.5 * (C[..., 3:, 3:] + np.swapaxes(C[..., 3:, 3:], -1, -2)))
+    return 0.5 * (K + np.swapaxes(K, -1, -2)), 0.5 * (Kr + np.swapaxes(Kr, -1, -2))
+
+
 def stiffness_of(mechanism, points) -> np.ndarray:
     """``mechanism.stiffness(points)`` from its map: K (N/mm) at every pose, which must all be valid.
 
@@ -594,14 +871,16 @@ def static_error_of(mechanism, points, force) -> np.ndarray:
     Parameters
     ----------
     points : array_like, shape (N, dim) or (dim,), mm
-    force : array_like, shape (dim,) or (N, dim), N
+    force : array_like, shape (d,) or (N, d), N
+        d = dim, or 3 for a robot whose poses have six coordinates.
 
     Returns
     -------
-    ndarray, shape (N, dim) or (dim,), mm
+    ndarray, shape (N, d) or (d,), mm
     """
     P, single = as_points(points, mechanism.dim)
-    F = as_forces(force, P.shape[0], mechanism.dim)
+    d = 3 if mechanism.dim == POSE_DIM else mechanism.dim  # a pose of six: a force of three
+    F = as_forces(force, P.shape[0], d)
     K = mechanism.stiffness(P)
     u = np.linalg.solve(K, F[..., None])[..., 0]
     return u[0] if single else u
@@ -683,14 +962,28 @@ class LegMechanism:
             )
 
         valid = flag_singular(legs.reachable, serial, parallel, tol, reasons, serial_reason, parallel_reason)
-        K, rigid = platform_stiffness(*self._leg_joints(legs), valid)
+        K, rigid, six = self._assemble(legs, valid)
         for i in np.flatnonzero(np.any(rigid, axis=1)):  # every spring along a held direction rigid
             which = [str(j + 1) for j in np.flatnonzero(rigid[i])]
             legs_ = ("leg " if len(which) == 1 else "legs ") + ", ".join(which)
             reasons[i] = f"singular: {legs_} rigid along a direction held (no finite spring acts there)"
             valid[i] = False
+        for i in np.flatnonzero(valid & ~np.all(np.isfinite(K), axis=(1, 2))):
+            reasons[i] = "singular: the legs do not hold the platform in every direction (K6 singular)"
+            valid[i] = False
         cond = np.where(legs.reachable, np.fmin(serial, parallel), np.nan)
-        return model_map(self.name, self.params(), P, K, valid, reasons, self._joint_coordinates(legs), cond)
+        return model_map(
+            self.name, self.params(), P, K, valid, reasons, self._joint_coordinates(legs), cond, **six
+        )
+
+    def _assemble(self, legs, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """K (N/mm) of the valid poses from the legs, the rigid legs, and extra map fields.
+
+        The platform translates: :func:`platform_stiffness` (a robot whose platform turns
+        overrides this with :func:`platform_stiffness6` and gives ``K6``).
+        """
+        K, rigid = platform_stiffness(*self._leg_joints(legs), valid)
+        return K, rigid, {}
 
     def _valid_legs(self, points) -> tuple[Any, bool]:
         """The legs of poses that must all be valid (PoseError naming the first that is not).

@@ -2,53 +2,63 @@
 
 One home for the rigid-body kinematics of every robot stiffmap models from a
 description rather than from closed-form equations: a serial arm read from a
-URDF (:meth:`Chain.from_urdf`), or one leg of a parallel robot described by its
+URDF (:meth:`Chain.from_urdf`, xacro too), or one leg of a parallel robot described by its
 joints (:meth:`Chain.from_joints`). Pinocchio (``pin`` on PyPI) does the work:
 forward kinematics, and the 6 x n Jacobian of the *measured point* (a link frame
 plus an offset), analytic and checked against finite differences in the tests.
 
-Units. A URDF is in metres; the chain scales its model to millimetres once, at
-load, so everything it returns is in stiffmap's units (``docs/conventions.md``):
-positions mm, revolute joints rad, prismatic joints mm. The Jacobian's first three
-rows are the measured point's velocity (mm per rad, or mm per mm for a prismatic
-joint), the last three the angular velocity (rad per joint unit), all in the
-base frame (Pinocchio's ``LOCAL_WORLD_ALIGNED``).
+Units. A URDF is in metres; the chain is built in millimetres, so everything it returns
+is in stiffmap's units (``docs/conventions.md``): positions mm, revolute joints rad,
+prismatic joints mm. The Jacobian's first three rows are the measured point's velocity
+(mm per rad, or mm per mm for a prismatic joint), the last three the angular velocity
+(rad per joint unit), all in the base frame (Pinocchio's ``LOCAL_WORLD_ALIGNED``).
 
-Joints. Only the joints that move the measured point count, in the order of the
-chain from the base (the URDF's joint order along that branch); joints on other
-branches are held at zero. Revolute, continuous and prismatic joints are
-accepted; a floating or planar joint is refused, by name.
+Which joints count (a URDF as published, ``docs/models.md``). Only the kinematic tree
+counts (:mod:`~stiffmap.models.robot_files` reads it): the chain is the path of joints
+from the *base frame* (the root link, or the link given as ``base_frame``) down to the
+tip frame. Joints off that path never matter, whatever their type (a mobile base's
+wheels, the other arm, a hand's fingers). On it, revolute, continuous and prismatic
+joints move, fixed joints are rigid, and a joint with ``<mimic>`` follows its leader:
+its coordinate is ``multiplier * q(leader) + offset``, not a coordinate of the chain
+(:attr:`Chain.mimic_names`). The chain's coordinates (:attr:`Chain.joint_names`) are its
+moving joints that follow nobody, in the order of the path, and the leaders of its mimic
+joints (a leader off the path, e.g. a gripper's first finger, takes the place of its
+first follower). A floating or planar joint on the path is refused, by name. Joints
+between the root and ``base_frame`` are held (at zero: the measurements are expressed in
+the base frame, so they move nothing measured); a mimic joint on the path whose leader is
+held is held too, at its offset.
 
-Bad input (``InputError`` naming the file and the item): a file that is not
-XML, or not a URDF Pinocchio can read (its parser's message is kept); a tip frame
-the URDF does not have (its links are listed); a configuration of the wrong
-length.
+Bad input (``InputError`` naming the file and the element): see
+:mod:`~stiffmap.models.robot_files` for the file; here a tip or base frame the URDF does
+not have (its links are listed), a tip not below the base, a joint on the path of a type
+that cannot be modelled or with a malformed element, a mimic naming a joint the file does
+not define or a mimic loop, a configuration of the wrong length.
 """
 
 from __future__ import annotations
 
 import math
 import os
-import tempfile
-import xml.etree.ElementTree as ET
-from collections.abc import Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import InputError
-from ..io import read_text_file
+from ..stiffness import MAX_POSITION_MM
+from .robot_files import MOVING_TYPES, UrdfJoint, UrdfTree, read_urdf
 
-__all__ = ["Chain", "JointSpec", "IKResult", "M_TO_MM", "JOINT_TYPES"]
+__all__ = ["Chain", "JointSpec", "IKResult", "Mimic", "M_TO_MM", "JOINT_TYPES"]
 
 #: URDF lengths are metres; stiffmap's are millimetres.
 M_TO_MM = 1000.0
-#: The joint types a chain accepts (URDF's names; "continuous" is an unlimited revolute joint).
-JOINT_TYPES = ("revolute", "continuous", "prismatic")
+#: The joint types a chain moves with (URDF's names; "continuous" is an unlimited revolute joint).
+JOINT_TYPES = MOVING_TYPES
 
 _TIP = "stiffmap_measured_point"
+#: How many link names an error lists before saying how many more there are.
+_LIST_MAX = 60
 
 
 @dataclass(frozen=True)
@@ -76,6 +86,33 @@ class JointSpec:
 
 
 @dataclass(frozen=True)
+class Mimic:
+    """A joint of the chain that follows another: ``q = multiplier * q[leader] + offset``.
+
+    Attributes
+    ----------
+    name : str
+        The mimic joint.
+    leader : int or None
+        Index of the coordinate it follows (:attr:`Chain.joint_names`); None when it is held
+        (its leader is above the base frame), at ``offset``.
+    multiplier, offset : float
+        Composed along a mimic of a mimic; ``offset`` in rad, or mm for a prismatic joint.
+    type : {"revolute", "prismatic"}
+    lower, upper : float
+        Its own limits (rad or mm).
+    """
+
+    name: str
+    leader: int | None
+    multiplier: float
+    offset: float
+    type: str
+    lower: float
+    upper: float
+
+
+@dataclass(frozen=True)
 class IKResult:
     """A configuration found by :meth:`Chain.inverse`.
 
@@ -98,30 +135,27 @@ class IKResult:
     iterations: int
 
 
-@contextmanager
-def _captured_stderr():
-    """Collect what C++ code writes on file descriptor 2 (urdfdom's parser messages)."""
-    box: list[str] = []
-    try:
-        saved = os.dup(2)
-    except OSError:  # no usable stderr: nothing to capture
-        yield box
-        return
-    with tempfile.TemporaryFile(mode="w+b") as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield box
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            box.append(tmp.read().decode("utf-8", "replace"))
+@dataclass(frozen=True)
+class _Mover:
+    """A moving joint of the chain as built: its placement after the previous one (mm)."""
+
+    name: str
+    type: str  # "revolute" or "prismatic"
+    axis: np.ndarray
+    placement: pin.SE3
+    lower: float
+    upper: float
 
 
-def _parser_message(text: str) -> str:
-    """urdfdom's messages without its source-file locations, on one line."""
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.strip().startswith("at line")]
-    return "; ".join(ln.removeprefix("Error:").strip() for ln in lines)
+@dataclass(frozen=True)
+class _Coord:
+    """A coordinate of the chain: a moving joint that follows nobody (row -1: off the path)."""
+
+    name: str
+    type: str
+    lower: float
+    upper: float
+    row: int
 
 
 def _rpy_matrix(rpy) -> np.ndarray:
@@ -129,10 +163,153 @@ def _rpy_matrix(rpy) -> np.ndarray:
     return pin.rpy.rpyToMatrix(r, p, y)
 
 
-class Chain:
-    """A serial kinematic chain in mm, from the base to a measured point.
+def _placement_mm(j: UrdfJoint) -> pin.SE3:
+    """A URDF joint's origin as a placement in mm."""
+    return pin.SE3(_rpy_matrix(j.rpy), np.asarray(j.xyz, dtype=float) * M_TO_MM)
 
-    Build it with :meth:`from_urdf` or :meth:`from_joints`.
+
+def _listing(names: Sequence[str]) -> str:
+    if len(names) <= _LIST_MAX:
+        return ", ".join(names) or "(none)"
+    return ", ".join(names[:_LIST_MAX]) + f", ... ({len(names) - _LIST_MAX} more)"
+
+
+def _link_of(tree: UrdfTree, frame: str, what: str) -> str:
+    """The link a frame name stands for: a link, or a joint (its child link, the same frame)."""
+    if frame in tree.links:
+        return frame
+    if frame in tree.joints:
+        return tree.joints[frame].child
+    raise InputError(
+        f"no frame {frame!r} for {what}; the links are: {_listing(tree.links)}", source=tree.source
+    )
+
+
+def _chain_path(tree: UrdfTree, tip: str, base: str | None) -> tuple[str, list[str], list[str]]:
+    """(base link, joints held above it, joints from it to ``tip``) of a tree."""
+    path = tree.path_to(tip)
+    root = tree.joints[path[0]].parent if path else tip
+    if base is None or base == root:
+        return root, [], path
+    for i, jn in enumerate(path):
+        if tree.joints[jn].child == base:
+            return base, path[: i + 1], path[i + 1 :]
+    links = [root] + [tree.joints[jn].child for jn in path]
+    raise InputError(
+        f"tip frame {tip!r} is not below base frame {base!r}: the chain from the root {root!r} to {tip!r} "
+        f"passes through links {', '.join(links)}; {base!r} is on another branch (choose a base frame "
+        "among those links)",
+        source=tree.source,
+    )
+
+
+def _check_on_path(tree: UrdfTree, j: UrdfJoint, base: str, tip: str) -> None:
+    where = f"joint {j.name!r} (on the chain from {base!r} to {tip!r})"
+    if j.problem:
+        raise InputError(f"{where}: {j.problem}", source=tree.source)
+    if j.type in ("floating", "planar"):
+        dof = 6 if j.type == "floating" else 3
+        raise InputError(
+            f"{where} is {j.type} ({dof} degrees of freedom, no spring a stiffness model can give): "
+            f"choose a base frame below it (--base {j.child}, campaign.toml base_frame) or make it fixed",
+            source=tree.source,
+        )
+
+
+def _leader_of(tree: UrdfTree, j: UrdfJoint) -> tuple[str, float, float]:
+    """(ultimate leader, multiplier, offset) of a mimic joint, following mimics of mimics."""
+    mult, off, at, seen = 1.0, 0.0, j, [j.name]
+    while at.mimic is not None:
+        m = at.mimic
+        leader = tree.joints.get(m.joint)
+        if leader is None:
+            raise InputError(
+                f"joint {at.name!r}: <mimic joint={m.joint!r}> names a joint the file does not define",
+                source=tree.source,
+            )
+        if leader.name in seen:
+            raise InputError(
+                f"joint {j.name!r}: mimic loop {' -> '.join([*seen, leader.name])}: no joint leads",
+                source=tree.source,
+            )
+        if leader.type not in MOVING_TYPES or leader.problem:
+            why = leader.problem or f"is {leader.type}: it does not move"
+            raise InputError(
+                f"joint {at.name!r}: <mimic joint={m.joint!r}>: joint {m.joint!r} {why}", source=tree.source
+            )
+        scale = M_TO_MM if at.type == "prismatic" else 1.0
+        lead_scale = M_TO_MM if leader.type == "prismatic" else 1.0
+        # q_at = m.multiplier * q_leader + m.offset (file units); composed in mm and rad.
+        off = off + mult * m.offset * scale
+        mult = mult * m.multiplier * scale / lead_scale
+        seen.append(leader.name)
+        at = leader
+    return at.name, mult, off
+
+
+def _limits_mm(j: UrdfJoint) -> tuple[float, float]:
+    s = M_TO_MM if j.type == "prismatic" else 1.0
+    return j.lower * s, j.upper * s
+
+
+def _kind(jtype: str) -> str:
+    return "prismatic" if jtype == "prismatic" else "revolute"
+
+
+def _check_offset(tip_offset_mm, source: str) -> np.ndarray:
+    off = np.asarray(tip_offset_mm, dtype=float)
+    if off.shape != (3,) or not np.all(np.isfinite(off)) or np.max(np.abs(off)) > MAX_POSITION_MM:
+        raise InputError(
+            f"tip offset must be three finite numbers within {MAX_POSITION_MM:g} mm, got {tip_offset_mm!r}",
+            source=source,
+        )
+    return off
+
+
+def _coordinates(
+    tree: UrdfTree, movers: Sequence[_Mover], held: set[str]
+) -> tuple[list[_Coord], list[Mimic], list[int]]:
+    """The chain's coordinates (path order; a leader off the path at its first follower's place)
+    and its mimic joints with their rows among the movers."""
+    rows = {mv.name: k for k, mv in enumerate(movers)}
+    lead = {
+        k: _leader_of(tree, tree.joints[mv.name]) for k, mv in enumerate(movers) if tree.joints[mv.name].mimic
+    }
+    order: dict[str, int] = {}
+    for k, mv in enumerate(movers):
+        name = lead[k][0] if k in lead else mv.name
+        if name in held:
+            continue
+        key = rows.get(name, k)
+        order[name] = min(order.get(name, key), key)
+    coords = []
+    for name in sorted(order, key=order.__getitem__):
+        if name in rows:
+            mv = movers[rows[name]]
+            coords.append(_Coord(name, mv.type, mv.lower, mv.upper, rows[name]))
+        else:
+            j = tree.joints[name]
+            coords.append(_Coord(name, _kind(j.type), *_limits_mm(j), -1))
+    index = {c.name: i for i, c in enumerate(coords)}
+    mimics = [
+        Mimic(
+            movers[k].name,
+            index.get(lead[k][0]),
+            lead[k][1],
+            lead[k][2],
+            movers[k].type,
+            movers[k].lower,
+            movers[k].upper,
+        )
+        for k in sorted(lead)
+    ]
+    return coords, mimics, sorted(lead)
+
+
+class Chain:
+    """A serial kinematic chain in mm, from the base frame to a measured point.
+
+    Build it with :meth:`from_urdf` (:meth:`from_tree`) or :meth:`from_joints`.
 
     Attributes
     ----------
@@ -141,95 +318,188 @@ class Chain:
     source : str
         Where it came from (the URDF's path, or ``name``), for messages.
     joint_names : tuple of str
-        The joints that move the measured point, base first.
+        The chain's coordinates: the joints that move the measured point and follow
+        nobody, base first (module docstring).
     joint_types : tuple of str
         ``"revolute"`` or ``"prismatic"`` for each (a continuous joint is revolute).
+    mimics : tuple of Mimic
+        The joints on the chain that follow another (:attr:`mimic_names`).
+    base_frame : str
+        The link the base frame is (the URDF's root, or the one chosen).
+    root_frame : str
+        The root of the URDF's tree above the tip (the base frame when none is chosen).
+    urdf_text : str
+        The URDF the chain was read from (a xacro file expanded; "" for :meth:`from_joints`).
+    held_joints : tuple of str
+        Moving joints between the root and the base frame (held; not coordinates).
     tip_frame : str
         The link frame the measured point is attached to.
     tip_offset_mm : ndarray, shape (3,)
         The measured point in that frame, mm.
     lower, upper : ndarray, shape (n,)
         Joint limits (rad or mm; -inf / inf where the URDF gives none).
+    link_names : tuple of str
+        The links of the chain, from the base frame to the tip frame.
+    urdf_joint_names : tuple of str
+        Every joint of the URDF (for messages naming a joint that is not a coordinate).
     """
 
     def __init__(
-        self, model: pin.Model, frame_id: int, *, name: str, source: str, tip_frame: str, tip_offset_mm
+        self,
+        movers: Sequence[_Mover],
+        tip_placement: pin.SE3,
+        *,
+        name: str,
+        source: str,
+        tip_frame: str,
+        tip_offset_mm,
+        coords: Sequence[_Coord] | None = None,
+        mimics: Sequence[Mimic] = (),
+        mimic_rows: Sequence[int] = (),
+        links: Mapping[str, tuple[int, pin.SE3]] | None = None,
+        base_frame: str = "base",
+        root_frame: str | None = None,
+        held: Sequence[str] = (),
+        all_joints: Sequence[str] = (),
+        urdf_text: str = "",
     ):
+        model = pin.Model()
+        model.name = name
+        parent = 0
+        for mv in movers:
+            jm = (
+                pin.JointModelPrismaticUnaligned
+                if mv.type == "prismatic"
+                else pin.JointModelRevoluteUnaligned
+            )(mv.axis)
+            parent = model.addJoint(parent, jm, mv.placement, mv.name)
         self._model = model
         self._data = model.createData()
-        self._fid = int(frame_id)
+        off = np.asarray(tip_offset_mm, dtype=float)
+        tip = pin.Frame(_TIP, parent, 0, tip_placement * pin.SE3(np.eye(3), off), pin.FrameType.OP_FRAME)
+        self._fid = int(model.addFrame(tip))
+        self._data = model.createData()
+        nf = len(movers)
+        if coords is None:
+            coords = [_Coord(mv.name, mv.type, mv.lower, mv.upper, k) for k, mv in enumerate(movers)]
+        # Full coordinates (every moving joint of the chain) from the chain's: qf = G q + b.
+        G = np.zeros((nf, len(coords)))
+        b = np.zeros(nf)
+        for i, c in enumerate(coords):
+            if c.row >= 0:
+                G[c.row, i] = 1.0
+        for mm, row in zip(mimics, mimic_rows, strict=True):
+            if mm.leader is not None:
+                G[row, mm.leader] = mm.multiplier
+            b[row] = mm.offset
+        self._G, self._b = G, b
+        self._mimic_rows = np.asarray(mimic_rows, dtype=int)
         self.name = name
         self.source = source
         self.tip_frame = tip_frame
-        self.tip_offset_mm = np.asarray(tip_offset_mm, dtype=float).copy()
+        self.tip_offset_mm = off.copy()
         self.tip_offset_mm.setflags(write=False)
-        names, types, lower, upper = [], [], [], []
-        for jid in range(1, model.njoints):
-            j = model.joints[jid]
-            names.append(model.names[jid])
-            short = j.shortname()
-            types.append("prismatic" if short.startswith("JointModelP") else "revolute")
-            if j.nq == 1:
-                lower.append(float(model.lowerPositionLimit[j.idx_q]))
-                upper.append(float(model.upperPositionLimit[j.idx_q]))
-            else:  # continuous: no limit
-                lower.append(-math.inf)
-                upper.append(math.inf)
-        big = 1e300
-        self.joint_names = tuple(names)
-        self.joint_types = tuple(types)
-        self.lower = np.where(np.asarray(lower) < -big, -math.inf, lower)
-        self.upper = np.where(np.asarray(upper) > big, math.inf, upper)
-        self._plain = model.nq == model.nv  # no continuous joint: q is the joint coordinates
-        self._neutral = pin.neutral(model)
+        self.mimics = tuple(mimics)
+        self.base_frame = base_frame
+        self.root_frame = base_frame if root_frame is None else root_frame
+        self.urdf_text = urdf_text
+        self.held_joints = tuple(held)
+        self.urdf_joint_names = tuple(all_joints)
+        self._links = dict(links or {})
+        self.link_names = tuple(self._links)
+        self.joint_names = tuple(c.name for c in coords)
+        self.joint_types = tuple(c.type for c in coords)
+        self.lower = np.array([c.lower for c in coords], dtype=float)
+        self.upper = np.array([c.upper for c in coords], dtype=float)
+        self._neutral = np.zeros(nf)
 
     # ------------------------------------------------------------------ construction
 
     @classmethod
-    def from_urdf(cls, path: str | os.PathLike, tip_frame: str, tip_offset_mm=(0.0, 0.0, 0.0)) -> Chain:
-        """Read a URDF and attach the measured point to one of its frames.
+    def from_urdf(
+        cls,
+        path: str | os.PathLike,
+        tip_frame: str,
+        tip_offset_mm=(0.0, 0.0, 0.0),
+        *,
+        base_frame: str | None = None,
+        xacro_args: Mapping[str, str] | None = None,
+        package_paths: Sequence[str | os.PathLike] = (),
+    ) -> Chain:
+        """Read a URDF (or xacro) and attach the measured point to one of its frames.
 
         Parameters
         ----------
         path : path-like
-            The URDF file (lengths in metres).
+            The URDF file (lengths in metres), or a ``.xacro`` one
+            (:func:`~stiffmap.models.robot_files.read_urdf`).
         tip_frame : str
-            A link (or other frame) of the URDF that carries the measured point.
+            A link of the URDF (or a joint: its child link) that carries the measured point.
         tip_offset_mm : array_like, shape (3,), mm
             The measured point in that frame.
+        base_frame : str, optional
+            The link the measurements are expressed in (default: the root of the tip's tree).
+        xacro_args, package_paths
+            For a xacro file: ``xacro:arg`` values and the folders of ``$(find PKG)``.
 
         Raises
         ------
         InputError
-            Naming the file: not XML, not a URDF, a joint type stiffmap does not
-            take, an unknown tip frame (the links are listed), no joint moving it.
+            Naming the file and the element (module docstring).
         """
-        src = str(path)
-        text = read_text_file(path, "URDF file")
-        try:
-            root = ET.fromstring(text)
-        except ET.ParseError as e:
-            raise InputError(f"not a valid XML file ({e})", source=src) from None
-        if root.tag != "robot":
-            raise InputError(f"not a URDF: the root element is <{root.tag}>, expected <robot>", source=src)
-        for j in root.iter("joint"):
-            jt = j.get("type", "")
-            if jt not in JOINT_TYPES + ("fixed",):
-                raise InputError(
-                    f"joint {j.get('name')!r} is of type {jt!r}; stiffmap takes revolute, continuous, "
-                    "prismatic and fixed joints",
-                    source=src,
-                )
-        with _captured_stderr() as err:
-            try:
-                model = pin.buildModelFromXML(text)
-            except (ValueError, RuntimeError) as e:
-                model = None
-                reason = str(e)
-        if model is None:
-            said = _parser_message(err[0] if err else "")
-            raise InputError(f"not a URDF Pinocchio can read: {said or reason}", source=src) from None
-        return cls._attach(model, tip_frame, tip_offset_mm, name=root.get("name", "robot"), source=src)
+        tree = read_urdf(path, xacro_args=xacro_args, package_paths=package_paths)
+        return cls.from_tree(tree, tip_frame, tip_offset_mm, base_frame=base_frame)
+
+    @classmethod
+    def from_tree(
+        cls, tree: UrdfTree, tip_frame: str, tip_offset_mm=(0.0, 0.0, 0.0), *, base_frame: str | None = None
+    ) -> Chain:
+        """The chain from ``base_frame`` (default the root) to ``tip_frame`` of a URDF's tree.
+
+        See :meth:`from_urdf`; ``tree`` is :func:`~stiffmap.models.robot_files.parse_urdf`'s.
+        """
+        off = _check_offset(tip_offset_mm, tree.source)
+        tip = _link_of(tree, tip_frame, "the measured point")
+        base = None if base_frame is None else _link_of(tree, base_frame, "the base frame")
+        base, held, path = _chain_path(tree, tip, base)
+        movers: list[_Mover] = []
+        links: dict[str, tuple[int, pin.SE3]] = {base: (0, pin.SE3.Identity())}
+        acc = pin.SE3.Identity()  # placement after the last mover (or the base)
+        for jn in path:
+            j = tree.joints[jn]
+            _check_on_path(tree, j, base, tip)
+            acc = acc * _placement_mm(j)
+            if j.type in MOVING_TYPES:
+                ax = np.asarray(j.axis, dtype=float)
+                ax = ax / np.max(np.abs(ax))  # (1e308, 0, 0) is an axis too: no overflow in its norm
+                lo, hi = _limits_mm(j)
+                movers.append(_Mover(j.name, _kind(j.type), ax / np.linalg.norm(ax), acc, lo, hi))
+                acc = pin.SE3.Identity()
+            links[j.child] = (len(movers), acc)
+        if not movers:
+            raise InputError(
+                f"no joint moves frame {tip_frame!r} (from base frame {base!r}): its stiffness cannot be "
+                "modelled",
+                source=tree.source,
+            )
+        coords, mimics, rows = _coordinates(tree, movers, set(held))
+        return cls(
+            movers,
+            acc,
+            name=tree.name,
+            source=tree.source,
+            tip_frame=tip_frame,
+            tip_offset_mm=off,
+            coords=coords,
+            mimics=mimics,
+            mimic_rows=rows,
+            links=links,
+            base_frame=base,
+            root_frame=tree.joints[held[0]].parent if held else base,
+            held=[h for h in held if tree.joints[h].type in MOVING_TYPES],
+            all_joints=tuple(tree.joints),
+            urdf_text=tree.text,
+        )
 
     @classmethod
     def from_joints(
@@ -247,9 +517,7 @@ class Chain:
         """
         if not joints:
             raise InputError(f"{name}: a chain needs at least one joint")
-        model = pin.Model()
-        model.name = name
-        parent = 0
+        movers = []
         seen: set[str] = set()
         for j in joints:
             if j.name in seen:
@@ -261,12 +529,7 @@ class Chain:
                 raise InputError(
                     f"{name}: joint {j.name!r}: axis must be three numbers, not all zero, got {j.axis!r}"
                 )
-            axis = axis / nrm
-            if j.type in ("revolute", "continuous"):
-                jm = pin.JointModelRevoluteUnaligned(axis)
-            elif j.type == "prismatic":
-                jm = pin.JointModelPrismaticUnaligned(axis)
-            else:
+            if j.type not in ("revolute", "continuous", "prismatic"):
                 raise InputError(
                     f"{name}: joint {j.name!r}: type must be revolute or prismatic, got {j.type!r}"
                 )
@@ -280,69 +543,21 @@ class Chain:
                 raise InputError(
                     f"{name}: joint {j.name!r}: xyz_mm and rpy must be three finite numbers each"
                 )
-            parent = model.addJoint(parent, jm, pin.SE3(_rpy_matrix(rpy), xyz), j.name)
-            model.addJointFrame(parent)
-        last = model.frames[-1].name
-        return cls._attach(model, last, tip_offset_mm, name=name, source=name, scale=1.0)
-
-    @classmethod
-    def _attach(
-        cls,
-        model: pin.Model,
-        tip_frame: str,
-        tip_offset_mm,
-        *,
-        name: str,
-        source: str,
-        scale: float = M_TO_MM,
-    ) -> Chain:
-        off = np.asarray(tip_offset_mm, dtype=float)
-        if off.shape != (3,) or not np.all(np.isfinite(off)):
-            raise InputError(
-                f"tip offset must be three finite numbers (mm), got {tip_offset_mm!r}", source=source
-            )
-        if not model.existFrame(tip_frame):
-            links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-            raise InputError(
-                f"no frame {tip_frame!r} for the measured point; the links are: "
-                f"{', '.join(links) or '(none)'}",
-                source=source,
-            )
-        for jid in range(1, model.njoints):
-            if model.joints[jid].nv != 1:
-                raise InputError(
-                    f"joint {model.names[jid]!r} has {model.joints[jid].nv} degrees of freedom; "
-                    "stiffmap takes one-degree-of-freedom joints (revolute, continuous, prismatic)",
-                    source=source,
-                )
-        fid = model.getFrameId(tip_frame)
-        parent = model.frames[fid].parentJoint
-        keep = set(int(j) for j in model.supports[parent]) - {0}
-        lock = [jid for jid in range(1, model.njoints) if jid not in keep]
-        if lock:
-            model = pin.buildReducedModel(model, lock, pin.neutral(model))
-            fid = model.getFrameId(tip_frame)
-        if model.njoints < 2:
-            raise InputError(
-                f"no joint moves frame {tip_frame!r}: its stiffness cannot be modelled", source=source
-            )
-        if scale != 1.0:  # metres to mm, once
-            for jid in range(1, model.njoints):
-                pl = model.jointPlacements[jid]
-                pl.translation = pl.translation * scale
-                if model.joints[jid].shortname().startswith("JointModelP"):
-                    iq = model.joints[jid].idx_q
-                    for lim in (model.lowerPositionLimit, model.upperPositionLimit):
-                        if abs(lim[iq]) < 1e300:
-                            lim[iq] *= scale
-            for f in model.frames:
-                f.placement.translation = f.placement.translation * scale
-        base = model.frames[fid]
-        tip = pin.Frame(
-            _TIP, base.parentJoint, fid, base.placement * pin.SE3(np.eye(3), off), pin.FrameType.OP_FRAME
+            pl = pin.SE3(_rpy_matrix(rpy), xyz)
+            movers.append(_Mover(j.name, _kind(j.type), axis / nrm, pl, -math.inf, math.inf))
+        off = _check_offset(tip_offset_mm, name)
+        links = {"base": (0, pin.SE3.Identity())} | {
+            mv.name: (k + 1, pin.SE3.Identity()) for k, mv in enumerate(movers)
+        }
+        return cls(
+            movers,
+            pin.SE3.Identity(),
+            name=name,
+            source=name,
+            tip_frame=movers[-1].name,
+            tip_offset_mm=off,
+            links=links,
         )
-        tid = model.addFrame(tip)
-        return cls(model, tid, name=name, source=source, tip_frame=tip_frame, tip_offset_mm=off)
 
     # ------------------------------------------------------------------ kinematics
 
@@ -364,8 +579,28 @@ class Chain:
             raise InputError(f"{what} is not finite: {a.tolist()}", source=self.source)
         return a
 
-    def _config(self, q: np.ndarray) -> np.ndarray:
-        return q if self._plain else pin.integrate(self._model, self._neutral, q)
+    def full_coordinates(self, q) -> np.ndarray:
+        """Every moving joint's coordinate on the chain, mimic joints included (path order).
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+
+        Returns
+        -------
+        ndarray, shape (n_moving,)
+            rad or mm; a mimic joint's is ``multiplier * q[leader] + offset``.
+        """
+        return self._G @ self.check_q(q) + self._b
+
+    def mimic_coordinates(self, q) -> np.ndarray:
+        """The mimic joints' coordinates (:attr:`mimics` order), rad or mm, shape (m,)."""
+        return self.full_coordinates(q)[self._mimic_rows]
+
+    @property
+    def mimic_names(self) -> tuple[str, ...]:
+        """The chain's mimic joints (they follow a coordinate; :attr:`mimics`)."""
+        return tuple(m.name for m in self.mimics)
 
     def forward(self, q) -> tuple[np.ndarray, np.ndarray]:
         """The measured point (mm) and the tip frame's rotation, base frame.
@@ -381,13 +616,20 @@ class Chain:
         rotation : ndarray, shape (3, 3)
             Tip frame to base.
         """
-        qq = self._config(self.check_q(q))
-        pin.framesForwardKinematics(self._model, self._data, qq)
+        pin.framesForwardKinematics(self._model, self._data, self.full_coordinates(q))
         M = self._data.oMf[self._fid]
         return np.array(M.translation), np.array(M.rotation)
 
+    def _full_jacobian(self, q) -> np.ndarray:
+        qf = self.full_coordinates(q)
+        J = pin.computeFrameJacobian(self._model, self._data, qf, self._fid, pin.LOCAL_WORLD_ALIGNED)
+        return np.array(J).reshape(6, -1)  # Pinocchio gives a vector for a one-joint chain
+
     def jacobian(self, q) -> np.ndarray:
         """The 6 x n Jacobian of the measured point, base frame.
+
+        A coordinate that leads mimic joints moves them too: its column is its own motion
+        plus each follower's times the multiplier.
 
         Parameters
         ----------
@@ -398,9 +640,11 @@ class Chain:
         ndarray, shape (6, n)
             Rows vx, vy, vz (mm per rad or mm per mm) then wx, wy, wz (rad per joint unit).
         """
-        qq = self._config(self.check_q(q))
-        J = pin.computeFrameJacobian(self._model, self._data, qq, self._fid, pin.LOCAL_WORLD_ALIGNED)
-        return np.array(J)
+        return self._full_jacobian(q) @ self._G
+
+    def mimic_jacobian(self, q) -> np.ndarray:
+        """The columns of the mimic joints' own motions (for a spring of their own), shape (6, m)."""
+        return self._full_jacobian(q)[:, self._mimic_rows]
 
     def forward_many(self, Q) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`forward` of many configurations: positions (N, 3) mm, rotations (N, 3, 3)."""
@@ -413,17 +657,86 @@ class Chain:
         Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
         return np.array([self.jacobian(q) for q in Q]).reshape(-1, 6, self.n)
 
-    def beyond_limits(self, q) -> list[str]:
-        """The joints of ``q`` outside their limits, in words (empty when none)."""
-        a = np.asarray(q, dtype=float)
-        out = []
-        for k, (v, lo, hi) in enumerate(zip(a, self.lower, self.upper, strict=True)):
-            if v < lo - 1e-12 or v > hi + 1e-12:
-                unit, f = ("mm", 1.0) if self.joint_types[k] == "prismatic" else ("deg", 180 / math.pi)
-                out.append(
-                    f"joint {self.joint_names[k]} at {v * f:.6g} {unit} beyond its limits "
-                    f"[{lo * f:.6g}, {hi * f:.6g}] {unit}"
+    def mimic_jacobian_many(self, Q) -> np.ndarray:
+        """:meth:`mimic_jacobian` of many configurations, shape (N, 6, m)."""
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
+        m = len(self.mimics)
+        return np.array([self.mimic_jacobian(q) for q in Q]).reshape(-1, 6, m)
+
+    def link_poses(
+        self, Q, frames: Sequence[tuple[str, np.ndarray, np.ndarray]]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Frames fixed to links of the chain, in the base frame, at configurations.
+
+        Parameters
+        ----------
+        Q : array_like, shape (N, n)
+        frames : sequence of (link, rotation (3, 3), origin (3,) mm)
+            Each frame in its link's frame (a link of :attr:`link_names`).
+
+        Returns
+        -------
+        origins : ndarray, shape (N, F, 3), mm
+        rotations : ndarray, shape (N, F, 3, 3)
+            Frame to base.
+        """
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
+        local = []
+        for link, R, t in frames:
+            if link not in self._links:
+                raise InputError(
+                    f"link {link!r} is not on the chain from {self.base_frame!r} to {self.tip_frame!r} "
+                    f"(its links: {_listing(self.link_names)})",
+                    source=self.source,
                 )
+            jid, pl = self._links[link]
+            local.append((jid, pl * pin.SE3(np.asarray(R, dtype=float), np.asarray(t, dtype=float))))
+        P = np.zeros((Q.shape[0], len(local), 3))
+        Rs = np.zeros((Q.shape[0], len(local), 3, 3))
+        for i, q in enumerate(Q):
+            pin.forwardKinematics(self._model, self._data, self.full_coordinates(q))
+            for f, (jid, pl) in enumerate(local):
+                M = self._data.oMi[jid] * pl
+                P[i, f], Rs[i, f] = M.translation, M.rotation
+        return P, Rs
+
+    def link_end(self, link: str) -> np.ndarray:
+        """Where ``link`` ends on the chain, in its frame (mm): the next joint's origin, or the
+        measured point for the tip frame's link."""
+        if link not in self._links:
+            raise InputError(
+                f"link {link!r} is not on the chain from {self.base_frame!r} to {self.tip_frame!r} "
+                f"(its links: {_listing(self.link_names)})",
+                source=self.source,
+            )
+        jid, pl = self._links[link]
+        names = self.link_names
+        k = names.index(link)
+        if k + 1 < len(names):
+            jn, pn = self._links[names[k + 1]]
+            if jn == jid:  # the next link hangs from the same joint (a fixed joint between)
+                return np.array((pl.inverse() * pn).translation)
+            # the next moving joint's origin, in its parent's frame
+            return np.array((pl.inverse() * self._model.jointPlacements[jn]).translation)
+        tip = self._model.frames[self._fid].placement
+        return np.array((pl.inverse() * tip).translation)
+
+    def beyond_limits(self, q) -> list[str]:
+        """The joints of ``q`` (and its mimic joints) outside their limits, in words (empty when none)."""
+        a = np.asarray(q, dtype=float)
+        rows = [
+            (self.joint_names[k], self.joint_types[k], a[k], self.lower[k], self.upper[k])
+            for k in range(self.n)
+        ]
+        if self.mimics:
+            qm = self.mimic_coordinates(a)
+            rows += [(m.name, m.type, v, m.lower, m.upper) for m, v in zip(self.mimics, qm, strict=True)]
+        out = []
+        for name, kind, v, lo, hi in rows:
+            if v < lo - 1e-12 or v > hi + 1e-12:
+                unit, f = ("mm", 1.0) if kind == "prismatic" else ("deg", 180 / math.pi)
+                span = f"[{lo * f:.6g}, {hi * f:.6g}] {unit}"
+                out.append(f"joint {name} at {v * f:.6g} {unit} beyond its limits {span}")
         return out
 
     def inverse(

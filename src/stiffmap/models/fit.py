@@ -43,12 +43,13 @@ import numpy as np
 
 from ..errors import DesignError, IllConditionedWarning
 from ..stats import chi2_sf
-from .base import Mechanism, PoseError, as_points, format_pose
+from .base import POSE_DIM, Mechanism, PoseError, as_points, format_pose
 
 __all__ = [
     "ModelFit",
     "fit_stiffness",
     "fit_static_errors",
+    "fit_deflections6",
     "static_error_predictions",
     "MIN_RELATIVE_SENSITIVITY",
     "MIN_INVERSE_CONDITION",
@@ -72,7 +73,8 @@ class ModelFit:
     Attributes
     ----------
     kind : str
-        ``"stiffness"`` or ``"static_error"``.
+        ``"stiffness"``, ``"static_error"``, ``"stiffness6"`` (K6 entries) or ``"deflection6"``
+        (6-DOF deflections under wrenches: :func:`fit_deflections6`).
     names : tuple of str
         The fitted parameters.
     estimate : ndarray, shape (p,)
@@ -94,7 +96,8 @@ class ModelFit:
         Per observation (mm for static errors; N/mm for stiffness entries, row-major
         K of each pose in turn).
     sigma : ndarray, shape (n_obs,)
-        Standard errors used as weights (1 where none were given).
+        Standard errors used as weights (1 where none were given; for K6 without them, the
+        relative weights of :func:`fit_stiffness`).
     residuals : ndarray, shape (n_obs,)
         ``observed - predicted`` (mm or N/mm).
     residual_rms_per_pose : ndarray, shape (n_poses,)
@@ -277,12 +280,15 @@ def _fit(
     poses: np.ndarray,
     pose_index: np.ndarray,
     absolute_sigma: bool,
+    weights: np.ndarray | None = None,
 ) -> ModelFit:
+    """The fit; ``weights`` (relative, used only when ``sigma`` is None) scale observations of
+    mixed units (K6's blocks) without claiming to be their standard errors."""
     names, p0 = _check_names(model, params)
     n, p = y.size, len(names)
     if n < p:
         raise DesignError(f"{n} observation(s) cannot determine {p} parameters ({', '.join(names)})")
-    w = np.ones(n) if sigma is None else sigma
+    w = (np.ones(n) if weights is None else weights) if sigma is None else sigma
     notes: list[str] = []
     if sigma is None and absolute_sigma:
         raise ValueError("absolute_sigma=True needs the standard errors of the observations")
@@ -441,18 +447,24 @@ def fit_stiffness(
     points : array_like, shape (n, dim), mm
         Poses of the measurements (base frame).
     K : array_like, shape (n, dim, dim), N/mm
-        Measured stiffness at each pose (all entries are observations).
+        Measured stiffness at each pose (all entries are observations). For a robot whose
+        platform turns (``dim = 6``, poses x, y, z mm, roll, pitch, yaw rad): K6, shape
+        (n, 6, 6) (N/mm, N and N*mm/rad blocks; fitted to the model's ``K6``), or K of a pure
+        force, shape (n, 3, 3).
     params : sequence of str
         Parameters to fit (names of ``model.params()``).
-    K_std : array_like, shape (n, dim, dim), N/mm, optional
-        Standard errors of the entries (unit weights when omitted).
+    K_std : array_like, shape of K, optional
+        Standard errors of the entries (unit weights when omitted; for K6, weights
+        ``s_i s_j`` with s = (1, 1, 1, L, L, L), L the model's ``length_mm`` (or 100 mm): the
+        entries in mm and rad-as-L-mm alike).
     absolute_sigma : bool
         Take ``K_std`` as exact (do not rescale the covariance by the reduced chi-square).
 
     Returns
     -------
     ModelFit
-        With ``kind = "stiffness"``; observations are the entries of each K, row-major.
+        With ``kind = "stiffness"`` (``"stiffness6"`` for K6); observations are the entries of
+        each K, row-major.
 
     Raises
     ------
@@ -461,25 +473,32 @@ def fit_stiffness(
     DesignError
         The data cannot determine the parameters (see module docstring).
     """
-    dim = model.dim
-    P, _ = as_points(points, dim)
+    P, _ = as_points(points, model.dim)
     Km = np.asarray(K, dtype=np.float64)
+    six = model.dim == POSE_DIM and Km.shape[1:] == (6, 6)
+    dim = 6 if six else (3 if model.dim == POSE_DIM else model.dim)
     if Km.shape != (P.shape[0], dim, dim):
+        also = f" or ({P.shape[0]}, 6, 6) (K6)" if model.dim == POSE_DIM else ""
         raise ValueError(
-            f"K must have shape ({P.shape[0]}, {dim}, {dim}) (one matrix per pose), got {Km.shape}"
+            f"K must have shape ({P.shape[0]}, {dim}, {dim}){also} (one matrix per pose), got {Km.shape}"
         )
     if not np.all(np.isfinite(Km)):
         i = int(np.flatnonzero(~np.all(np.isfinite(Km), axis=(1, 2)))[0])
         raise ValueError(f"K of pose {i} contains NaN or infinite values")
     S = _check_sigma(K_std, Km.shape, "K_std")
+    weights = None
+    if six and S is None:  # K6's entries in mm and rad-as-L-mm alike
+        s = np.array([1.0, 1.0, 1.0, *(3 * [float(getattr(model, "length_mm", 100.0))])])
+        weights = np.broadcast_to(np.outer(s, s), Km.shape).reshape(-1)
     _check_valid_poses(model, P, "pose")
 
     def predict(m: Mechanism) -> np.ndarray:
-        return m.evaluate(P).K.reshape(-1)
+        mm = m.evaluate(P)
+        return (mm.K6 if six else mm.K).reshape(-1)
 
     idx = np.repeat(np.arange(P.shape[0]), dim * dim)
     return _fit(
-        "stiffness",
+        "stiffness6" if six else "stiffness",
         model,
         params,
         predict,
@@ -488,6 +507,7 @@ def fit_stiffness(
         P,
         idx,
         absolute_sigma,
+        weights,
     )
 
 
@@ -533,8 +553,10 @@ def fit_static_errors(
     ----------
     model : Mechanism
     points : array_like, shape (n, dim), mm
-    forces : array_like, shape (n, dim), N
-    directions : array_like, shape (n, dim)
+        (For ``dim = 6``: poses, x, y, z mm and roll, pitch, yaw rad.)
+    forces : array_like, shape (n, dim) (n, 3 for dim = 6), N
+        At the tool point.
+    directions : array_like, shape (n, dim) (n, 3 for dim = 6)
         Measurement directions (unit vectors; refused when not of unit length within 1e-6).
     values : array_like, shape (n,), mm
     params : sequence of str
@@ -562,9 +584,10 @@ def fit_static_errors(
     F = np.asarray(forces, dtype=np.float64)
     U = np.asarray(directions, dtype=np.float64)
     y = np.asarray(values, dtype=np.float64)
+    fdim = 3 if dim == POSE_DIM else dim  # a turning platform's poses: forces still 3-D
     for a, name in ((F, "forces"), (U, "directions")):
-        if a.shape != (n, dim):
-            raise ValueError(f"{name} must have shape ({n}, {dim}), got {a.shape}")
+        if a.shape != (n, fdim):
+            raise ValueError(f"{name} must have shape ({n}, {fdim}), got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{name} contains NaN or infinite values")
     if y.shape != (n,) or not np.all(np.isfinite(y)):
@@ -583,3 +606,79 @@ def fit_static_errors(
         return static_error_predictions(m, P, F, U)
 
     return _fit("static_error", model, params, predict, y, s, poses, idx, absolute_sigma)
+
+
+def fit_deflections6(
+    model: Mechanism,
+    points,
+    wrenches,
+    deflections,
+    *,
+    params: Sequence[str],
+    std=None,
+    absolute_sigma: bool = False,
+) -> ModelFit:
+    """Fit parameters of a robot whose platform turns to its measured 6-DOF deflections.
+
+    Observation i: at pose ``points[i]`` the wrench ``wrenches[i]`` at the tool point moves
+    the platform by ``K6^-1 w`` (u mm, rotation vector rad), measured as ``deflections[i]``
+    (the six components are six observations). A camera measures both; loads hung off the
+    tool point give moments, so the fit sees the rotational block too (the hexapod analogue
+    of :func:`~stiffmap.models.joint_fit.fit_joint_compliances`).
+
+    Parameters
+    ----------
+    model : Mechanism
+        With ``dim = 6`` (poses) and ``K6`` in its maps (:class:`~stiffmap.models.legs6.LegRobot6`).
+    points : array_like, shape (n, 6)
+        Poses: x, y, z (mm), roll, pitch, yaw (rad).
+    wrenches : array_like, shape (n, 6)
+        Force (N) and moment (N*mm) at the tool point, base frame.
+    deflections : array_like, shape (n, 6)
+        u (mm) and rotation vector (rad), base frame.
+    params : sequence of str
+    std : array_like, shape (n, 6), optional
+        Standard errors of the deflections' components (mm, rad). Without them the
+        rotations weigh as the robot's size in mm (``length_mm``, else 100 mm) per rad.
+    absolute_sigma : bool
+
+    Returns
+    -------
+    ModelFit
+        With ``kind = "deflection6"``; observations row-major (u then rotation per wrench).
+
+    Raises
+    ------
+    PoseError, DesignError
+        As :func:`fit_stiffness`.
+    """
+    if model.dim != POSE_DIM:
+        raise ValueError(f"{model.name}: 6-DOF deflections need a platform that turns (dim = 6)")
+    P, _ = as_points(points, POSE_DIM)
+    n = P.shape[0]
+    W = np.asarray(wrenches, dtype=np.float64)
+    D = np.asarray(deflections, dtype=np.float64)
+    for a, name in ((W, "wrenches"), (D, "deflections")):
+        if a.shape != (n, 6):
+            raise ValueError(f"{name} must have shape ({n}, 6), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} contains NaN or infinite values")
+    if np.all(W == 0):
+        raise DesignError("every wrench is zero: deflections without load cannot determine stiffness")
+    S = _check_sigma(std, (n, 6), "std")
+    weights = None
+    if S is None:
+        L = float(getattr(model, "length_mm", 100.0))
+        weights = np.tile([1.0, 1.0, 1.0, 1 / L, 1 / L, 1 / L], n)
+    _check_valid_poses(model, P, "observation")
+    poses, idx = _group_poses(P)
+
+    def predict(m: Mechanism) -> np.ndarray:
+        K6 = m.evaluate(poses).K6[idx]
+        return np.linalg.solve(K6, W[..., None])[..., 0].reshape(-1)
+
+    y = D.reshape(-1)
+    sigma = None if S is None else S.reshape(-1)
+    return _fit(
+        "deflection6", model, params, predict, y, sigma, poses, np.repeat(idx, 6), absolute_sigma, weights
+    )

@@ -96,6 +96,7 @@ from .fit import (
 )
 
 __all__ = [
+    "LinkColumns",
     "JointFit",
     "JointIdentifiability",
     "fit_joint_compliances",
@@ -125,12 +126,44 @@ _WHY = {
         "the loads act on it only where its motion is not measured",
         "the loads act on them only where their motion is not measured",
     ),
+    "bend": (
+        "the loads do not deform that link in a way the measurements see",
+        "the loads do not deform those links in a way the measurements see",
+    ),
 }
 
 _UNITS = {
     "revolute": ("rad/(N*mm)", "N*mm/rad"),
     "prismatic": ("mm/N", "N/mm"),
+    "modulus": ("1/MPa", "MPa"),  # a flexible link's E or G: its "compliance" is 1/E
+    "factor": ("1", "1"),  # a given link compliance's stiffness factor f: compliance 1/f
 }
+#: Kinds of a flexible link's parameter.
+LINK_KINDS = ("modulus", "factor")
+
+
+@dataclass(frozen=True)
+class LinkColumns:
+    """A flexible link's parameter p in the fit, beside the joints (:mod:`~stiffmap.models.links`).
+
+    The link's compliance is ``sum_p B_p / p``, so the measured point deflects by
+    ``sum_p (J_s B_p J_s^T w) / p``: linear in ``1/p``, the parameter's "compliance", fitted as a
+    joint's. ``basis[m]`` is ``J_s B_p J_s^T`` at row m's configuration (6 x 6, base frame;
+    :meth:`SerialRobot.link_bases`).
+
+    Attributes
+    ----------
+    name : str
+        ``E_<link>``, ``G_<link>`` or ``f_<link>``.
+    basis : ndarray, shape (M, 6, 6)
+        mm/N (etc.) times MPa for a modulus; as a compliance for a factor.
+    kind : {"modulus", "factor"}
+        p in MPa (a beam's E or G), or dimensionless (a given compliance's stiffness factor).
+    """
+
+    name: str
+    basis: np.ndarray
+    kind: str = "modulus"
 
 
 # --------------------------------------------------------------------------- input checks
@@ -497,7 +530,9 @@ def _identify(
     for j in np.flatnonzero(~felt):
         s, t = names[j], types[j]
         why = []
-        if load_f[j] < MIN_RELATIVE_SENSITIVITY:
+        if t in LINK_KINDS:
+            why.append("bend")
+        elif load_f[j] < MIN_RELATIVE_SENSITIVITY:
             why.append("moment" if t == "revolute" else "force")
         if motion_f[j] < MIN_RELATIVE_SENSITIVITY:
             why.append("measure")
@@ -585,6 +620,8 @@ def _identify(
                     "measure": f"measure rotations (6-DOF poses) or a point off {axes} ({them})",
                     "where": f"load cases that act on {them} where {'its' if len(js) == 1 else 'their'} "
                     "motion is measured",
+                    "bend": f"load cases that bend or twist the link{'' if len(js) == 1 else 's'} of {them} "
+                    "(forces across it, moments), measured beyond it",
                 }[key]
             )
         if confounded:
@@ -600,8 +637,14 @@ def _identify(
             if d == 3:
                 todo.append("measure rotations (6-DOF poses)")
         one = len(bad_names) == 1
+        links_too = any(types[names.index(s)] in LINK_KINDS for s in bad_names)
+        what = (
+            ("parameter" if one else "joint and link parameters")
+            if links_too
+            else ("joint" if one else "joints")
+        )
         message = (
-            f"{'joint' if one else 'joints'} {_format_names(bad_names)} cannot be determined from these "
+            f"{what} {_format_names(bad_names)} cannot be determined from these "
             "configurations and loads: "
             + "; ".join(parts)
             + f". To determine {'it' if one else 'them'}: "
@@ -623,7 +666,58 @@ def _identify(
     )
 
 
-def _prepare(jacobians, wrenches, d_or_displacements, cov, joint_names, fit, fixed):
+def _check_links(
+    links, M: int, joint_names: tuple[str, ...]
+) -> tuple[tuple[str, ...], tuple[str, ...], np.ndarray]:
+    """Names, kinds and bases (M, 6, 6, L) of the flexible links' parameters."""
+    links = tuple(links or ())
+    B = np.zeros((M, 6, 6, len(links)))
+    names, kinds = [], []
+    for i, lk in enumerate(links):
+        if not isinstance(lk, LinkColumns):
+            raise InputError(f"links: expected LinkColumns, got {type(lk).__name__}")
+        b = _as_float(lk.basis, f"links[{lk.name}].basis")
+        if b.shape != (M, 6, 6):
+            raise InputError(f"links[{lk.name}].basis: expected shape ({M}, 6, 6), got {b.shape}")
+        _check_finite(b, f"links[{lk.name}].basis", "compliances")
+        if lk.kind not in LINK_KINDS:
+            raise InputError(
+                f"links[{lk.name}].kind: expected one of {', '.join(LINK_KINDS)}, got {lk.kind!r}"
+            )
+        if lk.name in joint_names or lk.name in names:
+            raise InputError(
+                f"links: {lk.name} is named twice (joints and links' parameters need distinct names)"
+            )
+        B[..., i] = b
+        names.append(str(lk.name))
+        kinds.append(lk.kind)
+    return tuple(names), tuple(kinds), B
+
+
+def _full_design(J: np.ndarray, W: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """The joints' columns (:func:`_design`) then the links' ``B w``: shape (M, 6, n + L)."""
+    A = _design(J, W)
+    if B.shape[-1] == 0:
+        return A
+    return np.concatenate([A, np.einsum("mijl,mj->mil", B, W)], axis=2)
+
+
+def _link_sensitivity(B: np.ndarray, W: np.ndarray, Linv: np.ndarray, d: int, ell: float) -> np.ndarray:
+    """Relative sensitivity of each link parameter, in [0, 1]: its whitened column ``L^-1 S B w``
+    against ``|L^-1| |D B D| |D^-1 w|`` (D = diag(1, 1, 1, ell, ell, ell)), over all rows."""
+    if B.shape[-1] == 0:
+        return np.zeros(0)
+    Dv = np.array([1.0, 1.0, 1.0, ell, ell, ell])
+    col = np.einsum("mab,mbl->mal", Linv, np.einsum("mijl,mj->mil", B, W)[:, :d, :])
+    DBD = B * Dv[None, :, None, None] * Dv[None, None, :, None]
+    nb = np.linalg.norm(np.moveaxis(DBD, 3, 1), ord=2, axis=(2, 3))  # (M, L)
+    bound = np.linalg.norm(Linv, ord=2, axis=(1, 2))[:, None] * nb * np.linalg.norm(W / Dv, axis=1)[:, None]
+    num = np.sqrt(np.sum(np.sum(col**2, axis=1), axis=0))
+    den = np.sqrt(np.sum(bound**2, axis=0))
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+
+
+def _prepare(jacobians, wrenches, d_or_displacements, cov, joint_names, fit, fixed, links=None):
     J = _check_jacobians(jacobians)
     M, _, n = J.shape
     W = _check_wrenches(wrenches, M)
@@ -636,8 +730,10 @@ def _prepare(jacobians, wrenches, d_or_displacements, cov, joint_names, fit, fix
         d = D.shape[1]
     Linv = _whitener(cov, M, d)
     names = _check_names(joint_names, n)
+    lnames, kinds, B = _check_links(links, M, names)
+    names = names + lnames
     idx, fixed_values = _check_fit_sets(names, fit, fixed)
-    return J, W, D, d, Linv, names, idx, fixed_values
+    return J, W, D, d, Linv, names, idx, fixed_values, B, kinds
 
 
 def _too_few_message(M: int, d: int, fitted: tuple[str, ...]) -> str:
@@ -665,12 +761,20 @@ def _too_few(M: int, d: int, fitted: tuple[str, ...], types: tuple[str, ...]) ->
     )
 
 
-def _report(J, W, Linv, d, names, types, idx, config_keys) -> tuple[JointIdentifiability, np.ndarray]:
-    """The identifiability report over the joints ``idx`` and the whitened design (M*d, n)."""
-    M = J.shape[0]
-    A = _design(J, W)[:, :d, :]
+def _report(J, W, Linv, d, names, types, idx, config_keys, B=None) -> tuple[JointIdentifiability, np.ndarray]:
+    """The identifiability report over the parameters ``idx`` (joints, then links' parameters
+    with their bases ``B`` (M, 6, 6, L)) and the whitened design (M*d, n + L)."""
+    M, _, n = J.shape
+    B = np.zeros((M, 6, 6, 0)) if B is None else B
+    A = _full_design(J, W, B)[:, :d, :]
     Aw = np.einsum("mab,mbj->maj", Linv, A).reshape(M * d, -1)
-    sens, load_f, motion_f = _relative_sensitivity(J[:, :, idx], W, Linv, d, _lever_arm(J, types))
+    ell = _lever_arm(J, types[:n])
+    jidx, lidx = idx[idx < n], idx[idx >= n] - n
+    sens, load_f, motion_f = _relative_sensitivity(J[:, :, jidx], W, Linv, d, ell)
+    if lidx.size:
+        ones = np.ones(lidx.size)
+        sens = np.concatenate([sens, _link_sensitivity(B[..., lidx], W, Linv, d, ell)])
+        load_f, motion_f = np.concatenate([load_f, ones]), np.concatenate([motion_f, ones])
     n_config = _group_poses(config_keys)[0].shape[0]
     force = np.linalg.norm(W[:, :3], axis=1)
     has_moments = bool(np.any(np.linalg.norm(W[:, 3:], axis=1) > 1e-6 * np.maximum(force, 1e-300)))
@@ -698,6 +802,7 @@ def joint_identifiability(
     measured: int = 6,
     joint_names: Sequence[str] | None = None,
     fit: Sequence[str] | None = None,
+    links: Sequence[LinkColumns] = (),
 ) -> JointIdentifiability:
     """Which joint compliances a set of configurations and loads can determine (no data needed).
 
@@ -719,7 +824,9 @@ def joint_identifiability(
     joint_names : sequence of str, optional
         Default ``k1`` ... ``kn``.
     fit : sequence of str, optional
-        The joints to examine (default all).
+        The joints (and links' parameters) to examine (default all).
+    links : sequence of LinkColumns, optional
+        Flexible links' parameters beside the joints (after them in ``names``).
 
     Returns
     -------
@@ -729,8 +836,10 @@ def joint_identifiability(
         shape = np.shape(cov)
         if len(shape) >= 2 and shape[1] in (3, 6):
             measured = int(shape[1])
-    J, W, _, d, Linv, names, idx, _ = _prepare(jacobians, wrenches, measured, cov, joint_names, fit, None)
-    rep, _ = _report(J, W, Linv, d, names, _joint_types(J), idx, J.reshape(J.shape[0], -1))
+    J, W, _, d, Linv, names, idx, _, B, kinds = _prepare(
+        jacobians, wrenches, measured, cov, joint_names, fit, None, links
+    )
+    rep, _ = _report(J, W, Linv, d, names, _joint_types(J) + kinds, idx, J.reshape(J.shape[0], -1), B)
     return rep
 
 
@@ -845,9 +954,15 @@ class JointFit:
         """Stiffness by joint name (N*mm/rad or N/mm)."""
         return {s: float(k) for s, k in zip(self.names, self.stiffness, strict=True)}
 
-    def predict(self, jacobians, wrenches) -> np.ndarray:
-        """Deflection (M, 6) (mm, rad) with the fitted compliances (:func:`joint_deflections`)."""
-        return joint_deflections(jacobians, wrenches, self.compliance)
+    def predict(self, jacobians, wrenches, links: Sequence[LinkColumns] = ()) -> np.ndarray:
+        """Deflection (M, 6) (mm, rad) with the fitted compliances (:func:`joint_deflections`);
+        with flexible links, their bases at the same rows (the fit's ``links``)."""
+        n = len(self.names) - len(links)
+        d = joint_deflections(jacobians, wrenches, self.compliance[:n])
+        W = np.broadcast_to(_as_float(wrenches, "wrenches"), d.shape)
+        for lk, c in zip(links, self.compliance[n:], strict=True):
+            d = d + c * np.einsum("mij,mj->mi", _as_float(lk.basis, "basis"), W)
+        return d
 
     def to_dict(self) -> dict:
         """Plain JSON-able summary (NaN and inf become None)."""
@@ -954,6 +1069,7 @@ def fit_joint_compliances(
     config_index=None,
     labels: Sequence[str] | None = None,
     extra_noise: bool = False,
+    links: Sequence[LinkColumns] = (),
 ) -> JointFit:
     """Joint compliances from measured deflections, by weighted linear least squares.
 
@@ -998,6 +1114,10 @@ def fit_joint_compliances(
         on the translations the reduced chi-square is 1, and fit with that covariance (a
         variance component: the weights become right, the chi-square test then says nothing
         more). ``extra_translation_std`` and a note give s. Needs ``cov``.
+    links : sequence of LinkColumns, optional
+        Flexible links' parameters fitted (or held in ``fixed``, by their "compliance" 1/p)
+        beside the joints: they follow the joints in ``names``; ``stiffness`` gives p (MPa, or
+        the stiffness factor) and its standard error.
 
     Returns
     -------
@@ -1027,6 +1147,7 @@ def fit_joint_compliances(
         absolute_sigma=absolute_sigma,
         config_index=config_index,
         labels=labels,
+        links=links,
     )
     if not extra_noise:
         return _fit_once(jacobians, wrenches, displacements, cov, **kw)
@@ -1096,12 +1217,14 @@ def _fit_once(
     absolute_sigma,
     config_index,
     labels,
+    links=(),
 ) -> JointFit:
     """:func:`fit_joint_compliances` with the given covariances."""
-    J, W, D, d, Linv, names, idx, fixed_values = _prepare(
-        jacobians, wrenches, displacements, cov, joint_names, fit, fixed
+    J, W, D, d, Linv, names, idx, fixed_values, B, kinds = _prepare(
+        jacobians, wrenches, displacements, cov, joint_names, fit, fixed, links
     )
-    M, _, n = J.shape
+    M = J.shape[0]
+    n = len(names)
     if cov is None and absolute_sigma:
         raise InputError("absolute_sigma: True needs cov (the covariances to take as exact)")
     if config_index is None:
@@ -1124,13 +1247,13 @@ def _fit_once(
         uniq, lidx = _group_poses(np.array(label_tuple))
         label_names = tuple(str(s) for s in uniq)
 
-    types = _joint_types(J)
+    types = _joint_types(J) + kinds
     fitted = tuple(names[j] for j in idx)
     p = idx.size
     n_obs = M * d
     if n_obs < p:
         raise DesignError(_too_few_message(M, d, fitted))
-    rep, Aw = _report(J, W, Linv, d, names, types, idx, cidx)
+    rep, Aw = _report(J, W, Linv, d, names, types, idx, cidx, B)
     if not rep.determined:
         raise DesignError(rep.message)
     if rep.condition > CONDITION_WARN:
@@ -1151,8 +1274,9 @@ def _fit_once(
     # Subtract the fixed joints' deflection; whiten.
     c_all = np.where(np.isnan(fixed_values), 0.0, fixed_values)
     known = np.setdiff1d(np.arange(n), idx)
+    full = _full_design(J, W, B)
     y = D - np.einsum(
-        "mkj,mj->mk", _design(J, W)[:, :d, :][:, :, known], np.broadcast_to(c_all[known], (M, known.size))
+        "mkj,mj->mk", full[:, :d, :][:, :, known], np.broadcast_to(c_all[known], (M, known.size))
     )
     yw = np.einsum("mab,mb->ma", Linv, y).reshape(-1)
     A = Aw[:, idx]
@@ -1221,7 +1345,7 @@ def _fit_once(
         stiffness = np.where(compliance > 0, 1.0 / np.where(compliance > 0, compliance, 1.0), np.inf)
         stiffness_std = np.where(compliance > 0, compliance_std / compliance**2, np.nan)
 
-    resid = (D - joint_deflections(J, W, compliance)[:, :d]).copy()
+    resid = (D - np.einsum("mkj,j->mk", full, compliance)[:, :d]).copy()
     nres = np.einsum("mab,mb->ma", Linv, resid)
     rms_c, nrms_c = _rms_table(cidx, configs.shape[0], resid, nres)
     if label_tuple is None:

@@ -185,7 +185,7 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
     q0a = np.array(q0)
     tip0 = ik_chain.forward(q0a)[0]
     target = np.zeros(3)
-    target[:dim] = desc.attach_mm
+    target[: len(desc.attach_mm)] = desc.attach_mm  # dim 2 or 3; dim 6: the platform frame
     if dim == 2:  # a planar robot: the leg's tip stays in its plane
         target[2] = tip0[2]
     # Continuation steps: a tenth of the leg's size (its joints' offsets and its tip's).
@@ -230,6 +230,10 @@ class LegStates:
     passive: np.ndarray
 
 
+#: The LegRobot subclass of each dim that has one (registered by ``_FOR_DIM``).
+_BY_DIM: dict[int, type] = {}
+
+
 @dataclass(frozen=True, eq=False)
 class LegRobot(LegMechanism):
     """A translational parallel robot described by its legs (virtual joint method).
@@ -271,6 +275,14 @@ class LegRobot(LegMechanism):
 
     _LABEL: ClassVar[str] = "legs robot"
     _PARALLEL_SINGULARITY: ClassVar[str] = "the legs' held directions nearly lose one"
+    #: A subclass for the legs TOML of one ``dim`` (:class:`~stiffmap.models.legs6.LegRobot6`
+    #: for 6) says so here; :meth:`from_legs_file` builds it for such a file.
+    _FOR_DIM: ClassVar[int | None] = None
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls._FOR_DIM is not None:
+            _BY_DIM[cls._FOR_DIM] = cls
 
     # ------------------------------------------------------------------ construction
 
@@ -302,6 +314,7 @@ class LegRobot(LegMechanism):
         built = tuple(
             _build_leg(d, k, f.dim, f.base_dir, f.source, f.name) for k, d in enumerate(f.legs, start=1)
         )
+        cls = _BY_DIM.get(f.dim, cls) if cls is LegRobot else cls  # dim 6: a platform that turns
         return cls(
             f.name, f.dim, f.legs, tuple(f.params), tuple(f.params.values()), f.singular_tol, f.source, built
         )

@@ -90,8 +90,9 @@ class LegDescription:
     Attributes
     ----------
     name : str
-    attach_mm : tuple of dim floats, mm
-        The leg's joint on the platform relative to the tool point, base axes.
+    attach_mm : tuple of dim floats (3 for dim = 6), mm
+        The leg's joint on the platform relative to the tool point, base axes (for dim = 6
+        in the platform's frame: the platform turns).
     joints : tuple of LegJoint
         Base first (a leg given by joints), or the roles of some of the URDF's joints
         (the others are passive, seed 0).
@@ -101,6 +102,11 @@ class LegDescription:
         The leg's URDF (relative to the TOML's folder), or None.
     tip_frame : str or None
         The URDF frame carrying the platform joint.
+    platform_joint : {"ball", "universal"} or None
+        ``dim = 6``: the joint on the platform (None: a ball joint).
+    platform_axes : tuple of two 3-tuples or None
+        A universal platform joint's axes: the first in the frame of the leg's last joint (or
+        ``tip_frame``), the second in the platform's frame.
     """
 
     name: str
@@ -109,6 +115,8 @@ class LegDescription:
     tip_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     urdf: str | None = None
     tip_frame: str | None = None
+    platform_joint: str | None = None
+    platform_axes: tuple[tuple[float, ...], ...] | None = None
 
 
 # ---------------------------------------------------------------------- the TOML schema
@@ -175,12 +183,14 @@ class _LegIn(_Strict):
     tip_offset_mm: _Vec3 | None = None
     urdf: str | None = Field(default=None, min_length=1)
     tip_frame: str | None = Field(default=None, min_length=1)
+    platform_joint: Literal["ball", "universal"] | None = None
+    platform_axes: list[_Axis] | None = Field(default=None, min_length=2, max_length=2)
     joints: list[_JointIn] = Field(min_length=1)
 
 
 class _RobotIn(_Strict):
     name: str | None = Field(default=None, min_length=1)
-    dim: Literal[2, 3]
+    dim: Literal[2, 3, 6]
     singular_tol: _Num = SINGULAR_TOL
     params: dict[str, _Num]
     legs: list[_LegIn] = Field(min_length=1)
@@ -216,6 +226,23 @@ def _problem(err: dict) -> str:
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
+def _check_platform_joint(lg: _LegIn, dim: int, where: str, fail) -> None:
+    """``platform_joint`` and ``platform_axes``: dim = 6 only; a universal joint has two axes."""
+    for key in ("platform_joint", "platform_axes"):
+        if dim != 6 and getattr(lg, key) is not None:
+            fail(f"{where}.{key}", f"only for dim = 6 (a platform that turns); dim = {dim} holds it")
+    if lg.platform_joint == "universal" and lg.platform_axes is None:
+        fail(
+            f"{where}.platform_axes",
+            "missing key: a universal platform joint gives its two axes (the leg's, the platform's)",
+        )
+    if lg.platform_joint != "universal" and lg.platform_axes is not None:
+        fail(f"{where}.platform_axes", 'only for platform_joint = "universal"')
+    for j, axis in enumerate(lg.platform_axes or (), start=1):
+        if max(abs(x) for x in axis) == 0:
+            fail(f"{where}.platform_axes[{j}]", "expected three numbers, not all zero")
+
+
 def _descriptions(data: dict, source: str, default_name: str):
     """Validate a parsed legs TOML: (name, dim, singular_tol, params, legs), else InputError."""
     try:
@@ -242,11 +269,18 @@ def _descriptions(data: dict, source: str, default_name: str):
     leg_names: set[str] = set()
     for i, lg in enumerate(spec.legs, start=1):
         where = f"legs[{i}]"
-        if len(lg.attach_mm) != spec.dim:
+        if spec.dim == 6 and len(lg.attach_mm) != 3:
+            fail(
+                f"{where}.attach_mm",
+                f"expected 3 numbers (dim = 6: the leg's joint in the platform's frame, mm), "
+                f"got {len(lg.attach_mm)}",
+            )
+        if spec.dim != 6 and len(lg.attach_mm) != spec.dim:
             fail(
                 f"{where}.attach_mm",
                 f"expected {spec.dim} numbers (dim = {spec.dim}), got {len(lg.attach_mm)}",
             )
+        _check_platform_joint(lg, spec.dim, where, fail)
         lname = lg.name or f"leg{i}"
         if lname in leg_names:
             fail(f"{where}.name", f"leg {lname!r} is named twice")
@@ -319,6 +353,8 @@ def _descriptions(data: dict, source: str, default_name: str):
                 tip_offset_mm=lg.tip_offset_mm or (0.0, 0.0, 0.0),
                 urdf=lg.urdf,
                 tip_frame=lg.tip_frame,
+                platform_joint=lg.platform_joint,
+                platform_axes=None if lg.platform_axes is None else tuple(lg.platform_axes),
             )
         )
     for pname in spec.params:
@@ -444,6 +480,10 @@ def legs_text(
         if lg.urdf is not None:
             out += [f"urdf = {json.dumps(lg.urdf)}", f"tip_frame = {json.dumps(lg.tip_frame)}"]
         out.append(f"tip_offset_mm = {_vec(lg.tip_offset_mm)}")
+        if lg.platform_joint is not None:
+            out.append(f"platform_joint = {json.dumps(lg.platform_joint)}")
+        if lg.platform_axes is not None:
+            out.append("platform_axes = [" + ", ".join(_vec(a) for a in lg.platform_axes) + "]")
         for jt in lg.joints:
             out += ["", "[[legs.joints]]", f"name = {json.dumps(jt.name)}"]
             if jt.type is not None:

@@ -40,6 +40,7 @@ reason naming the joints (from the null space of J) or the direction lost;
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from typing import ClassVar
@@ -58,7 +59,8 @@ from .base import (
     stiffness_of,
 )
 from .chain import Chain
-from .joint_fit import joint_deflections
+from .joint_fit import LinkColumns
+from .links import LinkSpring, resolve_axis, spring_jacobians
 
 __all__ = ["SerialRobot", "MATCH_TOL_MM", "RIGID_RATIO"]
 
@@ -113,6 +115,29 @@ def _check_rigid(C: np.ndarray, index: np.ndarray, reasons: list[str]) -> np.nda
     return ok
 
 
+def _resolved_links(chain: Chain, links) -> tuple[LinkSpring, ...]:
+    """Flexible links checked against the chain, each spring's origin and beam axis set."""
+    out: list[LinkSpring] = []
+    seen: dict[str, str] = {}
+    for lk in links or ():
+        if not isinstance(lk, LinkSpring):
+            raise TypeError(f"links must be LinkSpring objects, got {type(lk).__name__}")
+        where = lk.where or f"link {lk.link!r}"
+        if lk.link not in chain.link_names:
+            raise InputError(
+                f"{where}: link {lk.link!r} is not on the chain from {chain.base_frame!r} to "
+                f"{chain.tip_frame!r} of {chain.source}: it does not carry the measured point "
+                f"(the chain's links: {', '.join(chain.link_names)})"
+            )
+        if lk.name in seen:
+            raise InputError(f"{where}: name {lk.name!r} is already used by {seen[lk.name]}")
+        seen[lk.name] = where.rsplit(": ", 1)[-1]  # the table, its file said once
+        if lk.origin_mm is None:
+            lk = replace(lk, origin_mm=chain.link_end(lk.link))
+        out.append(resolve_axis(lk, lk.origin_mm))
+    return tuple(out)
+
+
 def _names(names: Sequence[str]) -> str:
     return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
@@ -139,9 +164,15 @@ class SerialRobot:
     ----------
     chain : Chain
         The kinematics (mm), from the base to the measured point.
-    k_theta : tuple of float, length n
+    k_theta : tuple of float, length n + m
         Joint stiffnesses in the chain's joint order: N*mm/rad (revolute), N/mm
         (prismatic); positive, ``inf`` for a rigid joint. A scalar is taken for every joint.
+        Then one per mimic joint of the chain (:attr:`Chain.mimics`, m of them): a spring of
+        its own, rigid (``inf``, the default when only n values are given) unless given.
+    links : tuple of LinkSpring
+        Flexible links (:mod:`~stiffmap.models.links`): each adds ``J_s C_s J_s^T`` to the
+        compliance; their parameters (``E_<name>``, ``G_<name>``, ``f_<name>``) follow the
+        joints' in :meth:`params`.
     configurations : ndarray, shape (m, n), optional
         Given joint configurations (rad or mm); their measured points are the positions
         they stand for.
@@ -171,6 +202,7 @@ class SerialRobot:
 
     chain: Chain
     k_theta: tuple[float, ...]
+    links: tuple[LinkSpring, ...] = ()
     configurations: np.ndarray | None = None
     tool_rotation: np.ndarray | None = None
     q_seed: np.ndarray | None = None
@@ -194,21 +226,8 @@ class SerialRobot:
         if not isinstance(ch, Chain):
             raise TypeError(f"chain must be a stiffmap.models.chain.Chain, got {type(ch).__name__}")
         n = ch.n
-        k = self.k_theta
-        if np.ndim(k) == 0:
-            k = (k,) * n
-        k = tuple(k)
-        if len(k) != n:
-            raise InputError(
-                f"k_theta has {len(k)} value(s); {ch.name} has {n} joints ({', '.join(ch.joint_names)}): "
-                f"give {n} joint stiffnesses (N*mm/rad, N/mm for prismatic) or one for all",
-                source=ch.source,
-            )
-        kk = tuple(
-            check_positive(f"k{i + 1} ({ch.joint_names[i]})", v, self._unit(i), allow_inf=True)
-            for i, v in enumerate(k)
-        )
-        object.__setattr__(self, "k_theta", kk)
+        object.__setattr__(self, "k_theta", self._checked_k(self.k_theta))
+        object.__setattr__(self, "links", _resolved_links(ch, self.links))
         tol = float(self.singular_tol)
         if not (0 <= tol < 1):
             raise ValueError(f"singular_tol must be in [0, 1), got {self.singular_tol!r}")
@@ -272,6 +291,10 @@ class SerialRobot:
         tip_offset_mm=(0.0, 0.0, 0.0),
         *,
         k_theta,
+        links=(),
+        base_frame: str | None = None,
+        xacro_args=None,
+        package_paths=(),
         configurations=None,
         tool_rotation=None,
         q_seed=None,
@@ -289,9 +312,14 @@ class SerialRobot:
             The link (frame) that carries the measured point.
         tip_offset_mm : array_like, shape (3,), mm
             The measured point in that frame.
-        k_theta : float or sequence of n floats
-            Joint stiffnesses, N*mm/rad (revolute) or N/mm (prismatic), in the URDF's
-            joint order (:attr:`Chain.joint_names`); one value is taken for every joint.
+        k_theta : float or sequence of n (or n + m) floats
+            Joint stiffnesses, N*mm/rad (revolute) or N/mm (prismatic), in the chain's
+            joint order (:attr:`Chain.joint_names`; then its mimic joints'); one value is
+            taken for every joint.
+        links : sequence of LinkSpring
+            Flexible links (:func:`~stiffmap.models.robot_files.read_links_toml`).
+        base_frame, xacro_args, package_paths
+            As :meth:`Chain.from_urdf`.
         configurations, tool_rotation, q_seed, singular_tol, match_tol_mm, length_mm
             As the attributes.
 
@@ -301,10 +329,18 @@ class SerialRobot:
             Naming the file: it does not parse, the tip frame is missing (the links are
             listed), k_theta or a configuration has the wrong length.
         """
-        chain = Chain.from_urdf(path, tip_frame, tip_offset_mm)
+        chain = Chain.from_urdf(
+            path,
+            tip_frame,
+            tip_offset_mm,
+            base_frame=base_frame,
+            xacro_args=xacro_args,
+            package_paths=package_paths,
+        )
         return cls(
             chain,
             k_theta,
+            links=tuple(links),
             configurations=configurations,
             tool_rotation=tool_rotation,
             q_seed=q_seed,
@@ -321,20 +357,79 @@ class SerialRobot:
         return self.chain.n
 
     @property
+    def n_springs(self) -> int:
+        """Number of joint springs: the n coordinates', then the m mimic joints'."""
+        return self.chain.n + len(self.chain.mimics)
+
+    @property
+    def spring_names(self) -> tuple[str, ...]:
+        """The joints holding the springs k1 ... k(n+m): coordinates, then mimic joints."""
+        return self.chain.joint_names + self.chain.mimic_names
+
+    def _spring_type(self, i: int) -> str:
+        ch = self.chain
+        return ch.joint_types[i] if i < ch.n else ch.mimics[i - ch.n].type
+
+    def _checked_k(self, k) -> tuple[float, ...]:
+        """k_theta as n + m checked stiffnesses (one value: every coordinate; mimic springs rigid
+        unless given)."""
+        ch = self.chain
+        n, m = ch.n, len(ch.mimics)
+        if np.ndim(k) == 0:
+            k = (k,) * n
+        k = tuple(k)
+        if len(k) == n:
+            k = k + (math.inf,) * m
+        if len(k) != n + m:
+            also = (
+                f" (then {m} for its mimic joints {', '.join(ch.mimic_names)}, rigid if left out)"
+                if m
+                else ""
+            )
+            raise InputError(
+                f"k_theta has {len(k)} value(s); {ch.name} has {n} joints ({', '.join(ch.joint_names)}): "
+                f"give {n} joint stiffnesses (N*mm/rad, N/mm for prismatic) or one for all{also}",
+                source=ch.source,
+            )
+        names = self.spring_names
+        return tuple(
+            check_positive(f"k{i + 1} ({names[i]})", v, self._unit(i), allow_inf=True)
+            for i, v in enumerate(k)
+        )
+
+    @property
     def length(self) -> float:
         """The characteristic length L (mm) of the singularity measures."""
         return float(self.length_mm)
 
     def _unit(self, i: int) -> str:
-        return "N/mm" if self.chain.joint_types[i] == "prismatic" else "N*mm/rad"
+        return "N/mm" if self._spring_type(i) == "prismatic" else "N*mm/rad"
+
+    def joint_param_names(self) -> tuple[str, ...]:
+        """``("k1", ..., "k(n+m)")``: the n coordinates' springs, then the m mimic joints'."""
+        return tuple(f"k{i + 1}" for i in range(self.n_springs))
+
+    def link_param_names(self) -> tuple[str, ...]:
+        """The flexible links' parameters (``E_<name>``, ``G_<name>``, ``f_<name>``)."""
+        return tuple(nm for lk in self.links for nm in lk.param_names())
 
     def param_names(self) -> tuple[str, ...]:
-        """``("k1", ..., "kn")``: joint k's stiffness is ``k<k>`` (1-based, the chain's joint order)."""
-        return tuple(f"k{i + 1}" for i in range(self.n))
+        """Joint springs ``k1 ... k(n+m)`` (1-based, the chain's joint order, then its mimic
+        joints), then the flexible links' parameters."""
+        return self.joint_param_names() + self.link_param_names()
 
     def params(self) -> dict[str, float]:
-        """The joint stiffnesses by name (N*mm/rad, N/mm for prismatic joints)."""
-        return dict(zip(self.param_names(), self.k_theta, strict=True))
+        """The joint stiffnesses by name (N*mm/rad, N/mm for prismatic joints), then the links'
+        parameters (MPa, or a dimensionless stiffness factor)."""
+        out = dict(zip(self.joint_param_names(), self.k_theta, strict=True))
+        for lk in self.links:
+            out.update(lk.params())
+        return out
+
+    def default_fit(self) -> tuple[str, ...]:
+        """The parameters a fit takes by default: every finite joint spring and every link parameter."""
+        ks = [nm for nm, v in zip(self.joint_param_names(), self.k_theta, strict=True) if math.isfinite(v)]
+        return tuple(ks) + self.link_param_names()
 
     def with_params(self, **params) -> SerialRobot:
         """A copy with some joint stiffnesses (or other attributes) changed.
@@ -351,33 +446,31 @@ class SerialRobot:
         ValueError
             An unknown name (the valid ones are listed), a non-positive stiffness.
         """
-        names = self.param_names()
+        names = self.joint_param_names()
+        link_names = self.link_param_names()
         other = {f.name for f in fields(self)} - {"chain", "k_theta"}
-        bad = sorted(set(params) - set(names) - other - {"k_theta"})
+        bad = sorted(set(params) - set(names) - set(link_names) - other - {"k_theta"})
         if bad:
             raise ValueError(
-                f"unknown urdf parameter(s) {', '.join(bad)}; valid: {', '.join(names)}, k_theta "
-                f"(the {self.n} joint stiffnesses of {self.chain.name})"
+                f"unknown urdf parameter(s) {', '.join(bad)}; valid: {', '.join(names + link_names)}, "
+                f"k_theta (the {self.n} joint stiffnesses of {self.chain.name})"
             )
         k = list(self.k_theta)
         if "k_theta" in params:
             v = params["k_theta"]
-            if np.ndim(v) == 0:
-                k = [v] * self.n
-            else:
-                k = list(v)
-                if len(k) != self.n:
-                    raise InputError(
-                        f"k_theta has {len(k)} value(s); {self.chain.name} has {self.n} joints "
-                        f"({', '.join(self.chain.joint_names)})",
-                        source=self.chain.source,
-                    )
+            given = self._checked_k(v) if np.ndim(v) else (v,) * self.n
+            k[: len(given)] = given
         for i, nm in enumerate(names):
             if nm in params:
                 k[i] = params[nm]
         rest = {key: v for key, v in params.items() if key in other}
+        if any(nm in params for nm in link_names):
+            for nm in link_names:
+                if nm in params:
+                    check_positive(nm, params[nm], "")
+            rest["links"] = tuple(lk.with_params(params) for lk in rest.get("links", self.links))
         new = replace(self, k_theta=tuple(k), **rest)
-        if not rest:  # same kinematics: share the remembered inverse kinematics
+        if not (set(rest) - {"links"}):  # same kinematics: share the remembered inverse kinematics
             object.__setattr__(new, "_memo", self._memo)
         return new
 
@@ -391,9 +484,23 @@ class SerialRobot:
             else "N*mm/rad" + (", N/mm for prismatic" if "prismatic" in ch.joint_types else "")
         )
         off = ", ".join(f"{v:g}" for v in ch.tip_offset_mm)
+        extra = ""
+        if ch.held_joints:
+            extra += f"; base frame {ch.base_frame} (held above it: {', '.join(ch.held_joints)})"
+        if ch.mimics:
+            extra += "; mimic joints " + ", ".join(
+                f"{m.name} (follows {ch.joint_names[m.leader]})"
+                if m.leader is not None
+                else f"{m.name} (held)"
+                for m in ch.mimics
+            )
+        if self.links:
+            extra += "; flexible links " + ", ".join(
+                f"{lk.link} ({', '.join(f'{k}={v:g}' for k, v in lk.params().items())})" for lk in self.links
+            )
         return (
             f"urdf {ch.name} ({ch.source}): {ch.n} joints {', '.join(ch.joint_names)}; measured point "
-            f"{ch.tip_frame} + ({off}) mm; k_theta = ({ks}) {units}"
+            f"{ch.tip_frame} + ({off}) mm; k_theta = ({ks}) {units}{extra}"
         )
 
     # ------------------------------------------------------------------ kinematics
@@ -499,11 +606,84 @@ class SerialRobot:
 
     @property
     def compliances(self) -> np.ndarray:
-        """Joint compliances ``1 / k`` (rad/(N*mm) or mm/N; 0 for a rigid joint), shape (n,)."""
+        """Joint compliances ``1 / k`` (rad/(N*mm) or mm/N; 0 for a rigid joint), shape (n + m,)."""
         return 1.0 / np.asarray(self.k_theta)
 
+    @property
+    def has_k6(self) -> bool:
+        """Whether K6 can exist: six compliant joint springs, or a flexible link."""
+        return bool(self.links) or int(np.count_nonzero(np.isfinite(self.k_theta))) >= 6
+
+    def spring_jacobians(self, q) -> np.ndarray:
+        """Every joint spring's column at configurations: the coordinates' then the mimic joints'.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,) or (M, n)
+
+        Returns
+        -------
+        ndarray, shape (M, 6, n + m)
+        """
+        Q, _ = self._configs(q)
+        J = self.chain.jacobian_many(Q)
+        if self.chain.mimics:
+            J = np.concatenate([J, self.chain.mimic_jacobian_many(Q)], axis=2)
+        return J
+
+    def link_jacobians(self, q) -> np.ndarray:
+        """``J_s`` of the flexible links' springs at configurations (:func:`links.spring_jacobians`).
+
+        Returns
+        -------
+        ndarray, shape (M, S, 6, 6)
+            The measured point's motion (base frame) from each spring's twist (spring frame).
+        """
+        Q, _ = self._configs(q)
+        if not self.links:
+            return np.zeros((Q.shape[0], 0, 6, 6))
+        frames = [(lk.link, lk.rotation, lk.origin_mm) for lk in self.links]
+        O, R = self.chain.link_poses(Q, frames)
+        P, _ = self.chain.forward_many(Q)
+        return spring_jacobians(P, O, R)
+
+    def link_columns(self, q) -> tuple[LinkColumns, ...]:
+        """The flexible links' parameters as the joint fit takes them (:class:`LinkColumns`).
+
+        For each parameter p of each link (``E_<name>``, ``G_<name>``: a beam's moduli, kind
+        "modulus"; ``f_<name>``: a given compliance's factor, kind "factor"), the point's
+        compliance per unit of ``1/p``: ``J_s B_p J_s^T`` at each configuration.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,) or (M, n)
+
+        Returns
+        -------
+        tuple of LinkColumns
+            In :meth:`link_param_names` order, bases of shape (M, 6, 6).
+        """
+        Js = self.link_jacobians(q)
+        out = []
+        for s, lk in enumerate(self.links):
+            kind = "modulus" if lk.beam is not None else "factor"
+            for name, B in zip(lk.param_names(), lk.basis(), strict=True):
+                basis = np.einsum("mij,jk,mlk->mil", Js[:, s], B, Js[:, s])
+                out.append(LinkColumns(name, 0.5 * (basis + np.swapaxes(basis, 1, 2)), kind))
+        return tuple(out)
+
+    def _compliance(self, Q: np.ndarray, J: np.ndarray) -> np.ndarray:
+        """C6 (M, 6, 6) at configurations Q with their spring columns J (M, 6, n + m)."""
+        C = _compliances(J, self.compliances)
+        if self.links:
+            Js = self.link_jacobians(Q)
+            Cs = np.array([lk.matrix() for lk in self.links])
+            C = C + np.einsum("msij,sjk,mslk->mil", Js, Cs, Js)
+            C = 0.5 * (C + np.swapaxes(C, 1, 2))
+        return C
+
     def compliance6(self, q) -> np.ndarray:
-        """Compliance of the measured point, ``C6 = J K_theta^-1 J^T``.
+        """Compliance of the measured point, ``C6 = J K_theta^-1 J^T + sum_s J_s C_s J_s^T``.
 
         Parameters
         ----------
@@ -517,7 +697,7 @@ class SerialRobot:
             vector rad), base frame: blocks mm/N, 1/N (twice) and rad/(N*mm).
         """
         Q, single = self._configs(q)
-        C = _compliances(self.chain.jacobian_many(Q), self.compliances)
+        C = self._compliance(Q, self.spring_jacobians(Q))
         return C[0] if single else C
 
     def deflection(self, q, wrench) -> np.ndarray:
@@ -542,22 +722,29 @@ class SerialRobot:
             raise ValueError(
                 f"wrench must be 6 finite numbers (N, N*mm) or ({Q.shape[0]}, 6), got {np.shape(wrench)}"
             )
-        d = joint_deflections(self.chain.jacobian_many(Q), W, self.compliances)
+        d = np.einsum("mij,mj->mi", self._compliance(Q, self.spring_jacobians(Q)), W)
         return d[0] if single else d
 
     def _scaled(self, J: np.ndarray) -> np.ndarray:
         """The dimensionless Jacobian: rotation rows and prismatic columns times L."""
         Js = J.copy()
         Js[:, 3:] *= self.length
-        pris = [i for i, t in enumerate(self.chain.joint_types) if t == "prismatic"]
+        pris = [i for i in range(J.shape[2]) if self._spring_type(i) == "prismatic"]
         Js[:, :, pris] *= self.length
         return Js
 
     def _measures(self, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Joint and translation measures (module docstring) of Jacobians (M, 6, n)."""
+        """Joint and translation measures (module docstring) of spring columns (M, 6, n + m).
+
+        The joint measure looks at the n coordinates; the translation measure at every
+        compliant spring, and is 1 with a flexible link (its 6-D spring moves the point in
+        every direction).
+        """
         Js = self._scaled(J)
         soft = np.isfinite(np.asarray(self.k_theta))
-        joint = _inverse_condition(Js, min(6, self.n))
+        joint = _inverse_condition(Js[:, :, : self.n], min(6, self.n))
+        if self.links:
+            return joint, np.ones(J.shape[0])
         trans = _inverse_condition(Js[:, :3][:, :, soft], 3)
         return joint, trans
 
@@ -572,13 +759,12 @@ class SerialRobot:
         -------
         joint, translation : ndarray, shape (M,)
         """
-        Q, _ = self._configs(q)
-        return self._measures(self.chain.jacobian_many(Q))
+        return self._measures(self.spring_jacobians(q))
 
     def _joint_reason(self, J: np.ndarray, value: float) -> str:
-        """Which joints lose the tip's motion at one configuration (J, 6 x n), in words."""
+        """Which joints lose the tip's motion at one configuration (J, 6 x (n + m)), in words."""
         ch = self.chain
-        Js = self._scaled(J[None])[0]
+        Js = self._scaled(J[None, :, : self.n])[0]
         tol = self.singular_tol
         if self.n > 6:
             U, _, _ = np.linalg.svd(Js)
@@ -616,7 +802,7 @@ class SerialRobot:
         return f"{what}; inverse condition {value:.2g} < {tol:g}"
 
     def _translation_reason(self, J: np.ndarray, value: float) -> str:
-        soft = np.isfinite(np.asarray(self.k_theta))
+        soft = np.isfinite(np.asarray(self.k_theta))  # over the n + m springs
         Jt = J[:3][:, soft]
         who = "joints" if np.all(soft) else "compliant joints (finite k)"
         if Jt.shape[1] == 0:
@@ -633,9 +819,9 @@ class SerialRobot:
     def _map(self, P: np.ndarray, Q: np.ndarray, reachable: np.ndarray, reasons: list[str]) -> ModelMap:
         """The map of positions P (N, 3) at configurations Q (N, n) (NaN where unreachable)."""
         N = P.shape[0]
-        J = np.full((N, 6, self.n), np.nan)
+        J = np.full((N, 6, self.n_springs), np.nan)
         if np.any(reachable):
-            J[reachable] = self.chain.jacobian_many(Q[reachable])
+            J[reachable] = self.spring_jacobians(Q[reachable])
         joint = np.full(N, np.nan)
         trans = np.full(N, np.nan)
         if np.any(reachable):
@@ -653,7 +839,7 @@ class SerialRobot:
         K = np.full((N, 3, 3), np.nan)
         if np.any(valid):
             idx = np.flatnonzero(valid)
-            C6 = _compliances(J[idx], self.compliances)
+            C6 = self._compliance(Q[idx], J[idx])
             C = C6[:, :3, :3]
             ok = _check_rigid(C, idx, reasons)
             valid[idx[~ok]] = False
@@ -714,26 +900,26 @@ class SerialRobot:
     def _check_configs(self, q, need6: bool) -> tuple[np.ndarray, np.ndarray, bool]:
         """C6 (or C3) of configurations where K6 (or K3) exists, else InputError naming the first."""
         Q, single = self._configs(q)
-        J = self.chain.jacobian_many(Q)
+        J = self.spring_jacobians(Q)
         joint, trans = self._measures(J)
         soft = int(np.count_nonzero(np.isfinite(np.asarray(self.k_theta))))
         tol = self.singular_tol
         for i in range(Q.shape[0]):
             where = "" if single else f"configuration {i + 1}: "
-            if need6 and soft < 6:
+            if need6 and not self.has_k6:
                 raise InputError(
                     f"{where}K6 needs six compliant joints; {self.chain.name} has {soft}: its compliance "
                     "C6 is singular (use compliance6, or stiffness3 for the force stiffness)",
                     source=self.chain.source,
                 )
             bad = []
-            if need6 and joint[i] < tol:
+            if need6 and not self.links and joint[i] < tol:
                 bad.append(self._joint_reason(J[i], joint[i]))
             if trans[i] < tol:
                 bad.append(self._translation_reason(J[i], trans[i]))
             if bad:
                 raise InputError(f"{where}singular: " + "; ".join(bad), source=self.chain.source)
-        C = _compliances(J, self.compliances)
+        C = self._compliance(Q, J)
         C = C if need6 else C[:, :3, :3]
         reasons = ["" for _ in range(Q.shape[0])]
         ok = _check_rigid(C, np.arange(Q.shape[0]), reasons)

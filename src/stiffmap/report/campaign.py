@@ -16,6 +16,7 @@ import numpy as np
 
 from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION, own_file
+from ..campaign.platform import is_platform, platform_map
 from ..campaign.robot import campaign_model, robot_file
 from ..campaign.run import EXPORTS_DIR
 from ..campaign.runner import cameras_path, read_cameras
@@ -142,7 +143,8 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
             X, Y = np.meshgrid(xs, ys)
             grid.append(np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)])
         g = np.concatenate(grid)
-        mm = model.evaluate(g)
+        lever = spec.loads.point_mm or (0.0, 0.0, 0.0)  # a platform that turns: level, loads hung there
+        mm = platform_map(model, g, lever) if is_platform(model) else model.evaluate(g)
         dense = contract.ModelMap(
             g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
         )

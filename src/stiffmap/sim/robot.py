@@ -43,7 +43,11 @@ __all__ = [
     "translational_stiffness",
     "serial_robot",
     "arm6_robot",
+    "PlatformField",
+    "platform_robot",
+    "LEGS_NAME",
     "URDF_NAME",
+    "LINKS_NAME",
 ]
 
 
@@ -174,7 +178,8 @@ class VirtualRobot:
     spec : dict
         More keys of campaign.toml's ``[robot]`` (a URDF robot's ``urdf``, ``tip_frame``, ...).
     files : dict
-        Files the campaign folder gets: name there -> the file to copy (a URDF robot's URDF).
+        Files the campaign folder gets: name there -> the file to copy, or its content as
+        bytes (a URDF robot's URDF, a xacro file's expansion; its flexible links' file).
     """
 
     field: Callable[[np.ndarray], np.ndarray]
@@ -185,7 +190,7 @@ class VirtualRobot:
     model: str = "none"
     params: dict[str, Any] = field(default_factory=dict)
     spec: dict[str, Any] = field(default_factory=dict)
-    files: dict[str, str] = field(default_factory=dict)
+    files: dict[str, str | bytes] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not callable(self.field):
@@ -341,6 +346,18 @@ class SerialField:
             raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
         return np.array([self.model.stiffness6(q) for q in ik.q]).reshape(-1, 6, 6)
 
+    def positions_q_deg(self, points) -> list[list[float]] | None:
+        """The joint configurations of ``points`` when the model was given configurations
+        (campaign.toml's ``positions.q_deg``: degrees, mm for a prismatic joint), else None
+        (the campaign finds them by inverse kinematics, as the test-bed did)."""
+        if self.model.configurations is None:
+            return None
+        ik = self.model.configurations_for(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+        rev = np.array([t == "revolute" for t in self.model.chain.joint_types])
+        return [
+            [round(float(v), 9) + 0.0 for v in np.where(rev, np.degrees(q), q)] for q in np.atleast_2d(ik.q)
+        ]
+
 
 def _degrees(a) -> list[float]:
     """Angles in rad as degrees for campaign.toml, rounded to 1e-9 degree (no -0.0)."""
@@ -349,9 +366,11 @@ def _degrees(a) -> list[float]:
 
 #: The name of a URDF robot's URDF in a simulated campaign's folder.
 URDF_NAME = "robot.urdf"
+#: The name of its flexible links' file there.
+LINKS_NAME = "links.toml"
 
 
-def serial_robot(model, **kw) -> VirtualRobot:
+def serial_robot(model, *, links_file=None, **kw) -> VirtualRobot:
     """A serial robot from its URDF (:class:`~stiffmap.models.serial.SerialRobot`) as a virtual robot.
 
     Its field is the 6x6 stiffness at the measured point (N/mm, N, N*mm/rad blocks, base axes)
@@ -359,26 +378,41 @@ def serial_robot(model, **kw) -> VirtualRobot:
     inverse kinematics with its tool orientation): the platform turns under a load, and a
     load off the measured point (``load_point_mm``) turns the wrist joints too.
 
+    The campaign folder gets the URDF the model was read from (:data:`URDF_NAME`; a xacro
+    file's expansion, so the campaign needs neither xacro nor the packages), its base frame
+    when it is not the URDF's root, and its flexible links' file (:data:`LINKS_NAME`).
+
     Parameters
     ----------
     model : SerialRobot
+    links_file : path-like, optional
+        The TOML the model's flexible links were read from (needed when it has some).
     **kw
         :class:`VirtualRobot` fields (repeatability_mm, load_point_mm, ...).
     """
-
+    ch = model.chain
     spec = {
         "urdf": URDF_NAME,
-        "tip_frame": model.chain.tip_frame,
-        "tip_offset_mm": [float(v) for v in model.chain.tip_offset_mm],
-        "tool_rpy_deg": _degrees(euler_from_matrix(model.tool_rotation)),
+        "tip_frame": ch.tip_frame,
+        "tip_offset_mm": [float(v) for v in ch.tip_offset_mm],
         "q_seed_deg": _degrees(model.q_seed),
     }
+    if model.tool_rotation is not None:
+        spec["tool_rpy_deg"] = _degrees(euler_from_matrix(model.tool_rotation))
+    if ch.base_frame != ch.root_frame:
+        spec["base_frame"] = ch.base_frame
+    files: dict[str, str | bytes] = {URDF_NAME: ch.urdf_text.encode() if ch.urdf_text else ch.source}
+    if model.links:
+        if links_file is None:
+            raise ValueError("a robot with flexible links needs links_file, the TOML they were read from")
+        spec["links"] = LINKS_NAME
+        files[LINKS_NAME] = str(links_file)
     return VirtualRobot(
         field=SerialField(model),
         model=model.name,
         params={k: float(v) for k, v in model.params().items()},
         spec=spec,
-        files={URDF_NAME: model.chain.source},
+        files=files,
         **kw,
     )
 
@@ -394,3 +428,59 @@ def arm6_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
         :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
     """
     return serial_robot(arm6.model().with_params(**(params or {})), **kw)
+
+
+@dataclass(frozen=True)
+class PlatformField:
+    """The 6x6 stiffness field of a parallel robot whose platform turns (a picklable callable):
+    K6 at the tool point (N/mm, N, N*mm/rad blocks, base axes) of the pose that puts the tool
+    point at each position with the platform at ``rpy`` (roll, pitch, yaw, rad)."""
+
+    model: Any
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __call__(self, points) -> np.ndarray:
+        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        poses = np.concatenate([P, np.tile(np.asarray(self.rpy, dtype=np.float64), (P.shape[0], 1))], axis=1)
+        m = self.model.evaluate(poses)
+        for i in np.flatnonzero(~m.valid):
+            raise ValueError(f"the robot cannot hold its platform at {P[i].tolist()} mm: {m.reasons[i]}")
+        return m.K6
+
+
+#: The name of a legs TOML in a simulated campaign's folder.
+LEGS_NAME = "robot.toml"
+
+
+def platform_robot(model, kind: str, file_key: str, **kw) -> VirtualRobot:
+    """A parallel robot whose platform turns as a virtual robot (a ``dim = 6`` legs TOML:
+    :class:`~stiffmap.models.legs6.LegRobot6`).
+
+    Its field is K6 at the tool point with the platform level (:class:`PlatformField`): under
+    a load the platform turns as well as moves, and a load off the tool point
+    (``load_point_mm``) turns it more. The campaign it writes is ``robot.model = kind`` with
+    its TOML copied into the folder (:data:`LEGS_NAME`) and named by ``robot.<file_key>``.
+
+    Parameters
+    ----------
+    model : LegRobot6
+        Read from its TOML (``model.source``), with its parameters.
+    kind, file_key : str
+        The robot kind (the registry's) and its campaign.toml key of the TOML.
+    **kw
+        :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
+    """
+    if getattr(model, "dim", None) != 6 or not getattr(model, "source", None):
+        raise ValueError("platform_robot needs a robot read from a dim = 6 legs TOML")
+    if any(d.urdf for d in model.description):
+        raise ValueError(
+            "platform_robot copies the legs TOML alone: its legs must be given by joints, not URDFs"
+        )
+    return VirtualRobot(
+        field=PlatformField(model),
+        model=kind,
+        params={k: float(v) for k, v in model.params().items()},
+        spec={file_key: LEGS_NAME},
+        files={LEGS_NAME: str(model.source)},
+        **kw,
+    )

@@ -27,10 +27,13 @@ __all__ = [
     "board_pose_at_pixel",
     "spread_poses",
     "Scene",
+    "scene_around",
     "default_scene",
     "demo_scene",
     "arm_scene",
     "ARM_SCENE_SHIFT_MM",
+    "hexapod_scene",
+    "HEXAPOD_SCENE_SHIFT_MM",
     "with_cameras",
     "two_camera_rig",
     "FIXED2BASE_REFERENCE",
@@ -221,6 +224,53 @@ def arm_scene(camera: CameraModel | None = None) -> Scene:
     """
     sc = demo_scene(camera)
     shift = transform_from(np.eye(3), ARM_SCENE_SHIFT_MM)
+    return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
+
+
+#: Where the hexapod's scene puts the demo scene's base frame, in the hexapod's base frame
+#: (mm): the demo's view of the Delta's grid (z -200 ... -400) becomes a view of the space
+#: above the hexapod's base (z 400 ... 200), where its platform moves.
+HEXAPOD_SCENE_SHIFT_MM = (0.0, 0.0, 600.0)
+
+
+def hexapod_scene(camera: CameraModel | None = None) -> Scene:
+    """A hexapod's scene: :func:`demo_scene` moved above the hexapod's base.
+
+    The same camera, boards and mounting of the mobile board on the platform as the demo
+    (a 15x14 board 50 mm in front of the tool point, the centre of the platform), all moved
+    up by :data:`HEXAPOD_SCENE_SHIFT_MM`; the fixed board stands on a post behind the
+    hexapod. The test-bed keeps the platform's orientation (level, yaw 0), so the tcp
+    frame keeps the base's axes.
+    """
+    sc = demo_scene(camera)
+    shift = transform_from(np.eye(3), HEXAPOD_SCENE_SHIFT_MM)
+    return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
+
+
+#: The middle of the region the demo scene's camera sees well (the ``paper48`` grid's centre), mm.
+DEMO_VIEW_CENTRE_MM = (0.0, 0.0, -300.0)
+
+
+def scene_around(positions, camera: CameraModel | None = None) -> Scene:
+    """:func:`demo_scene` moved so that it looks at ``positions``: a user's robot on the test-bed.
+
+    The camera, the fixed board on its post and the mounting of the mobile board on the
+    platform (the tcp frame) are the demo's, all moved by the vector from
+    :data:`DEMO_VIEW_CENTRE_MM` to the middle of the positions' bounding box, as
+    :func:`arm_scene` does for the six-joint arm's box. The region seen well is the demo's,
+    about 400 x 400 x 200 mm (x, y, z); the campaign's plan names a position where a board
+    leaves the image.
+
+    Parameters
+    ----------
+    positions : array_like, shape (N, 3), mm
+        The measured point's positions, robot base frame.
+    camera : CameraModel, optional
+    """
+    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    centre = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    shift = transform_from(np.eye(3), centre - np.asarray(DEMO_VIEW_CENTRE_MM))
+    sc = demo_scene(camera)
     return replace(sc, cam2base=shift @ sc.cam2base, fixed2base=shift @ sc.fixed2base)
 
 
