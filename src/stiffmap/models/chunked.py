@@ -35,6 +35,8 @@ def _concatenate(maps: list[ModelMap]) -> ModelMap:
             values[f.name] = parts[0]
         elif f.name == "reasons":
             values[f.name] = tuple(r for p in parts for r in p)
+        elif any(p is None for p in parts):  # an optional array (K6 of a robot that turns): absent
+            values[f.name] = None
         else:
             a = np.concatenate(parts, axis=0)
             a.setflags(write=False)
