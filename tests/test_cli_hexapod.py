@@ -117,6 +117,18 @@ def test_orientation_and_moment_are_refused_for_a_platform_that_only_translates(
         assert code == 2 and f"{opt[0]} is for a platform that turns" in err and err.count("\n") == 1
 
 
+def test_orientation_and_moment_are_refused_for_a_serial_arm(monkeypatch, capsys, tmp_path):
+    """urdf evaluates configurations: the options were once silently ignored there."""
+    configs = tmp_path / "q.csv"
+    configs.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n0,-30,-60,0,45,0\n")
+    arm = ["model", "urdf", "arm6", "--tip", "tool0", "--configs", configs, "--param", "k_theta=1e7"]
+    code, _, err = _cli(arm, monkeypatch, capsys)
+    assert code == 0, err
+    for opt in (["--orientation", "10,0,0"], ["--moment-nmm", "0,0,1"]):
+        code, _, err = _cli([*arm, *opt], monkeypatch, capsys)
+        assert code == 2 and f"{opt[0]} is for a platform that turns" in err and err.count("\n") == 1
+
+
 def test_two_number_attach_mm_in_a_6d_file_names_file_and_key(monkeypatch, capsys, tmp_path):
     text = Path(HEXAPOD).read_text(encoding="utf-8")
     first = next(line for line in text.splitlines() if line.startswith("attach_mm"))

@@ -193,3 +193,14 @@ def test_malformed_inputs_are_handled(which, data):
         None,  # a mutated program can change its feed moves: the force file is then to blame
     )
     assert_handled(case, run_case(case))
+
+
+def test_a_platform_that_turns_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    """A dim = 6 legs file (the shipped hexapod): its points are poses, which a three-axis
+    program does not give; one line naming the file and exit 2, not an internal error."""
+    hexapod = Path(__file__).parents[1] / "src" / "stiffmap" / "models" / "robots" / "hexapod.toml"
+    out = tmp_path / "out.nc"
+    args = ["compensate", "legs", hexapod, "--path", PROGRAM, "--out", out, "-q"]
+    code, _, err = run_in_process([*args, "--place", "0,0,300", "--force-n", "0,0,-10"], monkeypatch, capsys)
+    _one_line(code, err, "hexapod", "dim = 6")
+    assert list(tmp_path.iterdir()) == []

@@ -180,11 +180,11 @@ def model(
     _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json, as_csv)
     own = _options(tip, tip_offset, base, xacro_arg, package_path, links)
     m = _robot("model", mechanism, robot, param, configs, own)
+    six = m.dim == POSE_DIM
+    _turning_only(six, kind.name, orientation, moment, points)
     if kind.configurations:
         _model_configurations(m, configs, as_json, output)
         return
-    six = m.dim == POSE_DIM
-    _turning_only(six, kind.name, orientation, moment, points)
     P = _positions(kind, m.dim, grid, points, orientation)
     F = _force(kind, 3 if six else m.dim, load_n, direction)
     M = None if moment is None else _moment(moment)
@@ -337,10 +337,7 @@ def _turning_only(six: bool, kind: str, orientation, moment, points) -> None:
     if not six:
         for opt, v in (("--orientation", orientation), ("--moment-nmm", moment)):
             if v is not None:
-                raise InputError(
-                    f"{opt} is for a platform that turns (a legs TOML with dim = 6); this {kind} "
-                    "robot's platform only translates"
-                )
+                raise InputError(f"{opt} is for a platform that turns (a legs TOML with dim = 6), not {kind}")
     elif orientation is not None and points is not None:
         raise InputError(
             "--orientation goes with --grid; the poses of --points give their own (columns roll_deg, "

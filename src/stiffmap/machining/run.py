@@ -184,6 +184,12 @@ def compensate_file(
         raise InputError(
             f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
         )
+    if mechanism.dim not in (2, 3):
+        raise InputError(
+            f"compensate: {mechanism.name} is a platform that turns (a legs file with dim = {mechanism.dim}, "
+            "its points are poses); a program is compensated for a robot whose points are positions "
+            "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
+        )
     if options.free_tool_spin and not _is_arm(mechanism):
         raise InputError(f"--free-tool-spin is for a serial arm (urdf); {mechanism.name} has no tool spin")
     path, forces, gcode, n_csv, warnings = _load(program, mechanism.dim, options)
