@@ -185,3 +185,23 @@ def test_the_rules_see_violations(tmp_path):
     )
     assert _named(branchy, {"delta", "3prr"}) == [(2, "delta")]
     assert _compared(branchy, {"vision", "sensor"}) == [(2, "vision")]
+
+
+def test_no_submodule_shadows_a_name_its_package_exports():
+    """``from stiffmap.vision import measure_files`` must stay the function: a submodule of the
+    same name replaces the package's attribute once anything imports it (the README's tour
+    failed after another test had imported ``stiffmap.vision.measure_files``)."""
+    clashes = []
+    for init in SRC.rglob("__init__.py"):
+        exported = {
+            elt.value
+            for node in ast.walk(_tree(init))
+            if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "__all__" for t in node.targets)
+            for elt in getattr(node.value, "elts", [])
+            if isinstance(elt, ast.Constant)
+        }
+        subs = {p.stem for p in init.parent.glob("*.py")} | {
+            p.name for p in init.parent.iterdir() if p.is_dir()
+        }
+        clashes += [f"{_rel(init.parent)}: {name}" for name in sorted(exported & subs)]
+    assert not clashes, "package names that a submodule of the same name shadows:\n" + "\n".join(clashes)

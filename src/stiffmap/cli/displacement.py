@@ -1,7 +1,7 @@
 """``stiffmap displacement``: the target's displacement in each image relative to reference images,
 with one camera or a rig (docs/vision.md).
 
-Parses the options, calls :func:`stiffmap.vision.measure_files.displacement_files` and prints.
+Parses the options, calls :func:`stiffmap.vision.file_commands.displacement_files` and prints.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from rich.table import Table
 from ..errors import InputError
 from ..rig import Rig
 from ..vision.displacement import ImageDisplacements
-from ..vision.measure_files import displacement_files
+from ..vision.file_commands import displacement_files
 from ..vision.records import displacement_records
 from .common import fail, fmt, out, print_json, warn
 from .vision_options import (

@@ -1,6 +1,6 @@
 """``stiffmap pose``: the board's pose in each image, with one camera or a rig (docs/vision.md).
 
-Parses the options, calls :func:`stiffmap.vision.measure_files.pose_files` and prints.
+Parses the options, calls :func:`stiffmap.vision.file_commands.pose_files` and prints.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from rich.table import Table
 from ..errors import InputError
 from ..geometry import rotvec_from_matrix
 from ..rig import Rig
-from ..vision.measure_files import pose_files
+from ..vision.file_commands import pose_files
 from ..vision.records import pose_record
 from ..vision.sequence import ImageMeasurement
 from .common import fail, fmt, out, print_json

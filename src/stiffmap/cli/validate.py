@@ -1,7 +1,7 @@
 """``stiffmap validate``: measured against known stage displacements, after the reference study's
 X-table test (docs/vision.md).
 
-Parses the options, calls :func:`stiffmap.vision.measure_files.validate_files` and prints.
+Parses the options, calls :func:`stiffmap.vision.file_commands.validate_files` and prints.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from rich.table import Table
 from ..errors import InputError
 from ..io import atomic_write_text
 from ..report.validation import stage_plot_svg
-from ..vision.measure_files import validate_files
+from ..vision.file_commands import validate_files
 from ..vision.records import validation_record
 from ..vision.validate import REFERENCE_TABLE_I, StageValidation
 from .common import fail, fmt, out, print_json, warn

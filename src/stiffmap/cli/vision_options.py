@@ -15,8 +15,8 @@ from ..errors import InputError
 from ..rig import Rig, load_rig
 from ..targets import CharucoBoard, Chessboard, parse_board_size
 from ..vision.calibrate import grouped_reasons
+from ..vision.file_commands import FixedTarget
 from ..vision.files import MAX_TRANSLATION_MM, read_transform
-from ..vision.measure_files import FixedTarget
 from ..vision.sequence import ImageMeasurement, photometric_summary
 from .common import EXIT_PARTIAL, fail, out, three_numbers, warn
 
