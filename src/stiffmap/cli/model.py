@@ -59,8 +59,8 @@ _PACKAGE_PATH_HELP = (
     "urdf: a folder where a .xacro description's $(find PKG) looks (repeatable; then ROS_PACKAGE_PATH)."
 )
 _LINKS_HELP = (
-    "urdf: TOML of flexible links (a links table per link: beam data or a 6x6 compliance, docs/models.md); their "
-    "parameters E_<name>, G_<name>, f_<name> join the joints'."
+    "urdf: TOML of flexible links (a links table per link: beam data or a 6x6 compliance, "
+    "docs/models.md); their parameters E_<name>, G_<name>, f_<name> join the joints'."
 )
 
 
