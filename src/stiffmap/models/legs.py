@@ -203,6 +203,38 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
 # ---------------------------------------------------------------------- the robot
 
 
+def unreachable_as_nan(
+    legs, joints: list[np.ndarray], reasons: list[str], arrays
+) -> tuple[np.ndarray, np.ndarray]:
+    """The actuated coordinates of every pose and which poses all legs reach.
+
+    Parameters
+    ----------
+    legs : sequence
+        The legs, each with ``roles`` (one per joint: "actuated", "passive" or "spring").
+    joints : list of ndarray, each (N, n_k)
+        Each leg's joint coordinates (rad or mm) per pose; set to NaN in place where a pose is
+        unreachable.
+    reasons : list of str
+        Per pose: "" when reachable, else why not.
+    arrays : sequence of ndarray, each (N, ...)
+        Per-pose arrays (the legs' Jacobian columns) set to NaN in place where unreachable.
+
+    Returns
+    -------
+    q : ndarray, shape (N, n_actuated)
+        The legs' actuated coordinates side by side, leg after leg (NaN where unreachable).
+    reachable : ndarray of bool, shape (N,)
+    """
+    reachable = np.array([r == "" for r in reasons], dtype=bool)
+    for jk in joints:
+        jk[~reachable] = np.nan
+    for arr in arrays:
+        arr[~reachable] = np.nan
+    act = [[j for j, r in enumerate(lg.roles) if r == "actuated"] for lg in legs]
+    return np.concatenate([joints[k][:, a] for k, a in enumerate(act)], axis=1), reachable
+
+
 @dataclass(frozen=True)
 class LegStates:
     """Every leg of a :class:`LegRobot` at many poses.
@@ -407,18 +439,7 @@ class LegRobot(LegMechanism):
                     arr[i, k, :, len(cols) :] = 0.0
             if bad:
                 reasons[i] = "unreachable: " + "; ".join(bad)
-        reachable = np.array([r == "" for r in reasons], dtype=bool)
-        for k in range(nl):
-            joints[k][~reachable] = np.nan
-        for arr in (springs, actuated, passive):
-            arr[~reachable] = np.nan
-        q = np.concatenate(
-            [
-                joints[k][:, [j for j, r in enumerate(lg.roles) if r == "actuated"]]
-                for k, lg in enumerate(self._legs)
-            ],
-            axis=1,
-        )
+        q, reachable = unreachable_as_nan(self._legs, joints, reasons, (springs, actuated, passive))
         return LegStates(q, tuple(joints), reachable, tuple(reasons), springs, actuated, passive)
 
     def inverse_kinematics(self, points) -> IKSolution:

@@ -56,7 +56,7 @@ from .base import (
     platform_stiffness6,
     raise_first_invalid,
 )
-from .legs import LegRobot, LegStates
+from .legs import LegRobot, LegStates, unreachable_as_nan
 from .legs_file import ROLES, LegDescription, LegJoint, legs_text
 
 __all__ = [
@@ -205,13 +205,7 @@ class LegRobot6(LegRobot):
                     arr[i, k, :, c.shape[1] :] = 0.0
             if bad:
                 reasons[i] = "unreachable: " + "; ".join(bad)
-        reachable = np.array([r == "" for r in reasons], dtype=bool)
-        for k in range(nl):
-            joints[k][~reachable] = np.nan
-        for arr in (springs, actuated, passive):
-            arr[~reachable] = np.nan
-        act = [[j for j, r in enumerate(lg.roles) if r == "actuated"] for lg in self._legs]
-        q = np.concatenate([joints[k][:, a] for k, a in enumerate(act)], axis=1)
+        q, reachable = unreachable_as_nan(self._legs, joints, reasons, (springs, actuated, passive))
         return LegStates6(q, tuple(joints), reachable, tuple(reasons), springs, actuated, passive, arms, R)
 
     # ------------------------------------------------------------------ stiffness
