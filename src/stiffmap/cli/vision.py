@@ -79,8 +79,8 @@ def calibrate(
     implausible = _warn_calibrated(res.camera, out_path, field_warning=False)
     for key, what in res.problems:
         warn(f"{out_path}: {key}: {what}")
-    if res.lens_advice:
-        warn(f"{out_path}: {res.lens_advice}")
+    if res.lens_advice:  # advice on a good calibration (its model serves where the corners are)
+        note(f"{out_path}: {res.lens_advice}")
     if as_json:
         print_json(res.to_dict())
     else:
