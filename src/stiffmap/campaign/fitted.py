@@ -17,9 +17,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..models.base import Mechanism
+from .fingerprint import robot_changes, stale_fit_message
 from .robot import robot_model
 from .run import campaign_root
-from .spec import load_spec
+from .spec import SPEC_NAME, load_spec
 from .store import DB_NAME, Store
 
 __all__ = ["FittedModel", "fitted_model"]
@@ -79,6 +80,9 @@ def fitted_model(directory: str | Path) -> FittedModel:
         raise InputError(f"the campaign's model fit failed: {rows[0].error}", source=str(db))
     row = ok[0]
     params = row.params or {}
+    changes = robot_changes(row.robot, spec, root, params)
+    if changes:
+        raise InputError(stale_fit_message(changes, root), source=str(root / SPEC_NAME))
     std = row.std or {}
     cov = np.atleast_2d(row.cov)
     names = tuple(params)

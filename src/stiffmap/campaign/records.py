@@ -173,7 +173,8 @@ class ModelFitRecord:
     """A model fit (``model_fit``): ``name`` ``stiffness`` (to K) or ``static_error``.
 
     ``params`` and ``std`` dicts (name -> value, in the parameter's unit); ``cov`` their
-    covariance; ``residuals`` per pose.
+    covariance; ``residuals`` per pose; ``robot`` the fingerprint of the robot fitted
+    (:mod:`~stiffmap.campaign.fingerprint`; None in a database of schema 3 and before).
     """
 
     name: str
@@ -188,8 +189,15 @@ class ModelFitRecord:
     dof: int | None
     inputs_hash: str
     version: str
+    robot: Any = None
 
-    JSON: ClassVar[dict[str, str]] = {"params": OBJECT, "std": OBJECT, "cov": ARRAY, "residuals": ARRAY}
+    JSON: ClassVar[dict[str, str]] = {
+        "params": OBJECT,
+        "std": OBJECT,
+        "cov": ARRAY,
+        "residuals": ARRAY,
+        "robot": OBJECT,
+    }
 
 
 @dataclass(frozen=True)

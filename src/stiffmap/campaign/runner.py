@@ -46,6 +46,7 @@ from ..models.joint_fit import fit_joint_compliances
 from ..parallel import Backend, connected
 from ..rig import Rig, load_rig
 from .derive import derive_position
+from .fingerprint import robot_fingerprint
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .platform import fit_platform, is_platform, platform_map
@@ -582,6 +583,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         "model": name,
         "inputs_hash": ihash,
         "version": __version__,
+        "robot": to_json(robot_fingerprint(spec, root)),
     }
     if kind.joint_params:  # joint stiffnesses: fitted to the measured displacements themselves
         fitted = _fit_joints(model, spec, rows, disp, fit_row, problems)

@@ -26,6 +26,7 @@ from ..sensors.analysis import SensorConfig, analyse_recording
 from ..sensors.batch import direction_from
 from ..sensors.io import read_recording
 from ..sensors.recording import ChannelMap, parse_channel_map
+from .fingerprint import robot_fingerprint
 from .paths import campaign_file
 from .robot import fitted_names, robot_model
 from .spec import SPEC_NAME, CampaignSpec, SensorRecordingSpec
@@ -271,6 +272,7 @@ def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
         "model": name,
         "inputs_hash": ihash,
         "version": __version__,
+        "robot": to_json(robot_fingerprint(spec, root)),
     }
     fitted = model
     negative = v & (m["stiffness_n_per_mm"] < 0)

@@ -58,7 +58,7 @@ __all__ = [
 ]
 
 DB_NAME = "stiffmap.db"
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 #: Columns added since schema 1, added in place to an older database (its rows are kept; the
 #: revisions in the parameter hashes make the next run recompute what they would hold).
@@ -70,6 +70,7 @@ _ADDED_COLUMNS = {
         ("stiffness", "K_cov_calibration"),
     ),
     3: (("measurements", "per_camera"),),
+    4: (("model_fit", "robot"),),
 }
 
 _SCHEMA = """
@@ -104,7 +105,7 @@ CREATE TABLE IF NOT EXISTS stiffness (
 CREATE TABLE IF NOT EXISTS model_fit (
     name TEXT PRIMARY KEY, model TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
     params TEXT, std TEXT, cov TEXT, residuals TEXT, condition REAL, dof INTEGER,
-    inputs_hash TEXT NOT NULL, version TEXT NOT NULL);
+    inputs_hash TEXT NOT NULL, version TEXT NOT NULL, robot TEXT);
 CREATE TABLE IF NOT EXISTS model_stiffness (
     position INTEGER PRIMARY KEY, model TEXT NOT NULL, valid INTEGER NOT NULL, reason TEXT,
     K TEXT, det REAL, min_principal REAL, inputs_hash TEXT NOT NULL);

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..campaign.fingerprint import robot_changes, stale_fit_message
 from ..campaign.instruments import STATIC_ERROR, STIFFNESS, instrument_of
 from ..campaign.paths import ALLOW_OUTSIDE_OPTION, own_file
 from ..campaign.platform import is_platform, platform_map
@@ -77,6 +78,9 @@ def _stale_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str) ->
             f"model fit: {DB_NAME} holds the fit of robot model {fit.model!r}, but campaign.toml now "
             f"names {spec.robot.model!r}: {rerun}"
         )
+    changes = robot_changes(fit.robot, spec, root, fit.params or ())
+    if changes:
+        return f"model fit: {stale_fit_message(changes, root)}; the report leaves the model out"
     try:
         _fitted_model(root, spec, store, fit_name)
     except (ValueError, TypeError, KeyError) as e:  # InputError too
