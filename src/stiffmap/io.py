@@ -169,6 +169,23 @@ def read_text_file(path: str | os.PathLike, what: str = "text file") -> str:
     return raw
 
 
+def _refuse_json(raw: str, required: Sequence[str], src: str) -> None:
+    """InputError when a file given as a CSV table is JSON (an object or a list: ``{`` or ``[`` first)."""
+    head = raw.lstrip("\ufeff \t\r\n")[:1]
+    if head not in ("{", "["):
+        return
+    try:
+        json.loads(raw)
+        what = "is a JSON file"
+    except (ValueError, RecursionError):
+        what = f"looks like JSON (it begins with {head!r})"
+    raise InputError(
+        f"{what}, not a CSV table; expected a header row"
+        f"{' with columns ' + ', '.join(required) if required else ''} and one row of numbers per line",
+        source=src,
+    )
+
+
 def read_csv_columns(
     path: str | os.PathLike,
     required: Iterable[str],
@@ -209,6 +226,7 @@ def read_csv_columns(
     if p.is_dir():
         raise InputError("is a directory, expected a CSV file", source=src)
     raw = read_text_file(p, "CSV file")
+    _refuse_json(raw, required, src)
     lines_text = raw.splitlines()
     delimiter = sniff_delimiter(lines_text)
     reader = csv.reader(lines_text, delimiter=delimiter)

@@ -39,6 +39,10 @@ __all__ = ["open_camera", "simulated_camera", "SIM_OPTIONS"]
 #: What ``sim:KEY=VALUE,...`` may set.
 SIM_OPTIONS = ("fps", "frequency_hz", "time_constant_s", "settled_mm", "move_ring_mm", "seed")
 
+#: The highest frame rate of the simulated camera, frames per second (a real camera's is lower;
+#: at 1e9 frames a second the settling the capture waits for would take a billion frames).
+MAX_SIM_FPS = 1000.0
+
 
 def _sim_options(text: str) -> dict[str, float]:
     out: dict[str, float] = {}
@@ -55,6 +59,10 @@ def _sim_options(text: str) -> dict[str, float]:
             raise InputError(f"--camera sim:{text}: {key} = {val!r} is not a number") from None
         if not np.isfinite(v) or v < 0 or (v == 0 and key not in ("seed", "move_ring_mm")):
             raise InputError(f"--camera sim:{text}: {key} must be a positive number, got {val!r}")
+        if key == "fps" and v > MAX_SIM_FPS:
+            raise InputError(
+                f"--camera sim:{text}: fps must be at most {MAX_SIM_FPS:g} frames per second, got {val!r}"
+            )
         out[key] = int(v) if key == "seed" else v
     return out
 

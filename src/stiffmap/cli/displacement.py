@@ -91,7 +91,7 @@ def displacement(
     ms = [*res.references, *res.images]
     warn_failures(ms, the_rig, refine, as_json)
     for f in res.summary.flags if res.summary is not None else ():
-        warn(f)
+        warn(_named(f, res))
     frame_names = {"cam": "rig"} if the_rig is not None else {}
     if as_json:
         print_json(displacement_records(res, frame_names, the_rig is not None))
@@ -103,6 +103,18 @@ def displacement(
             print_cameras(ms, the_rig)
             out.print(rig_calibration_note(the_rig, source))
     exit_for(res.n_ok, res.n_images, measured_with(camera, board, rig), camera_failures(ms) > 0)
+
+
+def _files(ms) -> str:
+    names = [m.image for m in ms]
+    return ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+
+
+def _named(flag: str, res: ImageDisplacements) -> str:
+    """A flag of the images as a whole, with the files it is about (the fixed target's move)."""
+    if "fixed target moved" not in flag:
+        return flag
+    return f"reference {_files(res.references)} -> {_files(res.images)}: {flag}"
 
 
 def _print_displacements(res: ImageDisplacements, frame_names=None) -> None:

@@ -140,7 +140,7 @@ def grid_points(spec: str, dim: int, presets: str = "") -> np.ndarray:
     """
     parts = spec.split(",")
     hint = (
-        f"expected a preset ({presets}) or "
+        f"expected {f'a preset ({presets}) or ' if presets else ''}"
         f"{dim} comma-separated axes, each START:STOP:N or a single value in mm "
         f"(e.g. {'-200:200:5,-200:200:5,-310' if dim == 3 else '200:600:9,20:420:9'})"
     )
@@ -187,7 +187,7 @@ def positions_from_list(text: str, dim: int, robot: str = "the robot", presets: 
         cols = AXIS_NAMES[:dim]
         c = ",".join(cols)
         raise ValueError(
-            f"{text!r}: expected a preset ({presets}), a CSV file with columns "
+            f"{text!r}: expected {f'a preset ({presets}), ' if presets else ''}a CSV file with columns "
             f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for {robot}"
         )
     return P
