@@ -87,3 +87,29 @@ def test_the_fixed_targets_move_names_the_images(tmp_path):
     o = run_argv([*argv, "--reference", str(tmp_path / "ref.png"), str(tmp_path / "moved.png")])
     (line,) = [ln for ln in o.stderr.splitlines() if "fixed target moved" in ln]
     assert line.startswith(f"warning: reference {tmp_path / 'ref.png'} -> {tmp_path / 'moved.png'}: "), line
+
+
+def test_help_paragraphs_are_wrapped_by_rich_and_only_bullets_keep_their_lines():
+    from helpers.cli_process import run_stiffmap
+
+    from stiffmap.cli.main import _unwrapped
+
+    doc = """Summary.
+
+    Text wrapped at the source's width
+    --points with x, y, z: an option at a line's start is no bullet.
+
+    - a bullet whose text
+      goes on here
+    * another
+    """
+    assert _unwrapped(doc).split("\n\n")[1:] == [
+        "Text wrapped at the source's width --points with x, y, z: an option at a line's start is no bullet.",
+        "- a bullet whose text goes on here\n* another",
+    ]
+    proc = run_stiffmap("model", "--help", columns=80)
+    text = proc.stdout.split("╭─ Arguments")[0]
+    lines = [ln.strip() for ln in text.splitlines()]
+    # rich fills each line of a paragraph; a short line is only the last of its paragraph.
+    ragged = [a for a, b in zip(lines, lines[1:], strict=False) if a and b and len(a) < 50]
+    assert ragged == [] and "turn), K_rot a pure moment's" in " ".join(lines), text

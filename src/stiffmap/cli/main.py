@@ -265,13 +265,22 @@ def _unwrapped(doc: str) -> str:
     """A docstring with each paragraph on one line, for rich to wrap to the terminal's width.
 
     rich keeps the docstring's own line breaks, so a paragraph wrapped at the source's 100
-    columns would come out ragged on an 80-column terminal. Paragraphs holding indented or
-    bulleted lines (lists, examples) are kept as written.
+    columns would come out ragged on an 80-column terminal. A bulleted paragraph (lines that
+    begin with ``- `` or ``* ``) keeps one line per bullet, its continuation lines joined to it;
+    one holding indented lines or a table (examples) is kept as written. A line that begins
+    with an option (``--grid``) is no bullet: it is joined like any other.
     """
     out = []
     for para in inspect.cleandoc(doc).split("\n\n"):
         lines = para.split("\n")
-        if any(ln.startswith((" ", "-", "*", "|")) for ln in lines):
+        if any(ln.startswith(("- ", "* ")) for ln in lines):
+            items: list[list[str]] = []
+            for ln in lines:
+                if ln.startswith(("- ", "* ")) or not items:
+                    items.append([])
+                items[-1].append(ln.strip())
+            out.append("\n".join(" ".join(item) for item in items))
+        elif any(ln.startswith((" ", "|")) for ln in lines):
             out.append(para)
         else:
             out.append(" ".join(ln.strip() for ln in lines))
