@@ -285,6 +285,19 @@ def test_a_rig_file_that_does_not_match_the_images_is_named(files):
     assert np.isfinite(np.asarray(row["board2cam"], dtype=float)).all()
 
 
+def test_a_rig_file_with_its_cameras_swapped_is_named_where_they_disagree(files):
+    """Issue 27: the cameras' disagreement named the image set but not the rig file to check."""
+    d = json.loads((files / "rig.json").read_text())
+    d["cameras"][0]["name"], d["cameras"][1]["name"] = d["cameras"][1]["name"], d["cameras"][0]["name"]
+    (files / "rig_swapped.json").write_text(json.dumps(d))
+    p = run_stiffmap("pose", "--rig", "rig_swapped.json", "{camera}_00.png", *BOARD_ARGS, cwd=files)
+    disagree = [w for w in p.stderr.splitlines() if "the cameras disagree" in w]
+    assert p.returncode == 1 and disagree, p.stderr
+    assert all(
+        w.startswith("warning: rig_swapped.json: {camera}_00.png: the cameras disagree") for w in disagree
+    )
+
+
 def test_displacement_with_a_rig_per_camera_lists(files):
     p = run_stiffmap(
         "displacement", "--rig", "rig.json", "--reference", "{camera}_00.png",

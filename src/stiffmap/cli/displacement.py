@@ -89,7 +89,7 @@ def displacement(
         raise fail(str(e)) from None
     the_rig = cameras if isinstance(cameras, Rig) else None
     ms = [*res.references, *res.images]
-    warn_failures(ms, the_rig, refine, as_json)
+    warn_failures(ms, the_rig, refine, as_json, rig_file=source)
     for f in res.summary.flags if res.summary is not None else ():
         warn(_named(f, res))
     frame_names = {"cam": "rig"} if the_rig is not None else {}

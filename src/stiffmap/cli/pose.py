@@ -78,7 +78,7 @@ def pose(
         _print_poses(ms, f"board2rig of the {size} board (rig frame: camera {the_rig.names[0]}'s), fused")
         print_cameras(ms, the_rig)
         out.print(rig_calibration_note(the_rig, source))
-    warn_failures(ms, the_rig, refine, as_json)
+    warn_failures(ms, the_rig, refine, as_json, rig_file=source)
     exit_for(sum(m.ok for m in ms), len(ms), measured_with(camera, board, rig), camera_failures(ms) > 0)
 
 

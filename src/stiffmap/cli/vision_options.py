@@ -97,12 +97,17 @@ def refine_option(value: str) -> str:
 
 
 def warn_failures(
-    ms: list[ImageMeasurement], rig: Rig | None = None, refine: str = "photometric", as_json: bool = False
+    ms: list[ImageMeasurement],
+    rig: Rig | None = None,
+    refine: str = "photometric",
+    as_json: bool = False,
+    rig_file: str = "rig file",
 ) -> None:
     """One warning per image (set) that failed, or whose pose fell back to the corners (with why).
 
     With a rig, also one per camera whose image of a measured set could not be used, and one
-    per fused pose whose cameras disagree (a wrong rig file, a moved camera). With the default
+    per fused pose whose cameras disagree (a wrong rig file, a moved camera: the line begins
+    with ``rig_file``, the file the rig was read from, as a campaign's does). With the default
     ``--refine auto`` a pose that keeps its corners is no warning: one note after the table sums
     them up (none with ``--json``, whose poses each carry their ``fallback``).
     """
@@ -123,7 +128,7 @@ def warn_failures(
                 if v.error:
                     warn(f"camera {v.camera}: {v.error}")
             for w in m.consistency_warnings:
-                warn(f"{m.image}: {w}")
+                warn(f"{rig_file}: {m.image}: {w}")
         for p in (m.mobile, m.fixed):
             if p is not None and p.fallback and refine != "auto":
                 warn(f"{m.image}: {p.fallback}")
