@@ -113,3 +113,20 @@ def test_help_paragraphs_are_wrapped_by_rich_and_only_bullets_keep_their_lines()
     # rich fills each line of a paragraph; a short line is only the last of its paragraph.
     ragged = [a for a, b in zip(lines, lines[1:], strict=False) if a and b and len(a) < 50]
     assert ragged == [] and "turn), K_rot a pure moment's" in " ".join(lines), text
+
+
+def test_a_long_model_map_without_a_terminal_prints_a_progress_line_every_interval(monkeypatch):
+    """``model legs --grid`` of 10^6 poses ran ~25 min printing nothing when stderr was no terminal."""
+    from stiffmap.cli import common
+    from stiffmap.cli import model as cli_model
+
+    argv = ["model", "legs", DELTA_TOML, "--grid=-100:100:6,-100:100:10,-300", "--json"]
+    whole = run_argv(argv)  # 60 poses: one chunk, no progress
+    assert whole.code == 0 and whole.stderr == "", whole.stderr
+    monkeypatch.setattr(cli_model, "CHUNK_POSES", 20)
+    monkeypatch.setattr(common, "PROGRESS_LINE_S", 0.0)  # a line after every chunk, not every 10 s
+    o = run_argv(argv)
+    assert o.code == 0 and o.stdout == whole.stdout  # the same map, chunk by chunk
+    lines = o.stderr.splitlines()
+    assert [ln.split(",")[0] for ln in lines] == ["poses: 20 of 60 (33 %)", "poses: 40 of 60 (67 %)"], lines
+    assert all(ln.endswith(" left") for ln in lines)

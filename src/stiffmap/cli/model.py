@@ -14,14 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import typer
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
 from rich.table import Table
 
 from ..errors import InputError
@@ -35,7 +27,17 @@ from ..models.io import configuration_file_records, fit_measurements_file, map_c
 from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
 from ..textfmt import fmt, fmt_pm
-from .common import EXIT_PARTIAL, err, fail, from_option, options_named, out, print_json, three_numbers, warn
+from .common import (
+    EXIT_PARTIAL,
+    fail,
+    from_option,
+    options_named,
+    out,
+    print_json,
+    three_numbers,
+    warn,
+    work_progress,
+)
 
 _KINDS_HELP = (
     "The robot kind: "
@@ -248,20 +250,12 @@ def _positions(kind, dim: int, grid: str | None, points: Path | None, orientatio
 
 
 def _evaluate(m, P: np.ndarray):
-    """``m.evaluate(P)``, with a progress bar on stderr over more than one chunk of poses."""
+    """``m.evaluate(P)``, with progress on stderr over more than one chunk of poses
+    (:func:`~stiffmap.cli.common.work_progress`: a bar on a terminal, else a line every 10 s)."""
     if len(P) <= CHUNK_POSES:
         return m.evaluate(P)
-    with Progress(
-        TextColumn("poses"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=err,
-        transient=True,
-    ) as prog:
-        task = prog.add_task("poses", total=len(P))
-        return evaluate_in_chunks(m, P, lambda done, total: prog.update(task, completed=done, total=total))
+    with work_progress("poses", len(P)) as hook:
+        return evaluate_in_chunks(m, P, hook, chunk=CHUNK_POSES)
 
 
 def robot_kind_option(name: str):
