@@ -89,6 +89,14 @@ def test_results_databases(case):
     assert names_a_campaign_file(case, o.stderr, o.code), o.stderr[-1500:]
 
 
+@_FEW
+@given(case=_BY_NAME["[robot] changed after the run x report, compensate"].cases)
+def test_robots_changed_after_the_run(case):
+    o = _check(case)
+    if case.expect is not None:  # the fit is another robot's: said, and left out or refused
+        assert o.code in (1, 2), o.stderr[-1500:]
+
+
 @_EXAMPLES
 @given(case=_BY_NAME["--dask addresses x run"].cases)
 def test_dask_addresses(case):
@@ -103,5 +111,6 @@ def test_every_class_is_tested():
         "[robot] and its file x run",
         "capture options x capture",
         "stiffmap.db values x report, run",
+        "[robot] changed after the run x report, compensate",
         "--dask addresses x run",
     }

@@ -31,7 +31,9 @@ strategies, so a failing case shrinks to a small one.
 from __future__ import annotations
 
 import contextlib
+import csv
 import io
+import json
 import re
 import shutil
 import signal
@@ -273,6 +275,7 @@ def mutated_text(draw, valid: str, *, encoding: str = "utf-8") -> bytes:
                 "encoding",
                 "byte corruption",
                 "whitespace",
+                "json instead",
             )
         )
     )
@@ -315,7 +318,19 @@ def mutated_text(draw, valid: str, *, encoding: str = "utf-8") -> bytes:
         return draw(mutated_bytes(t.encode(encoding)))
     elif kind == "whitespace":
         t = "\n\n  " + t.replace(",", " , ") + "\n\n\n"
+    elif kind == "json instead":  # the same table written as JSON (a list of rows: issue 27)
+        t = _as_json(t)
     return t.encode(encoding, errors="surrogateescape")
+
+
+def _as_json(text: str) -> str:
+    """A CSV table as the JSON list of its rows (``[{"x": "1", ...}, ...]``); JSON stays as it is."""
+    if text.lstrip()[:1] in ("{", "["):
+        return text
+    rows = list(csv.reader(ln for ln in text.splitlines() if ln.strip() and not ln.startswith("#")))
+    if not rows:
+        return "[]"
+    return json.dumps([dict(zip(rows[0], r, strict=False)) for r in rows[1:]], indent=1)
 
 
 @st.composite

@@ -18,6 +18,8 @@ Then one thing is made wrong as a careless or unlucky user would:
   camera 1e200 mm away, a std of 1e10 px, a covariance of 1e308), a camera.json in its place;
 - ``stiffmap.db``: one stored value of one row (NULL, NaN, a 2x2 K, a list where parameters
   belong, text, huge numbers, deep nesting), a row deleted, another program's tables;
+- ``campaign.toml``'s [robot] after the run: another kind, or one parameter of the same robot
+  (``report`` must warn and ``compensate --from-campaign`` refuse, naming it);
 - ``--dask``: a malformed address, a port where nothing listens, or a server on this machine
   that is not a Dask scheduler (:mod:`helpers.fake_servers`: HTTP, SSH, a hang-up, binary
   bytes read as a frame length of exbibytes).
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import shutil
 import sqlite3
 import tempfile
@@ -492,11 +495,60 @@ CHANGED_ROBOTS = (
 )
 
 
+#: The seeds' robots with one value changed after the run (the fit is then another robot's:
+#: silently wrong before the fingerprint), and the part of the fingerprint that names it; None:
+#: only the starting value of the fitted parameter changed (the fit replaces it: no change).
+SAME_KIND_CHANGES = {
+    "vision": (
+        ("arm_length = 310.0", "robot.params.arm_length"),
+        ("forearm_length = 420.0", "robot.params.forearm_length"),
+        ("k_theta = 2.0e5", None),
+    ),
+    "sensor": (("h = 780.0", "robot.params.h"), ("kb = 9000.0", "robot.params.kb"), ("kj = 500.0", None)),
+}
+#: A program ``compensate --from-campaign`` corrects with the sensor seed's fit (3PRR, mm).
+_PROGRAM = b"G1 X400 Y300 F100\nG1 X410 Y300\n"
+
+
+def _same_kind_change(draw, seed: str, files: dict[str, bytes]) -> tuple[str, str | None]:
+    """One value of the seed's [robot] params changed: (the new TOML line's value, the part named)."""
+    text = files["campaign.toml"].decode()
+    new, part = draw(st.sampled_from(SAME_KIND_CHANGES[seed]))
+    name = new.split(" = ")[0]
+    changed = re.sub(rf"\b{name} = [-+0-9.e]+", new, text, count=1)
+    assert changed != text, (seed, new)
+    files["campaign.toml"] = changed.encode()
+    return new, part
+
+
 @st.composite
 def changed_robot_cases(draw) -> FuzzCase:
-    """``report`` on a measured seed whose [robot] was changed after the run."""
+    """``report`` on a measured seed whose [robot] was changed after the run (another kind, or
+    one of its parameters: then the report warns naming it), or ``compensate --from-campaign``
+    on the sensor seed whose 3PRR changed (refused, naming it)."""
     seed = draw(st.sampled_from(("vision", "sensor")))
     files = dict(measured_seed(seed))
+    if draw(st.booleans()):
+        new, part = _same_kind_change(draw, seed, files)
+        expect = None if part is None else f"robot changed since the run ({part})"
+        if seed == "sensor" and draw(st.booleans()):
+            files["p.ngc"] = _PROGRAM
+            argv = ("compensate", "--from-campaign", "{dir}", "--path", "{dir}/p.ngc", "--out", "{dir}/o.ngc")
+            return CampaignCase(
+                files=files,
+                argv=(*argv, "--force-n", "100,0"),
+                blamed=None if part is None else "campaign.toml",
+                note=f"sensor: robot.params {new!r} after the run",
+                expect=expect,
+                must_refuse=part is not None,
+            )
+        return CampaignCase(
+            files=files,
+            argv=("report", "{dir}", "--no-png"),
+            blamed=None,
+            note=f"{seed}: robot.params {new!r} after the run",
+            expect=expect,
+        )
     robot = draw(st.sampled_from(CHANGED_ROBOTS))
     files["campaign.toml"] = _with_robot(files["campaign.toml"].decode(), robot)
     files["robot.toml"] = (ROBOTS / "delta.toml").read_bytes()
@@ -643,6 +695,15 @@ FUZZ_CLASSES: list[FuzzClass] = [
         "one stored value of a measured campaign's database (NULL, NaN, 2x2 K, lists for objects, "
         "text, 1e308, deep nesting), a row deleted, another program's table or view; report after "
         "campaign.toml's [robot] changed",
+        slow=True,
+    ),
+    FuzzClass(
+        "[robot] changed after the run x report, compensate",
+        changed_robot_cases(),
+        "a measured campaign whose [robot] was edited after the run: another kind, a rigid or absurd "
+        "parameter, or one geometry parameter of the same robot (the fit then another robot's: "
+        "report warns naming it, compensate --from-campaign refuses); the fitted parameter's "
+        "starting value (no change)",
         slow=True,
     ),
     FuzzClass(
