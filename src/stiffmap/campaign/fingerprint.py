@@ -28,7 +28,7 @@ __all__ = ["robot_fingerprint", "robot_changes", "stale_fit_message"]
 
 
 def _hash(value: Any) -> str:
-    text = json.dumps(to_jsonable(value), sort_keys=True, separators=(",", ":"))
+    text = json.dumps(to_jsonable(value), sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -103,6 +103,6 @@ def stale_fit_message(changes: list[str], root: str | Path) -> str:
     """One line: what changed in the robot since the run, and what to do."""
     shown = ", ".join(changes[:6]) + (f" and {len(changes) - 6} more" if len(changes) > 6 else "")
     return (
-        f"the model fit in stiffmap.db is of another robot: {SPEC_NAME}'s robot changed since the run "
+        f"the fit in stiffmap.db is another robot's: {SPEC_NAME}'s robot changed since the run "
         f"({shown}); run 'stiffmap run {root}' again to fit this one"
     )
