@@ -16,6 +16,7 @@ import pytest
 from helpers.board_images import testbed_board_image as render_board
 from helpers.board_scenes import close_two_target_poses, moved_pose, small_camera
 from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.fuzz import run_argv
 from helpers.rig_scenes import board2cams, board_in_rig, rig_camera, stereo_rig
 
 from stiffmap.camera import CameraModel
@@ -289,13 +290,12 @@ def test_a_rig_file_with_its_cameras_swapped_is_named_where_they_disagree(files)
     """Issue 27: the cameras' disagreement named the image set but not the rig file to check."""
     d = json.loads((files / "rig.json").read_text())
     d["cameras"][0]["name"], d["cameras"][1]["name"] = d["cameras"][1]["name"], d["cameras"][0]["name"]
-    (files / "rig_swapped.json").write_text(json.dumps(d))
-    p = run_stiffmap("pose", "--rig", "rig_swapped.json", "{camera}_00.png", *BOARD_ARGS, cwd=files)
-    disagree = [w for w in p.stderr.splitlines() if "the cameras disagree" in w]
-    assert p.returncode == 1 and disagree, p.stderr
-    assert all(
-        w.startswith("warning: rig_swapped.json: {camera}_00.png: the cameras disagree") for w in disagree
-    )
+    rig, images = files / "rig_swapped.json", str(files / "{camera}_00.png")
+    rig.write_text(json.dumps(d))
+    o = run_argv(["pose", "--rig", str(rig), images, *BOARD_ARGS])
+    disagree = [w for w in o.stderr.splitlines() if "the cameras disagree" in w]
+    assert o.code == 1 and disagree, o.stderr
+    assert all(w.startswith(f"warning: {rig}: {images}: the cameras disagree") for w in disagree), disagree
 
 
 def test_displacement_with_a_rig_per_camera_lists(files):
