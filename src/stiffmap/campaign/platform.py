@@ -9,7 +9,8 @@ follow from the robot's 6 x 6 stiffness K6 at the tool point:
   tool point moves by ``C_tt F + C_tr (r x F)`` with C = K6^-1, so K = (C_tt + C_tr [r]x)^-1
   (with r = 0 the stiffness a pure force sees, the model's K);
 - the model's parameters (leg stiffnesses) fitted to the measured displacements themselves
-  (:func:`fit_platform`: translations and rotations under the wrenches (F, r x F),
+  (:func:`fit_platform`: translations and rotations under the wrenches (F, r x F), each
+  displacement whitened by its full covariance plus an estimated extra noise,
   :func:`~stiffmap.models.fit.fit_deflections6`), as a serial robot's joint stiffnesses are.
 """
 
@@ -125,7 +126,8 @@ def fit_platform(
     displacements : array_like, shape (m, 6)
         Measured u (mm) and rotation vector (rad) of the platform at the tool point, base frame.
     covariances : array_like, shape (m, 6, 6)
-        Their covariances. The fit's covariance is scaled by its reduced chi-square.
+        Their covariances. With the extra noise the standard errors are those of the inflated
+        covariances; without it, the fit's covariance is scaled by its reduced chi-square.
     params : sequence of str
     correlated : bool
         Whiten by the full covariances (default); False: by their diagonals alone (each
