@@ -746,9 +746,10 @@ def _deflection_cov(std, cov, n: int) -> np.ndarray | None:
     return 0.5 * (C + np.swapaxes(C, 1, 2))
 
 
-#: The extra noise's iteration stops when X changes by less than this (in the metric of the
-#: mean given covariance) or after ``EXTRA_NOISE_ITERATIONS``.
-EXTRA_NOISE_TOL = 1e-6
+#: The extra noise's iteration stops when X changes by less than this (in units of the mean
+#: given covariance, or of X when larger; far below X's sampling error, about sqrt(2 / n) for n
+#: deflections) or after ``EXTRA_NOISE_ITERATIONS``.
+EXTRA_NOISE_TOL = 1e-3
 EXTRA_NOISE_ITERATIONS = 50
 
 
@@ -782,9 +783,9 @@ def _extra_noise_fit(fit_with, model: Mechanism, C: np.ndarray) -> ModelFit:
             X_new = Lb @ A @ Lb.T
             step = np.linalg.norm(np.linalg.solve(Lb, np.linalg.solve(Lb, X_new - X).T))
             X = 0.5 * (X_new + X_new.T)
-            f = fit_with(f.model, C + X)
             if step <= EXTRA_NOISE_TOL * max(1.0, float(np.linalg.norm(A))):
                 break
+            f = fit_with(f.model, C + X)
     f = fit_with(f.model, C + X, absolute=True)  # X explains the scatter: no chi2/dof again
     X.setflags(write=False)
     return replace(f, initial=f0.initial, extra_covariance=X, notes=_extra_notes(f, f0, X))
