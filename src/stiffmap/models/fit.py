@@ -98,7 +98,8 @@ class ModelFit:
         K of each pose in turn).
     sigma : ndarray, shape (n_obs,)
         Standard errors used as weights (1 where none were given; for K6 without them, the
-        relative weights of :func:`fit_stiffness`).
+        relative weights of :func:`fit_stiffness`; for deflections with full covariances, the
+        components' standard deviations, the weights being the whitening by those covariances).
     residuals : ndarray, shape (n_obs,)
         ``observed - predicted`` (mm or N/mm).
     residual_rms_per_pose : ndarray, shape (n_poses,)
