@@ -19,6 +19,11 @@ solution), multiplied by the reduced chi-square ``chi2 / dof`` unless
 ``absolute_sigma`` is True (the given standard errors are then taken as exact),
 and carried to the parameters by ``dp = p dlog p``.
 
+6-DOF deflections of a platform that turns (:func:`fit_deflections6`) may come with full
+6 x 6 covariances: each deflection's residual is then whitened by the Cholesky factor of its
+covariance (:mod:`~stiffmap.models.whiten`), and with ``extra_noise`` a shared 6 x 6 noise the
+covariances leave out is estimated and added to each (``ModelFit.extra_covariance``).
+
 Refusals (:class:`~stiffmap.errors.DesignError`, a ``ValueError``):
 
 - a parameter the data do not feel: a relative change of it changes the
