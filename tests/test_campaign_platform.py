@@ -49,3 +49,34 @@ def test_fit_platform_recovers_the_legs_from_noisy_6dof_displacements(hexapod):
     k = np.array(list(K_TRUE.values()))
     assert np.all(np.abs(f.estimate - k) < 4 * f.std), (f.estimate, f.std)
     assert np.all(f.std < 0.01 * k)
+
+
+def test_fit_platform_whitens_by_the_full_covariance_and_says_the_extra_noise(hexapod):
+    # A camera-like covariance (dx-rz correlation -0.95) that is too small along its
+    # near-degenerate direction: the noise drawn has 0.5 um and 5 urad more per axis.
+    P = np.array([[x, y, 300.0] for x in (-40.0, 40.0) for y in (-40.0, 40.0)])
+    r = np.array([0.0, 0.0, -100.0])
+    F = 4.905 * np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    idx = np.repeat(np.arange(len(P)), 3 * 6)
+    forces = np.tile(F, (6 * len(P), 1))
+    K6 = hexapod.stiffness6(level_poses(P))
+    D = np.array([np.linalg.solve(K6[i], np.r_[f, np.cross(r, f)]) for i, f in zip(idx, forces, strict=True)])
+    sd = np.array([2e-3, 2e-3, 2e-3, 2e-5, 2e-5, 2e-5])
+    R = np.eye(6)
+    R[0, 5] = R[5, 0] = -0.95
+    cov = np.tile(R * np.outer(sd, sd), (len(D), 1, 1))
+    extra = np.diag(np.r_[3 * [5e-4], 3 * [5e-6]] ** 2)
+    rng = np.random.default_rng(8)
+    D += rng.normal(size=D.shape) @ np.linalg.cholesky(cov[0] + extra).T
+    start = hexapod.with_params(**dict.fromkeys(K_TRUE, 10.0))
+    f = fit_platform(start, P, idx, forces, r, D, cov, tuple(K_TRUE))
+    k = np.array(list(K_TRUE.values()))
+    assert np.all(np.abs(f.estimate - k) < 4 * f.std), (f.estimate, f.std)
+    assert len(f.notes) == 1 and "extra noise" in f.notes[0] and "mrad" in f.notes[0], f.notes
+    assert "does not explain" not in f.notes[0]  # the chi2 misfit note is replaced
+    # The fit before issue 30, each component alone: chi2 = sum of (r / std)^2, written here.
+    d = fit_platform(start, P, idx, forces, r, D, cov, tuple(K_TRUE), correlated=False, extra_noise=False)
+    W = np.concatenate([forces, np.cross(r, forces)], axis=1)
+    res = D - np.linalg.solve(d.model.stiffness6(level_poses(P))[idx], W[..., None])[..., 0]
+    assert d.chi2 == pytest.approx(float(np.sum(res**2 / sd**2)), rel=1e-9)
+    assert d.extra_covariance is None

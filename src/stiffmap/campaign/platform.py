@@ -9,7 +9,8 @@ follow from the robot's 6 x 6 stiffness K6 at the tool point:
   tool point moves by ``C_tt F + C_tr (r x F)`` with C = K6^-1, so K = (C_tt + C_tr [r]x)^-1
   (with r = 0 the stiffness a pure force sees, the model's K);
 - the model's parameters (leg stiffnesses) fitted to the measured displacements themselves
-  (:func:`fit_platform`: translations and rotations under the wrenches (F, r x F),
+  (:func:`fit_platform`: translations and rotations under the wrenches (F, r x F), each
+  displacement whitened by its full covariance plus an estimated extra noise,
   :func:`~stiffmap.models.fit.fit_deflections6`), as a serial robot's joint stiffnesses are.
 """
 
@@ -98,8 +99,17 @@ def fit_platform(
     displacements,
     covariances,
     params,
+    *,
+    correlated: bool = True,
+    extra_noise: bool = True,
 ) -> ModelFit:
     """The model's parameters fitted to measured 6-DOF displacements of the platform.
+
+    Each displacement is weighed by its full covariance (whitened by its Cholesky factor: the
+    camera's translation along its line of sight and its rotation across it are strongly
+    correlated) plus a shared 6 x 6 extra noise estimated from the residuals (the stated
+    covariances are too small in some directions: :func:`~stiffmap.models.fit.fit_deflections6`,
+    ``extra_noise``); the result's ``extra_covariance`` holds it, a note gives its std per axis.
 
     Parameters
     ----------
@@ -116,9 +126,14 @@ def fit_platform(
     displacements : array_like, shape (m, 6)
         Measured u (mm) and rotation vector (rad) of the platform at the tool point, base frame.
     covariances : array_like, shape (m, 6, 6)
-        Their covariances; their diagonals weigh the fit (its covariance is scaled by the
-        reduced chi-square: the measurement's stated errors are not taken as exact).
+        Their covariances. With the extra noise the standard errors are those of the inflated
+        covariances; without it, the fit's covariance is scaled by its reduced chi-square.
     params : sequence of str
+    correlated : bool
+        Whiten by the full covariances (default); False: by their diagonals alone (each
+        component weighed alone, the fit before issue 30, kept for comparison).
+    extra_noise : bool
+        Estimate and add the extra noise (default).
 
     Returns
     -------
@@ -130,7 +145,6 @@ def fit_platform(
     r = np.asarray(lever_mm, dtype=np.float64)
     W = np.concatenate([F, np.cross(r, F)], axis=1)
     cov = np.asarray(covariances, dtype=np.float64)
-    std = np.sqrt(np.einsum("mii->mi", cov))
-    ok = np.all(np.isfinite(std) & (std > 0), axis=1)
-    std = std if np.all(ok) else None
-    return fit_deflections6(model, poses, W, displacements, params=params, std=std)
+    if not correlated:
+        cov = np.einsum("mii,ij->mij", cov, np.eye(6))
+    return fit_deflections6(model, poses, W, displacements, params=params, cov=cov, extra_noise=extra_noise)

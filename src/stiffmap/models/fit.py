@@ -19,6 +19,11 @@ solution), multiplied by the reduced chi-square ``chi2 / dof`` unless
 ``absolute_sigma`` is True (the given standard errors are then taken as exact),
 and carried to the parameters by ``dp = p dlog p``.
 
+6-DOF deflections of a platform that turns (:func:`fit_deflections6`) may come with full
+6 x 6 covariances: each deflection's residual is then whitened by the Cholesky factor of its
+covariance (:mod:`~stiffmap.models.whiten`), and with ``extra_noise`` a shared 6 x 6 noise the
+covariances leave out is estimated and added to each (``ModelFit.extra_covariance``).
+
 Refusals (:class:`~stiffmap.errors.DesignError`, a ``ValueError``):
 
 - a parameter the data do not feel: a relative change of it changes the
@@ -37,13 +42,14 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..errors import DesignError, IllConditionedWarning
 from ..stats import chi2_sf
 from .base import POSE_DIM, Mechanism, PoseError, as_points, format_pose
+from .whiten import as_float, whitener
 
 __all__ = [
     "ModelFit",
@@ -97,7 +103,8 @@ class ModelFit:
         K of each pose in turn).
     sigma : ndarray, shape (n_obs,)
         Standard errors used as weights (1 where none were given; for K6 without them, the
-        relative weights of :func:`fit_stiffness`).
+        relative weights of :func:`fit_stiffness`; for deflections with full covariances, the
+        components' standard deviations, the weights being the whitening by those covariances).
     residuals : ndarray, shape (n_obs,)
         ``observed - predicted`` (mm or N/mm).
     residual_rms_per_pose : ndarray, shape (n_poses,)
@@ -119,6 +126,9 @@ class ModelFit:
     nfev : int
     message : str
     notes : tuple of str
+    extra_covariance : ndarray, shape (6, 6), or None
+        For :func:`fit_deflections6` with ``extra_noise``: the noise (mm^2, mm*rad, rad^2)
+        estimated as missing from the given covariances and added to each (None otherwise).
     """
 
     kind: str
@@ -146,6 +156,12 @@ class ModelFit:
     nfev: int
     message: str
     notes: tuple[str, ...] = field(default_factory=tuple)
+    extra_covariance: np.ndarray | None = None
+
+    @property
+    def extra_std(self) -> np.ndarray | None:
+        """Standard deviations of the extra noise per axis (u mm, rotation rad), or None."""
+        return None if self.extra_covariance is None else np.sqrt(np.diag(self.extra_covariance))
 
     @property
     def values(self) -> dict[str, float]:
@@ -183,6 +199,8 @@ class ModelFit:
                 for p, r in zip(self.poses.tolist(), self.residual_rms_per_pose.tolist(), strict=True)
             ],
             "notes": list(self.notes),
+            "extra_covariance": self.extra_covariance,
+            "extra_std": self.extra_std,
         }
 
 
@@ -281,14 +299,28 @@ def _fit(
     pose_index: np.ndarray,
     absolute_sigma: bool,
     weights: np.ndarray | None = None,
+    whiten: np.ndarray | None = None,
 ) -> ModelFit:
     """The fit; ``weights`` (relative, used only when ``sigma`` is None) scale observations of
-    mixed units (K6's blocks) without claiming to be their standard errors."""
+    mixed units (K6's blocks) without claiming to be their standard errors; ``whiten`` (m, d, d),
+    when given, whitens the observations d at a time (``L^-1`` of each group's covariance,
+    :func:`~stiffmap.models.whiten.whitener`) instead of dividing them by ``sigma``, which is
+    then only recorded."""
     names, p0 = _check_names(model, params)
     n, p = y.size, len(names)
     if n < p:
         raise DesignError(f"{n} observation(s) cannot determine {p} parameters ({', '.join(names)})")
     w = (np.ones(n) if weights is None else weights) if sigma is None else sigma
+    if whiten is None:
+
+        def weigh(r: np.ndarray) -> np.ndarray:
+            return r / w
+    else:
+        d = whiten.shape[-1]
+
+        def weigh(r: np.ndarray) -> np.ndarray:
+            return np.einsum("mab,mb->ma", whiten, r.reshape(-1, d)).reshape(-1)
+
     notes: list[str] = []
     if sigma is None and absolute_sigma:
         raise ValueError("absolute_sigma=True needs the standard errors of the observations")
@@ -312,11 +344,11 @@ def _fit(
                 f"during the fit, {now} made a pose unreachable or singular; "
                 "fix the geometry or start closer to the solution"
             )
-        return (y - yhat) / w
+        return weigh(y - yhat)
 
     x0 = np.log(p0)
     yhat0 = predict(model)
-    scale = float(np.linalg.norm(yhat0 / w))
+    scale = float(np.linalg.norm(weigh(yhat0)))
     _check_design(names, _jac_log(resid, x0), scale)
     from scipy import optimize  # on first use: 0.15 s that most commands never need
 
@@ -325,7 +357,7 @@ def _fit(
     fitted = model_at(x)
     r_w = resid(x)
     J = _jac_log(resid, x)
-    scale = float(np.linalg.norm(predict(fitted) / w))
+    scale = float(np.linalg.norm(weigh(predict(fitted))))
     condition, sens = _check_design(names, J, scale)
     if condition > CONDITION_WARN:
         warnings.warn(
@@ -616,6 +648,8 @@ def fit_deflections6(
     *,
     params: Sequence[str],
     std=None,
+    cov=None,
+    extra_noise: bool = False,
     absolute_sigma: bool = False,
 ) -> ModelFit:
     """Fit parameters of a robot whose platform turns to its measured 6-DOF deflections.
@@ -638,19 +672,32 @@ def fit_deflections6(
         u (mm) and rotation vector (rad), base frame.
     params : sequence of str
     std : array_like, shape (n, 6), optional
-        Standard errors of the deflections' components (mm, rad). Without them the
-        rotations weigh as the robot's size in mm (``length_mm``, else 100 mm) per rad.
+        Standard errors of the deflections' components (mm, rad): each component weighed
+        alone. Without ``std`` or ``cov`` the rotations weigh as the robot's size in mm
+        (``length_mm``, else 100 mm) per rad.
+    cov : array_like, shape (n, 6, 6), optional
+        Each deflection's full covariance (mm^2, mm*rad, rad^2; symmetric positive definite):
+        the residuals are whitened by its Cholesky factor (:mod:`~stiffmap.models.whiten`), so
+        the correlations between a deflection's components count. Not with ``std``.
+    extra_noise : bool
+        Estimate a noise X (6 x 6, positive semidefinite) the given covariances leave out,
+        shared by every deflection, and fit with ``cov + X`` (:func:`_extra_noise_fit`); the
+        result's ``extra_covariance`` and a note give it, its standard errors are those of
+        ``cov + X`` (``absolute_sigma`` True). Needs ``cov`` or ``std``.
     absolute_sigma : bool
 
     Returns
     -------
     ModelFit
-        With ``kind = "deflection6"``; observations row-major (u then rotation per wrench).
+        With ``kind = "deflection6"``; observations row-major (u then rotation per wrench);
+        ``sigma`` the standard deviations of the components (with the extra noise).
 
     Raises
     ------
     PoseError, DesignError
         As :func:`fit_stiffness`.
+    InputError
+        ``cov`` of a wrong shape, not finite, symmetric or positive definite (its row named).
     """
     if model.dim != POSE_DIM:
         raise ValueError(f"{model.name}: 6-DOF deflections need a platform that turns (dim = 6)")
@@ -665,11 +712,7 @@ def fit_deflections6(
             raise ValueError(f"{name} contains NaN or infinite values")
     if np.all(W == 0):
         raise DesignError("every wrench is zero: deflections without load cannot determine stiffness")
-    S = _check_sigma(std, (n, 6), "std")
-    weights = None
-    if S is None:
-        L = float(getattr(model, "length_mm", 100.0))
-        weights = np.tile([1.0, 1.0, 1.0, 1 / L, 1 / L, 1 / L], n)
+    C = _deflection_cov(std, cov, n)
     _check_valid_poses(model, P, "observation")
     poses, idx = _group_poses(P)
 
@@ -677,8 +720,92 @@ def fit_deflections6(
         K6 = m.evaluate(poses).K6[idx]
         return np.linalg.solve(K6, W[..., None])[..., 0].reshape(-1)
 
-    y = D.reshape(-1)
-    sigma = None if S is None else S.reshape(-1)
-    return _fit(
-        "deflection6", model, params, predict, y, sigma, poses, np.repeat(idx, 6), absolute_sigma, weights
+    y, obs_pose = D.reshape(-1), np.repeat(idx, 6)
+
+    def fit_with(start: Mechanism, Cx: np.ndarray | None, absolute: bool = absolute_sigma) -> ModelFit:
+        if Cx is None:  # no covariance: relative weights, rad as L mm
+            L = float(getattr(start, "length_mm", 100.0))
+            weights = np.tile([1.0, 1.0, 1.0, 1 / L, 1 / L, 1 / L], n)
+            return _fit("deflection6", start, params, predict, y, None, poses, obs_pose, absolute, weights)
+        sigma = np.sqrt(np.einsum("mii->mi", Cx)).reshape(-1)
+        Linv = whitener(Cx, n, 6)
+        return _fit("deflection6", start, params, predict, y, sigma, poses, obs_pose, absolute, whiten=Linv)
+
+    if not extra_noise:
+        return fit_with(model, C)
+    if C is None:
+        raise ValueError("extra_noise=True needs the deflections' covariances (cov or std)")
+    return _extra_noise_fit(fit_with, model, C)
+
+
+def _deflection_cov(std, cov, n: int) -> np.ndarray | None:
+    """The deflections' covariances (n, 6, 6) from ``std`` or ``cov`` (None without either)."""
+    if std is not None and cov is not None:
+        raise ValueError("give std (each component alone) or cov (full covariances), not both")
+    if std is not None:
+        S = _check_sigma(std, (n, 6), "std")
+        return np.einsum("mi,ij->mij", S**2, np.eye(6))
+    if cov is None:
+        return None
+    C = as_float(cov, "cov")
+    whitener(C, n, 6)  # its checks: shape, finite, symmetric, positive definite (the row named)
+    return 0.5 * (C + np.swapaxes(C, 1, 2))
+
+
+#: The extra noise's iteration stops when X changes by less than this (in units of the mean
+#: given covariance, or of X when larger; far below X's sampling error, about sqrt(2 / n) for n
+#: deflections) or after ``EXTRA_NOISE_ITERATIONS``.
+EXTRA_NOISE_TOL = 1e-3
+EXTRA_NOISE_ITERATIONS = 50
+
+
+def _extra_noise_fit(fit_with, model: Mechanism, C: np.ndarray) -> ModelFit:
+    """The fit with ``C + X``, X (6 x 6, PSD) the noise the covariances C (n, 6, 6) leave out.
+
+    A moment estimate iterated to its fixed point: fit with ``C + X``; with r the deflections'
+    residuals (n, 6), S = sum r r^T / (n - p/6) (the residuals' scatter, the parameters'
+    share of it given back) and C_bar = mean C, ``X = L_b P+(L_b^-1 (S - C_bar) L_b^-T) L_b^T``
+    (L_b the Cholesky factor of C_bar, P+ keeps the positive eigenvalues: X is the scatter in
+    excess of the stated covariances, in every direction where there is an excess, measured in
+    units of the stated covariance so that mm and rad are compared fairly). X = 0 when the
+    residuals scatter no more than C says. The standard errors are those of ``C + X`` as given
+    (``absolute_sigma``): X was estimated to explain the scatter, and scaling by chi2/dof again
+    made them about 5 % short over simulated draws (X's positive part is biased upwards, so
+    chi2/dof comes out a little below 1).
+    """
+    n = C.shape[0]
+    Cbar = C.mean(axis=0)
+    Lb = np.linalg.cholesky(Cbar)
+    X = np.zeros((6, 6))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        f0 = f = fit_with(model, C)
+        for _ in range(EXTRA_NOISE_ITERATIONS):
+            r = f.residuals.reshape(n, 6)
+            S = r.T @ r / (n - len(f.names) / 6)
+            A = np.linalg.solve(Lb, np.linalg.solve(Lb, S - Cbar).T)
+            lam, V = np.linalg.eigh(0.5 * (A + A.T))
+            A = (V * np.maximum(lam, 0.0)) @ V.T
+            X_new = Lb @ A @ Lb.T
+            step = np.linalg.norm(np.linalg.solve(Lb, np.linalg.solve(Lb, X_new - X).T))
+            X = 0.5 * (X_new + X_new.T)
+            if step <= EXTRA_NOISE_TOL * max(1.0, float(np.linalg.norm(A))):
+                break
+            f = fit_with(f.model, C + X)
+    f = fit_with(f.model, C + X, absolute=True)  # X explains the scatter: no chi2/dof again
+    X.setflags(write=False)
+    return replace(f, initial=f0.initial, extra_covariance=X, notes=_extra_notes(f, f0, X))
+
+
+def _extra_notes(f: ModelFit, f0: ModelFit, X: np.ndarray) -> tuple[str, ...]:
+    """The fit's notes with the given covariances' misfit note replaced by the extra noise."""
+    if not np.any(X):
+        return (*f0.notes,)
+    s = np.sqrt(np.diag(X))
+    note = (
+        f"the deflections scatter more than their covariances say (chi2/dof = {f0.reduced_chi2:.3g} with "
+        f"them alone): an extra noise was estimated and added to each, std per axis u "
+        f"{', '.join(f'{v:.3g}' for v in s[:3])} mm, rotation {', '.join(f'{1e3 * v:.3g}' for v in s[3:])} "
+        f"mrad (chi2/dof {f.reduced_chi2:.3g} with it)"
     )
+    return (note, *f.notes)

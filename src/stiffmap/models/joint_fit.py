@@ -94,6 +94,7 @@ from .fit import (
     MISFIT_RELATIVE,
     _group_poses,
 )
+from .whiten import as_float, check_finite, whitener
 
 __all__ = [
     "LinkColumns",
@@ -111,8 +112,6 @@ __all__ = [
 NULL_WEIGHT = 1e-3
 #: A joint whose angular-velocity column has a norm above this (rad per joint unit) is revolute.
 _REVOLUTE_MIN_OMEGA = 0.5
-#: Relative tolerance of a covariance's symmetry.
-_SYMMETRY_RTOL = 1e-9
 
 #: Why a joint is not felt, said of one joint and of several.
 _WHY = {
@@ -169,96 +168,34 @@ class LinkColumns:
 # --------------------------------------------------------------------------- input checks
 
 
-def _as_float(x, name: str) -> np.ndarray:
-    try:
-        return np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: expected numbers, got {type(x).__name__} ({exc})") from None
-
-
-def _first_bad_row(ok_rows: np.ndarray) -> int:
-    return int(np.flatnonzero(~ok_rows)[0])
-
-
-def _check_finite(a: np.ndarray, name: str, unit: str) -> None:
-    ok = np.all(np.isfinite(a.reshape(a.shape[0], -1)), axis=1)
-    if not np.all(ok):
-        i = _first_bad_row(ok)
-        raise InputError(f"{name}: row {i} contains NaN or infinite values; expected finite {unit}")
-
-
 def _check_jacobians(jacobians) -> np.ndarray:
-    J = _as_float(jacobians, "jacobians")
+    J = as_float(jacobians, "jacobians")
     if J.ndim != 3 or J.shape[1] != 6 or J.shape[0] < 1 or J.shape[2] < 1:
         raise InputError(
             f"jacobians: expected shape (M, 6, n), one 6 x n Jacobian per measurement "
             f"(rows vx, vy, vz in mm and wx, wy, wz in rad per joint unit), got {J.shape}"
         )
-    _check_finite(J, "jacobians", "mm and rad per joint unit")
+    check_finite(J, "jacobians", "mm and rad per joint unit")
     return J
 
 
 def _check_wrenches(wrenches, M: int) -> np.ndarray:
-    W = _as_float(wrenches, "wrenches")
+    W = as_float(wrenches, "wrenches")
     if W.shape != (M, 6):
         raise InputError(f"wrenches: expected shape ({M}, 6), (F in N, M in N*mm) per row, got {W.shape}")
-    _check_finite(W, "wrenches", "N and N*mm")
+    check_finite(W, "wrenches", "N and N*mm")
     return W
 
 
 def _check_displacements(displacements, M: int) -> np.ndarray:
-    D = _as_float(displacements, "displacements")
+    D = as_float(displacements, "displacements")
     if D.ndim != 2 or D.shape[0] != M or D.shape[1] not in (3, 6):
         raise InputError(
             f"displacements: expected shape ({M}, 3) (translations, mm) or ({M}, 6) "
             f"(translations mm, rotation vector rad), got {D.shape}"
         )
-    _check_finite(D, "displacements", "mm and rad")
+    check_finite(D, "displacements", "mm and rad")
     return D
-
-
-def _whitener(cov, M: int, d: int) -> np.ndarray:
-    """``L^-1`` of each row's covariance ``L L^T``: shape (M, d, d); the identity when None."""
-    if cov is None:
-        return np.broadcast_to(np.eye(d), (M, d, d)).copy()
-    C = _as_float(cov, "cov")
-    if C.shape == (M, d):
-        ok = np.all(np.isfinite(C) & (C > 0), axis=1)
-        if not np.all(ok):
-            i = _first_bad_row(ok)
-            raise InputError(
-                f"cov: row {i} has standard deviations {C[i].tolist()}; expected positive finite numbers "
-                "(mm, rad)"
-            )
-        Linv = np.zeros((M, d, d))
-        Linv[:, np.arange(d), np.arange(d)] = 1.0 / C
-        return Linv
-    if C.shape != (M, d, d):
-        raise InputError(
-            f"cov: expected shape ({M}, {d}, {d}) (a covariance per displacement) or ({M}, {d}) "
-            f"(standard deviations), got {C.shape}"
-        )
-    _check_finite(C, "cov", "mm^2, mm*rad and rad^2")
-    scale = np.max(np.abs(np.diagonal(C, axis1=1, axis2=2)), axis=1)
-    asym = np.max(np.abs(C - np.swapaxes(C, 1, 2)), axis=(1, 2))
-    ok = asym <= _SYMMETRY_RTOL * scale
-    if not np.all(ok):
-        i = _first_bad_row(ok)
-        raise InputError(
-            f"cov: row {i} is not symmetric (largest asymmetry {asym[i]:.3g}); expected a covariance"
-        )
-    C = 0.5 * (C + np.swapaxes(C, 1, 2))
-    try:
-        L = np.linalg.cholesky(C)
-    except np.linalg.LinAlgError:
-        eig = np.linalg.eigvalsh(C)[:, 0]
-        i = _first_bad_row(eig > 0)
-        raise InputError(
-            f"cov: row {i} is not positive definite (smallest eigenvalue {eig[i]:.3g}); expected the "
-            "covariance of a measured displacement"
-        ) from None
-    I = np.broadcast_to(np.eye(d), C.shape)
-    return np.linalg.solve(L, I)
 
 
 def _check_names(joint_names, n: int) -> tuple[str, ...]:
@@ -361,11 +298,11 @@ def joint_deflections(jacobians, wrenches, compliances) -> np.ndarray:
     """
     J = _check_jacobians(jacobians)
     M, _, n = J.shape
-    W = _as_float(wrenches, "wrenches")
+    W = as_float(wrenches, "wrenches")
     if W.shape == (6,):
         W = np.broadcast_to(W, (M, 6))
     W = _check_wrenches(W, M)
-    c = _as_float(compliances, "compliances")
+    c = as_float(compliances, "compliances")
     if c.shape not in ((n,), (M, n)):
         raise InputError(f"compliances: expected shape ({n},) or ({M}, {n}), got {c.shape}")
     if not np.all(np.isfinite(c)):
@@ -676,10 +613,10 @@ def _check_links(
     for i, lk in enumerate(links):
         if not isinstance(lk, LinkColumns):
             raise InputError(f"links: expected LinkColumns, got {type(lk).__name__}")
-        b = _as_float(lk.basis, f"links[{lk.name}].basis")
+        b = as_float(lk.basis, f"links[{lk.name}].basis")
         if b.shape != (M, 6, 6):
             raise InputError(f"links[{lk.name}].basis: expected shape ({M}, 6, 6), got {b.shape}")
-        _check_finite(b, f"links[{lk.name}].basis", "compliances")
+        check_finite(b, f"links[{lk.name}].basis", "compliances")
         if lk.kind not in LINK_KINDS:
             raise InputError(
                 f"links[{lk.name}].kind: expected one of {', '.join(LINK_KINDS)}, got {lk.kind!r}"
@@ -728,7 +665,7 @@ def _prepare(jacobians, wrenches, d_or_displacements, cov, joint_names, fit, fix
     else:
         D = _check_displacements(d_or_displacements, M)
         d = D.shape[1]
-    Linv = _whitener(cov, M, d)
+    Linv = whitener(cov, M, d)
     names = _check_names(joint_names, n)
     lnames, kinds, B = _check_links(links, M, names)
     names = names + lnames
@@ -959,9 +896,9 @@ class JointFit:
         with flexible links, their bases at the same rows (the fit's ``links``)."""
         n = len(self.names) - len(links)
         d = joint_deflections(jacobians, wrenches, self.compliance[:n])
-        W = np.broadcast_to(_as_float(wrenches, "wrenches"), d.shape)
+        W = np.broadcast_to(as_float(wrenches, "wrenches"), d.shape)
         for lk, c in zip(links, self.compliance[n:], strict=True):
-            d = d + c * np.einsum("mij,mj->mi", _as_float(lk.basis, "basis"), W)
+            d = d + c * np.einsum("mij,mj->mi", as_float(lk.basis, "basis"), W)
         return d
 
     def to_dict(self) -> dict:
@@ -1153,8 +1090,8 @@ def fit_joint_compliances(
         return _fit_once(jacobians, wrenches, displacements, cov, **kw)
     if cov is None:
         raise InputError("extra_noise: True needs cov (the covariances the extra noise is added to)")
-    C = _as_float(cov, "cov")
-    D = _as_float(displacements, "displacements")
+    C = as_float(cov, "cov")
+    D = as_float(displacements, "displacements")
     if C.ndim == 2:
         C = np.einsum("mi,ij->mij", C**2, np.eye(C.shape[1]))
     d = D.shape[1] if D.ndim == 2 else 0
