@@ -14,7 +14,8 @@ on a few images of the set:
    (:func:`~stiffmap.vision.board_plane.board_continues`) is the board: the check ends there
    (one search on one image when the size is right).
 2. Otherwise the printed board is *grown*: from the grid found (a sub-grid of a larger board),
-   or from a 4x4 grid the same detector finds anywhere on the board, rows of corners are
+   or from the grid the same detector's "larger" mode follows from a 4x4 pattern anywhere on
+   the board (without its rows that are not saddles), rows of corners are
    extrapolated outward while they are chessboard saddles
    (:func:`~stiffmap.vision.chessboard.grow_grid`) -- to the board's edge, or to the image's.
 3. A size grown whole is confirmed by the detector asked for that size (a whole board of
@@ -38,7 +39,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..targets import CharucoBoard, Chessboard
-from .board_plane import board_continues, corner_saddles, mask_polygon
+from .board_plane import board_continues, corner_saddles, mask_polygon, trim_to_saddles
 from .chessboard import GROW_REACH, grow_grid, is_board_grid, seed_grid
 from .images import coarse_scales, read_image, reduce_image
 
@@ -157,13 +158,24 @@ def _look_once(small: np.ndarray, board: Chessboard) -> tuple[BoardSeen, np.ndar
             return BoardSeen("match", (board.cols, board.rows)), g
         if ok:  # a sub-grid of a larger printed board
             return _grown(small, g, board)
-    for flags in (cv2.CALIB_CB_LARGER, 0):
-        ok, c = cv2.findChessboardCornersSB(small, (4, 4), flags=flags)
-        if ok and c is not None:
-            seed = seed_grid(small, c)
-            if seed is not None:
-                return _grown(small, seed, board)
+    seed = _seed(small)
+    if seed is not None:
+        return _grown(small, seed, board)
     return BoardSeen("none"), None
+
+
+def _seed(small: np.ndarray) -> np.ndarray | None:
+    """Part of a printed board to grow: the grid the detector's "larger" mode follows from a
+    4x4 pattern (without its rows off the board), else a 3x3 seed among its corners."""
+    ok, c, meta = cv2.findChessboardCornersSBWithMeta(small, (4, 4), flags=cv2.CALIB_CB_LARGER)
+    if not ok or c is None or meta is None:
+        return None
+    r, q = meta.shape[:2]
+    if c.size == 2 * r * q:
+        g = trim_to_saddles(small, c.reshape(r, q, 2).astype(np.float64))
+        if g is not None and _board_grid(small, g)[0]:
+            return g
+    return seed_grid(small, c)
 
 
 def board_seen(image: np.ndarray, board: Chessboard, others: Sequence[Chessboard] = ()) -> BoardSeen:
@@ -202,16 +214,16 @@ def _sample(n: int, k: int) -> list[int]:
     return sorted(idx, key=lambda i: abs(i - mid))
 
 
-def _message(board: Chessboard, size: tuple[int, int], names: list[str], looked: int) -> str:
+def _message(board: Chessboard, size: tuple[int, int], names: list[str], looked: int, what: str) -> str:
     asked = f"{board.cols}x{board.rows}"
     shown = f"{size[0]}x{size[1]}"
     text = (
         f"the images show a {shown} chessboard (inner corners), not {asked}: did you mean "
-        f"--board {shown}? ({len(names)} of the {looked} images checked show it whole: "
+        f"{what} {shown}? ({len(names)} of the {looked} images checked show it whole: "
         f"{', '.join(names)})"
     )
     if _same((size[0] + 1, size[1] + 1), (board.cols, board.rows)):
-        text += f"; {asked} counts the squares, --board counts the inner corners (one fewer each way)"
+        text += f"; {asked} counts the squares, {what} counts the inner corners (one fewer each way)"
     return text
 
 
@@ -222,6 +234,7 @@ def check_board_size(
     others: Sequence = (),
     progress: Callable[[int, int], None] | None = None,
     sample: int = SAMPLE,
+    what: str = "--board",
 ) -> list[BoardSeen]:
     """Check, on a few of the images, that they show the board asked for; raise if they show another.
 
@@ -241,6 +254,8 @@ def check_board_size(
         ``progress(done, total)`` after each image looked at.
     sample : int
         Images looked at, at most.
+    what : str
+        How the board is named in the message (``"--board"``, ``"--fixed-board"``).
 
     Returns
     -------
@@ -274,6 +289,6 @@ def check_board_size(
             names.append(Path(paths[i]).name)
             if len(names) >= AGREE:
                 raise BoardSizeError(
-                    _message(board, s.size, names, len(seen)), (board.cols, board.rows), s.size
+                    _message(board, s.size, names, len(seen), what), (board.cols, board.rows), s.size
                 )
     return seen
