@@ -16,6 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from helpers.board_images import quick_board_image
+from helpers.board_scenes import close_two_target_poses, small_camera
 from helpers.cli_process import run_in_process
 from helpers.shared_data import CALIB_DIR, REAL_SETS
 from hypothesis import HealthCheck, given, settings
@@ -105,6 +107,19 @@ def test_a_second_board_of_a_known_size_is_not_named_for_the_first(view):
     assert seen.verdict == "other" and seen.size == (9, 6)
     assert board_seen(image, mobile, others=[fixed]).verdict == "match"
     assert board_seen(image, fixed, others=[mobile]).verdict == "match"
+
+
+def test_an_undeclared_second_board_is_not_named_when_the_board_asked_for_is_there():
+    """The test-bed's two boards in one view (a 9x4 fixed target beside the 7x6 mobile one, as
+    ``stiffmap displacement`` without --fixed-board sees them): OpenCV's detector asked for 7x6
+    does not find it beside the other board; the 9x4 is grown, masked, and the 7x6 found."""
+    mobile, fixed = Chessboard(7, 6, 10.0), Chessboard(9, 4, 10.0)
+    M0, F = close_two_target_poses(mobile, fixed)
+    image = quick_board_image(small_camera(), [(fixed, F), (mobile, M0)], rng=np.random.default_rng(5))
+    assert board_seen(image, mobile).verdict == "match"
+    assert board_seen(image, fixed).verdict == "match"
+    seen = board_seen(image, Chessboard(8, 7, 10.0), others=[fixed])  # one too many each way
+    assert seen.verdict == "other" and seen.size == (7, 6)
 
 
 def test_the_python_api_gives_the_same_clear_error():

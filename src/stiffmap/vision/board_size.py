@@ -157,7 +157,10 @@ def _look_once(small: np.ndarray, board: Chessboard) -> tuple[BoardSeen, np.ndar
         if ok and board_continues(small, g, contrast) is None:
             return BoardSeen("match", (board.cols, board.rows)), g
         if ok:  # a sub-grid of a larger printed board
-            return _grown(small, g, board)
+            seen, grown = _grown(small, g, board)
+            # Not grown past the size asked for, though a row of saddles goes on: a grid that
+            # skips squares (running diagonally), not the board's.
+            return (BoardSeen("none"), grown) if seen.verdict == "match" else (seen, grown)
     seed = _seed(small)
     if seed is not None:
         return _grown(small, seed, board)
@@ -188,7 +191,8 @@ def board_seen(image: np.ndarray, board: Chessboard, others: Sequence[Chessboard
         The board asked for.
     others : sequence of Chessboard
         Other boards that may be in view (a fixed target): a board of one of their sizes is
-        masked and the search goes on.
+        never named. Every board of another size than ``board`` is masked and the search goes
+        on (a second board in view, declared or not), up to :data:`MAX_GRIDS` boards.
 
     Returns
     -------
@@ -197,14 +201,17 @@ def board_seen(image: np.ndarray, board: Chessboard, others: Sequence[Chessboard
     small = reduce_image(image, coarse_scales(image.shape, None)[0])
     fill = int(np.median(small))
     other_sizes = [(o.cols, o.rows) for o in others]
-    for _ in range(MAX_GRIDS):
+    verdict = BoardSeen("none")
+    for k in range(MAX_GRIDS):
+        if k and _seed(small) is None:
+            break  # no other board in view (a cheap look before the detector's full search)
         seen, grid = _look_once(small, board)
         if grid is None or seen.verdict == "match":
-            return seen
-        if not any(_same(seen.size, s) for s in other_sizes):
-            return seen
+            return seen if seen.verdict == "match" else verdict
+        if verdict.verdict == "none" and not any(_same(seen.size, s) for s in other_sizes):
+            verdict = seen  # the first board of a size not known: named unless the one asked for is seen
         cv2.fillConvexPoly(small, np.round(mask_polygon(grid, 1.0)).astype(np.int32), fill)
-    return BoardSeen("none")
+    return verdict
 
 
 def _sample(n: int, k: int) -> list[int]:
