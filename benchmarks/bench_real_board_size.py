@@ -10,8 +10,8 @@ the same board, it must pass), each:
 - with the check (:func:`stiffmap.vision.board_size.check_board_size`): wall time of the whole
   command (Python start-up and import included) and its answer;
 - without it (the baseline: the command as it was, ``check_board_size`` replaced by a no-op in
-  the child): the full search's wall time (the too-large and row-short runs up to ``--baseline-timeout`` s)
-  and what it said.
+  the child), for the board too small and too large (a row short is like the latter): the full
+  search's wall time (stopped after ``--baseline-timeout`` s, default 150) and what it said.
 
 And the check alone, in this process, when the size is right (its cost on every good run).
 
@@ -114,7 +114,7 @@ def main() -> None:
             "check alone, right size",
         ],
         rows,
-        notes=__doc__.split("\n\n")[1]
+        notes="\n\n".join(__doc__.split("\n\n")[1:4])
         + "\n\nWall times on a shared 2-core machine (other work running): the command's own start-up "
         "(Python, imports) is about 1.5-2 s of each. The swapped size is the same board: it calibrates.",
     )
