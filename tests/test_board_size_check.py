@@ -97,7 +97,7 @@ def test_one_image_answers_each_way():
     assert board_seen(blank, Chessboard(9, 6, 30.0)).verdict == "none"
 
 
-@pytest.mark.parametrize("view", ["left01.jpg", "left03.jpg"])
+@pytest.mark.parametrize("view", ["left01.jpg", pytest.param("left03.jpg", marks=pytest.mark.slow)])
 def test_a_second_board_of_a_known_size_is_not_named_for_the_first(view):
     """Bouguet's 13x12 board beside a 9x6 of OpenCV's samples in one image (a fixed target beside
     the mobile one): asked 7x5 for the mobile, the fixed 13x12 is masked and the 9x6 named."""
