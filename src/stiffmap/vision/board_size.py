@@ -276,7 +276,8 @@ def check_board_size(
     """
     if not isinstance(board, Chessboard):
         return []
-    others = [o.chessboard if isinstance(o, CharucoBoard) else o for o in others if o is not None]
+    others = [o.chessboard if isinstance(o, CharucoBoard) else o for o in others]
+    others = [o for o in others if isinstance(o, Chessboard)]  # a size as text: not yet a board
     order = _sample(len(paths), sample)
     seen: list[BoardSeen] = []
     votes: dict[tuple[int, int], list[str]] = {}
