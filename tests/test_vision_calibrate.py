@@ -173,3 +173,45 @@ def test_unreadable_and_missing_images_do_not_stop_calibration(calib_images, tmp
     )
     assert not v[str(bad)].used and "cannot decode" in v[str(bad)].reason
     assert "no such file or folder" in v[str(tmp_path / "missing.tif")].reason
+
+
+def test_covariance_from_information_is_the_inverse_when_well_posed_and_psd_when_not(rng):
+    """Well conditioned: s^2 S^-1 (numpy's inverse). An information matrix whose rounding made
+    it indefinite (two nearly collinear columns, as the rational model's k's): finite, positive
+    variances, positive semi-definite, the undetermined direction the largest variance."""
+    from stiffmap.vision.calibrate import covariance_from_information
+
+    J = rng.normal(size=(200, 4)) * [1.0, 50.0, 1e-3, 7.0]  # mixed units
+    S = J.T @ J
+    C = covariance_from_information(S, 0.04, range(4))
+    np.testing.assert_allclose(C, 0.04 * np.linalg.inv(S), rtol=1e-9)
+    # Column 3 a combination of 1 and 2 up to 1e-9: S's smallest eigenvalue is rounding noise.
+    J[:, 3] = J[:, 1] - 2.0 * J[:, 2] + 1e-9 * rng.normal(size=200)
+    S = J.T @ J
+    v = np.array([0.0, 1.0, -2.0, -1.0]) / np.sqrt(6.0)
+    S -= 1e-6 * np.trace(S) * 1e-9 * np.outer(v, v)  # pushed below zero along it
+    assert np.linalg.eigvalsh(S).min() < 0
+    C = covariance_from_information(S, 0.04, [0, 1, 2, 3])
+    assert np.all(np.isfinite(C)) and np.all(np.diag(C) > 0)
+    w = np.linalg.eigvalsh(C)
+    assert w.min() >= -1e-12 * w.max()
+    # The well-determined parameter 0 keeps its variance (J's column 0 is independent of the rest).
+    assert C[0, 0] == pytest.approx(0.04 / (J[:, 0] @ J[:, 0]), rel=0.05)
+
+
+@pytest.mark.slow
+def test_the_rational_model_on_real_photographs_has_positive_finite_variances(calib_images):
+    """calibrate --rational on Bouguet's views: k1..k6 determined only in combination (its
+    information matrix had an eigenvalue -4e-12 of 8.3 after scaling, and variances of -1.15
+    and -0.95); the covariance is finite, positive semi-definite, with the intrinsics' 1-sigma
+    near the k3 model's (more coefficients cannot make fx much surer)."""
+    rational = calibrate_files(calib_images, BOARD, model="rational").camera
+    k3 = calibrate_files(calib_images, BOARD, model="k3").camera
+    C = rational.cov
+    assert C.shape == (12, 12) and np.all(np.isfinite(C))
+    free = np.diag(C)[np.r_[0:6, 8:12]]  # k3, k4..k6 free; p1, p2 too
+    assert np.all(free > 0) and np.all(np.diag(C)[6:8] > 0)
+    w = np.linalg.eigvalsh(C)
+    assert w.min() >= -1e-12 * w.max()
+    ratio = np.sqrt(np.diag(C)[:4] / np.diag(k3.cov)[:4])
+    assert np.all((ratio > 0.9) & (ratio < 3.0)), ratio

@@ -19,9 +19,17 @@ import numpy as np
 from ..camera import CameraModel
 from ..errors import InputError
 from ..rig import Rig, parse_named_pattern
+from .board_size import check_board_size
 from .detect import Board
 from .displacement import ImageDisplacements, displacement_per_image
-from .files import StageRow, measure_files, measure_image_sets, read_stage_manifest, rig_image_sets
+from .files import (
+    StageRow,
+    image_files,
+    measure_files,
+    measure_image_sets,
+    read_stage_manifest,
+    rig_image_sets,
+)
 from .sequence import ImageMeasurement
 from .validate import StageValidation, validate_stage_series
 
@@ -99,14 +107,27 @@ def measure_named(
     """Measure the images of one camera, or a rig's image sets, as one tracked sequence.
 
     ``items`` as :func:`image_sets` gives them; ``source`` names the camera or rig file in
-    messages. An image (set) that fails gives an entry with its error.
+    messages. An image (set) that fails gives an entry with its error. A board size the images
+    do not show is refused first (:func:`~stiffmap.vision.board_size.check_board_size`).
     """
     if not items:
         raise InputError("no images given")
     fb, T = (fixed.board, fixed.fixed2base) if fixed is not None else (None, None)
+    _check_sizes(items, board, fb)
     if isinstance(cameras, Rig):
         return measure_image_sets(items, cameras, board, fb, T, rig_source=source, refine=refine)
     return measure_files(items, cameras, board, fb, T, camera_source=source, refine=refine)
+
+
+def _check_sizes(items: list, board: Board, fixed_board: Board | None) -> None:
+    """Refuse a board size (the mobile's, the fixed one's) that a few of the images do not show."""
+    if isinstance(items[0], tuple):  # a rig's image sets
+        paths = [p for _, views in items for p in views.values() if p is not None]
+    else:
+        paths = image_files(items)
+    check_board_size(paths, board, others=[fixed_board])
+    if fixed_board is not None:
+        check_board_size(paths, fixed_board, others=[board], what="--fixed-board")
 
 
 def pose_files(

@@ -24,6 +24,7 @@ from ..geometry import as_transform
 from ..io import read_csv_columns, read_json
 from ..rig import Rig, parse_named_pattern
 from ..targets import as_board
+from .board_size import check_board_size
 from .calibrate import CalibrationResult, calibrate_camera
 from .detect import Board, BoardDetection, DetectionError, detect_board
 from .detection import grid_of
@@ -264,9 +265,10 @@ def calibrate_files(
     reason, and calibration goes on with the others. ``progress(done, total)`` is called
     after each image.
 
-    A wrong board size is answered early: when :data:`WRONG_SIZE_AFTER` images show one
-    larger printed board (whole) and none so far the board asked for, the search stops with
-    the size the images show.
+    A wrong board size is answered first, in seconds, with the size the images show
+    (:func:`~stiffmap.vision.board_size.check_board_size` on a few of them); failing that,
+    when :data:`WRONG_SIZE_AFTER` images show one larger printed board (whole) and none so
+    far the board asked for, the search stops with it.
 
     Raises
     ------
@@ -279,6 +281,7 @@ def calibrate_files(
     if not paths:
         raise InputError("no calibration images given")
     paths = image_files(paths)
+    check_board_size(paths, board, progress=progress)
     dets, sizes, larger = _detect_files(paths, board, scale, _counting(progress, len(paths)), early=True)
     if all(sz is None for sz in sizes):
         raise InputError(
@@ -568,6 +571,7 @@ def calibrate_rig_files(
         raise InputError(f"camera {dup} is given twice: cameras need different names")
     files = [camera_images(n, pat) for n, pat in cameras]
     view_names, table = match_views(names, files)
+    check_board_size([p for fs in files for p in fs], board, progress=progress)
     total = sum(len(fs) for fs in files)
     done = 0
 
