@@ -514,6 +514,8 @@ def _spd_compliance(
     return (V * w) @ V.T, cov, True
 
 
+# Longer than ~80 lines for its documentation: the parameters, raises and a doctest example
+# take ~90 lines; the body (~25 lines) is the checks and _estimate.
 def identify_stiffness(
     F,
     D,
@@ -609,27 +611,7 @@ def identify_stiffness(
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     F, D = _as_design(F, D, *names)
     m, n = F.shape
-    comp = "forces fx, fy, fz" if m == 3 else "wrench components fx, fy, fz, mx, my, mz"
-    rank, cond = _design_rank(F)
-    if rank < m:
-        raise DesignError(
-            f"the loads span rank {rank} but {m} linearly independent load directions are needed "
-            f"({comp}) to determine a {m}x{m} stiffness; add load cases along the missing directions",
-            source=names[0] if names[0] != "forces" else None,
-        )
-    flags: list[str] = []
-    if cond > CONDITION_WARN:
-        msg = f"badly conditioned load design (condition number {cond:.3g}): K is sensitive to noise"
-        warnings.warn(msg, IllConditionedWarning, stacklevel=2)
-        flags.append(msg)
-    Fa = np.vstack([F, np.ones((1, n))]) if offset else F
-    q = Fa.shape[0]
-    if offset and np.linalg.matrix_rank(Fa / np.linalg.norm(Fa, axis=1, keepdims=True)) < q:
-        raise DesignError(
-            "with an offset the loads must not all lie on one plane that misses the origin "
-            "(the offset and the stiffness cannot be told apart); add load cases of other magnitudes",
-            source=names[0] if names[0] != "forces" else None,
-        )
+    rank, cond, Fa, flags = _check_design(F, offset, names[0])
     Sd = _check_cov(disp_cov, m, n, "disp_cov")
     Sf = _check_cov(force_cov, m, n, "force_cov", semidefinite=True)
     common = _check_common(common_jacobian, common_cov, m, n)
@@ -644,6 +626,35 @@ def identify_stiffness(
             )
     except (np.linalg.LinAlgError, FloatingPointError):
         raise DesignError(_no_finite_stiffness(F, D), source=disp_source) from None
+
+
+def _check_design(F: np.ndarray, offset: bool, name: str):
+    """The load design's rank and condition, checked (full rank; with an offset, loads not all
+    on one plane missing the origin), the loads augmented by a row of ones with an offset, and
+    the flags (a badly conditioned design: also warned)."""
+    m, n = F.shape
+    comp = "forces fx, fy, fz" if m == 3 else "wrench components fx, fy, fz, mx, my, mz"
+    rank, cond = _design_rank(F)
+    if rank < m:
+        raise DesignError(
+            f"the loads span rank {rank} but {m} linearly independent load directions are needed "
+            f"({comp}) to determine a {m}x{m} stiffness; add load cases along the missing directions",
+            source=name if name != "forces" else None,
+        )
+    flags: list[str] = []
+    if cond > CONDITION_WARN:
+        msg = f"badly conditioned load design (condition number {cond:.3g}): K is sensitive to noise"
+        warnings.warn(msg, IllConditionedWarning, stacklevel=3)  # identify_stiffness's caller
+        flags.append(msg)
+    Fa = np.vstack([F, np.ones((1, n))]) if offset else F
+    q = Fa.shape[0]
+    if offset and np.linalg.matrix_rank(Fa / np.linalg.norm(Fa, axis=1, keepdims=True)) < q:
+        raise DesignError(
+            "with an offset the loads must not all lie on one plane that misses the origin "
+            "(the offset and the stiffness cannot be told apart); add load cases of other magnitudes",
+            source=name if name != "forces" else None,
+        )
+    return rank, cond, Fa, flags
 
 
 def _check_displacements(D: np.ndarray, m: int, source: str | None) -> None:
@@ -678,6 +689,109 @@ def _no_finite_stiffness(F: np.ndarray, D: np.ndarray) -> str:
     )
 
 
+def _compliance_fit(F, D, Fa, Sd, Sf):
+    """The (augmented) compliance estimate Ca, the displacement covariances it weighted with
+    (S_eff, None when none given), the weights W and the covariance of C.ravel() (None without
+    covariances): the weighted fit when covariances are given, iterated on the forces' share."""
+    m, n = F.shape
+    q = Fa.shape[0]
+    if Sd is None:
+        W = np.broadcast_to(np.eye(m), (n, m, m))
+        return D @ Fa.T @ np.linalg.inv(Fa @ Fa.T), None, W, None
+    S_eff = Sd.copy()
+    W = np.linalg.inv(S_eff)
+    Ca, covCa = _gls_compliance(Fa, D, W)
+    if Sf is not None:
+        for _ in range(3):
+            S_eff = Sd + np.einsum("ij,njk,lk->nil", Ca[:, :m], Sf, Ca[:, :m])
+            W = np.linalg.inv(S_eff)
+            Ca, covCa = _gls_compliance(Fa, D, W)
+    keep = np.array([i * q + j for i in range(m) for j in range(m)])
+    return Ca, S_eff, W, covCa[np.ix_(keep, keep)]
+
+
+def _stiffness(method: str, C, F, Dm, W, S_eff, flags: list[str]):
+    """K by the method, and the symmetric fit's covariance of C (None for the others)."""
+    covC_spd = None
+    if method == "compliance":
+        K = np.linalg.inv(C)
+    elif method == "paper":
+        K = F @ Dm.T @ np.linalg.inv(Dm @ Dm.T)  # reference paper, eq. 10
+    else:
+        Cs, covC_spd, spd_active = _spd_compliance(F, Dm, W, S_eff)
+        K = np.linalg.inv(Cs)
+        K = 0.5 * (K + K.T)
+        if spd_active:
+            flags.append(
+                "spd constraint active: the unconstrained symmetric fit was not positive definite; "
+                "the data are not those of an admissible stiffness"
+            )
+    if not np.all(np.isfinite(K)):  # numpy's linalg returns inf/NaN without raising
+        raise np.linalg.LinAlgError("K is not finite")
+    return K, covC_spd
+
+
+def _chi2_flag(R, W, m: int, n: int, dof: int, flags: list[str]) -> float | None:
+    """The reduced chi-square of the residuals with the given uncertainties (None without
+    residual degrees of freedom); a flag when they exceed them."""
+    chi2 = float(sum(R[:, i] @ W[i] @ R[:, i] for i in range(n)))
+    if dof <= 0:
+        return None
+    chi2_red = chi2 / (m * dof)
+    p = chi2_sf(chi2, m * dof)
+    if p < 0.01:
+        flags.append(
+            f"residuals exceed the given displacement uncertainty "
+            f"(reduced chi-square {chi2_red:.3g}, p = {p:.2g})"
+        )
+    return chi2_red
+
+
+def _noise_covariance(method, K, R, F, Fa, Dm, W, S_eff, covC, covC_spd, dof, flags):
+    """K's covariance from the given uncertainties, else from the residuals: (sigma, K_cov,
+    dof_eff, chi2_red). To first order the paper's estimator has the same covariance as the
+    compliance one (dK = -K E F^T (F F^T)^-1 K for both); the symmetric fit has its own
+    (smaller) one."""
+    m, n = F.shape
+    J = _inverse_jacobian(K)
+    if S_eff is not None:
+        chi2_red = _chi2_flag(R, W, m, n, dof, flags)
+        if method == "spd":
+            covC = covC_spd
+        return S_eff.mean(axis=0), J @ covC @ J.T, np.full((m, m), np.inf), chi2_red
+    if dof > 0:
+        sigma = R @ R.T / dof
+        P = np.linalg.inv(Fa @ Fa.T)[:m, :m]
+        if method == "spd":
+            _, covC, _ = _spd_compliance(F, Dm, W, np.broadcast_to(sigma, (n, m, m)))
+            dof_eff = np.full((m, m), float(dof))  # conservative: Satterthwaite >= dof
+        else:
+            covC = np.kron(sigma, P)  # row-major vec: Cov(C[i, :], C[j, :]) = sigma_ij P
+            dof_eff = _satterthwaite(J, P, sigma, dof).reshape(m, m)
+        return sigma, J @ covC @ J.T, dof_eff, None
+    flags.append(
+        f"no residual degrees of freedom ({n} load cases for {Fa.shape[0]} unknowns per component): "
+        "the uncertainty of K is unknown; add load cases or give displacement uncertainties"
+    )
+    return np.full((m, m), np.nan), np.full((m * m, m * m), np.nan), np.full((m, m), np.nan), None
+
+
+def _with_common(common, K_cov, dof_eff, F, Fa, Dm, K, W, given, method, offset):
+    """K's covariance with the common error's share, the effective degrees of freedom
+    (Welch-Satterthwaite with that share known: nu = (v_noise + v_common)^2 nu / v_noise^2)
+    and the share (K_cov_common)."""
+    m = F.shape[0]
+    dK = _common_sensitivity(common[0], F, Fa, Dm, K, W, given, method=method, offset=offset)
+    K_cov_common = dK @ common[1] @ dK.T
+    K_cov_common = 0.5 * (K_cov_common + K_cov_common.T)
+    vn = np.diag(K_cov).reshape(m, m)
+    vt = vn + np.diag(K_cov_common).reshape(m, m)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = (vt / np.where(vn > 0, vn, 1.0)) ** 2
+        dof_eff = np.where(np.isnan(vn), np.nan, np.where(vn > 0, dof_eff * ratio, np.inf))
+    return K_cov + K_cov_common, dof_eff, K_cov_common
+
+
 def _estimate(
     F: np.ndarray,
     D: np.ndarray,
@@ -694,101 +808,24 @@ def _estimate(
 ) -> StiffnessFit:
     """The estimate of :func:`identify_stiffness` once its inputs are checked."""
     m, n = F.shape
-    q = Fa.shape[0]
-    dof = n - q
-    given = Sd is not None
-
-    # Compliance estimate and its weights (the weighted fit when covariances are given).
-    if given:
-        S_eff = Sd.copy()
-        W = np.linalg.inv(S_eff)
-        Ca, covCa = _gls_compliance(Fa, D, W)
-        if Sf is not None:
-            for _ in range(3):
-                S_eff = Sd + np.einsum("ij,njk,lk->nil", Ca[:, :m], Sf, Ca[:, :m])
-                W = np.linalg.inv(S_eff)
-                Ca, covCa = _gls_compliance(Fa, D, W)
-        keep = np.array([i * q + j for i in range(m) for j in range(m)])
-        covC = covCa[np.ix_(keep, keep)]
-    else:
-        S_eff = None
-        W = np.broadcast_to(np.eye(m), (n, m, m))
-        Ca = D @ Fa.T @ np.linalg.inv(Fa @ Fa.T)
+    dof = n - Fa.shape[0]
+    Ca, S_eff, W, covC = _compliance_fit(F, D, Fa, Sd, Sf)
     C = Ca[:, :m]
     b_off = Ca[:, m] if offset else None
     # The paper's and the symmetric estimators work on the offset-corrected displacements.
     Dm = D - b_off[:, None] if offset else D
-
-    spd_active = False
-    if method == "compliance":
-        K = np.linalg.inv(C)
-    elif method == "paper":
-        K = F @ Dm.T @ np.linalg.inv(Dm @ Dm.T)  # reference paper, eq. 10
-    else:
-        Cs, covC_spd, spd_active = _spd_compliance(F, Dm, W, S_eff)
-        K = np.linalg.inv(Cs)
-        K = 0.5 * (K + K.T)
-        if spd_active:
-            flags.append(
-                "spd constraint active: the unconstrained symmetric fit was not positive definite; "
-                "the data are not those of an admissible stiffness"
-            )
-    if not np.all(np.isfinite(K)):  # numpy's linalg returns inf/NaN without raising
-        raise np.linalg.LinAlgError("K is not finite")
-
+    K, covC_spd = _stiffness(method, C, F, Dm, W, S_eff, flags)
     Cm = np.linalg.inv(K)
     R = Dm - Cm @ F
     rms = np.sqrt(np.mean(R**2, axis=1))
-    chi2_red: float | None = None
-    J = _inverse_jacobian(K)
-    # Covariance of C.ravel(). To first order the paper's estimator has the same
-    # covariance as the compliance one (dK = -K E F^T (F F^T)^-1 K for both); the
-    # symmetric fit has its own (smaller) one.
-    if given:
-        chi2 = float(sum(R[:, i] @ W[i] @ R[:, i] for i in range(n)))
-        if dof > 0:
-            chi2_red = chi2 / (m * dof)
-            p = chi2_sf(chi2, m * dof)
-            if p < 0.01:
-                flags.append(
-                    f"residuals exceed the given displacement uncertainty "
-                    f"(reduced chi-square {chi2_red:.3g}, p = {p:.2g})"
-                )
-        sigma = S_eff.mean(axis=0)
-        if method == "spd":
-            covC = covC_spd
-        K_cov = J @ covC @ J.T
-        dof_eff = np.full((m, m), np.inf)
-    elif dof > 0:
-        sigma = R @ R.T / dof
-        P = np.linalg.inv(Fa @ Fa.T)[:m, :m]
-        if method == "spd":
-            _, covC, _ = _spd_compliance(F, Dm, W, np.broadcast_to(sigma, (n, m, m)))
-            dof_eff = np.full((m, m), float(dof))  # conservative: Satterthwaite >= dof
-        else:
-            covC = np.kron(sigma, P)  # row-major vec: Cov(C[i, :], C[j, :]) = sigma_ij P
-            dof_eff = _satterthwaite(J, P, sigma, dof).reshape(m, m)
-        K_cov = J @ covC @ J.T
-    else:
-        sigma = np.full((m, m), np.nan)
-        K_cov = np.full((m * m, m * m), np.nan)
-        dof_eff = np.full((m, m), np.nan)
-        flags.append(
-            f"no residual degrees of freedom ({n} load cases for {q} unknowns per component): "
-            "the uncertainty of K is unknown; add load cases or give displacement uncertainties"
-        )
+    sigma, K_cov, dof_eff, chi2_red = _noise_covariance(
+        method, K, R, F, Fa, Dm, W, S_eff, covC, covC_spd, dof, flags
+    )
     K_cov_common = None
     if common is not None:
-        dK = _common_sensitivity(common[0], F, Fa, Dm, K, W, given, method=method, offset=offset)
-        K_cov_common = dK @ common[1] @ dK.T
-        K_cov_common = 0.5 * (K_cov_common + K_cov_common.T)
-        # Welch-Satterthwaite with the common share known: nu = (v_noise + v_common)^2 nu / v_noise^2.
-        vn = np.diag(K_cov).reshape(m, m)
-        vt = vn + np.diag(K_cov_common).reshape(m, m)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = (vt / np.where(vn > 0, vn, 1.0)) ** 2
-            dof_eff = np.where(np.isnan(vn), np.nan, np.where(vn > 0, dof_eff * ratio, np.inf))
-        K_cov = K_cov + K_cov_common
+        K_cov, dof_eff, K_cov_common = _with_common(
+            common, K_cov, dof_eff, F, Fa, Dm, K, W, Sd is not None, method, offset
+        )
     K_std = np.sqrt(np.clip(np.diag(K_cov), 0, None)).reshape(m, m)
     flags.extend(physical_flags(K, K_cov if np.all(np.isfinite(K_cov)) else None))
     return StiffnessFit(

@@ -171,6 +171,84 @@ class PrecisionResult:
     outliers: tuple[str, ...]
 
 
+def _between_conditions(n: np.ndarray, means: np.ndarray, s_r2: float) -> tuple[float, np.ndarray]:
+    """The between-condition variance s_L^2 and Mandel's h of each condition (0 for one)."""
+    p = len(means)
+    if p == 1:
+        return 0.0, np.zeros(p)
+    N = n.sum()
+    grand = float((n * means).sum() / N)
+    s_d2 = float((n * (means - grand) ** 2).sum() / (p - 1))
+    nbar = float((N - (n**2).sum() / N) / (p - 1))
+    s_L2 = max((s_d2 - s_r2) / nbar, 0.0)
+    dev = means - means.mean()
+    sb = np.sqrt((dev**2).sum() / (p - 1))
+    return s_L2, (dev / sb if sb > 0 else np.zeros(p))
+
+
+class _ConsistencyTests:
+    """ISO 5725-2's consistency tests: their (5 %, 1 %) critical values and the conditions
+    found beyond them (stragglers, outliers)."""
+
+    def __init__(self, labels: list[str]):
+        self.labels = labels
+        self.p = len(labels)
+        self.critical: dict[str, tuple[float, float]] = {}
+        self.stragglers: list[str] = []
+        self.outliers: list[str] = []
+
+    def _judge(self, stat: float, crit: tuple[float, float], what: str) -> None:
+        if stat > crit[1]:
+            self.outliers.append(what)
+        elif stat > crit[0]:
+            self.stragglers.append(what)
+
+    def means(self, h: np.ndarray, means: np.ndarray) -> tuple[float | None, float | None]:
+        """Mandel's h and Grubbs' tests on the condition means (three conditions or more):
+        Grubbs' G of the highest and of the lowest mean (None: not computed)."""
+        p, labels, critical = self.p, self.labels, self.critical
+        if p < 3:
+            return None, None
+        critical["h"] = (mandel_h_critical(p, STRAGGLER_ALPHA), mandel_h_critical(p, OUTLIER_ALPHA))
+        critical["G"] = (grubbs_critical(p, STRAGGLER_ALPHA), grubbs_critical(p, OUTLIER_ALPHA))
+        for i in range(p):
+            self._judge(abs(h[i]), critical["h"], f"{labels[i]}: Mandel h = {h[i]:.3f}")
+        sd_means = float(np.std(means, ddof=1))
+        if not sd_means > 0:
+            return None, None
+        grubbs_hi = float((means.max() - means.mean()) / sd_means)
+        grubbs_lo = float((means.mean() - means.min()) / sd_means)
+        self._judge(
+            grubbs_hi, critical["G"], f"{labels[int(means.argmax())]}: Grubbs G = {grubbs_hi:.3f} (high)"
+        )
+        self._judge(
+            grubbs_lo, critical["G"], f"{labels[int(means.argmin())]}: Grubbs G = {grubbs_lo:.3f} (low)"
+        )
+        return grubbs_hi, grubbs_lo
+
+    def variances(self, k: np.ndarray, stds: np.ndarray, ssum: float, n_rep: int) -> float | None:
+        """Mandel's k and Cochran's tests on the condition variances (two conditions or more,
+        critical values for ``n_rep`` repeats): Cochran's C (None: not computed)."""
+        p, labels, critical = self.p, self.labels, self.critical
+        if p < 2:
+            return None
+        critical["k"] = (
+            mandel_k_critical(p, n_rep, STRAGGLER_ALPHA),
+            mandel_k_critical(p, n_rep, OUTLIER_ALPHA),
+        )
+        critical["C"] = (
+            cochran_critical(p, n_rep, STRAGGLER_ALPHA),
+            cochran_critical(p, n_rep, OUTLIER_ALPHA),
+        )
+        for i in range(p):
+            self._judge(k[i], critical["k"], f"{labels[i]}: Mandel k = {k[i]:.3f}")
+        if not ssum > 0:
+            return None
+        cochran_C = float(stds.max() ** 2 / ssum)
+        self._judge(cochran_C, critical["C"], f"{labels[int(stds.argmax())]}: Cochran C = {cochran_C:.3f}")
+        return cochran_C
+
+
 def precision(groups: Sequence[Sequence[float]], labels: Sequence[str] | None = None) -> PrecisionResult:
     """ISO 5725-2 analysis of repeated measurements under p conditions.
 
@@ -205,62 +283,15 @@ def precision(groups: Sequence[Sequence[float]], labels: Sequence[str] | None = 
     N = n.sum()
     grand = float((n * means).sum() / N)
     s_r2 = float(((n - 1) * stds**2).sum() / (n - 1).sum())
-    if p > 1:
-        s_d2 = float((n * (means - grand) ** 2).sum() / (p - 1))
-        nbar = float((N - (n**2).sum() / N) / (p - 1))
-        s_L2 = max((s_d2 - s_r2) / nbar, 0.0)
-        dev = means - means.mean()
-        sb = np.sqrt((dev**2).sum() / (p - 1))
-        h = dev / sb if sb > 0 else np.zeros(p)
-    else:
-        s_L2 = 0.0
-        h = np.zeros(p)
+    s_L2, h = _between_conditions(n, means, s_r2)
     ssum = (stds**2).sum()
     k = stds * np.sqrt(p) / np.sqrt(ssum) if ssum > 0 else np.zeros(p)
     s_r = float(np.sqrt(s_r2))
     s_R = float(np.sqrt(s_L2 + s_r2))
-
-    critical: dict[str, tuple[float, float]] = {}
-    stragglers: list[str] = []
-    outliers: list[str] = []
-    n_rep = int(round(n.mean()))
-    cochran_C = grubbs_hi = grubbs_lo = None
-
-    def judge(stat: float, crit: tuple[float, float], what: str) -> None:
-        if stat > crit[1]:
-            outliers.append(what)
-        elif stat > crit[0]:
-            stragglers.append(what)
-
-    if p >= 3:
-        critical["h"] = (mandel_h_critical(p, STRAGGLER_ALPHA), mandel_h_critical(p, OUTLIER_ALPHA))
-        critical["G"] = (grubbs_critical(p, STRAGGLER_ALPHA), grubbs_critical(p, OUTLIER_ALPHA))
-        for i in range(p):
-            judge(abs(h[i]), critical["h"], f"{labels[i]}: Mandel h = {h[i]:.3f}")
-        sd_means = float(np.std(means, ddof=1))
-        if sd_means > 0:
-            grubbs_hi = float((means.max() - means.mean()) / sd_means)
-            grubbs_lo = float((means.mean() - means.min()) / sd_means)
-            judge(
-                grubbs_hi, critical["G"], f"{labels[int(means.argmax())]}: Grubbs G = {grubbs_hi:.3f} (high)"
-            )
-            judge(
-                grubbs_lo, critical["G"], f"{labels[int(means.argmin())]}: Grubbs G = {grubbs_lo:.3f} (low)"
-            )
-    if p >= 2:
-        critical["k"] = (
-            mandel_k_critical(p, n_rep, STRAGGLER_ALPHA),
-            mandel_k_critical(p, n_rep, OUTLIER_ALPHA),
-        )
-        critical["C"] = (
-            cochran_critical(p, n_rep, STRAGGLER_ALPHA),
-            cochran_critical(p, n_rep, OUTLIER_ALPHA),
-        )
-        for i in range(p):
-            judge(k[i], critical["k"], f"{labels[i]}: Mandel k = {k[i]:.3f}")
-        if ssum > 0:
-            cochran_C = float(stds.max() ** 2 / ssum)
-            judge(cochran_C, critical["C"], f"{labels[int(stds.argmax())]}: Cochran C = {cochran_C:.3f}")
+    tests = _ConsistencyTests(labels)
+    grubbs_hi, grubbs_lo = tests.means(h, means)
+    cochran_C = tests.variances(k, stds, ssum, int(round(n.mean())))
+    critical, stragglers, outliers = tests.critical, tests.stragglers, tests.outliers
     return PrecisionResult(
         conditions=cs,
         grand_mean=grand,

@@ -301,6 +301,32 @@ def render_block_tiled(rx, ry, tex: BoardTexture, board2cam: np.ndarray, tile: i
     tile = int(tile)
     if tile < 2 or h < 2 * tile or w < 2 * tile:
         return render_block(rx, ry, tex, board2cam)
+    uniform, cx, cy = _uniform_tiles(rx, ry, tex, board2cam, tile, h, w)
+    pre = tex.reflectance * tex.alpha
+    nv, nu = uniform.shape
+    rows_per = np.full(nv, tile)
+    rows_per[-1] = h - tile * (nv - 1)
+    cols_per = np.full(nu, tile)
+    cols_per[-1] = w - tile * (nu - 1)
+
+    def spread(T):
+        return np.repeat(np.repeat(T, rows_per, axis=0), cols_per, axis=1).ravel()
+
+    cxs, cys = np.where(uniform, cx, 0), np.where(uniform, cy, 0)
+    col = spread(np.where(uniform, pre[cxs, cys], 0.0))
+    cov = spread(np.where(uniform, tex.alpha[cxs, cys], 0.0))
+    todo = np.zeros((H, W), dtype=bool)  # the pixels to compute, halo coordinates
+    todo[1:-1, 1:-1] = ~spread(uniform).reshape(h, w)
+    if not todo.any():
+        return col, cov
+    inner = todo[1:-1, 1:-1].ravel()
+    col[inner], cov[inner] = _pixel_by_pixel(rx, ry, todo, tex, board2cam)
+    return col, cov
+
+
+def _uniform_tiles(rx, ry, tex: BoardTexture, board2cam: np.ndarray, tile: int, h: int, w: int):
+    """Which tiles of the block see one cell of the print only (see :func:`render_block_tiled`),
+    and that cell's indices (cx, cy) into the texture's lines."""
     # Corner pixels of the tiles (block coordinates, halo excluded): tile k spans k*tile ..
     # bu[k + 1] (the last tile up to the last pixel).
     bu = np.concatenate([np.arange(0, w - 1, tile), [w - 1]])
@@ -314,6 +340,7 @@ def render_block_tiled(rx, ry, tex: BoardTexture, board2cam: np.ndarray, tile: i
     xs, ys = tex.xs, tex.ys
 
     def cells(S):
+        """The box of a tile's board coordinates S, widened by its bend and footprint."""
         c = (S[:-1, :-1], S[:-1, 1:], S[1:, :-1], S[1:, 1:])
         lo = np.minimum(np.minimum(c[0], c[1]), np.minimum(c[2], c[3]))
         hi = np.maximum(np.maximum(c[0], c[1]), np.maximum(c[2], c[3]))
@@ -337,25 +364,14 @@ def render_block_tiled(rx, ry, tex: BoardTexture, board2cam: np.ndarray, tile: i
             > _TILE_MIN_ND
         )
     )
-    pre = tex.reflectance * tex.alpha
-    nv, nu = uniform.shape
-    rows_per = np.full(nv, tile)
-    rows_per[-1] = h - tile * (nv - 1)
-    cols_per = np.full(nu, tile)
-    cols_per[-1] = w - tile * (nu - 1)
+    return uniform, cx, cy
 
-    def spread(T):
-        return np.repeat(np.repeat(T, rows_per, axis=0), cols_per, axis=1).ravel()
 
-    cxs, cys = np.where(uniform, cx, 0), np.where(uniform, cy, 0)
-    col = spread(np.where(uniform, pre[cxs, cys], 0.0))
-    cov = spread(np.where(uniform, tex.alpha[cxs, cys], 0.0))
-    todo = np.zeros((H, W), dtype=bool)  # the pixels to compute, halo coordinates
-    todo[1:-1, 1:-1] = ~spread(uniform).reshape(h, w)
+def _pixel_by_pixel(rx, ry, todo: np.ndarray, tex: BoardTexture, board2cam: np.ndarray):
+    """:func:`render_block`'s colour and opacity of the pixels ``todo`` (halo coordinates),
+    from their board points and their four neighbours' (the Jacobian)."""
+    H, W = rx.shape
     p = np.flatnonzero(todo)
-    if not p.size:
-        return col, cov
-    # Their board points and their four neighbours'.
     need = todo.copy()
     need[1:-1, 2:] |= todo[1:-1, 1:-1]
     need[1:-1, :-2] |= todo[1:-1, 1:-1]
@@ -372,8 +388,4 @@ def render_block_tiled(rx, ry, tex: BoardTexture, board2cam: np.ndarray, tile: i
     Jyu = 0.5 * (Y[p + 1] - Y[p - 1])
     Jyv = 0.5 * (Y[p + W] - Y[p - W])
     ok = OK[p] & OK[p + 1] & OK[p - 1] & OK[p + W] & OK[p - W]
-    c, a = _shade(X[p], Y[p], (Jxu, Jxv, Jyu, Jyv), ok, tex)
-    inner = todo[1:-1, 1:-1].ravel()
-    col[inner] = c
-    cov[inner] = a
-    return col, cov
+    return _shade(X[p], Y[p], (Jxu, Jxv, Jyu, Jyv), ok, tex)

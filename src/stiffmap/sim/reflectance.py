@@ -134,12 +134,31 @@ def render_reflectance(
     ndarray, shape (r1 - r0, c1 - c0), float64
         Reflectance in [0, 1].
     """
+    targets = _check_targets(camera, targets)
+    roi, img = _background(camera, background, roi)
+    rm = pixel_rays(camera)
+    if not rm.covers_image:
+        raise ValueError(f"cannot render through this camera's distortion: {rm.field.describe()}")
+    block = rm.block if rays is None else rays.block
+    # Painter's order: the farthest target first.
+    order = sorted(targets, key=lambda tg: -float(np.linalg.norm(tg.board2cam[:3, 3])))
+    for tg in order:
+        _paint(img, tg, camera, roi, block, chunk_rows, tile_px)
+    return img
+
+
+def _check_targets(camera, targets) -> list[Target]:
     if not isinstance(camera, CameraModel):
         raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
     targets = list(targets)
     for tg in targets:
         if not isinstance(tg, Target):
             raise ValueError(f"targets must be Target objects, got {type(tg).__name__}")
+    return targets
+
+
+def _background(camera: CameraModel, background, roi):
+    """The region (c0, r0, c1, r1), checked, and the image of the background over it."""
     w, h = camera.image_size
     if roi is None:
         roi = (0, 0, w, h)
@@ -153,35 +172,34 @@ def render_reflectance(
         img = np.array(background, dtype=np.float64)
         if img.shape != shape:
             raise ValueError(f"background must have shape {shape}, got {img.shape}")
-    rm = pixel_rays(camera)
-    if not rm.covers_image:
-        raise ValueError(f"cannot render through this camera's distortion: {rm.field.describe()}")
-    block = rm.block if rays is None else rays.block
-    # Painter's order: the farthest target first.
-    order = sorted(targets, key=lambda tg: -float(np.linalg.norm(tg.board2cam[:3, 3])))
-    for tg in order:
-        T = tg.board2cam
-        if not faces_camera(T):
-            raise ValueError(
-                f"target {tg.name or '(unnamed)'} is seen from behind: "
-                "its z axis must point away from the camera"
-            )
-        tex = tg.texture()
-        bb = target_bbox(camera, tex, T, (c0, r0, c1, r1))
-        if bb is None:
-            continue
-        br0, br1, bc0, bc1 = bb
-        cols = np.arange(bc0 - 1, bc1 + 1, dtype=np.float64)  # with a one-pixel halo
-        for rs in range(br0, br1, chunk_rows):
-            re = min(rs + chunk_rows, br1)
-            rows = np.arange(rs - 1, re + 1, dtype=np.float64)
-            if tile_px:
-                colv, covv = render_block_tiled(*block(rows, cols), tex, T, tile_px)
-            else:
-                colv, covv = render_block(*block(rows, cols), tex, T)
-            sub = img[rs - r0 : re - r0, bc0 - c0 : bc1 - c0]
-            sub[...] = colv.reshape(sub.shape) + (1.0 - covv.reshape(sub.shape)) * sub
-    return img
+    return (c0, r0, c1, r1), img
+
+
+def _paint(
+    img: np.ndarray, tg: Target, camera: CameraModel, roi, block, chunk_rows: int, tile_px: int
+) -> None:
+    """Paint one target over ``img`` (the region ``roi``), ``chunk_rows`` rows at a time."""
+    c0, r0, c1, r1 = roi
+    T = tg.board2cam
+    if not faces_camera(T):
+        raise ValueError(
+            f"target {tg.name or '(unnamed)'} is seen from behind: its z axis must point away from the camera"
+        )
+    tex = tg.texture()
+    bb = target_bbox(camera, tex, T, (c0, r0, c1, r1))
+    if bb is None:
+        return
+    br0, br1, bc0, bc1 = bb
+    cols = np.arange(bc0 - 1, bc1 + 1, dtype=np.float64)  # with a one-pixel halo
+    for rs in range(br0, br1, chunk_rows):
+        re = min(rs + chunk_rows, br1)
+        rows = np.arange(rs - 1, re + 1, dtype=np.float64)
+        if tile_px:
+            colv, covv = render_block_tiled(*block(rows, cols), tex, T, tile_px)
+        else:
+            colv, covv = render_block(*block(rows, cols), tex, T)
+        sub = img[rs - r0 : re - r0, bc0 - c0 : bc1 - c0]
+        sub[...] = colv.reshape(sub.shape) + (1.0 - covv.reshape(sub.shape)) * sub
 
 
 def true_corners(camera: CameraModel, board: Chessboard | CharucoBoard, board2cam) -> np.ndarray:

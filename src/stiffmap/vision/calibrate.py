@@ -583,6 +583,89 @@ def with_calibration_results(
     )
 
 
+def _view_names(names, n_views: int) -> list[str]:
+    names = [f"view{k + 1}" for k in range(n_views)] if names is None else [str(x) for x in names]
+    if len(names) != n_views:
+        raise ValueError(f"names has {len(names)} entries for {n_views} detections")
+    return names
+
+
+def _enough_views(detections, board, names, min_views: int):
+    """:func:`usable_views`' reasons and usable views; too few raise, naming why."""
+    reasons, usable = usable_views(detections, board)
+    if len(usable) < min_views:
+        detail = "; ".join(grouped_reasons(names, reasons))
+        raise InputError(
+            f"calibration needs at least {min_views} views with the board found, got {len(usable)}"
+            + (f" ({detail})" if detail else "")
+        )
+    return reasons, usable
+
+
+def _fit_leaving_out_outliers(
+    detections, obj_all, usable, reasons, size, model, outlier_factor, outlier_min_px, min_views
+):
+    """OpenCV's calibration on the usable views, the worst outlier view left out (its reason
+    set) and the calibration again, at most a third of the views: the views used and the fit
+    (K, dist, rvecs, tvecs, sd_int)."""
+    used = list(usable)
+    max_out = len(usable) // 3
+    while True:
+        obj = [obj_all[detections[k].ids].astype(np.float32) for k in used]
+        img = [detections[k].corners.astype(np.float32) for k in used]
+        K, dist, rvecs, tvecs, sd_int, per_view = _run(obj, img, size, model)
+        med = float(np.median(per_view))
+        worst = int(np.argmax(per_view))
+        limit = max(outlier_factor * med, outlier_min_px)
+        if per_view[worst] > limit and len(usable) - len(used) < max_out and len(used) > min_views:
+            k = used.pop(worst)
+            reasons[k] = (
+                f"outlier: view RMS {per_view[worst]:.3f} px > {outlier_factor:g} x median {med:.3f} px"
+            )
+            continue
+        return used, (K, dist, rvecs, tvecs, sd_int)
+
+
+def _view_results(cam, detections, names, reasons, obj_all, pose_of):
+    """Every view's result with the final camera (pose, residuals, RMS), and the residuals of
+    the views used (``pose_of``: view -> its fitted (rvec, tvec))."""
+    res_used = []
+    views = []
+    for k in range(len(detections)):
+        d = detections[k]
+        if not isinstance(d, BoardDetection):
+            views.append(ViewResult(names[k], False, float("nan"), reasons[k]))
+            continue
+        if k in pose_of:
+            rv, tv = pose_of[k]
+            T = np.eye(4)
+            T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
+            T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
+        else:
+            T = solve_view_pose(cam, obj_all[d.ids], d.corners)
+            if T is None:  # pragma: no cover - a detection always has a pose
+                views.append(ViewResult(names[k], False, float("nan"), reasons[k], d.n_corners))
+                continue
+            rv, tv = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
+        e = d.corners - _project_view(cam, obj_all[d.ids], rv, tv)
+        rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+        if k in pose_of:
+            res_used.append(e)
+        views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T, d.corners, e))
+    return views, res_used
+
+
+def _intrinsics_covariance(cam, obj, img, fit, model: str):
+    """The calibration's covariance and the intrinsics' standard deviations (OpenCV's for its
+    own lens model, else from the model's covariance)."""
+    K, dist, rvecs, tvecs, sd_int = fit
+    if cam.model == "opencv":
+        return calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model)), sd_int
+    poses = [_pose_matrix(rv, tv) for rv, tv in zip(rvecs, tvecs, strict=True)]
+    cov = model_calibration_covariance(cam, obj, img, poses, fixed_params(model))
+    return cov, np.sqrt(np.maximum(np.diag(cov), 0.0))
+
+
 def calibrate_camera(
     detections: Sequence[BoardDetection | str],
     board: Board,
@@ -634,72 +717,24 @@ def calibrate_camera(
     board = as_board(board, square_mm, "board")
     if model not in DIST_MODELS:
         raise ValueError(f"model must be one of {sorted(DIST_MODELS)}, got {model!r}")
-    n_views = len(detections)
-    names = [f"view{k + 1}" for k in range(n_views)] if names is None else [str(x) for x in names]
-    if len(names) != n_views:
-        raise ValueError(f"names has {len(names)} entries for {n_views} detections")
+    names = _view_names(names, len(detections))
     w, h = (int(v) for v in image_size)
     grid = grid_of(board)
-    reasons, usable = usable_views(detections, board)
-    if len(usable) < min_views:
-        detail = "; ".join(grouped_reasons(names, reasons))
-        raise InputError(
-            f"calibration needs at least {min_views} views with the board found, got {len(usable)}"
-            + (f" ({detail})" if detail else "")
-        )
+    reasons, usable = _enough_views(detections, board, names, min_views)
     obj_all = grid.object_points()
-    used = list(usable)
-    max_out = len(usable) // 3
-    while True:
-        obj = [obj_all[detections[k].ids].astype(np.float32) for k in used]
-        img = [detections[k].corners.astype(np.float32) for k in used]
-        K, dist, rvecs, tvecs, sd_int, per_view = _run(obj, img, (w, h), model)
-        med = float(np.median(per_view))
-        worst = int(np.argmax(per_view))
-        limit = max(outlier_factor * med, outlier_min_px)
-        if per_view[worst] > limit and len(usable) - len(used) < max_out and len(used) > min_views:
-            k = used.pop(worst)
-            reasons[k] = (
-                f"outlier: view RMS {per_view[worst]:.3f} px > {outlier_factor:g} x median {med:.3f} px"
-            )
-            continue
-        break
+    used, fit = _fit_leaving_out_outliers(
+        detections, obj_all, usable, reasons, (w, h), model, outlier_factor, outlier_min_px, min_views
+    )
+    K, dist, rvecs, tvecs, _ = fit
     nd = DIST_MODELS[model]
     cam = CameraModel((w, h), K[0, 0], K[1, 1], K[0, 2], K[1, 2], tuple(dist), model=lens_model(model))
     # Residuals and per-view RMS of every detected view with the final camera.
-    res_used = []
-    views = []
     pose_of = {k: (rvecs[i], tvecs[i]) for i, k in enumerate(used)}
-    for k in range(n_views):
-        d = detections[k]
-        if not isinstance(d, BoardDetection):
-            views.append(ViewResult(names[k], False, float("nan"), reasons[k]))
-            continue
-        if k in pose_of:
-            rv, tv = pose_of[k]
-            T = np.eye(4)
-            T[:3, :3] = matrix_from_rotvec(np.asarray(rv, dtype=np.float64).ravel())
-            T[:3, 3] = np.asarray(tv, dtype=np.float64).ravel()
-        else:
-            T = solve_view_pose(cam, obj_all[d.ids], d.corners)
-            if T is None:  # pragma: no cover - a detection always has a pose
-                views.append(ViewResult(names[k], False, float("nan"), reasons[k], d.n_corners))
-                continue
-            rv, tv = cv2.Rodrigues(T[:3, :3])[0], T[:3, 3]
-        e = d.corners - _project_view(cam, obj_all[d.ids], rv, tv)
-        rms_v = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
-        if k in pose_of:
-            res_used.append(e)
-        views.append(ViewResult(names[k], k in pose_of, rms_v, reasons[k], d.n_corners, T, d.corners, e))
+    views, res_used = _view_results(cam, detections, names, reasons, obj_all, pose_of)
     R = np.concatenate(res_used)
     obj = [obj_all[detections[k].ids] for k in used]
     img = [detections[k].corners for k in used]
-    if cam.model == "opencv":
-        cov = calibration_covariance(obj, img, K, dist, rvecs, tvecs, fixed_params(model))
-    else:
-        poses = [_pose_matrix(rv, tv) for rv, tv in zip(rvecs, tvecs, strict=True)]
-        cov = model_calibration_covariance(cam, obj, img, poses, fixed_params(model))
-        sd_int = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    cov, sd_int = _intrinsics_covariance(cam, obj, img, fit, model)
     camera = with_calibration_results(cam, sd_int[: 4 + nd], R, [v.to_dict() for v in views], cov)
     advice = fisheye_advice(camera, obj, img) if model != "fisheye" else ""
     problems = calibration_problems(camera, [detections[k] for k in used], [views[k].rms_px for k in used])

@@ -42,6 +42,98 @@ def smoothing_for(window: int) -> float:
     return float(np.clip(window / 8.0, 0.6, 1.5))
 
 
+def _checked(image, points, window, smoothing):
+    """The image, the points (m, 2), the window (int) and the smoothing (default set), checked."""
+    img = check_image(image, uint16=True)
+    pts = np.array(points, dtype=np.float64).reshape(-1, 2)
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points contain NaN or infinite values")
+    w = int(window)
+    if w < 1:
+        raise ValueError(f"window must be a positive integer, got {window}")
+    if smoothing is None:
+        smoothing = smoothing_for(w)
+    return img, pts, w, smoothing
+
+
+def _gradients(img: np.ndarray, pts: np.ndarray, w: int, smoothing: float):
+    """The image gradients (gx, gy) on a region of interest holding every window for a motion
+    of up to ``w`` px, after the Gaussian smoothing, and the region's origin (x0, y0)."""
+    h, wd = img.shape
+    pad = 2 * w + int(np.ceil(3 * smoothing)) + 3
+    x0 = max(int(np.floor(pts[:, 0].min())) - pad, 0)
+    y0 = max(int(np.floor(pts[:, 1].min())) - pad, 0)
+    x1 = min(int(np.ceil(pts[:, 0].max())) + pad + 1, wd)
+    y1 = min(int(np.ceil(pts[:, 1].max())) + pad + 1, h)
+    roi = img[y0:y1, x0:x1].astype(np.float32)
+    if smoothing > 0:
+        roi = cv2.GaussianBlur(roi, (0, 0), smoothing)
+    gx = cv2.Sobel(roi, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
+    gy = cv2.Sobel(roi, cv2.CV_32F, 0, 1, ksize=3, scale=1 / 8)
+    return gx, gy, x0, y0
+
+
+class _Patches:
+    """Gradient products on a patch of half-size P = w + margin around each corner's current
+    pixel (``centre``); the Gaussian weights (separable, cut at |offset| = w) follow the
+    estimate inside it, and a corner that wanders further gets a new patch."""
+
+    margin = 3
+
+    def __init__(self, gx: np.ndarray, gy: np.ndarray, q: np.ndarray, w: int):
+        self.gx, self.gy = gx, gy
+        self.P = w + self.margin
+        self.off = np.arange(-self.P, self.P + 1)
+        self.centre = np.rint(q).astype(int)
+        n_p = 2 * self.P + 1
+        self.G = np.zeros((len(q), 3, n_p, n_p))  # gx^2, gx gy, gy^2 on each corner's patch
+
+    def extract(self, idx: np.ndarray) -> np.ndarray:
+        """Fill the patches of corners idx; returns which of them fit inside the ROI."""
+        P, centre, off, G = self.P, self.centre, self.off, self.G
+        rh, rw = self.gx.shape
+        c = centre[idx]
+        inside = (c[:, 0] - P >= 1) & (c[:, 1] - P >= 1) & (c[:, 0] + P < rw - 1) & (c[:, 1] + P < rh - 1)
+        j = idx[inside]
+        if j.size:
+            X = centre[j, 0, None, None] + off[None, None, :]
+            Y = centre[j, 1, None, None] + off[None, :, None]
+            ax = self.gx[Y, X].astype(np.float64)
+            ay = self.gy[Y, X].astype(np.float64)
+            G[j, 0] = ax * ax
+            G[j, 1] = ax * ay
+            G[j, 2] = ay * ay
+        return inside
+
+
+def _steps(patches: _Patches, idx: np.ndarray, qa: np.ndarray, w: int, sigma2: float):
+    """The gradient-orthogonality step of corners idx from their estimates qa, and which had a
+    regular gradient matrix (the others' step is 0)."""
+    centre, off = patches.centre, patches.off
+    dx = (centre[idx, 0, None] + off[None, :]) - qa[:, 0, None]  # (k, 2P+1), along x
+    dy = (centre[idx, 1, None] + off[None, :]) - qa[:, 1, None]
+    # Gaussian weights cut at |offset| = w with a 1-px linear taper, so that they are
+    # continuous in the estimate (a hard cut makes the iteration cycle).
+    wx = np.exp(-(dx * dx) / sigma2) * np.clip(w + 0.5 - np.abs(dx), 0.0, 1.0)
+    wy = np.exp(-(dy * dy) / sigma2) * np.clip(w + 0.5 - np.abs(dy), 0.0, 1.0)
+    # All weighted sums at once: S[k, g, r, s] = sum_ij V_r[i] G_g[ij] U_s[j] with
+    # U = (wx, wx dx) along x and V = (wy, wy dy) along y.
+    U = np.stack([wx, wx * dx], axis=2)  # (k, n, 2)
+    V = np.stack([wy, wy * dy], axis=1)  # (k, 2, n)
+    S = V[:, None] @ (patches.G[idx] @ U[:, None])  # (k, 3, 2, 2)
+    a, b, c = S[:, 0, 0, 0], S[:, 1, 0, 0], S[:, 2, 0, 0]
+    # Right-hand side relative to the current estimate, for conditioning.
+    bx = S[:, 0, 0, 1] + S[:, 1, 1, 0]
+    by = S[:, 1, 0, 1] + S[:, 2, 1, 0]
+    det = a * c - b * b
+    scale = np.maximum(a + c, 1e-12) ** 2
+    good = det > 1e-6 * scale
+    step = np.zeros((idx.size, 2))
+    step[good, 0] = (c[good] * bx[good] - b[good] * by[good]) / det[good]
+    step[good, 1] = (a[good] * by[good] - b[good] * bx[good]) / det[good]
+    return step, good
+
+
 def refine_corners(
     image: np.ndarray,
     points,
@@ -79,61 +171,18 @@ def refine_corners(
         singular (a flat or single-edge area) or that did not converge; their
         position is the last iterate.
     """
-    img = check_image(image, uint16=True)
-    pts = np.array(points, dtype=np.float64).reshape(-1, 2)
-    if not np.all(np.isfinite(pts)):
-        raise ValueError("points contain NaN or infinite values")
-    w = int(window)
-    if w < 1:
-        raise ValueError(f"window must be a positive integer, got {window}")
-    if smoothing is None:
-        smoothing = smoothing_for(w)
+    img, pts, w, smoothing = _checked(image, points, window, smoothing)
     m = len(pts)
     ok = np.ones(m, dtype=bool)
     if m == 0:
         return pts, ok
-    h, wd = img.shape
-    # Region of interest holding every window for a motion of up to `window` px.
-    pad = 2 * w + int(np.ceil(3 * smoothing)) + 3
-    x0 = max(int(np.floor(pts[:, 0].min())) - pad, 0)
-    y0 = max(int(np.floor(pts[:, 1].min())) - pad, 0)
-    x1 = min(int(np.ceil(pts[:, 0].max())) + pad + 1, wd)
-    y1 = min(int(np.ceil(pts[:, 1].max())) + pad + 1, h)
-    roi = img[y0:y1, x0:x1].astype(np.float32)
-    if smoothing > 0:
-        roi = cv2.GaussianBlur(roi, (0, 0), smoothing)
-    gx = cv2.Sobel(roi, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)
-    gy = cv2.Sobel(roi, cv2.CV_32F, 0, 1, ksize=3, scale=1 / 8)
-    rh, rw = roi.shape
+    gx, gy, x0, y0 = _gradients(img, pts, w, smoothing)
     q = pts - [x0, y0]
-    # Gradient products on a patch of half-size P around each corner's starting pixel;
-    # the Gaussian weights (separable, cut at |offset| = w) follow the estimate
-    # inside it, and a corner that wanders further gets a new patch.
-    margin = 3
-    P = w + margin
-    off = np.arange(-P, P + 1)
+    patches = _Patches(gx, gy, q, w)
+    margin, centre = patches.margin, patches.centre
     sigma2 = 2.0 * (w / 2.0) ** 2
-    centre = np.rint(q).astype(int)
-    n_p = 2 * P + 1
-    G = np.zeros((m, 3, n_p, n_p))  # gx^2, gx gy, gy^2 on each corner's patch
-
-    def extract(idx: np.ndarray) -> np.ndarray:
-        """Fill the patches of corners idx; returns which of them fit inside the ROI."""
-        c = centre[idx]
-        inside = (c[:, 0] - P >= 1) & (c[:, 1] - P >= 1) & (c[:, 0] + P < rw - 1) & (c[:, 1] + P < rh - 1)
-        j = idx[inside]
-        if j.size:
-            X = centre[j, 0, None, None] + off[None, None, :]
-            Y = centre[j, 1, None, None] + off[None, :, None]
-            ax = gx[Y, X].astype(np.float64)
-            ay = gy[Y, X].astype(np.float64)
-            G[j, 0] = ax * ax
-            G[j, 1] = ax * ay
-            G[j, 2] = ay * ay
-        return inside
-
     active = np.ones(m, dtype=bool)
-    inside = extract(np.arange(m))
+    inside = patches.extract(np.arange(m))
     ok[~inside] = False
     active[~inside] = False
     for _ in range(max_iter):
@@ -141,30 +190,10 @@ def refine_corners(
         if idx.size == 0:
             break
         qa = q[idx]
-        dx = (centre[idx, 0, None] + off[None, :]) - qa[:, 0, None]  # (k, 2P+1), along x
-        dy = (centre[idx, 1, None] + off[None, :]) - qa[:, 1, None]
-        # Gaussian weights cut at |offset| = w with a 1-px linear taper, so that they are
-        # continuous in the estimate (a hard cut makes the iteration cycle).
-        wx = np.exp(-(dx * dx) / sigma2) * np.clip(w + 0.5 - np.abs(dx), 0.0, 1.0)
-        wy = np.exp(-(dy * dy) / sigma2) * np.clip(w + 0.5 - np.abs(dy), 0.0, 1.0)
-        # All weighted sums at once: S[k, g, r, s] = sum_ij V_r[i] G_g[ij] U_s[j] with
-        # U = (wx, wx dx) along x and V = (wy, wy dy) along y.
-        U = np.stack([wx, wx * dx], axis=2)  # (k, n, 2)
-        V = np.stack([wy, wy * dy], axis=1)  # (k, 2, n)
-        S = V[:, None] @ (G[idx] @ U[:, None])  # (k, 3, 2, 2)
-        a, b, c = S[:, 0, 0, 0], S[:, 1, 0, 0], S[:, 2, 0, 0]
-        # Right-hand side relative to the current estimate, for conditioning.
-        bx = S[:, 0, 0, 1] + S[:, 1, 1, 0]
-        by = S[:, 1, 0, 1] + S[:, 2, 1, 0]
-        det = a * c - b * b
-        scale = np.maximum(a + c, 1e-12) ** 2
-        good = det > 1e-6 * scale
+        step, good = _steps(patches, idx, qa, w, sigma2)
         if not good.all():
             ok[idx[~good]] = False
             active[idx[~good]] = False
-        step = np.zeros((idx.size, 2))
-        step[good, 0] = (c[good] * bx[good] - b[good] * by[good]) / det[good]
-        step[good, 1] = (a[good] * by[good] - b[good] * bx[good]) / det[good]
         # A step larger than the window means the window holds no corner.
         wild = np.abs(step).max(axis=1) > w
         if wild.any():
@@ -179,7 +208,7 @@ def refine_corners(
         moved = moved[active[moved]]
         if moved.size:
             centre[moved] = np.rint(q[moved]).astype(int)
-            fits = extract(moved)
+            fits = patches.extract(moved)
             ok[moved[~fits]] = False
             active[moved[~fits]] = False
     ok &= ~active  # still moving after max_iter: not converged

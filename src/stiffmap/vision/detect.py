@@ -115,18 +115,7 @@ def detect_boards(
     img = check_image(image)
     boards = list(boards)
     n = len(boards)
-    prev = list(previous) if previous is not None else [None] * n
-    ref = list(reference) if reference is not None else list(prev)
-    if len(prev) != n or len(ref) != n:
-        raise ValueError(f"previous/reference must have one entry per board ({n})")
-    sizes = [tuple(sorted(grid_of(b).pattern_size)) for b in boards if isinstance(b, Chessboard)]
-    if len(set(sizes)) != len(sizes):
-        raise DetectionError(
-            "two chessboards of the same size cannot be told apart in one image; use boards of "
-            "different sizes (e.g. 12x7 on the base, 8x6 on the platform) or ChArUco boards",
-            source=source,
-            reason="ambiguous",
-        )
+    prev, ref = _check_boards(boards, previous, reference, source)
     out: list[BoardDetection | None] = [None] * n
     for k in range(n):
         if prev[k] is not None:
@@ -139,36 +128,57 @@ def detect_boards(
                     img, boards[k], camera, scale, reject_px, min_corners, time.perf_counter()
                 )
         if todo_chess:
-            t_search = time.perf_counter()
-            # Boards already found in this image (tracked, ChArUco) are hidden from the search.
-            masks = [detection_mask(d) for d in out if d is not None and d.n_corners >= 4] + list(hidden)
-            larger: dict = {}
-            found = search_chessboards(img, [boards[k] for k in todo_chess], scale, masks, larger)
-            # The search time is shared by the boards it found.
-            t_share = (time.perf_counter() - t_search) / max(len(found), 1)
-            for j, k in enumerate(todo_chess):
-                if j in found:
-                    grid, s = found[j]
-                    out[k] = finish_chessboard(
-                        img, boards[k], grid, s, camera, ref[k], reject_px, time.perf_counter() - t_share
-                    )
-            missing = [k for k in todo_chess if out[k] is None]
-            if missing:
-                # Boards already found in this image are masked for the diagnosis.
-                errs = [
-                    diagnose(img, boards[k], masks, scale, larger.get(todo_chess.index(k))) for k in missing
-                ]
-                if len(errs) == 1:
-                    raise errs[0]
-                raise DetectionError(
-                    "; ".join(e.detail for e in errs), reason=errs[0].reason, larger=errs[0].larger
-                )
+            _search_chessboards(img, boards, todo_chess, out, ref, camera, scale, reject_px, hidden)
     except DetectionError as e:
         err = e.with_source(source) if source else e
         # The boards that were found before the failure (a rig's other cameras may see the rest).
         err.found = list(out)
         raise err from None
     return [d for d in out if d is not None]
+
+
+def _check_boards(boards: list, previous, reference, source):
+    """The previous and reference detections (one per board), and the chessboards' sizes
+    checked (two of one size cannot be told apart)."""
+    n = len(boards)
+    prev = list(previous) if previous is not None else [None] * n
+    ref = list(reference) if reference is not None else list(prev)
+    if len(prev) != n or len(ref) != n:
+        raise ValueError(f"previous/reference must have one entry per board ({n})")
+    sizes = [tuple(sorted(grid_of(b).pattern_size)) for b in boards if isinstance(b, Chessboard)]
+    if len(set(sizes)) != len(sizes):
+        raise DetectionError(
+            "two chessboards of the same size cannot be told apart in one image; use boards of "
+            "different sizes (e.g. 12x7 on the base, 8x6 on the platform) or ChArUco boards",
+            source=source,
+            reason="ambiguous",
+        )
+    return prev, ref
+
+
+def _search_chessboards(img, boards, todo_chess, out, ref, camera, scale, reject_px, hidden) -> None:
+    """The full search for chessboards ``todo_chess`` (their detections set in ``out``); raises
+    naming why the missing ones were not found."""
+    t_search = time.perf_counter()
+    # Boards already found in this image (tracked, ChArUco) are hidden from the search.
+    masks = [detection_mask(d) for d in out if d is not None and d.n_corners >= 4] + list(hidden)
+    larger: dict = {}
+    found = search_chessboards(img, [boards[k] for k in todo_chess], scale, masks, larger)
+    # The search time is shared by the boards it found.
+    t_share = (time.perf_counter() - t_search) / max(len(found), 1)
+    for j, k in enumerate(todo_chess):
+        if j in found:
+            grid, s = found[j]
+            out[k] = finish_chessboard(
+                img, boards[k], grid, s, camera, ref[k], reject_px, time.perf_counter() - t_share
+            )
+    missing = [k for k in todo_chess if out[k] is None]
+    if missing:
+        # Boards already found in this image are masked for the diagnosis.
+        errs = [diagnose(img, boards[k], masks, scale, larger.get(todo_chess.index(k))) for k in missing]
+        if len(errs) == 1:
+            raise errs[0]
+        raise DetectionError("; ".join(e.detail for e in errs), reason=errs[0].reason, larger=errs[0].larger)
 
 
 def detect_board(

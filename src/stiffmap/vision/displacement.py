@@ -225,6 +225,126 @@ def _usable(ms: Sequence[ImageMeasurement], what: str) -> list[ImageMeasurement]
     return good
 
 
+def _check_point(point, pairing: str, frame: str) -> np.ndarray:
+    """The platform point (3,) mm, with ``pairing`` and ``frame`` checked."""
+    q = np.zeros(3) if point is None else np.asarray(point, dtype=np.float64).reshape(-1)
+    if q.shape != (3,) or not np.all(np.isfinite(q)):
+        raise ValueError(f"point must be 3 finite numbers (mm, target frame), got {point!r}")
+    if pairing not in ("auto", "pairs", "mean-reference"):
+        raise ValueError(f"pairing must be 'auto', 'pairs' or 'mean-reference', got {pairing!r}")
+    if frame not in ("auto", "base", "cam"):
+        raise ValueError(f"frame must be 'auto', 'base' or 'cam', got {frame!r}")
+    return q
+
+
+def _groups(unloaded, loaded, pairing: str):
+    """The usable unloaded and loaded measurements, the pairing (``"auto"`` chosen) and the
+    flags naming the images left out."""
+    flags = []
+    u_all, l_all = list(unloaded), list(loaded)
+    u = _usable(u_all, "unloaded")
+    lo = _usable(l_all, "loaded")
+    for group, good, name in ((u_all, u, "unloaded"), (l_all, lo, "loaded")):
+        if len(good) < len(group):
+            bad = [m.image for m in group if m not in good]
+            flags.append(f"{len(bad)} {name} image(s) left out: {', '.join(bad)}")
+    if pairing == "auto":
+        pairing = (
+            "pairs" if len(u) == len(lo) == len(u_all) == len(l_all) and len(u) > 1 else "mean-reference"
+        )
+    if pairing == "pairs" and len(u) != len(lo):
+        raise InputError(f"pairs need as many unloaded as loaded images, got {len(u)} and {len(lo)}")
+    return u, lo, pairing, flags
+
+
+def _paired(u, lo, q, with_A: bool):
+    """Samples, noise covariance of their mean and calibration sensitivity (None without) of
+    the displacements of loaded image i from unloaded image i."""
+    samples = []
+    cov_sum = np.zeros((6, 6))
+    G_sum = 0.0
+    for a, b in zip(u, lo, strict=True):
+        samples.append(displacement_from_poses(a.mobile2cam, b.mobile2cam, q))
+        A0 = _ref_rotation(a.mobile2cam, b.mobile2cam) @ point_jacobian(a.mobile2cam, q)
+        A1 = point_jacobian(b.mobile2cam, q)
+        cov_sum += A0 @ a.mobile.cov_noise @ A0.T + A1 @ b.mobile.cov_noise @ A1.T
+        if with_A:
+            Aa, Ab = a.mobile.calibration_jacobian, b.mobile.calibration_jacobian
+            G_sum = G_sum + pair_calibration_jacobian(a.mobile2cam, Aa, b.mobile2cam, Ab, q)
+    cov = cov_sum / len(u) ** 2
+    return samples, cov, (G_sum / len(u) if with_A else None)
+
+
+def _from_mean_reference(u, lo, q, with_A: bool):
+    """Samples, noise covariance of their mean and calibration sensitivity (None without) of
+    the displacements of every loaded image from the mean unloaded pose."""
+    samples = []
+    cov_sum = np.zeros((6, 6))
+    ref = mean_pose([m.mobile2cam for m in u])
+    cov_ref = np.zeros((6, 6))
+    for a in u:
+        A0a = point_jacobian(a.mobile2cam, q)
+        cov_ref += A0a @ a.mobile.cov_noise @ A0a.T
+    cov_ref /= len(u) ** 2
+    A_ref = np.mean([a.mobile.calibration_jacobian for a in u], axis=0) if with_A else None
+    G_sum = 0.0
+    for b in lo:
+        samples.append(displacement_from_poses(ref, b.mobile2cam, q))
+        A1 = point_jacobian(b.mobile2cam, q)
+        cov_sum += A1 @ b.mobile.cov_noise @ A1.T
+        if with_A:
+            Ab = b.mobile.calibration_jacobian
+            G_sum = G_sum + pair_calibration_jacobian(ref, A_ref, b.mobile2cam, Ab, q)
+    cov = cov_ref + cov_sum / len(lo) ** 2
+    return samples, cov, (G_sum / len(lo) if with_A else None)
+
+
+def _fixed_target_shift(u, lo, flags: list[str]) -> np.ndarray | None:
+    """Apparent motion of the fixed target (camera frame) when it was seen in both groups; a
+    flag when it moved beyond its noise."""
+    fu = [m for m in u if m.fixed is not None]
+    fl = [m for m in lo if m.fixed is not None]
+    if not (fu and fl):
+        return None
+    F0 = mean_pose([m.fixed2cam for m in fu])
+    F1 = mean_pose([m.fixed2cam for m in fl])
+    fixed_shift = displacement_from_poses(F0, F1)
+    # The fixed target's own noise only: the calibration's error moves it alike in both groups.
+    cf = sum(m.fixed.cov_noise for m in fu) / len(fu) ** 2 + sum(m.fixed.cov_noise for m in fl) / len(fl) ** 2
+    z = fixed_shift / np.sqrt(np.maximum(np.diag(cf), 1e-30))
+    if np.max(np.abs(z)) > 5:
+        flags.append(
+            f"the fixed target moved by {np.linalg.norm(fixed_shift[:3]):.4f} mm / "
+            f"{np.linalg.norm(fixed_shift[3:]):.2e} rad between the unloaded and loaded images "
+            f"({np.max(np.abs(z)):.0f} sigma): did the camera or the robot base move?"
+        )
+    return fixed_shift
+
+
+def _in_base_frame(S, cov, Gc, with_base):
+    """The samples, their mean, covariance and calibration sensitivity rotated into the base
+    frame (the mean cam2base of the images with one)."""
+    G = mean_pose([m.cam2base for m in with_base])
+    RG = G[:3, :3]
+    Bm = np.zeros((6, 6))
+    Bm[:3, :3] = RG
+    Bm[3:, 3:] = RG
+    S = S @ Bm.T
+    mean = S.mean(axis=0)
+    # Uncertainty of the mean cam2base rotation (d r_G = -R_G d r_fixed), averaged.
+    Crf = sum(m.fixed.cov_noise[3:, 3:] for m in with_base) / len(with_base) ** 2
+    CG = RG @ Crf @ RG.T
+    C = np.vstack([-skew(mean[:3]), -skew(mean[3:])])
+    cov = Bm @ cov @ Bm.T + C @ CG @ C.T
+    if Gc is not None:
+        if all(m.fixed.calibration_jacobian is not None for m in with_base):
+            Af = np.mean([m.fixed.calibration_jacobian[3:] for m in with_base], axis=0)
+            Gc = base_frame_calibration_jacobian(Gc, mean, RG, Af)
+        else:
+            Gc = None
+    return S, mean, cov, Gc
+
+
 def compliant_displacement(
     unloaded: Sequence[ImageMeasurement],
     loaded: Sequence[ImageMeasurement],
@@ -260,112 +380,20 @@ def compliant_displacement(
         When no unloaded or no loaded image is usable, or the base frame is
         asked without a fixed target.
     """
-    q = np.zeros(3) if point is None else np.asarray(point, dtype=np.float64).reshape(-1)
-    if q.shape != (3,) or not np.all(np.isfinite(q)):
-        raise ValueError(f"point must be 3 finite numbers (mm, target frame), got {point!r}")
-    if pairing not in ("auto", "pairs", "mean-reference"):
-        raise ValueError(f"pairing must be 'auto', 'pairs' or 'mean-reference', got {pairing!r}")
-    if frame not in ("auto", "base", "cam"):
-        raise ValueError(f"frame must be 'auto', 'base' or 'cam', got {frame!r}")
-    flags = []
-    u_all, l_all = list(unloaded), list(loaded)
-    u = _usable(u_all, "unloaded")
-    lo = _usable(l_all, "loaded")
-    for group, good, name in ((u_all, u, "unloaded"), (l_all, lo, "loaded")):
-        if len(good) < len(group):
-            bad = [m.image for m in group if m not in good]
-            flags.append(f"{len(bad)} {name} image(s) left out: {', '.join(bad)}")
-    if pairing == "auto":
-        pairing = (
-            "pairs" if len(u) == len(lo) == len(u_all) == len(l_all) and len(u) > 1 else "mean-reference"
-        )
-    if pairing == "pairs" and len(u) != len(lo):
-        raise InputError(f"pairs need as many unloaded as loaded images, got {len(u)} and {len(lo)}")
-
-    samples = []
-    cov_sum = np.zeros((6, 6))
+    q = _check_point(point, pairing, frame)
+    u, lo, pairing, flags = _groups(unloaded, loaded, pairing)
     # The poses' own noise is independent from image to image (cov_noise); the calibration's
     # error is common: its sensitivity Gc is the difference of the poses' sensitivities.
     with_A = all(m.mobile.calibration_jacobian is not None for m in u + lo)
-    Gc = None
-    if pairing == "pairs":
-        G_sum = 0.0
-        for a, b in zip(u, lo, strict=True):
-            samples.append(displacement_from_poses(a.mobile2cam, b.mobile2cam, q))
-            A0 = _ref_rotation(a.mobile2cam, b.mobile2cam) @ point_jacobian(a.mobile2cam, q)
-            A1 = point_jacobian(b.mobile2cam, q)
-            cov_sum += A0 @ a.mobile.cov_noise @ A0.T + A1 @ b.mobile.cov_noise @ A1.T
-            if with_A:
-                Aa, Ab = a.mobile.calibration_jacobian, b.mobile.calibration_jacobian
-                G_sum = G_sum + pair_calibration_jacobian(a.mobile2cam, Aa, b.mobile2cam, Ab, q)
-        cov = cov_sum / len(u) ** 2
-        if with_A:
-            Gc = G_sum / len(u)
-    else:
-        ref = mean_pose([m.mobile2cam for m in u])
-        cov_ref = np.zeros((6, 6))
-        for a in u:
-            A0a = point_jacobian(a.mobile2cam, q)
-            cov_ref += A0a @ a.mobile.cov_noise @ A0a.T
-        cov_ref /= len(u) ** 2
-        A_ref = np.mean([a.mobile.calibration_jacobian for a in u], axis=0) if with_A else None
-        G_sum = 0.0
-        for b in lo:
-            samples.append(displacement_from_poses(ref, b.mobile2cam, q))
-            A1 = point_jacobian(b.mobile2cam, q)
-            cov_sum += A1 @ b.mobile.cov_noise @ A1.T
-            if with_A:
-                Ab = b.mobile.calibration_jacobian
-                G_sum = G_sum + pair_calibration_jacobian(ref, A_ref, b.mobile2cam, Ab, q)
-        cov = cov_ref + cov_sum / len(lo) ** 2
-        if with_A:
-            Gc = G_sum / len(lo)
+    displacements = _paired if pairing == "pairs" else _from_mean_reference
+    samples, cov, Gc = displacements(u, lo, q, with_A)
     S = np.array(samples)
-
-    # Apparent motion of the fixed target (camera frame), when it was seen in both groups.
-    fixed_shift = None
-    fu = [m for m in u if m.fixed is not None]
-    fl = [m for m in lo if m.fixed is not None]
-    if fu and fl:
-        F0 = mean_pose([m.fixed2cam for m in fu])
-        F1 = mean_pose([m.fixed2cam for m in fl])
-        fixed_shift = displacement_from_poses(F0, F1)
-        # The fixed target's own noise only: the calibration's error moves it alike in both groups.
-        cf = (
-            sum(m.fixed.cov_noise for m in fu) / len(fu) ** 2
-            + sum(m.fixed.cov_noise for m in fl) / len(fl) ** 2
-        )
-        z = fixed_shift / np.sqrt(np.maximum(np.diag(cf), 1e-30))
-        if np.max(np.abs(z)) > 5:
-            flags.append(
-                f"the fixed target moved by {np.linalg.norm(fixed_shift[:3]):.4f} mm / "
-                f"{np.linalg.norm(fixed_shift[3:]):.2e} rad between the unloaded and loaded images "
-                f"({np.max(np.abs(z)):.0f} sigma): did the camera or the robot base move?"
-            )
-
+    fixed_shift = _fixed_target_shift(u, lo, flags)
     with_base = [m for m in u + lo if m.mobile2base is not None and m.fixed is not None]
     if frame == "base" and not with_base:
         raise InputError("the base frame needs a fixed target and fixed2base in the measurements")
-    use_base = frame == "base" or (frame == "auto" and bool(with_base))
-    if use_base:
-        G = mean_pose([m.cam2base for m in with_base])
-        RG = G[:3, :3]
-        Bm = np.zeros((6, 6))
-        Bm[:3, :3] = RG
-        Bm[3:, 3:] = RG
-        S = S @ Bm.T
-        mean = S.mean(axis=0)
-        # Uncertainty of the mean cam2base rotation (d r_G = -R_G d r_fixed), averaged.
-        Crf = sum(m.fixed.cov_noise[3:, 3:] for m in with_base) / len(with_base) ** 2
-        CG = RG @ Crf @ RG.T
-        C = np.vstack([-skew(mean[:3]), -skew(mean[3:])])
-        cov = Bm @ cov @ Bm.T + C @ CG @ C.T
-        if Gc is not None:
-            if all(m.fixed.calibration_jacobian is not None for m in with_base):
-                Af = np.mean([m.fixed.calibration_jacobian[3:] for m in with_base], axis=0)
-                Gc = base_frame_calibration_jacobian(Gc, mean, RG, Af)
-            else:
-                Gc = None
+    if frame == "base" or (frame == "auto" and bool(with_base)):
+        S, mean, cov, Gc = _in_base_frame(S, cov, Gc, with_base)
         frame_name = "base"
     else:
         mean = S.mean(axis=0)

@@ -244,6 +244,150 @@ def _sym(C: np.ndarray) -> np.ndarray:
     return 0.5 * (C + C.T)
 
 
+@dataclass
+class _View:
+    """One camera's view on its way to the fusion: its pose in the rig frame, noise covariance,
+    sensitivity to the rig's parameters (None without), symmetry applied and consistency noise."""
+
+    k: int
+    T: np.ndarray
+    N: np.ndarray
+    B: np.ndarray | None
+    symmetry: str
+    Q: np.ndarray
+
+
+def _views_by_index(rig: Rig, poses) -> dict[int, BoardPose]:
+    """The poses by camera index, checked."""
+    if not poses:
+        raise ValueError("fuse_poses needs at least one camera's pose")
+    views_in: dict[int, BoardPose] = {}
+    for key, p in poses.items():
+        k = rig.index(key) if isinstance(key, str) else int(key)
+        if not 0 <= k < len(rig):
+            raise ValueError(f"camera index {key!r} out of range ({len(rig)} cameras)")
+        if k in views_in:
+            raise ValueError(f"camera {rig.names[k]!r} given twice")
+        check_pose(p.board2cam, f"{rig.names[k]} board2cam")
+        views_in[k] = p
+    return views_in
+
+
+def _rig_sensitivity(rig: Rig, k: int, p: BoardPose, J: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """d(t, r of board2rig) / d(rig's parameters): J A_k in camera k's intrinsic columns, its
+    extrinsic Jacobian in its extrinsic ones."""
+    B = np.zeros((6, len(rig.param_names)))
+    Ak = np.asarray(p.calibration_jacobian, dtype=np.float64)
+    si = rig.intrinsic_slice(k)
+    if Ak.shape != (6, si.stop - si.start):
+        raise ValueError(
+            f"camera {rig.names[k]!r}: calibration_jacobian must be (6, {si.stop - si.start}) "
+            f"over its parameters, got {Ak.shape}"
+        )
+    B[:, si] = J @ Ak
+    se = rig.extrinsic_slice(k)
+    if se is not None:
+        B[:, se] = extrinsic_jacobian(p.board2cam, C)
+    return B
+
+
+def _to_rig(rig: Rig, k: int, p: BoardPose, with_A: bool) -> _View:
+    """One view in the rig frame: pose, noise covariance, sensitivity to the rig's parameters."""
+    C = rig.cameras[k].cam2rig
+    T, J = to_rig_frame(p.board2cam, C)
+    N = _sym(J @ p.cov_noise @ J.T)
+    B = _rig_sensitivity(rig, k, p, J, C) if with_A else None
+    # The consistency test's noise: what the corners can tell (a photometric pose's own
+    # covariance is too optimistic on real images), times their errors' correlation.
+    corner = getattr(p.photometric, "corner_cov", None)
+    Q = corner_noise_factor(p.residuals_px) * _sym(J @ (p.cov_noise if corner is None else corner) @ J.T)
+    return _View(k, T, N, B, "none", Q)
+
+
+def _align_numbering(mapped: list[_View], syms, ref: np.ndarray) -> None:
+    """One board frame for all views: each re-expressed through the symmetry nearest to ``ref``."""
+    if len(syms) <= 1:
+        return
+    for v in mapped:
+        T = v.T
+        angles = [np.linalg.norm(rotvec_from_matrix((T @ S)[:3, :3] @ ref[:3, :3].T)) for _, S in syms]
+        j = int(np.argmin(angles))
+        if j:
+            name, S = syms[j]
+            M = point_jacobian(T, S[:3, 3])  # d(t, r of T S) / d(t, r of T)
+            v.T = T @ S
+            v.N = _sym(M @ v.N @ M.T)
+            v.Q = _sym(M @ v.Q @ M.T)
+            v.B = None if v.B is None else M @ v.B
+            v.symmetry = name
+
+
+def _weighted_mean(Ts, Ws, cov_noise) -> tuple[np.ndarray, int]:
+    """The information-weighted mean of poses Ts (two or more) and the passes it took: from
+    the most informative view, re-linearised around the mean."""
+    T_f = Ts[int(np.argmax([np.linalg.slogdet(W)[1] for W in Ws]))].copy()
+    passes = 0
+    for _ in range(_MAX_PASSES):
+        passes += 1
+        g = sum(W @ displacement_from_poses(T_f, T) for W, T in zip(Ws, Ts, strict=True))
+        step = cov_noise @ g
+        T_f = perturb_pose(T_f, step)
+        if np.abs(step[:3]).max() < 1e-12 * max(1.0, np.abs(T_f[:3, 3]).max()) and (
+            np.abs(step[3:]).max() < 1e-14
+        ):
+            break
+    U, _, Vt = np.linalg.svd(T_f[:3, :3])
+    T_f[:3, :3] = U @ Vt
+    return T_f, passes
+
+
+def _fused_sensitivity(mapped: list[_View], Ws, cov_noise, rig: Rig):
+    """The fused pose's sensitivity A to the rig's parameters and the covariance it carries
+    (None when the rig's uncertainty is unknown)."""
+    if len(mapped) == 1:
+        A = mapped[0].B
+    else:
+        A = cov_noise @ sum(W @ v.B for W, v in zip(Ws, mapped, strict=True))
+    Sc = rig.calibration_cov
+    cov_cal = _sym(A @ Sc @ A.T) if Sc is not None else None
+    return A, cov_cal
+
+
+def _pooled_stats(src: list[BoardPose], views, Wsum, passes: int) -> dict:
+    """The fused pose's corner statistics, condition, method and fallback (one view: its own)."""
+    if len(src) == 1:
+        p0 = src[0]
+        return dict(
+            rms_px=p0.rms_px,
+            n_corners=p0.n_corners,
+            residuals_px=p0.residuals_px,
+            sigma_px=p0.sigma_px,
+            condition=p0.condition,
+            iterations=p0.iterations,
+            method=p0.method,
+            photometric=p0.photometric,
+            fallback=p0.fallback,
+        )
+    n_c = np.array([p.n_corners for p in src], dtype=float)
+    dofs = np.maximum(2 * n_c - 6, 0)
+    s2 = np.array([p.sigma_px**2 for p in src])
+    fallbacks = [f"{v.camera}: {v.pose.fallback}" for v in views if v.pose.fallback]
+    dist = float(np.mean([np.linalg.norm(p.board2cam[:3, 3]) for p in src]))
+    D = np.diag([1.0, 1.0, 1.0] + [max(dist, 1.0)] * 3)
+    Dinv = np.linalg.inv(D)
+    return dict(
+        rms_px=float(np.sqrt(np.sum(n_c * np.array([p.rms_px**2 for p in src])) / n_c.sum())),
+        n_corners=int(n_c.sum()),
+        residuals_px=np.concatenate([np.asarray(p.residuals_px).reshape(-1, 2) for p in src]),
+        sigma_px=float(np.sqrt(np.sum(dofs * s2) / dofs.sum())) if dofs.sum() > 0 else float("nan"),
+        condition=float(np.linalg.cond(Dinv @ Wsum @ Dinv)),
+        iterations=passes,
+        method=FUSED_METHOD,
+        photometric=None,
+        fallback="; ".join(fallbacks) or None,
+    )
+
+
 def fuse_poses(
     rig: Rig,
     poses: Mapping[int | str, BoardPose],
@@ -281,143 +425,32 @@ def fuse_poses(
     ValueError
         No pose, an unknown camera, or a pose that is not a (4, 4) rigid transform.
     """
-    if not poses:
-        raise ValueError("fuse_poses needs at least one camera's pose")
-    views_in: dict[int, BoardPose] = {}
-    for key, p in poses.items():
-        k = rig.index(key) if isinstance(key, str) else int(key)
-        if not 0 <= k < len(rig):
-            raise ValueError(f"camera index {key!r} out of range ({len(rig)} cameras)")
-        if k in views_in:
-            raise ValueError(f"camera {rig.names[k]!r} given twice")
-        check_pose(p.board2cam, f"{rig.names[k]} board2cam")
-        views_in[k] = p
+    views_in = _views_by_index(rig, poses)
     order = sorted(views_in)
-    n_par = len(rig.param_names)
     with_A = all(views_in[k].calibration_jacobian is not None for k in order)
-    syms = board_symmetries(board)
-
-    # Each view in the rig frame: pose, noise covariance, sensitivity to the rig's parameters.
-    mapped = []
-    for k in order:
-        p = views_in[k]
-        C = rig.cameras[k].cam2rig
-        T, J = to_rig_frame(p.board2cam, C)
-        N = _sym(J @ p.cov_noise @ J.T)
-        B = None
-        if with_A:
-            B = np.zeros((6, n_par))
-            Ak = np.asarray(p.calibration_jacobian, dtype=np.float64)
-            si = rig.intrinsic_slice(k)
-            if Ak.shape != (6, si.stop - si.start):
-                raise ValueError(
-                    f"camera {rig.names[k]!r}: calibration_jacobian must be (6, {si.stop - si.start}) "
-                    f"over its parameters, got {Ak.shape}"
-                )
-            B[:, si] = J @ Ak
-            se = rig.extrinsic_slice(k)
-            if se is not None:
-                B[:, se] = extrinsic_jacobian(p.board2cam, C)
-        # The consistency test's noise: what the corners can tell (a photometric pose's own
-        # covariance is too optimistic on real images), times their errors' correlation.
-        corner = getattr(p.photometric, "corner_cov", None)
-        Q = corner_noise_factor(p.residuals_px) * _sym(J @ (p.cov_noise if corner is None else corner) @ J.T)
-        mapped.append([k, T, N, B, "none", Q])
-
-    # One board frame for all views: the symmetry nearest to the reference.
-    ref = check_pose(reference, "reference") if reference is not None else mapped[0][1]
-    if len(syms) > 1:
-        for v in mapped:
-            T = v[1]
-            angles = [np.linalg.norm(rotvec_from_matrix((T @ S)[:3, :3] @ ref[:3, :3].T)) for _, S in syms]
-            j = int(np.argmin(angles))
-            if j:
-                name, S = syms[j]
-                M = point_jacobian(T, S[:3, 3])  # d(t, r of T S) / d(t, r of T)
-                v[1] = T @ S
-                v[2] = _sym(M @ v[2] @ M.T)
-                v[5] = _sym(M @ v[5] @ M.T)
-                v[3] = None if v[3] is None else M @ v[3]
-                v[4] = name
-
-    Ts = [v[1] for v in mapped]
-    Ns = [v[2] for v in mapped]
+    mapped = [_to_rig(rig, k, views_in[k], with_A) for k in order]
+    ref = check_pose(reference, "reference") if reference is not None else mapped[0].T
+    _align_numbering(mapped, board_symmetries(board), ref)
+    Ts = [v.T for v in mapped]
+    Ns = [v.N for v in mapped]
     Ws = [np.linalg.inv(N) for N in Ns] if len(mapped) > 1 else []
     Wsum = sum(Ws)
     if len(mapped) == 1:
         # One view: itself (no inversion round trip).
-        cov_noise = Ns[0]
-        T_f = Ts[0].copy()
-        passes = 0
+        cov_noise, T_f, passes = Ns[0], Ts[0].copy(), 0
     else:
         cov_noise = _sym(np.linalg.inv(Wsum))
-        # Start from the most informative view; re-linearise around the mean.
-        T_f = Ts[int(np.argmax([np.linalg.slogdet(W)[1] for W in Ws]))].copy()
-        passes = 0
-        for _ in range(_MAX_PASSES):
-            passes += 1
-            g = sum(W @ displacement_from_poses(T_f, T) for W, T in zip(Ws, Ts, strict=True))
-            step = cov_noise @ g
-            T_f = perturb_pose(T_f, step)
-            if np.abs(step[:3]).max() < 1e-12 * max(1.0, np.abs(T_f[:3, 3]).max()) and (
-                np.abs(step[3:]).max() < 1e-14
-            ):
-                break
-        U, _, Vt = np.linalg.svd(T_f[:3, :3])
-        T_f[:3, :3] = U @ Vt
+        T_f, passes = _weighted_mean(Ts, Ws, cov_noise)
     offsets = [displacement_from_poses(T_f, T) for T in Ts]
-
-    A = cov_cal = None
-    if with_A:
-        if len(mapped) == 1:
-            A = mapped[0][3]
-        else:
-            A = cov_noise @ sum(W @ v[3] for W, v in zip(Ws, mapped, strict=True))
-        Sc = rig.calibration_cov
-        if Sc is not None:
-            cov_cal = _sym(A @ Sc @ A.T)
+    A, cov_cal = _fused_sensitivity(mapped, Ws, cov_noise, rig) if with_A else (None, None)
     cov = cov_noise if cov_cal is None else cov_noise + cov_cal
-
     views = tuple(
-        ViewPose(rig.names[v[0]], v[0], views_in[v[0]], v[1], v[2], off, v[4])
+        ViewPose(rig.names[v.k], v.k, views_in[v.k], v.T, v.N, off, v.symmetry)
         for v, off in zip(mapped, offsets, strict=True)
     )
-    Qs = [v[5] for v in mapped]
-    chi2, dof = _consistency(Qs, [v[3] for v in mapped], offsets, rig.calibration_cov if with_A else None)
-    warning = _consistency_warning(views, chi2, dof, label)
-    src = [views_in[k] for k in order]
-    if len(src) == 1:
-        p0 = src[0]
-        stats = dict(
-            rms_px=p0.rms_px,
-            n_corners=p0.n_corners,
-            residuals_px=p0.residuals_px,
-            sigma_px=p0.sigma_px,
-            condition=p0.condition,
-            iterations=p0.iterations,
-            method=p0.method,
-            photometric=p0.photometric,
-            fallback=p0.fallback,
-        )
-    else:
-        n_c = np.array([p.n_corners for p in src], dtype=float)
-        dofs = np.maximum(2 * n_c - 6, 0)
-        s2 = np.array([p.sigma_px**2 for p in src])
-        fallbacks = [f"{v.camera}: {v.pose.fallback}" for v in views if v.pose.fallback]
-        dist = float(np.mean([np.linalg.norm(p.board2cam[:3, 3]) for p in src]))
-        D = np.diag([1.0, 1.0, 1.0] + [max(dist, 1.0)] * 3)
-        Dinv = np.linalg.inv(D)
-        stats = dict(
-            rms_px=float(np.sqrt(np.sum(n_c * np.array([p.rms_px**2 for p in src])) / n_c.sum())),
-            n_corners=int(n_c.sum()),
-            residuals_px=np.concatenate([np.asarray(p.residuals_px).reshape(-1, 2) for p in src]),
-            sigma_px=float(np.sqrt(np.sum(dofs * s2) / dofs.sum())) if dofs.sum() > 0 else float("nan"),
-            condition=float(np.linalg.cond(Dinv @ Wsum @ Dinv)),
-            iterations=passes,
-            method=FUSED_METHOD,
-            photometric=None,
-            fallback="; ".join(fallbacks) or None,
-        )
+    chi2, dof = _consistency(
+        [v.Q for v in mapped], [v.B for v in mapped], offsets, rig.calibration_cov if with_A else None
+    )
     return FusedPose(
         board2cam=T_f,
         cov=_sym(cov),
@@ -426,8 +459,8 @@ def fuse_poses(
         views=views,
         chi2=chi2,
         dof=dof,
-        consistency_warning=warning,
-        **stats,
+        consistency_warning=_consistency_warning(views, chi2, dof, label),
+        **_pooled_stats([views_in[k] for k in order], views, Wsum, passes),
     )
 
 

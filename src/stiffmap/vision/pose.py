@@ -225,15 +225,36 @@ def estimate_pose(
         # The corner pose's calibration share only when it is the answer (a fallback).
         return replace(with_calibration_share(bare, detection, camera), fallback=reason)
 
+    refused = _not_photometric(image, board, bare)
+    if refused is not None:
+        return kept(refused)
+    photo, why = _whole_or_inner(
+        image, board, camera, bare, detection, exclude, source, track, max_shift_sigma
+    )
+    if photo is None:
+        if track is not None:
+            track.clear()
+        return kept(f"{why}; corner pose kept")
+    return _photometric_with_share(photo, bare, detection, camera, board, track)
+
+
+def _not_photometric(image, board, bare: BoardPose) -> str | None:
+    """Why the photometric refinement is not tried (None: it is)."""
     if image is None:
-        return kept("photometric refinement needs the image; corner pose kept")
+        return "photometric refinement needs the image; corner pose kept"
     if not isinstance(board, Chessboard):
-        return kept("ChArUco boards are not modelled photometrically; corner pose kept")
+        return "ChArUco boards are not modelled photometrically; corner pose kept"
     if not faces_camera(bare.board2cam):
-        return kept(
+        return (
             "the corner pose shows the board from behind (its z axis towards the camera: a wrong "
             "camera model?); corner pose kept"
         )
+    return None
+
+
+def _whole_or_inner(image, board, camera, bare, detection, exclude, source, track, max_shift_sigma):
+    """The photometric pose of the whole board, else of its inner squares (then kept for the
+    track's next fits), or None and why the whole board's fit failed."""
     inner = track is not None and track.inner_only
     photo, why = _photometric(
         image, board, camera, bare, detection, exclude, source, track, inner, max_shift_sigma
@@ -247,10 +268,12 @@ def estimate_pose(
         if photo is not None and track is not None:
             track.inner_only = True
         why = why if photo is None else None
-    if photo is None:
-        if track is not None:
-            track.clear()
-        return kept(f"{why}; corner pose kept")
+    return photo, why
+
+
+def _photometric_with_share(photo, bare, detection, camera, board, track) -> BoardPose:
+    """The photometric pose with the corner pose's noise covariance in its fit and its
+    calibration share (the sensitivity reused from the track while the board barely moves)."""
     if photo.photometric is not None:
         photo = replace(photo, photometric=replace(photo.photometric, corner_cov=bare.cov_noise))
     A = track.sensitivity(camera, board, photo.board2cam) if track is not None else None
@@ -413,16 +436,8 @@ def with_calibration_share(
     return replace(pose, cov=pose.cov_noise + Cc, calibration_jacobian=A, cov_calibration=Cc)
 
 
-def _corner_pose(
-    detection: BoardDetection,
-    board: Board,
-    camera: CameraModel,
-    *,
-    initial: np.ndarray | None,
-    max_iter: int,
-    source: str | None,
-) -> BoardPose:
-    """The corner-based pose (reprojection fit), see :func:`estimate_pose`."""
+def _check_corners(detection: BoardDetection, board: Board, source) -> int:
+    """The detection's number of corners, checked: of this board, enough for a pose."""
     if grid_of(detection.board) != grid_of(board):
         raise ValueError(
             f"detection is of a {board_label(detection.board)}, "
@@ -435,19 +450,27 @@ def _corner_pose(
             source=source,
             reason="partial",
         )
-    obj = detection.object_points()
-    uv_obs = np.asarray(detection.corners, dtype=np.float64)
-    if initial is None:
-        ok, rvec, tvec = solve_pnp(camera, obj, uv_obs, flags=cv2.SOLVEPNP_IPPE)
-        if not ok:
-            raise DetectionError(
-                f"{board_label(board)}: no pose fits the corners", source=source, reason="partial"
-            )
-        T = np.eye(4)
-        T[:3, :3] = matrix_from_rotvec(rvec.ravel())
-        T[:3, 3] = tvec.ravel()
-    else:
-        T = check_pose(initial, "initial")
+    return m
+
+
+def _start_pose(camera, obj, uv_obs, initial, board, source) -> np.ndarray:
+    """The fit's starting pose: ``initial`` when given, else OpenCV's IPPE."""
+    if initial is not None:
+        return check_pose(initial, "initial")
+    ok, rvec, tvec = solve_pnp(camera, obj, uv_obs, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        raise DetectionError(
+            f"{board_label(board)}: no pose fits the corners", source=source, reason="partial"
+        )
+    T = np.eye(4)
+    T[:3, :3] = matrix_from_rotvec(rvec.ravel())
+    T[:3, 3] = tvec.ravel()
+    return T
+
+
+def _fit_corners(T, obj, uv_obs, camera, max_iter, board, source):
+    """Gauss-Newton on the corners' reprojection error from T: (T, uv, J, iterations), stopped
+    before a step that would put points behind the camera or raise the error."""
     uv, J = projection_jacobian(T, obj, camera, validate=False)
     e = (uv - uv_obs).reshape(-1)
     cost = float(e @ e)
@@ -464,7 +487,6 @@ def _corner_pose(
                 reason="partial",
             ) from None
         T_new = perturb_pose(T, delta)
-        # Safeguard: stop when a step would put points behind the camera or raise the error.
         if np.any((obj @ T_new[:3, :3].T + T_new[:3, 3])[:, 2] <= 0):
             break
         uv_new, J_new = projection_jacobian(T_new, obj, camera, validate=False)
@@ -475,6 +497,24 @@ def _corner_pose(
         T, uv, J, e, cost = T_new, uv_new, J_new, e_new, cost_new
         if np.abs(delta[:3]).max() < 1e-9 * max(1.0, abs(T[2, 3])) and np.abs(delta[3:]).max() < 1e-12:
             break
+    return T, uv, J, it
+
+
+def _corner_pose(
+    detection: BoardDetection,
+    board: Board,
+    camera: CameraModel,
+    *,
+    initial: np.ndarray | None,
+    max_iter: int,
+    source: str | None,
+) -> BoardPose:
+    """The corner-based pose (reprojection fit), see :func:`estimate_pose`."""
+    m = _check_corners(detection, board, source)
+    obj = detection.object_points()
+    uv_obs = np.asarray(detection.corners, dtype=np.float64)
+    T = _start_pose(camera, obj, uv_obs, initial, board, source)
+    T, uv, J, it = _fit_corners(T, obj, uv_obs, camera, max_iter, board, source)
     res = uv_obs - uv
     Jf = J.reshape(-1, 6)
     JtJ = Jf.T @ Jf

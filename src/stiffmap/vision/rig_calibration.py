@@ -530,6 +530,145 @@ def _unplaced_message(names: Sequence[str], used: list[set[int]], placed: list[i
     )
 
 
+def _rig_names(detections, camera_names, image_sizes, view_names, image_names):
+    """The cameras', views' and images' names and the image sizes, checked against the
+    detections' shape: (names, vnames, inames, sizes)."""
+    n_cam = len(detections)
+    names = [str(x) for x in camera_names]
+    if n_cam == 0:
+        raise ValueError("a rig needs at least one camera")
+    if len(names) != n_cam or len(image_sizes) != n_cam:
+        raise ValueError(
+            f"{n_cam} cameras of detections, {len(names)} camera_names, {len(image_sizes)} image_sizes"
+        )
+    if len(set(names)) != n_cam or not all(n.strip() for n in names):
+        raise ValueError(f"camera names must be different non-empty strings, got {names!r}")
+    n_views = len(detections[0])
+    if any(len(d) != n_views for d in detections):
+        raise ValueError(f"every camera needs one entry per view: {[len(d) for d in detections]} entries")
+    vnames = [f"view{v + 1}" for v in range(n_views)] if view_names is None else [str(x) for x in view_names]
+    if len(vnames) != n_views:
+        raise ValueError(f"view_names has {len(vnames)} entries for {n_views} views")
+    if image_names is None:
+        inames = [list(vnames) for _ in range(n_cam)]
+    else:
+        inames = [[vnames[v] if x is None else str(x) for v, x in enumerate(row)] for row in image_names]
+        if len(inames) != n_cam or any(len(r) != n_views for r in inames):
+            raise ValueError("image_names must hold one name per camera and view")
+    sizes = [tuple(int(s) for s in sz) for sz in image_sizes]
+    return names, vnames, inames, sizes
+
+
+def _usable_per_camera(dets, missing, board, names, inames, min_views):
+    """Each camera's reasons (per view) and usable views; a camera with too few raises."""
+    reasons, usable = [], []
+    for k in range(len(dets)):
+        r, u = usable_views(dets[k], board)
+        reasons.append(r)
+        usable.append(u)
+        if len(u) < min_views:
+            detail = "; ".join(f"{inames[k][v]}: {r[v]}" for v in range(len(r)) if r[v] and not missing[k][v])
+            raise InputError(
+                f"camera {names[k]}: calibration needs at least {min_views} views with the board found, "
+                f"got {len(u)}" + (f" ({detail})" if detail else "")
+            )
+    return reasons, usable
+
+
+def _place_cameras(singles, dets, used, parent, order, board, grid):
+    """cam2rig of every camera from the views' poses it shares with its parent in the placement
+    order, and the views' board2cam (a symmetric board's views renumbered in ``dets`` to agree)."""
+    n_cam, n_views = len(singles), len(dets[0])
+    b2c = [[singles[k].views[v].board2cam for v in range(n_views)] for k in range(n_cam)]
+    cam2rig = [np.eye(4) for _ in range(n_cam)]
+    F = _half_turn(grid) if _symmetric(board) else None
+    for k in order[1:]:
+        j = parent[k]
+        shared = sorted(used[k] & used[j])
+        if F is not None:
+            # A board that looks the same turned by 180 degrees may be numbered from the
+            # other end in one camera: renumber camera k's views to agree with camera j's.
+            for v in _views_to_turn(b2c[j], b2c[k], shared, F):
+                dets[k][v] = _turned(dets[k][v], grid)
+                b2c[k][v] = b2c[k][v] @ F
+        rel = [b2c[j][v] @ invert_transform(b2c[k][v]) for v in shared]
+        cam2rig[k] = cam2rig[j] @ _robust_mean(rel)
+    return cam2rig, b2c
+
+
+def _board_poses(cam2rig, b2c, used) -> dict[int, np.ndarray]:
+    """board2rig of every view some camera uses: the robust mean over those cameras."""
+    out = {}
+    for v in sorted(set().union(*used)):
+        out[v] = _robust_mean([cam2rig[k] @ b2c[k][v] for k in range(len(cam2rig)) if v in used[k]])
+    return out
+
+
+def _initial_problem(singles, cam2rig, b2c, used, usable, dets, obj_all, model: str) -> _Problem:
+    """The bundle adjustment's start: the cameras alone, cam2rig and board2rig from the views'
+    poses, every usable view's corners, each camera's free parameters."""
+    n_cam = len(singles)
+    fixed = fixed_params(model)
+    points = {
+        (k, v): (obj_all[dets[k][v].ids], np.asarray(dets[k][v].corners, dtype=np.float64))
+        for k in range(n_cam)
+        for v in usable[k]
+    }
+    free = [[i for i in range(4 + DIST_MODELS[model]) if i not in fixed] for _ in range(n_cam)]
+    return _Problem([s.camera for s in singles], cam2rig, _board_poses(cam2rig, b2c, used), [], points, free)
+
+
+def _view_rms(problem: _Problem) -> dict[tuple[int, int], float]:
+    """The reprojection RMS (px) of every (camera, view) of the adjusted problem."""
+    layout = _layout(problem)
+    f, _ = _evaluate(problem, _x0(problem, layout), layout, jacobian=False)
+    return {
+        kv: float(np.sqrt(np.mean(np.sum(e**2, axis=1)))) for kv, e in _split_residuals(problem, f).items()
+    }
+
+
+def _worst_outlier(rms, used, usable, max_out, outlier_factor, outlier_min_px, min_views):
+    """(ratio, k, v, rms, median) of the view farthest above its camera's outlier limit whose
+    removal leaves every camera placed, or None (cameras at their outlier or view limit skipped)."""
+    n_cam = len(used)
+    worst = None
+    for k in range(n_cam):
+        vals = [rms[(k, v)] for v in sorted(used[k])]
+        med = float(np.median(vals))
+        limit = max(outlier_factor * med, outlier_min_px)
+        if len(usable[k]) - len(used[k]) >= max_out[k] or len(used[k]) <= min_views:
+            continue
+        for v in sorted(used[k]):
+            ratio = rms[(k, v)] / limit
+            if ratio > 1 and (worst is None or ratio > worst[0]):
+                trial = [set(u) for u in used]
+                trial[k].discard(v)
+                if len(_placement(trial)[1]) == n_cam:
+                    worst = (ratio, k, v, rms[(k, v)], med)
+    return worst
+
+
+def _adjust(problem, used, usable, reasons, outlier_factor, outlier_min_px, min_views):
+    """Bundle adjustment, the worst outlier view left out (``used`` and ``reasons`` updated)
+    and the adjustment again, until none is left (at most a third of a camera's views):
+    the adjusted problem and the outliers (camera, view, reason)."""
+    n_cam = len(used)
+    max_out = [len(u) // 3 for u in usable]
+    outliers: list[tuple[int, int, str]] = []
+    while True:
+        problem.obs = [(k, v) for k in range(n_cam) for v in sorted(used[k])]
+        problem.board2rig = {v: problem.board2rig[v] for v in sorted(set().union(*used))}
+        problem = _bundle_adjust(problem)
+        rms = _view_rms(problem)
+        worst = _worst_outlier(rms, used, usable, max_out, outlier_factor, outlier_min_px, min_views)
+        if worst is None:
+            return problem, outliers
+        _, k, v, r, med = worst
+        used[k].discard(v)
+        reasons[k][v] = f"outlier: view RMS {r:.3f} px > {outlier_factor:g} x median {med:.3f} px"
+        outliers.append((k, v, reasons[k][v]))
+
+
 # ------------------------------------------------------------------------------- calibrate
 def calibrate_rig(
     detections: Sequence[Sequence[BoardDetection | str | None]],
@@ -587,48 +726,14 @@ def calibrate_rig(
     board = as_board(board, square_mm, "board")
     if model not in DIST_MODELS:
         raise ValueError(f"model must be one of {sorted(DIST_MODELS)}, got {model!r}")
+    names, vnames, inames, sizes = _rig_names(detections, camera_names, image_sizes, view_names, image_names)
+    options = dict(outlier_factor=outlier_factor, outlier_min_px=outlier_min_px, min_views=min_views)
     n_cam = len(detections)
-    names = [str(x) for x in camera_names]
-    if n_cam == 0:
-        raise ValueError("a rig needs at least one camera")
-    if len(names) != n_cam or len(image_sizes) != n_cam:
-        raise ValueError(
-            f"{n_cam} cameras of detections, {len(names)} camera_names, {len(image_sizes)} image_sizes"
-        )
-    if len(set(names)) != n_cam or not all(n.strip() for n in names):
-        raise ValueError(f"camera names must be different non-empty strings, got {names!r}")
-    n_views = len(detections[0])
-    if any(len(d) != n_views for d in detections):
-        raise ValueError(f"every camera needs one entry per view: {[len(d) for d in detections]} entries")
-    vnames = [f"view{v + 1}" for v in range(n_views)] if view_names is None else [str(x) for x in view_names]
-    if len(vnames) != n_views:
-        raise ValueError(f"view_names has {len(vnames)} entries for {n_views} views")
-    if image_names is None:
-        inames = [list(vnames) for _ in range(n_cam)]
-    else:
-        inames = [[vnames[v] if x is None else str(x) for v, x in enumerate(row)] for row in image_names]
-        if len(inames) != n_cam or any(len(r) != n_views for r in inames):
-            raise ValueError("image_names must hold one name per camera and view")
-    sizes = [tuple(int(s) for s in sz) for sz in image_sizes]
     grid = grid_of(board)
     obj_all = grid.object_points()
-    fixed = fixed_params(model)
-
     dets = [[NO_IMAGE if d is None else d for d in row] for row in detections]
     missing = [[d is None for d in row] for row in detections]
-    reasons, usable = [], []
-    for k in range(n_cam):
-        r, u = usable_views(dets[k], board)
-        reasons.append(r)
-        usable.append(u)
-        if len(u) < min_views:
-            detail = "; ".join(
-                f"{inames[k][v]}: {r[v]}" for v in range(n_views) if r[v] and not missing[k][v]
-            )
-            raise InputError(
-                f"camera {names[k]}: calibration needs at least {min_views} views with the board found, "
-                f"got {len(u)}" + (f" ({detail})" if detail else "")
-            )
+    reasons, usable = _usable_per_camera(dets, missing, board, names, inames, min_views)
     used = [set(u) for u in usable]
     parent, order = _placement(used)
     if len(order) < n_cam:
@@ -636,82 +741,13 @@ def calibrate_rig(
 
     # 1. Each camera alone, 2. cam2rig and board2rig from the views' poses.
     singles = [
-        calibrate_camera(
-            dets[k],
-            board,
-            sizes[k],
-            names=inames[k],
-            model=model,
-            outlier_factor=outlier_factor,
-            outlier_min_px=outlier_min_px,
-            min_views=min_views,
-        )
+        calibrate_camera(dets[k], board, sizes[k], names=inames[k], model=model, **options)
         for k in range(n_cam)
     ]
-    b2c = [[singles[k].views[v].board2cam for v in range(n_views)] for k in range(n_cam)]
-    cam2rig = [np.eye(4) for _ in range(n_cam)]
-    F = _half_turn(grid) if _symmetric(board) else None
-    for k in order[1:]:
-        j = parent[k]
-        shared = sorted(used[k] & used[j])
-        if F is not None:
-            # A board that looks the same turned by 180 degrees may be numbered from the
-            # other end in one camera: renumber camera k's views to agree with camera j's.
-            for v in _views_to_turn(b2c[j], b2c[k], shared, F):
-                dets[k][v] = _turned(dets[k][v], grid)
-                b2c[k][v] = b2c[k][v] @ F
-        rel = [b2c[j][v] @ invert_transform(b2c[k][v]) for v in shared]
-        cam2rig[k] = cam2rig[j] @ _robust_mean(rel)
-    points = {
-        (k, v): (obj_all[dets[k][v].ids], np.asarray(dets[k][v].corners, dtype=np.float64))
-        for k in range(n_cam)
-        for v in usable[k]
-    }
-    free = [[i for i in range(4 + DIST_MODELS[model]) if i not in fixed] for _ in range(n_cam)]
-
-    def board_poses(cam2rig_, b2c_, used_) -> dict[int, np.ndarray]:
-        out = {}
-        for v in sorted(set().union(*used_)):
-            out[v] = _robust_mean([cam2rig_[k] @ b2c_[k][v] for k in range(n_cam) if v in used_[k]])
-        return out
-
-    problem = _Problem(
-        [s.camera for s in singles], cam2rig, board_poses(cam2rig, b2c, used), [], points, free
-    )
+    cam2rig, b2c = _place_cameras(singles, dets, used, parent, order, board, grid)
+    problem = _initial_problem(singles, cam2rig, b2c, used, usable, dets, obj_all, model)
     # 3. Bundle adjustment, 4. outliers left out one at a time.
-    max_out = [len(u) // 3 for u in usable]
-    outliers: list[tuple[int, int, str]] = []
-    while True:
-        problem.obs = [(k, v) for k in range(n_cam) for v in sorted(used[k])]
-        problem.board2rig = {v: problem.board2rig[v] for v in sorted(set().union(*used))}
-        problem = _bundle_adjust(problem)
-        layout = _layout(problem)
-        f, _ = _evaluate(problem, _x0(problem, layout), layout, jacobian=False)
-        rms = {
-            kv: float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
-            for kv, e in _split_residuals(problem, f).items()
-        }
-        worst = None
-        for k in range(n_cam):
-            vals = [rms[(k, v)] for v in sorted(used[k])]
-            med = float(np.median(vals))
-            limit = max(outlier_factor * med, outlier_min_px)
-            if len(usable[k]) - len(used[k]) >= max_out[k] or len(used[k]) <= min_views:
-                continue
-            for v in sorted(used[k]):
-                ratio = rms[(k, v)] / limit
-                if ratio > 1 and (worst is None or ratio > worst[0]):
-                    trial = [set(u) for u in used]
-                    trial[k].discard(v)
-                    if len(_placement(trial)[1]) == n_cam:
-                        worst = (ratio, k, v, rms[(k, v)], med)
-        if worst is None:
-            break
-        _, k, v, r, med = worst
-        used[k].discard(v)
-        reasons[k][v] = f"outlier: view RMS {r:.3f} px > {outlier_factor:g} x median {med:.3f} px"
-        outliers.append((k, v, reasons[k][v]))
-
+    problem, outliers = _adjust(problem, used, usable, reasons, **options)
     return _result(problem, dets, missing, reasons, used, names, vnames, inames, model, outliers, obj_all)
 
 

@@ -471,57 +471,20 @@ class PoseTracker:
         items, labels, set_label = self._split(image, name)
         self._enter_state(state)
         results = [self._measure_view(k, items[k], labels[k]) for k in range(len(self.rig))]
-        views = tuple(
-            CameraView(
-                camera=self.rig.names[k],
-                image=r.label,
-                mobile=r.poses[0],
-                fixed=r.poses[1] if len(self.boards) > 1 else None,
-                mobile_detection=r.dets[0],
-                fixed_detection=r.dets[1] if len(self.boards) > 1 else None,
-                timings=r.timings,
-                error=r.error or ("; ".join(e for e in r.errors if e) or None),
-            )
-            for k, r in enumerate(results)
-        )
+        views = self._camera_views(results)
         timings = {key: sum(r.timings.get(key, 0.0) for r in results) for key in ("read", "detect", "pose")}
         missing = [b for b in range(len(self.boards)) if all(r.poses[b] is None for r in results)]
         if missing:
             timings["total"] = time.perf_counter() - t0
-            if len(self.rig) == 1:
-                error = results[0].error or next(e for e in results[0].errors if e)
-            else:
-                error = f"{set_label}: " + "; ".join(
-                    f"no camera saw the {self._what(b)}: "
-                    + "; ".join(f"{c}: {r.errors[b]}" for c, r in zip(self.rig.names, results, strict=True))
-                    for b in missing
-                )
+            error = self._missing_error(results, missing, set_label)
             return ImageMeasurement(image=set_label, timings=timings, error=error, views=views)
-
         t1 = time.perf_counter()
-        fused = []
-        for b in range(len(self.boards)):
-            seen = {k: r.poses[b] for k, r in enumerate(results) if r.poses[b] is not None}
-            f = fuse_poses(
-                self.rig, seen, board=self.boards[b], reference=self._fused[b], label=self._what(b)
-            )
-            self._fused[b] = f.board2cam
-            fused.append(f)
+        fused = self._fuse(results)
         timings["fuse"] = time.perf_counter() - t1
         mobile = fused[0]
         fixed = fused[1] if len(fused) > 1 else None
         Sc = self.rig.calibration_cov
-        m2b = m2b_cov = m2b_A = None
-        if fixed is not None and self.fixed2base is not None:
-            # The poses' own noise is independent; the calibration's error moves both at once.
-            m2b, m2b_cov = mobile2base_from_poses(
-                mobile.board2cam, mobile.cov_noise, fixed.board2cam, fixed.cov_noise, self.fixed2base
-            )
-            if mobile.calibration_jacobian is not None and fixed.calibration_jacobian is not None:
-                _, Jm, Jf = _mobile2base_jacobians(mobile.board2cam, fixed.board2cam, self.fixed2base)
-                m2b_A = Jm @ mobile.calibration_jacobian + Jf @ fixed.calibration_jacobian
-                if Sc is not None:
-                    m2b_cov = m2b_cov + m2b_A @ Sc @ m2b_A.T
+        m2b, m2b_cov, m2b_A = self._mobile2base(mobile, fixed, Sc)
 
         def first_detection(b: int) -> BoardDetection | None:
             return next((r.dets[b] for r in results if r.poses[b] is not None), None)
@@ -540,6 +503,59 @@ class PoseTracker:
             timings=timings,
             views=views,
         )
+
+    def _camera_views(self, results: list[_ViewResult]) -> tuple[CameraView, ...]:
+        return tuple(
+            CameraView(
+                camera=self.rig.names[k],
+                image=r.label,
+                mobile=r.poses[0],
+                fixed=r.poses[1] if len(self.boards) > 1 else None,
+                mobile_detection=r.dets[0],
+                fixed_detection=r.dets[1] if len(self.boards) > 1 else None,
+                timings=r.timings,
+                error=r.error or ("; ".join(e for e in r.errors if e) or None),
+            )
+            for k, r in enumerate(results)
+        )
+
+    def _missing_error(self, results: list[_ViewResult], missing: list[int], set_label: str) -> str:
+        """Why boards ``missing`` have no pose: the camera's reason, or each camera's for a rig."""
+        if len(self.rig) == 1:
+            return results[0].error or next(e for e in results[0].errors if e)
+        return f"{set_label}: " + "; ".join(
+            f"no camera saw the {self._what(b)}: "
+            + "; ".join(f"{c}: {r.errors[b]}" for c, r in zip(self.rig.names, results, strict=True))
+            for b in missing
+        )
+
+    def _fuse(self, results: list[_ViewResult]) -> list:
+        """Each board's pose in the rig frame from the cameras that saw it (:func:`fuse_poses`)."""
+        fused = []
+        for b in range(len(self.boards)):
+            seen = {k: r.poses[b] for k, r in enumerate(results) if r.poses[b] is not None}
+            f = fuse_poses(
+                self.rig, seen, board=self.boards[b], reference=self._fused[b], label=self._what(b)
+            )
+            self._fused[b] = f.board2cam
+            fused.append(f)
+        return fused
+
+    def _mobile2base(self, mobile, fixed, Sc):
+        """mobile2base, its covariance (the calibration's share with the rig's covariance Sc)
+        and its calibration sensitivity (None each without a fixed target and fixed2base)."""
+        m2b = m2b_cov = m2b_A = None
+        if fixed is not None and self.fixed2base is not None:
+            # The poses' own noise is independent; the calibration's error moves both at once.
+            m2b, m2b_cov = mobile2base_from_poses(
+                mobile.board2cam, mobile.cov_noise, fixed.board2cam, fixed.cov_noise, self.fixed2base
+            )
+            if mobile.calibration_jacobian is not None and fixed.calibration_jacobian is not None:
+                _, Jm, Jf = _mobile2base_jacobians(mobile.board2cam, fixed.board2cam, self.fixed2base)
+                m2b_A = Jm @ mobile.calibration_jacobian + Jf @ fixed.calibration_jacobian
+                if Sc is not None:
+                    m2b_cov = m2b_cov + m2b_A @ Sc @ m2b_A.T
+        return m2b, m2b_cov, m2b_A
 
     def _what(self, b: int) -> str:
         return f"{'mobile' if b == 0 else 'fixed'} target ({board_label(self.boards[b])})"
@@ -563,64 +579,84 @@ class PoseTracker:
             dets, poses, t_follow = self._follow(k, img, label)
             todo = [b for b in range(nb) if dets[b] is None]
             if todo:
-                hidden = [detection_mask(d) for d in dets if d is not None]
-                try:
-                    found = list(self._detect(k, img, todo, label, hidden))
-                except DetectionError as e:
-                    found = e.found or []
-                    if len(self.rig) == 1 or not any(d is not None for d in found):
-                        raise
-                    # Several cameras: the boards missing here may be seen by another camera; this
-                    # one goes on with those it found (the search's error names the missing ones).
-                    found = list(found) + [None] * (len(todo) - len(found))
-                    for j, b in enumerate(todo):
-                        if found[j] is None:
-                            res.errors[b] = str(e.with_source(label))
-                for j, b in enumerate(todo):
-                    dets[b] = found[j]
+                self._find(k, img, label, dets, todo, res)
             t2 = time.perf_counter()
-            for b in todo:
-                d = dets[b]
-                if d is None:
-                    continue
-                init = self._poses[k][b] if d.tracked else None
-                if not d.tracked:
-                    self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
-                # The other boards' areas (squares and a white margin of up to 1.2 squares) are
-                # left out of a photometric fit.
-                others = [
-                    detection_mask(o, margin_sq=2.2)
-                    for j, o in enumerate(dets)
-                    if j != b and o is not None and o.n_corners >= 4
-                ]
-                poses[b] = estimate_pose(
-                    d,
-                    self.boards[b],
-                    camera,
-                    initial=init,
-                    source=label,
-                    image=img,
-                    refine=self.refine if b == 0 else self.refine_fixed,
-                    exclude=others,
-                    track=self._photo[k][b] if self._warm_start else None,
-                )
+            self._pose_found(k, img, label, dets, poses, todo)
             res.dets, res.poses = dets, poses
             t3 = time.perf_counter()
             t2 -= t_follow  # the follow's fits are pose time
         except InputError as e:
-            self._reset_camera(k)
-            res.timings["total"] = time.perf_counter() - t0
-            res.poses = [None] * nb
-            res.dets = [None] * nb
-            return res.fail(str(e.with_source(label)))
+            return self._view_failed(k, res, t0, str(e.with_source(label)))
         except UndistortionError as e:
             # The lens model of the camera file cannot be inverted where this image needs it.
-            self._reset_camera(k)
-            res.timings["total"] = time.perf_counter() - t0
-            res.poses = [None] * nb
-            res.dets = [None] * nb
-            return res.fail(f"{label}: with {self._camera_source(k)}: {e}")
-        for b in range(nb):
+            return self._view_failed(k, res, t0, f"{label}: with {self._camera_source(k)}: {e}")
+        self._remember(k, res)
+        res.timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
+        return res
+
+    def _find(
+        self, k: int, img: np.ndarray, label: str, dets: list, todo: list[int], res: _ViewResult
+    ) -> None:
+        """Detect boards ``todo`` in camera ``k``'s image (set in ``dets``), the others' areas
+        hidden. With a rig, a camera that found some of them goes on with those (the others'
+        errors in ``res``): another camera may see them."""
+        hidden = [detection_mask(d) for d in dets if d is not None]
+        try:
+            found = list(self._detect(k, img, todo, label, hidden))
+        except DetectionError as e:
+            found = e.found or []
+            if len(self.rig) == 1 or not any(d is not None for d in found):
+                raise
+            found = list(found) + [None] * (len(todo) - len(found))
+            for j, b in enumerate(todo):
+                if found[j] is None:
+                    res.errors[b] = str(e.with_source(label))
+        for j, b in enumerate(todo):
+            dets[b] = found[j]
+
+    def _pose_found(
+        self, k: int, img: np.ndarray, label: str, dets: list, poses: list, todo: list[int]
+    ) -> None:
+        """The poses (set in ``poses``) of the boards ``todo`` detected in camera ``k``'s image."""
+        camera = self.rig.cameras[k].camera
+        for b in todo:
+            d = dets[b]
+            if d is None:
+                continue
+            init = self._poses[k][b] if d.tracked else None
+            if not d.tracked:
+                self._photo[k][b].clear()  # a full detection: the photometric fit starts cold
+            # The other boards' areas (squares and a white margin of up to 1.2 squares) are
+            # left out of a photometric fit.
+            others = [
+                detection_mask(o, margin_sq=2.2)
+                for j, o in enumerate(dets)
+                if j != b and o is not None and o.n_corners >= 4
+            ]
+            poses[b] = estimate_pose(
+                d,
+                self.boards[b],
+                camera,
+                initial=init,
+                source=label,
+                image=img,
+                refine=self.refine if b == 0 else self.refine_fixed,
+                exclude=others,
+                track=self._photo[k][b] if self._warm_start else None,
+            )
+
+    def _view_failed(self, k: int, res: _ViewResult, t0: float, message: str) -> _ViewResult:
+        """Camera ``k``'s image could not be used: the camera reset, no board in the result."""
+        nb = len(self.boards)
+        self._reset_camera(k)
+        res.timings["total"] = time.perf_counter() - t0
+        res.poses = [None] * nb
+        res.dets = [None] * nb
+        return res.fail(message)
+
+    def _remember(self, k: int, res: _ViewResult) -> None:
+        """Keep camera ``k``'s detections and poses for the next image."""
+        for b in range(len(self.boards)):
             if res.dets[b] is not None:
                 self._prev[k][b] = res.dets[b]
                 self._ref[k][b] = res.dets[b]
@@ -630,8 +666,6 @@ class PoseTracker:
                 self._prev[k][b] = None
                 self._poses[k][b] = None
                 self._followable[k][b] = False
-        res.timings.update(detect=t2 - t1, pose=t3 - t2, total=time.perf_counter() - t0)
-        return res
 
     def _follow(self, k: int, img: np.ndarray, label: str):
         """The boards of camera ``k`` followed by their photometric fit alone (None for the others).

@@ -109,6 +109,36 @@ def model_and_jacobian(
     """
     S = setup
     dt = S.values.dtype
+    X, Y, dX, dY, Hi, T = _board_points(S, board2cam)
+    sig, zx, zy, ex, ey, Fx, Fy, Gx, Gy, c = _edges(S, dX, dY, blur_px, dilation_px)
+    a, b = _shading(S, shading_a, shading_b)
+    model = a + b * c
+    if not jacobian:
+        return model, None
+    # d c / d z along each axis (phi the normal density).
+    cz_x = (S.fx1 * Fy + S.gx1 * Gy) * (np.exp(dt.type(-0.5) * zx * zx) if ex is None else ex)
+    cz_x *= dt.type(-0.5 / _SQRT_2PI)
+    cz_y = (S.fy1 * Fx + S.gy1 * Gx) * (np.exp(dt.type(-0.5) * zy * zy) if ey is None else ey)
+    cz_y *= dt.type(-0.5 / _SQRT_2PI)
+    nb = S.basis.shape[0]
+    J = np.empty((N_NONLINEAR + 2 * nb, X.size), dtype=dt) if out is None else out
+    bs = b / sig
+    _pose_rows(J, cz_x * S.isx * bs, cz_y * S.isy * bs, X, Y, Hi, T)
+    J[6] = -(cz_x * zx + cz_y * zy) * bs
+    J[7] = J[6] * S.c2
+    J[8] = J[6] * S.s2
+    J[9] = -(cz_x * S.bsx + cz_y * S.bsy) * bs
+    J[10] = J[9] * S.c2
+    J[11] = J[9] * S.s2
+    J[N_NONLINEAR : N_NONLINEAR + nb] = S.basis
+    J[N_NONLINEAR + nb :] = S.basis * c
+    return model, J
+
+
+def _board_points(S: PhotometricSetup, board2cam):
+    """The board point (X, Y) of each pixel's ray and its distances (dX, dY) to its grid lines,
+    mm, and the inverse homography and the pose, all in the set-up's precision."""
+    dt = S.values.dtype
     T64 = np.asarray(board2cam, dtype=np.float64)
     # The board point of each ray, and its distance to the grid line, in double precision (the
     # rays and lines are kept so in a float32 set-up): the distance is a small difference of
@@ -124,8 +154,14 @@ def model_and_jacobian(
     dY = (Y - S.line_y).astype(dt, copy=False)
     if dt != X.dtype:
         X, Y = X.astype(dt), Y.astype(dt)
-    Hi = Hi64.astype(dt)
-    T = T64.astype(dt)
+    return X, Y, dX, dY, Hi64.astype(dt), T64.astype(dt)
+
+
+def _edges(S: PhotometricSetup, dX, dY, blur_px, dilation_px):
+    """The blurred pattern c at each pixel and what its derivatives need: the blur sigma, the
+    normalised distances zx, zy to the edges, exp(-z^2 / 2) along each (None in double
+    precision: computed there when needed), and the blurred factors Fx, Fy, Gx, Gy."""
+    dt = S.values.dtype
     one = dt.type(1.0)
     bl = np.asarray(blur_px, dtype=np.float64).astype(dt)
     dl = np.asarray(dilation_px, dtype=np.float64).astype(dt)
@@ -145,32 +181,28 @@ def model_and_jacobian(
     Fy = S.fy0 + S.fy1 * Py
     Gy = S.gy0 + S.gy1 * Py
     c = one - dt.type(0.5) * (Fx * Fy + Gx * Gy)
-    # a and b in one small matrix product (2 x n_basis x N stays below OpenBLAS's threading size
-    # for chunks of up to 20000 pixels; poly otherwise).
+    return sig, zx, zy, ex, ey, Fx, Fy, Gx, Gy, c
+
+
+def _shading(S: PhotometricSetup, shading_a, shading_b):
+    """The black level a and the contrast b at each pixel: in one small matrix product (2 x
+    n_basis x N stays below OpenBLAS's threading size for chunks of up to 20000 pixels; poly
+    otherwise)."""
+    dt = S.values.dtype
     sa = np.asarray(shading_a, dtype=np.float64).astype(dt)
     sb = np.asarray(shading_b, dtype=np.float64).astype(dt)
     if S.basis.shape[1] * S.basis.shape[0] * 2 <= GEMM_SINGLE_THREAD:
         a, b = np.stack([sa, sb]) @ S.basis
-    else:
-        a = poly(sa, S.basis)
-        b = poly(sb, S.basis)
-    model = a + b * c
-    if not jacobian:
-        return model, None
-    # d c / d z along each axis (phi the normal density).
-    cz_x = (S.fx1 * Fy + S.gx1 * Gy) * (np.exp(dt.type(-0.5) * zx * zx) if ex is None else ex)
-    cz_x *= dt.type(-0.5 / _SQRT_2PI)
-    cz_y = (S.fy1 * Fx + S.gy1 * Gx) * (np.exp(dt.type(-0.5) * zy * zy) if ey is None else ey)
-    cz_y *= dt.type(-0.5 / _SQRT_2PI)
-    cX = cz_x * S.isx  # d c / d X * sigma, 1/mm
-    cY = cz_y * S.isy
-    nb = S.basis.shape[0]
-    J = np.empty((N_NONLINEAR + 2 * nb, X.size), dtype=dt) if out is None else out
-    # d X / d(t, r) = (-gX, gX x a), gX = Hi[0] - X Hi[2], a = R q (the board point, camera frame);
-    # v = (dc/dX gX + dc/dY gY) b, so d model / d(t, r) = (-v, v x a).
-    bs = b / sig
-    cX *= bs
-    cY *= bs
+        return a, b
+    return poly(sa, S.basis), poly(sb, S.basis)
+
+
+def _pose_rows(J, cX, cY, X, Y, Hi, T) -> None:
+    """J's rows 0..5, d model / d(t, r), from cX, cY = d model / d X, d Y (1/mm).
+
+    d X / d(t, r) = (-gX, gX x a), gX = Hi[0] - X Hi[2], a = R q (the board point, camera frame);
+    v = dmodel/dX gX + dmodel/dY gY, so d model / d(t, r) = (-v, v x a).
+    """
     cXY = cX * X + cY * Y
     vx = cX * Hi[0, 0] + cY * Hi[1, 0] - cXY * Hi[2, 0]
     vy = cX * Hi[0, 1] + cY * Hi[1, 1] - cXY * Hi[2, 1]
@@ -184,15 +216,6 @@ def model_and_jacobian(
     J[3] = vy * az - vz * ay
     J[4] = vz * ax - vx * az
     J[5] = vx * ay - vy * ax
-    J[6] = -(cz_x * zx + cz_y * zy) * bs
-    J[7] = J[6] * S.c2
-    J[8] = J[6] * S.s2
-    J[9] = -(cz_x * S.bsx + cz_y * S.bsy) * bs
-    J[10] = J[9] * S.c2
-    J[11] = J[9] * S.s2
-    J[N_NONLINEAR : N_NONLINEAR + nb] = S.basis
-    J[N_NONLINEAR + nb :] = S.basis * c
-    return model, J
 
 
 # Abramowitz & Stegun 7.1.26 for erfc(x) = t P(t) exp(-x^2), t = 1 / (1 + p x), x >= 0 (absolute

@@ -218,6 +218,286 @@ def check_board2cam(board2cam) -> np.ndarray:
     return T
 
 
+def _check_inputs(image, board, board2cam, camera, band_px, blur_px, shading_degree, phase):
+    """The image, the starting pose and the band (px), checked."""
+    img = check_image(image, uint16=True)
+    T = check_board2cam(board2cam)
+    if not isinstance(board, Chessboard):
+        raise ValueError(f"the photometric model is for chessboards, got {type(board).__name__}")
+    if phase not in (0, 1):
+        raise ValueError(f"phase must be 0 or 1, got {phase!r}")
+    if int(shading_degree) not in (0, 1, 2):
+        raise ValueError(f"shading_degree must be 0, 1 or 2, got {shading_degree}")
+    if not (np.isfinite(blur_px) and blur_px > 0):
+        raise ValueError(f"blur_px must be positive, got {blur_px}")
+    band = max(BAND_SIGMAS * blur_px, BAND_MIN_PX) if band_px is None else float(band_px)
+    if not (np.isfinite(band) and band > 0):
+        raise ValueError(f"band_px must be positive, got {band_px}")
+    h, w = img.shape
+    if camera.image_size != (w, h):
+        raise ValueError(
+            f"image is {w}x{h} px but the camera is {camera.image_size[0]}x{camera.image_size[1]} px"
+        )
+    return img, T, band
+
+
+def _region(
+    board: Chessboard, camera: CameraModel, T: np.ndarray, w: int, h: int
+) -> tuple[int, int, int, int]:
+    """Pixels c0..c1-1, r0..r1-1 around the checkered area grown by 0.6 square, whose
+    neighbours (for the local scale) are in the image."""
+    s = board.square_mm
+    grow = 0.6 * s
+    extent = (-s - grow, -s - grow, board.cols * s + grow, board.rows * s + grow)
+    try:
+        uv = camera.project_rectangle(T, extent, samples=33)
+    except ValueError:
+        raise PhotometricError("the board reaches behind the camera") from None
+    c0 = max(int(np.floor(uv[:, 0].min())), 1)
+    c1 = min(int(np.ceil(uv[:, 0].max())) + 1, w - 1)
+    r0 = max(int(np.floor(uv[:, 1].min())), 1)
+    r1 = min(int(np.ceil(uv[:, 1].max())) + 1, h - 1)
+    if c1 - c0 < 8 or r1 - r0 < 8:
+        raise PhotometricError("the board is outside the image")
+    return c0, r0, c1, r1
+
+
+class _BoardPlane:
+    """Board (X, Y) in float32 (1e-4 px is plenty to choose pixels) and w2 of pixels (u, v)."""
+
+    def __init__(self, rm, T: np.ndarray, w: int):
+        try:
+            Hi = ray2board_homography(T)
+        except ValueError as e:
+            raise PhotometricError(str(e)) from None
+        self.h32 = Hi.astype(np.float32)
+        self.rm = rm
+        self.w = w
+        corr_x, corr_y = rm.correction_maps
+        self.cxf, self.cyf = corr_x.ravel(), corr_y.ravel()
+
+    def __call__(self, u_i, v_i):
+        h32, rm = self.h32, self.rm
+        flat = v_i * self.w + u_i
+        rx = rm.px32[u_i] + self.cxf.take(flat)
+        ry = rm.py32[v_i] + self.cyf.take(flat)
+        w2 = h32[2, 0] * rx + h32[2, 1] * ry + h32[2, 2]
+        iw = np.float32(1.0) / w2
+        return (
+            (h32[0, 0] * rx + h32[0, 1] * ry + h32[0, 2]) * iw,
+            (h32[1, 0] * rx + h32[1, 1] * ry + h32[1, 2]) * iw,
+            w2,
+        )
+
+
+def _outside(Z, n, isz, sf):
+    """Distance (px) outside the checkered area along one axis (negative inside)."""
+    return np.maximum(-sf - Z, Z - n * sf) * isz
+
+
+@dataclass
+class _Tiles:
+    """The coarse pass: 4 x 4 tiles that may hold pixels near a line, and their candidate pixels.
+
+    gx, gy: gradients of X and Y over the tile grid; isXc, isYc: 4 / |grad|, px/mm, per tile;
+    ti, tj: the kept tiles' row and column; u_i, v_i: their pixels in the region; tile: the
+    index (into ti, tj) of each pixel's tile.
+    """
+
+    gx: list
+    gy: list
+    isXc: np.ndarray
+    isYc: np.ndarray
+    ti: np.ndarray
+    tj: np.ndarray
+    u_i: np.ndarray
+    v_i: np.ndarray
+    tile: np.ndarray
+
+
+def _coarse_tiles(plane, region, board: Chessboard, band: float) -> _Tiles:
+    """Coarse pass on 4 x 4 tiles, sampled at one pixel of each (every pixel of a tile lies
+    within 2.9 px of it): keep the tiles that may hold pixels near a line."""
+    c0, r0, c1, r1 = region
+    sf = np.float32(board.square_mm)
+    cols, rows = board.cols, board.rows
+    tu = np.arange(c0, c1, 4)
+    tv = np.arange(r0, r1, 4)
+    su = np.minimum(tu + 2, c1 - 1)
+    sv = np.minimum(tv + 2, r1 - 1)
+    Xc, Yc, w2c = plane(su[None, :], sv[:, None])
+    gx = np.gradient(Xc) if min(Xc.shape) > 1 else None
+    gy = np.gradient(Yc) if min(Yc.shape) > 1 else None
+    if gx is None or gy is None:
+        raise PhotometricError("the board is too small in the image")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        isXc = np.float32(4.0) / np.sqrt(gx[0] ** 2 + gx[1] ** 2)
+        isYc = np.float32(4.0) / np.sqrt(gy[0] ** 2 + gy[1] ** 2)
+        reach = band + 3.0
+        dXc = np.abs(Xc - np.clip(np.rint(Xc / sf), -1, cols) * sf) * isXc
+        dYc = np.abs(Yc - np.clip(np.rint(Yc / sf), -1, rows) * sf) * isYc
+        tiles = (
+            ((dXc < reach) & (_outside(Yc, rows, isYc, sf) <= reach))
+            | ((dYc < reach) & (_outside(Xc, cols, isXc, sf) <= reach))
+        ) & (w2c > 0)
+    ti, tj = np.nonzero(tiles)  # tile row, tile column
+    off_v, off_u = (a.ravel() for a in np.meshgrid(np.arange(4), np.arange(4), indexing="ij"))
+    v_i = (tv[ti][:, None] + off_v[None, :]).ravel()
+    u_i = (tu[tj][:, None] + off_u[None, :]).ravel()
+    tile = np.repeat(np.arange(ti.size), 16)
+    inb = (v_i < r1) & (u_i < c1)
+    return _Tiles(gx, gy, isXc, isYc, ti, tj, u_i[inb], v_i[inb], tile[inb])
+
+
+@dataclass
+class _Candidates:
+    """The candidate pixels' board coordinates X, Y, their nearest lines kx, ky and distances
+    to them dX, dY (px), and the selection ``sel`` near the edges."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    dX: np.ndarray
+    dY: np.ndarray
+    kx: np.ndarray
+    ky: np.ndarray
+    sel: np.ndarray
+
+
+def _near_edges(plane, tl: _Tiles, board: Chessboard, band, blur_px, outer_edges, inner_only) -> _Candidates:
+    """Fine selection of the candidate pixels: near one grid line (within the band), away
+    from the corner zones, in front of the camera."""
+    sf = np.float32(board.square_mm)
+    cols, rows = board.cols, board.rows
+    # Corner zones at least as wide as the band: every pixel kept is near one line only.
+    cz = max(CORNER_SIGMAS * blur_px, band)
+    isX = tl.isXc[tl.ti, tl.tj][tl.tile]
+    isY = tl.isYc[tl.ti, tl.tj][tl.tile]
+    X, Y, w2 = plane(tl.u_i, tl.v_i)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kx = np.clip(np.rint(X / sf), -1, cols)
+        ky = np.clip(np.rint(Y / sf), -1, rows)
+        dX = np.abs(X - kx * sf) * isX
+        dY = np.abs(Y - ky * sf) * isY
+        near_x = (dX < band) & (_outside(Y, rows, isY, sf) <= band)
+        near_y = (dY < band) & (_outside(X, cols, isX, sf) <= band)
+        if not outer_edges:
+            near_x &= (kx > -1) & (kx < cols) & (_outside(Y, rows, isY, sf) < -band)
+            near_y &= (ky > -1) & (ky < rows) & (_outside(X, cols, isX, sf) < -band)
+        if inner_only:
+            near_x &= (kx > -1) & (kx < cols) & (Y >= 0) & (Y <= (rows - 1) * sf)
+            near_y &= (ky > -1) & (ky < rows) & (X >= 0) & (X <= (cols - 1) * sf)
+        sel = (near_x | near_y) & ~((dX < cz) & (dY < cz)) & (w2 > 0)
+    return _Candidates(X, Y, dX, dY, kx, ky, sel)
+
+
+def _excluded(polygons, region, u_i, v_i) -> np.ndarray | None:
+    """Which pixels lie inside the ``exclude`` polygons (None: no polygons)."""
+    polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in polygons]
+    if not polys:
+        return None
+    c0, r0, c1, r1 = region
+    m = np.zeros((r1 - r0, c1 - c0), dtype=np.uint8)
+    for p in polys:
+        if p.shape[0] >= 3 and np.all(np.isfinite(p)):
+            q = np.rint((p - [c0, r0]) * 16).astype(np.int32)
+            cv2.fillPoly(m, [q], 1, lineType=cv2.LINE_8, shift=4)
+    return m[v_i - r0, u_i - c0] != 0
+
+
+def _usable(img, rm, region, tl: _Tiles, cand: _Candidates, saturation, exclude):
+    """The indices of the selected pixels that are usable (not saturated, not black, inside
+    the lens model's invertible field, outside ``exclude``), and their image values."""
+    w = img.shape[1]
+    sel = cand.sel
+    vals = img.ravel().take(tl.v_i * w + tl.u_i)
+    sat = np.iinfo(img.dtype).max if saturation is None else int(saturation)
+    sel &= (vals < sat) & (vals > 0)
+    # Only pixels whose rays are right: inside the field where the lens model is invertible.
+    n_out = 0
+    if not rm.covers_image:
+        in_field = rm.valid_map.ravel().take(tl.v_i * w + tl.u_i)
+        n_out = int(np.count_nonzero(sel & ~in_field))
+        sel &= in_field
+    inside = _excluded(exclude, region, tl.u_i, tl.v_i)
+    if inside is not None:
+        sel &= ~inside
+    idx = np.flatnonzero(sel)
+    n = idx.size
+    if n < MIN_PIXELS:
+        msg = f"only {n} usable pixels near the board's edges (at least {MIN_PIXELS})"
+        if n_out:
+            msg += f"; {n_out} lie beyond the lens model's invertible field: {rm.field.describe()}"
+        raise PhotometricError(msg)
+    return idx, vals[idx]
+
+
+def _pixel_geometry(rm, tl: _Tiles, idx, region, shading_degree: int) -> dict:
+    """Per kept pixel: its centre, its ray and the shading monomials (the
+    :class:`PhotometricSetup` fields of the same names)."""
+    ui, vi = tl.u_i[idx], tl.v_i[idx]
+    u = ui.astype(np.float64)
+    v = vi.astype(np.float64)
+    c0, r0, c1, r1 = region
+    u0, v0 = 0.5 * (c0 + c1 - 1), 0.5 * (r0 + r1 - 1)
+    L = 0.5 * max(c1 - c0, r1 - r0, 2)
+    corr_x, corr_y = rm.correction_maps
+    return dict(
+        rx=rm.px[ui] + corr_x[vi, ui],
+        ry=rm.py[vi] + corr_y[vi, ui],
+        u=u,
+        v=v,
+        basis=_monomials((u - u0) / L, (v - v0) / L, shading_degree),
+        centre=(u0, v0),
+        length=L,
+    )
+
+
+def _edge_geometry(tl: _Tiles, cand: _Candidates, idx, board: Chessboard, phase: int) -> dict:
+    """Per kept pixel: its lines, the jumps across them, the black side, the local scale and
+    the edge's direction (the :class:`PhotometricSetup` fields of the same names)."""
+    sf = np.float32(board.square_mm)
+    cols, rows = board.cols, board.rows
+    X, Y, dX, dY = cand.X[idx], cand.Y[idx], cand.dX[idx], cand.dY[idx]
+    kxs = cand.kx[idx].astype(np.int64)
+    kys = cand.ky[idx].astype(np.int64)
+    # Local scale |grad_p X|, |grad_p Y| (mm/px) and edge directions: those of the pixel's tile
+    # (they vary by ~0.1 % over 4 px; they set the blur's width, not the edges' positions).
+    tk = (tl.ti[tl.tile[idx]], tl.tj[tl.tile[idx]])
+    gXu, gXv = tl.gx[1][tk].astype(np.float64), tl.gx[0][tk].astype(np.float64)
+    gYu, gYv = tl.gy[1][tk].astype(np.float64), tl.gy[0][tk].astype(np.float64)
+    sXk = 1.0 / tl.isXc[tk].astype(np.float64)
+    sYk = 1.0 / tl.isYc[tk].astype(np.float64)
+    fx0, fx1, gx0, gx1 = _jumps(kxs, cols, phase)
+    fy0, fy1, gy0, gy1 = _jumps(kys, rows)
+    # Which side of its line is black (the squares either side: (k - 1, j) and (k, j)).
+    on_x = dX <= dY
+    jx = np.floor(Y / sf).astype(np.int64)  # square row of an X-edge pixel
+    iy = np.floor(X / sf).astype(np.int64)  # square column of a Y-edge pixel
+    # Direction of the edge's normal in the image (the gradient of X or Y).
+    nu = np.where(on_x, gXu, gYu)
+    nv = np.where(on_x, gXv, gYv)
+    n2 = nu * nu + nv * nv
+    s = board.square_mm
+    return dict(
+        line_x=kxs * s,
+        line_y=kys * s,
+        isx=1.0 / sXk,
+        isy=1.0 / sYk,
+        bsx=np.where(on_x, _black_side(kxs, jx, cols, rows, phase), 0.0),
+        bsy=np.where(on_x, 0.0, _black_side(kys, iy, rows, cols, phase)),
+        c2=(nu * nu - nv * nv) / n2,
+        s2=2.0 * nu * nv / n2,
+        fx0=fx0,
+        fx1=fx1,
+        gx0=gx0,
+        gx1=gx1,
+        fy0=fy0,
+        fy1=fy1,
+        gy0=gy0,
+        gy1=gy1,
+    )
+
+
 def prepare_pixels(
     image,
     board: Chessboard,
@@ -279,195 +559,18 @@ def prepare_pixels(
         pixels inside the field where the lens model is invertible are, see
         :class:`~stiffmap.camera.InvertibleField`).
     """
-    img = check_image(image, uint16=True)
-    T = check_board2cam(board2cam)
-    if not isinstance(board, Chessboard):
-        raise ValueError(f"the photometric model is for chessboards, got {type(board).__name__}")
-    if phase not in (0, 1):
-        raise ValueError(f"phase must be 0 or 1, got {phase!r}")
-    if int(shading_degree) not in (0, 1, 2):
-        raise ValueError(f"shading_degree must be 0, 1 or 2, got {shading_degree}")
-    if not (np.isfinite(blur_px) and blur_px > 0):
-        raise ValueError(f"blur_px must be positive, got {blur_px}")
-    band = max(BAND_SIGMAS * blur_px, BAND_MIN_PX) if band_px is None else float(band_px)
-    if not (np.isfinite(band) and band > 0):
-        raise ValueError(f"band_px must be positive, got {band_px}")
+    img, T, band = _check_inputs(image, board, board2cam, camera, band_px, blur_px, shading_degree, phase)
     h, w = img.shape
-    if camera.image_size != (w, h):
-        raise ValueError(
-            f"image is {w}x{h} px but the camera is {camera.image_size[0]}x{camera.image_size[1]} px"
-        )
-    s = board.square_mm
-    cols, rows = board.cols, board.rows
-    # Bounding box of the checkered area grown by 0.6 square.
-    grow = 0.6 * s
-    extent = (-s - grow, -s - grow, cols * s + grow, rows * s + grow)
-    try:
-        uv = camera.project_rectangle(T, extent, samples=33)
-    except ValueError:
-        raise PhotometricError("the board reaches behind the camera") from None
-    # Pixels c0..c1-1, r0..r1-1: their neighbours (for the local scale) are in the image.
-    c0 = max(int(np.floor(uv[:, 0].min())), 1)
-    c1 = min(int(np.ceil(uv[:, 0].max())) + 1, w - 1)
-    r0 = max(int(np.floor(uv[:, 1].min())), 1)
-    r1 = min(int(np.ceil(uv[:, 1].max())) + 1, h - 1)
-    if c1 - c0 < 8 or r1 - r0 < 8:
-        raise PhotometricError("the board is outside the image")
+    region = _region(board, camera, T, w, h)
     rm = pixel_rays(camera)
-    corr_x, corr_y = rm.correction_maps
-    try:
-        Hi = ray2board_homography(T)
-    except ValueError as e:
-        raise PhotometricError(str(e)) from None
-    h32 = Hi.astype(np.float32)
-
-    cxf, cyf = corr_x.ravel(), corr_y.ravel()
-
-    def plane(u_i, v_i):
-        """Board (X, Y) in float32 (1e-4 px is plenty to choose pixels) and w2 of pixels (u, v)."""
-        flat = v_i * w + u_i
-        rx = rm.px32[u_i] + cxf.take(flat)
-        ry = rm.py32[v_i] + cyf.take(flat)
-        w2 = h32[2, 0] * rx + h32[2, 1] * ry + h32[2, 2]
-        iw = np.float32(1.0) / w2
-        return (
-            (h32[0, 0] * rx + h32[0, 1] * ry + h32[0, 2]) * iw,
-            (h32[1, 0] * rx + h32[1, 1] * ry + h32[1, 2]) * iw,
-            w2,
-        )
-
-    sf = np.float32(s)
-    # Corner zones at least as wide as the band: every pixel kept is near one line only.
-    cz = max(CORNER_SIGMAS * blur_px, band)
-
-    def outside(Z, n, isz):
-        """Distance (px) outside the checkered area along one axis (negative inside)."""
-        return np.maximum(-sf - Z, Z - n * sf) * isz
-
-    # Coarse pass on 4 x 4 tiles, sampled at one pixel of each (every pixel of a tile lies
-    # within 2.9 px of it): keep the tiles that may hold pixels near a line.
-    tu = np.arange(c0, c1, 4)
-    tv = np.arange(r0, r1, 4)
-    su = np.minimum(tu + 2, c1 - 1)
-    sv = np.minimum(tv + 2, r1 - 1)
-    Xc, Yc, w2c = plane(su[None, :], sv[:, None])
-    gx = np.gradient(Xc) if min(Xc.shape) > 1 else None
-    gy = np.gradient(Yc) if min(Yc.shape) > 1 else None
-    if gx is None or gy is None:
-        raise PhotometricError("the board is too small in the image")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        isXc = np.float32(4.0) / np.sqrt(gx[0] ** 2 + gx[1] ** 2)
-        isYc = np.float32(4.0) / np.sqrt(gy[0] ** 2 + gy[1] ** 2)
-        reach = band + 3.0
-        dXc = np.abs(Xc - np.clip(np.rint(Xc / sf), -1, cols) * sf) * isXc
-        dYc = np.abs(Yc - np.clip(np.rint(Yc / sf), -1, rows) * sf) * isYc
-        tiles = (
-            ((dXc < reach) & (outside(Yc, rows, isYc) <= reach))
-            | ((dYc < reach) & (outside(Xc, cols, isXc) <= reach))
-        ) & (w2c > 0)
-    ti, tj = np.nonzero(tiles)  # tile row, tile column
-    off_v, off_u = (a.ravel() for a in np.meshgrid(np.arange(4), np.arange(4), indexing="ij"))
-    v_i = (tv[ti][:, None] + off_v[None, :]).ravel()
-    u_i = (tu[tj][:, None] + off_u[None, :]).ravel()
-    tile = np.repeat(np.arange(ti.size), 16)
-    inb = (v_i < r1) & (u_i < c1)
-    v_i, u_i, tile = v_i[inb], u_i[inb], tile[inb]
-    isX = isXc[ti, tj][tile]
-    isY = isYc[ti, tj][tile]
-    # Fine selection of the candidate pixels.
-    X, Y, w2 = plane(u_i, v_i)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        kx = np.clip(np.rint(X / sf), -1, cols)
-        ky = np.clip(np.rint(Y / sf), -1, rows)
-        dX = np.abs(X - kx * sf) * isX
-        dY = np.abs(Y - ky * sf) * isY
-        near_x = (dX < band) & (outside(Y, rows, isY) <= band)
-        near_y = (dY < band) & (outside(X, cols, isX) <= band)
-        if not outer_edges:
-            near_x &= (kx > -1) & (kx < cols) & (outside(Y, rows, isY) < -band)
-            near_y &= (ky > -1) & (ky < rows) & (outside(X, cols, isX) < -band)
-        if inner_only:
-            near_x &= (kx > -1) & (kx < cols) & (Y >= 0) & (Y <= (rows - 1) * sf)
-            near_y &= (ky > -1) & (ky < rows) & (X >= 0) & (X <= (cols - 1) * sf)
-        sel = (near_x | near_y) & ~((dX < cz) & (dY < cz)) & (w2 > 0)
-    vals = img.ravel().take(v_i * w + u_i)
-    sat = np.iinfo(img.dtype).max if saturation is None else int(saturation)
-    sel &= (vals < sat) & (vals > 0)
-    # Only pixels whose rays are right: inside the field where the lens model is invertible.
-    n_out = 0
-    if not rm.covers_image:
-        in_field = rm.valid_map.ravel().take(v_i * w + u_i)
-        n_out = int(np.count_nonzero(sel & ~in_field))
-        sel &= in_field
-    polys = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in exclude]
-    if polys:
-        m = np.zeros((r1 - r0, c1 - c0), dtype=np.uint8)
-        for p in polys:
-            if p.shape[0] >= 3 and np.all(np.isfinite(p)):
-                q = np.rint((p - [c0, r0]) * 16).astype(np.int32)
-                cv2.fillPoly(m, [q], 1, lineType=cv2.LINE_8, shift=4)
-        sel &= m[v_i - r0, u_i - c0] == 0
-    idx = np.flatnonzero(sel)
-    n = idx.size
-    if n < MIN_PIXELS:
-        msg = f"only {n} usable pixels near the board's edges (at least {MIN_PIXELS})"
-        if n_out:
-            msg += f"; {n_out} lie beyond the lens model's invertible field: {rm.field.describe()}"
-        raise PhotometricError(msg)
-    ui, vi = u_i[idx], v_i[idx]
-    X, Y, dX, dY, kx, ky = X[idx], Y[idx], dX[idx], dY[idx], kx[idx], ky[idx]
-    u = ui.astype(np.float64)
-    v = vi.astype(np.float64)
-    # Local scale |grad_p X|, |grad_p Y| (mm/px) and edge directions: those of the pixel's tile
-    # (they vary by ~0.1 % over 4 px; they set the blur's width, not the edges' positions).
-    tk = (ti[tile[idx]], tj[tile[idx]])
-    gXu, gXv = gx[1][tk].astype(np.float64), gx[0][tk].astype(np.float64)
-    gYu, gYv = gy[1][tk].astype(np.float64), gy[0][tk].astype(np.float64)
-    sXk = 1.0 / isXc[tk].astype(np.float64)
-    sYk = 1.0 / isYc[tk].astype(np.float64)
-    kxs = kx.astype(np.int64)
-    kys = ky.astype(np.int64)
-    fx0, fx1, gx0, gx1 = _jumps(kxs, cols, phase)
-    fy0, fy1, gy0, gy1 = _jumps(kys, rows)
-    # Which side of its line is black (the squares either side: (k - 1, j) and (k, j)).
-    on_x = dX <= dY
-    jx = np.floor(Y / sf).astype(np.int64)  # square row of an X-edge pixel
-    iy = np.floor(X / sf).astype(np.int64)  # square column of a Y-edge pixel
-    bsx = np.where(on_x, _black_side(kxs, jx, cols, rows, phase), 0.0)
-    bsy = np.where(on_x, 0.0, _black_side(kys, iy, rows, cols, phase))
-    # Direction of the edge's normal in the image (the gradient of X or Y).
-    nu = np.where(on_x, gXu, gYu)
-    nv = np.where(on_x, gXv, gYv)
-    n2 = nu * nu + nv * nv
-    c2 = (nu * nu - nv * nv) / n2
-    s2 = 2.0 * nu * nv / n2
-    u0, v0 = 0.5 * (c0 + c1 - 1), 0.5 * (r0 + r1 - 1)
-    L = 0.5 * max(c1 - c0, r1 - r0, 2)
+    plane = _BoardPlane(rm, T, w)
+    tiles = _coarse_tiles(plane, region, board, band)
+    cand = _near_edges(plane, tiles, board, band, blur_px, outer_edges, inner_only)
+    idx, vals = _usable(img, rm, region, tiles, cand, saturation, exclude)
     return PhotometricSetup(
         board=board,
-        rx=rm.px[ui] + corr_x[vi, ui],
-        ry=rm.py[vi] + corr_y[vi, ui],
-        u=u,
-        v=v,
-        values=vals[idx].astype(np.float64),
-        line_x=kxs * s,
-        line_y=kys * s,
-        isx=1.0 / sXk,
-        isy=1.0 / sYk,
-        bsx=bsx,
-        bsy=bsy,
-        c2=c2,
-        s2=s2,
-        fx0=fx0,
-        fx1=fx1,
-        gx0=gx0,
-        gx1=gx1,
-        fy0=fy0,
-        fy1=fy1,
-        gy0=gy0,
-        gy1=gy1,
-        basis=_monomials((u - u0) / L, (v - v0) / L, int(shading_degree)),
-        centre=(u0, v0),
-        length=L,
-        region=(c0, r0, c1, r1),
+        values=vals.astype(np.float64),
+        **_pixel_geometry(rm, tiles, idx, region, int(shading_degree)),
+        **_edge_geometry(tiles, cand, idx, board, phase),
+        region=region,
     )

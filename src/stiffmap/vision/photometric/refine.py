@@ -405,6 +405,147 @@ def _check_followed(camera, board, T0, T, s2: float, s2_prev: float) -> None:
         )
 
 
+def _check_refine_inputs(board, camera, blur_init_px) -> None:
+    if isinstance(board, CharucoBoard):
+        raise ValueError("the photometric model does not describe ChArUco boards (markers); use corners")
+    if not isinstance(board, Chessboard):
+        raise ValueError(f"board must be a Chessboard, got {type(board).__name__}")
+    if not isinstance(camera, CameraModel):
+        raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
+    if not (np.isfinite(blur_init_px) and blur_init_px > 0):
+        raise ValueError(f"blur_init_px must be positive, got {blur_init_px}")
+
+
+def _selector(img, board, camera, fail, *, band_px, shading_degree, outer_edges, exclude, phase, inner_only):
+    """The pixel selection at a pose and a blur (:func:`prepare_pixels`), its failure worded by ``fail``."""
+
+    def select(T, sig) -> PhotometricSetup:
+        try:
+            return prepare_pixels(
+                img,
+                board,
+                camera,
+                T,
+                band_px=band_px,
+                blur_px=sig,
+                shading_degree=shading_degree,
+                outer_edges=outer_edges,
+                exclude=exclude,
+                phase=phase,
+                inner_only=inner_only,
+            )
+        except PhotometricError as e:
+            raise fail(e.detail) from None
+
+    return select
+
+
+@dataclass
+class _Outcome:
+    """An accepted fit (warm or cold) and what the track keeps of it.
+
+    ``warm`` is the warm start it came from (None: a cold fit); ``full`` whether a warm fit's
+    set-up is the whole pixel set; ``select_pose`` and ``select_blur`` where a cold fit chose
+    its pixels.
+    """
+
+    setup: PhotometricSetup
+    sol: object
+    noise: tuple[float, float]
+    iters: int
+    ok: object
+    warm: dict | None = None
+    full: bool = False
+    select_pose: np.ndarray | None = None
+    select_blur: float | None = None
+
+
+def _warm_outcome(img, board, camera, warm, T0, settings, select, fail, warm_only) -> _Outcome | None:
+    """The fit started from the previous image's, accepted; None when it fails and the cold
+    fit follows (with ``warm_only`` its failure is raised instead)."""
+    huber, max_iter, max_outlier_fraction = settings
+    try:
+        n_iter = min(max_iter, FOLLOW_MAX_ITER) if warm_only else max_iter
+        setup, sol, (alpha, beta), iters, full = _warm_fit(
+            img, board, camera, warm, T0, huber, n_iter, select, follow=warm_only
+        )
+        ok = accept_fit(sol, setup, n_iter, max_outlier_fraction)
+        if warm_only:
+            _check_followed(camera, board, T0, sol.state.T, ok.s2, warm["s2"])
+    except PhotometricError as e:
+        if warm_only:
+            raise fail(e.detail) from None
+        return None  # the image differs from the previous one: today's fit from the start
+    return _Outcome(setup, sol, (alpha, beta), iters, ok, warm=warm, full=full)
+
+
+def _cold_outcome(T0, blur_init, settings, select, fail, track) -> _Outcome:
+    """Today's fit from the start pose, accepted (a refused fit clears the track)."""
+    huber, max_iter, max_outlier_fraction = settings
+    setup, sol, (alpha, beta), iters, select_pose, select_blur = _cold_fit(
+        T0, blur_init, huber, max_iter, select, fail
+    )
+    try:
+        ok = accept_fit(sol, setup, max_iter, max_outlier_fraction)
+    except PhotometricError as e:
+        if track is not None:
+            track.clear()
+        raise fail(e.detail) from None
+    return _Outcome(setup, sol, (alpha, beta), iters, ok, select_pose=select_pose, select_blur=select_blur)
+
+
+def _corner_residuals(detection, T, camera):
+    """The detected corners' reprojection residuals at pose T: (residuals (m, 2) px, m,
+    rms px, sigma px); none (NaN) without a detection."""
+    if detection is not None and detection.n_corners > 0:
+        obj = detection.object_points()
+        uv, _ = projection_jacobian(T, obj, camera)
+        res = np.asarray(detection.corners, dtype=np.float64) - uv
+        mc = len(obj)
+        rms_px = float(np.sqrt(np.mean(np.sum(res**2, axis=1))))
+        sigma_px = float(np.sqrt(np.sum(res**2) / max(2 * mc - 6, 1)))
+        return res, mc, rms_px, sigma_px
+    return np.zeros((0, 2)), 0, float("nan"), float("nan")
+
+
+def _fit_quality(out: _Outcome, t_start: float, inner_only: bool) -> PhotometricFit:
+    st, sol, ok = out.sol.state, out.sol, out.ok
+    e, var = sol.e, sol.var
+    return PhotometricFit(
+        rms_dn=float(np.sqrt(np.mean(e * e))),
+        noise_rms_dn=float(np.sqrt(np.mean(var))),
+        scale=float(np.sqrt(ok.s2)),
+        n_pixels=int(e.size),
+        outlier_fraction=ok.outlier_fraction,
+        blur_px=float(st.sig[0]),
+        blur_anisotropy_px=(float(st.sig[1]), float(st.sig[2])),
+        dilation_px=float(st.dil[0]),
+        dilation_anisotropy_px=(float(st.dil[1]), float(st.dil[2])),
+        noise_model=out.noise,
+        shading_a=st.a.copy(),
+        shading_b=st.b.copy(),
+        iterations=out.iters,
+        converged=sol.converged,
+        seconds=time.perf_counter() - t_start,
+        warm_start=out.warm is not None,
+        inner_only=bool(inner_only),
+    )
+
+
+def _record(track: PhotometricTrack, out: _Outcome, img, T0, exclude, options, board, camera) -> None:
+    """Keep the fit in the track for the next image."""
+    st, sol, s2 = out.sol.state, out.sol, out.ok.s2
+    if out.warm is None:
+        track.record_cold(
+            img, out.setup, out.select_pose, out.select_blur, exclude, options, st, sol, board, camera, s2
+        )
+    else:
+        track.record_warm(img, out.warm, T0, exclude, st, sol, out.setup, out.full, s2)
+
+
+# Longer than ~80 lines for its interface alone: 17 keyword parameters (the public API, kept as
+# callers use it) and their documentation take ~100 lines; the body (~50 lines) is the steps
+# above (_selector, _warm_outcome or _cold_outcome, _corner_residuals, _fit_quality, _record).
 def refine_pose_photometric(
     image,
     board: Chessboard,
@@ -495,14 +636,7 @@ def refine_pose_photometric(
         Inputs of the wrong type or shape.
     """
     t_start = time.perf_counter()
-    if isinstance(board, CharucoBoard):
-        raise ValueError("the photometric model does not describe ChArUco boards (markers); use corners")
-    if not isinstance(board, Chessboard):
-        raise ValueError(f"board must be a Chessboard, got {type(board).__name__}")
-    if not isinstance(camera, CameraModel):
-        raise ValueError(f"camera must be a CameraModel, got {type(camera).__name__}")
-    if not (np.isfinite(blur_init_px) and blur_init_px > 0):
-        raise ValueError(f"blur_init_px must be positive, got {blur_init_px}")
+    _check_refine_inputs(board, camera, blur_init_px)
     T0 = check_board2cam(board2cam_init)
     img = check_image(image, uint16=True)
     colour_phase = int(phase if phase is not None else getattr(detection, "phase", 0))
@@ -511,104 +645,43 @@ def refine_pose_photometric(
         return PhotometricError(f"{board.size} chessboard: photometric fit: {msg}", source=source)
 
     options = (band_px, int(shading_degree), bool(outer_edges), colour_phase, bool(inner_only))
-
-    def select(T, sig) -> PhotometricSetup:
-        try:
-            return prepare_pixels(
-                img,
-                board,
-                camera,
-                T,
-                band_px=band_px,
-                blur_px=sig,
-                shading_degree=shading_degree,
-                outer_edges=outer_edges,
-                exclude=exclude,
-                phase=colour_phase,
-                inner_only=inner_only,
-            )
-        except PhotometricError as e:
-            raise fail(e.detail) from None
-
+    select = _selector(
+        img,
+        board,
+        camera,
+        fail,
+        band_px=band_px,
+        shading_degree=shading_degree,
+        outer_edges=outer_edges,
+        exclude=exclude,
+        phase=colour_phase,
+        inner_only=inner_only,
+    )
+    settings = (huber, max_iter, max_outlier_fraction)
     warm = track.start(img, board, camera, T0, exclude, options) if track is not None else None
-    sol = None
     if warm_only and warm is None:
         raise fail("no warm start from the previous image")
+    out = None
     if warm is not None:
-        try:
-            n_iter = min(max_iter, FOLLOW_MAX_ITER) if warm_only else max_iter
-            setup, sol, (alpha, beta), iters, full = _warm_fit(
-                img, board, camera, warm, T0, huber, n_iter, select, follow=warm_only
-            )
-            ok = accept_fit(sol, setup, n_iter, max_outlier_fraction)
-            if warm_only:
-                _check_followed(camera, board, T0, sol.state.T, ok.s2, warm["s2"])
-        except PhotometricError as e:
-            if warm_only:
-                raise fail(e.detail) from None
-            sol = None  # the image differs from the previous one: today's fit from the start
-    if sol is None:
-        warm = None
-        setup, sol, (alpha, beta), iters, select_pose, select_blur = _cold_fit(
-            T0, float(blur_init_px), huber, max_iter, select, fail
-        )
-        try:
-            ok = accept_fit(sol, setup, max_iter, max_outlier_fraction)
-        except PhotometricError as e:
-            if track is not None:
-                track.clear()
-            raise fail(e.detail) from None
-    st = sol.state
-    e, var = sol.e, sol.var
-    T = st.T.copy()
+        out = _warm_outcome(img, board, camera, warm, T0, settings, select, fail, warm_only)
+    if out is None:
+        out = _cold_outcome(T0, float(blur_init_px), settings, select, fail, track)
+    T = out.sol.state.T.copy()
     U, _, Vt = np.linalg.svd(T[:3, :3])
     T[:3, :3] = U @ Vt
-    if detection is not None and detection.n_corners > 0:
-        obj = detection.object_points()
-        uv, _ = projection_jacobian(T, obj, camera)
-        res = np.asarray(detection.corners, dtype=np.float64) - uv
-        mc = len(obj)
-        rms_px = float(np.sqrt(np.mean(np.sum(res**2, axis=1))))
-        sigma_px = float(np.sqrt(np.sum(res**2) / max(2 * mc - 6, 1)))
-    else:
-        res = np.zeros((0, 2))
-        mc = 0
-        rms_px = sigma_px = float("nan")
-    fit = PhotometricFit(
-        rms_dn=float(np.sqrt(np.mean(e * e))),
-        noise_rms_dn=float(np.sqrt(np.mean(var))),
-        scale=float(np.sqrt(ok.s2)),
-        n_pixels=int(e.size),
-        outlier_fraction=ok.outlier_fraction,
-        blur_px=float(st.sig[0]),
-        blur_anisotropy_px=(float(st.sig[1]), float(st.sig[2])),
-        dilation_px=float(st.dil[0]),
-        dilation_anisotropy_px=(float(st.dil[1]), float(st.dil[2])),
-        noise_model=(alpha, beta),
-        shading_a=st.a.copy(),
-        shading_b=st.b.copy(),
-        iterations=iters,
-        converged=sol.converged,
-        seconds=time.perf_counter() - t_start,
-        warm_start=warm is not None,
-        inner_only=bool(inner_only),
-    )
+    res, mc, rms_px, sigma_px = _corner_residuals(detection, T, camera)
+    fit = _fit_quality(out, t_start, inner_only)
     if track is not None:
-        if warm is None:
-            track.record_cold(
-                img, setup, select_pose, select_blur, exclude, options, st, sol, board, camera, ok.s2
-            )
-        else:
-            track.record_warm(img, warm, T0, exclude, st, sol, setup, full, ok.s2)
+        _record(track, out, img, T0, exclude, options, board, camera)
     return BoardPose(
         board2cam=T,
-        cov=ok.cov,
+        cov=out.ok.cov,
         rms_px=rms_px,
         n_corners=mc,
         residuals_px=res,
         sigma_px=sigma_px,
-        condition=ok.condition,
-        iterations=iters,
+        condition=out.ok.condition,
+        iterations=out.iters,
         method="photometric",
         photometric=fit,
     )

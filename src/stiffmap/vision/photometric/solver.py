@@ -282,6 +282,68 @@ def gauss_newton(
     :class:`~stiffmap.vision.photometric.pixels.PhotometricError`).
     """
     nb = setup.basis.shape[0]
+    evaluate, cur = _first_iterate(setup, st, noise_var, huber, chord, start)
+    # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
+    # steps within that are taken as not raising it (a diverging step raises it far more).
+    slack = 1.0 if evaluate.dtype == np.float32 else 0.0
+    lam = 1e-6
+    it = 0
+    chords = 0
+    converged = False
+    while it < max_iter:
+        it += 1
+        trial, lam = _trial_step(evaluate, cur, lam, tol, chord, chords, nb, slack)
+        if not trial.accepted and (chords or not cur.fresh):
+            _linearise(evaluate, cur)
+            chord = chords = 0  # plain Gauss-Newton from here
+            continue
+        if not trial.accepted:
+            converged = True  # no step lowers the cost: at the minimum to rounding
+            break
+        cur.st, cur.e, cur.var, cur.hw = trial.new, trial.e2, trial.var2, trial.hw2
+        if watch is not None:
+            watch(cur.st)
+        lam = max(lam / 10, 1e-9)
+        if trial.ended or (trial.last and cur.fresh):
+            converged = True
+            break
+        if trial.relinearise:
+            evaluate.commit()
+            cur.A, cur.g = trial.A2, trial.g2
+            cur.w = cur.hw / cur.var
+            chords = 0
+            cur.fresh = cur.near = True
+        else:
+            cur.near = _distance_sigma(cur.st, evaluate.lin_state, cur.A) < CHORD_SIGMA
+            cur.w = evaluate.weights
+            cur.g = evaluate.gradient(cur.e, cur.w)
+            chords += 1
+            cur.fresh = False
+    lin = Linearisation(evaluate, cur.A, evaluate.lin_state) if evaluate.keep else None
+    return Solution(cur.st, it, converged, cur.e, cur.var, cur.hw, cur.A, lin)
+
+
+@dataclass
+class _Iterate:
+    """The fit's current state, its residuals, noise variance and Huber weights, and the normal
+    matrix A, gradient g and weights w the next step is solved with. ``fresh``: the
+    linearisation was taken at ``st``; ``near``: at ``st`` or near enough for a chord step to
+    end the fit."""
+
+    st: FitState
+    e: np.ndarray
+    var: np.ndarray
+    hw: np.ndarray
+    A: np.ndarray
+    g: np.ndarray
+    w: np.ndarray
+    fresh: bool
+    near: bool
+
+
+def _first_iterate(setup, st, noise_var, huber, chord, start) -> tuple[_Evaluator, _Iterate]:
+    """The evaluator and the first iterate: from ``start``'s linearisation (a chord fit near the
+    previous image's), else a linearisation at ``st``."""
     if start is not None and chord > 0:
         evaluate = start.evaluator
         evaluate.rebind(setup, noise_var)
@@ -294,100 +356,103 @@ def gauss_newton(
             e, var, hw, _, _ = evaluate(st, jacobian=False)
         w = evaluate.weights
         g = evaluate.gradient(e, w)
-        fresh = False  # the linearisation is the previous image's, not at st
-    else:
-        evaluate = _Evaluator(setup, noise_var, huber, keep=chord > 0)
-        e, var, hw, A, g = evaluate(st)
-        evaluate.commit()
-        w = hw / var
-        fresh = near = True
-    # Single precision rounds the model by ~1e-3 DN, which moves the cost by up to ~1 (chi^2):
-    # steps within that are taken as not raising it (a diverging step raises it far more).
-    slack = 1.0 if evaluate.dtype == np.float32 else 0.0
-    lam = 1e-6
-    it = 0
-    chords = 0
-    converged = False
-    while it < max_iter:
-        it += 1
-        cost = wsum(w, e)
-        d = np.sqrt(np.diag(A))
-        d[d == 0] = 1.0
-        An = A / np.outer(d, d)
-        gn = g / d
-        accepted = last = ended = False
-        # near: the linearisation was taken at st, or near enough for a chord step to end the fit.
-        for attempt in range(10):
-            M = An + lam * np.eye(An.shape[0])
-            try:
-                step = np.linalg.solve(M, gn) / d
-            except np.linalg.LinAlgError:
-                lam = max(lam * 10, 1e-6)
-                continue
-            new = _moved(st, step, nb)
-            if new is None:
-                lam = max(lam * 10, 1e-6)
-                continue
-            length2 = float(step @ A @ step)
-            last = length2 < tol * tol
-            relinearise = True
-            if chord:
-                if attempt == 0 and near and length2 < CHORD_SIGMA**2:
-                    # The last step, taken without evaluating the model again: the residuals,
-                    # noise and weights stay those before it (the cost they give is higher by
-                    # at most CHORD_SIGMA^2 = 100 in sum w e^2 ~ N: s^2 by < 100 / N, 0.3 % for
-                    # the ~30000 pixels of a board). Its gradient takes this state's Huber weights
-                    # (over the linearisation's noise variance, its normal matrix's): the board
-                    # barely moved, its residuals are at noise level but for real outliers, and a
-                    # pixel newly hidden is down-weighted. (The chord steps before keep the
-                    # linearisation's: a board that moved by 100 sigma has residuals of a few
-                    # noise sigmas along every edge, which its own Huber weights would cut.)
-                    end_step = np.linalg.solve(M, evaluate.gradient(e, hw / evaluate.var_lin) / d) / d
-                    end = _moved(st, end_step, nb)
-                    if end is not None and float(end_step @ A @ end_step) < CHORD_SIGMA**2:
-                        new, e2, var2, hw2 = end, e, var, hw
-                        accepted = ended = True
-                        break
-                relinearise = chords >= chord or not _distance_sigma(new, evaluate.lin_state, A) < CHORD_SIGMA
-            e2, var2, hw2, A2, g2 = evaluate(new, jacobian=relinearise)
-            # Cost at the same weights (IRLS): accept when it does not increase.
-            if wsum(w, e2) <= cost * (1 + 1e-12) + slack:
-                accepted = True
-                break
-            if chords:  # a chord step that fails: linearise again where we are
-                break
+        # fresh False: the linearisation is the previous image's, not at st
+        return evaluate, _Iterate(st, e, var, hw, A, g, w, fresh=False, near=near)
+    evaluate = _Evaluator(setup, noise_var, huber, keep=chord > 0)
+    cur = _Iterate(st, *([None] * 6), fresh=True, near=True)
+    _linearise(evaluate, cur)
+    return evaluate, cur
+
+
+def _linearise(evaluate: _Evaluator, cur: _Iterate) -> None:
+    """Linearise at the current state (plain Gauss-Newton's step)."""
+    cur.e, cur.var, cur.hw, cur.A, cur.g = evaluate(cur.st)
+    evaluate.commit()
+    cur.w = cur.hw / cur.var
+    cur.fresh = cur.near = True
+
+
+@dataclass
+class _Trial:
+    """The outcome of one iteration's step: whether one was ``accepted`` (the new state, its
+    residuals, noise and Huber weights, and its normal matrix and gradient when
+    ``relinearise``), whether it ``ended`` the fit (a chord step) or was the ``last``
+    (shorter than the tolerance)."""
+
+    accepted: bool = False
+    ended: bool = False
+    last: bool = False
+    relinearise: bool = True
+    new: FitState | None = None
+    e2: np.ndarray | None = None
+    var2: np.ndarray | None = None
+    hw2: np.ndarray | None = None
+    A2: np.ndarray | None = None
+    g2: np.ndarray | None = None
+
+
+def _trial_step(evaluate, cur: _Iterate, lam, tol, chord, chords, nb, slack) -> tuple[_Trial, float]:
+    """A damped step from the current iterate, the damping raised until the cost does not
+    increase (up to 10 attempts; a chord step that fails is not retried); the damping after."""
+    cost = wsum(cur.w, cur.e)
+    d = np.sqrt(np.diag(cur.A))
+    d[d == 0] = 1.0
+    An = cur.A / np.outer(d, d)
+    gn = cur.g / d
+    trial = _Trial()
+    for attempt in range(10):
+        M = An + lam * np.eye(An.shape[0])
+        try:
+            step = np.linalg.solve(M, gn) / d
+        except np.linalg.LinAlgError:
             lam = max(lam * 10, 1e-6)
-        if not accepted and (chords or not fresh):
-            e, var, hw, A, g = evaluate(st)
-            evaluate.commit()
-            w = hw / var
-            chord = chords = 0  # plain Gauss-Newton from here
-            fresh = near = True
             continue
-        if not accepted:
-            converged = True  # no step lowers the cost: at the minimum to rounding
+        new = _moved(cur.st, step, nb)
+        if new is None:
+            lam = max(lam * 10, 1e-6)
+            continue
+        length2 = float(step @ cur.A @ step)
+        trial.last = length2 < tol * tol
+        trial.relinearise = True
+        if chord:
+            if attempt == 0 and cur.near and length2 < CHORD_SIGMA**2:
+                end = _ending_step(evaluate, cur, M, d, nb)
+                if end is not None:
+                    trial.new, trial.e2, trial.var2, trial.hw2 = end, cur.e, cur.var, cur.hw
+                    trial.accepted = trial.ended = True
+                    break
+            trial.relinearise = (
+                chords >= chord or not _distance_sigma(new, evaluate.lin_state, cur.A) < CHORD_SIGMA
+            )
+        trial.new = new
+        trial.e2, trial.var2, trial.hw2, trial.A2, trial.g2 = evaluate(new, jacobian=trial.relinearise)
+        # Cost at the same weights (IRLS): accept when it does not increase.
+        if wsum(cur.w, trial.e2) <= cost * (1 + 1e-12) + slack:
+            trial.accepted = True
             break
-        st, e, var, hw = new, e2, var2, hw2
-        if watch is not None:
-            watch(st)
-        lam = max(lam / 10, 1e-9)
-        if ended or (last and fresh):
-            converged = True
+        if chords:  # a chord step that fails: linearise again where we are
             break
-        if relinearise:
-            evaluate.commit()
-            A, g = A2, g2
-            w = hw / var
-            chords = 0
-            fresh = near = True
-        else:
-            near = _distance_sigma(st, evaluate.lin_state, A) < CHORD_SIGMA
-            w = evaluate.weights
-            g = evaluate.gradient(e, w)
-            chords += 1
-            fresh = False
-    lin = Linearisation(evaluate, A, evaluate.lin_state) if evaluate.keep else None
-    return Solution(st, it, converged, e, var, hw, A, lin)
+        lam = max(lam * 10, 1e-6)
+    return trial, lam
+
+
+def _ending_step(evaluate, cur: _Iterate, M, d, nb) -> FitState | None:
+    """The last step of a chord fit, taken without evaluating the model again (None when it
+    is not finite or not shorter than :data:`CHORD_SIGMA`).
+
+    The residuals, noise and weights stay those before it (the cost they give is higher by at
+    most CHORD_SIGMA^2 = 100 in sum w e^2 ~ N: s^2 by < 100 / N, 0.3 % for the ~30000 pixels of
+    a board). Its gradient takes this state's Huber weights (over the linearisation's noise
+    variance, its normal matrix's): the board barely moved, its residuals are at noise level
+    but for real outliers, and a pixel newly hidden is down-weighted. (The chord steps before
+    keep the linearisation's: a board that moved by 100 sigma has residuals of a few noise
+    sigmas along every edge, which its own Huber weights would cut.)
+    """
+    end_step = np.linalg.solve(M, evaluate.gradient(cur.e, cur.hw / evaluate.var_lin) / d) / d
+    end = _moved(cur.st, end_step, nb)
+    if end is not None and float(end_step @ cur.A @ end_step) < CHORD_SIGMA**2:
+        return end
+    return None
 
 
 def _moved(st: FitState, step: np.ndarray, nb: int) -> FitState | None:
