@@ -30,18 +30,34 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from _table import save  # noqa: E402
 
-from stiffmap.campaign.platform import level_poses  # noqa: E402
 from stiffmap.campaign.store import DB_NAME, Store  # noqa: E402
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
-from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K  # noqa: E402
+from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K, HEXAPOD_TESTBED_POSITIONS  # noqa: E402
 from stiffmap.models.legs import LegRobot  # noqa: E402
 
 NAMES = [f"k_leg{i}" for i in range(1, 7)]
 
 
-def campaign(root: Path, seed: int, select: str, repeats: int, workers: int) -> dict:
+def turned_poses(path: Path) -> Path:
+    """The test-bed's 18 positions with the platform turned (``--turned``): roll and pitch in
+    {-10, -5, 0, 5, 10} degrees, a different pair at each position, yaw 0 (a CSV for --positions)."""
+    rows = ["x,y,z,roll_deg,pitch_deg,yaw_deg"]
+    for k, p in enumerate(HEXAPOD_TESTBED_POSITIONS.split(";")):
+        rows.append(f"{p},{((7 * k) % 5 - 2) * 5},{((3 * k + 1) % 5 - 2) * 5},0")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def _pose(p: dict) -> list[float]:
+    """truth.json's pose of a position: x, y, z mm and roll, pitch, yaw rad (level when not turned)."""
+    return [*p["position"], *np.radians(p.get("orientation_deg", [0.0, 0.0, 0.0]))]
+
+
+def campaign(root: Path, seed: int, select: str, repeats: int, workers: int, positions=None) -> dict:
     t0 = time.perf_counter()
     args = ["simulate", str(root), "--robot", "hexapod", "--seed", str(seed), "--select", select]
+    if positions is not None:
+        args += ["--positions", str(positions)]
     rc = stiffmap([*args, "--repeats", str(repeats), "--workers", str(workers), "--json"])
     if rc not in (0, None):
         raise SystemExit(f"simulate failed ({rc})")
@@ -52,6 +68,7 @@ def campaign(root: Path, seed: int, select: str, repeats: int, workers: int) -> 
     truth = json.loads((root / "truth.json").read_text())
     Kt = {p["index"]: np.array(p["K"]) for p in truth["positions"]}
     K6t = {p["index"]: np.array(p["K_tcp"]) for p in truth["positions"]}
+    poses = {p["index"]: _pose(p) for p in truth["positions"]}
     with Store(root / DB_NAME) as st:
         fit = st.model_fit("stiffness")
         rows = st.stiffness_rows()
@@ -65,7 +82,7 @@ def campaign(root: Path, seed: int, select: str, repeats: int, workers: int) -> 
         if r.status != "ok":
             continue
         k_err.append(np.linalg.norm(np.array(r.K) - Kt[r.position]) / np.linalg.norm(Kt[r.position]))
-        K6 = model.stiffness6(level_poses([[r.x, r.y, r.z]]))[0]
+        K6 = model.stiffness6(np.array([poses[r.position]]))[0]
         k6_err.append(np.linalg.norm((K6 - K6t[r.position]) * D) / np.linalg.norm(K6t[r.position] * D))
     return {
         "k": np.array([fit.params[n] for n in NAMES]),
@@ -83,12 +100,18 @@ def main() -> None:
     ap.add_argument("--select", default="1,5,9,10,14,18")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--turned",
+        action="store_true",
+        help="the platform turned (roll, pitch up to 10 deg)",
+    )
     args = ap.parse_args()
     truth = np.array(HEXAPOD_TESTBED_K)
     runs = []
     for seed in range(args.seeds):
         with tempfile.TemporaryDirectory(prefix="bench_hexapod_") as tmp:
-            r = campaign(Path(tmp) / "hexapod", seed, args.select, args.repeats, args.workers)
+            poses = turned_poses(Path(tmp) / "poses.csv") if args.turned else None
+            r = campaign(Path(tmp) / "hexapod", seed, args.select, args.repeats, args.workers, poses)
         runs.append(r)
         err = 100 * (r["k"] / truth - 1)
         print(f"seed {seed}: leg errors % {np.round(err, 3).tolist()}", flush=True)
@@ -110,7 +133,13 @@ def main() -> None:
     intro = (
         f"`stiffmap simulate OUT --robot hexapod --seed S --select {args.select} --repeats {args.repeats}` "
         f"then `stiffmap run OUT`, seeds 0..{args.seeds - 1}: {n_pos} positions of the test-bed's 18 "
-        "(the platform level, x, y in {-40, 0, 40} mm, z 280 and 320 mm), the reference study's nine "
+        + (
+            "(x, y in {-40, 0, 40} mm, z 280 and 320 mm; `--turned`: `--positions POSES.csv`, the platform "
+            "turned at each, roll and pitch in {-10, -5, 0, 5, 10} deg, benchmarks' turned_poses), "
+            if args.turned
+            else "(the platform level, x, y in {-40, 0, 40} mm, z 280 and 320 mm), "
+        )
+        + "the reference study's nine "
         "load cases (0.5, 0.2, 0.1 kg along +y, -x, -z) hung 100 mm below the platform's centre, one "
         "camera calibrated from 20 rendered views. Legs in N/mm; errors, standard errors and scatter in "
         "% of the truth (scatter = sqrt(mean((k - k_true)^2)) over the seeds). Pooled RMS of (estimate - "
@@ -123,8 +152,9 @@ def main() -> None:
         f"({args.workers} workers, machine shared)."
     )
     save(
-        "hexapod_campaign",
-        "Hexapod: leg stiffnesses and K6 from simulated vision campaigns",
+        "hexapod_campaign_turned" if args.turned else "hexapod_campaign",
+        "Hexapod: leg stiffnesses and K6 from simulated vision campaigns"
+        + (", the platform turned" if args.turned else ""),
         ["leg", "truth", "mean estimate", "max error %", "reported std %", "scatter %", "scatter / std"],
         rows,
         intro,

@@ -221,6 +221,9 @@ def _positions_table(config: SimConfig) -> dict[str, Any]:
     q = None if q_deg is None else q_deg(config.positions)
     if q is not None:
         return {"q_deg": q}
+    if config.orientations is not None:  # a platform held turned: x, y, z mm, roll, pitch, yaw deg
+        deg = np.round(np.degrees(config.orientations), 9) + 0.0
+        return {"poses": [[float(v) for v in (*p, *a)] for p, a in zip(config.positions, deg, strict=True)]}
     return {"list": [[float(v) for v in p] for p in config.positions]}
 
 
@@ -279,6 +282,8 @@ def _truth_dict(
         entry = {"index": i, "position": p, "K": K3, "det": float(np.linalg.det(K3)), "eigenvalues": w}
         if K.shape == (6, 6):
             entry["K_tcp"] = K
+        if config.orientations is not None:
+            entry["orientation_deg"] = np.degrees(config.orientations[i - 1])
         positions.append(entry)
     images = [
         {
