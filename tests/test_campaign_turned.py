@@ -150,3 +150,49 @@ def test_simulate_refuses_an_orientation_column_without_the_others(monkeypatch, 
     assert code == 2
     line = err.strip()
     assert "\n" not in line and str(csv) in line and "roll_deg" in line and "pitch_deg, yaw_deg" in line, err
+
+
+@pytest.mark.slow  # 5-15 s: the model at 225 poses, the example report
+def test_report_orientation_map_is_the_models_hung_K_over_roll_and_pitch(hexapod):
+    # Two orientations measured at (0, 0, 300), one elsewhere: the map is at (0, 0, 300); each
+    # grid value is the smallest eigenvalue of the hung forces' K (and of K_rot) computed here.
+    from stiffmap.campaign.platform import hung_force_stiffness as hung
+    from stiffmap.report import data as rd
+    from stiffmap.report.example import example_vision
+    from stiffmap.report.html import build_html
+    from stiffmap.report.orientations import map_poses, orientation_map, shared_orientation
+    from stiffmap.report.static_figures import orientation_figure
+
+    poses = [
+        [0.0, 0.0, 300.0, 4.0, -2.0, 1.0],
+        [0.0, 0.0, 300.0, -6.0, 12.0, 1.0],
+        [20.0, 0.0, 300.0, 0, 0, 0],
+    ]
+    spec = parse_spec(
+        _spec_text(LEGS, f"poses = {poses}").replace("[loads]", "[loads]\npoint_mm = [0.0, 0.0, -100.0]")
+    )
+    np.testing.assert_array_equal(shared_orientation(spec), [0.0, 0.0, 0.0])  # not shared: level
+    np.testing.assert_array_equal(map_poses(spec, [[1.0, 2.0, 3.0]]), [[1.0, 2.0, 3.0, 0.0, 0.0, 0.0]])
+    measured = np.array([5.0, np.nan, 6.0])
+    om = orientation_map(hexapod, spec, np.array(poses)[:, :3], [1, 2, 3], measured)
+    np.testing.assert_array_equal(om.position, [0.0, 0.0, 300.0])
+    np.testing.assert_allclose(om.measured_rpy_deg, np.array(poses)[:2, 3:], rtol=1e-12)
+    np.testing.assert_array_equal(om.measured_min_principal, [5.0, np.nan])
+    assert om.roll_deg[0] == -10.0 and om.pitch_deg[-1] == pytest.approx(12.0) == om.yaw_deg * 12
+    for j, i in ((0, 0), (7, 11), (14, 14)):
+        pose = np.r_[0.0, 0.0, 300.0, np.radians([om.roll_deg[i], om.pitch_deg[j], 1.0])]
+        K6 = hexapod.stiffness6(pose)
+        K = hung(K6, [0.0, 0.0, -100.0])
+        kt = np.linalg.eigvalsh(0.5 * (K + K.T))[0]
+        C = np.linalg.inv(K6)
+        kr = np.linalg.eigvalsh(np.linalg.inv(C[3:, 3:]))[0]
+        np.testing.assert_allclose(om.min_principal[j, i], kt, rtol=1e-9)
+        np.testing.assert_allclose(om.min_principal_rot[j, i], kr, rtol=1e-9)
+    # Through the report's data contract: a JSON round trip, both figures.
+    ex = example_vision()
+    model = replace(ex.model, orientations=om)
+    data = replace(ex, model=model)
+    again = rd.ReportData.from_dict(json.loads(json.dumps(data.to_dict())))
+    np.testing.assert_array_equal(again.model.orientations.min_principal, om.min_principal)
+    assert orientation_figure(data) is not None and "fig-orientations" in build_html(data)
+    assert orientation_figure(ex) is None  # no platform that turns: no such figure
