@@ -152,6 +152,19 @@ def test_simulate_refuses_an_orientation_column_without_the_others(monkeypatch, 
     assert "\n" not in line and str(csv) in line and "roll_deg" in line and "pitch_deg, yaw_deg" in line, err
 
 
+def test_simulate_names_a_turned_pose_a_leg_cannot_reach(monkeypatch, capsys, tmp_path):
+    csv = tmp_path / "poses.csv"
+    csv.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,300,0,0,0\n0,0,300,0,0,90\n")
+    args = ["simulate", tmp_path / "o", "--robot", "hexapod", "--truth-only", "--positions", csv]
+    code, _, err = _cli(args, monkeypatch, capsys)
+    assert code == 2, err
+    line = err.strip()
+    assert "\n" not in line and line.startswith(
+        f"error: {csv}: position 2 (0, 0, 300) mm, roll/pitch/yaw 0, 0, 90"
+    )
+    assert "leg 2 (leg2)" in line and "beyond its limits [260, 440] mm" in line
+
+
 @pytest.mark.slow  # 5-15 s: the model at 225 poses, the example report
 def test_report_orientation_map_is_the_models_hung_K_over_roll_and_pitch(hexapod):
     # Two orientations measured at (0, 0, 300), one elsewhere: the map is at (0, 0, 300); each
@@ -196,3 +209,43 @@ def test_report_orientation_map_is_the_models_hung_K_over_roll_and_pitch(hexapod
     np.testing.assert_array_equal(again.model.orientations.min_principal, om.min_principal)
     assert orientation_figure(data) is not None and "fig-orientations" in build_html(data)
     assert orientation_figure(ex) is None  # no platform that turns: no such figure
+
+
+@pytest.mark.long
+def test_turned_hexapod_campaign_recovers_K6_and_its_legs_and_reports_them(monkeypatch, capsys, tmp_path):
+    # simulate then run then report, three turned poses, one repeat: every K6 within 2 % (relative
+    # Frobenius, rad as L mm) at its pose, the six legs within 1 %; the report maps over orientations.
+    from stiffmap.campaign.store import DB_NAME, Store
+    from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K
+
+    csv = tmp_path / "poses.csv"
+    rows = [
+        [0.0, 0.0, 300.0, 8.0, -6.0, 0.0],
+        [0.0, 0.0, 300.0, -5.0, 10.0, 0.0],
+        [40.0, -40.0, 280.0, 0, 5, 0],
+    ]
+    csv.write_text(
+        "x,y,z,roll_deg,pitch_deg,yaw_deg\n" + "\n".join(",".join(map(str, r)) for r in rows) + "\n"
+    )
+    out = tmp_path / "hex"
+    args = ["simulate", out, "--robot", "hexapod", "--positions", csv, "--repeats", "1", "--workers", "2"]
+    code, _, err = _cli(args, monkeypatch, capsys)
+    assert code == 0, err
+    code, _, err = _cli(["run", out, "--workers", "2"], monkeypatch, capsys)
+    assert code in (0, 1), err
+    with Store(out / DB_NAME) as st:
+        fit = st.model_fit("stiffness")
+    assert fit is not None and fit.status == "ok", fit
+    for i, k in enumerate(HEXAPOD_TESTBED_K, start=1):
+        assert abs(fit.params[f"k_leg{i}"] - k) < 0.01 * k, (i, fit.params)
+    model = campaign_model(load_spec(out / "campaign.toml"), out).with_params(**fit.params)
+    d = np.r_[np.ones(3), np.full(3, 1.0 / model.length_mm)]
+    truth = json.loads((out / "truth.json").read_text())
+    for p, r in zip(truth["positions"], rows, strict=True):
+        K6 = model.stiffness6(np.r_[r[:3], np.radians(r[3:])])
+        T6 = np.array(p["K_tcp"]) * np.outer(d, d)
+        assert np.linalg.norm(K6 * np.outer(d, d) - T6) < 0.02 * np.linalg.norm(T6)
+    code, _, err = _cli(["report", out], monkeypatch, capsys)
+    assert code in (0, 1), err
+    assert "fig-orientations" in (out / "report" / "index.html").read_text()
+    assert (out / "report" / "model_over_orientations.png").is_file()

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
 from ..models import arm6
+from ..models.base import PoseError
 from ..models.delta import DeltaRobot
 
 __all__ = [
@@ -471,7 +472,12 @@ class PlatformField:
             where = f"{poses[i, :3].tolist()} mm"
             if np.any(poses[i, 3:]):
                 where += f", roll/pitch/yaw {np.round(np.degrees(poses[i, 3:]), 9).tolist()} deg"
-            raise ValueError(f"the robot cannot hold its platform at {where}: {m.reasons[i]}")
+            raise PoseError(
+                f"the robot cannot hold its platform at {where}: {m.reasons[i]}",
+                pose=poses[i],
+                index=int(i),
+                reason=m.reasons[i],
+            )
         return m.K6
 
 

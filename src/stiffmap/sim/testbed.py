@@ -254,8 +254,11 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
         if e.index is None:
             raise
         p = P[e.index]
+        turned = (
+            "" if A is None else f", roll/pitch/yaw {', '.join(f'{v:g}' for v in np.degrees(A[e.index]))} deg"
+        )
         raise InputError(
-            f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the robot model has no "
+            f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm{turned}: the robot model has no "
             f"stiffness there ({e.reason or e.detail})",
             items={"position": e.index + 1},
         ) from None
