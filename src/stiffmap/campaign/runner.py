@@ -561,7 +561,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     if model.dim != 3 and not six:
         problems.append(f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign")
         return problems
-    if not six and spec.positions.poses is not None:
+    turned = None if spec.positions is None else spec.positions.orientations_deg()
+    if not six and turned is not None:
         problems.append(
             f"campaign.toml positions.poses: robot model {name!r} holds its platform level (a dim = 3 "
             "legs TOML); give a dim = 6 TOML or the positions as 'list'. Model step skipped"
@@ -579,7 +580,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             "params": spec.robot.params,
             "robot": spec.robot.model_dump(exclude={"params"}),
             "xyz": pts.tolist(),
-            "rpy_deg": None if spec.positions.poses is None else spec.positions.orientations_deg().tolist(),
+            **({} if turned is None else {"rpy_deg": turned.tolist()}),  # level: the hash as before
             "K": [r.K for r in ok],
             "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
         }
