@@ -558,16 +558,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         problems.append(f"{where}: {e}")
         return problems
     six = is_platform(model)
-    if model.dim != 3 and not six:
-        problems.append(f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign")
-        return problems
-    turned = None if spec.positions is None else spec.positions.orientations_deg()
-    if not six and turned is not None:
-        problems.append(
-            f"campaign.toml positions.poses: robot model {name!r} holds its platform level (a dim = 3 "
-            "legs TOML); give a dim = 6 TOML or the positions as 'list'. Model step skipped"
-        )
-        return problems
+    if why := _unusable(model, spec, six):
+        return [*problems, why]
     rows = store.stiffness_rows()
     if not rows:
         return problems
@@ -580,7 +572,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             "params": spec.robot.params,
             "robot": spec.robot.model_dump(exclude={"params"}),
             "xyz": pts.tolist(),
-            **({} if turned is None else {"rpy_deg": turned.tolist()}),  # level: the hash as before
+            **_turned(spec),  # level: the hash as before
             "K": [r.K for r in ok],
             "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
         }
@@ -619,6 +611,26 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             problems.append(f"position {r.position} {where}: outside the model: {reason}")
     store.save_model_stiffness(fit_row, per_position)
     return problems
+
+
+def _turned(spec: CampaignSpec) -> dict:
+    """``{"rpy_deg": [...]}``: the orientations of ``positions.poses`` (empty without)."""
+    deg = None if spec.positions is None else spec.positions.orientations_deg()
+    return {} if deg is None else {"rpy_deg": deg.tolist()}
+
+
+def _unusable(model, spec: CampaignSpec, six: bool) -> str:
+    """Why a vision campaign cannot use ``model`` ('' when it can): planar, or held level
+    while ``positions.poses`` turn its platform."""
+    name, turned = spec.robot.model, _turned(spec)
+    if model.dim != 3 and not six:
+        return f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign"
+    if not six and turned:
+        return (
+            f"campaign.toml positions.poses: robot model {name!r} holds its platform level (a dim = 3 "
+            "legs TOML); give a dim = 6 TOML or the positions as 'list'. Model step skipped"
+        )
+    return ""
 
 
 def _poses(spec: CampaignSpec, rows: list) -> np.ndarray:

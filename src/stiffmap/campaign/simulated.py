@@ -271,11 +271,9 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
     }
 
 
-def _truth_dict(
-    config: SimConfig, plan: CampaignPlan, command: str, calibration: dict[str, Any]
-) -> dict[str, Any]:
-    sc = config.scene
-    rb = config.robot
+def _truth_positions(config: SimConfig, plan: CampaignPlan) -> list[dict[str, Any]]:
+    """truth.json's positions: K (the forces'), its det and eigenvalues, K6 at the tool point
+    (``K_tcp``) of a 6x6 field, the platform's orientation (``orientation_deg``) when turned."""
     positions = []
     for i, (p, K3, K) in enumerate(zip(config.positions, plan.K3, plan.K, strict=True), start=1):
         w = np.linalg.eigvalsh(0.5 * (K3 + K3.T))
@@ -285,6 +283,15 @@ def _truth_dict(
         if config.orientations is not None:
             entry["orientation_deg"] = np.degrees(config.orientations[i - 1])
         positions.append(entry)
+    return positions
+
+
+def _truth_dict(
+    config: SimConfig, plan: CampaignPlan, command: str, calibration: dict[str, Any]
+) -> dict[str, Any]:
+    sc = config.scene
+    rb = config.robot
+    positions = _truth_positions(config, plan)
     images = [
         {
             "file": j.file,
