@@ -11,8 +11,12 @@ standard error; each position's measured K against truth.json's; the fitted mode
 each position against the true K6 (relative Frobenius of D K6 D, D = diag(1, 1, 1, 1/L, 1/L,
 1/L), L the robot's size: rad as L mm).
 
+``--turned``: the platform turned at each position (``--positions POSES.csv``, roll and pitch in
+{-10, -5, 0, 5, 10} degrees: :func:`turned_poses`), K6 compared at each full pose.
+
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_hexapod_campaign.py [--seeds 3] [--select 1,5,9,10,14,18]
-Saves benchmarks/results/hexapod_campaign.md.
+      [--turned]
+Saves benchmarks/results/hexapod_campaign.md (hexapod_campaign_turned.md with --turned).
 """
 
 from __future__ import annotations
