@@ -140,6 +140,11 @@ def test_simulate_hexapod_at_turned_poses_writes_them_and_their_true_K6(monkeypa
         np.testing.assert_allclose(p["K_tcp"], k6, rtol=1e-12)
         np.testing.assert_allclose(p["K"], hung_force_stiffness(k6, [0.0, 0.0, -100.0]), rtol=1e-10)
         assert np.linalg.norm(k6 - k6_level) > 1e-3 * np.linalg.norm(k6)  # turning it matters
+    # capture --camera sim renders the platform level: it refuses a turned campaign.
+    from stiffmap.capture.cameras import simulated_camera
+
+    with pytest.raises(InputError, match=r"truth.json: .*holds the platform level; .*positions.poses"):
+        simulated_camera(out, spec)
 
 
 def test_simulate_refuses_an_orientation_column_without_the_others(monkeypatch, capsys, tmp_path):
