@@ -116,8 +116,8 @@ def vision_config(
     """
     P = np.asarray(positions, dtype=np.float64)
     orientations = None
-    if P.ndim == 2 and P.shape[1] == 6:
-        P, orientations = P[:, :3], P[:, 3:]
+    if P.ndim == 2 and P.shape[1] == 6:  # poses: level ones are positions (written as a list)
+        P, orientations = P[:, :3], (P[:, 3:] if np.any(P[:, 3:]) else None)
     try:
         field = robot.field
         if rot_stiffness_nmm_per_rad is not None:
