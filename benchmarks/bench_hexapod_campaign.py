@@ -23,8 +23,8 @@ the robot's size: rad as L mm); and each position's measured K against truth.jso
 and repeats) and reuses them: a re-run only re-fits (seconds instead of minutes per campaign).
 
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_hexapod_campaign.py [--seeds 3] [--select 1,5,9,10,14,18]
-      [--cache /tmp/hexcache]
-Saves benchmarks/results/hexapod_campaign.md.
+      [--cache /tmp/hexcache] [--turned]
+Saves benchmarks/results/hexapod_campaign.md (hexapod_campaign_turned.md with --turned).
 """
 
 from __future__ import annotations
@@ -42,12 +42,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 from _table import save  # noqa: E402
 
-from stiffmap.campaign.platform import fit_platform, level_poses  # noqa: E402
+from stiffmap.campaign.platform import fit_platform  # noqa: E402
+from stiffmap.campaign.positions import campaign_poses  # noqa: E402
 from stiffmap.campaign.robot import campaign_model, fitted_names  # noqa: E402
 from stiffmap.campaign.spec import load_spec  # noqa: E402
 from stiffmap.campaign.store import DB_NAME, Store  # noqa: E402
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
-from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K  # noqa: E402
+from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K, HEXAPOD_TESTBED_POSITIONS  # noqa: E402
 
 NAMES = [f"k_leg{i}" for i in range(1, 7)]
 #: The two fits compared: (label, fit_platform keywords).
@@ -55,14 +56,32 @@ WAYS = (("before", {"correlated": False, "extra_noise": False}), ("after", {}))
 COLUMNS = ("max error %", "reported std %", "scatter %", "scatter / std")
 
 
-def measured_campaign(root: Path, seed: int, select: str, repeats: int, workers: int) -> dict:
+def turned_poses(path: Path) -> Path:
+    """The test-bed's 18 positions with the platform turned (``--turned``): roll and pitch in
+    {-10, -5, 0, 5, 10} degrees, a different pair at each position, yaw 0 (a CSV for --positions)."""
+    rows = ["x,y,z,roll_deg,pitch_deg,yaw_deg"]
+    for k, p in enumerate(HEXAPOD_TESTBED_POSITIONS.split(";")):
+        rows.append(f"{p},{((7 * k) % 5 - 2) * 5},{((3 * k + 1) % 5 - 2) * 5},0")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def _pose(p: dict) -> list[float]:
+    """truth.json's pose of a position: x, y, z mm and roll, pitch, yaw rad (level when not turned)."""
+    return [*p["position"], *np.radians(p.get("orientation_deg", [0.0, 0.0, 0.0]))]
+
+
+def measured_campaign(root: Path, seed: int, select: str, repeats: int, workers: int, positions=None) -> dict:
     """Simulate and measure the campaign at ``root`` unless its markers say it was done
-    (``simulated.ok``, ``measured.ok`` beside it); the seconds each step took (0 when reused)."""
+    (``simulated.ok``, ``measured.ok`` beside it); the seconds each step took (0 when reused).
+    ``positions``: a --positions CSV (the platform turned)."""
     times = {"simulate_s": 0.0, "run_s": 0.0}
     done_sim, done_run = root.parent / "simulated.ok", root.parent / "measured.ok"
     if not done_sim.exists():
         t0 = time.perf_counter()
         args = ["simulate", str(root), "--robot", "hexapod", "--seed", str(seed), "--select", select]
+        if positions is not None:
+            args += ["--positions", str(positions)]
         rc = stiffmap([*args, "--repeats", str(repeats), "--workers", str(workers), "--json", "--force"])
         if rc not in (0, None):
             raise SystemExit(f"simulate failed ({rc})")
@@ -89,7 +108,7 @@ def fit_ways(root: Path) -> dict:
     keep = [d for d in disp if d.position in at and d.load <= len(loads)]
     args = (
         model,
-        np.array([[r.x, r.y, r.z] for r in rows], dtype=float),
+        campaign_poses(spec, [[r.x, r.y, r.z] for r in rows], [r.position for r in rows]),
         [at[d.position] for d in keep],
         [loads[d.load - 1].force for d in keep],
         np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float),
@@ -105,6 +124,7 @@ def evaluate(root: Path) -> dict:
     truth = json.loads((root / "truth.json").read_text())
     Kt = {p["index"]: np.array(p["K"]) for p in truth["positions"]}
     K6t = {p["index"]: np.array(p["K_tcp"]) for p in truth["positions"]}
+    poses = {p["index"]: _pose(p) for p in truth["positions"]}
     with Store(root / DB_NAME) as st:
         rows = [r for r in st.stiffness_rows() if r.status == "ok"]
     fits = fit_ways(root)
@@ -114,7 +134,7 @@ def evaluate(root: Path) -> dict:
         model = fit.model
         d = np.array([1.0, 1.0, 1.0, *(3 * [1.0 / model.length_mm])])
         D = np.outer(d, d)
-        K6 = model.stiffness6(level_poses([[r.x, r.y, r.z] for r in rows]))
+        K6 = model.stiffness6(np.array([poses[r.position] for r in rows]))
         T = np.array([K6t[r.position] for r in rows])
         k6 = np.linalg.norm((K6 - T) * D, axis=(1, 2)) / np.linalg.norm(T * D, axis=(1, 2))
         out[way] = {
@@ -161,15 +181,18 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--cache", type=Path, help="keep the simulated campaigns here and reuse them")
+    ap.add_argument("--turned", action="store_true", help="the platform turned (roll, pitch up to 10 deg)")
     args = ap.parse_args()
     truth = np.array(HEXAPOD_TESTBED_K)
     runs, times = [], []
     tmp = None if args.cache else tempfile.TemporaryDirectory(prefix="bench_hexapod_")
     base = args.cache or Path(tmp.name)
     for seed in range(args.seeds):
-        root = base / f"s{seed}_{args.select.replace(',', '-')}_r{args.repeats}" / "hexapod"
+        tag = "_turned" if args.turned else ""
+        root = base / f"s{seed}_{args.select.replace(',', '-')}_r{args.repeats}{tag}" / "hexapod"
         root.parent.mkdir(parents=True, exist_ok=True)
-        times.append(measured_campaign(root, seed, args.select, args.repeats, args.workers))
+        poses = turned_poses(root.parent / "poses.csv") if args.turned else None
+        times.append(measured_campaign(root, seed, args.select, args.repeats, args.workers, poses))
         runs.append(evaluate(root))
         err = {w: np.round(100 * (runs[-1][w]["k"] / truth - 1), 3).tolist() for w, _ in WAYS}
         print(f"seed {seed}: leg errors % before {err['before']}, after {err['after']}", flush=True)
@@ -177,8 +200,9 @@ def main() -> None:
         tmp.cleanup()
     b, a = summary(runs, "before", truth), summary(runs, "after", truth)
     save(
-        "hexapod_campaign",
-        "Hexapod: leg stiffnesses and K6 from simulated vision campaigns",
+        "hexapod_campaign_turned" if args.turned else "hexapod_campaign",
+        "Hexapod: leg stiffnesses and K6 from simulated vision campaigns"
+        + (", the platform turned" if args.turned else ""),
         [
             "leg",
             "truth",
@@ -209,8 +233,14 @@ def intro(args, runs: list[dict], times: list[dict], b: dict, a: dict) -> str:
     return (
         f"`stiffmap simulate OUT --robot hexapod --seed S --select {args.select} --repeats {args.repeats}` "
         f"then `stiffmap run OUT`, seeds 0..{n - 1}: {len(args.select.split(','))} positions of the "
-        "test-bed's 18 (the platform level, x, y in {-40, 0, 40} mm, z 280 and 320 mm), the reference "
-        "study's nine load cases (0.5, 0.2, 0.1 kg along +y, -x, -z) hung 100 mm below the platform's "
+        "test-bed's 18 (x, y in {-40, 0, 40} mm, z 280 and 320 mm; "
+        + (
+            "`--turned`: `--positions POSES.csv`, the platform turned at each, roll and pitch in "
+            "{-10, -5, 0, 5, 10} deg, turned_poses), the reference "
+            if args.turned
+            else "the platform level), the reference "
+        )
+        + "study's nine load cases (0.5, 0.2, 0.1 kg along +y, -x, -z) hung 100 mm below the platform's "
         "centre, one camera calibrated from 20 rendered views. The six legs fitted to the same measured "
         "displacements two ways: **before** (each component weighed by the diagonal of its covariance "
         "alone, covariance scaled by chi2/dof: the fit until issue 30) and **after** (whitened by the full "

@@ -32,8 +32,12 @@ def is_platform(model: Mechanism) -> bool:
 
 
 def level_poses(positions) -> np.ndarray:
-    """Poses (n, 6) of the positions (n, 3) mm with the platform level (roll, pitch, yaw 0)."""
-    P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    """Poses (n, 6) of the positions (n, 3) mm with the platform level (roll, pitch, yaw 0);
+    poses (n, 6: a campaign's ``positions.poses``, rad) as they are."""
+    P = np.asarray(positions, dtype=np.float64)
+    if P.ndim == 2 and P.shape[1] == 6:
+        return P.copy()
+    P = P.reshape(-1, 3)
     return np.concatenate([P, np.zeros_like(P)], axis=1)
 
 

@@ -17,13 +17,29 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
 from ..rig import camera_path
 from .paths import campaign_file
 from .robot import campaign_positions
 from .spec import SPEC_NAME, CampaignSpec
 
-__all__ = ["Pair", "PositionTask", "plan"]
+__all__ = ["Pair", "PositionTask", "plan", "campaign_poses"]
+
+
+def campaign_poses(spec: CampaignSpec, xyz, numbers) -> np.ndarray:
+    """The platform's poses (n, 6: x, y, z mm, roll, pitch, yaw rad) at positions ``xyz``
+    (n, 3) mm, numbered ``numbers`` (1-based, campaign.toml's order): the orientations of
+    ``positions.poses``, or level.
+    """
+    P = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+    A = np.zeros_like(P)
+    deg = None if spec.positions is None else spec.positions.orientations_deg()
+    if deg is not None:
+        idx = np.asarray(numbers, dtype=int) - 1
+        A = np.radians(deg[idx])
+    return np.concatenate([P, A], axis=1)
 
 
 @dataclass(frozen=True)

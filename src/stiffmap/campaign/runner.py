@@ -50,7 +50,7 @@ from .fingerprint import robot_fingerprint
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .platform import fit_platform, is_platform, platform_map
-from .positions import PositionTask, plan
+from .positions import PositionTask, campaign_poses, plan
 from .rig_checks import rig_failures
 from .robot import campaign_model
 from .robot import fitted_names as campaign_fitted_names
@@ -542,7 +542,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     compliances, translations and rotations with their covariances); a robot whose platform
     turns (a ``dim = 6`` legs TOML) to the measured 6-DOF displacements too
     (:func:`~stiffmap.campaign.platform.fit_platform`), its K at each position the K of the
-    loads hung at ``loads.point_mm`` (the platform level).
+    loads hung at ``loads.point_mm`` with the platform at its pose (``positions.poses``, or level).
     """
     problems: list[str] = []
     name = spec.robot.model
@@ -559,9 +559,8 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         problems.append(f"{where}: {e}")
         return problems
     six = is_platform(model)
-    if model.dim != 3 and not six:
-        problems.append(f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign")
-        return problems
+    if why := _unusable(model, spec, six):
+        return [*problems, why]
     rows = store.stiffness_rows()
     if not rows:
         return problems
@@ -574,6 +573,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
             "params": spec.robot.params,
             "robot": spec.robot.model_dump(exclude={"params"}),
             "xyz": pts.tolist(),
+            **_turned(spec),  # level: the hash as before
             "K": [r.K for r in ok],
             "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
         }
@@ -591,7 +591,7 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         fitted = _fit_platform(model, spec, rows, disp, fit_row, problems)
     else:
         fitted = _fit_to_measured(model, ok, spec, fit_row, problems)
-    mm = platform_map(fitted, pts, _lever(spec)) if six else fitted.evaluate(pts)
+    mm = platform_map(fitted, _poses(spec, rows), _lever(spec)) if six else fitted.evaluate(pts)
     per_position = []
     for r, K, valid, reason, det, lam in zip(
         rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
@@ -615,6 +615,31 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
     return problems
 
 
+def _turned(spec: CampaignSpec) -> dict:
+    """``{"rpy_deg": [...]}``: the orientations of ``positions.poses`` (empty without)."""
+    deg = None if spec.positions is None else spec.positions.orientations_deg()
+    return {} if deg is None else {"rpy_deg": deg.tolist()}
+
+
+def _unusable(model, spec: CampaignSpec, six: bool) -> str:
+    """Why a vision campaign cannot use ``model`` ('' when it can): planar, or held level
+    while ``positions.poses`` turn its platform."""
+    name, turned = spec.robot.model, _turned(spec)
+    if model.dim != 3 and not six:
+        return f"robot model {name!r} is planar: it has no 3D stiffness for a vision campaign"
+    if not six and turned:
+        return (
+            f"campaign.toml positions.poses: robot model {name!r} holds its platform level (a dim = 3 "
+            "legs TOML); give a dim = 6 TOML or the positions as 'list'. Model step skipped"
+        )
+    return ""
+
+
+def _poses(spec: CampaignSpec, rows: list) -> np.ndarray:
+    """The platform's poses (n, 6; rad) at the rows' positions (``positions.poses``, or level)."""
+    return campaign_poses(spec, [[r.x, r.y, r.z] for r in rows], [r.position for r in rows])
+
+
 def _lever(spec: CampaignSpec) -> np.ndarray:
     """Where the loads act from the tool point (``loads.point_mm``), mm."""
     return np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float)
@@ -631,12 +656,11 @@ def _fit_platform(model, spec: CampaignSpec, rows: list, disp: list, fit_row: di
         keep = [d for d in disp if d.position in at and d.load <= len(loads)]
         if not keep:
             raise InputError("no measured displacement at a campaign position")
-        pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             fit = fit_platform(
                 model,
-                pts,
+                _poses(spec, rows),
                 [at[d.position] for d in keep],
                 [loads[d.load - 1].force for d in keep],
                 _lever(spec),

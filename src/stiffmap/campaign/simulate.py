@@ -215,9 +215,12 @@ def _request_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np
 
 def _positions(request: SimulationRequest, kind: RobotKind, tb: TestBed) -> np.ndarray:
     """The positions of the request (FieldError ``positions`` or ``select``)."""
+    text = request.positions or tb.positions
+    # A kind whose description gives its dimension (legs): its platform's positions, 3-D;
+    # from a CSV file, with the orientation columns when its platform turns: poses (n, 6).
+    turned = kind.turning_platform and tb.rotations and Path(text).suffix.lower() == ".csv"
     try:
-        # A kind whose description gives its dimension (legs): its platform's positions, 3-D.
-        P = positions_from_text(request.positions or tb.positions, kind.name, kind.dim or 3)
+        P = positions_from_text(text, kind.name, 6 if turned else kind.dim or 3)
     except InputError:
         raise
     except ValueError as e:

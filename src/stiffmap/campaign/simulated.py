@@ -221,6 +221,9 @@ def _positions_table(config: SimConfig) -> dict[str, Any]:
     q = None if q_deg is None else q_deg(config.positions)
     if q is not None:
         return {"q_deg": q}
+    if config.orientations is not None:  # a platform held turned: x, y, z mm, roll, pitch, yaw deg
+        deg = np.round(np.degrees(config.orientations), 9) + 0.0
+        return {"poses": [[float(v) for v in (*p, *a)] for p, a in zip(config.positions, deg, strict=True)]}
     return {"list": [[float(v) for v in p] for p in config.positions]}
 
 
@@ -268,18 +271,27 @@ def campaign_spec_dict(config: SimConfig, plan: CampaignPlan) -> dict[str, Any]:
     }
 
 
-def _truth_dict(
-    config: SimConfig, plan: CampaignPlan, command: str, calibration: dict[str, Any]
-) -> dict[str, Any]:
-    sc = config.scene
-    rb = config.robot
+def _truth_positions(config: SimConfig, plan: CampaignPlan) -> list[dict[str, Any]]:
+    """truth.json's positions: K (the forces'), its det and eigenvalues, K6 at the tool point
+    (``K_tcp``) of a 6x6 field, the platform's orientation (``orientation_deg``) when turned."""
     positions = []
     for i, (p, K3, K) in enumerate(zip(config.positions, plan.K3, plan.K, strict=True), start=1):
         w = np.linalg.eigvalsh(0.5 * (K3 + K3.T))
         entry = {"index": i, "position": p, "K": K3, "det": float(np.linalg.det(K3)), "eigenvalues": w}
         if K.shape == (6, 6):
             entry["K_tcp"] = K
+        if config.orientations is not None:
+            entry["orientation_deg"] = np.degrees(config.orientations[i - 1])
         positions.append(entry)
+    return positions
+
+
+def _truth_dict(
+    config: SimConfig, plan: CampaignPlan, command: str, calibration: dict[str, Any]
+) -> dict[str, Any]:
+    sc = config.scene
+    rb = config.robot
+    positions = _truth_positions(config, plan)
     images = [
         {
             "file": j.file,

@@ -419,7 +419,9 @@ class GridSpec(_Spec):
 
 
 class PositionsSpec(_Spec):
-    """Exactly one of ``preset``, ``list`` or ``grid`` (mm, base frame)."""
+    """Exactly one of ``preset``, ``list``, ``grid`` (mm, base frame), ``q_deg`` (a serial robot's
+    joint configurations) or ``poses`` (a platform that turns: ``[x, y, z, roll, pitch, yaw]``,
+    mm and degrees, R = Rz(yaw) Ry(pitch) Rx(roll))."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, populate_by_name=True)
 
@@ -429,19 +431,27 @@ class PositionsSpec(_Spec):
     #: A URDF robot's joint configurations (degrees; mm for a prismatic joint), one per position:
     #: the positions are where they put the measured point.
     q_deg: list[list[Angle]] | None = None
+    #: Poses of a platform that turns (a robot kind with ``turning_platform``: a ``dim = 6``
+    #: legs TOML), one per position: x, y, z (mm), roll, pitch, yaw (degrees).
+    poses: list[list[Finite]] | None = None
 
     @model_validator(mode="after")
     def _one(self):
-        given = [
-            k
-            for k, a in (("preset", "preset"), ("list", "points"), ("grid", "grid"), ("q_deg", "q_deg"))
-            if getattr(self, a) is not None
-        ]
+        keys = (
+            ("preset", "preset"),
+            ("list", "points"),
+            ("grid", "grid"),
+            ("q_deg", "q_deg"),
+            ("poses", "poses"),
+        )
+        given = [k for k, a in keys if getattr(self, a) is not None]
         if len(given) != 1:
             raise ValueError(
-                "give exactly one of 'preset', 'list', 'grid' or 'q_deg'"
+                "give exactly one of 'preset', 'list', 'grid', 'q_deg' or 'poses'"
                 + (f" (got {', '.join(given)})" if given else "")
             )
+        if self.poses is not None:
+            _check_poses(self.poses)
         if self.q_deg is not None:
             if not self.q_deg:
                 raise ValueError("'q_deg' is empty")
@@ -472,6 +482,8 @@ class PositionsSpec(_Spec):
         """The number of positions (without building them)."""
         if self.q_deg is not None:
             return len(self.q_deg)
+        if self.poses is not None:
+            return len(self.poses)
         if self.points is not None:
             return len(self.points)
         if self.grid is not None:
@@ -485,6 +497,8 @@ class PositionsSpec(_Spec):
             raise ValueError("positions.q_deg: the positions come from the robot's kinematics")
         if self.preset is not None:
             pts = np.asarray(preset_points(self.preset), dtype=float)
+        elif self.poses is not None:
+            pts = np.array([p[:3] for p in self.poses], dtype=float)
         elif self.points is not None:
             pts = np.array([list(p) + [0.0] * (3 - len(p)) for p in self.points], dtype=float)
         else:
@@ -494,6 +508,37 @@ class PositionsSpec(_Spec):
         if pts.shape[1] == 2:
             pts = np.c_[pts, np.zeros(len(pts))]
         return pts
+
+    def orientations_deg(self) -> np.ndarray | None:
+        """The platform's roll, pitch, yaw (n, 3) degrees at each position of ``poses`` (None:
+        positions without orientations, the platform level)."""
+        return None if self.poses is None else np.array([p[3:] for p in self.poses], dtype=float)
+
+
+#: Largest roll, pitch or yaw of a pose in ``positions.poses``, degrees.
+MAX_POSE_ANGLE_DEG = 180.0
+
+
+def _check_poses(poses: list[list[float]]) -> None:
+    """``positions.poses``: a non-empty list of [x, y, z, roll, pitch, yaw] (ValueError naming the row)."""
+    if not poses:
+        raise ValueError("'poses' is empty")
+    for i, p in enumerate(poses):
+        if len(p) == 3:
+            raise ValueError(
+                f"poses[{i}] = {p} is a position without its orientation: give [x, y, z, roll, pitch, yaw] "
+                "(mm, degrees), or the positions as 'list' (the platform level)"
+            )
+        if len(p) != 6:
+            raise ValueError(
+                f"poses[{i}] = {p} has {len(p)} numbers; a pose is [x, y, z, roll, pitch, yaw] (mm, degrees)"
+            )
+        big = [v for v in p[:3] if abs(v) > LIMITS["coordinate_mm"]]
+        if big:
+            raise ValueError(f"poses[{i}] = {p}: {big[0]} mm is beyond +-{LIMITS['coordinate_mm']:g} mm")
+        turned = [v for v in p[3:] if abs(v) > MAX_POSE_ANGLE_DEG]
+        if turned:
+            raise ValueError(f"poses[{i}] = {p}: {turned[0]} deg is beyond +-{MAX_POSE_ANGLE_DEG:g} deg")
 
 
 _AXIS_NAMES = ("x", "y", "z", "+x", "+y", "+z", "-x", "-y", "-z")
@@ -865,6 +910,14 @@ class CampaignSpec(_Spec):
 
     @model_validator(mode="after")
     def _complete(self):
+        if self.positions is not None and self.positions.poses is not None:
+            kind = self.robot.kind
+            if kind is None or not kind.turning_platform:
+                turning = " or ".join(f'"{k.name}"' for k in ROBOT_KINDS.values() if k.turning_platform)
+                raise ValueError(
+                    f"positions.poses = orientations need a robot whose platform turns: robot.model = "
+                    f"{turning} (a dim = 6 legs TOML), not {self.robot.model!r}; give the positions as 'list'"
+                )
         if self.positions is not None and self.positions.q_deg is not None:
             kind = self.robot.kind
             if kind is None or not kind.configurations:

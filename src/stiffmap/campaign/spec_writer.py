@@ -68,6 +68,7 @@ KEY_COMMENTS = {
     "robot.q_seed_deg": "where inverse kinematics starts (degrees): the branch of every configuration",
     "robot.legs": "the TOML file describing the robot's legs (docs/models.md)",
     "positions.q_deg": "joint configurations (degrees), one per position",
+    "positions.poses": "a platform that turns (dim = 6 legs): [x, y, z, roll, pitch, yaw], mm and degrees",
     "loads.point_mm": "where the loads act, from the measured point, base axes (mm)",
     "camera.file": "from: stiffmap calibrate IMAGES... --board COLSxROWS --square-mm S --out camera.json",
     "cameras.rig": "several cameras, from: stiffmap calibrate-rig --camera NAME=GLOB ... --out rig.json",
@@ -168,6 +169,7 @@ point_mm = [0.0, 0.0, 0.0] # the point whose displacement is reported, in the mo
 
 # positions, mm in the base frame: one of
 #   preset = "paper48" | list = [[x, y, z], ...] | grid = {x = [...], y = [...], z = [...]}
+#   (a platform that turns, a dim = 6 legs TOML: poses = [[x, y, z, roll, pitch, yaw], ...], degrees)
 [positions]
 preset = "paper48"         # 16 positions on each of z = -200, -310, -400 mm
 

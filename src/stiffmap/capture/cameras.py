@@ -86,6 +86,11 @@ def simulated_camera(root: Path, spec: CampaignSpec, **options) -> SimulatedCame
         src = str(root / TRUTH_NAME)
         if d.get("kind") != "vision" or d.get("rig") is not None:
             raise InputError("the simulated camera renders one camera of a vision campaign", source=src)
+        if any(np.any(e.get("orientation_deg", 0.0)) for e in d.get("positions", ())):
+            raise InputError(
+                "the simulated camera holds the platform level; this campaign turns it (positions.poses)",
+                source=src,
+            )
         try:
             t = d["targets"]
             scene = Scene(

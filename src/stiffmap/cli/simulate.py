@@ -158,7 +158,9 @@ _OPT_POSITIONS = typer.Option(
     "--positions",
     help="Delta: paper48 (default: the reference study's 48 positions), a CSV file with columns "
     "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
-    "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list.",
+    "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list. hexapod: 18 "
+    "level positions (default), a list, or a CSV file with x, y, z and optionally roll_deg, pitch_deg, "
+    "yaw_deg (degrees): the platform turned.",
     show_default=False,
 )
 _OPT_SELECT = typer.Option(

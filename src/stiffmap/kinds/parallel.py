@@ -161,6 +161,7 @@ LEGS = RobotKind(
     file_example="ROBOT.toml",
     file_key=_LEGS_NAME,
     builtin_files=BUILTIN_LEGS,
+    turning_platform=True,
     testbed=TestBed(
         name="hexapod",
         instrument="camera",

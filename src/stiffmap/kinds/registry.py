@@ -198,6 +198,10 @@ class RobotKind:
         and ``robot.params`` must give every joint.
     takes_load_point : bool
         Its K depends on where the loads act (``loads.point_mm``): a serial robot's wrist turns.
+    turning_platform : bool
+        Its platform may be held turned (a legs TOML with ``dim = 6``: a hexapod, a 3-RPS):
+        campaign.toml's ``positions.poses`` (x, y, z mm, roll, pitch, yaw deg) and a test-bed's
+        positions with orientations (``roll_deg``, ``pitch_deg``, ``yaw_deg`` columns).
     report_grid : callable, optional
         ``report_grid(model) -> (points (n, dim) mm, middle line x (mm) or None)``: a planar
         kind's map in a sensor campaign's report.
@@ -225,6 +229,7 @@ class RobotKind:
     configurations: bool = False
     joint_params: bool = False
     takes_load_point: bool = False
+    turning_platform: bool = False
     report_grid: Callable[[Mechanism], tuple[np.ndarray, float | None]] | None = None
     testbed: TestBed | None = None
 

@@ -33,6 +33,7 @@ from ..vision.images import read_image
 from . import data as contract
 from . import write_report
 from .figure_data import displacement_residuals
+from .orientations import map_poses, orientation_map
 from .png import grey_png, reduce_image
 
 __all__ = ["report_data", "failures_as_items", "write_campaign_report"]
@@ -86,6 +87,26 @@ def _stale_model(root: Path, spec: CampaignSpec, store: Store, fit_name: str) ->
     except (ValueError, TypeError, KeyError) as e:  # InputError too
         return f"model fit: the fit in {DB_NAME} no longer builds campaign.toml's robot ({e}): {rerun}"
     return None
+
+
+def _model_stiffness(model, spec: CampaignSpec, store: Store, Km, g, rows, measured):
+    """The model's K at the positions, its dense map at ``g`` and, for a platform that turns,
+    its map over orientations (:mod:`.orientations`: the platform at the campaign's shared
+    orientation or level, the loads hung at ``loads.point_mm``)."""
+    turns = None
+    if is_platform(model):
+        lever = spec.loads.point_mm or (0.0, 0.0, 0.0)
+        mm = platform_map(model, map_poses(spec, g), lever)
+        numbers = [r.position for r in rows]
+        mp = np.where(measured.ok, measured.min_principal, np.nan)
+        turns = orientation_map(model, spec, [[r.x, r.y, r.z] for r in rows], numbers, mp)
+    else:
+        mm = model.evaluate(g)
+    dense = contract.ModelMap(
+        g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
+    )
+    params = _parameters(store, "stiffness", spec)
+    return contract.ModelStiffness.from_K(spec.robot.model, params, Km, map=dense, orientations=turns)
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:
@@ -147,14 +168,7 @@ def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = 
             X, Y = np.meshgrid(xs, ys)
             grid.append(np.c_[X.ravel(), Y.ravel(), np.full(X.size, z)])
         g = np.concatenate(grid)
-        lever = spec.loads.point_mm or (0.0, 0.0, 0.0)  # a platform that turns: level, loads hung there
-        mm = platform_map(model, g, lever) if is_platform(model) else model.evaluate(g)
-        dense = contract.ModelMap(
-            g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
-        )
-        out["model"] = contract.ModelStiffness.from_K(
-            spec.robot.model, _parameters(store, "stiffness", spec), Km, map=dense
-        )
+        out["model"] = _model_stiffness(model, spec, store, Km, g, rows, measured)
     truth = _truth_K(root, n, allow_outside)
     if truth is not None:
         out["truth"] = contract.TruthStiffness(truth)

@@ -45,6 +45,7 @@ __all__ = [
     "MeasuredStiffness",
     "LoadData",
     "ModelMap",
+    "OrientationMap",
     "ModelStiffness",
     "TruthStiffness",
     "CalibrationData",
@@ -381,6 +382,54 @@ class ModelMap:
         set_array(self, "min_principal", self.min_principal, ("g",), d, limit=KLIM)
 
 
+#: Largest plausible rotational stiffness, N*mm/rad (a translational one's times (1 m)^2).
+KRLIM = KLIM * 1e6
+
+
+@dataclass(frozen=True)
+class OrientationMap:
+    """A platform that turns (a ``dim = 6`` robot): its model over orientations at one position,
+    roll and pitch on a grid (yaw as the campaign's), measured beside it.
+
+    Attributes
+    ----------
+    position : ndarray, shape (3,), mm
+        Where the platform's tool point stays.
+    yaw_deg : float
+    roll_deg : ndarray, shape (a,), degrees
+    pitch_deg : ndarray, shape (b,), degrees
+    min_principal : ndarray, shape (b, a), N/mm
+        The smallest principal stiffness of the K the campaign identifies (the loads' forces
+        hung at ``loads.point_mm``), row j at pitch j; NaN where the model has none.
+    min_principal_rot : ndarray, shape (b, a), N*mm/rad
+        The smallest principal stiffness a pure moment sees (K_rot).
+    measured_rpy_deg : ndarray, shape (k, 3), degrees
+        The orientations measured at that position.
+    measured_min_principal : ndarray, shape (k,), N/mm
+        Their identified K's smallest principal stiffness (NaN: failed).
+    """
+
+    position: np.ndarray
+    yaw_deg: float
+    roll_deg: np.ndarray
+    pitch_deg: np.ndarray
+    min_principal: np.ndarray
+    min_principal_rot: np.ndarray
+    measured_rpy_deg: np.ndarray
+    measured_min_principal: np.ndarray
+
+    def __post_init__(self) -> None:
+        d: dict[str, int] = {}
+        set_array(self, "position", self.position, (3,), d, finite=True, limit=POS)
+        set_float(self, "yaw_deg", self.yaw_deg)
+        set_array(self, "roll_deg", self.roll_deg, ("a",), d, finite=True, limit=360.0)
+        set_array(self, "pitch_deg", self.pitch_deg, ("b",), d, finite=True, limit=360.0)
+        set_array(self, "min_principal", self.min_principal, ("b", "a"), d, limit=KLIM)
+        set_array(self, "min_principal_rot", self.min_principal_rot, ("b", "a"), d, limit=KRLIM)
+        set_array(self, "measured_rpy_deg", self.measured_rpy_deg, ("k", 3), d, finite=True, limit=360.0)
+        set_array(self, "measured_min_principal", self.measured_min_principal, ("k",), d, limit=KLIM)
+
+
 @dataclass(frozen=True)
 class ModelStiffness:
     """A mechanism model fitted to (or compared with) the measurements.
@@ -396,6 +445,8 @@ class ModelStiffness:
     min_principal : ndarray, shape (n,), N/mm
     map : ModelMap or None
         Dense model map over the workspace planes.
+    orientations : OrientationMap or None
+        A platform that turns: the model over orientations at one position.
     """
 
     name: str
@@ -404,6 +455,7 @@ class ModelStiffness:
     det: np.ndarray
     min_principal: np.ndarray
     map: ModelMap | None = None
+    orientations: OrientationMap | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -417,15 +469,24 @@ class ModelStiffness:
         set_array(self, "min_principal", self.min_principal, ("n",), d, limit=KLIM)
         if self.map is not None and not isinstance(self.map, ModelMap):
             raise ValueError("map: expected a ModelMap")
+        if self.orientations is not None and not isinstance(self.orientations, OrientationMap):
+            raise ValueError("orientations: expected an OrientationMap")
 
     @classmethod
-    def from_K(cls, name: str, parameters: Sequence[Parameter], K, map: ModelMap | None = None):
+    def from_K(
+        cls,
+        name: str,
+        parameters: Sequence[Parameter],
+        K,
+        map: ModelMap | None = None,
+        orientations: OrientationMap | None = None,
+    ):
         """Build from model stiffness matrices (det and smallest principal computed)."""
         K = np.asarray(K, dtype=np.float64)
         if K.ndim != 3 or K.shape[1:] != (3, 3):
             raise ValueError(f"K: expected shape (n, 3, 3), got {K.shape}")
         det, mp, _ = _indices(K, np.all(np.isfinite(K), axis=(1, 2)))
-        return cls(name, tuple(parameters), K, det, mp, map)
+        return cls(name, tuple(parameters), K, det, mp, map, orientations)
 
 
 @dataclass(frozen=True)
@@ -856,6 +917,7 @@ _NESTED: dict[tuple[type, str], type] = {
     (ReportData, "calibration"): CalibrationData,
     (ReportData, "sensor"): SensorResults,
     (ModelStiffness, "map"): ModelMap,
+    (ModelStiffness, "orientations"): OrientationMap,
     (ReportData, "board_image"): BoardImage,
 }
 _NESTED_LISTS: dict[tuple[type, str], type] = {
@@ -891,6 +953,12 @@ _ARRAY_FIELDS = {
     "fit_intercept_um",
     "image_size",
     "corners_px",
+    "position",
+    "roll_deg",
+    "pitch_deg",
+    "min_principal_rot",
+    "measured_rpy_deg",
+    "measured_min_principal",
 }
 
 

@@ -28,6 +28,7 @@ from .interactive_figures import (
     loads_overview,
     loads_payload,
     model_scatter,
+    orientation_figure,
     plane_maps,
     residual_figure,
     sensor_line,
@@ -397,6 +398,16 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             "fig-model",
             model_scatter(data),
             "Per-plane maps of the model and residuals are under Stiffness map.",
+        )
+        body += fig_div(
+            "fig-orientations",
+            orientation_figure(data),
+            "A platform that turns: the model with its tool point at one measured position (where the "
+            "campaign measured the most orientations) and the platform turned over roll and pitch. Left: "
+            "the smallest principal stiffness of the K the loads hung at loads.point_mm see, what the "
+            "campaign identifies (squares: measured there, on the same colour scale); right: the smallest "
+            "a pure moment sees (K_rot). The maps over positions are at the orientation the campaign's "
+            "positions share (level when they do not share one).",
         )
         sections.append(("model", "Measured and modelled", body))
     if data.truth is not None:

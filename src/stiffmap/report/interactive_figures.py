@@ -22,6 +22,7 @@ from .figure_data import (
     compliance_ellipsoids,
     det_markers,
     error_axis,
+    finite_range,
     interpolate_measured,
     load_directions,
     middle_line_order,
@@ -403,6 +404,56 @@ def model_scatter(data: ReportData) -> go.Figure | None:
     fig.update_layout(
         template=TEMPLATE, height=420, margin=dict(l=60, r=20, t=50, b=50), legend=dict(x=0.01, y=1.0)
     )
+    return fig
+
+
+def orientation_figure(data: ReportData) -> go.Figure | None:
+    """A platform that turns: the model's smallest principal stiffnesses over roll and pitch at
+    one position (translational, of the hung loads' K, and rotational), the orientations
+    measured there as markers coloured by their identified K on the same scale."""
+    om = None if data.model is None else data.model.orientations
+    if om is None:
+        return None
+    at = ", ".join(f"{v:g}" for v in om.position)
+    fig = make_subplots(
+        rows=1,
+        cols=2,
+        subplot_titles=[
+            "smallest principal stiffness (N/mm), model and measured",
+            "smallest rotational stiffness (N·mm/rad), model",
+        ],
+        horizontal_spacing=0.14,
+    )
+    meas = om.measured_min_principal
+    lo, hi = finite_range(om.min_principal, meas)
+    for c, (z, title) in enumerate(((om.min_principal, "N/mm"), (om.min_principal_rot, "N·mm/rad")), start=1):
+        bar = dict(title=dict(text=title), x=0.43 if c == 1 else 1.0, len=0.9)
+        fig.add_trace(
+            go.Heatmap(
+                x=om.roll_deg, y=om.pitch_deg, z=z, colorscale="Viridis", colorbar=bar,
+                zmin=lo if c == 1 else None, zmax=hi if c == 1 else None,
+                hovertemplate="roll %{x:.3g}°, pitch %{y:.3g}°<br>model %{z:.4g}<extra></extra>",
+            ),
+            row=1, col=c,
+        )  # fmt: skip
+        fig.update_xaxes(title_text="roll (deg)", row=1, col=c)
+        fig.update_yaxes(title_text="pitch (deg)", row=1, col=c)
+    ok = np.isfinite(meas)
+    fig.add_trace(
+        go.Scatter(
+            x=om.measured_rpy_deg[:, 0], y=om.measured_rpy_deg[:, 1], mode="markers",
+            marker=dict(size=13, color=np.where(ok, meas, lo), colorscale="Viridis", cmin=lo, cmax=hi,
+                        line=dict(color=np.where(ok, "white", "red"), width=2), symbol="square"),
+            text=[fmt(v) if np.isfinite(v) else "failed" for v in meas],
+            hovertemplate="measured at roll %{x:.3g}°, pitch %{y:.3g}°: %{text} N/mm<extra></extra>",
+            name="measured", showlegend=False,
+        ),
+        row=1, col=1,
+    )  # fmt: skip
+    fig.update_layout(
+        template=TEMPLATE, height=440, margin=dict(l=60, r=20, t=70, b=50),
+        title=dict(text=f"Over orientations at ({at}) mm, yaw {om.yaw_deg:g}°", font=dict(size=13)),
+    )  # fmt: skip
     return fig
 
 

@@ -23,6 +23,7 @@ from .figure_data import (
     calibration_panels,
     det_markers,
     error_axis,
+    finite_range,
     middle_line_order,
     model_plane_grid,
     model_vs_measured,
@@ -231,6 +232,36 @@ def model_scatter(data: ReportData) -> Figure | None:
         ax.legend(loc="upper left", fontsize=8)
     fig.colorbar(sc, ax=axes.tolist(), label="z (mm)")
     fig.suptitle(f"Measured vs model: {mod.name}")
+    return fig
+
+
+def orientation_figure(data: ReportData) -> Figure | None:
+    """A platform that turns: the model's smallest principal stiffnesses over roll and pitch at
+    one position, the orientations measured there as squares on the translational panel's scale."""
+    om = None if data.model is None else data.model.orientations
+    if om is None:
+        return None
+    fig = Figure(figsize=(10, 4.4), layout="constrained")
+    axes = fig.subplots(1, 2)
+    meas = om.measured_min_principal
+    lo, hi = finite_range(om.min_principal, meas)
+    panels = (
+        (om.min_principal, "smallest principal stiffness (N/mm)", Normalize(lo, hi)),
+        (om.min_principal_rot, "smallest rotational stiffness (N*mm/rad)", None),
+    )
+    for ax, (z, title, norm) in zip(axes, panels, strict=True):
+        im = ax.pcolormesh(om.roll_deg, om.pitch_deg, z, shading="nearest", cmap="viridis", norm=norm)
+        fig.colorbar(im, ax=ax)
+        ax.set_xlabel("roll (deg)")
+        ax.set_ylabel("pitch (deg)")
+        ax.set_title(title, fontsize=10)
+    ok = np.isfinite(meas)
+    rpy = om.measured_rpy_deg
+    axes[0].scatter(rpy[ok, 0], rpy[ok, 1], c=meas[ok], cmap="viridis", norm=Normalize(lo, hi),
+                    marker="s", s=70, edgecolors="white", label="measured")  # fmt: skip
+    axes[0].scatter(rpy[~ok, 0], rpy[~ok, 1], marker="x", c="red", s=40, label="failed")
+    at = ", ".join(f"{v:g}" for v in om.position)
+    fig.suptitle(f"Model over orientations at ({at}) mm, yaw {om.yaw_deg:g} deg; squares: measured")
     return fig
 
 
@@ -449,6 +480,7 @@ ALL_FIGURES = (
     ("loads_per_position.png", loads_small_multiples),
     ("residuals_per_position.png", residual_figure),
     ("model_vs_measured.png", model_scatter),
+    ("model_over_orientations.png", orientation_figure),
     ("recovered_vs_true.png", truth_figure),
     ("calibration.png", calibration_figure),
     ("static_error_maps.png", sensor_maps),

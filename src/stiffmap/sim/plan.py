@@ -73,8 +73,10 @@ def vision_config(
         The robot whose stiffness field, model name and parameters are simulated
         (e.g. :func:`~stiffmap.sim.robot.delta_robot`); its positioning noise is
         replaced by ``repeatability_mm`` and ``jitter_mm``.
-    positions : array_like, shape (n, 3), mm
-        Commanded positions of the tool point, base frame.
+    positions : array_like, shape (n, 3), mm, or (n, 6)
+        Commanded positions of the tool point, base frame; or poses (x, y, z mm, roll,
+        pitch, yaw rad) of a robot whose platform turns (:attr:`VirtualRobot.turns`): its
+        platform, and the board on it, held at that orientation.
     loads : sequence of LoadCase
     camera : CameraModel, optional
         Default: the reference camera. The boards are those of
@@ -112,6 +114,10 @@ def vision_config(
     InputError
         A setting out of range (the message names it).
     """
+    P = np.asarray(positions, dtype=np.float64)
+    orientations = None
+    if P.ndim == 2 and P.shape[1] == 6:  # poses: level ones are positions (written as a list)
+        P, orientations = P[:, :3], (P[:, 3:] if np.any(P[:, 3:]) else None)
     try:
         field = robot.field
         if rot_stiffness_nmm_per_rad is not None:
@@ -132,11 +138,12 @@ def vision_config(
             ph = Photometry.noise_free(blur_px=blur_px, clutter=clutter, colour=colour)
         scene = default_scene(camera) if scene is None else scene
         if int(cameras) != 1:
-            scene = rig_scene(scene, int(cameras), positions, angle_deg=camera_angle_deg)
+            scene = rig_scene(scene, int(cameras), P, angle_deg=camera_angle_deg)
         return SimConfig(
             scene=scene,
             robot=vr,
-            positions=positions,
+            positions=P,
+            orientations=orientations,
             loads=tuple(loads),
             repeats=repeats,
             seed=seed,

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
 from ..models import arm6
+from ..models.base import PoseError
 from ..models.delta import DeltaRobot
 
 __all__ = [
@@ -205,12 +206,20 @@ class VirtualRobot:
             raise ValueError(f"load_point_mm must be three finite numbers (mm), got {self.load_point_mm!r}")
         object.__setattr__(self, "load_point_mm", lp)
 
-    def stiffness(self, points) -> np.ndarray:
+    @property
+    def turns(self) -> bool:
+        """Whether its platform can be held turned (its field takes poses: :class:`PlatformField`)."""
+        return bool(getattr(self.field, "turns", False))
+
+    def stiffness(self, points, orientations=None) -> np.ndarray:
         """K at the tool point (N/mm; 6x6 for a 6x6 field), checked.
 
         Parameters
         ----------
         points : array_like, shape (N, 3), mm
+        orientations : array_like, shape (N, 3), rad, optional
+            The platform's roll, pitch, yaw at each point (a robot whose platform turns:
+            :attr:`turns`); None: level.
 
         Returns
         -------
@@ -223,7 +232,13 @@ class VirtualRobot:
             whose symmetric part is not positive definite (naming the position).
         """
         P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        K = np.asarray(self.field(P), dtype=np.float64)
+        if orientations is None:
+            K = np.asarray(self.field(P), dtype=np.float64)
+        elif not self.turns:
+            raise ValueError("this robot's platform does not turn: give its positions without orientations")
+        else:
+            A = np.asarray(orientations, dtype=np.float64).reshape(P.shape[0], 3)
+            K = np.asarray(self.field(np.concatenate([P, A], axis=1)), dtype=np.float64)
         if K.ndim == 2:
             K = K[None]
         if K.shape not in ((P.shape[0], 3, 3), (P.shape[0], 6, 6)):
@@ -264,8 +279,9 @@ class VirtualRobot:
         d = np.linalg.solve(K, wrench)
         return d[:3], d[3:]
 
-    def reach(self, commanded_mm, rng: np.random.Generator) -> np.ndarray:
-        """The platform's true pose on reaching a commanded position (repeatability).
+    def reach(self, commanded_mm, rng: np.random.Generator, rotation=None) -> np.ndarray:
+        """The platform's true pose on reaching a commanded position (repeatability), and
+        commanded orientation ``rotation`` (3 x 3, platform to base; None: level).
 
         Returns
         -------
@@ -274,7 +290,8 @@ class VirtualRobot:
         p = np.asarray(commanded_mm, dtype=np.float64)
         dt = rng.normal(scale=self.repeatability_mm, size=3) if self.repeatability_mm > 0 else np.zeros(3)
         dr = rng.normal(scale=self.repeatability_rad, size=3) if self.repeatability_rad > 0 else np.zeros(3)
-        return transform_from(matrix_from_rotvec(dr), p + dt)
+        R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64)
+        return transform_from(matrix_from_rotvec(dr) @ R, p + dt)
 
     def image_pose(self, tcp2base, rng: np.random.Generator, K=None, force=None) -> np.ndarray:
         """The pose seen in one image: the reached pose, its jitter, and the load's motion.
@@ -434,17 +451,33 @@ def arm6_robot(params: dict[str, float] | None = None, **kw) -> VirtualRobot:
 class PlatformField:
     """The 6x6 stiffness field of a parallel robot whose platform turns (a picklable callable):
     K6 at the tool point (N/mm, N, N*mm/rad blocks, base axes) of the pose that puts the tool
-    point at each position with the platform at ``rpy`` (roll, pitch, yaw, rad)."""
+    point at each position with the platform at ``rpy`` (roll, pitch, yaw, rad), or of each
+    pose given (N, 6: x, y, z mm, roll, pitch, yaw rad)."""
 
     model: Any
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: Its points may be poses: the platform held turned (:attr:`VirtualRobot.turns`).
+    turns: bool = True
 
     def __call__(self, points) -> np.ndarray:
-        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        poses = np.concatenate([P, np.tile(np.asarray(self.rpy, dtype=np.float64), (P.shape[0], 1))], axis=1)
+        P = np.asarray(points, dtype=np.float64)
+        if P.ndim == 2 and P.shape[1] == 6:
+            poses = P
+        else:
+            P = P.reshape(-1, 3)
+            rpy = np.tile(np.asarray(self.rpy, dtype=np.float64), (P.shape[0], 1))
+            poses = np.concatenate([P, rpy], axis=1)
         m = self.model.evaluate(poses)
         for i in np.flatnonzero(~m.valid):
-            raise ValueError(f"the robot cannot hold its platform at {P[i].tolist()} mm: {m.reasons[i]}")
+            where = f"{poses[i, :3].tolist()} mm"
+            if np.any(poses[i, 3:]):
+                where += f", roll/pitch/yaw {np.round(np.degrees(poses[i, 3:]), 9).tolist()} deg"
+            raise PoseError(
+                f"the robot cannot hold its platform at {where}: {m.reasons[i]}",
+                pose=poses[i],
+                index=int(i),
+                reason=m.reasons[i],
+            )
         return m.K6
 
 

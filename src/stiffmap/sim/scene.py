@@ -239,8 +239,9 @@ def hexapod_scene(camera: CameraModel | None = None) -> Scene:
     The same camera, boards and mounting of the mobile board on the platform as the demo
     (a 15x14 board 50 mm in front of the tool point, the centre of the platform), all moved
     up by :data:`HEXAPOD_SCENE_SHIFT_MM`; the fixed board stands on a post behind the
-    hexapod. The test-bed keeps the platform's orientation (level, yaw 0), so the tcp
-    frame keeps the base's axes.
+    hexapod. The test-bed holds the platform level (the tcp frame keeps the base's axes)
+    unless its positions are poses (``SimConfig.orientations``): the board then turns with
+    the platform; orientations of about 10 degrees keep it in view.
     """
     sc = demo_scene(camera)
     shift = transform_from(np.eye(3), HEXAPOD_SCENE_SHIFT_MM)

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import InputError
+from ..geometry import matrix_from_euler
 from ..loads import LoadCase
 from ..models.base import PoseError
 from ..rig import CAMERA_FIELD
@@ -96,6 +97,10 @@ class SimConfig:
         Views of a calibration board rendered before the campaign
         (:mod:`stiffmap.sim.calibration_views`), from which the campaign's camera.json is
         calibrated as a lab would (default 20); 0: the campaign gets the true camera.
+    orientations : ndarray, shape (n, 3), rad, optional
+        The platform's commanded roll, pitch, yaw at each position (R = Rz(yaw) Ry(pitch)
+        Rx(roll)), for a robot whose platform turns (:attr:`VirtualRobot.turns`); the
+        platform's board turns with it. None: level.
     """
 
     scene: Scene
@@ -114,6 +119,7 @@ class SimConfig:
     border_px: float = 20.0
     robot_stays: bool = False
     calibration_views: int = DEFAULT_CALIBRATION_VIEWS
+    orientations: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         P = np.array(self.positions, dtype=np.float64)
@@ -121,6 +127,16 @@ class SimConfig:
             raise ValueError(f"positions must be a non-empty (n, 3) array of finite mm, got shape {P.shape}")
         P.setflags(write=False)
         object.__setattr__(self, "positions", P)
+        if self.orientations is not None:
+            A = np.array(self.orientations, dtype=np.float64)
+            if A.shape != P.shape or not np.all(np.isfinite(A)):
+                raise ValueError(
+                    f"orientations must be a finite ({P.shape[0]}, 3) array of rad, got {A.shape}"
+                )
+            if not self.robot.turns and np.any(A):
+                raise ValueError("orientations: this robot's platform does not turn")
+            A.setflags(write=False)
+            object.__setattr__(self, "orientations", A)
         loads = tuple(self.loads)
         if not loads or not all(isinstance(ld, LoadCase) for ld in loads):
             raise ValueError("loads must be a non-empty sequence of LoadCase")
@@ -231,14 +247,18 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
     """
     cfg = config
     P = cfg.positions
+    A = cfg.orientations
     try:
-        K = cfg.robot.stiffness(P)
+        K = cfg.robot.stiffness(P, A)
     except PoseError as e:
         if e.index is None:
             raise
         p = P[e.index]
+        turned = (
+            "" if A is None else f", roll/pitch/yaw {', '.join(f'{v:g}' for v in np.degrees(A[e.index]))} deg"
+        )
         raise InputError(
-            f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm: the robot model has no "
+            f"position {e.index + 1} ({', '.join(f'{v:g}' for v in p)}) mm{turned}: the robot model has no "
             f"stiffness there ({e.reason or e.detail})",
             items={"position": e.index + 1},
         ) from None
@@ -247,11 +267,12 @@ def plan_campaign(config: SimConfig) -> CampaignPlan:
     jobs: list[ImageJob] = []
     ph = cfg.photometry
     for ip, p in enumerate(P, start=1):
-        stay = cfg.robot.reach(p, seeded_generator(cfg.seed, ip)) if cfg.robot_stays else None
+        R = None if A is None else matrix_from_euler(A[ip - 1])
+        stay = cfg.robot.reach(p, seeded_generator(cfg.seed, ip), R) if cfg.robot_stays else None
         for il, ld in enumerate(cfg.loads, start=1):
             for ir in range(1, cfg.repeats + 1):
                 rng = seeded_generator(cfg.seed, ip, il, ir)
-                reached = cfg.robot.reach(p, rng) if stay is None else stay
+                reached = cfg.robot.reach(p, rng, R) if stay is None else stay
                 T_u = cfg.robot.image_pose(reached, rng)
                 T_l = cfg.robot.image_pose(reached, rng, K[ip - 1], ld.force)
                 for state, T, pat in (("unloaded", T_u, pat_u), ("loaded", T_l, pat_l)):
