@@ -131,7 +131,7 @@ def test_the_extra_noise_is_recovered_within_its_sampling_error():
     assert np.linalg.norm(err) < 3.0 * np.sqrt(var.sum()), (np.linalg.norm(err), np.sqrt(var.sum()))
     assert np.all(np.linalg.eigvalsh(f.extra_covariance) > -1e-12 * np.trace(X))
     assert f.reduced_chi2 == pytest.approx(1.0, abs=0.15)
-    assert "extra noise" in f.notes[0] and "mrad" in f.notes[0]
+    assert "extra noise" in f.info[0] and "mrad" in f.info[0] and not f.notes
     assert f.to_dict()["extra_std"] is not None
 
 

@@ -84,6 +84,8 @@ class RunSummary:
     backend: str = ""
     #: What the user should know that is not a failure (a Dask worker that died, its tasks re-run).
     notes: list[str] = field(default_factory=list)
+    #: What a fit accounted for and the reader should know (an extra noise estimated): no action.
+    info: list[str] = field(default_factory=list)
     #: The camera or rig file's name, and whether it gives the calibration's uncertainty.
     camera_file: str = ""
     calibration_known: bool = False
@@ -190,7 +192,7 @@ def run_vision_campaign(
         failures, notes = _rig_checks(store, campaign)
         summary.failures.extend(failures)
         summary.notes.extend(notes)
-        summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root))
+        summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root, summary.info))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
     return summary
@@ -532,8 +534,12 @@ class _Tally:
 # ---------------------------------------------------------------------- model
 
 
-def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list[str]:
-    """Evaluate the campaign's model at every position, fit it to the measurements, store both.
+def fit_and_evaluate_model(
+    store: Store, spec: CampaignSpec, root: Path, notes: list[str] | None = None
+) -> list[str]:
+    """Evaluate the campaign's model at every position, fit it to the measurements, store both;
+    the problems (failures) returned, what the fit accounted for (its ``info``: an extra noise
+    estimated) appended to ``notes``.
 
     A robot kind of parameters such as the Delta's or a robot described by its legs is
     fitted to the measured K (:func:`~stiffmap.models.fit.fit_stiffness`); a kind of joint
@@ -586,9 +592,9 @@ def fit_and_evaluate_model(store: Store, spec: CampaignSpec, root: Path) -> list
         "robot": to_json(robot_fingerprint(spec, root)),
     }
     if kind.joint_params:  # joint stiffnesses: fitted to the measured displacements themselves
-        fitted = _fit_joints(model, spec, rows, disp, fit_row, problems)
+        fitted = _fit_joints(model, spec, rows, disp, fit_row, problems, notes)
     elif six:  # a platform that turns: its legs fitted to the measured displacements too
-        fitted = _fit_platform(model, spec, rows, disp, fit_row, problems)
+        fitted = _fit_platform(model, spec, rows, disp, fit_row, problems, notes)
     else:
         fitted = _fit_to_measured(model, ok, spec, fit_row, problems)
     mm = platform_map(fitted, _poses(spec, rows), _lever(spec)) if six else fitted.evaluate(pts)
@@ -645,7 +651,9 @@ def _lever(spec: CampaignSpec) -> np.ndarray:
     return np.asarray(spec.loads.point_mm or (0.0, 0.0, 0.0), dtype=float)
 
 
-def _fit_platform(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str]):
+def _fit_platform(
+    model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str], notes=None
+):
     """A platform that turns with its parameters fitted to the measured 6-DOF displacements
     (``model`` when the fit fails); the fit's columns (or its failure) into ``fit_row``."""
     try:
@@ -670,6 +678,8 @@ def _fit_platform(model, spec: CampaignSpec, rows: list, disp: list, fit_row: di
             )
         problems.extend(f"model fit: {w.message}" for w in caught)
         problems.extend(f"model fit: {n}" for n in fit.notes)
+        if notes is not None:
+            notes.extend(f"model fit: {n}" for n in fit.info)
         fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
         return fit.model
     except (InputError, ValueError) as e:
@@ -678,7 +688,9 @@ def _fit_platform(model, spec: CampaignSpec, rows: list, disp: list, fit_row: di
         return model
 
 
-def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str]):
+def _fit_joints(
+    model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict, problems: list[str], notes=None
+):
     """A URDF robot with its joint stiffnesses fitted to the measured displacements (``model``
     when the fit fails); the fit's columns (or its failure) into ``fit_row``."""
     try:
@@ -726,6 +738,8 @@ def _fit_joints(model, spec: CampaignSpec, rows: list, disp: list, fit_row: dict
             )
         problems.extend(f"model fit: {w.message}" for w in caught)
         problems.extend(f"model fit: {n}" for n in fit.notes)
+        if notes is not None:
+            notes.extend(f"model fit: {n}" for n in fit.info)
         names = list(fit.names)  # the joints', then the links' parameters
         fitted = model.with_params(**{k: float(fit.stiffness[names.index(k)]) for k in fitted_names})
         idx = [names.index(k) for k in fit.fitted]  # joint order, as fit.covariance

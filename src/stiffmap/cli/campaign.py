@@ -33,7 +33,7 @@ from ..kinds import robot_kind
 from ..parallel import local_workers
 from ..report.campaign import write_campaign_report
 from ..textfmt import fmt_pm
-from .common import EXIT_PARTIAL, dask_option, fmt, images_progress, out, print_json, warn
+from .common import EXIT_PARTIAL, dask_option, fmt, images_progress, note, out, print_json, warn
 
 
 class MethodName(StrEnum):
@@ -249,6 +249,8 @@ def run(
     # The warnings first, then the summary that ends with "done" (the last thing one reads).
     for n in done.vision.notes if done.vision is not None else ():
         warn(n)
+    for n in done.vision.info if done.vision is not None else ():
+        note(n)
     for f in done.failures[:MAX_WARNINGS]:
         warn(f)
     if len(done.failures) > MAX_WARNINGS:

@@ -31,6 +31,7 @@ from .common import (
     EXIT_PARTIAL,
     fail,
     from_option,
+    note,
     options_named,
     out,
     print_json,
@@ -547,8 +548,10 @@ def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
         cells = [*p[:3], *np.degrees(p[3:])]
         r.add_row(*(fmt(float(x), 6) for x in cells), fmt(v, 3))
     out.print(r)
-    for note in f.notes:
-        warn(note)
+    for n in f.notes:
+        warn(n)
+    for n in f.info:
+        note(n)
 
 
 def register(app: typer.Typer) -> None:

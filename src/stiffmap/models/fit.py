@@ -126,9 +126,14 @@ class ModelFit:
     nfev : int
     message : str
     notes : tuple of str
+        What may make the result wrong (no residual degree of freedom, no convergence, a misfit
+        the fit could not account for): a campaign counts them as failures.
     extra_covariance : ndarray, shape (6, 6), or None
         For :func:`fit_deflections6` with ``extra_noise``: the noise (mm^2, mm*rad, rad^2)
         estimated as missing from the given covariances and added to each (None otherwise).
+    info : tuple of str
+        What the fit did that a reader should know but that is accounted for (the extra noise
+        estimated, in words): printed, not a failure.
     """
 
     kind: str
@@ -157,6 +162,7 @@ class ModelFit:
     message: str
     notes: tuple[str, ...] = field(default_factory=tuple)
     extra_covariance: np.ndarray | None = None
+    info: tuple[str, ...] = field(default_factory=tuple)
 
     @property
     def extra_std(self) -> np.ndarray | None:
@@ -199,6 +205,7 @@ class ModelFit:
                 for p, r in zip(self.poses.tolist(), self.residual_rms_per_pose.tolist(), strict=True)
             ],
             "notes": list(self.notes),
+            "info": list(self.info),
             "extra_covariance": self.extra_covariance,
             "extra_std": self.extra_std,
         }
@@ -794,13 +801,13 @@ def _extra_noise_fit(fit_with, model: Mechanism, C: np.ndarray) -> ModelFit:
             f = fit_with(f.model, C + X)
     f = fit_with(f.model, C + X, absolute=True)  # X explains the scatter: no chi2/dof again
     X.setflags(write=False)
-    return replace(f, initial=f0.initial, extra_covariance=X, notes=_extra_notes(f, f0, X))
-
-
-def _extra_notes(f: ModelFit, f0: ModelFit, X: np.ndarray) -> tuple[str, ...]:
-    """The fit's notes with the given covariances' misfit note replaced by the extra noise."""
     if not np.any(X):
-        return (*f0.notes,)
+        return replace(f, initial=f0.initial, extra_covariance=X, notes=f0.notes)
+    return replace(f, initial=f0.initial, extra_covariance=X, info=(_extra_note(f, f0, X),))
+
+
+def _extra_note(f: ModelFit, f0: ModelFit, X: np.ndarray) -> str:
+    """The extra noise in words: it replaces the given covariances' misfit note (``info``)."""
     s = np.sqrt(np.diag(X))
     note = (
         f"the deflections scatter more than their covariances say (chi2/dof = {f0.reduced_chi2:.3g} with "
@@ -808,4 +815,4 @@ def _extra_notes(f: ModelFit, f0: ModelFit, X: np.ndarray) -> tuple[str, ...]:
         f"{', '.join(f'{v:.3g}' for v in s[:3])} mm, rotation {', '.join(f'{1e3 * v:.3g}' for v in s[3:])} "
         f"mrad (chi2/dof {f.reduced_chi2:.3g} with it)"
     )
-    return (note, *f.notes)
+    return note

@@ -848,11 +848,16 @@ class JointFit:
     active : tuple of str
         Fitted joints held at 0 by the non-negativity bound.
     notes : tuple of str
+        What may make the result wrong (a misfit no extra noise explains, no residual degree of
+        freedom, a joint not felt): a campaign counts them as failures.
     absolute_sigma : bool
     extra_translation_std : float, mm
         With ``extra_noise``: the standard deviation per axis of the translation noise added to
         every displacement's covariance so that the reduced chi-square is 1 (0 when none was
         needed or asked for).
+    info : tuple of str
+        What the fit did that a reader should know but that is accounted for (the extra noise
+        added, in words): printed, not a failure.
     """
 
     names: tuple[str, ...]
@@ -885,6 +890,7 @@ class JointFit:
     absolute_sigma: bool
     notes: tuple[str, ...] = field(default_factory=tuple)
     extra_translation_std: float = 0.0
+    info: tuple[str, ...] = field(default_factory=tuple)
 
     @property
     def values(self) -> dict[str, float]:
@@ -960,6 +966,7 @@ class JointFit:
                 ],
                 "active": list(self.active),
                 "notes": list(self.notes),
+                "info": list(self.info),
                 "extra_translation_std_mm": self.extra_translation_std,
             }
         )
@@ -1138,7 +1145,7 @@ def fit_joint_compliances(
         f"with them alone): {1e3 * np.sqrt(s2):.3g} um per axis of extra translation noise (robot "
         "jitter, vibration) was added to every displacement's covariance to make it 1"
     )
-    return replace(f, extra_translation_std=float(np.sqrt(s2)), notes=(*f.notes, note))
+    return replace(f, extra_translation_std=float(np.sqrt(s2)), info=(note,))
 
 
 def _fit_once(
