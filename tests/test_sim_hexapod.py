@@ -89,7 +89,9 @@ def test_hexapod_campaign_recovers_its_legs(monkeypatch, capsys, tmp_path):
     code, _, err = _cli([*args, "--workers", "2"], monkeypatch, capsys)
     assert code == 0, err
     code, _, err = _cli(["run", out, "--workers", "2"], monkeypatch, capsys)
-    assert code in (0, 1), err
+    # The extra noise the leg fit estimates is a note, not a warning: a good campaign exits 0.
+    assert code == 0, err
+    assert "note: model fit:" in err and "extra noise" in err, err
     with Store(out / DB_NAME) as st:
         fit = st.model_fit("stiffness")
     assert fit is not None and fit.status == "ok", fit

@@ -194,8 +194,9 @@ def _parquet_bytes(rows: list[dict[str, Any]]) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
-def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]:
-    """The JSON summary: per position K, det, smallest principal stiffness, flags; the model fit."""
+def summary_dict(store: Store, name: str, failures: list[str], notes=()) -> dict[str, Any]:
+    """The JSON summary: per position K, det, smallest principal stiffness, flags; the model fit;
+    the failures and the notes (what a fit accounted for: ``RunSummary.info``)."""
     positions = []
     for r in store.stiffness_rows():
         positions.append(
@@ -235,10 +236,11 @@ def summary_dict(store: Store, name: str, failures: list[str]) -> dict[str, Any]
         "sensor_results": sensors,
         "model_fits": fits,
         "failures": failures,
+        "notes": list(notes),
     }
 
 
-def export_tables(store: Store, out_dir: str | Path, name: str, failures: list[str]) -> list[Path]:
+def export_tables(store: Store, out_dir: str | Path, name: str, failures: list[str], notes=()) -> list[Path]:
     """Write every table as CSV and Parquet, and ``summary.json``; return the paths written."""
     out = Path(out_dir)
     written = []
@@ -248,7 +250,7 @@ def export_tables(store: Store, out_dir: str | Path, name: str, failures: list[s
             atomic_write_bytes(p, data)
             written.append(p)
     p = out / "summary.json"
-    atomic_write_text(p, dumps_json(summary_dict(store, name, failures)) + "\n")
+    atomic_write_text(p, dumps_json(summary_dict(store, name, failures, notes)) + "\n")
     written.append(p)
     return written
 

@@ -155,7 +155,7 @@ def run_and_export(
     options = RunOptions(workers, method, progress, allow_outside, dask, send_images)
     result, failures = instrument.run(root, spec, options)
     with Store(root / DB_NAME) as store:
-        export_tables(store, root / EXPORTS_DIR, spec.name, failures)
+        export_tables(store, root / EXPORTS_DIR, spec.name, failures, getattr(result, "info", ()))
     return CampaignRun(root=root, spec=spec, instrument=instrument, result=result, failures=failures)
 
 

@@ -230,7 +230,7 @@ def run(
     nothing = done.nothing_measured()
     with Store(done.db) as store:
         if as_json:
-            print_json(summary_dict(store, spec.name, done.failures))
+            print_json(summary_dict(store, spec.name, done.failures, done.vision.info if done.vision else ()))
         elif nothing is not None:
             pass
         elif instrument.measures == STIFFNESS:
