@@ -18,6 +18,7 @@ import io
 import json
 import math
 import os
+import shutil
 import sys
 from importlib.metadata import distribution
 from pathlib import Path
@@ -370,15 +371,6 @@ def test_a_xacro_description_gives_the_k_of_its_pre_expanded_urdf(rng, monkeypat
             "xacro: argument 'mount_height' has no value: give it with --xacro-arg mount_height=VALUE",
         ),
         (
-            {"xacro_args": {"mount_height": "0.4"}},
-            "xacro: $(find acme_description): no package 'acme_description' in the package folders "
-            "(none given)",
-        ),
-        (
-            {"xacro_args": {"mount_height": "0.4"}, "package_paths": [XACRO_WS / "acme_description"]},
-            "xacro: $(find acme_resources): no package 'acme_resources' in the package folders (",
-        ),
-        (
             {"xacro_args": {"mount_height": "zero"}, "package_paths": [XACRO_WS]},
             "joint 'world-base_link' (on the chain from 'world' to 'tool0'): <origin xyz> is not three",
         ),
@@ -390,6 +382,37 @@ def test_xacro_that_cannot_be_expanded_is_one_line(monkeypatch, kwargs, message)
         SerialRobot.from_urdf(ACME_XACRO, "tool0", k_theta=1e8, **kwargs)
     assert str(e.value).startswith(f"{ACME_XACRO}: ") and message in str(e.value), str(e.value)
     assert "\n" not in str(e.value)
+
+
+def test_the_files_own_workspace_is_searched_last(rng, monkeypatch, tmp_path):
+    """No --package-path, no ROS_PACKAGE_PATH: $(find PKG) finds the file's own package and its
+    siblings (the folder holding its package, as a workspace's source folder does); a copy
+    outside any package finds nothing and says so, naming the package."""
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    args = {"mount_height": "0.4"}
+    ws = SerialRobot.from_urdf(ACME_XACRO, "tool0", OFFSET, k_theta=K_ACME, xacro_args=args)
+    given = SerialRobot.from_urdf(
+        ACME_XACRO, "tool0", OFFSET, k_theta=K_ACME, xacro_args=args, package_paths=[XACRO_WS]
+    )
+    Q = rng.uniform(given.chain.lower, given.chain.upper, size=(3, 6))
+    assert _rel(ws.stiffness6(Q), given.stiffness6(Q)) < 1e-15
+    alone = tmp_path / ACME_XACRO.name
+    shutil.copy(ACME_XACRO, alone)
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(alone, "tool0", k_theta=1e8, xacro_args=args)
+    assert str(e.value) == (
+        f"{alone}: xacro: $(find acme_description): no package 'acme_description' in the package "
+        "folders (none given); give its folder with --package-path DIR (campaign.toml: "
+        "package_paths) or ROS_PACKAGE_PATH"
+    )
+    # The package without its sibling: the workspace searched is named.
+    pkg = shutil.copytree(XACRO_WS / "acme_description", tmp_path / "ws" / "acme_description")
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(pkg / "urdf" / ACME_XACRO.name, "tool0", k_theta=1e8, xacro_args=args)
+    assert (
+        f"xacro: $(find acme_resources): no package 'acme_resources' in the package folders "
+        f"({tmp_path / 'ws'});" in str(e.value)
+    ), str(e.value)
 
 
 def test_xacro_errors_of_its_own_are_one_line(tmp_path):

@@ -175,10 +175,12 @@ def test_mimic_loops_unresolved_xacro_and_bad_link_compliances_are_one_line(tmp_
         '[[links]]\nlink = "link_3"\ncompliance = [[1e-4,0,0,0,0,0],[0,1e-4,0,0,0,0],[0,0,1e-4,0,0,0],'
         "[0,0,0,-1e-8,0,0],[0,0,0,0,1e-8,0],[0,0,0,0,0,1e-8]]\n"
     )
+    alone = tmp_path / ACME_XACRO.name  # outside any package: no workspace to search
+    alone.write_text(ACME_XACRO.read_text())
     cases = [
         ([loop, "--base", "base_link", "--tip", "r_finger_right"], f"{loop}: ",
          "mimic loop r_finger_right_joint"),
-        ([ACME_XACRO, "--tip", "tool0", "--xacro-arg", "mount_height=0.4"], f"{ACME_XACRO}: ",
+        ([alone, "--tip", "tool0", "--xacro-arg", "mount_height=0.4"], f"{alone}: ",
          "$(find acme_description): no package 'acme_description'"),
         ([ACME_XACRO, "--tip", "tool0", "--package-path", XACRO_WS], f"{ACME_XACRO}: ",
          "argument 'mount_height' has no value: give it with --xacro-arg mount_height=VALUE"),

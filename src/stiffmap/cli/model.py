@@ -59,7 +59,8 @@ _BASE_HELP = (
 )
 _XACRO_ARG_HELP = "urdf: an argument NAME=VALUE of a .xacro description (repeatable)."
 _PACKAGE_PATH_HELP = (
-    "urdf: a folder where a .xacro description's $(find PKG) looks (repeatable; then ROS_PACKAGE_PATH)."
+    "urdf: a folder where a .xacro description's $(find PKG) looks (repeatable; then "
+    "ROS_PACKAGE_PATH, then the workspace the file lies in: its own package's siblings)."
 )
 _LINKS_HELP = (
     "urdf: TOML of flexible links (a links table per link: beam data or a 6x6 compliance, "

@@ -71,7 +71,8 @@ class UrdfKeys(BaseModel):
     base_frame: _Name | None = None
     #: A xacro description's arguments, ``$(arg NAME)``.
     xacro_args: dict[_Name, Annotated[str, Strict(), Field(max_length=10000)]] | None = None
-    #: Folders where a xacro description's ``$(find PKG)`` looks (before ROS_PACKAGE_PATH).
+    #: Folders where a xacro description's ``$(find PKG)`` looks (before ROS_PACKAGE_PATH and
+    #: the workspace the file lies in).
     package_paths: list[_PathText] | None = None
     #: The flexible links' TOML (``[[links]]``, docs/models.md).
     links: _PathText | None = None

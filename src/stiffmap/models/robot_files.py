@@ -17,10 +17,11 @@ defines, no link is the child of two joints, no joint name is used twice.
 
 xacro. A ``.xacro`` file is expanded by the ``xacro`` package (PyPI; the ROS tool without
 ROS), with ``xacro:arg`` values given as ``NAME=VALUE`` and ``$(find PKG)`` resolved from
-the package folders given (``--package-path``) or ``ROS_PACKAGE_PATH``: a folder named
-PKG, or holding a ``package.xml`` whose ``<name>`` is PKG, at most four levels below one
-of them. An unresolved package or argument is one :class:`~stiffmap.errors.InputError`
-naming it. Units stay the file's: metres and radians (the chain turns them into mm).
+the package folders given (``--package-path``), ``ROS_PACKAGE_PATH``, then the workspace
+the file lies in (the folder holding its own package: its siblings): a folder named PKG,
+or holding a ``package.xml`` whose ``<name>`` is PKG, at most four levels below one of
+them. An unresolved package or argument is one :class:`~stiffmap.errors.InputError` naming
+it. Units stay the file's: metres and radians (the chain turns them into mm).
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ __all__ = [
     "is_xacro",
     "find_package",
     "package_search_path",
+    "own_workspace",
     "read_links_toml",
     "links_from_tables",
 ]
@@ -338,6 +340,16 @@ def package_search_path(package_paths: Sequence[str | os.PathLike] = ()) -> list
     return [Path(p) for p in package_paths] + [Path(p) for p in env.split(os.pathsep) if p]
 
 
+def own_workspace(path: str | os.PathLike) -> list[Path]:
+    """The folder holding the package a file lies in (its nearest folder with a ``package.xml``):
+    where the file's own package and its siblings are, as a ROS workspace's source folder holds
+    them; empty when no folder above the file is a package."""
+    for d in Path(path).resolve().parents:
+        if (d / "package.xml").is_file():
+            return [d.parent]
+    return []
+
+
 def _package_name(folder: Path) -> str | None:
     """The ``<name>`` of ``folder/package.xml``, or None."""
     f = folder / "package.xml"
@@ -394,7 +406,8 @@ def expand_xacro(
     args : mapping of str to str, optional
         ``xacro:arg`` values (``--xacro-arg NAME=VALUE``).
     package_paths : sequence of path-like
-        Folders holding ROS packages, searched before ``ROS_PACKAGE_PATH`` for ``$(find PKG)``.
+        Folders holding ROS packages, searched for ``$(find PKG)`` before ``ROS_PACKAGE_PATH``
+        and the file's own workspace (:func:`own_workspace`).
 
     Returns
     -------
@@ -408,7 +421,7 @@ def expand_xacro(
         argument without value, or xacro's own message (a missing include, a macro error).
     """
     src = str(path)
-    search = package_search_path(package_paths)
+    search = package_search_path(package_paths) + own_workspace(path)
 
     def find(pkg: str) -> str:
         d = find_package(pkg, search)
