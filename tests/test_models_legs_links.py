@@ -443,3 +443,51 @@ def test_a_link_parameter_named_as_a_stiffness_is_refused():
         InputError, match=r"bad\.toml: legs\[1\]\.links\[1\]\.name: its parameter E_a is also in \[params\]"
     ):
         LegRobot.from_toml_text(text, source="bad.toml")
+
+
+def _five_bar_urdf(x_mm: float) -> str:
+    """One leg of the five-bar as a URDF (metres): motor, upper arm, elbow, forearm, tool pin."""
+    lim = '<limit lower="-3.14" upper="3.14" effort="1" velocity="1"/>'
+    return f"""<robot name="five_bar_leg">
+  <link name="base"/><link name="upper"/><link name="fore"/><link name="pin"/>
+  <transmission name="t"><joint name="motor"/></transmission>
+  <joint name="motor" type="revolute"><parent link="base"/><child link="upper"/>
+    <origin xyz="{x_mm / 1000} 0 0"/><axis xyz="0 0 1"/>{lim}
+  </joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/>
+    <origin xyz="{L1 / 1000} 0 0"/><axis xyz="0 0 1"/>{lim}
+  </joint>
+  <joint name="tool" type="fixed"><parent link="fore"/><child link="pin"/>
+    <origin xyz="{L2 / 1000} 0 0"/></joint>
+</robot>"""
+
+
+def test_urdf_legs_take_their_links_by_urdf_link(tmp_path, rng):
+    upper = {"L": L1, "E": 7e4, "A": 200.0, "I": 5e3}
+    fore = {"L": L2, "E": 2.1e5, "A": 10.0, "I": 1e4}
+    by_joints = _five_bar(5e6, upper, fore)
+    text = "dim = 2\n[params]\nk = 5000000.0\n"
+    for i, (x, q0, e0) in enumerate(((-HALF, 1.9, -1.0), (HALF, 1.2, 1.0)), start=1):
+        (tmp_path / f"leg{i}.urdf").write_text(_five_bar_urdf(x))
+        text += (
+            f'\n[[legs]]\nname = "leg{i}"\nurdf = "leg{i}.urdf"\ntip_frame = "pin"\nattach_mm = [0.0, 0.0]\n'
+            f'[[legs.joints]]\nname = "motor"\nrole = "actuated"\nstiffness = "k"\nq0 = {q0}\n'
+            f'[[legs.joints]]\nname = "elbow"\nrole = "passive"\nq0 = {e0}\n'
+        )
+        for link, b in (("upper", upper), ("fore", fore)):
+            text += _beam_table("x", link, b).replace('after = "x"', f'link = "{link}"')
+    robot = LegRobot.from_toml_text(text, source="urdf_legs.toml", base_dir=tmp_path)
+    assert robot.param_names() == by_joints.param_names()
+    P = np.column_stack([rng.uniform(-60, 60, 4), rng.uniform(420, 520, 4)])
+    want = by_joints.stiffness(P)
+    assert np.abs(robot.stiffness(P) - want).max() <= 1e-9 * np.abs(want).max()
+    with pytest.raises(
+        InputError, match=r"urdf_legs\.toml: legs\[1\]\.links\[1\]\.link: 'uper' is not a link of"
+    ):
+        LegRobot.from_toml_text(
+            text.replace('link = "upper"', 'link = "uper"', 1), source="urdf_legs.toml", base_dir=tmp_path
+        )
+    with pytest.raises(InputError, match=r"legs\[1\]\.links\[1\]\.after: only for a leg given by joints"):
+        LegRobot.from_toml_text(
+            text.replace('link = "upper"', 'after = "motor"', 1), source="u.toml", base_dir=tmp_path
+        )
