@@ -27,7 +27,7 @@ from stiffmap.errors import DesignError, InputError
 from stiffmap.models.fit import fit_deflections6, fit_static_errors
 from stiffmap.models.legs import LegRobot
 from stiffmap.models.legs6 import HEXAPOD, gough_stewart_points, hexapod_toml
-from stiffmap.models.legs_file import legs_text
+from stiffmap.models.legs_convert import legs_toml
 
 ROBOTS = files("stiffmap.models") / "robots"
 BEFORE = Path(__file__).with_name("data") / "legs_before_links.json"
@@ -329,10 +329,8 @@ compliance = {matrix}
     robot = LegRobot.from_toml_text(text, source="d.toml").with_params(f_leg2_elbow_z=2.0, E_arm=8e4)
     names = robot.param_names()
     assert names[:3] == ("k_theta", "k_arm", "k_forearm") and "f_leg1_elbow_z" in names
-    d = robot.description
-    again = LegRobot.from_toml_text(
-        legs_text(robot.name, 3, dict(zip(robot.param_keys, robot.param_values, strict=True)), d, 1e-3)
-    )
+    again = LegRobot.from_toml_text(legs_toml(robot))  # the links' tables, the current values
+    assert again.params() == robot.params() | {"f_leg2_elbow_z": 1.0}  # written as C / f
     P = np.array([[0.0, 0.0, -300.0], [80.0, -40.0, -260.0]])
     want = robot.stiffness(P)
     assert np.abs(again.stiffness(P) - want).max() <= 1e-12 * np.abs(want).max()
@@ -491,3 +489,23 @@ def test_urdf_legs_take_their_links_by_urdf_link(tmp_path, rng):
         LegRobot.from_toml_text(
             text.replace('link = "upper"', 'after = "motor"', 1), source="u.toml", base_dir=tmp_path
         )
+
+
+def test_cli_fits_the_shipped_delta_links_arms_and_names_g(tmp_path, rng, monkeypatch, capsys):
+    from helpers.cli_process import run_in_process as cli
+
+    truth = LegRobot.from_toml(ROBOTS / "delta_links.toml").with_params(k_theta=2.5e5, E_arm=6e4)
+    P, F, U, y = _static_error_data(truth, rng, n=5)
+    rows = ["x,y,z,fx,fy,fz,nx,ny,nz,value_mm"]
+    rows += [",".join(repr(float(v)) for v in (*p, *f, *u, v)) for p, f, u, v in zip(P, F, U, y, strict=True)]
+    meas = tmp_path / "meas.csv"
+    meas.write_text("\n".join(rows) + "\n")
+    code, out, err = cli(["fit", "legs", "delta_links", meas, "--json"], monkeypatch, capsys)
+    assert code == 0, err
+    est = {k: v["estimate"] for k, v in json.loads(out)["parameters"].items()}
+    assert set(est) == {"k_theta", "E_arm"}  # the default: stiffnesses and E, not G
+    np.testing.assert_allclose([est["k_theta"], est["E_arm"]], [2.5e5, 6e4], rtol=1e-6)
+    code, out, err = cli(
+        ["fit", "legs", "delta_links", meas, "--param-to-fit", "k_theta,E_arm,G_arm"], monkeypatch, capsys
+    )
+    assert code == 2 and err.count("\n") == 1 and "cannot determine G_arm" in err, err

@@ -243,6 +243,18 @@ def _resolved_links(desc: LegDescription, chain: Chain, urdf: Path | None) -> tu
 # ---------------------------------------------------------------------- the robot
 
 
+def _link_value(name: str, value) -> float:
+    """A flexible link's parameter: a positive finite number (E_, G_ in MPa; f_ a factor), else ValueError."""
+    unit = "a factor" if name.startswith("f_") else "MPa"
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a positive finite number ({unit}), got {value!r}")
+    return v
+
+
 def unreachable_as_nan(
     legs, joints: list[np.ndarray], reasons: list[str], arrays
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -421,6 +433,11 @@ class LegRobot(LegMechanism):
                 out.update({k: v for k, v in lk.params().items() if k not in out})
         return out
 
+    def default_fit(self) -> tuple[str, ...]:
+        """What a fit takes when none are named: every ``[params]`` stiffness and the links' ``E_``
+        and ``f_`` (not ``G_``: torsion and shear, which ball-jointed legs seldom load; name it)."""
+        return self.param_keys + tuple(n for n in self.link_params() if not n.startswith("G_"))
+
     def params(self) -> dict[str, float]:
         """The stiffnesses of ``[params]`` (N*mm/rad or N/mm), then the links' parameters."""
         return dict(zip(self.param_keys, self.param_values, strict=True)) | self.link_params()
@@ -437,7 +454,7 @@ class LegRobot(LegMechanism):
             )
         tol = params.pop("singular_tol", self.singular_tol)
         vals = tuple(params.get(k, v) for k, v in zip(self.param_keys, self.param_values, strict=True))
-        new = {k: check_positive(k, params[k], "MPa or 1") for k in linked if k in params}
+        new = {k: _link_value(k, params[k]) for k in linked if k in params}
         if not new:
             return replace(self, param_values=vals, singular_tol=tol)
         legs = tuple(replace(lg, links=tuple(lk.with_params(new) for lk in lg.links)) for lg in self._legs)
