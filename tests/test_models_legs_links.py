@@ -26,7 +26,7 @@ import pytest
 from stiffmap.errors import DesignError, InputError
 from stiffmap.models.fit import fit_deflections6, fit_static_errors
 from stiffmap.models.legs import LegRobot
-from stiffmap.models.legs6 import HEXAPOD, gough_stewart_points, hexapod_toml
+from stiffmap.models.legs6 import HEXAPOD, gough_stewart_points, hexapod_toml, rps3_toml
 from stiffmap.models.legs_convert import legs_toml
 
 ROBOTS = files("stiffmap.models") / "robots"
@@ -509,3 +509,48 @@ def test_cli_fits_the_shipped_delta_links_arms_and_names_g(tmp_path, rng, monkey
         ["fit", "legs", "delta_links", meas, "--param-to-fit", "k_theta,E_arm,G_arm"], monkeypatch, capsys
     )
     assert code == 2 and err.count("\n") == 1 and "cannot determine G_arm" in err, err
+
+
+# ---------------------------------------------------------------------- a 3-RPS with tube legs: 6-D fit
+
+TUBE = """
+[[legs.links]]
+after = "stroke"
+name = "tube"
+[legs.links.beam]
+length_mm = 270.0
+E_MPa = 210000.0
+G_MPa = 81000.0
+area_mm2 = 113.1
+Iy_mm4 = 4637.0
+Iz_mm4 = 4637.0
+J_mm4 = 9274.0
+axis = "z"
+"""
+
+
+def test_3rps_tube_legs_fitted_from_6d_deflections(rng):
+    # Each leg a steel tube in series with its actuator (the shipped bending spring made rigid):
+    # the tube's E sets the leg's lateral compliance L^3/(3EI) alone, and adds L/(EA) to the
+    # axial one, so k_leg1..3 and E_tube are all determined by the platform's 6-D deflections.
+    text = _with_links(rps3_toml({"k_bend": math.inf}), TUBE)
+    k = rng.uniform(300.0, 1500.0, size=3)
+    truth = LegRobot.from_toml_text(text, source="3rps_tubes.toml").with_params(
+        **{f"k_leg{i}": float(v) for i, v in enumerate(k, start=1)}, E_tube=1.9e5
+    )
+    P = np.zeros((4, 6))
+    P[:, 2] = np.linspace(220.0, 290.0, 4)
+    P = np.repeat(P, 3, axis=0)
+    W = np.column_stack([rng.normal(0, 20, (12, 3)), rng.normal(0, 2000, (12, 3))])
+    D = truth.static_error6(P, W)
+    names = ("k_leg1", "k_leg2", "k_leg3", "E_tube")
+    assert truth.default_fit() == ("k_leg1", "k_leg2", "k_leg3", "k_bend1", "k_bend2", "k_bend3", "E_tube")
+    start = truth.with_params(k_leg1=800.0, k_leg2=800.0, k_leg3=800.0, E_tube=1e5)
+    f = fit_deflections6(start, P, W, D, params=names)
+    np.testing.assert_allclose(f.estimate, [*k, 1.9e5], rtol=1e-6)
+    std = np.tile([1e-3, 1e-3, 1e-3, 1e-5, 1e-5, 1e-5], (12, 1))  # 1 micrometre, 10 microrad
+    f = fit_deflections6(
+        start, P, W, D + std * rng.normal(size=D.shape), params=names, std=std, absolute_sigma=True
+    )
+    assert np.all(np.abs(f.estimate - [*k, 1.9e5]) < 3 * f.std), (f.estimate, f.std)
+    assert np.all(f.std < 0.05 * np.array([*k, 1.9e5]))
