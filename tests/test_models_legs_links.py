@@ -17,11 +17,15 @@ from __future__ import annotations
 
 import json
 import math
+import tempfile
 from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.fuzz_campaign import mutated_spec, toml_text_mutations
+from hypothesis import given
+from hypothesis import strategies as st
 
 from stiffmap.errors import DesignError, InputError
 from stiffmap.models.fit import fit_deflections6, fit_static_errors
@@ -554,3 +558,23 @@ def test_3rps_tube_legs_fitted_from_6d_deflections(rng):
     )
     assert np.all(np.abs(f.estimate - [*k, 1.9e5]) < 3 * f.std), (f.estimate, f.std)
     assert np.all(f.std < 0.05 * np.array([*k, 1.9e5]))
+
+
+@pytest.mark.fuzz
+@given(data=st.data())
+def test_mutated_leg_files_with_links_load_or_are_refused_by_name(data):
+    valid = (ROBOTS / "delta_links.toml").read_text(encoding="utf-8")
+    valid += '\n[[legs.links]]\nafter = "elbow_z"\nname = "given"\nrpy = [0.1, 0.0, 0.2]\ncompliance = '
+    valid += _matrix(np.diag([2e-4, 3e-4, 3e-4, 1e-8, 2e-8, 2e-8]))
+    raw = data.draw(st.one_of(mutated_spec(valid), mutated_spec(valid), toml_text_mutations(valid)))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fuzz.toml"
+        path.write_bytes(raw)
+        try:
+            lr = LegRobot.from_toml(path)
+        except InputError as e:
+            assert str(e).startswith(f"{path}: ") and "\n" not in str(e), str(e)
+            return
+    home = {3: [0.0, 0.0, -300.0], 2: [0.0, 0.0]}.get(lr.dim, [0.0, 0.0, -300.0, 0.0, 0.0, 0.0])
+    m = lr.evaluate(np.array([home]))
+    assert m.valid[0] or m.reasons[0].startswith(("unreachable: ", "singular: "))
