@@ -21,7 +21,12 @@ is the virtual joint method's assembly (:func:`~stiffmap.models.base.platform_st
     C_leg = J_s diag(1/k) J_s^T,   K_leg = U (U^T C_leg U)^-1 U^T,   K = sum over legs of K_leg
 
 with U an orthonormal basis of the directions the passive joints do not free (the
-complement of range J_p). The built-in :class:`~stiffmap.models.delta.DeltaRobot` and
+complement of range J_p). A leg's flexible links (``[[legs.links]]``: 6-D springs on its
+links, :mod:`~stiffmap.models.links`) add their share to its compliance at the tip before
+the assembly, ``C_leg = J_s diag(1/k) J_s^T + sum_l J_l C_l J_l^T`` (J_l the tip's motion per
+twist of link l's spring; its translation rows for dim 2 and 3, all six for dim 6); their
+parameters (``E_<name>``, ``G_<name>``, ``f_<name>``) follow ``[params]`` in ``params()``.
+The built-in :class:`~stiffmap.models.delta.DeltaRobot` and
 :class:`~stiffmap.models.prr3.PRR3` are the same assembly fed with closed-form columns;
 :func:`~stiffmap.models.legs_convert.legs_toml` writes either as a legs TOML (the package ships them as
 ``robots/delta.toml`` and ``robots/3prr.toml``), and :class:`LegRobot` read from it equals

@@ -4,9 +4,9 @@ The I/O module of :mod:`stiffmap.models.legs` (docs/architecture.md: cores read 
 through their I/O modules): :func:`read_legs_file` reads and checks a legs TOML
 (``docs/models.md``, "Parallel robots from their legs") into a :class:`LegsFile` -- plain
 data, the robot's name, dimension, parameters and its legs (:class:`LegDescription`, each a
-list of :class:`LegJoint`) --, which :class:`~stiffmap.models.legs.LegRobot` builds the
-mechanism from; :func:`legs_text` writes one back. Every problem is an
-:class:`~stiffmap.errors.InputError` naming the file and the key
+list of :class:`LegJoint` and its flexible links, ``[[legs.links]]``) --, which
+:class:`~stiffmap.models.legs.LegRobot` builds the mechanism from; :func:`legs_text` writes
+one back. Every problem is an :class:`~stiffmap.errors.InputError` naming the file and the key
 (``legs[2].joints[1].axis: expected three numbers``), tables numbered from 1.
 """
 
