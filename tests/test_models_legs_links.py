@@ -578,3 +578,29 @@ def test_mutated_leg_files_with_links_load_or_are_refused_by_name(data):
     home = {3: [0.0, 0.0, -300.0], 2: [0.0, 0.0]}.get(lr.dim, [0.0, 0.0, -300.0, 0.0, 0.0, 0.0])
     m = lr.evaluate(np.array([home]))
     assert m.valid[0] or m.reasons[0].startswith(("unreachable: ", "singular: "))
+
+
+def test_campaign_takes_link_parameters_and_refuses_bad_ones_before_measuring(tmp_path):
+    import re
+
+    from helpers.fuzz import run_argv
+    from helpers.fuzz_campaign import bare_vision_seed
+
+    from stiffmap.kinds import robot_kind
+
+    model = LegRobot.from_toml(ROBOTS / "delta_links.toml")
+    assert robot_kind("legs").fitted_names(model) == ("k_theta", "E_arm")  # k_arm, k_forearm inf; no G
+    root = tmp_path / "c"
+    for name, data in bare_vision_seed().items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_bytes(data)
+    (root / "robot.toml").write_bytes((ROBOTS / "delta_links.toml").read_bytes())
+    spec = root / "campaign.toml"
+    robot = (
+        '[robot]\nmodel = "legs"\nlegs = "robot.toml"\nparams = {E_arm = -5.0}\nfit = ["k_theta", "E_arm"]\n'
+    )
+    spec.write_text(re.sub(r"\[robot\]\n(?:.*\n)*?(?=\n\[)", robot, spec.read_text(), count=1))
+    o = run_argv(["run", str(root), "--quiet", "--no-report", "--workers", "1"])
+    (line,) = o.stderr.splitlines()
+    assert o.code == 2 and "E_arm must be a positive finite number (MPa), got -5.0" in line, o.stderr
+    assert not (root / "stiffmap.db").exists()
