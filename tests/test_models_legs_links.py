@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 from stiffmap.errors import DesignError, InputError
 from stiffmap.models.fit import fit_deflections6, fit_static_errors
 from stiffmap.models.legs import LegRobot
-from stiffmap.models.legs6 import HEXAPOD, gough_stewart_points, hexapod_toml, rps3_toml
+from stiffmap.models.legs6 import HEXAPOD, RPS3, gough_stewart_points, hexapod_toml, rps3_toml
 from stiffmap.models.legs_convert import legs_toml
 
 ROBOTS = files("stiffmap.models") / "robots"
@@ -604,3 +604,56 @@ def test_campaign_takes_link_parameters_and_refuses_bad_ones_before_measuring(tm
     (line,) = o.stderr.splitlines()
     assert o.code == 2 and "E_arm must be a positive finite number (MPa), got -5.0" in line, o.stderr
     assert not (root / "stiffmap.db").exists()
+
+
+def _rps_pose(z: float, roll: float, pitch: float, attach, axes) -> np.ndarray:
+    """A pose the 3-RPS reaches: x, y, yaw such that every platform joint is in its leg's plane."""
+    from scipy.optimize import least_squares
+
+    def planes(v):
+        R = _rot(roll, pitch, v[2])
+        return [(np.array([v[0], v[1], z]) + R @ a) @ w for a, w in zip(attach, axes, strict=True)]
+
+    sol = least_squares(planes, [0.0, 0.0, 0.0], xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    assert np.abs(sol.fun).max() < 1e-10
+    return np.array([sol.x[0], sol.x[1], z, roll, pitch, sol.x[2]])
+
+
+def test_3rps_whose_legs_are_beam_links_equals_a_frame_finite_element_model():
+    # Each leg a steel tube as a link (its actuator and bending spring made rigid), of the leg's
+    # length at the pose: K6 equals tests/helpers/frame_fe's model of beams from revolute joints
+    # at the base to balls at the platform (three elements a leg), condensed on the platform.
+    from helpers.frame_fe import rps_leg_platform_stiffness
+
+    E, G, A, I, J = 2.1e5, 8.1e4, 113.1, 4637.0, 9274.0
+    ang = np.radians([90.0, 210.0, 330.0])
+    ring = np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
+    base, attach = RPS3["base_radius_mm"] * ring, RPS3["platform_radius_mm"] * ring
+    axes = np.stack([-np.sin(ang), np.cos(ang), 0 * ang], axis=1)
+    head, *legs = rps3_toml({"k_leg": 1e12, "k_bend": math.inf}).split("\n[[legs]]\n")
+    for z, roll, pitch in ((250.0, 0.0, 0.0), (270.0, 0.12, -0.08), (230.0, -0.15, 0.1)):
+        pose = _rps_pose(z, roll, pitch, attach, axes)
+        tips = pose[:3] + attach @ _rot(*pose[3:]).T
+        lengths = np.linalg.norm(tips - base, axis=1)
+        text = head
+        for i, (lg, L) in enumerate(zip(legs, lengths, strict=True), start=1):
+            table = f"""
+[[legs.links]]
+after = "stroke"
+name = "tube{i}"
+[legs.links.beam]
+length_mm = {float(L)!r}
+E_MPa = {E}
+G_MPa = {G}
+area_mm2 = {A}
+Iy_mm4 = {I}
+Iz_mm4 = {I}
+J_mm4 = {J}
+axis = "z"
+"""
+            text += f"\n[[legs]]\n{lg.rstrip()}\n{table}"
+        K6 = LegRobot.from_toml_text(text, source="3rps_beams.toml").stiffness6(pose)
+        K6_fe = rps_leg_platform_stiffness(base, axes, tips, pose[:3], E, G, A, I, J, n_elements=3)
+        # 1e-6: the actuators' 1e12 N/mm in series adds 1e-7 of the tubes' axial compliance
+        err = np.linalg.norm(_scaled(K6 - K6_fe, 100.0)) / np.linalg.norm(_scaled(K6_fe, 100.0))
+        assert err < 1e-6, pose
