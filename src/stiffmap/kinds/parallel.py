@@ -115,7 +115,7 @@ PRR3_KIND = RobotKind(
 _ROBOTS = files("stiffmap.models") / "robots"
 #: Legs TOMLs that ship with stiffmap, by name: ``stiffmap model legs hexapod ...`` needs no file.
 BUILTIN_LEGS: dict[str, str] = {
-    name: str(_ROBOTS / f"{name}.toml") for name in ("hexapod", "3rps", "delta", "3prr")
+    name: str(_ROBOTS / f"{name}.toml") for name in ("hexapod", "3rps", "delta", "3prr", "delta_links")
 }
 #: The test-bed's hexapod (``stiffmap simulate --robot hexapod``): the shipped 6-UPS on spring
 #: legs of six different stiffnesses (N/mm), soft enough that the reference study's loads move

@@ -239,6 +239,8 @@ class RobotKind:
             return self.param_units[name]
         if self.joint_params and name[:1] == "k" and name[1:].isdigit():
             return "N*mm/rad"
+        if name.startswith(("E_", "G_")):  # a flexible link's moduli (models.links)
+            return "MPa"
         return ""
 
     def builtin_file(self, name: str | Path) -> str | None:

@@ -633,7 +633,7 @@ def leg_stiffness(springs, k, U, held, compliance=None) -> tuple[np.ndarray, np.
     return 0.5 * (K + np.swapaxes(K, -1, -2)), rigid
 
 
-def platform_stiffness(springs, k, passive, valid) -> tuple[np.ndarray, np.ndarray]:
+def platform_stiffness(springs, k, passive, valid, compliance=None) -> tuple[np.ndarray, np.ndarray]:
     """The platform's stiffness from its legs (virtual joint method): ``K = sum over legs of K_leg``.
 
     Every leg's tip moves with the tool point (a translational platform), so the legs act in
@@ -650,6 +650,8 @@ def platform_stiffness(springs, k, passive, valid) -> tuple[np.ndarray, np.ndarr
         Passive columns (pad with zero columns).
     valid : ndarray of bool, shape (N,)
         Poses to assemble.
+    compliance : ndarray, shape (N, legs, d, d), optional
+        Extra compliance of each leg at its tip (:func:`leg_stiffness`: its flexible links'), mm/N.
 
     Returns
     -------
@@ -665,7 +667,8 @@ def platform_stiffness(springs, k, passive, valid) -> tuple[np.ndarray, np.ndarr
     rigid = np.zeros((n, nlegs), dtype=bool)
     if np.any(valid):
         U, held = constrained_directions(np.asarray(passive, dtype=np.float64)[valid])
-        Kl, rl = leg_stiffness(Js[valid], kk[valid] if kk.ndim == 3 else kk, U, held)
+        extra = None if compliance is None else np.asarray(compliance, dtype=np.float64)[valid]
+        Kl, rl = leg_stiffness(Js[valid], kk[valid] if kk.ndim == 3 else kk, U, held, extra)
         K[valid] = Kl.sum(axis=1)
         rigid[valid] = rl
     return K, rigid

@@ -48,7 +48,7 @@ import numpy as np
 
 from ..errors import DesignError, IllConditionedWarning
 from ..stats import chi2_sf
-from .base import POSE_DIM, Mechanism, PoseError, as_points, format_pose
+from .base import POSE_DIM, Mechanism, PoseError, as_forces, as_points, format_pose
 from .whiten import as_float, whitener
 
 __all__ = [
@@ -566,8 +566,14 @@ def static_error_predictions(model: Mechanism, points, forces, directions) -> np
         NaN where the model cannot be evaluated.
     """
     P, _ = as_points(points, model.dim)
-    m = model.evaluate(P)
-    u = m.static_error(forces)
+    uniq, inv = np.unique(P, axis=0, return_inverse=True)  # each pose evaluated once
+    m = model.evaluate(uniq)
+    inv = np.ravel(inv)
+    F = as_forces(forces, P.shape[0], m.dim)
+    u = np.full(F.shape, np.nan)
+    v = m.valid[inv]
+    if np.any(v):
+        u[v] = np.linalg.solve(m.K[inv[v]], F[v][..., None])[..., 0]
     return np.einsum("ij,ij->i", u, np.asarray(directions, dtype=np.float64))
 
 

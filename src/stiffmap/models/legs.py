@@ -21,7 +21,12 @@ is the virtual joint method's assembly (:func:`~stiffmap.models.base.platform_st
     C_leg = J_s diag(1/k) J_s^T,   K_leg = U (U^T C_leg U)^-1 U^T,   K = sum over legs of K_leg
 
 with U an orthonormal basis of the directions the passive joints do not free (the
-complement of range J_p). The built-in :class:`~stiffmap.models.delta.DeltaRobot` and
+complement of range J_p). A leg's flexible links (``[[legs.links]]``: 6-D springs on its
+links, :mod:`~stiffmap.models.links`) add their share to its compliance at the tip before
+the assembly, ``C_leg = J_s diag(1/k) J_s^T + sum_l J_l C_l J_l^T`` (J_l the tip's motion per
+twist of link l's spring; its translation rows for dim 2 and 3, all six for dim 6); their
+parameters (``E_<name>``, ``G_<name>``, ``f_<name>``) follow ``[params]`` in ``params()``.
+The built-in :class:`~stiffmap.models.delta.DeltaRobot` and
 :class:`~stiffmap.models.prr3.PRR3` are the same assembly fed with closed-form columns;
 :func:`~stiffmap.models.legs_convert.legs_toml` writes either as a legs TOML (the package ships them as
 ``robots/delta.toml`` and ``robots/3prr.toml``), and :class:`LegRobot` read from it equals
@@ -46,10 +51,12 @@ from .base import (
     as_points,
     check_positive,
     constrained_directions,
+    platform_stiffness,
 )
 from .chain import Chain, JointSpec
 from .legs_chains import urdf_without_springs, without_springs
 from .legs_file import ROLES, LegDescription, LegsFile, parse_legs_text, read_legs_file
+from .links import LinkSpring, resolve_axis, spring_jacobians
 
 __all__ = ["LegRobot", "LegStates", "LIMIT_TOL"]
 
@@ -77,6 +84,16 @@ class _Leg:
     target: np.ndarray  # (3,): attach_mm, and for a planar robot the tip's z at the seed
     tip0: np.ndarray  # (3,) mm: the tip at the seed
     step_mm: float  # continuation step
+    links: tuple[LinkSpring, ...] = ()  # flexible links: origin (link frame) and beam axis resolved
+
+    def link_jacobians(self, q: np.ndarray) -> np.ndarray:
+        """``J_s`` of the leg's flexible links at joint coordinates q (every joint), shape (S, 6, 6):
+        the platform joint's motion (velocity, rotation; base frame) per twist of each spring."""
+        if not self.links:
+            return np.zeros((0, 6, 6))
+        frames = [(lk.link, lk.rotation, lk.origin_mm) for lk in self.links]
+        O, R = self.chain.link_poses(q[None], frames)
+        return spring_jacobians(self.chain.forward(q)[0][None], O, R)[0]
 
     @property
     def columns(self) -> tuple[list[int], list[int], list[int]]:
@@ -195,12 +212,52 @@ def _build_leg(desc: LegDescription, k: int, dim: int, base_dir: Path, source: s
     else:
         size = float(np.linalg.norm(tip0))
     lims = (np.array(lower), np.array(upper))
+    links = _resolved_links(desc, chain, path if desc.urdf is not None else None)
     return _Leg(
-        desc.name, chain, ik_chain, roles, stiffness, free, q0a, *lims, target, tip0, max(0.1 * size, 1.0)
+        desc.name,
+        chain,
+        ik_chain,
+        roles,
+        stiffness,
+        free,
+        q0a,
+        *lims,
+        target,
+        tip0,
+        max(0.1 * size, 1.0),
+        links,
     )
 
 
+def _resolved_links(desc: LegDescription, chain: Chain, urdf: Path | None) -> tuple[LinkSpring, ...]:
+    """The leg's flexible links on its chain: each spring's origin (default: where its link ends)
+    and beam axis set; a URDF link off the leg's chain named (InputError)."""
+    out = []
+    for lk in desc.links:
+        if lk.link not in chain.link_names:
+            raise InputError(
+                f"{lk.where}.link: {lk.link!r} is not a link of {urdf} between its root and "
+                f"{desc.tip_frame!r} (the leg's links: {', '.join(chain.link_names)})"
+            )
+        if lk.origin_mm is None:
+            lk = replace(lk, origin_mm=chain.link_end(lk.link))
+        out.append(resolve_axis(lk, lk.origin_mm))
+    return tuple(out)
+
+
 # ---------------------------------------------------------------------- the robot
+
+
+def _link_value(name: str, value) -> float:
+    """A flexible link's parameter: a positive finite number (E_, G_ in MPa; f_ a factor), else ValueError."""
+    unit = "a factor" if name.startswith("f_") else "MPa"
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a positive finite number ({unit}), got {value!r}")
+    return v
 
 
 def unreachable_as_nan(
@@ -251,6 +308,10 @@ class LegStates:
     springs, actuated, passive : ndarray, shapes (N, legs, dim, s), (N, legs, dim, a), (N, legs, dim, p)
         The legs' joint columns at their platform joints (mm per rad or per mm, base frame),
         padded with zero columns; NaN where unreachable.
+    links : ndarray, shape (N, legs, S, 6, 6)
+        ``J_s`` of each leg's flexible links (:func:`~stiffmap.models.links.spring_jacobians`:
+        the platform joint's velocity and rotation per twist of the link's spring), padded with
+        zeros; NaN where unreachable.
     """
 
     q: np.ndarray
@@ -260,6 +321,7 @@ class LegStates:
     springs: np.ndarray
     actuated: np.ndarray
     passive: np.ndarray
+    links: np.ndarray
 
 
 #: The LegRobot subclass of each dim that has one (registered by ``_FOR_DIM``).
@@ -364,23 +426,45 @@ class LegRobot(LegMechanism):
     # ------------------------------------------------------------------ parameters
 
     def param_names(self) -> tuple[str, ...]:
-        """The ``[params]`` names (``with_params``, fitting, ``--param``)."""
-        return self.param_keys
+        """The ``[params]`` names, then the flexible links' (``with_params``, fitting, ``--param``)."""
+        return self.param_keys + tuple(self.link_params())
+
+    def link_params(self) -> dict[str, float]:
+        """The flexible links' parameters (``E_<name>``, ``G_<name>`` MPa; ``f_<name>``), leg after
+        leg; links of one name share theirs."""
+        out: dict[str, float] = {}
+        for lg in self._legs:
+            for lk in lg.links:
+                out.update({k: v for k, v in lk.params().items() if k not in out})
+        return out
+
+    def default_fit(self) -> tuple[str, ...]:
+        """What a fit takes when none are named: every ``[params]`` stiffness and the links' ``E_``
+        and ``f_`` (not ``G_``: torsion and shear, which ball-jointed legs seldom load; name it)."""
+        return self.param_keys + tuple(n for n in self.link_params() if not n.startswith("G_"))
 
     def params(self) -> dict[str, float]:
-        """The stiffnesses of ``[params]`` (N*mm/rad or N/mm)."""
-        return dict(zip(self.param_keys, self.param_values, strict=True))
+        """The stiffnesses of ``[params]`` (N*mm/rad or N/mm), then the links' parameters."""
+        return dict(zip(self.param_keys, self.param_values, strict=True)) | self.link_params()
 
     def with_params(self, **params) -> LegRobot:
-        """A copy with some stiffnesses (or ``singular_tol``) changed; unknown names raise ValueError."""
-        bad = sorted(set(params) - set(self.param_keys) - {"singular_tol"})
+        """A copy with some stiffnesses, link parameters (or ``singular_tol``) changed; unknown names
+        raise ValueError, a link parameter that is not positive and finite too."""
+        linked = self.link_params()
+        bad = sorted(set(params) - set(self.param_keys) - set(linked) - {"singular_tol"})
         if bad:
             raise ValueError(
-                f"unknown parameter(s) {', '.join(bad)} of {self.name}; valid: {', '.join(self.param_keys)}"
+                f"unknown parameter(s) {', '.join(bad)} of {self.name}; "
+                f"valid: {', '.join(self.param_names())}"
             )
         tol = params.pop("singular_tol", self.singular_tol)
         vals = tuple(params.get(k, v) for k, v in zip(self.param_keys, self.param_values, strict=True))
-        return replace(self, param_values=vals, singular_tol=tol)
+        new = {k: _link_value(k, params[k]) for k in linked if k in params}
+        if not new:
+            return replace(self, param_values=vals, singular_tol=tol)
+        legs = tuple(replace(lg, links=tuple(lk.with_params(new) for lk in lg.links)) for lg in self._legs)
+        desc = tuple(replace(d, links=tuple(lk.with_params(new) for lk in d.links)) for d in self.description)
+        return replace(self, param_values=vals, singular_tol=tol, description=desc, _legs=legs)
 
     @property
     def chains(self) -> tuple[Chain, ...]:
@@ -395,6 +479,8 @@ class LegRobot(LegMechanism):
     def describe(self) -> str:
         """One line: the legs and the parameters."""
         ps = ", ".join(f"{k}={v:g}" for k, v in self.params().items())
+        nlinks = sum(len(lg.links) for lg in self._legs)
+        ps += f", {nlinks} flexible link{'s' if nlinks > 1 else ''}" if nlinks else ""
         legs = ", ".join(f"{lg.name} ({lg.chain.n} joints)" for lg in self._legs)
         return f"{self.name}: {len(self._legs)} legs [{legs}], dim {self.dim}, {ps} (from {self.source})"
 
@@ -418,6 +504,7 @@ class LegRobot(LegMechanism):
         springs = np.full((n, nl, d, ns), np.nan)
         actuated = np.full((n, nl, d, counts["actuated"]), np.nan)
         passive = np.full((n, nl, d, counts["passive"]), np.nan)
+        links = np.full((n, nl, max(len(lg.links) for lg in self._legs), 6, 6), np.nan)
         joints = [np.full((n, lg.chain.n), np.nan) for lg in self._legs]
         reasons = [""] * n
         for i, p in enumerate(P):
@@ -437,10 +524,13 @@ class LegRobot(LegMechanism):
                 for arr, cols in zip((springs, actuated, passive), lg.columns, strict=True):
                     arr[i, k, :, : len(cols)] = J[:, cols]
                     arr[i, k, :, len(cols) :] = 0.0
+                links[i, k] = 0.0
+                links[i, k, : len(lg.links)] = lg.link_jacobians(q)
             if bad:
                 reasons[i] = "unreachable: " + "; ".join(bad)
-        q, reachable = unreachable_as_nan(self._legs, joints, reasons, (springs, actuated, passive))
-        return LegStates(q, tuple(joints), reachable, tuple(reasons), springs, actuated, passive)
+        arrays = (springs, actuated, passive, links)
+        q, reachable = unreachable_as_nan(self._legs, joints, reasons, arrays)
+        return LegStates(q, tuple(joints), reachable, tuple(reasons), *arrays[:3], links)
 
     def inverse_kinematics(self, points) -> IKSolution:
         """The actuated joints' coordinates (rad or mm) of many poses, leg after leg.
@@ -463,6 +553,26 @@ class LegRobot(LegMechanism):
 
     def _joint_coordinates(self, st: LegStates) -> np.ndarray:
         return st.q
+
+    def _link_compliance(self, st: LegStates) -> np.ndarray | None:
+        """Each leg's flexible links at its platform joint, ``sum_s J_s C_s J_s^T`` (N, legs, 6, 6);
+        None without links."""
+        S = st.links.shape[2]
+        if S == 0:
+            return None
+        Cs = np.zeros((len(self._legs), S, 6, 6))
+        for i, lg in enumerate(self._legs):
+            for s, lk in enumerate(lg.links):
+                Cs[i, s] = lk.matrix()
+        C = np.einsum("nlsij,lsjk,nlsmk->nlim", st.links, Cs, st.links)
+        return 0.5 * (C + np.swapaxes(C, -1, -2))
+
+    def _assemble(self, st: LegStates, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+        """K of the valid poses (:func:`platform_stiffness`, the links' compliance at each leg's tip)."""
+        C = self._link_compliance(st)
+        d = self.dim
+        K, rigid = platform_stiffness(*self._leg_joints(st), valid, None if C is None else C[..., :d, :d])
+        return K, rigid, {}
 
     def _leg_joints(self, st: LegStates) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         values = self.params()

@@ -157,7 +157,7 @@ class LegRobot6(LegRobot):
         cols, why = self._platform_columns(k, lg.chain.forward(q)[1], R)
         if why:
             return None, why
-        return (q, lg.chain.jacobian(q), cols), ""
+        return (q, lg.chain.jacobian(q), cols, lg.link_jacobians(q)), ""
 
     def legs(self, points) -> LegStates6:
         """Inverse kinematics of every leg and its 6-D joint columns, at many poses.
@@ -181,6 +181,7 @@ class LegRobot6(LegRobot):
         springs = np.full((n, nl, 6, ns), np.nan)
         actuated = np.full((n, nl, 6, counts["actuated"]), np.nan)
         passive = np.full((n, nl, 6, counts["passive"] + 3), np.nan)
+        links = np.full((n, nl, max(len(lg.links) for lg in self._legs), 6, 6), np.nan)
         joints = [np.full((n, lg.chain.n), np.nan) for lg in self._legs]
         reasons = [""] * n
         if len(self._memo) > MEMO_MAX:
@@ -196,8 +197,10 @@ class LegRobot6(LegRobot):
                     sep = " " if why.startswith(("cannot", "its")) else ": "
                     bad.append(f"leg {k + 1} ({lg.name}){sep}{why}")
                     continue
-                q, J, platform = got
+                q, J, platform, Jl = got
                 joints[k][i] = q
+                links[i, k] = 0.0
+                links[i, k, : Jl.shape[0]] = Jl
                 s_cols, a_cols, p_cols = lg.columns
                 cols = (J[:, s_cols], J[:, a_cols], np.hstack([J[:, p_cols], platform]))
                 for arr, c in zip((springs, actuated, passive), cols, strict=True):
@@ -205,8 +208,9 @@ class LegRobot6(LegRobot):
                     arr[i, k, :, c.shape[1] :] = 0.0
             if bad:
                 reasons[i] = "unreachable: " + "; ".join(bad)
-        q, reachable = unreachable_as_nan(self._legs, joints, reasons, (springs, actuated, passive))
-        return LegStates6(q, tuple(joints), reachable, tuple(reasons), springs, actuated, passive, arms, R)
+        arrays = (springs, actuated, passive, links)
+        q, reachable = unreachable_as_nan(self._legs, joints, reasons, arrays)
+        return LegStates6(q, tuple(joints), reachable, tuple(reasons), *arrays, arms, R)
 
     # ------------------------------------------------------------------ stiffness
 
@@ -214,7 +218,8 @@ class LegRobot6(LegRobot):
         """K (a pure force's), the rigid legs and K6 (:func:`platform_stiffness6`)."""
         Js, k, Jp = self._leg_joints(st)
         L = self.length_mm
-        K6, rigid = platform_stiffness6(Js, k, Jp, st.arms, valid, length_mm=L)
+        C = self._link_compliance(st)  # each leg's flexible links at its platform joint
+        K6, rigid = platform_stiffness6(Js, k, Jp, st.arms, valid, length_mm=L, compliance=C)
         K = np.full((K6.shape[0], 3, 3), np.nan)
         ok = valid & ~np.any(rigid, axis=1)
         if np.any(ok):

@@ -144,5 +144,6 @@ def legs_toml(model: DeltaRobot | PRR3 | LegRobot) -> str:
         params, legs = _prr3_description(model)
         return legs_text(None, 2, params, legs, model.singular_tol, _PRR3_HEADER)
     if isinstance(model, LegRobot):
-        return legs_text(model.name, model.dim, model.params(), model.description, model.singular_tol)
+        stiffnesses = dict(zip(model.param_keys, model.param_values, strict=True))  # links: their tables
+        return legs_text(model.name, model.dim, stiffnesses, model.description, model.singular_tol)
     raise TypeError(f"legs_toml takes a DeltaRobot, a PRR3 or a LegRobot, got {type(model).__name__}")

@@ -4,9 +4,9 @@ The I/O module of :mod:`stiffmap.models.legs` (docs/architecture.md: cores read 
 through their I/O modules): :func:`read_legs_file` reads and checks a legs TOML
 (``docs/models.md``, "Parallel robots from their legs") into a :class:`LegsFile` -- plain
 data, the robot's name, dimension, parameters and its legs (:class:`LegDescription`, each a
-list of :class:`LegJoint`) --, which :class:`~stiffmap.models.legs.LegRobot` builds the
-mechanism from; :func:`legs_text` writes one back. Every problem is an
-:class:`~stiffmap.errors.InputError` naming the file and the key
+list of :class:`LegJoint` and its flexible links, ``[[legs.links]]``) --, which
+:class:`~stiffmap.models.legs.LegRobot` builds the mechanism from; :func:`legs_text` writes
+one back. Every problem is an :class:`~stiffmap.errors.InputError` naming the file and the key
 (``legs[2].joints[1].axis: expected three numbers``), tables numbered from 1.
 """
 
@@ -18,14 +18,18 @@ import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
 from ..errors import InputError
+from ..geometry import euler_from_matrix
 from ..io import read_text_file
 from ..stiffness import MAX_POSITION_MM, MAX_ROTATION_RAD
 from .base import SINGULAR_TOL
+from .links import LinkSpring
+from .robot_files import links_from_tables
 
 __all__ = [
     "LegJoint",
@@ -107,6 +111,10 @@ class LegDescription:
     platform_axes : tuple of two 3-tuples or None
         A universal platform joint's axes: the first in the frame of the leg's last joint (or
         ``tip_frame``), the second in the platform's frame.
+    links : tuple of LinkSpring
+        The leg's flexible links (``[[legs.links]]``; :mod:`~stiffmap.models.links`): each
+        on the link a joint of the leg moves (``LinkSpring.link``: that joint's name, or for
+        a URDF leg a URDF link).
     """
 
     name: str
@@ -117,6 +125,7 @@ class LegDescription:
     tip_frame: str | None = None
     platform_joint: str | None = None
     platform_axes: tuple[tuple[float, ...], ...] | None = None
+    links: tuple[LinkSpring, ...] = ()
 
 
 # ---------------------------------------------------------------------- the TOML schema
@@ -186,6 +195,7 @@ class _LegIn(_Strict):
     platform_joint: Literal["ball", "universal"] | None = None
     platform_axes: list[_Axis] | None = Field(default=None, min_length=2, max_length=2)
     joints: list[_JointIn] = Field(min_length=1)
+    links: list[Any] | None = None
 
 
 class _RobotIn(_Strict):
@@ -243,17 +253,16 @@ def _check_platform_joint(lg: _LegIn, dim: int, where: str, fail) -> None:
             fail(f"{where}.platform_axes[{j}]", "expected three numbers, not all zero")
 
 
-def _descriptions(data: dict, source: str, default_name: str):
-    """Validate a parsed legs TOML: (name, dim, singular_tol, params, legs), else InputError."""
-    try:
-        spec = _RobotIn.model_validate(data)
-    except ValidationError as e:
-        raise InputError("; ".join(dict.fromkeys(_problem(x) for x in e.errors())), source=source) from None
-
+def _fail_in(source: str):
     def fail(key: str, msg: str):
         raise InputError(f"{key}: {msg}", source=source)
 
-    for pname, value in spec.params.items():
+    return fail
+
+
+def _check_params(params: dict[str, float], fail) -> None:
+    """``[params]``: names, and stiffnesses positive within :data:`STIFFNESS_RANGE` (or inf)."""
+    for pname, value in params.items():
         if not _NAME.match(pname):
             fail(f"params.{pname}", "a parameter name is letters, digits and _ (not starting with a digit)")
         if math.isnan(value) or value <= 0:
@@ -264,106 +273,193 @@ def _descriptions(data: dict, source: str, default_name: str):
                 f"a stiffness between {STIFFNESS_RANGE[0]:g} and {STIFFNESS_RANGE[1]:g} N*mm/rad or N/mm "
                 f"(or inf for rigid), got {value!r}",
             )
+
+
+def _check_leg(lg: _LegIn, dim: int, where: str, fail) -> None:
+    """A leg's own keys: ``attach_mm`` of the right length, its platform joint, URDF and tip frame."""
+    if dim == 6 and len(lg.attach_mm) != 3:
+        fail(
+            f"{where}.attach_mm",
+            f"expected 3 numbers (dim = 6: the leg's joint in the platform's frame, mm), "
+            f"got {len(lg.attach_mm)}",
+        )
+    if dim != 6 and len(lg.attach_mm) != dim:
+        fail(f"{where}.attach_mm", f"expected {dim} numbers (dim = {dim}), got {len(lg.attach_mm)}")
+    _check_platform_joint(lg, dim, where, fail)
+    if lg.urdf is not None and lg.tip_frame is None:
+        fail(f"{where}.tip_frame", "missing key: a URDF leg names the frame of its platform joint")
+    if lg.urdf is None and lg.tip_frame is not None:
+        fail(
+            f"{where}.tip_frame",
+            "only for a URDF leg (urdf = ...); a leg given by joints ends at its last joint",
+        )
+
+
+def _check_joint_kinematics(jt: _JointIn, urdf: bool, jw: str, fail) -> _JointIn:
+    """A joint's type, axis, xyz_mm, rpy: from the URDF (none given) or given (axis normalised)."""
+    kin = {"type": jt.type, "axis": jt.axis, "xyz_mm": jt.xyz_mm, "rpy": jt.rpy}
+    if urdf:
+        for k, v in kin.items():
+            if v is not None:
+                fail(
+                    f"{jw}.{k}",
+                    "a URDF leg's joints take their kinematics from the URDF: give name, role, "
+                    "stiffness, q0, lower, upper",
+                )
+        return jt
+    for k in ("type", "axis"):
+        if kin[k] is None:
+            fail(f"{jw}.{k}", "missing key")
+    big = max(abs(x) for x in jt.axis)
+    if big == 0:
+        fail(f"{jw}.axis", "expected three numbers, not all zero")
+    return jt.model_copy(update={"axis": tuple(x / big for x in jt.axis)})
+
+
+def _check_joint_role(jt: _JointIn, params: dict[str, float], used: dict[str, str], jw: str, fail) -> None:
+    """A joint's stiffness (by role; recorded in ``used``), and a spring's absent seed and limits."""
+    if jt.role == "passive":
+        if jt.stiffness is not None:
+            fail(f"{jw}.stiffness", "a passive joint is free: no stiffness")
+    else:
+        if jt.stiffness is None:
+            fail(f"{jw}.stiffness", f"missing key: an {jt.role} joint names its stiffness in [params]")
+        if jt.stiffness not in params:
+            known = ", ".join(params) or "none"
+            fail(f"{jw}.stiffness", f"{jt.stiffness!r} is not in [params] ({known})")
+        if jt.role == "actuated" or jt.stiffness not in used:
+            used[jt.stiffness] = jt.role
+    if jt.role == "spring":
+        for k in ("q0", "lower", "upper"):
+            if getattr(jt, k) is not None:
+                fail(
+                    f"{jw}.{k}", "a spring joint stays at rest (q = 0) in the kinematics: no q0, lower, upper"
+                )
+    lo = -math.inf if jt.lower is None else jt.lower
+    hi = math.inf if jt.upper is None else jt.upper
+    if math.isnan(lo) or math.isnan(hi) or lo > hi:
+        fail(f"{jw}.upper", f"limits must satisfy lower <= upper, got [{lo!r}, {hi!r}]")
+    if jt.q0 is not None and not (lo <= jt.q0 <= hi):
+        fail(f"{jw}.q0", f"the seed {jt.q0!r} is outside the limits [{lo!r}, {hi!r}]")
+    if jt.q0 is not None and not math.isfinite(jt.q0):
+        fail(f"{jw}.q0", f"expected a finite number, got {jt.q0!r}")
+
+
+def _leg_joints(lg: _LegIn, lname: str, params, used, where: str, fail) -> tuple[LegJoint, ...]:
+    joints = []
+    seen: set[str] = set()
+    for j, jt in enumerate(lg.joints, start=1):
+        jw = f"{where}.joints[{j}]"
+        if jt.name in seen:
+            fail(f"{jw}.name", f"joint {jt.name!r} is named twice in {lname}")
+        seen.add(jt.name)
+        jt = _check_joint_kinematics(jt, lg.urdf is not None, jw, fail)
+        _check_joint_role(jt, params, used, jw, fail)
+        joints.append(LegJoint(**jt.model_dump()))
+    return tuple(joints)
+
+
+#: The keys of a ``[[legs.links]]`` table (docs/models.md): as a links TOML's ``[[links]]``
+#: (:func:`~stiffmap.models.robot_files.read_links_toml`), placed by the joint it follows.
+LEG_LINK_KEYS = ("after", "link", "name", "xyz_mm", "rpy", "beam", "compliance")
+
+
+def _leg_links(lg: _LegIn, lname: str, joints: tuple[LegJoint, ...], where: str, source: str, fail):
+    """A leg's ``[[legs.links]]`` as LinkSpring (``link``: the joint's name, or a URDF link)."""
+    if lg.links is None:
+        return ()
+    names = [jt.name for jt in joints]
+    tables = []
+    for i, t in enumerate(lg.links, start=1):
+        lw = f"{where}.links[{i}]"
+        if not isinstance(t, dict):
+            fail(lw, "expected a table (after = JOINT, beam or compliance)")
+        unknown = sorted(set(t) - set(LEG_LINK_KEYS))
+        if unknown:
+            fail(f"{lw}.{unknown[0]}", f"unknown key; valid: {', '.join(LEG_LINK_KEYS)}")
+        own, other = ("link", "after") if lg.urdf is not None else ("after", "link")
+        if other in t:
+            fail(
+                f"{lw}.{other}",
+                "only for a leg given by joints (the joint the link follows)"
+                if other == "after"
+                else "only for a URDF leg; a leg given by joints names the joint it follows: after = ...",
+            )
+        after = t.get(own)
+        if lg.urdf is None and not (isinstance(after, str) and after in names):
+            fail(
+                f"{lw}.after",
+                f"expected the name of one of {lname}'s joints ({', '.join(names)}), the one moving the "
+                f"link that bends, got {after!r}",
+            )
+        if not isinstance(after, str) or not after:
+            fail(f"{lw}.link", f"expected the name of the URDF link that bends, got {after!r}")
+        rest = {k: v for k, v in t.items() if k not in ("after", "link")}
+        tables.append({"link": after, "name": re.sub(r"\W", "_", f"{lname}_{after}"), **rest})
+    return links_from_tables(tables, source, f"{where}.links")
+
+
+def _check_link_names(legs: tuple[LegDescription, ...], params: dict[str, float], fail) -> None:
+    """Links of one name share their parameters: the same kind and values; none a [params] name."""
+    first: dict[str, LinkSpring] = {}
+    for lk in (lk for lg in legs for lk in lg.links):
+        table = lk.where.rsplit(": ", 1)[-1]
+        for p in lk.param_names():
+            if p in params:
+                fail(f"{table}.name", f"its parameter {p} is also in [params]: name the link otherwise")
+        other = first.setdefault(lk.name, lk)
+        if other is not lk and (other.param_names() != lk.param_names() or other.params() != lk.params()):
+            fail(
+                f"{table}.name",
+                f"{lk.name!r} is also {other.where.rsplit(': ', 1)[-1]}'s name: links of one name share "
+                f"their parameters ({', '.join(lk.param_names())}), so they need the same kind and values",
+            )
+
+
+def _check_used(params: dict[str, float], used: dict[str, str], fail) -> None:
+    for pname in params:
+        if pname not in used:
+            fail(f"params.{pname}", "no joint refers to it")
+        if used[pname] == "actuated" and math.isinf(params[pname]):
+            fail(f"params.{pname}", "an actuated joint's stiffness must be finite")
+    if "actuated" not in used.values():
+        fail("legs", 'no actuated joint: give at least one joint role = "actuated"')
+
+
+def _descriptions(data: dict, source: str, default_name: str):
+    """Validate a parsed legs TOML: (name, dim, singular_tol, params, legs), else InputError."""
+    try:
+        spec = _RobotIn.model_validate(data)
+    except ValidationError as e:
+        raise InputError("; ".join(dict.fromkeys(_problem(x) for x in e.errors())), source=source) from None
+    fail = _fail_in(source)
+    _check_params(spec.params, fail)
     used: dict[str, str] = {}
     legs = []
     leg_names: set[str] = set()
     for i, lg in enumerate(spec.legs, start=1):
         where = f"legs[{i}]"
-        if spec.dim == 6 and len(lg.attach_mm) != 3:
-            fail(
-                f"{where}.attach_mm",
-                f"expected 3 numbers (dim = 6: the leg's joint in the platform's frame, mm), "
-                f"got {len(lg.attach_mm)}",
-            )
-        if spec.dim != 6 and len(lg.attach_mm) != spec.dim:
-            fail(
-                f"{where}.attach_mm",
-                f"expected {spec.dim} numbers (dim = {spec.dim}), got {len(lg.attach_mm)}",
-            )
-        _check_platform_joint(lg, spec.dim, where, fail)
+        _check_leg(lg, spec.dim, where, fail)
         lname = lg.name or f"leg{i}"
         if lname in leg_names:
             fail(f"{where}.name", f"leg {lname!r} is named twice")
         leg_names.add(lname)
-        if lg.urdf is not None and lg.tip_frame is None:
-            fail(f"{where}.tip_frame", "missing key: a URDF leg names the frame of its platform joint")
-        if lg.urdf is None and lg.tip_frame is not None:
-            fail(
-                f"{where}.tip_frame",
-                "only for a URDF leg (urdf = ...); a leg given by joints ends at its last joint",
-            )
-        joints = []
-        seen: set[str] = set()
-        for j, jt in enumerate(lg.joints, start=1):
-            jw = f"{where}.joints[{j}]"
-            if jt.name in seen:
-                fail(f"{jw}.name", f"joint {jt.name!r} is named twice in {lname}")
-            seen.add(jt.name)
-            kin = {"type": jt.type, "axis": jt.axis, "xyz_mm": jt.xyz_mm, "rpy": jt.rpy}
-            if lg.urdf is not None:
-                for k, v in kin.items():
-                    if v is not None:
-                        fail(
-                            f"{jw}.{k}",
-                            "a URDF leg's joints take their kinematics from the URDF: give name, role, "
-                            "stiffness, q0, lower, upper",
-                        )
-            else:
-                for k in ("type", "axis"):
-                    if kin[k] is None:
-                        fail(f"{jw}.{k}", "missing key")
-                big = max(abs(x) for x in jt.axis)
-                if big == 0:
-                    fail(f"{jw}.axis", "expected three numbers, not all zero")
-                jt = jt.model_copy(update={"axis": tuple(x / big for x in jt.axis)})
-            if jt.role == "passive":
-                if jt.stiffness is not None:
-                    fail(f"{jw}.stiffness", "a passive joint is free: no stiffness")
-            else:
-                if jt.stiffness is None:
-                    fail(
-                        f"{jw}.stiffness", f"missing key: an {jt.role} joint names its stiffness in [params]"
-                    )
-                if jt.stiffness not in spec.params:
-                    known = ", ".join(spec.params) or "none"
-                    fail(f"{jw}.stiffness", f"{jt.stiffness!r} is not in [params] ({known})")
-                if jt.role == "actuated" or jt.stiffness not in used:
-                    used[jt.stiffness] = jt.role
-            if jt.role == "spring":
-                for k in ("q0", "lower", "upper"):
-                    if getattr(jt, k) is not None:
-                        fail(
-                            f"{jw}.{k}",
-                            "a spring joint stays at rest (q = 0) in the kinematics: no q0, lower, upper",
-                        )
-            lo = -math.inf if jt.lower is None else jt.lower
-            hi = math.inf if jt.upper is None else jt.upper
-            if math.isnan(lo) or math.isnan(hi) or lo > hi:
-                fail(f"{jw}.upper", f"limits must satisfy lower <= upper, got [{lo!r}, {hi!r}]")
-            if jt.q0 is not None and not (lo <= jt.q0 <= hi):
-                fail(f"{jw}.q0", f"the seed {jt.q0!r} is outside the limits [{lo!r}, {hi!r}]")
-            if jt.q0 is not None and not math.isfinite(jt.q0):
-                fail(f"{jw}.q0", f"expected a finite number, got {jt.q0!r}")
-            joints.append(LegJoint(**jt.model_dump()))
+        joints = _leg_joints(lg, lname, spec.params, used, where, fail)
         legs.append(
             LegDescription(
                 name=lname,
                 attach_mm=lg.attach_mm,
-                joints=tuple(joints),
+                joints=joints,
                 tip_offset_mm=lg.tip_offset_mm or (0.0, 0.0, 0.0),
                 urdf=lg.urdf,
                 tip_frame=lg.tip_frame,
                 platform_joint=lg.platform_joint,
                 platform_axes=None if lg.platform_axes is None else tuple(lg.platform_axes),
+                links=_leg_links(lg, lname, joints, where, source, fail),
             )
         )
-    for pname in spec.params:
-        if pname not in used:
-            fail(f"params.{pname}", "no joint refers to it")
-        if used[pname] == "actuated" and math.isinf(spec.params[pname]):
-            fail(f"params.{pname}", "an actuated joint's stiffness must be finite")
-    if "actuated" not in used.values():
-        fail("legs", 'no actuated joint: give at least one joint role = "actuated"')
+    _check_used(spec.params, used, fail)
+    _check_link_names(tuple(legs), spec.params, fail)
     tol = spec.singular_tol
     if not (0 <= tol < 1):
         fail("singular_tol", f"expected a number in [0, 1), got {tol!r}")
@@ -497,4 +593,30 @@ def legs_text(
             for k in ("q0", "lower", "upper"):
                 if getattr(jt, k) is not None:
                     out.append(f"{k} = {_num(getattr(jt, k))}")
+        for lk in lg.links:
+            out += _link_lines(lk, "link" if lg.urdf is not None else "after")
     return "\n".join(out) + "\n"
+
+
+_BEAM_FIELDS = ("length_mm", "E_MPa", "G_MPa", "area_mm2", "Iy_mm4", "Iz_mm4", "J_mm4")
+
+
+def _link_lines(lk: LinkSpring, locator: str) -> list[str]:
+    """A ``[[legs.links]]`` table (a given compliance written at its stiffness factor: C / f)."""
+    out = ["", "[[legs.links]]", f"{locator} = {json.dumps(lk.link)}", f"name = {json.dumps(lk.name)}"]
+    if lk.origin_mm is not None:
+        out.append(f"xyz_mm = {_vec(lk.origin_mm)}")
+    R = np.asarray(lk.rotation, dtype=float)
+    if not np.array_equal(R, np.eye(3)):
+        out.append(f"rpy = {_vec(euler_from_matrix(R))}")
+    if lk.beam is None:
+        C = np.asarray(lk.compliance, dtype=float) / lk.factor  # entries to 1e-15 and below: all digits
+        rows = ", ".join("[" + ", ".join(repr(float(v)) for v in r) + "]" for r in C)
+        return [*out, f"compliance = [{rows}]"]
+    out += ["", "[legs.links.beam]"]
+    out += [f"{k} = {_num(getattr(lk.beam, k))}" for k in _BEAM_FIELDS]
+    if lk.beam.shear_factor is not None:
+        out.append(f"shear_factor = {_num(lk.beam.shear_factor)}")
+    if lk.beam.axis is not None:
+        out.append(f"axis = {json.dumps(lk.beam.axis)}")
+    return out
