@@ -15,6 +15,7 @@ import pytest
 from helpers.board_images import area_board_image
 from helpers.board_scenes import look_at_pose
 from helpers.shared_data import CALIB_DIR
+from scipy.ndimage import convolve1d
 
 from stiffmap.camera import CameraModel
 from stiffmap.targets import Chessboard
@@ -105,3 +106,32 @@ def test_bouguets_edges_sit_outside_his_corners(name, tmp_path):
     # The photometric pose is closer by about that scale times the distance.
     z_c, z_p = corner.board2cam[2, 3], photo.board2cam[2, 3]
     assert -3 * at_corner.scale < (z_p - z_c) / z_c < -0.3 * at_corner.scale
+
+
+def _filtered(img: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """An 8-bit image filtered along its rows (a camera's line processing), 8 bits again."""
+    out = convolve1d(img.astype(np.float64), kernel, axis=1, mode="nearest")
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize(
+    "kernel, moves",
+    [
+        (np.array([-0.3, 0.0, 1.6, 0.0, -0.3]), False),  # symmetric sharpening along the rows
+        (np.array([0.0, 0.0, 1.35, -0.2, -0.15]), True),  # causal: an undershoot after each step
+    ],
+)
+def test_line_processing_moves_the_edges_against_the_corners_but_never_scales_them(kernel, moves):
+    """A filter along the rows, as an analogue camera's line processing: a symmetric one leaves
+    the edges where the corners are; a causal one (ringing after each step, as Bouguet's images
+    show) moves the edges sideways against the corners (one image offset), and neither gives
+    the scale seen on Bouguet's board (docs/vision.md, "Real photographs")."""
+    T = look_at_pose(DIST, BOARD, tilt_deg=(15.0, -10.0, 5.0))
+    img = _filtered(area_board_image(CAM, BOARD, T, rng=np.random.default_rng(5)), kernel)
+    det = detect_board(img, BOARD)
+    corner = estimate_pose(det, BOARD, CAM, refine="corners")
+    fit = refine_pose_photometric(img, BOARD, CAM, corner.board2cam, detection=det).photometric
+    seen = edge_agreement(img, BOARD, CAM, corner.board2cam, fit, phase=det.phase)
+    assert abs(seen.scale) < 3e-4, seen.scale
+    assert abs(seen.offset_px[1]) < 0.03
+    assert (abs(seen.offset_px[0]) > 0.04) == moves, seen.offset_px  # measured 0.0004 and 0.073 px
