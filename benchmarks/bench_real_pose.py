@@ -12,6 +12,9 @@ default settings, in subprocesses:
 - through the library (the same calls as ``pose``): poses posed, photometric refinements kept,
   and why each other one was not (``photometric_counts``); with the rig, the cameras'
   consistency chi2 (6 dof) over the pairs that calibrated it;
+- where each image's edges sit relative to its corner pose (``edge_agreement`` with the
+  image's photometric fit: the edges' scale about the board's centre and one image offset; what
+  moves a photometric pose away from the corner pose), median and range over the set;
 - a wrong board size (9x6 on Bouguet's 13x12 board): the answer, and the command's time
   (wall and CPU of the child process).
 
@@ -42,6 +45,8 @@ from stiffmap.targets import Chessboard  # noqa: E402
 from stiffmap.vision import detect_board, read_image  # noqa: E402
 from stiffmap.vision.detection import DetectionError  # noqa: E402
 from stiffmap.vision.files import image_files, measure_files, measure_image_sets  # noqa: E402
+from stiffmap.vision.photometric import PhotometricError, refine_pose_photometric  # noqa: E402
+from stiffmap.vision.photometric.diagnostics import edge_agreement  # noqa: E402
 from stiffmap.vision.pose import corner_noise_factor, estimate_pose, pose_shift_sigma  # noqa: E402
 from stiffmap.vision.sequence import photometric_counts  # noqa: E402
 
@@ -90,6 +95,34 @@ def _shifts(pairs, camera, board) -> str:
     return f"{q(own)}; {q(wide)}"
 
 
+def _edges(pairs, camera, board) -> str:
+    """Edges against the corner pose over (image file, detection) pairs: the scale (%) and the
+    offset's length (px), median [min, max], and how many images' photometric fits failed."""
+    scale, off, failed = [], [], 0
+    for path, det in pairs:
+        if det is None:
+            continue
+        img = read_image(path)
+        corner = estimate_pose(det, board, camera, refine="corners")
+        try:
+            fit = refine_pose_photometric(img, board, camera, corner.board2cam, detection=det).photometric
+        except PhotometricError:
+            try:  # as estimate_pose does: the inner squares alone
+                fit = refine_pose_photometric(
+                    img, board, camera, corner.board2cam, detection=det, inner_only=True
+                ).photometric
+            except PhotometricError:
+                failed += 1
+                continue
+        a = edge_agreement(img, board, camera, corner.board2cam, fit, phase=det.phase)
+        scale.append(100.0 * a.scale)
+        off.append(float(np.hypot(*a.offset_px)))
+    if not scale:
+        return "-"
+    q = lambda x, f: f"{np.median(x):{f}} [{np.min(x):{f}}, {np.max(x):{f}}]"  # noqa: E731
+    return f"{q(scale, '+.3f')} % / {q(off, '.2f')} px" + (f" ({failed} not fitted)" if failed else "")
+
+
 def wrong_size(name: str, folder, board: Chessboard) -> list:
     """Each image searched for a smaller board: the sizes named, and CPU per image."""
     named: dict[str, int] = {}
@@ -115,7 +148,9 @@ def one_camera(name: str, folder, board: Chessboard, tmp: Path) -> list:
     rc_p, w_p, *_ = _run(
         ["pose", "--camera", str(cam_json), "--board", board.size, "--square-mm", "25", str(folder)]
     )
-    ms = measure_files(image_files([folder]), load_camera(cam_json), board)
+    files = image_files([folder])
+    camera = load_camera(cam_json)
+    ms = measure_files(files, camera, board)
     kept, tried, why = photometric_counts(ms)
     posed = sum(m.ok for m in ms)
     shifts = _shifts([(m.mobile, m.mobile_detection) for m in ms], load_camera(cam_json), board)
@@ -125,6 +160,7 @@ def one_camera(name: str, folder, board: Chessboard, tmp: Path) -> list:
         f"{kept} / {tried}",
         shifts,
         _why(why),
+        _edges([(f, m.mobile_detection) for f, m in zip(files, ms, strict=True)], camera, board),
         "{} + {}".format(*_split(w_c)),
         "{} + {}".format(*_split(w_p)),
         "-",
@@ -175,12 +211,21 @@ def stereo(tmp: Path, board: Chessboard) -> list:
         )
         for c in rig.cameras
     ]
+    edges = [
+        _edges(
+            [(v.image, v.mobile_detection) for m in ms for v in m.views if v.camera == c.name],
+            c.camera,
+            board,
+        )
+        for c in rig.cameras
+    ]
     return [
         "stereo (OpenCV samples, rig)",
         f"{len(chi2)} / {len(ms)} pairs",
         f"{kept} / {tried}",
         " and ".join(per_cam),
         _why(why),
+        " and ".join(edges),
         "{} + {}".format(*_split(w_c)),
         "{} + {}".format(*_split(w_p)),
         f"median {np.median(chi2):.1f}, max {chi2.max():.0f}; {flagged} of {len(chi2)} above 27.9",
@@ -213,6 +258,7 @@ def main() -> None:
         "photometric kept / tried",
         "kept: photometric - corner pose, combined sigma (median / 90 %; corner cov x factor)",
         "why the others kept their corner pose",
+        "edges vs the corner pose: scale / offset (median [range])",
         "calibrate warnings (bad image + other)",
         "pose warnings (bad image + other)",
         "rig consistency chi2 (6 dof)",
@@ -221,6 +267,10 @@ def main() -> None:
         "Default settings (`--refine auto`). The distance of a kept photometric pose from its corner "
         "pose in combined sigmas (Mahalanobis over 6 parameters, both fits' own covariances) follows "
         "the chi law of 6 degrees of freedom if both covariances hold: median 2.35, 90 % 3.26. "
+        "Edges vs the corner pose (`vision.photometric.diagnostics.edge_agreement`, every posed image "
+        "with its photometric fit): how much farther from the board's centre the edges sit than the "
+        "corner pose puts them (a photometric pose moves closer by about that share of its distance) "
+        "and the length of one image offset of every edge (which moves it sideways). "
         "Warnings split into those naming an image that cannot be "
         "measured (board partly out of the frame, another image size) and the others. Wrong board size "
         f"(`calibrate calib_example --board 9x6`): exit {rc}, {wall:.1f} s wall, {cpu:.1f} s CPU "

@@ -21,7 +21,9 @@ One module per step, in the order of the fit:
 - :mod:`~stiffmap.vision.photometric.acceptance`: when a converged fit is accepted
   (plausible blur, few outliers, a positive and even contrast) and its covariance;
 - :mod:`~stiffmap.vision.photometric.refine`: :func:`refine_pose_photometric`, the two
-  passes from the corner-based pose to a :class:`~stiffmap.posemath.BoardPose`.
+  passes from the corner-based pose to a :class:`~stiffmap.posemath.BoardPose`;
+- :mod:`~stiffmap.vision.photometric.diagnostics`: :func:`edge_agreement`, where the image's
+  edges sit relative to a pose (the corner pose): why a fit lands away from it.
 
 The pixels' rays come from the camera's ray cache (:func:`stiffmap.camera.pixel_rays`),
 the pose perturbation and the board-plane homography from :mod:`stiffmap.posemath`.
@@ -29,11 +31,14 @@ the pose perturbation and the board-plane homography from :mod:`stiffmap.posemat
 ChArUco boards (markers in the white squares) are not modelled.
 """
 
+from .diagnostics import EdgeAgreement, edge_agreement
 from .model import model_and_jacobian
 from .pixels import PhotometricError, PhotometricSetup, prepare_pixels
 from .refine import PhotometricFit, PhotometricTrack, refine_pose_photometric
 
 __all__ = [
+    "EdgeAgreement",
+    "edge_agreement",
     "PhotometricFit",
     "PhotometricError",
     "PhotometricSetup",
