@@ -528,3 +528,52 @@ def test_a_description_in_a_default_namespace_reads_as_without(tmp_path):
     plain = SerialRobot.from_urdf(ACME_URDF, "tool0", OFFSET, k_theta=K_ACME)
     q = np.radians([10.0, 20.0, -30.0, 40.0, 50.0, 60.0])
     assert _rel(ns.stiffness6(q), plain.stiffness6(q)) < 1e-15
+
+
+def _rpy_matrix_in_test(r, p, y):
+    """R = Rz(y) Ry(p) Rx(r), URDF's convention, written out here."""
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def test_a_fixed_frame_beside_the_chain_is_a_base_frame(rng, tmp_path):
+    """ROS-Industrial's ``base`` (a fixed frame hung off ``base_link``, nothing below it): the
+    tip's position, K and K6 in it are those in base_link moved by the constant transform,
+    computed here from the numbers written in the file; a frame with a moving joint below it
+    is the base of another branch and is named."""
+    xyz, rpy = np.array([20.0, -30.0, 450.0]), (0.1, -0.2, 3.1)
+    mount = (
+        '<link name="base"/><link name="marker"/>'
+        '<joint name="base_link-base" type="fixed"><parent link="base_link"/><child link="base"/>'
+        f'<origin xyz="{xyz[0] / 1e3} {xyz[1] / 1e3} {xyz[2] / 1e3}" rpy="{rpy[0]} {rpy[1]} {rpy[2]}"/>'
+        '</joint><joint name="base-marker" type="fixed"><parent link="base"/><child link="marker"/>'
+        '<origin xyz="0 0 0.01"/></joint></robot>'
+    )
+    f = tmp_path / "acme_base.urdf"
+    f.write_text(ACME_URDF.read_text().replace("</robot>", mount))
+    plain = SerialRobot.from_urdf(f, "tool0", OFFSET, k_theta=K_ACME, base_frame="base_link")
+    based = SerialRobot.from_urdf(f, "tool0", OFFSET, k_theta=K_ACME, base_frame="base")
+    assert based.chain.joint_names == plain.chain.joint_names
+    R = _rpy_matrix_in_test(*rpy)
+    T = np.zeros((6, 6))
+    T[:3, :3] = T[3:, 3:] = R
+    for q in rng.uniform(plain.chain.lower, plain.chain.upper, size=(4, 6)):
+        p = plain.chain.forward(q)[0]
+        assert np.max(np.abs(based.chain.forward(q)[0] - R.T @ (p - xyz))) < 1e-9
+        assert _rel(based.stiffness6(q), T.T @ plain.stiffness6(q) @ T) < 1e-12
+    moving = tmp_path / "acme_base_moving.urdf"
+    moving.write_text(
+        f.read_text().replace(
+            '<joint name="base-marker" type="fixed">',
+            '<joint name="base-marker" type="revolute"><axis xyz="0 0 1"/>'
+            '<limit lower="-1" upper="1" effort="1" velocity="1"/>',
+        )
+    )
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(moving, "tool0", k_theta=K_ACME, base_frame="base")
+    assert "'base' is on another branch: joint 'base-marker' moves below it (the base of another " in str(
+        e.value
+    )

@@ -26,11 +26,14 @@ joints (a leader off the path, e.g. a gripper's first finger, takes the place of
 first follower). A floating or planar joint on the path is refused, by name. Joints
 between the root and ``base_frame`` are held (at zero: the measurements are expressed in
 the base frame, so they move nothing measured); a mimic joint on the path whose leader is
-held is held too, at its offset.
+held is held too, at its offset. A fixed frame beside the path (joined to it by fixed joints
+only, nothing moving below it: ROS-Industrial's ``base`` beside ``base_link``, a mounting
+frame) is a constant transform: accepted as the base frame, the chain starts from it; the base
+of another branch (another arm's) is refused.
 
 Bad input (``InputError`` naming the file and the element): see
 :mod:`~stiffmap.models.robot_files` for the file; here a tip or base frame the URDF does
-not have (its links are listed), a tip not below the base, a joint on the path of a type
+not have (its links are listed), a tip not below the base (nor joined to its path by fixed joints), a joint on the path of a type
 that cannot be modelled or with a malformed element, a mimic naming a joint the file does
 not define or a mimic loop, a configuration of the wrong length.
 """
@@ -185,22 +188,58 @@ def _link_of(tree: UrdfTree, frame: str, what: str) -> str:
     )
 
 
-def _chain_path(tree: UrdfTree, tip: str, base: str | None) -> tuple[str, list[str], list[str]]:
-    """(base link, joints held above it, joints from it to ``tip``) of a tree."""
+def _chain_path(
+    tree: UrdfTree, tip: str, base: str | None
+) -> tuple[str, list[str], list[str], list[str]]:
+    """(base link, joints held above it, joints from it to ``tip``, fixed joints from the branch
+    point down to a base frame off that path) of a tree.
+
+    A base frame off the root-to-tip path is accepted when it is a fixed frame beside it: only
+    fixed joints join it to the path and no joint below it moves (ROS-Industrial's ``base``, a
+    mounting frame): a constant transform. The base of another branch (another arm) is named.
+    """
     path = tree.path_to(tip)
     root = tree.joints[path[0]].parent if path else tip
     if base is None or base == root:
-        return root, [], path
+        return root, [], path, []
     for i, jn in enumerate(path):
         if tree.joints[jn].child == base:
-            return base, path[: i + 1], path[i + 1 :]
+            return base, path[: i + 1], path[i + 1 :], []
     links = [root] + [tree.joints[jn].child for jn in path]
+    bpath = tree.path_to(base)
+    n = 0
+    while n < min(len(path), len(bpath)) and path[n] == bpath[n]:
+        n += 1
+    same_tree = bool(bpath) and tree.joints[bpath[0]].parent == root
+    movers = [jn for jn in bpath[n:] if tree.joints[jn].type != "fixed"]
+    below = _moving_below(tree, base)
+    if same_tree and not movers and not below:
+        return base, path[:n], path[n:], bpath[n:]
+    if not same_tree:
+        why = "it is in another tree"
+    elif movers:
+        why = f"joint {movers[0]!r} ({tree.joints[movers[0]].type}) joins it to that chain"
+    else:
+        why = f"joint {below!r} moves below it (the base of another branch)"
     raise InputError(
         f"tip frame {tip!r} is not below base frame {base!r}: the chain from the root {root!r} to {tip!r} "
-        f"passes through links {', '.join(links)}; {base!r} is on another branch (choose a base frame "
-        "among those links)",
+        f"passes through links {', '.join(links)}; {base!r} is on another branch: {why} (choose a base "
+        "frame among those links, or a fixed frame beside them: joined by fixed joints, nothing moving "
+        "below it)",
         source=tree.source,
     )
+
+
+def _moving_below(tree: UrdfTree, link: str) -> str | None:
+    """The first moving joint (breadth first) in the subtree below ``link``, or None."""
+    level = {link}
+    while level:
+        nxt = [j for j in tree.joints.values() if j.parent in level]
+        for j in nxt:
+            if j.type != "fixed":
+                return j.name
+        level = {j.child for j in nxt}
+    return None
 
 
 def _check_on_path(tree: UrdfTree, j: UrdfJoint, base: str, tip: str) -> None:
@@ -461,10 +500,16 @@ class Chain:
         off = _check_offset(tip_offset_mm, tree.source)
         tip = _link_of(tree, tip_frame, "the measured point")
         base = None if base_frame is None else _link_of(tree, base_frame, "the base frame")
-        base, held, path = _chain_path(tree, tip, base)
+        base, held, path, branch = _chain_path(tree, tip, base)
         movers: list[_Mover] = []
         links: dict[str, tuple[int, pin.SE3]] = {base: (0, pin.SE3.Identity())}
         acc = pin.SE3.Identity()  # placement after the last mover (or the base)
+        for jn in branch:  # a base frame off the path: the branch point seen from the base
+            _check_on_path(tree, tree.joints[jn], base, tip)
+            acc = acc * _placement_mm(tree.joints[jn])
+        acc = acc.inverse()
+        if branch:
+            links[tree.joints[branch[0]].parent] = (0, acc)
         for jn in path:
             j = tree.joints[jn]
             _check_on_path(tree, j, base, tip)
@@ -495,7 +540,7 @@ class Chain:
             mimic_rows=rows,
             links=links,
             base_frame=base,
-            root_frame=tree.joints[held[0]].parent if held else base,
+            root_frame=tree.joints[(held or branch)[0]].parent if held or branch else base,
             held=[h for h in held if tree.joints[h].type in MOVING_TYPES],
             all_joints=tuple(tree.joints),
             urdf_text=tree.text,
