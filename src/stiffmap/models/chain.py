@@ -33,9 +33,10 @@ of another branch (another arm's) is refused.
 
 Bad input (``InputError`` naming the file and the element): see
 :mod:`~stiffmap.models.robot_files` for the file; here a tip or base frame the URDF does
-not have (its links are listed), a tip not below the base (nor joined to its path by fixed joints), a joint on the path of a type
-that cannot be modelled or with a malformed element, a mimic naming a joint the file does
-not define or a mimic loop, a configuration of the wrong length.
+not have (its links are listed), a tip not below the base (a base beside the chain that is
+not a fixed frame), a joint on the path of a type that cannot be modelled or with a
+malformed element, a mimic naming a joint the file does not define or a mimic loop, a
+configuration of the wrong length.
 """
 
 from __future__ import annotations
