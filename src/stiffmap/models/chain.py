@@ -189,9 +189,7 @@ def _link_of(tree: UrdfTree, frame: str, what: str) -> str:
     )
 
 
-def _chain_path(
-    tree: UrdfTree, tip: str, base: str | None
-) -> tuple[str, list[str], list[str], list[str]]:
+def _chain_path(tree: UrdfTree, tip: str, base: str | None) -> tuple[str, list[str], list[str], list[str]]:
     """(base link, joints held above it, joints from it to ``tip``, fixed joints from the branch
     point down to a base frame off that path) of a tree.
 
