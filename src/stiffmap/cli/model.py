@@ -304,7 +304,8 @@ def _print_configurations(robot, mp, recs, lines) -> None:
         q = ", ".join(fmt(v, 5) for v in r["q_deg"])
         head = [str(i + 1), str(int(lines[i])), q]
         if "error" in r:
-            t.add_row(*head, *([""] * 6), mp.reasons[i])
+            xyz = [fmt(v, 6) for v in r["position"]] if "position" in r else [""] * 3
+            t.add_row(*head, *xyz, *([""] * 3), mp.reasons[i])
         else:
             t.add_row(
                 *head, *(fmt(v, 6) for v in mp.points[i]), *(fmt(v, 4) for v in mp.eigenvalues[i]), "ok"

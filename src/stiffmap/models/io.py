@@ -695,8 +695,9 @@ def configuration_records(
     records : list of dict
         ``q_deg`` (degrees; mm for prismatic joints), ``position`` (mm, base frame), ``K``
         (3 x 3, N/mm: the stiffness a pure force sees), ``K6`` (6 x 6 over u mm and rotation
-        rad, or None when the robot has fewer than six compliant joints); or ``q_deg`` and
-        ``error``: the reason, after ``FILE line L:`` when given.
+        rad, or None when the robot has fewer than six compliant joints); or ``q_deg``,
+        ``error`` (the reason, after ``FILE line L:`` when given) and, where the configuration
+        has a point (a singular one), ``position``.
     """
     m = robot.evaluate_configurations(Q)
     six = robot.has_k6
@@ -711,6 +712,8 @@ def configuration_records(
             rec["K"] = m.K[i].tolist()
             rec["K6"] = K6[i].tolist() if six else None
         else:
+            if np.all(np.isfinite(m.points[i])):  # a singular configuration still has its point
+                rec["position"] = m.points[i].tolist()
             where = " ".join(x for x in (source or "", "" if lines is None else f"line {int(lines[i])}") if x)
             rec["error"] = f"{where}: {m.reasons[i]}" if where else m.reasons[i]
         out.append(rec)
