@@ -274,9 +274,7 @@ def test_model_urdf_json_per_configuration(tmp_path, monkeypatch, capsys):
         np.testing.assert_allclose(r["K"], robot.stiffness3(q), rtol=1e-12)
         np.testing.assert_allclose(r["K6"], robot.stiffness6(q), rtol=1e-12)
     assert set(recs[2]) == {"q_deg", "position", "error"}  # a singular configuration has its point
-    np.testing.assert_allclose(
-        recs[2]["position"], robot.chain.forward(np.radians(Q_deg[2]))[0], rtol=1e-12
-    )
+    np.testing.assert_allclose(recs[2]["position"], robot.chain.forward(np.radians(Q_deg[2]))[0], rtol=1e-12)
     assert recs[2]["error"].startswith(
         f"{cfg} line 4: singular: joints joint_4 and joint_6 move the tip alike"
     )
