@@ -577,3 +577,38 @@ def test_a_fixed_frame_beside_the_chain_is_a_base_frame(rng, tmp_path):
     assert "'base' is on another branch: joint 'base-marker' moves below it (the base of another " in str(
         e.value
     )
+
+
+def _ros1_style(tmp_path) -> Path:
+    """The xacro workspace copied with ROS 1's unprefixed tags (<property>, <macro>, <include>,
+    <arg>), as older ROS-Industrial descriptions write them."""
+    ws = shutil.copytree(XACRO_WS, tmp_path / "ros1_ws")
+    for f in ws.rglob("*.xacro"):
+        text = f.read_text()
+        for tag in ("property", "macro", "include", "arg"):
+            text = text.replace(f"<xacro:{tag} ", f"<{tag} ").replace(f"</xacro:{tag}>", f"</{tag}>")
+        f.write_text(text)
+    return ws / "acme_description" / "urdf" / ACME_XACRO.name
+
+
+def test_ros1_unprefixed_xacro_tags_expand_as_ros1_did(rng, tmp_path):
+    """ROS 1's xacro took <property>, <macro>, <include> without the prefix (xacro 2 ignores
+    them): the same K6 as the prefixed description; an error inside a macro names it."""
+    old = _ros1_style(tmp_path)
+    assert "<xacro:property" not in (old.parent / "acme_rs6_macro.xacro").read_text()
+    args = {"mount_height": "0.4"}
+    a = SerialRobot.from_urdf(old, "tool0", OFFSET, k_theta=K_ACME, xacro_args=args)
+    b = SerialRobot.from_urdf(
+        ACME_XACRO, "tool0", OFFSET, k_theta=K_ACME, xacro_args=args, package_paths=[XACRO_WS]
+    )
+    Q = rng.uniform(b.chain.lower, b.chain.upper, size=(3, 6))
+    assert _rel(a.stiffness6(Q), b.stiffness6(Q)) < 1e-15
+    macro = old.parent / "acme_rs6_macro.xacro"
+    macro.write_text(macro.read_text().replace('xyz="0 0 ${d1}"', 'xyz="0 0 ${d_one}"', 1))
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(old, "tool0", k_theta=1e8, xacro_args=args)
+    msg = str(e.value)
+    assert "name 'd_one' is not defined" in msg and f"(in macro 'acme_joint' of {macro.resolve()})" in msg, (
+        msg
+    )
+    assert "\n" not in msg

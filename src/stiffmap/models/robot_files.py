@@ -437,6 +437,8 @@ def expand_xacro(
         saved = xacro_subs._eval_find, xacro_subs._eval_dict.get("find")
         xacro_subs._eval_find = find  # xacro finds packages through ament; here from the folders given
         xacro_subs._eval_dict["find"] = find
+        parse = xacro.parse
+        xacro.parse = _legacy_tags(parse)
         try:
             doc = xacro.process_file(str(p.resolve()), mappings=dict(args or {}))
             return doc.toxml()
@@ -450,10 +452,43 @@ def expand_xacro(
                     "folder with --package-path DIR (campaign.toml: package_paths) or ROS_PACKAGE_PATH",
                     source=src,
                 ) from None
-            raise InputError(f"xacro: {_xacro_message(e)}", source=src) from None
+            raise InputError(f"xacro: {_xacro_message(e)}{_xacro_where(p)}", source=src) from None
         finally:
+            xacro.parse = parse
             xacro_subs._eval_find, xacro_subs._eval_dict["find"] = saved
             xacro.init_stacks(None)
+
+
+#: ROS 1's xacro also took these tags without the ``xacro:`` prefix (older ROS-Industrial
+#: descriptions use ``<property>``); xacro 2 ignores them, so they are prefixed on reading.
+LEGACY_TAGS = ("property", "macro", "include", "arg", "if", "unless", "insert_block")
+
+
+def _legacy_tags(parse):
+    """xacro's ``parse``, with the unprefixed tags of ROS 1's xacro (:data:`LEGACY_TAGS`)
+    given their ``xacro:`` prefix, in the file and every file it includes."""
+
+    def parse_prefixed(inp, filename=None):
+        doc = parse(inp, filename)
+        for tag in LEGACY_TAGS:
+            for el in list(doc.getElementsByTagName(tag)):
+                el.tagName = el.nodeName = f"xacro:{tag}"
+        return doc
+
+    return parse_prefixed
+
+
+def _xacro_where(top: Path) -> str:
+    """Where xacro was when it failed, when that is not the top file: `` (in macro M of FILE)``."""
+    macros = xacro.macrostack or []
+    if macros:
+        m = macros[-1]
+        where = m.history[-1][-1] if m.history and m.history[-1] else None
+        return f" (in macro {m.body.getAttribute('name')!r}" + (f" of {where})" if where else ")")
+    files = [f for f in (xacro.filestack or []) if f]
+    if files and Path(files[-1]).resolve() != top.resolve():
+        return f" (in {files[-1]})"
+    return ""
 
 
 def _cause(e: BaseException | None, kind) -> BaseException | None:
