@@ -140,7 +140,9 @@ _OPT_MOMENT = typer.Option(
     "static error is then the wrench's, the platform's translation u (mm) and rotation (rad).",
 )
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON list, one object per point.")
-_OPT_AS_CSV = typer.Option(False, "--csv", help="Print CSV, one row per point.")
+_OPT_AS_CSV = typer.Option(
+    False, "--csv", help="Print CSV, one row per point (delta, 3prr, legs; urdf prints --json)."
+)
 _OPT_OUTPUT = typer.Option(None, "--output", "-o", help="Write the JSON or CSV to this file instead.")
 
 
