@@ -306,13 +306,19 @@ def _print_configurations(robot, mp, recs, lines) -> None:
         q = ", ".join(fmt(v, 5) for v in r["q_deg"])
         head = [str(i + 1), str(int(lines[i])), q]
         if "error" in r:
-            xyz = [fmt(v, 6) for v in r["position"]] if "position" in r else [""] * 3
+            xyz = [fmt(_mm(v), 6) for v in r["position"]] if "position" in r else [""] * 3
             t.add_row(*head, *xyz, *([""] * 3), mp.reasons[i])
         else:
             t.add_row(
-                *head, *(fmt(v, 6) for v in mp.points[i]), *(fmt(v, 4) for v in mp.eigenvalues[i]), "ok"
+                *head, *(fmt(_mm(v), 6) for v in mp.points[i]), *(fmt(v, 4) for v in mp.eigenvalues[i]), "ok"
             )
     out.print(t)
+
+
+def _mm(v: float) -> float:
+    """A position coordinate for the table: round-off below a nanometre shown as 0 (the JSON
+    keeps every digit)."""
+    return 0.0 if abs(v) < 1e-6 else v
 
 
 def _force(kind, dim: int, load_n: float | None, direction: str | None) -> np.ndarray:
