@@ -51,13 +51,15 @@ def test_a_database_of_schema_3_is_migrated_in_place_with_its_rows_kept(tmp_path
     assert conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()[0] == str(
         SCHEMA_VERSION
     )
-    assert fit is not None and fit.status == "ok" and fit.robot is None
+    assert fit is not None and fit.status == "ok" and fit.robot is None and fit.info is None
+    have = {r[1] for r in conn.execute("PRAGMA table_info(model_fit)")}
+    assert {"robot", "info"} <= have  # schema 4's column and schema 5's
     for table, rows in before.items():
         if table == "meta":
             continue
         extra = len(after[table][0]) - len(rows[0]) if rows else 0
         assert [r[: len(r) - extra] for r in after[table]] == rows, table
-    assert after["model_fit"][0][-1] is None  # the new column, unknown for an old fit
+    assert after["model_fit"][0][-2:] == (None, None)  # the new columns, unknown for an old fit
 
 
 def test_an_old_fit_is_used_and_a_fingerprinted_one_refused_once_the_robot_changed(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import json
 from dataclasses import replace
 from importlib.resources import files
@@ -241,6 +242,8 @@ def test_turned_hexapod_campaign_recovers_K6_and_its_legs_and_reports_them(monke
     with Store(out / DB_NAME) as st:
         fit = st.model_fit("stiffness")
     assert fit is not None and fit.status == "ok", fit
+    # The extra noise the fit estimated is stored with it (model_fit.info) and on the report.
+    assert len(fit.info) == 1 and "an extra noise was estimated" in fit.info[0], fit.info
     for i, k in enumerate(HEXAPOD_TESTBED_K, start=1):
         assert abs(fit.params[f"k_leg{i}"] - k) < 0.01 * k, (i, fit.params)
     model = campaign_model(load_spec(out / "campaign.toml"), out).with_params(**fit.params)
@@ -252,5 +255,7 @@ def test_turned_hexapod_campaign_recovers_K6_and_its_legs_and_reports_them(monke
         assert np.linalg.norm(K6 * np.outer(d, d) - T6) < 0.02 * np.linalg.norm(T6)
     code, _, err = _cli(["report", out], monkeypatch, capsys)
     assert code in (0, 1), err
-    assert "fig-orientations" in (out / "report" / "index.html").read_text()
+    page = (out / "report" / "index.html").read_text()
+    assert "fig-orientations" in page
+    assert f"<p class=note>Fit: {html.escape(fit.info[0])}</p>" in page
     assert (out / "report" / "model_over_orientations.png").is_file()

@@ -174,7 +174,9 @@ class ModelFitRecord:
 
     ``params`` and ``std`` dicts (name -> value, in the parameter's unit); ``cov`` their
     covariance; ``residuals`` per pose; ``robot`` the fingerprint of the robot fitted
-    (:mod:`~stiffmap.campaign.fingerprint`; None in a database of schema 3 and before).
+    (:mod:`~stiffmap.campaign.fingerprint`; None in a database of schema 3 and before);
+    ``info`` what the fit accounted for, in words (e.g. the extra noise it estimated; a list of
+    str, None before schema 5).
     """
 
     name: str
@@ -190,6 +192,7 @@ class ModelFitRecord:
     inputs_hash: str
     version: str
     robot: Any = None
+    info: Any = None
 
     JSON: ClassVar[dict[str, str]] = {
         "params": OBJECT,
@@ -197,6 +200,7 @@ class ModelFitRecord:
         "cov": ARRAY,
         "residuals": ARRAY,
         "robot": OBJECT,
+        "info": OBJECT,
     }
 
 

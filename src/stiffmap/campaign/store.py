@@ -58,7 +58,7 @@ __all__ = [
 ]
 
 DB_NAME = "stiffmap.db"
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 #: Columns added since schema 1, added in place to an older database (its rows are kept; the
 #: revisions in the parameter hashes make the next run recompute what they would hold).
@@ -71,6 +71,7 @@ _ADDED_COLUMNS = {
     ),
     3: (("measurements", "per_camera"),),
     4: (("model_fit", "robot"),),
+    5: (("model_fit", "info"),),
 }
 
 _SCHEMA = """
@@ -105,7 +106,7 @@ CREATE TABLE IF NOT EXISTS stiffness (
 CREATE TABLE IF NOT EXISTS model_fit (
     name TEXT PRIMARY KEY, model TEXT NOT NULL, status TEXT NOT NULL, error TEXT,
     params TEXT, std TEXT, cov TEXT, residuals TEXT, condition REAL, dof INTEGER,
-    inputs_hash TEXT NOT NULL, version TEXT NOT NULL, robot TEXT);
+    inputs_hash TEXT NOT NULL, version TEXT NOT NULL, robot TEXT, info TEXT);
 CREATE TABLE IF NOT EXISTS model_stiffness (
     position INTEGER PRIMARY KEY, model TEXT NOT NULL, valid INTEGER NOT NULL, reason TEXT,
     K TEXT, det REAL, min_principal REAL, inputs_hash TEXT NOT NULL);
@@ -215,6 +216,7 @@ def model_fit_columns(fit, residuals) -> dict[str, Any]:
         "residuals": to_json(residuals),
         "condition": float(fit.condition),
         "dof": int(fit.dof),
+        "info": to_json([str(n) for n in getattr(fit, "info", ())]),
     }
 
 

@@ -106,7 +106,16 @@ def _model_stiffness(model, spec: CampaignSpec, store: Store, Km, g, rows, measu
         g, np.where(mm.valid, mm.det, np.nan), np.where(mm.valid, mm.min_principal, np.nan)
     )
     params = _parameters(store, "stiffness", spec)
-    return contract.ModelStiffness.from_K(spec.robot.model, params, Km, map=dense, orientations=turns)
+    return contract.ModelStiffness.from_K(
+        spec.robot.model, params, Km, map=dense, orientations=turns, notes=_fit_notes(store, "stiffness")
+    )
+
+
+def _fit_notes(store: Store, name: str) -> tuple[str, ...]:
+    """What the stored fit accounted for (``model_fit.info``; none before schema 5)."""
+    fit = store.model_fit(name)
+    info = fit.info if fit is not None and fit.status == "ok" else None
+    return tuple(str(n) for n in info) if isinstance(info, list) else ()
 
 
 def _vision(root: Path, spec: CampaignSpec, store: Store, allow_outside: bool = False) -> dict:

@@ -447,6 +447,8 @@ class ModelStiffness:
         Dense model map over the workspace planes.
     orientations : OrientationMap or None
         A platform that turns: the model over orientations at one position.
+    notes : tuple of str
+        What the fit accounted for, in words (e.g. the extra noise it estimated).
     """
 
     name: str
@@ -456,6 +458,7 @@ class ModelStiffness:
     min_principal: np.ndarray
     map: ModelMap | None = None
     orientations: OrientationMap | None = None
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -471,6 +474,9 @@ class ModelStiffness:
             raise ValueError("map: expected a ModelMap")
         if self.orientations is not None and not isinstance(self.orientations, OrientationMap):
             raise ValueError("orientations: expected an OrientationMap")
+        if isinstance(self.notes, str) or not all(isinstance(n, str) for n in self.notes):
+            raise ValueError("notes: expected a sequence of strings")
+        object.__setattr__(self, "notes", tuple(self.notes))
 
     @classmethod
     def from_K(
@@ -480,13 +486,14 @@ class ModelStiffness:
         K,
         map: ModelMap | None = None,
         orientations: OrientationMap | None = None,
+        notes: Sequence[str] = (),
     ):
         """Build from model stiffness matrices (det and smallest principal computed)."""
         K = np.asarray(K, dtype=np.float64)
         if K.ndim != 3 or K.shape[1:] != (3, 3):
             raise ValueError(f"K: expected shape (n, 3, 3), got {K.shape}")
         det, mp, _ = _indices(K, np.all(np.isfinite(K), axis=(1, 2)))
-        return cls(name, tuple(parameters), K, det, mp, map, orientations)
+        return cls(name, tuple(parameters), K, det, mp, map, orientations, tuple(notes))
 
 
 @dataclass(frozen=True)

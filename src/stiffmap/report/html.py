@@ -394,6 +394,7 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
     if data.model is not None:
         mod = data.model
         body = f"<p><b>{_e(mod.name)}</b></p>" + _params_table(mod.parameters)
+        body += "".join(f"<p class=note>Fit: {_e(n)}</p>" for n in mod.notes)
         body += fig_div(
             "fig-model",
             model_scatter(data),
