@@ -459,8 +459,42 @@ def _identify(
     has_moments: bool,
 ) -> JointIdentifiability:
     """The identifiability report of a whitened design ``Aw`` (N, p) over the joints ``names``."""
-    N, p = Aw.shape
     felt = sens >= MIN_RELATIVE_SENSITIVITY
+    not_felt, why_groups, hints = _not_felt(felt, names, types, load_f, motion_f)
+    fi = np.flatnonzero(felt)
+    s = _felt_spectrum(Aw, fi, names)
+    message = ""
+    bad_names = [j for j in names if j in not_felt or any(j in g for g in s.confounded)]
+    if bad_names:
+        message = _undetermined_message(
+            bad_names,
+            names,
+            types,
+            why_groups,
+            hints,
+            s.confounded,
+            d=d,
+            n_config=n_config,
+            has_moments=has_moments,
+        )
+    return JointIdentifiability(
+        names=names,
+        joint_types=types,
+        sensitivity=sens,
+        condition=s.condition,
+        singular_values=s.rel,
+        directions=s.directions,
+        inflation=s.inflation,
+        weakest=s.weakest,
+        not_felt=not_felt,
+        confounded=tuple(s.confounded),
+        message=message,
+    )
+
+
+def _not_felt(felt, names, types, load_f, motion_f):
+    """Why each joint the data hardly feel is not felt (its message), the joints grouped by
+    their reasons, and what to add -> the joints it would help."""
     not_felt: dict[str, str] = {}
     why_groups: dict[tuple[str, ...], list[str]] = {}  # reasons -> joints
     hints: dict[str, list[str]] = {}  # what to add -> the joints it would help
@@ -479,128 +513,135 @@ def _identify(
             hints.setdefault(w, []).append(s)
         why_groups.setdefault(tuple(why), []).append(s)
         not_felt[s] = " and ".join(_WHY[w][0] for w in why)
+    return not_felt, why_groups, hints
 
-    fi = np.flatnonzero(felt)
+
+@dataclass
+class _Spectrum:
+    """The felt joints' scaled design, seen through its singular values (:func:`_felt_spectrum`)."""
+
+    rel: np.ndarray  # singular values relative to the largest
+    directions: np.ndarray  # (q, p) right singular vectors over all joints
+    inflation: np.ndarray  # (p,) variance inflation (inf: not determined)
+    weakest: np.ndarray  # (p,) the relative singular value each joint leans on most
+    confounded: list[tuple[str, ...]]
+    condition: float
+
+
+def _felt_spectrum(Aw: np.ndarray, fi: np.ndarray, names: tuple[str, ...]) -> _Spectrum:
+    """The SVD of the felt joints' unit columns: the condition, each joint's inflation and the
+    groups of joints the data see only in a fixed combination (the null space)."""
+    N, p = Aw.shape
     q = fi.size
-    directions = np.zeros((q, p))
-    rel = np.zeros(q)
-    inflation = np.full(p, np.inf)
-    weakest = np.zeros(p)
-    confounded: list[tuple[str, ...]] = []
-    condition = np.inf
-    if q:
-        A = Aw[:, fi]
-        norms = np.linalg.norm(A, axis=0)
-        An = A / norms
-        _, s, Vt = np.linalg.svd(An, full_matrices=N < q)
-        s = np.concatenate([s, np.zeros(q - s.size)])
-        rel = s / s[0]
-        directions[:, fi] = Vt
-        null = rel < MIN_INVERSE_CONDITION
-        if np.any(null):
-            V0 = Vt[null]
-            P = V0.T @ V0  # projector on the null space: independent of its basis
-            named = np.diag(P) > NULL_WEIGHT**2
-            link = (np.abs(P) > NULL_WEIGHT**2) & named[:, None] & named[None, :]
-            seen = np.zeros(q, dtype=bool)
-            for k in np.flatnonzero(named):
-                if seen[k]:
-                    continue
-                group, stack = [], [k]
-                seen[k] = True
-                while stack:
-                    i = stack.pop()
-                    group.append(i)
-                    for m in np.flatnonzero(link[i] & ~seen):
-                        seen[m] = True
-                        stack.append(m)
-                confounded.append(tuple(names[fi[i]] for i in sorted(group)))
-            good = ~named
-        else:
-            condition = float(1.0 / rel[-1])
-            good = np.ones(q, dtype=bool)
-        ok = ~null
-        # The variance of the scaled parameters is V diag(1/s^2) V^T; with unit columns an
-        # orthogonal design has variance 1, so the inflation is sqrt(sum_k V_jk^2 / s_k^2).
-        contrib = Vt[ok].T ** 2 / s[ok][None, :] ** 2  # (q, r): each direction's share
-        vif = np.sum(contrib, axis=1)
-        for k in np.flatnonzero(good):
-            inflation[fi[k]] = float(np.sqrt(vif[k]))
-            weakest[fi[k]] = float(rel[ok][int(np.argmax(contrib[k]))])
+    out = _Spectrum(np.zeros(q), np.zeros((q, p)), np.full(p, np.inf), np.zeros(p), [], np.inf)
+    if not q:
+        return out
+    A = Aw[:, fi]
+    norms = np.linalg.norm(A, axis=0)
+    An = A / norms
+    _, s, Vt = np.linalg.svd(An, full_matrices=N < q)
+    s = np.concatenate([s, np.zeros(q - s.size)])
+    rel = out.rel = s / s[0]
+    out.directions[:, fi] = Vt
+    null = rel < MIN_INVERSE_CONDITION
+    if np.any(null):
+        named = _null_groups(Vt[null], fi, names, out.confounded)
+        good = ~named
+    else:
+        out.condition = float(1.0 / rel[-1])
+        good = np.ones(q, dtype=bool)
+    ok = ~null
+    # The variance of the scaled parameters is V diag(1/s^2) V^T; with unit columns an
+    # orthogonal design has variance 1, so the inflation is sqrt(sum_k V_jk^2 / s_k^2).
+    contrib = Vt[ok].T ** 2 / s[ok][None, :] ** 2  # (q, r): each direction's share
+    vif = np.sum(contrib, axis=1)
+    for k in np.flatnonzero(good):
+        out.inflation[fi[k]] = float(np.sqrt(vif[k]))
+        out.weakest[fi[k]] = float(rel[ok][int(np.argmax(contrib[k]))])
+    return out
 
-    message = ""
-    bad_names = [s for s in names if s in not_felt or any(s in g for g in confounded)]
-    if bad_names:
-        parts = []
-        for why, js in why_groups.items():
-            k = 0 if len(js) == 1 else 1
+
+def _null_groups(V0: np.ndarray, fi: np.ndarray, names, confounded: list) -> np.ndarray:
+    """Append to ``confounded`` the groups of joints linked through the null space ``V0``
+    (its rows); return which felt joints take part in it."""
+    q = fi.size
+    P = V0.T @ V0  # projector on the null space: independent of its basis
+    named = np.diag(P) > NULL_WEIGHT**2
+    link = (np.abs(P) > NULL_WEIGHT**2) & named[:, None] & named[None, :]
+    seen = np.zeros(q, dtype=bool)
+    for k in np.flatnonzero(named):
+        if seen[k]:
+            continue
+        group, stack = [], [k]
+        seen[k] = True
+        while stack:
+            i = stack.pop()
+            group.append(i)
+            for m in np.flatnonzero(link[i] & ~seen):
+                seen[m] = True
+                stack.append(m)
+        confounded.append(tuple(names[fi[i]] for i in sorted(group)))
+    return named
+
+
+def _undetermined_message(
+    bad_names, names, types, why_groups, hints, confounded, *, d, n_config, has_moments
+):
+    """The message naming the joints the data cannot determine, why, and what would determine them."""
+    parts = []
+    for why, js in why_groups.items():
+        k = 0 if len(js) == 1 else 1
+        parts.append(
+            f"{_format_names(js)} {('is', 'are')[k]} not felt: " + " and ".join(_WHY[w][k] for w in why)
+        )
+    for g in confounded:
+        if len(g) == 1:
+            parts.append(f"{g[0]} is hardly felt: its column is nearly a combination of the others'")
+        else:
             parts.append(
-                f"{_format_names(js)} {('is', 'are')[k]} not felt: " + " and ".join(_WHY[w][k] for w in why)
+                f"{_format_names(g)} change the measured displacements only in a fixed combination "
+                "(the data see their sum, weighted, not each one)"
             )
-        for g in confounded:
-            if len(g) == 1:
-                parts.append(f"{g[0]} is hardly felt: its column is nearly a combination of the others'")
-            else:
-                parts.append(
-                    f"{_format_names(g)} change the measured displacements only in a fixed combination "
-                    "(the data see their sum, weighted, not each one)"
-                )
-        todo = []
-        for key, js in hints.items():
-            them = _format_names(js)
-            axes = "its axis" if len(js) == 1 else "their axes"
-            todo.append(
-                {
-                    "moment": f"load cases with moments about the {'axis' if len(js) == 1 else 'axes'} of "
-                    f"{them} (a load point off {axes})",
-                    "force": f"load cases with forces along {axes} ({them})",
-                    "measure": f"measure rotations (6-DOF poses) or a point off {axes} ({them})",
-                    "where": f"load cases that act on {them} where {'its' if len(js) == 1 else 'their'} "
-                    "motion is measured",
-                    "bend": f"load cases that bend or twist the link{'' if len(js) == 1 else 's'} of {them} "
-                    "(forces across it, moments), measured beyond it",
-                }[key]
-            )
-        if confounded:
-            todo.append(
-                "add configurations"
-                if n_config == 1
-                else "add configurations where their axes lie differently"
-            )
-            if not has_moments:
-                todo.append("load cases with moments (a load point off the tool axis)")
-            else:
-                todo.append("load cases in other directions")
-            if d == 3:
-                todo.append("measure rotations (6-DOF poses)")
-        one = len(bad_names) == 1
-        links_too = any(types[names.index(s)] in LINK_KINDS for s in bad_names)
-        what = (
-            ("parameter" if one else "joint and link parameters")
-            if links_too
-            else ("joint" if one else "joints")
+    todo = [_hint(key, js) for key, js in hints.items()]
+    if confounded:
+        todo.append(
+            "add configurations" if n_config == 1 else "add configurations where their axes lie differently"
         )
-        message = (
-            f"{what} {_format_names(bad_names)} cannot be determined from these "
-            "configurations and loads: "
-            + "; ".join(parts)
-            + f". To determine {'it' if one else 'them'}: "
-            + ", or ".join(dict.fromkeys(todo))
-            + f"; or hold {'it' if one else 'them'} at a known compliance (fixed) and fit the others"
-        )
-    return JointIdentifiability(
-        names=names,
-        joint_types=types,
-        sensitivity=sens,
-        condition=condition,
-        singular_values=rel,
-        directions=directions,
-        inflation=inflation,
-        weakest=weakest,
-        not_felt=not_felt,
-        confounded=tuple(confounded),
-        message=message,
+        if not has_moments:
+            todo.append("load cases with moments (a load point off the tool axis)")
+        else:
+            todo.append("load cases in other directions")
+        if d == 3:
+            todo.append("measure rotations (6-DOF poses)")
+    one = len(bad_names) == 1
+    links_too = any(types[names.index(s)] in LINK_KINDS for s in bad_names)
+    what = (
+        ("parameter" if one else "joint and link parameters") if links_too else ("joint" if one else "joints")
     )
+    return (
+        f"{what} {_format_names(bad_names)} cannot be determined from these "
+        "configurations and loads: "
+        + "; ".join(parts)
+        + f". To determine {'it' if one else 'them'}: "
+        + ", or ".join(dict.fromkeys(todo))
+        + f"; or hold {'it' if one else 'them'} at a known compliance (fixed) and fit the others"
+    )
+
+
+def _hint(key: str, js: list[str]) -> str:
+    """What to add (``key`` of :data:`_WHY`) so that the joints ``js`` are felt."""
+    them = _format_names(js)
+    axes = "its axis" if len(js) == 1 else "their axes"
+    return {
+        "moment": f"load cases with moments about the {'axis' if len(js) == 1 else 'axes'} of "
+        f"{them} (a load point off {axes})",
+        "force": f"load cases with forces along {axes} ({them})",
+        "measure": f"measure rotations (6-DOF poses) or a point off {axes} ({them})",
+        "where": f"load cases that act on {them} where {'its' if len(js) == 1 else 'their'} "
+        "motion is measured",
+        "bend": f"load cases that bend or twist the link{'' if len(js) == 1 else 's'} of {them} "
+        "(forces across it, moments), measured beyond it",
+    }[key]
 
 
 def _check_links(
@@ -1083,6 +1124,7 @@ def fit_joint_compliances(
         When the design determines every joint but its condition number exceeds
         ``CONDITION_WARN``.
     """
+    # Longer than 80 lines: its documented parameters are the length (the body is 13 lines).
     kw = dict(
         joint_names=joint_names,
         fit=fit,
@@ -1095,6 +1137,13 @@ def fit_joint_compliances(
     )
     if not extra_noise:
         return _fit_once(jacobians, wrenches, displacements, cov, **kw)
+    return _fit_with_extra_noise(jacobians, wrenches, displacements, cov, kw)
+
+
+def _fit_with_extra_noise(jacobians, wrenches, displacements, cov, kw: dict) -> JointFit:
+    """:func:`fit_joint_compliances` with ``extra_noise``: the translation noise s that makes the
+    reduced chi-square 1, by bisection on s^2 (a note says when none does)."""
+    absolute_sigma = kw["absolute_sigma"]
     if cov is None:
         raise InputError("extra_noise: True needs cov (the covariances the extra noise is added to)")
     C = as_float(cov, "cov")
