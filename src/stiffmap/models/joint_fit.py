@@ -1040,6 +1040,8 @@ def _solve(An: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 EXTRA_NOISE_CAP = 1e6
 
 
+# Longer than ~80 lines for its documentation: the parameters, raises and warnings take ~80 lines;
+# the body (~15 lines) hands over to _fit_once or _fit_with_extra_noise.
 def fit_joint_compliances(
     jacobians,
     wrenches,
@@ -1124,7 +1126,6 @@ def fit_joint_compliances(
         When the design determines every joint but its condition number exceeds
         ``CONDITION_WARN``.
     """
-    # Longer than 80 lines: its documented parameters are the length (the body is 13 lines).
     kw = dict(
         joint_names=joint_names,
         fit=fit,
