@@ -132,9 +132,9 @@ def warm_against_cold(n_cases: int) -> list[str]:
                     continue
                 n_pairs += 1
                 a, b = mw.mobile, mc.mobile
-                d = displacement_from_poses(b.board2cam, a.board2cam)
+                d = displacement_from_poses(b.board2frame, a.board2frame)
                 z.append(d / np.sqrt(np.diag(b.cov_noise)))
-                los = b.board2cam[:3, 3] / np.linalg.norm(b.board2cam[:3, 3])
+                los = b.board2frame[:3, 3] / np.linalg.norm(b.board2frame[:3, 3])
                 ratio.append(
                     np.sqrt(los @ a.cov_noise[:3, :3] @ los) / np.sqrt(los @ b.cov_noise[:3, :3] @ los)
                 )

@@ -106,10 +106,10 @@ def test_uncertainties_just_inside_the_limits_fuse_into_finite_poses(joint):
         for k, (c, T) in enumerate(zip(rig.cameras, board2cams(rig, T_rig), strict=True))
     }
     fused = fuse_poses(rig, poses, board=BOARD)
-    assert np.all(np.isfinite(fused.board2cam)) and np.all(np.isfinite(fused.cov))
+    assert np.all(np.isfinite(fused.board2rig)) and np.all(np.isfinite(fused.cov))
     assert np.all(np.linalg.eigvalsh(fused.cov) > 0)
     # Corners within 0.1 px: the fused pose is the board's, whatever the calibration's uncertainty.
-    np.testing.assert_allclose(fused.board2cam[:3, 3], T_rig[:3, 3], atol=0.05)
+    np.testing.assert_allclose(fused.board2rig[:3, 3], T_rig[:3, 3], atol=0.05)
     for c in rig.cameras:  # and just past the limits, the reader says so
         past = c.camera.to_dict()
         past["std"] = _std_at(c.camera, 1.001)

@@ -62,7 +62,7 @@ def test_text_boards_measure_as_the_board_objects_do(tmp_path):
         [tmp_path / "a.png"], cam, "7x6", "9x4", square_mm=10.0, fixed_square_mm=10.0, refine="corners"
     )
     assert m.ok and m.fixed is not None
-    np.testing.assert_allclose(m.mobile.board2cam, p.board2cam, atol=1e-3)  # mm; the same corner fit
+    np.testing.assert_allclose(m.mobile.board2frame, p.board2cam, atol=1e-3)  # mm; the same corner fit
 
 
 def test_forces_as_rows_are_refused_with_the_hint_to_transpose():

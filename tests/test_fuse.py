@@ -164,9 +164,9 @@ def test_a_half_turned_view_is_brought_to_the_fused_frame_with_its_covariance():
     # M = d(T S)/d(T) (left perturbations), here from finite differences.
     M = central_jacobian(lambda d: tangent(perturb_pose(T1, d) @ S, T1 @ S), np.zeros(6), STEP)
     turned_view = pose_of(T1 @ S, M @ N1 @ M.T, M @ A1)
-    turned = fuse_poses(rig, {0: p0, 1: turned_view}, board=BOARD, reference=straight.board2cam)
+    turned = fuse_poses(rig, {0: p0, 1: turned_view}, board=BOARD, reference=straight.board2rig)
     assert turned.views[1].symmetry == name and straight.views[1].symmetry == "none"
-    np.testing.assert_allclose(turned.board2cam, straight.board2cam, atol=1e-9)
+    np.testing.assert_allclose(turned.board2rig, straight.board2rig, atol=1e-9)
     np.testing.assert_allclose(turned.cov_noise, straight.cov_noise, rtol=1e-6, atol=1e-16)
     np.testing.assert_allclose(
         turned.calibration_jacobian, straight.calibration_jacobian, rtol=1e-6, atol=1e-12
@@ -191,7 +191,7 @@ def test_fused_sensitivities_are_the_finite_differences(n_cams):
     As = [rng.normal(size=(6, 9)) * np.array([2e-3, 2e-3, 2e-2, 1e-6, 1e-6, 1e-5])[:, None] for _ in Tc]
     views = {k: pose_of(Tc[k], Ns[k], As[k]) for k in range(len(Tc))}
     fused = fuse_poses(rig, views, board=BOARD)
-    np.testing.assert_allclose(fused.board2cam, T_rig, atol=1e-9)
+    np.testing.assert_allclose(fused.board2rig, T_rig, atol=1e-9)
     assert fused.chi2 < 1e-6 and fused.dof == 6 * (n_cams - 1) and fused.consistency_warning is None
 
     # Sensitivity to each view's own pose (camera frame): G_k, and sum G_k N_k G_k^T = cov_noise.
@@ -201,7 +201,7 @@ def test_fused_sensitivities_are_the_finite_differences(n_cams):
         def moved(d, k=k):
             vs = dict(views)
             vs[k] = pose_of(perturb_pose(Tc[k], d), Ns[k], As[k])
-            return tangent(fuse_poses(rig, vs, board=BOARD).board2cam, fused.board2cam)
+            return tangent(fuse_poses(rig, vs, board=BOARD).board2rig, fused.board2rig)
 
         G = central_jacobian(moved, np.zeros(6), STEP)
         cov += G @ Ns[k] @ G.T
@@ -219,7 +219,7 @@ def test_fused_sensitivities_are_the_finite_differences(n_cams):
             se = rig.extrinsic_slice(k)
             C = c.cam2rig if se is None else perturb_pose(c.cam2rig, p[se])
             cams.append(RigCamera(c.name, c.camera, C))
-        return tangent(fuse_poses(Rig(tuple(cams)), vs, board=BOARD).board2cam, fused.board2cam)
+        return tangent(fuse_poses(Rig(tuple(cams)), vs, board=BOARD).board2rig, fused.board2rig)
 
     steps = np.array([1e-4 if n.split(".")[1] in ("tx", "ty", "tz") else 1e-6 for n in names])
     Afd = central_jacobian(with_params, np.zeros(len(names)), steps)
@@ -241,7 +241,7 @@ def test_a_rig_of_one_camera_gives_the_cameras_own_pose():
     p = pose_of(T, random_cov(rng), A, 0.5 * (A @ Sc @ A.T + (A @ Sc @ A.T).T))
     f = fuse_poses(Rig.single(cam), {0: p})
     assert isinstance(f, FusedPose) and f.cameras == ("camera",) and f.dof == 0
-    np.testing.assert_array_equal(f.board2cam, p.board2cam)
+    np.testing.assert_array_equal(f.board2rig, p.board2cam)
     np.testing.assert_allclose(f.cov, p.cov, rtol=1e-12, atol=0)
     np.testing.assert_allclose(f.cov_noise, p.cov_noise, rtol=1e-12, atol=1e-24)
     np.testing.assert_array_equal(f.calibration_jacobian, p.calibration_jacobian)
@@ -255,7 +255,7 @@ def test_a_board_seen_by_the_second_camera_only_is_mapped_to_the_rig_frame():
     Tc = board2cams(rig, T_rig)
     N = random_cov(rng)
     f = fuse_poses(rig, {"right": pose_of(Tc[1], N, np.zeros((6, 9)))}, board=BOARD)
-    np.testing.assert_allclose(f.board2cam, T_rig, atol=1e-9)
+    np.testing.assert_allclose(f.board2rig, T_rig, atol=1e-9)
     R = rig.cameras[1].cam2rig[:3, :3]
     J = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), R]])
     np.testing.assert_allclose(f.cov_noise, J @ N @ J.T, rtol=1e-12, atol=1e-20)
@@ -304,15 +304,15 @@ def test_the_fused_pose_is_the_joint_fit_of_both_cameras_corners():
         ]
         fused = fuse_poses(rig, {k: v[1] for k, v in enumerate(views)}, board=BOARD)
         sig = [v[1].sigma_px for v in views]
-        T_joint, cov_joint = _joint_gauss_newton(rig, [v[0] for v in views], sig, fused.board2cam)
-        d = tangent(T_joint, fused.board2cam)
+        T_joint, cov_joint = _joint_gauss_newton(rig, [v[0] for v in views], sig, fused.board2rig)
+        d = tangent(T_joint, fused.board2rig)
         z = float(np.sqrt(d @ np.linalg.solve(fused.cov_noise, d)))
         assert z < 0.02, (trial, z)  # a small fraction of one sigma
         # The same covariance: every direction's variance within 2 % (generalised eigenvalues).
         ratios = np.linalg.eigvals(np.linalg.solve(cov_joint, fused.cov_noise)).real
         assert np.all(np.abs(ratios - 1) < 0.02), ratios
         # And the fused pose is within its sigma of the truth (chi2 over 6 dof below 99.9 %).
-        e = tangent(fused.board2cam, T_rig)
+        e = tangent(fused.board2rig, T_rig)
         assert e @ np.linalg.solve(fused.cov_noise, e) < 22.5
 
 

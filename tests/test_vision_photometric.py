@@ -194,7 +194,7 @@ def test_a_followed_board_down_weights_a_smudge_as_a_cold_fit_does():
         a = [warm.measure(im) for im in [*images[:4], smudged]][-1].mobile
         b = [cold.measure(im) for im in [*images[:4], smudged]][-1].mobile
         assert a.method == b.method == "photometric" and a.photometric.outlier_fraction > 0.005
-        z = _err(a.board2cam, b.board2cam) / np.sqrt(np.diag(b.cov_noise))
+        z = _err(a.board2frame, b.board2frame) / np.sqrt(np.diag(b.cov_noise))
         assert np.all(np.abs(z) < 0.25), (radius, z)
 
 
@@ -279,7 +279,7 @@ def test_another_board_is_left_out():
     assert m.ok, m.error
     assert m.mobile.method == "photometric" and m.fixed.method == "photometric"
     for pose, T, board in ((m.mobile, M, mobile), (m.fixed, F, fixed)):
-        e = _err(pose.board2cam, T @ _flip_if(board, T, pose.board2cam))
+        e = _err(pose.board2frame, T @ _flip_if(board, T, pose.board2frame))
         assert np.all(np.abs(e) / np.sqrt(np.diag(pose.cov)) < 5)
     # (2) The other board in front of a corner of this one (its corners still known): its
     # area, given as an exclusion polygon, is left out; without it the fit sees it.
@@ -629,7 +629,9 @@ def test_a_sequence_follows_warm_agrees_with_cold_fits_and_falls_back_after_a_ju
         assert a.photometric.warm_start and a.n_corners == 0 and np.isnan(a.rms_px)
         sd = np.sqrt(np.diag(b.cov_noise))
         # Within a quarter sigma: adds at most 3 % in quadrature to the error of a pose.
-        assert np.all(np.abs(_err(a.board2cam, b.board2cam)) < 0.25 * sd), _err(a.board2cam, b.board2cam) / sd
+        assert np.all(np.abs(_err(a.board2frame, b.board2frame)) < 0.25 * sd), (
+            _err(a.board2frame, b.board2frame) / sd
+        )
         np.testing.assert_allclose(np.sqrt(np.diag(a.cov_noise)), sd, rtol=0.03)
     for k in range(len(truth)):  # every pose, the jumps' included, is the true one
         z = _err(ms[k].mobile2cam, truth[k]) / np.sqrt(np.diag(ms[k].mobile2cam_cov))
@@ -682,7 +684,7 @@ def test_a_followed_board_keeps_its_pixels_when_the_other_board_moves_far_from_t
         kept.append(track._last["setup"])
         masks.append(detection_mask(ms.mobile_detection, margin_sq=2.2))
         sd = np.sqrt(np.diag(mc.fixed.cov_noise))
-        assert np.all(np.abs(_err(ms.fixed.board2cam, mc.fixed.board2cam)) < 0.25 * sd)
+        assert np.all(np.abs(_err(ms.fixed.board2frame, mc.fixed.board2frame)) < 0.25 * sd)
     assert ms.mobile_detection.orientation == "photometric"  # followed again after the jump
     # The mobile board's left-out area moved by more than the 1 px a pixel set is kept for ...
     assert np.abs(masks[2] - masks[1]).max() > 3.0

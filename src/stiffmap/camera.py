@@ -551,79 +551,22 @@ class CameraModel:
             Naming ``source`` and the key that is missing, of the wrong type, or not
             physically plausible (:func:`plausibility_problems`).
         """
-        if not isinstance(data, dict):
-            raise InputError(
-                "expected a JSON object with keys image_size, fx, fy, cx, cy, dist; "
-                f"got {type(data).__name__}",
-                source=source,
-            )
-        missing = [k for k in ("image_size", "fx", "fy", "cx", "cy", "dist") if k not in data]
-        if missing and "cameras" in data:
-            raise RigFileAsCamera(_rig_names(data["cameras"]), source=source)
-        if missing:
-            raise InputError(
-                f"missing key{'s' if len(missing) > 1 else ''} {', '.join(repr(k) for k in missing)}",
-                source=source,
-            )
-
-        def bad(key: str, what: str) -> InputError:
-            return InputError(f"key {key!r}: {what}", source=source)
-
-        def number(key: str, v: Any, positive: bool = False, nonnegative: bool = False) -> float:
-            x = _finite_float(v)
-            if x is None:
-                raise bad(key, f"must be a finite number, got {_short(v)}")
-            if positive and x <= 0:
-                raise bad(key, f"must be positive, got {_short(v)}")
-            if nonnegative and x < 0:
-                raise bad(key, f"must be zero or positive, got {_short(v)}")
-            return x
-
-        size = data["image_size"]
-        if (
-            not isinstance(size, list)
-            or len(size) != 2
-            or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)
-        ):
-            raise bad("image_size", f"must be [width, height] in px (positive integers), got {_short(size)}")
-        if max(size) > MAX_IMAGE_PX:
-            raise bad(
-                "image_size",
-                f"{size[0]}x{size[1]} px is not a camera image (at most {MAX_IMAGE_PX} px per side)",
-            )
-        vals = {k: number(k, data[k], positive=k in ("fx", "fy")) for k in ("fx", "fy", "cx", "cy")}
+        _check_camera_keys(data, source)
+        keys = _Keys(source)
+        size = _image_size(data["image_size"], keys)
+        vals = {k: keys.number(k, data[k], positive=k in ("fx", "fy")) for k in ("fx", "fy", "cx", "cy")}
         model = data.get("model", "opencv")
         if model not in LENS_MODELS:
             models = ", ".join(repr(m) for m in LENS_MODELS)
-            raise bad("model", f"must be one of {models}, got {_short(model)}")
-        dist = data["dist"]
-        if not isinstance(dist, list) or len(dist) not in DIST_LENGTHS[model]:
-            expected = (
-                "4 numbers [k1, k2, k3, k4] (the fisheye model)"
-                if model == "fisheye"
-                else "4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...]"
-            )
-            raise bad("dist", f"must be a list of {expected}, got {_short(dist)}")
-        dist = [number(f"dist[{i}]", v) for i, v in enumerate(dist)]
+            raise keys.bad("model", f"must be one of {models}, got {_short(model)}")
+        dist = _distortion(data["dist"], model, keys)
         std = data.get("std")
         if std is not None:
-            std = _check_std(std, len(dist), bad)
+            std = _check_std(std, len(dist), keys.bad)
         cov = data.get("cov")
         if cov is not None:
-            cov = _check_cov(cov, len(dist), bad, model)
-        rms = data.get("rms_px")
-        rms = number("rms_px", rms, nonnegative=True) if rms is not None else None
-        rsd = data.get("residual_std_px")
-        if rsd is not None:
-            if not isinstance(rsd, list) or len(rsd) != 2:
-                raise bad("residual_std_px", f"must be [sx, sy], got {_short(rsd)}")
-            rsd = tuple(number(f"residual_std_px[{i}]", rsd[i], nonnegative=True) for i in range(2))
-        views = data.get("views", [])
-        if not isinstance(views, list):
-            raise bad("views", f"must be a list, got {_short(views)}")
-        for i, v in enumerate(views):
-            if not isinstance(v, dict):
-                raise bad(f"views[{i}]", f"must be an object (image, used, rms_px, reason), got {_short(v)}")
+            cov = _check_cov(cov, len(dist), keys.bad, model)
+        rms, rsd, views = _fit_record(data, keys)
         camera = cls(
             image_size=(size[0], size[1]),
             dist=tuple(dist),
@@ -638,8 +581,91 @@ class CameraModel:
         problems = plausibility_problems(camera)
         if problems:
             key, what = problems[0]
-            raise bad(key, what)
+            raise keys.bad(key, what)
         return camera
+
+
+def _check_camera_keys(data: Any, source: str) -> None:
+    """A ``camera.json`` object with every key a camera needs (a rig file said as such)."""
+    if not isinstance(data, dict):
+        raise InputError(
+            f"expected a JSON object with keys image_size, fx, fy, cx, cy, dist; got {type(data).__name__}",
+            source=source,
+        )
+    missing = [k for k in ("image_size", "fx", "fy", "cx", "cy", "dist") if k not in data]
+    if missing and "cameras" in data:
+        raise RigFileAsCamera(_rig_names(data["cameras"]), source=source)
+    if missing:
+        raise InputError(
+            f"missing key{'s' if len(missing) > 1 else ''} {', '.join(repr(k) for k in missing)}",
+            source=source,
+        )
+
+
+class _Keys:
+    """The errors naming a ``camera.json`` key, and its numbers checked."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def bad(self, key: str, what: str) -> InputError:
+        return InputError(f"key {key!r}: {what}", source=self.source)
+
+    def number(self, key: str, v: Any, positive: bool = False, nonnegative: bool = False) -> float:
+        x = _finite_float(v)
+        if x is None:
+            raise self.bad(key, f"must be a finite number, got {_short(v)}")
+        if positive and x <= 0:
+            raise self.bad(key, f"must be positive, got {_short(v)}")
+        if nonnegative and x < 0:
+            raise self.bad(key, f"must be zero or positive, got {_short(v)}")
+        return x
+
+
+def _image_size(size: Any, keys: _Keys) -> list[int]:
+    """``image_size``: [width, height], positive integers no larger than a camera's."""
+    if (
+        not isinstance(size, list)
+        or len(size) != 2
+        or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)
+    ):
+        raise keys.bad("image_size", f"must be [width, height] in px (positive integers), got {_short(size)}")
+    if max(size) > MAX_IMAGE_PX:
+        raise keys.bad(
+            "image_size",
+            f"{size[0]}x{size[1]} px is not a camera image (at most {MAX_IMAGE_PX} px per side)",
+        )
+    return size
+
+
+def _distortion(dist: Any, model: str, keys: _Keys) -> list[float]:
+    """``dist``: as many finite numbers as the lens model takes."""
+    if not isinstance(dist, list) or len(dist) not in DIST_LENGTHS[model]:
+        expected = (
+            "4 numbers [k1, k2, k3, k4] (the fisheye model)"
+            if model == "fisheye"
+            else "4, 5, 8 or 12 numbers [k1, k2, p1, p2, k3, ...]"
+        )
+        raise keys.bad("dist", f"must be a list of {expected}, got {_short(dist)}")
+    return [keys.number(f"dist[{i}]", v) for i, v in enumerate(dist)]
+
+
+def _fit_record(data: dict, keys: _Keys):
+    """The calibration's record, each optional: ``rms_px``, ``residual_std_px`` and ``views``."""
+    rms = data.get("rms_px")
+    rms = keys.number("rms_px", rms, nonnegative=True) if rms is not None else None
+    rsd = data.get("residual_std_px")
+    if rsd is not None:
+        if not isinstance(rsd, list) or len(rsd) != 2:
+            raise keys.bad("residual_std_px", f"must be [sx, sy], got {_short(rsd)}")
+        rsd = tuple(keys.number(f"residual_std_px[{i}]", rsd[i], nonnegative=True) for i in range(2))
+    views = data.get("views", [])
+    if not isinstance(views, list):
+        raise keys.bad("views", f"must be a list, got {_short(views)}")
+    for i, v in enumerate(views):
+        if not isinstance(v, dict):
+            raise keys.bad(f"views[{i}]", f"must be an object (image, used, rms_px, reason), got {_short(v)}")
+    return rms, rsd, views
 
 
 def _finite_float(v: Any) -> float | None:
@@ -727,6 +753,16 @@ def check_cov_object(
     ndarray, shape (len(names), len(names))
         Symmetric, positive semi-definite; zero rows and columns for parameters not named.
     """
+    params = _cov_params(cov, names, bad, hint, of)
+    C = _cov_matrix(cov["matrix"], params, bad)
+    full = np.zeros((len(names), len(names)))
+    idx = [names.index(p) for p in params]
+    full[np.ix_(idx, idx)] = C
+    return full
+
+
+def _cov_params(cov: Any, names: tuple[str, ...], bad, hint: str, of: str) -> list[str]:
+    """The parameters a ``cov`` object names: distinct, each one of ``names`` (default all)."""
     if not isinstance(cov, dict) or set(cov) - {"params", "matrix"} or "matrix" not in cov:
         raise bad("cov", f"must be an object {{'params': [...], 'matrix': [[...]]}}; got {_short(cov)}")
     params = cov.get("params", list(names))
@@ -747,8 +783,13 @@ def check_cov_object(
             f"{', '.join(repr(p) for p in unknown)} is not a parameter of {of} (expected names from "
             f"{list(names)}" + (f": {hint})" if hint else ")"),
         )
+    return params
+
+
+def _cov_matrix(M: Any, params: list[str], bad) -> np.ndarray:
+    """``cov.matrix`` over ``params``: square, finite, symmetric (to rounding; made exactly so),
+    positive semi-definite, a zero variance with zero covariances."""
     m = len(params)
-    M = cov["matrix"]
     if not isinstance(M, list) or len(M) != m or not all(isinstance(r, list) and len(r) == m for r in M):
         raise bad(
             "cov.matrix",
@@ -796,10 +837,7 @@ def check_cov_object(
             f"is not positive semi-definite (its correlation matrix has the eigenvalue {lo:.3g}; "
             "correlations beyond +/-1, or rounded too coarsely?)",
         )
-    full = np.zeros((len(names), len(names)))
-    idx = [names.index(p) for p in params]
-    full[np.ix_(idx, idx)] = C
-    return full
+    return C
 
 
 #: The central disc where any lens's distortion is one to one: this fraction of the smaller

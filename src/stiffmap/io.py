@@ -225,33 +225,8 @@ def read_csv_columns(
         raise InputError("file not found", source=src)
     if p.is_dir():
         raise InputError("is a directory, expected a CSV file", source=src)
-    raw = read_text_file(p, "CSV file")
-    _refuse_json(raw, required, src)
-    lines_text = raw.splitlines()
-    delimiter = sniff_delimiter(lines_text)
-    reader = csv.reader(lines_text, delimiter=delimiter)
-    try:
-        rows = list(reader)
-    except csv.Error as e:  # a field longer than the csv module's limit (131072 characters)
-        raise InputError(f"line {reader.line_num}: not a table of numbers ({e})", source=src) from None
-    # Skip leading blank and comment lines.
-    start = 0
-    while start < len(rows) and (not rows[start] or rows[start][0].lstrip().startswith("#")):
-        start += 1
-    if start >= len(rows):
-        raise InputError(f"empty file; expected a header with columns {', '.join(required)}", source=src)
-    header = [h.strip().lower() for h in rows[start]]
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputError(
-            f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(c) for c in missing)} "
-            f"(header has {', '.join(repr(h) for h in header)})",
-            source=src,
-        )
-    dup = {h for h in header if header.count(h) > 1 and h}
-    if dup & set(required + optional):
-        raise InputError(f"column {sorted(dup)[0]!r} appears more than once", source=src)
-    wanted = [c for c in required + optional if c in header]
+    rows, delimiter = _csv_rows(p, src, required)
+    start, header, wanted = _header(rows, required, optional, src)
     idx = {c: header.index(c) for c in wanted}
     data: dict[str, list[float]] = {c: [] for c in wanted if c not in text_columns}
     text: dict[str, list[str]] = {c: [] for c in wanted if c in text_columns}
@@ -274,22 +249,63 @@ def read_csv_columns(
             cell = row[j].strip() if j < len(row) else ""
             if c in text_columns:
                 text[c].append(cell)
-                continue
-            if cell == "" and not allow_nan:
-                raise InputError(f"line {line}, column {c!r}: empty cell, expected a number", source=src)
-            if delimiter != "," and "," in cell and "." not in cell:
-                cell = cell.replace(",", ".")  # decimal comma (files written with ; or tab)
-            try:
-                v = float(cell) if cell != "" else math.nan
-            except ValueError:
-                raise InputError(f"line {line}, column {c!r}: {cell!r} is not a number", source=src) from None
-            if not math.isfinite(v) and not allow_nan:
-                raise InputError(f"line {line}, column {c!r}: {cell!r} is not a finite number", source=src)
-            data[c].append(v)
+            else:
+                data[c].append(_number(cell, line, c, delimiter, allow_nan, src))
         lines.append(line)
     if not lines:
         raise InputError("no data rows after the header", source=src)
     return Table(src, {c: np.asarray(v, dtype=np.float64) for c, v in data.items()}, np.asarray(lines), text)
+
+
+def _csv_rows(p: Path, src: str, required: list[str]) -> tuple[list[list[str]], str]:
+    """The rows of a CSV file (not JSON) and its separator."""
+    raw = read_text_file(p, "CSV file")
+    _refuse_json(raw, required, src)
+    lines_text = raw.splitlines()
+    delimiter = sniff_delimiter(lines_text)
+    reader = csv.reader(lines_text, delimiter=delimiter)
+    try:
+        return list(reader), delimiter
+    except csv.Error as e:  # a field longer than the csv module's limit (131072 characters)
+        raise InputError(f"line {reader.line_num}: not a table of numbers ({e})", source=src) from None
+
+
+def _header(rows, required: list[str], optional: list[str], src: str) -> tuple[int, list[str], list[str]]:
+    """The header's row (after leading blank and comment lines), its column names (lower case)
+    and the columns wanted that it has; every required one, none twice."""
+    start = 0
+    while start < len(rows) and (not rows[start] or rows[start][0].lstrip().startswith("#")):
+        start += 1
+    if start >= len(rows):
+        raise InputError(f"empty file; expected a header with columns {', '.join(required)}", source=src)
+    header = [h.strip().lower() for h in rows[start]]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputError(
+            f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(c) for c in missing)} "
+            f"(header has {', '.join(repr(h) for h in header)})",
+            source=src,
+        )
+    dup = {h for h in header if header.count(h) > 1 and h}
+    if dup & set(required + optional):
+        raise InputError(f"column {sorted(dup)[0]!r} appears more than once", source=src)
+    return start, header, [c for c in required + optional if c in header]
+
+
+def _number(cell: str, line: int, c: str, delimiter: str, allow_nan: bool, src: str) -> float:
+    """The number in a (stripped) cell: a decimal comma read with ``;`` or tab separators; an
+    empty cell or ``nan`` only with ``allow_nan``."""
+    if cell == "" and not allow_nan:
+        raise InputError(f"line {line}, column {c!r}: empty cell, expected a number", source=src)
+    if delimiter != "," and "," in cell and "." not in cell:
+        cell = cell.replace(",", ".")  # decimal comma (files written with ; or tab)
+    try:
+        v = float(cell) if cell != "" else math.nan
+    except ValueError:
+        raise InputError(f"line {line}, column {c!r}: {cell!r} is not a number", source=src) from None
+    if not math.isfinite(v) and not allow_nan:
+        raise InputError(f"line {line}, column {c!r}: {cell!r} is not a finite number", source=src)
+    return v
 
 
 def read_json(path: str | os.PathLike, what: str = "file"):

@@ -13,7 +13,9 @@ uncertainty"):
 - the projection of board points and its Jacobian with respect to (dt, dr)
   (:func:`projection_jacobian`), and the homography from rays to the board plane
   (:func:`ray2board_homography`);
-- a measured pose with its covariance and quality is a :class:`BoardPose`; the share of the
+- a measured pose with its covariance and quality is a :class:`BoardPose` (a
+  :class:`PoseEstimate` whose pose is ``board2cam``; a rig's fused pose, in the rig frame, is
+  :class:`~stiffmap.vision.fuse.FusedPose` with ``board2rig``); the share of the
   camera calibration in it comes from :func:`calibration_sensitivity` (how the fitted pose
   follows an error of the camera's parameters).
 
@@ -27,7 +29,7 @@ cannot live in either. It is pure NumPy: OpenCV stays in ``vision`` and ``sim``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -36,6 +38,7 @@ from .camera import CameraModel
 from .geometry import as_transform, matrix_from_rotvec
 
 __all__ = [
+    "PoseEstimate",
     "BoardPose",
     "calibration_sensitivity",
     "check_pose",
@@ -49,12 +52,14 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class BoardPose:
-    """Pose of a board in the camera frame.
+class PoseEstimate:
+    """A board's measured pose: its covariance and the fit's quality. The pose itself is a
+    field of the subclass, named by its frame: :attr:`BoardPose.board2cam` (a camera's) or
+    :attr:`FusedPose.board2rig <stiffmap.vision.fuse.FusedPose>` (a rig's, fused from its
+    cameras'); :attr:`board2frame` is either, for code that takes both.
 
     Attributes
     ----------
-    board2cam : ndarray, shape (4, 4), mm
     cov : ndarray, shape (6, 6)
         Covariance over (t (mm), r (rad)), the perturbation of :func:`perturb_pose`: the
         total, the fit's own noise plus :attr:`cov_calibration`.
@@ -91,7 +96,6 @@ class BoardPose:
         uncertainty is unknown (no ``cov`` or ``std`` in its ``camera.json``).
     """
 
-    board2cam: np.ndarray
     cov: np.ndarray
     rms_px: float
     n_corners: int
@@ -126,6 +130,29 @@ class BoardPose:
     def r_std_rad(self) -> np.ndarray:
         """1-sigma of the rotation vector, shape (3,), rad."""
         return np.sqrt(np.diag(self.cov)[3:])
+
+    @property
+    def board2frame(self) -> np.ndarray:
+        """The pose, mm, in the frame of what measured it: a camera's (``board2cam``) or a
+        rig's (``board2rig``); the covariances are over the (t, r) perturbation in that frame."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class BoardPose(PoseEstimate):
+    """Pose of a board in the camera frame, with its covariance and quality (:class:`PoseEstimate`).
+
+    Attributes
+    ----------
+    board2cam : ndarray, shape (4, 4), mm
+        The pose (a keyword argument).
+    """
+
+    board2cam: np.ndarray = field(kw_only=True)
+
+    @property
+    def board2frame(self) -> np.ndarray:
+        return self.board2cam
 
 
 def check_pose(a2b, name: str = "board2cam") -> np.ndarray:

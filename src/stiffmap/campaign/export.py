@@ -73,6 +73,18 @@ def _num(x: float) -> float | None:
 def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
     """The export tables as lists of flat dicts (numbers, strings, None)."""
     out: dict[str, list[dict[str, Any]]] = {}
+    out["stiffness"] = _stiffness_table(store)
+    out["displacements"] = _displacement_table(store)
+    out["repeat_stats"] = [dataclasses.asdict(r) for r in store.repeat_stat_rows()]
+    out["measurements"] = _measurement_table(store)
+    out["model_stiffness"] = _model_stiffness_table(store)
+    out["sensor_results"] = _sensor_table(store)
+    return out
+
+
+def _stiffness_table(store: Store) -> list[dict[str, Any]]:
+    """One row per position: K, its standard errors, principal stiffnesses, conditions, the
+    calibration's share and flags."""
     rows = []
     for r in store.stiffness_rows():
         K = r.K
@@ -104,7 +116,12 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
             flags=" | ".join(flags),
         )
         rows.append(row)
-    out["stiffness"] = rows
+    return rows
+
+
+def _displacement_table(store: Store) -> list[dict[str, Any]]:
+    """One row per displacement measured: its 6 components, their standard deviations and the
+    calibration's share."""
     rows = []
     for r in store.displacement_rows():
         d = r.d if r.d is not None else np.full(6, np.nan)
@@ -120,9 +137,12 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
             row[name] = _num(share_d[k])
         row.update(status=r.status, error=r.error, unloaded=r.unloaded, loaded=r.loaded)
         rows.append(row)
-    out["displacements"] = rows
-    out["repeat_stats"] = [dataclasses.asdict(r) for r in store.repeat_stat_rows()]
-    out["measurements"] = [
+    return rows
+
+
+def _measurement_table(store: Store) -> list[dict[str, Any]]:
+    """One row per image measured: its status, error, residual and cameras."""
+    return [
         {
             "image": r.image,
             "position": r.position,
@@ -135,6 +155,10 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
         }
         for r in store.measurement_rows()
     ]
+
+
+def _model_stiffness_table(store: Store) -> list[dict[str, Any]]:
+    """One row per position and model: the model's K."""
     rows = []
     for r in store.model_stiffness_rows():
         K = r.K
@@ -148,7 +172,11 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
             row[f"k{i + 1}{j + 1}_n_per_mm"] = None if K is None else float(K[i, j])
         row.update(det=r.det, min_principal_n_per_mm=r.min_principal)
         rows.append(row)
-    out["model_stiffness"] = rows
+    return rows
+
+
+def _sensor_table(store: Store) -> list[dict[str, Any]]:
+    """One row per sensor recording: its static error, stiffness and the model's static error."""
     pred = store.model_static_errors()
     rows = []
     for r in store.sensor_result_rows():
@@ -170,8 +198,7 @@ def read_tables(store: Store) -> dict[str, list[dict[str, Any]]]:
                 "flags": " | ".join(res.get("flags", [])),
             }
         )
-    out["sensor_results"] = rows
-    return out
+    return rows
 
 
 def _csv_bytes(rows: list[dict[str, Any]]) -> bytes:

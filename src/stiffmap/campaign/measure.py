@@ -170,9 +170,9 @@ def measure_position(
         row = ImageRow(
             rel,
             True,
-            mobile2cam=m.mobile.board2cam,
+            mobile2cam=m.mobile.board2frame,
             mobile_cov=m.mobile.cov_noise,
-            fixed2cam=None if m.fixed is None else m.fixed.board2cam,
+            fixed2cam=None if m.fixed is None else m.fixed.board2frame,
             fixed_cov=None if m.fixed is None else m.fixed.cov_noise,
             mobile_cal_jac=m.mobile.calibration_jacobian,
             fixed_cal_jac=None if m.fixed is None else m.fixed.calibration_jacobian,

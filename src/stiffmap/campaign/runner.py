@@ -167,26 +167,7 @@ def run_vision_campaign(
             if task.index in work.stored:
                 problems = _derive_and_persist(store, campaign, work, task, None)
                 tally.position_done(task, None, problems)
-        send = send_images or None
-        if backend.cluster is not None and work.to_measure:
-            if send is None:
-                send = not workers_see_images(backend.cluster, campaign.context, work.to_measure)
-            summary.backend += (
-                "; images sent to the workers by this process"
-                if send
-                else "; images read by the workers from the campaign directory (shared storage)"
-            )
-        measuring = measure_positions(campaign.context, work.to_measure, backend, send_files=send)
-        with contextlib.closing(measuring):
-            for task, rows in measuring:  # measured: derive and persist each position as it comes
-                if isinstance(rows, str):  # the task failed (a bug; dead workers), named; the run goes on
-                    why = rows
-                    summary.failures.append(f"position {task.index}: {why}")
-                    _persist_lost(store, work, task, why)
-                    tally.position_lost(task)
-                    continue
-                problems = _derive_and_persist(store, campaign, work, task, rows)
-                tally.position_done(task, rows, problems)
+        _measure_new(store, campaign, work, backend, tally, send_images)
         if backend.cluster is not None:
             summary.notes.extend(backend.cluster.events)
         failures, notes = _rig_checks(store, campaign)
@@ -196,6 +177,35 @@ def run_vision_campaign(
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
     return summary
+
+
+def _measure_new(
+    store: Store, campaign: _Campaign, work: _Work, backend: Backend, tally: _Tally, send_images: bool
+) -> None:
+    """Measure the positions left to measure (on a cluster: the images sent to its workers, or
+    read by them when they see the campaign directory), deriving and persisting each as it comes;
+    a position whose task failed is named in the summary and the run goes on."""
+    summary = tally.summary
+    send = send_images or None
+    if backend.cluster is not None and work.to_measure:
+        if send is None:
+            send = not workers_see_images(backend.cluster, campaign.context, work.to_measure)
+        summary.backend += (
+            "; images sent to the workers by this process"
+            if send
+            else "; images read by the workers from the campaign directory (shared storage)"
+        )
+    measuring = measure_positions(campaign.context, work.to_measure, backend, send_files=send)
+    with contextlib.closing(measuring):
+        for task, rows in measuring:  # measured: derive and persist each position as it comes
+            if isinstance(rows, str):  # the task failed (a bug; dead workers), named; the run goes on
+                why = rows
+                summary.failures.append(f"position {task.index}: {why}")
+                _persist_lost(store, work, task, why)
+                tally.position_lost(task)
+                continue
+            problems = _derive_and_persist(store, campaign, work, task, rows)
+            tally.position_done(task, rows, problems)
 
 
 def _rig_checks(store: Store, campaign: _Campaign) -> tuple[list[str], list[str]]:

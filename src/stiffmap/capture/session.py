@@ -247,6 +247,41 @@ def _remove_stale_temporaries(root: Path, steps) -> None:
                     tmp.unlink(missing_ok=True)
 
 
+@dataclass
+class _Session:
+    """One capture's state, passed between its steps (:func:`run_capture`)."""
+
+    root: Path
+    spec: CampaignSpec
+    source: CameraSource
+    operator: Operator
+    monitor: SettleMonitor
+    view: Callable[[ViewState], None] | None
+    steps: list
+    n_frames: int
+    average: bool
+    actuator: Actuator | None
+    loads: list
+    n_pos: int
+    present: int
+    state: ViewState
+    log: _Log
+    saved: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    grabbed: int = 0
+    position: int | None = None
+    load_on: int | None = None  # None: no load (or not known to hang: the operator is told)
+    last_done: int | None = None
+    stopped: str | None = None
+    redo_steps: set[int] = field(default_factory=set)
+
+    def show(self, status: str = "") -> None:
+        if status:
+            self.state.status = status
+        if self.view is not None:
+            self.view(self.state)
+
+
 def run_capture(
     root: str | os.PathLike,
     spec: CampaignSpec,
@@ -288,8 +323,36 @@ def run_capture(
         :class:`AutoOperator`), a move command that failed: the images saved before are kept
         and in the log.
     """
-    root = Path(root)
-    operator = operator or AutoOperator()
+    s = _start(Path(root), spec, source, operator or AutoOperator(), frames, view, monitor)
+    try:
+        i: int | None = 0
+        while i is not None and i < len(s.steps):
+            i = _take_step(s, i)
+    except SourceEnded as e:
+        s.stopped = str(e)
+        s.log.write("stop", reason=s.stopped)
+        raise CaptureStopped(
+            f"{e.detail}: the images saved so far are kept; run stiffmap capture again to go on",
+            source=e.source,
+        ) from None
+    except CaptureStopped as e:
+        s.log.write("stop", reason=str(e))
+        raise
+    except KeyboardInterrupt:
+        s.stopped = "interrupted"
+        s.log.write("stop", reason=s.stopped)
+        raise
+    finally:
+        missing = tuple(f for st in s.steps for f in st.files if not (s.root / f).is_file())
+        if s.stopped is None and not missing:
+            s.log.write("end", saved=len(s.saved), skipped=len(s.skipped))
+        s.log.close()
+    return CaptureSummary(tuple(s.saved), tuple(s.skipped), s.present, missing, s.grabbed, s.stopped)
+
+
+def _frames_per_image(spec: CampaignSpec, root: Path, frames: int | None) -> tuple[int, bool]:
+    """The settled frames of one image (``--frames`` or ``[capture] frames``) and whether they
+    are averaged into one image (else each is one repeat)."""
     cap = spec.capture_settings
     n_frames = int(frames) if frames is not None else cap.frames
     if not 1 <= n_frames <= MAX_FRAMES:
@@ -304,6 +367,13 @@ def run_capture(
             f"it must equal repeats = {spec.repeats}",
             source=str(root / "campaign.toml"),
         )
+    return n_frames, average
+
+
+def _start(root, spec, source, operator, frames, view, monitor) -> _Session:
+    """Check the options and the camera, open the log and write its ``start`` line."""
+    cap = spec.capture_settings
+    n_frames, average = _frames_per_image(spec, root, frames)
     steps = capture_steps(spec, root, group_repeats=not average)
     monitor = monitor or monitor_for(spec, root)
     want = monitor.tracker.camera.image_size
@@ -325,193 +395,197 @@ def run_capture(
         needed=n_frames if average else 1,
         settle_seconds=cap.settle_seconds,
     )
-    saved: list[str] = []
-    skipped: list[str] = []
-    log = _Log(root / LOG_NAME)
-    grabbed = 0
-    position: int | None = None
-    load_on: int | None = None  # None: no load (or not known to hang: the operator is told)
-    last_done: int | None = None
-    stopped: str | None = None
-    redo_steps: set[int] = set()
-
-    def show(status: str = "") -> None:
-        if status:
-            state.status = status
-        if view is not None:
-            view(state)
-
-    log.write(
+    s = _Session(
+        root,
+        spec,
+        source,
+        operator,
+        monitor,
+        view,
+        steps,
+        n_frames,
+        average,
+        actuator,
+        loads,
+        n_pos,
+        present,
+        state,
+        _Log(root / LOG_NAME),
+    )
+    s.log.write(
         "start",
         camera=source.name,
         frames=n_frames,
         average=average,
         settle_seconds=cap.settle_seconds,
-        images=sum(len(s.files) for s in steps),
+        images=sum(len(st.files) for st in steps),
         on_disk=present,
     )
-    try:
-        i = 0
-        while i < len(steps):
-            step = steps[i]
-            on_disk = [f for f in step.files if (root / f).is_file()]
-            if len(on_disk) == len(step.files) and i not in redo_steps:
-                i += 1
-                continue
-            state.step, state.image = i + 1, ", ".join(step.files)
-            # 1. the rig's state
-            actions = []
-            if position != step.position:
-                if load_on is not None:
-                    actions.append("remove the load")
-                actions.append(
-                    f"position {step.position} of {n_pos}: move the robot to "
-                    f"({', '.join(_fmt(v) for v in step.xyz_mm)}) mm"
-                )
-            if step.state == "unloaded":
-                if position == step.position and load_on is not None:
-                    actions.append("remove the load")
-                elif position != step.position:
-                    actions.append("no load hangs")
-            else:
-                if position == step.position and load_on is not None:
-                    actions.append("remove the load")
-                actions.append(load_instruction(spec, step.load))
-            what = (
-                f"{step.state} image, load {step.load}, repeat {', '.join(str(s.repeat) for s in step.shots)}"
+    return s
+
+
+def _take_step(s: _Session, i: int) -> int | None:
+    """Take step ``i`` (or skip it, redo the last one, stop): the next step's index, None to stop."""
+    step = s.steps[i]
+    on_disk = [f for f in step.files if (s.root / f).is_file()]
+    if len(on_disk) == len(step.files) and i not in s.redo_steps:
+        return i + 1
+    s.state.step, s.state.image = i + 1, ", ".join(step.files)
+    instruction = _instruction(s, step)
+    s.state.instruction = instruction
+    s.state.check, s.state.collected = None, 0
+    s.show("waiting for the operator")
+    move_command = s.spec.capture_settings.move_command
+    if s.position != step.position and move_command:
+        _run_move(move_command, step.xyz_mm, s.root)
+    answer = s.operator.confirm(instruction)
+    if answer == "quit":
+        s.stopped = "stopped by the operator"
+        s.log.write("stop", reason=s.stopped, at=list(step.files))
+        return None
+    if answer == "skip":
+        s.skipped.extend(f for f in step.files if f not in on_disk)
+        s.log.write("skip", files=[f for f in step.files if f not in on_disk])
+        return i + 1
+    if answer == "redo":
+        return _redo(s, i)
+    _set_rig(s, step)
+    kept, checks = _settled_frames(s, step)
+    _save(s, i, step, kept, checks)
+    s.last_done = i
+    return i + 1
+
+
+def _instruction(s: _Session, step) -> str:
+    """What the operator does to bring the rig to the step's state (1. of the module docstring)."""
+    actions = []
+    if s.position != step.position:
+        if s.load_on is not None:
+            actions.append("remove the load")
+        actions.append(
+            f"position {step.position} of {s.n_pos}: move the robot to "
+            f"({', '.join(_fmt(v) for v in step.xyz_mm)}) mm"
+        )
+    if step.state == "unloaded":
+        if s.position == step.position and s.load_on is not None:
+            actions.append("remove the load")
+        elif s.position != step.position:
+            actions.append("no load hangs")
+    else:
+        if s.position == step.position and s.load_on is not None:
+            actions.append("remove the load")
+        actions.append(load_instruction(s.spec, step.load))
+    what = f"{step.state} image, load {step.load}, repeat {', '.join(str(sh.repeat) for sh in step.shots)}"
+    return "; ".join(actions) + f"  ({what})"
+
+
+def _redo(s: _Session, i: int) -> int:
+    """The operator asked to take the last saved image again: the step to go to."""
+    if s.last_done is None:
+        s.show("nothing to redo yet")
+        return i
+    prev = s.steps[s.last_done]
+    if not all(s.operator.overwrite(f) for f in prev.files if (s.root / f).is_file()):
+        s.show("not redone: the images on disk are kept")
+        return i
+    s.log.write("redo", files=list(prev.files))
+    s.redo_steps.add(s.last_done)
+    return s.last_done
+
+
+def _set_rig(s: _Session, step) -> None:
+    """Move the robot and hang the step's load with an actuator; note the rig's new state."""
+    if s.actuator is not None:
+        if s.position != step.position:
+            s.actuator.move_to(step.xyz_mm)
+            s.load_on = None
+        if s.load_on is not None:
+            s.actuator.set_load(None)
+        if step.state == "loaded":
+            s.actuator.set_load(s.loads[step.load - 1].force)
+    s.position = step.position
+    s.load_on = step.load if step.state == "loaded" else None
+
+
+def _settled_frames(s: _Session, step) -> tuple[list, list[FrameCheck]]:
+    """Grab frames until settled, then ``n_frames`` settled frames in a row (2. of the module
+    docstring); a step that times out asks the operator (``quit``: :class:`CaptureStopped`)."""
+    cap = s.spec.capture_settings
+    s.monitor.reset()
+    kept: list = []
+    checks: list[FrameCheck] = []
+    t_start: float | None = None
+    wall_start = 0.0  # the wall clock at the first frame (as t_start the source's)
+    while True:
+        frame = s.source.grab()
+        s.grabbed += 1
+        t = float(frame.timestamp_s)
+        if t_start is None:
+            t_start, wall_start = t, time.monotonic()
+        c = s.monitor.check(frame.image, t)
+        s.state.check = c
+        if c.settled:
+            kept.append(frame)
+            checks.append(c)
+        else:
+            kept, checks = [], []
+        s.state.collected = len(kept)
+        if len(kept) >= s.n_frames:
+            return kept, checks
+        status = c.problem or (
+            "settled: taking the image" if c.settled else "waiting for the platform to settle"
+        )
+        s.show(status)
+        waited = time.monotonic() - wall_start
+        if t - t_start > cap.timeout_s or waited > max(cap.timeout_s, MIN_WALL_S):
+            message = f"{', '.join(step.files)}: no good settled frame in {cap.timeout_s:g} s" + (
+                f"; the last frame: {c.problem}" if c.problem else " (the platform did not settle)"
             )
-            instruction = "; ".join(actions) + f"  ({what})"
-            state.instruction = instruction
-            state.check, state.collected = None, 0
-            show("waiting for the operator")
-            if position != step.position and cap.move_command:
-                _run_move(cap.move_command, step.xyz_mm, root)
-            answer = operator.confirm(instruction)
-            if answer == "quit":
-                stopped = "stopped by the operator"
-                log.write("stop", reason=stopped, at=list(step.files))
-                break
-            if answer == "skip":
-                skipped.extend(f for f in step.files if f not in on_disk)
-                log.write("skip", files=[f for f in step.files if f not in on_disk])
-                i += 1
-                continue
-            if answer == "redo":
-                if last_done is None:
-                    show("nothing to redo yet")
-                    continue
-                prev = steps[last_done]
-                if not all(operator.overwrite(f) for f in prev.files if (root / f).is_file()):
-                    show("not redone: the images on disk are kept")
-                    continue
-                log.write("redo", files=list(prev.files))
-                redo_steps.add(last_done)
-                i = last_done
-                continue
-            if actuator is not None:
-                if position != step.position:
-                    actuator.move_to(step.xyz_mm)
-                    load_on = None
-                if load_on is not None:
-                    actuator.set_load(None)
-                if step.state == "loaded":
-                    actuator.set_load(loads[step.load - 1].force)
-            position = step.position
-            load_on = step.load if step.state == "loaded" else None
-            # 2. frames until settled, then n settled frames in a row
-            monitor.reset()
-            kept: list = []
-            checks: list[FrameCheck] = []
-            t_start: float | None = None
-            wall_start = 0.0  # the wall clock at the first frame (as t_start the source's)
-            while True:
-                frame = source.grab()
-                grabbed += 1
-                t = float(frame.timestamp_s)
-                if t_start is None:
-                    t_start, wall_start = t, time.monotonic()
-                c = monitor.check(frame.image, t)
-                state.check = c
-                if c.settled:
-                    kept.append(frame)
-                    checks.append(c)
-                else:
-                    kept, checks = [], []
-                state.collected = len(kept)
-                if len(kept) >= n_frames:
-                    break
-                status = c.problem or (
-                    "settled: taking the image" if c.settled else "waiting for the platform to settle"
-                )
-                show(status)
-                waited = time.monotonic() - wall_start
-                if t - t_start > cap.timeout_s or waited > max(cap.timeout_s, MIN_WALL_S):
-                    message = f"{', '.join(step.files)}: no good settled frame in {cap.timeout_s:g} s" + (
-                        f"; the last frame: {c.problem}" if c.problem else " (the platform did not settle)"
-                    )
-                    log.write("timeout", files=list(step.files), reason=message)
-                    if operator.gave_up(message) == "quit":
-                        raise CaptureStopped(message + "; the images saved so far are kept")
-                    monitor.reset()
-                    kept, checks, t_start = [], [], None
-            # 3. write
-            images = [np.asarray(f.image) for f in kept]
-            if average and len(images) == 1:
-                outs = [(step.files[0], images[0])]
-            elif average:
-                outs = [(step.files[0], np.clip(np.rint(np.mean(images, axis=0)), 0, 255).astype(np.uint8))]
-            else:
-                outs = list(zip(step.files, images, strict=True))
-            redo = i in redo_steps
-            written = []
-            for rel, img in outs:
-                if (root / rel).is_file() and not redo and not operator.overwrite(rel):
-                    continue
-                atomic_write_bytes(root / rel, encode_for(rel, img))
-                written.append(rel)
-            redo_steps.discard(i)
-            truth = {}
-            if all(hasattr(f, "settled") for f in kept):
-                truth = {
-                    "settled": [bool(f.settled) for f in kept],
-                    "envelope_mm": [float(f.envelope_mm) for f in kept],
-                }
-            log.write(
-                "saved",
-                files=written,
-                position=step.position,
-                state=step.state,
-                load=step.load,
-                repeats=[s.repeat for s in step.shots],
-                frames=len(kept),
-                averaged=average,
-                timestamps_s=[float(f.timestamp_s) for f in kept],
-                settle=checks[-1].figures(),
-                **({"source_truth": truth} if truth else {}),
-            )
-            saved.extend(written)
-            state.saved = saved[-3:]
-            state.on_disk += len(written)
-            show(f"saved {', '.join(written)}")
-            last_done = i
-            i += 1
-    except SourceEnded as e:
-        stopped = str(e)
-        log.write("stop", reason=stopped)
-        raise CaptureStopped(
-            f"{e.detail}: the images saved so far are kept; run stiffmap capture again to go on",
-            source=e.source,
-        ) from None
-    except CaptureStopped as e:
-        log.write("stop", reason=str(e))
-        raise
-    except KeyboardInterrupt:
-        stopped = "interrupted"
-        log.write("stop", reason=stopped)
-        raise
-    finally:
-        missing = tuple(f for s in steps for f in s.files if not (root / f).is_file())
-        if stopped is None and not missing:
-            log.write("end", saved=len(saved), skipped=len(skipped))
-        log.close()
-    return CaptureSummary(tuple(saved), tuple(skipped), present, missing, grabbed, stopped)
+            s.log.write("timeout", files=list(step.files), reason=message)
+            if s.operator.gave_up(message) == "quit":
+                raise CaptureStopped(message + "; the images saved so far are kept")
+            s.monitor.reset()
+            kept, checks, t_start = [], [], None
+
+
+def _save(s: _Session, i: int, step, kept: list, checks: list[FrameCheck]) -> None:
+    """Write the step's image(s) from its settled frames and log them (3. and 4. of the module
+    docstring); an image on disk is overwritten only on a redo or when the operator says so."""
+    images = [np.asarray(f.image) for f in kept]
+    if s.average and len(images) == 1:
+        outs = [(step.files[0], images[0])]
+    elif s.average:
+        outs = [(step.files[0], np.clip(np.rint(np.mean(images, axis=0)), 0, 255).astype(np.uint8))]
+    else:
+        outs = list(zip(step.files, images, strict=True))
+    redo = i in s.redo_steps
+    written = []
+    for rel, img in outs:
+        if (s.root / rel).is_file() and not redo and not s.operator.overwrite(rel):
+            continue
+        atomic_write_bytes(s.root / rel, encode_for(rel, img))
+        written.append(rel)
+    s.redo_steps.discard(i)
+    truth = {}
+    if all(hasattr(f, "settled") for f in kept):
+        truth = {
+            "settled": [bool(f.settled) for f in kept],
+            "envelope_mm": [float(f.envelope_mm) for f in kept],
+        }
+    s.log.write(
+        "saved",
+        files=written,
+        position=step.position,
+        state=step.state,
+        load=step.load,
+        repeats=[sh.repeat for sh in step.shots],
+        frames=len(kept),
+        averaged=s.average,
+        timestamps_s=[float(f.timestamp_s) for f in kept],
+        settle=checks[-1].figures(),
+        **({"source_truth": truth} if truth else {}),
+    )
+    s.saved.extend(written)
+    s.state.saved = s.saved[-3:]
+    s.state.on_disk += len(written)
+    s.show(f"saved {', '.join(written)}")

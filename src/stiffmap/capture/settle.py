@@ -340,9 +340,13 @@ class SettleMonitor:
                 problem = f"only part of the {name} target is seen ({det.n_corners} corners)"
         prev = self._window[-1] if self._window else None
         seen = _Seen(
-            float(timestamp_s), m.mobile.board2cam, m.mobile.cov_noise, m.fixed.board2cam, m.fixed.cov_noise
+            float(timestamp_s),
+            m.mobile.board2frame,
+            m.mobile.cov_noise,
+            m.fixed.board2frame,
+            m.fixed.cov_noise,
         )
-        R = self.fixed2base[:3, :3] @ m.fixed.board2cam[:3, :3].T  # cam axes -> base axes
+        R = self.fixed2base[:3, :3] @ m.fixed.board2frame[:3, :3].T  # cam axes -> base axes
         sigma = np.sqrt(np.clip(np.diag(R @ m.mobile.cov_noise[:3, :3] @ R.T), 0, None))
         step_mm = step_rad = np.full(3, np.nan)
         if prev is not None:

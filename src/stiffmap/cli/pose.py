@@ -106,10 +106,10 @@ def _print_poses(ms: list[ImageMeasurement], title: str) -> None:
             method += f" ({p.photometric.rms_dn:.2f} DN RMS)"
         t.add_row(
             m.image,
-            ", ".join(f"{x:.4f}" for x in p.board2cam[:3, 3]),
+            ", ".join(f"{x:.4f}" for x in p.board2frame[:3, 3]),
             ", ".join(f"{x:.4f}" for x in p.t_std_mm),
             ", ".join(fmt(x, 4) for x in p.t_std_calibration_mm) if p.cov_calibration is not None else "-",
-            ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2cam[:3, :3])),
+            ", ".join(f"{x:.6f}" for x in rotvec_from_matrix(p.board2frame[:3, :3])),
             f"{p.rms_px:.3f}",
             str(p.n_corners),
             method,

@@ -459,8 +459,42 @@ def _identify(
     has_moments: bool,
 ) -> JointIdentifiability:
     """The identifiability report of a whitened design ``Aw`` (N, p) over the joints ``names``."""
-    N, p = Aw.shape
     felt = sens >= MIN_RELATIVE_SENSITIVITY
+    not_felt, why_groups, hints = _not_felt(felt, names, types, load_f, motion_f)
+    fi = np.flatnonzero(felt)
+    s = _felt_spectrum(Aw, fi, names)
+    message = ""
+    bad_names = [j for j in names if j in not_felt or any(j in g for g in s.confounded)]
+    if bad_names:
+        message = _undetermined_message(
+            bad_names,
+            names,
+            types,
+            why_groups,
+            hints,
+            s.confounded,
+            d=d,
+            n_config=n_config,
+            has_moments=has_moments,
+        )
+    return JointIdentifiability(
+        names=names,
+        joint_types=types,
+        sensitivity=sens,
+        condition=s.condition,
+        singular_values=s.rel,
+        directions=s.directions,
+        inflation=s.inflation,
+        weakest=s.weakest,
+        not_felt=not_felt,
+        confounded=tuple(s.confounded),
+        message=message,
+    )
+
+
+def _not_felt(felt, names, types, load_f, motion_f):
+    """Why each joint the data hardly feel is not felt (its message), the joints grouped by
+    their reasons, and what to add -> the joints it would help."""
     not_felt: dict[str, str] = {}
     why_groups: dict[tuple[str, ...], list[str]] = {}  # reasons -> joints
     hints: dict[str, list[str]] = {}  # what to add -> the joints it would help
@@ -479,128 +513,135 @@ def _identify(
             hints.setdefault(w, []).append(s)
         why_groups.setdefault(tuple(why), []).append(s)
         not_felt[s] = " and ".join(_WHY[w][0] for w in why)
+    return not_felt, why_groups, hints
 
-    fi = np.flatnonzero(felt)
+
+@dataclass
+class _Spectrum:
+    """The felt joints' scaled design, seen through its singular values (:func:`_felt_spectrum`)."""
+
+    rel: np.ndarray  # singular values relative to the largest
+    directions: np.ndarray  # (q, p) right singular vectors over all joints
+    inflation: np.ndarray  # (p,) variance inflation (inf: not determined)
+    weakest: np.ndarray  # (p,) the relative singular value each joint leans on most
+    confounded: list[tuple[str, ...]]
+    condition: float
+
+
+def _felt_spectrum(Aw: np.ndarray, fi: np.ndarray, names: tuple[str, ...]) -> _Spectrum:
+    """The SVD of the felt joints' unit columns: the condition, each joint's inflation and the
+    groups of joints the data see only in a fixed combination (the null space)."""
+    N, p = Aw.shape
     q = fi.size
-    directions = np.zeros((q, p))
-    rel = np.zeros(q)
-    inflation = np.full(p, np.inf)
-    weakest = np.zeros(p)
-    confounded: list[tuple[str, ...]] = []
-    condition = np.inf
-    if q:
-        A = Aw[:, fi]
-        norms = np.linalg.norm(A, axis=0)
-        An = A / norms
-        _, s, Vt = np.linalg.svd(An, full_matrices=N < q)
-        s = np.concatenate([s, np.zeros(q - s.size)])
-        rel = s / s[0]
-        directions[:, fi] = Vt
-        null = rel < MIN_INVERSE_CONDITION
-        if np.any(null):
-            V0 = Vt[null]
-            P = V0.T @ V0  # projector on the null space: independent of its basis
-            named = np.diag(P) > NULL_WEIGHT**2
-            link = (np.abs(P) > NULL_WEIGHT**2) & named[:, None] & named[None, :]
-            seen = np.zeros(q, dtype=bool)
-            for k in np.flatnonzero(named):
-                if seen[k]:
-                    continue
-                group, stack = [], [k]
-                seen[k] = True
-                while stack:
-                    i = stack.pop()
-                    group.append(i)
-                    for m in np.flatnonzero(link[i] & ~seen):
-                        seen[m] = True
-                        stack.append(m)
-                confounded.append(tuple(names[fi[i]] for i in sorted(group)))
-            good = ~named
-        else:
-            condition = float(1.0 / rel[-1])
-            good = np.ones(q, dtype=bool)
-        ok = ~null
-        # The variance of the scaled parameters is V diag(1/s^2) V^T; with unit columns an
-        # orthogonal design has variance 1, so the inflation is sqrt(sum_k V_jk^2 / s_k^2).
-        contrib = Vt[ok].T ** 2 / s[ok][None, :] ** 2  # (q, r): each direction's share
-        vif = np.sum(contrib, axis=1)
-        for k in np.flatnonzero(good):
-            inflation[fi[k]] = float(np.sqrt(vif[k]))
-            weakest[fi[k]] = float(rel[ok][int(np.argmax(contrib[k]))])
+    out = _Spectrum(np.zeros(q), np.zeros((q, p)), np.full(p, np.inf), np.zeros(p), [], np.inf)
+    if not q:
+        return out
+    A = Aw[:, fi]
+    norms = np.linalg.norm(A, axis=0)
+    An = A / norms
+    _, s, Vt = np.linalg.svd(An, full_matrices=N < q)
+    s = np.concatenate([s, np.zeros(q - s.size)])
+    rel = out.rel = s / s[0]
+    out.directions[:, fi] = Vt
+    null = rel < MIN_INVERSE_CONDITION
+    if np.any(null):
+        named = _null_groups(Vt[null], fi, names, out.confounded)
+        good = ~named
+    else:
+        out.condition = float(1.0 / rel[-1])
+        good = np.ones(q, dtype=bool)
+    ok = ~null
+    # The variance of the scaled parameters is V diag(1/s^2) V^T; with unit columns an
+    # orthogonal design has variance 1, so the inflation is sqrt(sum_k V_jk^2 / s_k^2).
+    contrib = Vt[ok].T ** 2 / s[ok][None, :] ** 2  # (q, r): each direction's share
+    vif = np.sum(contrib, axis=1)
+    for k in np.flatnonzero(good):
+        out.inflation[fi[k]] = float(np.sqrt(vif[k]))
+        out.weakest[fi[k]] = float(rel[ok][int(np.argmax(contrib[k]))])
+    return out
 
-    message = ""
-    bad_names = [s for s in names if s in not_felt or any(s in g for g in confounded)]
-    if bad_names:
-        parts = []
-        for why, js in why_groups.items():
-            k = 0 if len(js) == 1 else 1
+
+def _null_groups(V0: np.ndarray, fi: np.ndarray, names, confounded: list) -> np.ndarray:
+    """Append to ``confounded`` the groups of joints linked through the null space ``V0``
+    (its rows); return which felt joints take part in it."""
+    q = fi.size
+    P = V0.T @ V0  # projector on the null space: independent of its basis
+    named = np.diag(P) > NULL_WEIGHT**2
+    link = (np.abs(P) > NULL_WEIGHT**2) & named[:, None] & named[None, :]
+    seen = np.zeros(q, dtype=bool)
+    for k in np.flatnonzero(named):
+        if seen[k]:
+            continue
+        group, stack = [], [k]
+        seen[k] = True
+        while stack:
+            i = stack.pop()
+            group.append(i)
+            for m in np.flatnonzero(link[i] & ~seen):
+                seen[m] = True
+                stack.append(m)
+        confounded.append(tuple(names[fi[i]] for i in sorted(group)))
+    return named
+
+
+def _undetermined_message(
+    bad_names, names, types, why_groups, hints, confounded, *, d, n_config, has_moments
+):
+    """The message naming the joints the data cannot determine, why, and what would determine them."""
+    parts = []
+    for why, js in why_groups.items():
+        k = 0 if len(js) == 1 else 1
+        parts.append(
+            f"{_format_names(js)} {('is', 'are')[k]} not felt: " + " and ".join(_WHY[w][k] for w in why)
+        )
+    for g in confounded:
+        if len(g) == 1:
+            parts.append(f"{g[0]} is hardly felt: its column is nearly a combination of the others'")
+        else:
             parts.append(
-                f"{_format_names(js)} {('is', 'are')[k]} not felt: " + " and ".join(_WHY[w][k] for w in why)
+                f"{_format_names(g)} change the measured displacements only in a fixed combination "
+                "(the data see their sum, weighted, not each one)"
             )
-        for g in confounded:
-            if len(g) == 1:
-                parts.append(f"{g[0]} is hardly felt: its column is nearly a combination of the others'")
-            else:
-                parts.append(
-                    f"{_format_names(g)} change the measured displacements only in a fixed combination "
-                    "(the data see their sum, weighted, not each one)"
-                )
-        todo = []
-        for key, js in hints.items():
-            them = _format_names(js)
-            axes = "its axis" if len(js) == 1 else "their axes"
-            todo.append(
-                {
-                    "moment": f"load cases with moments about the {'axis' if len(js) == 1 else 'axes'} of "
-                    f"{them} (a load point off {axes})",
-                    "force": f"load cases with forces along {axes} ({them})",
-                    "measure": f"measure rotations (6-DOF poses) or a point off {axes} ({them})",
-                    "where": f"load cases that act on {them} where {'its' if len(js) == 1 else 'their'} "
-                    "motion is measured",
-                    "bend": f"load cases that bend or twist the link{'' if len(js) == 1 else 's'} of {them} "
-                    "(forces across it, moments), measured beyond it",
-                }[key]
-            )
-        if confounded:
-            todo.append(
-                "add configurations"
-                if n_config == 1
-                else "add configurations where their axes lie differently"
-            )
-            if not has_moments:
-                todo.append("load cases with moments (a load point off the tool axis)")
-            else:
-                todo.append("load cases in other directions")
-            if d == 3:
-                todo.append("measure rotations (6-DOF poses)")
-        one = len(bad_names) == 1
-        links_too = any(types[names.index(s)] in LINK_KINDS for s in bad_names)
-        what = (
-            ("parameter" if one else "joint and link parameters")
-            if links_too
-            else ("joint" if one else "joints")
+    todo = [_hint(key, js) for key, js in hints.items()]
+    if confounded:
+        todo.append(
+            "add configurations" if n_config == 1 else "add configurations where their axes lie differently"
         )
-        message = (
-            f"{what} {_format_names(bad_names)} cannot be determined from these "
-            "configurations and loads: "
-            + "; ".join(parts)
-            + f". To determine {'it' if one else 'them'}: "
-            + ", or ".join(dict.fromkeys(todo))
-            + f"; or hold {'it' if one else 'them'} at a known compliance (fixed) and fit the others"
-        )
-    return JointIdentifiability(
-        names=names,
-        joint_types=types,
-        sensitivity=sens,
-        condition=condition,
-        singular_values=rel,
-        directions=directions,
-        inflation=inflation,
-        weakest=weakest,
-        not_felt=not_felt,
-        confounded=tuple(confounded),
-        message=message,
+        if not has_moments:
+            todo.append("load cases with moments (a load point off the tool axis)")
+        else:
+            todo.append("load cases in other directions")
+        if d == 3:
+            todo.append("measure rotations (6-DOF poses)")
+    one = len(bad_names) == 1
+    links_too = any(types[names.index(s)] in LINK_KINDS for s in bad_names)
+    what = (
+        ("parameter" if one else "joint and link parameters") if links_too else ("joint" if one else "joints")
     )
+    return (
+        f"{what} {_format_names(bad_names)} cannot be determined from these "
+        "configurations and loads: "
+        + "; ".join(parts)
+        + f". To determine {'it' if one else 'them'}: "
+        + ", or ".join(dict.fromkeys(todo))
+        + f"; or hold {'it' if one else 'them'} at a known compliance (fixed) and fit the others"
+    )
+
+
+def _hint(key: str, js: list[str]) -> str:
+    """What to add (``key`` of :data:`_WHY`) so that the joints ``js`` are felt."""
+    them = _format_names(js)
+    axes = "its axis" if len(js) == 1 else "their axes"
+    return {
+        "moment": f"load cases with moments about the {'axis' if len(js) == 1 else 'axes'} of "
+        f"{them} (a load point off {axes})",
+        "force": f"load cases with forces along {axes} ({them})",
+        "measure": f"measure rotations (6-DOF poses) or a point off {axes} ({them})",
+        "where": f"load cases that act on {them} where {'its' if len(js) == 1 else 'their'} "
+        "motion is measured",
+        "bend": f"load cases that bend or twist the link{'' if len(js) == 1 else 's'} of {them} "
+        "(forces across it, moments), measured beyond it",
+    }[key]
 
 
 def _check_links(
@@ -999,6 +1040,8 @@ def _solve(An: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 EXTRA_NOISE_CAP = 1e6
 
 
+# Longer than ~80 lines for its documentation: the parameters, raises and warnings take ~80 lines;
+# the body (~15 lines) hands over to _fit_once or _fit_with_extra_noise.
 def fit_joint_compliances(
     jacobians,
     wrenches,
@@ -1095,6 +1138,13 @@ def fit_joint_compliances(
     )
     if not extra_noise:
         return _fit_once(jacobians, wrenches, displacements, cov, **kw)
+    return _fit_with_extra_noise(jacobians, wrenches, displacements, cov, kw)
+
+
+def _fit_with_extra_noise(jacobians, wrenches, displacements, cov, kw: dict) -> JointFit:
+    """:func:`fit_joint_compliances` with ``extra_noise``: the translation noise s that makes the
+    reduced chi-square 1, by bisection on s^2 (a note says when none does)."""
+    absolute_sigma = kw["absolute_sigma"]
     if cov is None:
         raise InputError("extra_noise: True needs cov (the covariances the extra noise is added to)")
     C = as_float(cov, "cov")
@@ -1171,26 +1221,8 @@ def _fit_once(
     n = len(names)
     if cov is None and absolute_sigma:
         raise InputError("absolute_sigma: True needs cov (the covariances to take as exact)")
-    if config_index is None:
-        configs, cidx = _group_poses(J.reshape(M, -1))
-        configs = np.arange(configs.shape[0])
-    else:
-        ci = np.asarray(config_index)
-        if ci.shape != (M,) or not np.issubdtype(ci.dtype, np.integer):
-            raise InputError(
-                f"config_index: expected {M} integers (one per row), got shape {ci.shape}, {ci.dtype}"
-            )
-        configs, cidx = _group_poses(ci)
-    if labels is None:
-        label_tuple, label_names, lidx = None, (), np.zeros(M, dtype=int)
-    else:
-        if isinstance(labels, str) or len(labels) != M:
-            got = 1 if isinstance(labels, str) else len(labels)
-            raise InputError(f"labels: expected {M} load-case labels (one per row), got {got}")
-        label_tuple = tuple(str(s) for s in labels)
-        uniq, lidx = _group_poses(np.array(label_tuple))
-        label_names = tuple(str(s) for s in uniq)
-
+    configs, cidx = _config_groups(J, config_index)
+    label_tuple, label_names, lidx = _label_groups(labels, M)
     types = _joint_types(J) + kinds
     fitted = tuple(names[j] for j in idx)
     p = idx.size
@@ -1201,19 +1233,7 @@ def _fit_once(
     if not rep.determined:
         raise DesignError(rep.message)
     if rep.condition > CONDITION_WARN:
-        weak = rep.directions[-1] * np.sign(rep.directions[-1][np.argmax(np.abs(rep.directions[-1]))])
-        combo = " ".join(
-            f"{'-' if w < 0 else '+'} {abs(w):.2g} {s}"
-            for w, s in zip(weak, fitted, strict=True)
-            if abs(w) > 0.1
-        ).lstrip("+ ")
-        warnings.warn(
-            f"joint-compliance fit of {_format_names(fitted)}: condition number {rep.condition:.3g} > "
-            f"{CONDITION_WARN:g}; the estimates are strongly correlated and sensitive to noise (the "
-            f"weakest combination, in scaled compliances: {combo})",
-            IllConditionedWarning,
-            stacklevel=2,
-        )
+        _warn_ill_conditioned(rep, fitted)
 
     # Subtract the fixed joints' deflection; whiten.
     c_all = np.where(np.isnan(fixed_values), 0.0, fixed_values)
@@ -1227,135 +1247,26 @@ def _fit_once(
     norms = np.linalg.norm(A, axis=0)
     An = A / norms
 
-    def scaled(cov_s: np.ndarray, chi2: float, dof: int) -> np.ndarray:
-        if absolute_sigma:
-            return cov_s
-        if dof > 0:
-            return cov_s * (chi2 / dof)
-        return np.full_like(cov_s, np.nan)
-
-    x, cov_s = _solve(An, yw)
-    notes: list[str] = []
-    free = np.ones(p, dtype=bool)
-    if nonnegative and np.any(x < 0):
-        r0 = yw - An @ x
-        chi0 = float(r0 @ r0)
-        cov_unc = scaled(cov_s, chi0, n_obs - p) / np.outer(norms, norms)
-        c_unc = x / norms
-        from scipy import optimize  # on first use: 0.15 s that most commands never need
-
-        res = optimize.lsq_linear(An, yw, bounds=(0.0, np.inf), method="bvls", tol=1e-14)
-        free = res.active_mask == 0
-        while True:
-            # The exact solution on bvls's free set (a joint that still comes out negative
-            # by rounding joins the bound).
-            x = np.zeros(p)
-            cov_s = np.full((p, p), np.nan)
-            if not np.any(free):
-                break
-            xf, cf = _solve(An[:, free], yw)
-            if np.all(xf >= 0):
-                x[free] = xf
-                cov_s[np.ix_(free, free)] = cf
-                break
-            free[np.flatnonzero(free)[int(np.argmin(xf))]] = False
-        for k in np.flatnonzero(~free):
-            j = idx[k]
-            unit = _UNITS[types[j]][0]
-            notes.append(
-                f"compliance of {names[j]} held at 0 (the unconstrained estimate was {c_unc[k]:.3g} {unit} "
-                f"± {np.sqrt(cov_unc[k, k]):.2g}): the data favour a rigid joint; its standard error is not "
-                "given and the covariance covers the other joints"
-            )
-    rw = yw - An @ x
-    chi2 = float(rw @ rw)
-    n_free = int(np.count_nonzero(free))
-    dof = n_obs - n_free
+    s = _least_squares(An, yw, norms, nonnegative, absolute_sigma, n_obs, [(names[j], types[j]) for j in idx])
+    chi2, dof, free, notes = s.chi2, s.dof, s.free, s.notes
     red = chi2 / dof if dof > 0 else float("nan")
-    cov_s = scaled(cov_s, chi2, dof)
-    if not absolute_sigma and dof == 0:
-        notes.append("no residual degree of freedom: standard errors unknown (give cov and absolute_sigma)")
-    c_fit = x / norms
-    cov_c = cov_s / np.outer(norms, norms)
-    std_fit = np.sqrt(np.diag(cov_c))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov_c / np.outer(std_fit, std_fit)
-
-    compliance = c_all.copy()
-    compliance[idx] = c_fit
-    compliance_std = np.full(n, np.nan)
-    compliance_std[idx] = std_fit
-    with np.errstate(divide="ignore", invalid="ignore"):
-        stiffness = np.where(compliance > 0, 1.0 / np.where(compliance > 0, compliance, 1.0), np.inf)
-        stiffness_std = np.where(compliance > 0, compliance_std / compliance**2, np.nan)
-
-    resid = (D - np.einsum("mkj,j->mk", full, compliance)[:, :d]).copy()
-    nres = np.einsum("mab,mb->ma", Linv, resid)
-    rms_c, nrms_c = _rms_table(cidx, configs.shape[0], resid, nres)
-    if label_tuple is None:
-        rms_l, nrms_l = np.zeros((0, 2)), np.zeros(0)
-    else:
-        rms_l, nrms_l = _rms_table(lidx, len(label_names), resid, nres)
-
+    values = _compliance_fields(c_all, idx, s.x / norms, s.std)
+    by_label = None if label_tuple is None else (lidx, len(label_names))
+    tables = _residual_fields(D, full, values["compliance"], d, Linv, (cidx, configs.shape[0]), by_label)
     p_value = chi2_sf(chi2, dof) if cov is not None and dof > 0 else float("nan")
-    hint = (
-        f"the model with joint compliances {_format_names(fitted)} fitted does not explain the measurements"
-    )
-    if cov is not None and dof > 0 and p_value < MISFIT_P:
-        notes.append(
-            f"{hint} (chi2/dof = {red:.3g} over {dof} dof, p = {p_value:.2g}): the uncertainties are "
-            "underestimated, or the model misses something (a link's compliance, backlash, a wrong "
-            "Jacobian or load, a held joint's compliance)"
-        )
-    elif cov is None and dof > 0:
-        rel = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(y**2))), 1e-300))
-        if rel > MISFIT_RELATIVE:
-            notes.append(f"{hint} (residual RMS {100 * rel:.3g} % of the measurements' RMS)")
-
-    active = tuple(fitted[k] for k in np.flatnonzero(~free))
-    arrays = (
-        compliance,
-        compliance_std,
-        stiffness,
-        stiffness_std,
-        cov_c,
-        corr,
-        resid,
-        nres,
-        cidx,
-        configs,
-        rms_c,
-        nrms_c,
-        rms_l,
-        nrms_l,
-        rep.sensitivity,
-        rep.singular_values,
-        rep.directions,
-        rep.inflation,
-        rep.weakest,
-    )
-    for a in arrays:
-        a.setflags(write=False)
-    return JointFit(
+    notes.extend(_misfit_notes(fitted, cov, dof, red, p_value, tables["residuals"], y))
+    return _frozen_fit(
         names=names,
         joint_types=types,
         fitted=fitted,
-        compliance=compliance,
-        compliance_std=compliance_std,
-        stiffness=stiffness,
-        stiffness_std=stiffness_std,
-        covariance=cov_c,
-        correlation=corr,
-        residuals=resid,
-        normalized_residuals=nres,
+        **values,
+        covariance=s.covariance,
+        correlation=s.correlation,
         config_index=cidx,
         configs=configs,
-        residual_rms_per_config=rms_c,
-        normalized_rms_per_config=nrms_c,
         labels=label_tuple,
         label_names=label_names,
-        residual_rms_per_label=rms_l,
-        normalized_rms_per_label=nrms_l,
+        **tables,
         chi2=chi2,
         dof=dof,
         reduced_chi2=red,
@@ -1363,7 +1274,218 @@ def _fit_once(
         condition=rep.condition,
         sensitivity=rep.sensitivity,
         identifiability=rep,
-        active=active,
+        active=tuple(fitted[k] for k in np.flatnonzero(~free)),
         absolute_sigma=bool(absolute_sigma),
         notes=tuple(notes),
     )
+
+
+@dataclass
+class _Solution:
+    """The weighted least-squares solution (:func:`_least_squares`)."""
+
+    x: np.ndarray  # the scaled compliances (divided by the column norms)
+    covariance: np.ndarray  # the compliances' covariance (scaled by chi2/dof unless absolute_sigma)
+    correlation: np.ndarray
+    std: np.ndarray
+    chi2: float
+    dof: int
+    free: np.ndarray  # bool: not held at 0 by the bound
+    notes: list[str]
+
+
+def _least_squares(An, yw, norms, nonnegative, absolute_sigma, n_obs, joints) -> _Solution:
+    """Solve the whitened, column-scaled system ``An x = yw`` (nonnegative: joints that come out
+    negative held at 0); ``joints``: the fitted joints' (name, type), for the notes."""
+    p = An.shape[1]
+    x, cov_s = _solve(An, yw)
+    notes: list[str] = []
+    free = np.ones(p, dtype=bool)
+    if nonnegative and np.any(x < 0):
+        x, cov_s, free, held = _hold_negative_at_zero(An, yw, x, cov_s, norms, absolute_sigma, n_obs)
+        notes.extend(_held_note(*joints[k], c, v) for k, c, v in held)
+    rw = yw - An @ x
+    chi2 = float(rw @ rw)
+    dof = n_obs - int(np.count_nonzero(free))
+    cov_s = _scaled(cov_s, chi2, dof, absolute_sigma)
+    if not absolute_sigma and dof == 0:
+        notes.append("no residual degree of freedom: standard errors unknown (give cov and absolute_sigma)")
+    cov_c = cov_s / np.outer(norms, norms)
+    std_fit = np.sqrt(np.diag(cov_c))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov_c / np.outer(std_fit, std_fit)
+    return _Solution(x, cov_c, corr, std_fit, chi2, dof, free, notes)
+
+
+def _compliance_fields(c_all, idx, c_fit, std_fit) -> dict[str, np.ndarray]:
+    """Every joint's compliance (fitted or fixed) and stiffness, with standard errors (nan: not fitted)."""
+    n = c_all.size
+    compliance = c_all.copy()
+    compliance[idx] = c_fit
+    compliance_std = np.full(n, np.nan)
+    compliance_std[idx] = std_fit
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stiffness = np.where(compliance > 0, 1.0 / np.where(compliance > 0, compliance, 1.0), np.inf)
+        stiffness_std = np.where(compliance > 0, compliance_std / compliance**2, np.nan)
+    return dict(
+        compliance=compliance, compliance_std=compliance_std, stiffness=stiffness, stiffness_std=stiffness_std
+    )
+
+
+def _residual_fields(D, full, compliance, d, Linv, by_config, by_label) -> dict[str, np.ndarray]:
+    """The residuals (plain and whitened) and their RMS per configuration and per load case
+    (``by_config``, ``by_label``: each row's index and the count; ``by_label`` None without labels)."""
+    resid = (D - np.einsum("mkj,j->mk", full, compliance)[:, :d]).copy()
+    nres = np.einsum("mab,mb->ma", Linv, resid)
+    rms_c, nrms_c = _rms_table(*by_config, resid, nres)
+    if by_label is None:
+        rms_l, nrms_l = np.zeros((0, 2)), np.zeros(0)
+    else:
+        rms_l, nrms_l = _rms_table(*by_label, resid, nres)
+    return dict(
+        residuals=resid,
+        normalized_residuals=nres,
+        residual_rms_per_config=rms_c,
+        normalized_rms_per_config=nrms_c,
+        residual_rms_per_label=rms_l,
+        normalized_rms_per_label=nrms_l,
+    )
+
+
+def _config_groups(J: np.ndarray, config_index) -> tuple[np.ndarray, np.ndarray]:
+    """The configurations (ids) and each row's index into them: ``config_index``, or rows with
+    identical Jacobians."""
+    M = J.shape[0]
+    if config_index is None:
+        configs, cidx = _group_poses(J.reshape(M, -1))
+        return np.arange(configs.shape[0]), cidx
+    ci = np.asarray(config_index)
+    if ci.shape != (M,) or not np.issubdtype(ci.dtype, np.integer):
+        raise InputError(
+            f"config_index: expected {M} integers (one per row), got shape {ci.shape}, {ci.dtype}"
+        )
+    return _group_poses(ci)
+
+
+def _label_groups(labels, M: int) -> tuple[tuple[str, ...] | None, tuple[str, ...], np.ndarray]:
+    """The rows' load-case labels (None without), the distinct labels and each row's index into them."""
+    if labels is None:
+        return None, (), np.zeros(M, dtype=int)
+    if isinstance(labels, str) or len(labels) != M:
+        got = 1 if isinstance(labels, str) else len(labels)
+        raise InputError(f"labels: expected {M} load-case labels (one per row), got {got}")
+    label_tuple = tuple(str(s) for s in labels)
+    uniq, lidx = _group_poses(np.array(label_tuple))
+    return label_tuple, tuple(str(s) for s in uniq), lidx
+
+
+def _warn_ill_conditioned(rep: JointIdentifiability, fitted: tuple[str, ...]) -> None:
+    """An :class:`IllConditionedWarning` naming the weakest combination of the fitted joints."""
+    weak = rep.directions[-1] * np.sign(rep.directions[-1][np.argmax(np.abs(rep.directions[-1]))])
+    combo = " ".join(
+        f"{'-' if w < 0 else '+'} {abs(w):.2g} {s}" for w, s in zip(weak, fitted, strict=True) if abs(w) > 0.1
+    ).lstrip("+ ")
+    warnings.warn(
+        f"joint-compliance fit of {_format_names(fitted)}: condition number {rep.condition:.3g} > "
+        f"{CONDITION_WARN:g}; the estimates are strongly correlated and sensitive to noise (the "
+        f"weakest combination, in scaled compliances: {combo})",
+        IllConditionedWarning,
+        stacklevel=3,
+    )
+
+
+def _scaled(cov_s: np.ndarray, chi2: float, dof: int, absolute_sigma: bool) -> np.ndarray:
+    """The scaled parameters' covariance: as given (``absolute_sigma``), else times chi2/dof."""
+    if absolute_sigma:
+        return cov_s
+    if dof > 0:
+        return cov_s * (chi2 / dof)
+    return np.full_like(cov_s, np.nan)
+
+
+def _hold_negative_at_zero(An, yw, x, cov_s, norms, absolute_sigma, n_obs):
+    """The nonnegative solution (bvls's free set, solved exactly): the scaled compliances, their
+    covariance, which are free, and for each held at 0 (its index in the fitted ones) its
+    unconstrained estimate and variance."""
+    p = x.size
+    r0 = yw - An @ x
+    chi0 = float(r0 @ r0)
+    cov_unc = _scaled(cov_s, chi0, n_obs - p, absolute_sigma) / np.outer(norms, norms)
+    c_unc = x / norms
+    from scipy import optimize  # on first use: 0.15 s that most commands never need
+
+    res = optimize.lsq_linear(An, yw, bounds=(0.0, np.inf), method="bvls", tol=1e-14)
+    free = res.active_mask == 0
+    while True:
+        # The exact solution on bvls's free set (a joint that still comes out negative
+        # by rounding joins the bound).
+        x = np.zeros(p)
+        cov_s = np.full((p, p), np.nan)
+        if not np.any(free):
+            break
+        xf, cf = _solve(An[:, free], yw)
+        if np.all(xf >= 0):
+            x[free] = xf
+            cov_s[np.ix_(free, free)] = cf
+            break
+        free[np.flatnonzero(free)[int(np.argmin(xf))]] = False
+    held = [(k, c_unc[k], cov_unc[k, k]) for k in np.flatnonzero(~free)]
+    return x, cov_s, free, held
+
+
+def _held_note(name: str, joint_type: str, c_unc: float, var_unc: float) -> str:
+    unit = _UNITS[joint_type][0]
+    return (
+        f"compliance of {name} held at 0 (the unconstrained estimate was {c_unc:.3g} {unit} "
+        f"± {np.sqrt(var_unc):.2g}): the data favour a rigid joint; its standard error is not "
+        "given and the covariance covers the other joints"
+    )
+
+
+def _misfit_notes(fitted, cov, dof: int, red: float, p_value: float, resid, y) -> list[str]:
+    """A note when the model does not explain the measurements: a chi-square test with ``cov``,
+    else the residuals' RMS relative to the measurements'."""
+    hint = (
+        f"the model with joint compliances {_format_names(fitted)} fitted does not explain the measurements"
+    )
+    if cov is not None and dof > 0 and p_value < MISFIT_P:
+        return [
+            f"{hint} (chi2/dof = {red:.3g} over {dof} dof, p = {p_value:.2g}): the uncertainties are "
+            "underestimated, or the model misses something (a link's compliance, backlash, a wrong "
+            "Jacobian or load, a held joint's compliance)"
+        ]
+    if cov is None and dof > 0:
+        rel = float(np.sqrt(np.mean(resid**2)) / max(float(np.sqrt(np.mean(y**2))), 1e-300))
+        if rel > MISFIT_RELATIVE:
+            return [f"{hint} (residual RMS {100 * rel:.3g} % of the measurements' RMS)"]
+    return []
+
+
+def _frozen_fit(**fields) -> JointFit:
+    """The :class:`JointFit` of these fields, its arrays (and its identifiability's) read-only."""
+    rep = fields["identifiability"]
+    arrays = [fields[k] for k in _FIT_ARRAYS]
+    arrays += [rep.singular_values, rep.directions, rep.inflation, rep.weakest]
+    for a in arrays:
+        a.setflags(write=False)
+    return JointFit(**fields)
+
+
+#: The :class:`JointFit` fields that are arrays (read-only).
+_FIT_ARRAYS = (
+    "compliance",
+    "compliance_std",
+    "stiffness",
+    "stiffness_std",
+    "covariance",
+    "correlation",
+    "residuals",
+    "normalized_residuals",
+    "config_index",
+    "configs",
+    "residual_rms_per_config",
+    "normalized_rms_per_config",
+    "residual_rms_per_label",
+    "normalized_rms_per_label",
+    "sensitivity",
+)

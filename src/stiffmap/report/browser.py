@@ -385,77 +385,14 @@ def check_page(
     deadline = time.monotonic() + timeout
     profile = tempfile.mkdtemp(prefix="stiffmap-chromium-")
     log = open(os.path.join(profile, "stderr.log"), "wb")  # noqa: SIM115 (closed below)
-    proc = subprocess.Popen(
-        [
-            exe,
-            *CHROMIUM_FLAGS,
-            f"--user-data-dir={profile}",
-            "--remote-debugging-port=0",
-            "--remote-debugging-address=127.0.0.1",
-            f"--window-size={width},{height}",
-            "about:blank",
-        ],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=log,
-    )
+    proc = _start_chromium(exe, profile, width, height, log)
     ws = None
     try:
-        port_file = Path(profile) / "DevToolsActivePort"
-        while True:
-            if proc.poll() is not None:
-                tail = Path(profile, "stderr.log").read_bytes()[-2000:].decode(errors="replace")
-                raise BrowserError(f"{exe} exited with status {proc.returncode}: {tail}")
-            if port_file.exists():
-                lines = port_file.read_text().split("\n")
-                if len(lines) >= 2 and lines[0].strip().isdigit() and lines[1].strip():
-                    break
-            if time.monotonic() > deadline:
-                raise BrowserError(f"{exe} did not open its DevTools port in time")
-            time.sleep(0.05)
-        ws = _WebSocket(f"ws://127.0.0.1:{lines[0].strip()}{lines[1].strip()}", timeout=timeout)
+        ws = _WebSocket(_devtools_url(proc, exe, profile, deadline), timeout=timeout)
         cdp = _CDP(ws, deadline)
-        target = cdp.call("Target.createTarget", {"url": "about:blank"})["targetId"]
-        sid = cdp.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-        for domain in ("Runtime", "Log", "Network", "Page"):
-            cdp.call(f"{domain}.enable", session=sid)
-        cdp.call(
-            "Emulation.setDeviceMetricsOverride",
-            {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
-            session=sid,
-        )
-        cdp.call("Page.navigate", {"url": url}, session=sid)
-        cdp.wait_event("Page.loadEventFired")
-        # Wait for the page's own "rendered" signal when it has one.
-        limit_ms = int(max(deadline - time.monotonic() - 2, 1) * 1000)
-        wait = (
-            "new Promise(r => { const t0 = Date.now(); (function f() {"
-            " const s = window.stiffmapReady;"
-            " if (s === true || (s === undefined && Date.now() - t0 > 200)) r(true);"
-            " else if (s === false) r(false);"
-            f" else if (Date.now() - t0 > {limit_ms}) r(false); else setTimeout(f, 50); }})(); }})"
-        )
-        ready = bool(
-            cdp.call(
-                "Runtime.evaluate", {"expression": wait, "awaitPromise": True, "returnByValue": True}, sid
-            )
-            .get("result", {})
-            .get("value", False)
-        )
-        result = None
-        if script:
-            r = cdp.call(
-                "Runtime.evaluate",
-                {"expression": script, "awaitPromise": True, "returnByValue": True},
-                session=sid,
-            )
-            if "exceptionDetails" in r:
-                d = r["exceptionDetails"]
-                text = d.get("exception", {}).get("description") or d.get("text", "exception")
-                cdp.events.append(
-                    {"method": "Runtime.exceptionThrown", "params": {"exceptionDetails": {**d, "text": text}}}
-                )
-            result = r.get("result", {}).get("value")
+        sid = _open_page(cdp, url, width, height)
+        ready = _wait_ready(cdp, sid, deadline)
+        result = _run_script(cdp, sid, script) if script else None
         cdp.pump(settle)
         shot = None
         if screenshot:
@@ -481,6 +418,91 @@ def check_page(
             proc.wait(timeout=5)
         log.close()
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def _start_chromium(exe: str, profile: str, width: int, height: int, log) -> subprocess.Popen:
+    """Headless Chromium on a blank page, its DevTools on a free local port, stderr to ``log``."""
+    return subprocess.Popen(
+        [
+            exe,
+            *CHROMIUM_FLAGS,
+            f"--user-data-dir={profile}",
+            "--remote-debugging-port=0",
+            "--remote-debugging-address=127.0.0.1",
+            f"--window-size={width},{height}",
+            "about:blank",
+        ],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=log,
+    )
+
+
+def _devtools_url(proc: subprocess.Popen, exe: str, profile: str, deadline: float) -> str:
+    """The browser's DevTools WebSocket address, once it has written its port file."""
+    port_file = Path(profile) / "DevToolsActivePort"
+    while True:
+        if proc.poll() is not None:
+            tail = Path(profile, "stderr.log").read_bytes()[-2000:].decode(errors="replace")
+            raise BrowserError(f"{exe} exited with status {proc.returncode}: {tail}")
+        if port_file.exists():
+            lines = port_file.read_text().split("\n")
+            if len(lines) >= 2 and lines[0].strip().isdigit() and lines[1].strip():
+                return f"ws://127.0.0.1:{lines[0].strip()}{lines[1].strip()}"
+        if time.monotonic() > deadline:
+            raise BrowserError(f"{exe} did not open its DevTools port in time")
+        time.sleep(0.05)
+
+
+def _open_page(cdp: _CDP, url: str, width: int, height: int) -> str:
+    """Open ``url`` in a new target of ``width`` x ``height`` CSS px, wait for its load event;
+    the session id."""
+    target = cdp.call("Target.createTarget", {"url": "about:blank"})["targetId"]
+    sid = cdp.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+    for domain in ("Runtime", "Log", "Network", "Page"):
+        cdp.call(f"{domain}.enable", session=sid)
+    cdp.call(
+        "Emulation.setDeviceMetricsOverride",
+        {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
+        session=sid,
+    )
+    cdp.call("Page.navigate", {"url": url}, session=sid)
+    cdp.wait_event("Page.loadEventFired")
+    return sid
+
+
+def _wait_ready(cdp: _CDP, sid: str, deadline: float) -> bool:
+    """Wait for the page's own "rendered" signal when it has one: whether it said so."""
+    limit_ms = int(max(deadline - time.monotonic() - 2, 1) * 1000)
+    wait = (
+        "new Promise(r => { const t0 = Date.now(); (function f() {"
+        " const s = window.stiffmapReady;"
+        " if (s === true || (s === undefined && Date.now() - t0 > 200)) r(true);"
+        " else if (s === false) r(false);"
+        f" else if (Date.now() - t0 > {limit_ms}) r(false); else setTimeout(f, 50); }})(); }})"
+    )
+    return bool(
+        cdp.call("Runtime.evaluate", {"expression": wait, "awaitPromise": True, "returnByValue": True}, sid)
+        .get("result", {})
+        .get("value", False)
+    )
+
+
+def _run_script(cdp: _CDP, sid: str, script: str):
+    """The JSON value of ``script`` (a Promise awaited); an exception it throws goes to the
+    console entries."""
+    r = cdp.call(
+        "Runtime.evaluate",
+        {"expression": script, "awaitPromise": True, "returnByValue": True},
+        session=sid,
+    )
+    if "exceptionDetails" in r:
+        d = r["exceptionDetails"]
+        text = d.get("exception", {}).get("description") or d.get("text", "exception")
+        cdp.events.append(
+            {"method": "Runtime.exceptionThrown", "params": {"exceptionDetails": {**d, "text": text}}}
+        )
+    return r.get("result", {}).get("value")
 
 
 def _element_png(cdp: _CDP, sid: str, selector: str) -> bytes | None:

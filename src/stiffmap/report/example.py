@@ -132,53 +132,8 @@ def example_vision(
     failed = {13: "pos14_load5_rep3.png: mobile board not found", 38: "pos39_load2_rep1.png: file not found"}
     failed = {i: msg for i, msg in failed.items() if i < n}
     swapped = 44 if n > 44 else n - 4
-    K = np.full((n, 3, 3), np.nan)
-    K_std = np.full((n, 3, 3), np.nan)
-    flags: list[tuple[str, ...]] = []
-    status, messages = [], []
-    vectors = np.full((n, L, repeats, 3), np.nan)
-    for i in range(n):
-        Fi = F.copy()
-        if i == swapped:
-            Fi[:, 0], Fi[:, 1] = F[:, 1].copy(), F[:, 0].copy()  # two load cases swapped by the operator
-        D = np.linalg.solve(Kt[i], Fi)[:, :, None] + rng.normal(0.0, noise_mm, size=(3, L, repeats))
-        if i == 5:
-            D[:, 2, 8:] = np.nan  # two repeats lost
-        vectors[i] = np.moveaxis(D, 0, -1)
-        if i in failed:
-            vectors[i, 4 if i == 13 else 1, :] = np.nan
-            status.append("failed")
-            messages.append(failed[i])
-            flags.append(())
-            continue
-        keep = np.isfinite(D[0])
-        FF = np.repeat(F[:, :, None], repeats, axis=2)[:, keep]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            fit = identify_stiffness(FF, D[:, keep])
-        K[i], K_std[i] = fit.K, fit.K_std
-        status.append("ok")
-        messages.append("")
-        flags.append(fit.flags)
-    measured = rd.MeasuredStiffness.from_K(pos, K, K_std, status=status, messages=messages, flags=flags)
-
-    # An illustrative model: a softer-coupled field with one fitted scale s (least squares on K).
-    shape = example_field(pos, soften=0.5, coupling=0.7)
-    ok = measured.ok
-    a, b = shape[ok].ravel(), K[ok].ravel()
-    s = float(a @ b / (a @ a))
-    s_std = float(np.sqrt(np.sum((b - s * a) ** 2) / (a.size - 1) / (a @ a)))
-    gx = np.linspace(-220.0, 220.0, 23)
-    mp = np.array([(x, y, z) for z in planes for y in gx for x in gx])
-    Km = s * example_field(mp, soften=0.5, coupling=0.7)
-    det = np.linalg.det(Km)
-    minp = np.linalg.eigvalsh(0.5 * (Km + np.swapaxes(Km, 1, 2)))[:, 0]
-    model = rd.ModelStiffness.from_K(
-        "illustrative field (example)",
-        [rd.Parameter("s", s, s_std, "-"), rd.Parameter("soften", 0.5, unit="-")],
-        s * shape,
-        map=rd.ModelMap(mp, det, minp),
-    )
+    K, measured, vectors = _identified(rng, pos, Kt, F, repeats, noise_mm, failed, swapped)
+    model = _example_model(pos, K, measured, planes)
     cam, res = _camera(rng)
     return rd.ReportData(
         campaign=rd.CampaignInfo(
@@ -224,29 +179,72 @@ def example_vision(
     )
 
 
+def _identified(rng, pos, Kt, F, repeats: int, noise_mm: float, failed: dict, swapped: int):
+    """K identified at each position from simulated displacements under the load cases ``F``
+    (3, L): two load cases swapped at ``swapped``, two repeats lost at position 6, the ``failed``
+    positions failed; K, the measured stiffness and the displacement vectors (n, L, repeats, 3)."""
+    n = len(pos)
+    L = F.shape[1]
+    K = np.full((n, 3, 3), np.nan)
+    K_std = np.full((n, 3, 3), np.nan)
+    flags: list[tuple[str, ...]] = []
+    status, messages = [], []
+    vectors = np.full((n, L, repeats, 3), np.nan)
+    for i in range(n):
+        Fi = F.copy()
+        if i == swapped:
+            Fi[:, 0], Fi[:, 1] = F[:, 1].copy(), F[:, 0].copy()  # two load cases swapped by the operator
+        D = np.linalg.solve(Kt[i], Fi)[:, :, None] + rng.normal(0.0, noise_mm, size=(3, L, repeats))
+        if i == 5:
+            D[:, 2, 8:] = np.nan  # two repeats lost
+        vectors[i] = np.moveaxis(D, 0, -1)
+        if i in failed:
+            vectors[i, 4 if i == 13 else 1, :] = np.nan
+            status.append("failed")
+            messages.append(failed[i])
+            flags.append(())
+            continue
+        keep = np.isfinite(D[0])
+        FF = np.repeat(F[:, :, None], repeats, axis=2)[:, keep]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fit = identify_stiffness(FF, D[:, keep])
+        K[i], K_std[i] = fit.K, fit.K_std
+        status.append("ok")
+        messages.append("")
+        flags.append(fit.flags)
+    measured = rd.MeasuredStiffness.from_K(pos, K, K_std, status=status, messages=messages, flags=flags)
+    return K, measured, vectors
+
+
+def _example_model(pos, K, measured, planes) -> rd.ModelStiffness:
+    """An illustrative model: a softer-coupled field with one fitted scale s (least squares on K)."""
+    shape = example_field(pos, soften=0.5, coupling=0.7)
+    ok = measured.ok
+    a, b = shape[ok].ravel(), K[ok].ravel()
+    s = float(a @ b / (a @ a))
+    s_std = float(np.sqrt(np.sum((b - s * a) ** 2) / (a.size - 1) / (a @ a)))
+    gx = np.linspace(-220.0, 220.0, 23)
+    mp = np.array([(x, y, z) for z in planes for y in gx for x in gx])
+    Km = s * example_field(mp, soften=0.5, coupling=0.7)
+    det = np.linalg.det(Km)
+    minp = np.linalg.eigvalsh(0.5 * (Km + np.swapaxes(Km, 1, 2)))[:, 0]
+    return rd.ModelStiffness.from_K(
+        "illustrative field (example)",
+        [rd.Parameter("s", s, s_std, "-"), rd.Parameter("soften", 0.5, unit="-")],
+        s * shape,
+        map=rd.ModelMap(mp, det, minp),
+    )
+
+
 def example_sensor(seed: int = 0) -> rd.ReportData:
     """A complete sensor campaign: 22 points, x and y loads of 50 kgf, see the module docstring."""
     rng = np.random.default_rng(seed)
-    h = 1000.0
-    c = np.array([h / 2, h / (2 * np.sqrt(3.0))])  # centroid of the rails' triangle
-    mid = [(500.0, y) for y in np.linspace(150.0, 465.0, 8)]
-    side = [(x, y) for x in (400.0, 600.0) for y in np.linspace(170.0, 420.0, 5)]
-    outer = [(x, y) for x in (300.0, 700.0) for y in (230.0, 330.0)]
-    pts = np.array(mid + side + outer)
-    # The milling study numbers its middle-line points 2, 5, 8, 22, 15, 19, 20, 21.
-    mid_labels = ["2", "5", "8", "22", "15", "19", "20", "21"]
-    rest = [str(k) for k in range(1, 23) if str(k) not in mid_labels]
-    labels = mid_labels + rest
-
-    def shape_um(p: np.ndarray, d: str) -> np.ndarray:
-        q = (p - c) / 300.0
-        rho2 = np.sum(q**2, axis=-1)
-        return 350.0 * (1 + 2.5 * rho2) if d == "y" else 420.0 * (1 + 2.0 * rho2 + 0.5 * q[..., 1])
-
+    pts, labels = _sensor_points()
     kj_true = 525.0
     rows_p, rows_d, rows_l, err, std, ml = [], [], [], [], [], []
     for d in ("x", "y"):
-        e = shape_um(pts, d) * (525.0 / kj_true) * (1 + rng.normal(0, 0.03, len(pts)))
+        e = _shape_um(pts, d) * (525.0 / kj_true) * (1 + rng.normal(0, 0.03, len(pts)))
         if d == "x":
             e *= 1.08  # mirror set-up: the study saw more scatter in x
         rows_p.append(pts)
@@ -254,34 +252,22 @@ def example_sensor(seed: int = 0) -> rd.ReportData:
         rows_l += labels
         err.append(e)
         std.append(np.abs(e) * rng.uniform(0.01, 0.03, len(pts)) + 2.6)
-        ml.append(np.arange(len(pts)) < len(mid))
+        ml.append(np.arange(len(pts)) < 8)  # the middle line: the first 8 points
     P = np.concatenate(rows_p)
     err = np.concatenate(err)
     std = np.concatenate(std)
     fail_row = rows_l.index("13")  # point 13, direction x
     err[fail_row] = np.nan
     std[fail_row] = np.nan
-    g = np.concatenate([shape_um(P[k : k + 1], rows_d[k]) for k in range(len(P))]) * 525.0
+    g = np.concatenate([_shape_um(P[k : k + 1], rows_d[k]) for k in range(len(P))]) * 525.0
     ok = np.isfinite(err)
     cinv = float(g[ok] @ err[ok] / (g[ok] @ g[ok]))  # err = g / kj
     sig = np.sqrt(np.sum((err[ok] - g[ok] * cinv) ** 2) / (ok.sum() - 1))
     kj = 1.0 / cinv
     kj_std = float(sig / np.sqrt(g[ok] @ g[ok]) / cinv**2)
     model = g / kj
-    gx = np.linspace(250.0, 750.0, 41)
-    gy = np.linspace(100.0, 520.0, 36)
-    grid = np.array([(x, y) for y in gy for x in gx])
-    reach = np.hypot(*(grid - c).T) < 280.0  # an illustrative reachable region
-    maps = tuple(
-        rd.SensorMap(d, grid, np.where(reach, shape_um(grid, d) * 525.0 / kj, np.nan)) for d in ("x", "y")
-    )
-    # Each recording's plateaus (0, 10, ..., 50 kgf) and the least-squares line through them.
-    loads_n = np.arange(6) * 98.1
-    steps = np.where(ok[:, None], err[:, None] * loads_n / 490.5, np.nan)
-    steps = steps + rng.normal(0.0, 0.8, steps.shape) + rng.normal(0.0, 1.5, (len(err), 1))
-    slope, icpt = np.full(len(err), np.nan), np.full(len(err), np.nan)
-    for k in np.flatnonzero(ok):
-        slope[k], icpt[k] = np.polyfit(loads_n, steps[k], 1)
+    maps = _sensor_model_maps(kj)
+    loads_n, steps, slope, icpt = _sensor_steps(rng, err, ok)
     return rd.ReportData(
         campaign=rd.CampaignInfo(
             name="Example sensor campaign (synthetic)",
@@ -317,3 +303,49 @@ def example_sensor(seed: int = 0) -> rd.ReportData:
             rd.SetupItem("reference load", "490.5 N (the static error is given at it)"),
         ),
     )
+
+
+#: The centroid of the example sensor campaign's rails' triangle (mm).
+_SENSOR_CENTRE = np.array([500.0, 1000.0 / (2 * np.sqrt(3.0))])
+
+
+def _sensor_points() -> tuple[np.ndarray, list[str]]:
+    """The 22 points (mm): the 8 of the middle line first, with the milling study's labels."""
+    mid = [(500.0, y) for y in np.linspace(150.0, 465.0, 8)]
+    side = [(x, y) for x in (400.0, 600.0) for y in np.linspace(170.0, 420.0, 5)]
+    outer = [(x, y) for x in (300.0, 700.0) for y in (230.0, 330.0)]
+    pts = np.array(mid + side + outer)
+    # The milling study numbers its middle-line points 2, 5, 8, 22, 15, 19, 20, 21.
+    mid_labels = ["2", "5", "8", "22", "15", "19", "20", "21"]
+    rest = [str(k) for k in range(1, 23) if str(k) not in mid_labels]
+    return pts, mid_labels + rest
+
+
+def _shape_um(p: np.ndarray, d: str) -> np.ndarray:
+    """The example's static error along ``d`` (µm at kj = 525 N/mm), growing toward the border."""
+    q = (p - _SENSOR_CENTRE) / 300.0
+    rho2 = np.sum(q**2, axis=-1)
+    return 350.0 * (1 + 2.5 * rho2) if d == "y" else 420.0 * (1 + 2.0 * rho2 + 0.5 * q[..., 1])
+
+
+def _sensor_model_maps(kj: float) -> tuple[rd.SensorMap, ...]:
+    """The model's dense maps in x and y over an illustrative reachable region."""
+    gx = np.linspace(250.0, 750.0, 41)
+    gy = np.linspace(100.0, 520.0, 36)
+    grid = np.array([(x, y) for y in gy for x in gx])
+    reach = np.hypot(*(grid - _SENSOR_CENTRE).T) < 280.0  # an illustrative reachable region
+    return tuple(
+        rd.SensorMap(d, grid, np.where(reach, _shape_um(grid, d) * 525.0 / kj, np.nan)) for d in ("x", "y")
+    )
+
+
+def _sensor_steps(rng, err: np.ndarray, ok: np.ndarray):
+    """Each recording's plateaus (0, 10, ..., 50 kgf) and the least-squares line through them:
+    the loads (N), the plateaus' displacements (µm), the slopes and intercepts."""
+    loads_n = np.arange(6) * 98.1
+    steps = np.where(ok[:, None], err[:, None] * loads_n / 490.5, np.nan)
+    steps = steps + rng.normal(0.0, 0.8, steps.shape) + rng.normal(0.0, 1.5, (len(err), 1))
+    slope, icpt = np.full(len(err), np.nan), np.full(len(err), np.nan)
+    for k in np.flatnonzero(ok):
+        slope[k], icpt[k] = np.polyfit(loads_n, steps[k], 1)
+    return loads_n, steps, slope, icpt

@@ -292,6 +292,21 @@ def _summary(data: ReportData) -> str:
     return "".join(pills)
 
 
+class _Page:
+    """The report page's sections (id, title, html) and the figures their divs show (div id, json),
+    in page order."""
+
+    def __init__(self) -> None:
+        self.sections: list[tuple[str, str, str]] = []
+        self.figures: list[tuple[str, str]] = []
+
+    def fig_div(self, fid: str, fig, note: str = "") -> str:
+        if fig is None:
+            return ""
+        self.figures.append((fid, figure_json(fig)))
+        return f"<div class=fig id='{fid}'></div>" + (f"<p class=note>{note}</p>" if note else "")
+
+
 def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
     """The report page.
 
@@ -301,168 +316,197 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
     png_names : sequence of str
         PNG files written beside the page (linked in its last section).
     """
-    from plotly.offline import get_plotlyjs
-
-    c = data.campaign
-    sections: list[tuple[str, str, str]] = []  # (id, title, html)
-    figures: list[tuple[str, str]] = []  # (div id, json)
-
-    def fig_div(fid: str, fig, note: str = "") -> str:
-        if fig is None:
-            return ""
-        figures.append((fid, figure_json(fig)))
-        return f"<div class=fig id='{fid}'></div>" + (f"<p class=note>{note}</p>" if note else "")
-
-    sections.append(("summary", "Summary", f"<p>{_summary(data)}</p>"))
+    page = _Page()
+    page.sections.append(("summary", "Summary", f"<p>{_summary(data)}</p>"))
     if data.setup:
         rows = "".join(f"<tr><td>{_e(x.what)}</td><td>{_e(x.value)}</td></tr>" for x in data.setup)
-        sections.append(("setup", "Set-up", f"<table class=kv>{rows}</table>"))
+        page.sections.append(("setup", "Set-up", f"<table class=kv>{rows}</table>"))
     if data.board_image is not None:
-        body = fig_div(
-            "fig-board-image",
-            board_image_figure(data),
-            "The boards' inner corners projected from the poses measured in this image through the "
-            "calibrated camera: where they fall on the printed corners, detection, pose and camera agree. "
-            "The image is shown reduced"
-            + (f" {data.board_image.scale:g} times" if data.board_image.scale > 1 else "")
-            + "; coordinates are those of the full image.",
-        )
-        sections.append(("image", "An image and its boards", body))
-    m = data.measured
-    if m is not None:
-        body = fig_div(
-            "fig-map3d",
-            stiffness_map_3d(data),
-            "Marker diameter proportional to det K, as in the reference study's stiffness map (Fig. 12), "
-            "floored at 3 px so that soft positions stay visible; colour also shows det K. "
-            "Red crosses: det K ≤ 0 (flagged); grey diamonds: failed positions. Drag to rotate.",
-        )
-        body += fig_div("fig-planes-minp", plane_maps(data, "min_principal"))
-        body += fig_div(
-            "fig-planes-det",
-            plane_maps(data, "det"),
-            "One panel per z plane; squares are measured positions "
-            "(red outline: flagged; grey cross: failed)."
-            + (
-                " With a model: its map (dense where given, black dots are the measured positions) "
-                "and the residual measured − model on a diverging scale."
-                if data.model is not None
-                else ""
-            ),
-        )
-        sections.append(("map", "Stiffness map", body))
-        body = fig_div(
-            "fig-ellipsoids",
-            ellipsoid_figure(data),
-            "At each position, the compliance ellipsoid of the symmetric part of K: its axes are the "
-            "principal directions, its semi-axes the principal compliances 1/k (mm/N), on one scale for "
-            "every position (the longest, the softest direction anywhere, fills about half the spacing "
-            "of the positions). Colour: the smallest principal stiffness. Hover for the principal "
-            "stiffnesses and directions; a red cross marks a K that is not positive definite.",
-        )
-        if body:
-            sections.append(("principal", "Principal directions", body))
+        _image_section(page, data)
+    if data.measured is not None:
+        _map_sections(page, data)
     if data.loads is not None:
-        body = fig_div("fig-loads-overview", loads_overview(data))
-        body += (
-            "<p><label class=ctl>position <select id=pos-select></select></label>"
-            "<label class=ctl>load case <select id=load-select></select></label></p>"
-            "<div class=fig id=fig-load-detail></div>"
-            "<p class=note>Left: displacement norm of each load case, mean ± std (n − 1) over the repeats, "
-            "with every repeat as a dot (the reference's Fig. 10). "
-            "Right: the repeats of the chosen load case "
-            "with their mean (red line) ± std (band) (its Fig. 9).</p>"
-        )
-        if data.loads.vectors is not None and data.loads.residuals is not None:
-            body += (
-                "<div class=fig id=fig-linearity></div>"
-                "<p class=note>Linearity: for each direction in which loads were applied, every component "
-                "of the measured displacement against the force's magnitude (a dot per repeat), and the line "
-                "the identified K predicts (d = C·F, C = K⁻¹, with the common offset when the position was "
-                "measured against one reference). A linear, elastic robot puts the dots on the lines.</p>"
-                "<div class=fig id=fig-residual-detail></div>"
-            )
-            body += fig_div(
-                "fig-residuals",
-                residual_figure(data),
-                "The residuals of d = C·F: what K does not explain (noise, non-linearity, a load case "
-                "mislabelled). Above: the chosen position's, per load case. Here: their RMS per position "
-                "and component, on an axis from zero.",
-            )
-        body += f"<script type='application/json' id=loads-data>{_json_block(loads_payload(data))}</script>"
-        sections.append(("loads", "Load cases per position", body))
+        _loads_section(page, data)
     if data.model is not None:
-        mod = data.model
-        body = f"<p><b>{_e(mod.name)}</b></p>" + _params_table(mod.parameters)
-        body += "".join(f"<p class=note>Fit: {_e(n)}</p>" for n in mod.notes)
-        body += fig_div(
-            "fig-model",
-            model_scatter(data),
-            "Per-plane maps of the model and residuals are under Stiffness map.",
+        _model_section(page, data)
+    _truth_and_calibration_sections(page, data)
+    if data.measured is not None:
+        _k_table_section(page, data)
+    if data.sensor is not None:
+        _sensor_section(page, data)
+    _closing_sections(page, data, png_names)
+    return _page_html(data.campaign, page)
+
+
+def _image_section(page: _Page, data: ReportData) -> None:
+    """An image with the boards' corners projected from its poses."""
+    body = page.fig_div(
+        "fig-board-image",
+        board_image_figure(data),
+        "The boards' inner corners projected from the poses measured in this image through the "
+        "calibrated camera: where they fall on the printed corners, detection, pose and camera agree. "
+        "The image is shown reduced"
+        + (f" {data.board_image.scale:g} times" if data.board_image.scale > 1 else "")
+        + "; coordinates are those of the full image.",
+    )
+    page.sections.append(("image", "An image and its boards", body))
+
+
+def _map_sections(page: _Page, data: ReportData) -> None:
+    """The stiffness map (3-D and per plane) and the principal directions."""
+    body = page.fig_div(
+        "fig-map3d",
+        stiffness_map_3d(data),
+        "Marker diameter proportional to det K, as in the reference study's stiffness map (Fig. 12), "
+        "floored at 3 px so that soft positions stay visible; colour also shows det K. "
+        "Red crosses: det K ≤ 0 (flagged); grey diamonds: failed positions. Drag to rotate.",
+    )
+    body += page.fig_div("fig-planes-minp", plane_maps(data, "min_principal"))
+    body += page.fig_div(
+        "fig-planes-det",
+        plane_maps(data, "det"),
+        "One panel per z plane; squares are measured positions "
+        "(red outline: flagged; grey cross: failed)."
+        + (
+            " With a model: its map (dense where given, black dots are the measured positions) "
+            "and the residual measured − model on a diverging scale."
+            if data.model is not None
+            else ""
+        ),
+    )
+    page.sections.append(("map", "Stiffness map", body))
+    body = page.fig_div(
+        "fig-ellipsoids",
+        ellipsoid_figure(data),
+        "At each position, the compliance ellipsoid of the symmetric part of K: its axes are the "
+        "principal directions, its semi-axes the principal compliances 1/k (mm/N), on one scale for "
+        "every position (the longest, the softest direction anywhere, fills about half the spacing "
+        "of the positions). Colour: the smallest principal stiffness. Hover for the principal "
+        "stiffnesses and directions; a red cross marks a K that is not positive definite.",
+    )
+    if body:
+        page.sections.append(("principal", "Principal directions", body))
+
+
+def _loads_section(page: _Page, data: ReportData) -> None:
+    """The load cases per position: overview, detail, linearity and residuals."""
+    body = page.fig_div("fig-loads-overview", loads_overview(data))
+    body += (
+        "<p><label class=ctl>position <select id=pos-select></select></label>"
+        "<label class=ctl>load case <select id=load-select></select></label></p>"
+        "<div class=fig id=fig-load-detail></div>"
+        "<p class=note>Left: displacement norm of each load case, mean ± std (n − 1) over the repeats, "
+        "with every repeat as a dot (the reference's Fig. 10). "
+        "Right: the repeats of the chosen load case "
+        "with their mean (red line) ± std (band) (its Fig. 9).</p>"
+    )
+    if data.loads.vectors is not None and data.loads.residuals is not None:
+        body += (
+            "<div class=fig id=fig-linearity></div>"
+            "<p class=note>Linearity: for each direction in which loads were applied, every component "
+            "of the measured displacement against the force's magnitude (a dot per repeat), and the line "
+            "the identified K predicts (d = C·F, C = K⁻¹, with the common offset when the position was "
+            "measured against one reference). A linear, elastic robot puts the dots on the lines.</p>"
+            "<div class=fig id=fig-residual-detail></div>"
         )
-        body += fig_div(
-            "fig-orientations",
-            orientation_figure(data),
-            "A platform that turns: the model with its tool point at one measured position (where the "
-            "campaign measured the most orientations) and the platform turned over roll and pitch. Left: "
-            "the smallest principal stiffness of the K the loads hung at loads.point_mm see, what the "
-            "campaign identifies (squares: measured there, on the same colour scale); right: the smallest "
-            "a pure moment sees (K_rot). The maps over positions are at the orientation the campaign's "
-            "positions share (level when they do not share one).",
+        body += page.fig_div(
+            "fig-residuals",
+            residual_figure(data),
+            "The residuals of d = C·F: what K does not explain (noise, non-linearity, a load case "
+            "mislabelled). Above: the chosen position's, per load case. Here: their RMS per position "
+            "and component, on an axis from zero.",
         )
-        sections.append(("model", "Measured and modelled", body))
+    body += f"<script type='application/json' id=loads-data>{_json_block(loads_payload(data))}</script>"
+    page.sections.append(("loads", "Load cases per position", body))
+
+
+def _model_section(page: _Page, data: ReportData) -> None:
+    """The model's parameters, its scatter against the measurements and its orientations."""
+    mod = data.model
+    body = f"<p><b>{_e(mod.name)}</b></p>" + _params_table(mod.parameters)
+    body += "".join(f"<p class=note>Fit: {_e(n)}</p>" for n in mod.notes)
+    body += page.fig_div(
+        "fig-model",
+        model_scatter(data),
+        "Per-plane maps of the model and residuals are under Stiffness map.",
+    )
+    body += page.fig_div(
+        "fig-orientations",
+        orientation_figure(data),
+        "A platform that turns: the model with its tool point at one measured position (where the "
+        "campaign measured the most orientations) and the platform turned over roll and pitch. Left: "
+        "the smallest principal stiffness of the K the loads hung at loads.point_mm see, what the "
+        "campaign identifies (squares: measured there, on the same colour scale); right: the smallest "
+        "a pure moment sees (K_rot). The maps over positions are at the orientation the campaign's "
+        "positions share (level when they do not share one).",
+    )
+    page.sections.append(("model", "Measured and modelled", body))
+
+
+def _truth_and_calibration_sections(page: _Page, data: ReportData) -> None:
+    """The test-bed's truth and the camera calibration, when the report has them."""
     if data.truth is not None:
-        body = fig_div(
+        body = page.fig_div(
             "fig-truth",
             truth_figure(data),
             "Virtual test-bed: the identified K against the ground truth. Red bars: flagged positions.",
         )
-        sections.append(("truth", "Recovered vs true", body))
+        page.sections.append(("truth", "Recovered vs true", body))
     if data.calibration is not None:
         body = _rig_table(data.calibration.cameras)
         body += _camera_table(data.calibration.camera)
         body += _calibration_share(data.calibration.k_share)
-        body += fig_div("fig-calibration", calibration_figure(data))
-        sections.append(("calibration", "Camera calibration", body))
-    if m is not None:
-        body = (
-            "<p><label class=ctl><input type=checkbox id=only-flagged> "
-            "show only flagged or failed positions</label></p>"
-            f"<div class=tablewrap>{_k_table(data)}</div>"
-            "<p class=note>K in the base frame, N/mm; ± is one standard error of each entry. "
-            "Principal stiffnesses are the eigenvalues of the symmetric part (K + Kᵀ)/2, ascending. "
-            "Flagged rows are highlighted.</p>"
-        )
-        sections.append(("table", "Every K", body))
-    if data.sensor is not None:
-        s = data.sensor
-        body = ""
-        if s.parameters:
-            body += f"<p><b>{_e(s.model_name or 'model')}</b></p>" + _params_table(s.parameters)
-        body += fig_div(
-            "fig-sensor-maps",
-            sensor_maps(data),
-            "Left: measured static error, linearly interpolated between the measured points (circles, "
-            "labelled) inside their convex hull — no extrapolation. "
-            "Right: the model (dense map where given). "
-            "Same colour scale in a row. After the milling study's Figs. 13-14.",
-        )
-        body += fig_div("fig-sensor-line", sensor_line(data), "After the milling study's Figs. 11-12.")
-        body += fig_div(
-            "fig-sensor-linearity",
-            sensor_linearity(data),
-            "Linearity of each recording (choose it above the figure): the displacement on every static "
-            "plateau of the stepped load against the load, the line fitted to them (its value at the "
-            "reference load is the static error) and what the line leaves of each plateau.",
-        )
-        body += f"<div class=tablewrap>{_sensor_table(data)}</div>"
-        sections.append(("sensor", "Static error", body))
+        body += page.fig_div("fig-calibration", calibration_figure(data))
+        page.sections.append(("calibration", "Camera calibration", body))
+
+
+def _k_table_section(page: _Page, data: ReportData) -> None:
+    """Every K, in a table that can show only the flagged or failed positions."""
+    body = (
+        "<p><label class=ctl><input type=checkbox id=only-flagged> "
+        "show only flagged or failed positions</label></p>"
+        f"<div class=tablewrap>{_k_table(data)}</div>"
+        "<p class=note>K in the base frame, N/mm; ± is one standard error of each entry. "
+        "Principal stiffnesses are the eigenvalues of the symmetric part (K + Kᵀ)/2, ascending. "
+        "Flagged rows are highlighted.</p>"
+    )
+    page.sections.append(("table", "Every K", body))
+
+
+def _sensor_section(page: _Page, data: ReportData) -> None:
+    """The sensor recordings' static error: maps, line, linearity and table."""
+    s = data.sensor
+    body = ""
+    if s.parameters:
+        body += f"<p><b>{_e(s.model_name or 'model')}</b></p>" + _params_table(s.parameters)
+    body += page.fig_div(
+        "fig-sensor-maps",
+        sensor_maps(data),
+        "Left: measured static error, linearly interpolated between the measured points (circles, "
+        "labelled) inside their convex hull — no extrapolation. "
+        "Right: the model (dense map where given). "
+        "Same colour scale in a row. After the milling study's Figs. 13-14.",
+    )
+    body += page.fig_div("fig-sensor-line", sensor_line(data), "After the milling study's Figs. 11-12.")
+    body += page.fig_div(
+        "fig-sensor-linearity",
+        sensor_linearity(data),
+        "Linearity of each recording (choose it above the figure): the displacement on every static "
+        "plateau of the stepped load against the load, the line fitted to them (its value at the "
+        "reference load is the static error) and what the line leaves of each plateau.",
+    )
+    body += f"<div class=tablewrap>{_sensor_table(data)}</div>"
+    page.sections.append(("sensor", "Static error", body))
+
+
+def _closing_sections(page: _Page, data: ReportData, png_names: Sequence[str]) -> None:
+    """The failures and the PNG files beside the page, when there are any."""
     if data.failures:
         items = "".join(f"<li><b>{_e(f.item)}</b>: {_e(f.message)}</li>" for f in data.failures)
-        sections.append(("failures", "Failures", f"<ul class=fail>{items}</ul>"))
+        page.sections.append(("failures", "Failures", f"<ul class=fail>{items}</ul>"))
     if png_names:
         items = "".join(f"<li><a href='{_e(n)}'>{_e(n)}</a></li>" for n in png_names)
-        sections.append(
+        page.sections.append(
             (
                 "figures",
                 "Figures for papers",
@@ -470,6 +514,12 @@ def build_html(data: ReportData, png_names: Sequence[str] = ()) -> str:
             )
         )
 
+
+def _page_html(c, page: _Page) -> str:
+    """The whole page: header, navigation, the sections, plotly and the figures' data."""
+    from plotly.offline import get_plotlyjs
+
+    sections, figures = page.sections, page.figures
     nav = "".join(f"<a href='#{sid}'>{_e(t)}</a>" for sid, t, _ in sections)
     main = "".join(f"<section id='{sid}'><h2>{_e(t)}</h2>{b}</section>" for sid, t, b in sections)
     figs = "".join(f"<script type='application/json' data-figure='{fid}'>{j}</script>" for fid, j in figures)

@@ -171,7 +171,7 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
     if pv is None:
         return None
     m = data.measured
-    title, unit, vals, planes, model = pv.title, pv.unit, pv.values, pv.planes, pv.model
+    title, unit, planes, model = pv.title, pv.unit, pv.planes, pv.model
     rows = 3 if model is not None else 1
     names = ["measured"] + (["model", "measured − model"] if model is not None else [])
     titles = [f"{r}, z = {z:g} mm" for r in names for z in planes]
@@ -185,96 +185,20 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
         vertical_spacing=0.09 if rows > 1 else 0.0,
     )
     hover = np.array(_hover_positions(data))
-    mv, res = pv.model_values, pv.residuals
     for c, z in enumerate(planes, start=1):
         sel = on_plane(m.positions[:, 2], z)
         ok = sel & m.ok
-        flagged = pv.flagged & ok
-        fig.add_trace(
-            go.Scatter(
-                x=m.positions[ok, 0],
-                y=m.positions[ok, 1],
-                mode="markers",
-                marker=dict(
-                    symbol="square",
-                    size=24,
-                    color=vals[ok],
-                    coloraxis="coloraxis",
-                    line=dict(color=np.where(flagged[ok], BAD, "white"), width=np.where(flagged[ok], 3, 1)),
-                ),
-                text=hover[ok],
-                hovertemplate="%{text}<extra></extra>",
-                showlegend=False,
-            ),
-            row=1,
-            col=c,
-        )
-        if (sel & ~m.ok).any():
-            f = sel & ~m.ok
-            fig.add_trace(
-                go.Scatter(
-                    x=m.positions[f, 0],
-                    y=m.positions[f, 1],
-                    mode="markers",
-                    marker=dict(symbol="x-thin", size=16, line=dict(color=FAILED, width=2)),
-                    text=hover[f],
-                    hovertemplate="%{text}<extra></extra>",
-                    showlegend=False,
-                ),
-                row=1,
-                col=c,
-            )
+        _measured_plane(fig, m, pv, hover, sel, c)
         if model is None:
             continue
-        grid = model_plane_grid(model, pv.map_values, z)
-        if grid is not None:
-            xs, ys, Z = grid
-            fig.add_trace(
-                go.Heatmap(
-                    x=xs,
-                    y=ys,
-                    z=Z,
-                    coloraxis="coloraxis",
-                    hovertemplate=(
-                        f"x %{{x}} mm, y %{{y}} mm<br>{title} %{{z:.4g}} {unit}<extra>model</extra>"
-                    ),
-                ),
-                row=2,
-                col=c,
-            )
-            fig.add_trace(
-                go.Scatter(
-                    x=m.positions[sel, 0],
-                    y=m.positions[sel, 1],
-                    mode="markers",
-                    marker=dict(size=4, color="black"),
-                    hoverinfo="skip",
-                    showlegend=False,
-                ),
-                row=2,
-                col=c,
-            )
-        else:
-            fig.add_trace(
-                go.Scatter(
-                    x=m.positions[sel, 0],
-                    y=m.positions[sel, 1],
-                    mode="markers",
-                    marker=dict(symbol="square", size=24, color=mv[sel], coloraxis="coloraxis"),
-                    customdata=mv[sel],
-                    hovertemplate=f"model {title} %{{customdata:.4g}} {unit}<extra></extra>",
-                    showlegend=False,
-                ),
-                row=2,
-                col=c,
-            )
+        _model_plane(fig, m.positions, pv, z, sel, c)
         fig.add_trace(
             go.Scatter(
                 x=m.positions[ok, 0],
                 y=m.positions[ok, 1],
                 mode="markers",
-                marker=dict(symbol="square", size=24, color=res[ok], coloraxis="coloraxis2"),
-                customdata=res[ok],
+                marker=dict(symbol="square", size=24, color=pv.residuals[ok], coloraxis="coloraxis2"),
+                customdata=pv.residuals[ok],
                 text=hover[ok],
                 hovertemplate=f"%{{text}}<br>measured − model = %{{customdata:.4g}} {unit}<extra></extra>",
                 showlegend=False,
@@ -296,6 +220,94 @@ def plane_maps(data: ReportData, quantity: str) -> go.Figure | None:
     fig.update_layout(**layout)
     _xy_axes(fig, rows)
     return fig
+
+
+def _measured_plane(fig: go.Figure, m, pv, hover: np.ndarray, sel: np.ndarray, c: int) -> None:
+    """Row 1 of :func:`plane_maps` at column ``c``: the measured positions of the plane ``sel``
+    (squares, flagged outlined) and its failed ones (crosses)."""
+    ok = sel & m.ok
+    flagged = pv.flagged & ok
+    fig.add_trace(
+        go.Scatter(
+            x=m.positions[ok, 0],
+            y=m.positions[ok, 1],
+            mode="markers",
+            marker=dict(
+                symbol="square",
+                size=24,
+                color=pv.values[ok],
+                coloraxis="coloraxis",
+                line=dict(color=np.where(flagged[ok], BAD, "white"), width=np.where(flagged[ok], 3, 1)),
+            ),
+            text=hover[ok],
+            hovertemplate="%{text}<extra></extra>",
+            showlegend=False,
+        ),
+        row=1,
+        col=c,
+    )
+    if (sel & ~m.ok).any():
+        f = sel & ~m.ok
+        fig.add_trace(
+            go.Scatter(
+                x=m.positions[f, 0],
+                y=m.positions[f, 1],
+                mode="markers",
+                marker=dict(symbol="x-thin", size=16, line=dict(color=FAILED, width=2)),
+                text=hover[f],
+                hovertemplate="%{text}<extra></extra>",
+                showlegend=False,
+            ),
+            row=1,
+            col=c,
+        )
+
+
+def _model_plane(fig: go.Figure, positions: np.ndarray, pv, z: float, sel: np.ndarray, c: int) -> None:
+    """Row 2 of :func:`plane_maps` at column ``c``: the model's dense map of the plane with the
+    measured positions as dots, or without one the model at the measured positions."""
+    title, unit = pv.title, pv.unit
+    grid = model_plane_grid(pv.model, pv.map_values, z)
+    if grid is not None:
+        xs, ys, Z = grid
+        fig.add_trace(
+            go.Heatmap(
+                x=xs,
+                y=ys,
+                z=Z,
+                coloraxis="coloraxis",
+                hovertemplate=(f"x %{{x}} mm, y %{{y}} mm<br>{title} %{{z:.4g}} {unit}<extra>model</extra>"),
+            ),
+            row=2,
+            col=c,
+        )
+        fig.add_trace(
+            go.Scatter(
+                x=positions[sel, 0],
+                y=positions[sel, 1],
+                mode="markers",
+                marker=dict(size=4, color="black"),
+                hoverinfo="skip",
+                showlegend=False,
+            ),
+            row=2,
+            col=c,
+        )
+        return
+    mv = pv.model_values
+    fig.add_trace(
+        go.Scatter(
+            x=positions[sel, 0],
+            y=positions[sel, 1],
+            mode="markers",
+            marker=dict(symbol="square", size=24, color=mv[sel], coloraxis="coloraxis"),
+            customdata=mv[sel],
+            hovertemplate=f"model {title} %{{customdata:.4g}} {unit}<extra></extra>",
+            showlegend=False,
+        ),
+        row=2,
+        col=c,
+    )
 
 
 # --------------------------------------------------------------------------- loads
@@ -677,96 +689,13 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
     layout: dict = {}
     for r, d in enumerate(dirs, start=1):
         sd = sensor_direction(data, d)
-        idx, p, e, model, g = sd.rows, sd.points, sd.error_um, sd.model_um, sd.dense_grid
         ax = "coloraxis" if r == 1 else f"coloraxis{r}"
         layout[ax] = dict(
             colorscale=SEQ, cmin=sd.lo, cmax=sd.hi, colorbar=_colorbar(r - 1, rows, 1, f"µm ({d})")
         )
-        grid = interpolate_measured(p, e)
-        if grid is not None:
-            fig.add_trace(
-                go.Heatmap(
-                    x=grid.xs,
-                    y=grid.ys,
-                    z=grid.Z,
-                    coloraxis=ax,
-                    hovertemplate="x %{x:.0f} mm, y %{y:.0f} mm<br>%{z:.4g} µm (interpolated)<extra></extra>",
-                ),
-                row=r,
-                col=1,
-            )
-        ok = np.isfinite(e)
-        hover = [
-            f"point {s.labels[i]} ({s.points[i, 0]:g}, {s.points[i, 1]:g}) mm<br>"
-            f"{fmt(s.error_um[i], 4)} ± {fmt(s.error_std_um[i], 2)} µm"
-            for i in idx
-        ]
-        fig.add_trace(
-            go.Scatter(
-                x=p[ok, 0],
-                y=p[ok, 1],
-                mode="markers+text",
-                text=[s.labels[i] for i in idx[ok]],
-                textposition="top center",
-                textfont=dict(size=9),
-                marker=dict(size=11, color=e[ok], coloraxis=ax, line=dict(color="black", width=1)),
-                hovertext=np.array(hover)[ok],
-                hovertemplate="%{hovertext}<extra>measured</extra>",
-                showlegend=False,
-            ),
-            row=r,
-            col=1,
-        )
-        if (~ok).any():
-            fig.add_trace(
-                go.Scatter(
-                    x=p[~ok, 0],
-                    y=p[~ok, 1],
-                    mode="markers",
-                    marker=dict(symbol="x-thin", size=14, line=dict(color=BAD, width=2)),
-                    hovertext=[f"point {s.labels[i]}: no measurement" for i in idx[~ok]],
-                    hovertemplate="%{hovertext}<extra></extra>",
-                    showlegend=False,
-                ),
-                row=r,
-                col=1,
-            )
-        if not has_model:
-            continue
-        if g is not None:
-            fig.add_trace(
-                go.Heatmap(
-                    x=g[0],
-                    y=g[1],
-                    z=g[2],
-                    coloraxis=ax,
-                    hovertemplate="x %{x:.0f} mm, y %{y:.0f} mm<br>%{z:.4g} µm<extra>model</extra>",
-                ),
-                row=r,
-                col=2,
-            )
-        elif model is not None:
-            mg = interpolate_measured(p, model)
-            if mg is not None:
-                fig.add_trace(
-                    go.Heatmap(x=mg.xs, y=mg.ys, z=mg.Z, coloraxis=ax, hoverinfo="skip"), row=r, col=2
-                )
-        if model is not None:
-            fig.add_trace(
-                go.Scatter(
-                    x=p[:, 0],
-                    y=p[:, 1],
-                    mode="markers",
-                    marker=dict(size=8, color=model, coloraxis=ax, line=dict(color="black", width=1)),
-                    hovertext=[
-                        f"point {s.labels[i]}: model {fmt(v, 4)} µm" for i, v in zip(idx, model, strict=True)
-                    ],
-                    hovertemplate="%{hovertext}<extra></extra>",
-                    showlegend=False,
-                ),
-                row=r,
-                col=2,
-            )
+        _measured_sensor_map(fig, s, sd, ax, r)
+        if has_model:
+            _model_sensor_map(fig, s, sd, ax, r)
     fig.update_layout(
         template=TEMPLATE,
         height=380 * rows + 40,
@@ -776,6 +705,99 @@ def sensor_maps(data: ReportData) -> go.Figure | None:
     )
     _xy_axes(fig, rows)
     return fig
+
+
+def _measured_sensor_map(fig: go.Figure, s, sd, ax: str, r: int) -> None:
+    """Row ``r``, column 1 of :func:`sensor_maps`: the measured static error interpolated between
+    the points (inside their hull), the points labelled, and crosses where none was measured."""
+    idx, p, e = sd.rows, sd.points, sd.error_um
+    grid = interpolate_measured(p, e)
+    if grid is not None:
+        fig.add_trace(
+            go.Heatmap(
+                x=grid.xs,
+                y=grid.ys,
+                z=grid.Z,
+                coloraxis=ax,
+                hovertemplate="x %{x:.0f} mm, y %{y:.0f} mm<br>%{z:.4g} µm (interpolated)<extra></extra>",
+            ),
+            row=r,
+            col=1,
+        )
+    ok = np.isfinite(e)
+    hover = [
+        f"point {s.labels[i]} ({s.points[i, 0]:g}, {s.points[i, 1]:g}) mm<br>"
+        f"{fmt(s.error_um[i], 4)} ± {fmt(s.error_std_um[i], 2)} µm"
+        for i in idx
+    ]
+    fig.add_trace(
+        go.Scatter(
+            x=p[ok, 0],
+            y=p[ok, 1],
+            mode="markers+text",
+            text=[s.labels[i] for i in idx[ok]],
+            textposition="top center",
+            textfont=dict(size=9),
+            marker=dict(size=11, color=e[ok], coloraxis=ax, line=dict(color="black", width=1)),
+            hovertext=np.array(hover)[ok],
+            hovertemplate="%{hovertext}<extra>measured</extra>",
+            showlegend=False,
+        ),
+        row=r,
+        col=1,
+    )
+    if (~ok).any():
+        fig.add_trace(
+            go.Scatter(
+                x=p[~ok, 0],
+                y=p[~ok, 1],
+                mode="markers",
+                marker=dict(symbol="x-thin", size=14, line=dict(color=BAD, width=2)),
+                hovertext=[f"point {s.labels[i]}: no measurement" for i in idx[~ok]],
+                hovertemplate="%{hovertext}<extra></extra>",
+                showlegend=False,
+            ),
+            row=r,
+            col=1,
+        )
+
+
+def _model_sensor_map(fig: go.Figure, s, sd, ax: str, r: int) -> None:
+    """Row ``r``, column 2 of :func:`sensor_maps`: the model's dense map (or its values at the
+    points interpolated) and its values at the points."""
+    idx, p, model, g = sd.rows, sd.points, sd.model_um, sd.dense_grid
+    if g is not None:
+        fig.add_trace(
+            go.Heatmap(
+                x=g[0],
+                y=g[1],
+                z=g[2],
+                coloraxis=ax,
+                hovertemplate="x %{x:.0f} mm, y %{y:.0f} mm<br>%{z:.4g} µm<extra>model</extra>",
+            ),
+            row=r,
+            col=2,
+        )
+    elif model is not None:
+        mg = interpolate_measured(p, model)
+        if mg is not None:
+            fig.add_trace(go.Heatmap(x=mg.xs, y=mg.ys, z=mg.Z, coloraxis=ax, hoverinfo="skip"), row=r, col=2)
+    if model is not None:
+        fig.add_trace(
+            go.Scatter(
+                x=p[:, 0],
+                y=p[:, 1],
+                mode="markers",
+                marker=dict(size=8, color=model, coloraxis=ax, line=dict(color="black", width=1)),
+                hovertext=[
+                    f"point {s.labels[i]}: model {fmt(v, 4)} µm" for i, v in zip(idx, model, strict=True)
+                ],
+                hovertemplate="%{hovertext}<extra></extra>",
+                showlegend=False,
+            ),
+            row=r,
+            col=2,
+        )
 
 
 def sensor_line(data: ReportData) -> go.Figure | None:

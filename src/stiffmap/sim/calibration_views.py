@@ -207,57 +207,89 @@ def careful_poses(
     x0, y0, x1, y1 = board.extent_mm()
     m = float(margin_mm)
     extent = (x0 - m, y0 - m, x1 + m, y1 + m)
-    centre_mm = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
     w, h = camera.image_size
     mid = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
-    half = mid - border_px
-    golden = 180.0 * (3.0 - np.sqrt(5.0))
+    place = _Placement(
+        camera, extent, (0.5 * (x0 + x1), 0.5 * (y0 + y1)), border_px, fits, mid, mid - border_px
+    )
     poses = []
     for k in range(n):
         d = np.asarray(_DIRECTIONS[k % len(_DIRECTIONS)], dtype=np.float64)
-        dist = _distance_for(camera, extent, COVERAGES[(k // len(_DIRECTIONS)) % len(COVERAGES)])
-        tilt = max_tilt_deg * _TILTS[k % len(_TILTS)]
-        axis = golden * k + 20.0
-        spin = 15.0 * np.sin(2.1 * k)
-        if rng is not None:
-            j = rng.uniform(-1.0, 1.0, 4)
-            tilt = float(np.clip(tilt + 2.0 * j[0], 0.0, max_tilt_deg))
-            axis += 8.0 * j[1]
-            spin += 8.0 * j[2]
-            dist *= 1.0 + 0.04 * j[3]
-
-        def pose(pixel, dist: float = dist, tilt=tilt, axis=axis, spin=spin) -> np.ndarray:
-            return board_pose_at_pixel(
-                camera, pixel, dist, centre_mm, tilt_deg=tilt, tilt_axis_deg=axis, spin_deg=spin
-            )
-
-        def inside(T: np.ndarray) -> bool:
-            return _outline_inside(camera, T, extent, border_px) and (fits is None or fits(T))
-
-        def fits_at(pixel, dist: float) -> bool:
-            try:
-                return inside(pose(pixel, dist))
-            except UndistortionError:  # a fisheye's pixel that sees 90 degrees or more off axis
-                return False
-
-        for _ in range(60):  # farther until the board fits at the image centre
-            if fits_at(mid, dist):
-                break
-            dist *= 1.06
-        else:
-            raise ValueError(f"view {k + 1}: the board fits nowhere in the {w}x{h} px image")
-        # Slide the board towards its direction, then along each axis on its own (into a
-        # corner: until both sides touch the border), as far as it stays inside.
-        pixel = mid.copy()
-        along_x, along_y = np.array([d[0], 0.0]) * half, np.array([0.0, d[1]]) * half
-        for step in (d * half, along_x, along_y, along_x, along_y):
-            if np.any(step):
-                t = _farthest(lambda t, p0=pixel, e=step, z=dist: fits_at(p0 + t * e, z))
-                pixel = pixel + t * step
-        T = pose(pixel, dist)
+        dist, angles = _view_start(camera, extent, k, max_tilt_deg, rng)
+        T = _place(place, k, d, dist, angles)
         T.setflags(write=False)
         poses.append(T)
     return poses
+
+
+@dataclass(frozen=True)
+class _Placement:
+    """What every view of :func:`careful_poses` is placed in: the camera, the printed board's
+    extent and centre (mm), the border kept (px), a further condition, the image's centre and
+    the half-size a view slides within (px)."""
+
+    camera: CameraModel
+    extent: tuple[float, float, float, float]
+    centre_mm: tuple[float, float]
+    border_px: float
+    fits: Callable[[np.ndarray], bool] | None
+    mid: np.ndarray
+    half: np.ndarray
+
+    def pose(self, pixel, dist: float, angles: tuple[float, float, float]) -> np.ndarray:
+        """``board2cam`` with the board's centre seen at ``pixel``, ``dist`` mm away, at (tilt,
+        tilt axis, spin) ``angles`` (degrees)."""
+        tilt, axis, spin = angles
+        return board_pose_at_pixel(
+            self.camera, pixel, dist, self.centre_mm, tilt_deg=tilt, tilt_axis_deg=axis, spin_deg=spin
+        )
+
+    def fits_at(self, pixel, dist: float, angles: tuple[float, float, float]) -> bool:
+        """The whole printed board inside the image (and ``fits``) at that pose."""
+        try:
+            T = self.pose(pixel, dist, angles)
+            return _outline_inside(self.camera, T, self.extent, self.border_px) and (
+                self.fits is None or self.fits(T)
+            )
+        except UndistortionError:  # a fisheye's pixel that sees 90 degrees or more off axis
+            return False
+
+
+def _view_start(camera, extent, k: int, max_tilt_deg: float, rng) -> tuple[float, tuple[float, float, float]]:
+    """View k's distance (mm) and (tilt, tilt axis, spin) in degrees, jittered with ``rng``."""
+    golden = 180.0 * (3.0 - np.sqrt(5.0))
+    dist = _distance_for(camera, extent, COVERAGES[(k // len(_DIRECTIONS)) % len(COVERAGES)])
+    tilt = max_tilt_deg * _TILTS[k % len(_TILTS)]
+    axis = golden * k + 20.0
+    spin = 15.0 * np.sin(2.1 * k)
+    if rng is not None:
+        j = rng.uniform(-1.0, 1.0, 4)
+        tilt = float(np.clip(tilt + 2.0 * j[0], 0.0, max_tilt_deg))
+        axis += 8.0 * j[1]
+        spin += 8.0 * j[2]
+        dist *= 1.0 + 0.04 * j[3]
+    return dist, (tilt, axis, spin)
+
+
+def _place(place: _Placement, k: int, d: np.ndarray, dist: float, angles) -> np.ndarray:
+    """View k's pose: moved away until the board fits at the image centre, then slid towards its
+    direction ``d``, then along each axis on its own (into a corner: until both sides touch the
+    border), as far as it stays inside."""
+    for _ in range(60):  # farther until the board fits at the image centre
+        if place.fits_at(place.mid, dist, angles):
+            break
+        dist *= 1.06
+    else:
+        w, h = place.camera.image_size
+        raise ValueError(f"view {k + 1}: the board fits nowhere in the {w}x{h} px image")
+    pixel = place.mid.copy()
+    half = place.half
+    along_x, along_y = np.array([d[0], 0.0]) * half, np.array([0.0, d[1]]) * half
+    for step in (d * half, along_x, along_y, along_x, along_y):
+        if np.any(step):
+            t = _farthest(lambda t, p0=pixel, e=step, z=dist: place.fits_at(p0 + t * e, z, angles))
+            pixel = pixel + t * step
+    return place.pose(pixel, dist, angles)
 
 
 def calibration_view_file(index: int, image_format: str = "png", camera: str | None = None) -> str:
@@ -353,6 +385,36 @@ def _incidence_ok(T: np.ndarray, centre_mm, max_deg: float) -> bool:
     return float(T[:3, 2] @ c) > np.cos(np.radians(max_deg)) * float(np.linalg.norm(c))
 
 
+def _virtual_camera(rig: Rig, max_tilt_deg: float | None, max_incidence_deg: float):
+    """The virtual camera of a rig's shared views (at the mean of the cameras' poses): its pose
+    in the rig, each camera's pose of it, and the largest tilt of a shared view (degrees)."""
+    c2r = [c.cam2rig for c in rig.cameras]
+    virt2rig = mean_transform(c2r)
+    virt2cam = [invert_transform(T) @ virt2rig for T in c2r]
+    spread = max(
+        float(np.degrees(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))) for T in virt2cam
+    )  # angle between the virtual and each camera's optical axis
+    tilt = (
+        min(MAX_TILT_DEG, max(max_incidence_deg - spread - 5.0, 5.0))
+        if max_tilt_deg is None
+        else max_tilt_deg
+    )
+    return virt2rig, virt2cam, tilt
+
+
+def _seen_by_all(rig: Rig, board2cams, centre, extent, max_incidence_deg: float, border_px: float) -> bool:
+    """Does every camera see the whole board (``board2cams``: its pose in each), facing it
+    within ``max_incidence_deg``?"""
+    for c, T in zip(rig.cameras, board2cams, strict=True):
+        if not (
+            _incidence_ok(T, centre, max_incidence_deg) and _outline_inside(c.camera, T, extent, border_px)
+        ):
+            return False
+    return True
+
+
+# Longer than ~80 lines for its documentation: what a careful user does with a rig, the
+# parameters and raises take ~60 lines; the body (~35 lines) is the shared views, then each camera's.
 def rig_calibration_views(
     rig: Rig,
     n_views: int = 15,
@@ -420,27 +482,12 @@ def rig_calibration_views(
     m = float(margin_mm)
     extent = (x0 - m, y0 - m, x1 + m, y1 + m)
     centre = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
-    c2r = [c.cam2rig for c in rig.cameras]
-    virt2rig = mean_transform(c2r)
-    virt2cam = [invert_transform(T) @ virt2rig for T in c2r]
-    spread = max(
-        float(np.degrees(np.arccos(np.clip(T[2, 2], -1.0, 1.0)))) for T in virt2cam
-    )  # angle between the virtual and each camera's optical axis
-    tilt = (
-        min(MAX_TILT_DEG, max(max_incidence_deg - spread - 5.0, 5.0))
-        if max_tilt_deg is None
-        else max_tilt_deg
-    )
+    virt2rig, virt2cam, tilt = _virtual_camera(rig, max_tilt_deg, max_incidence_deg)
 
     def seen_by_all(board2virt: np.ndarray) -> bool:
-        for k, c in enumerate(rig.cameras):
-            T = virt2cam[k] @ board2virt
-            if not (
-                _incidence_ok(T, centre, max_incidence_deg)
-                and _outline_inside(c.camera, T, extent, border_px)
-            ):
-                return False
-        return True
+        return _seen_by_all(
+            rig, (T @ board2virt for T in virt2cam), centre, extent, max_incidence_deg, border_px
+        )
 
     shared = careful_poses(
         rig.cameras[0].camera,

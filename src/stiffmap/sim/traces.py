@@ -306,13 +306,7 @@ def simulate_trace(
     -------
     SimulatedTrace
     """
-    if (compliance_mm_per_n is None) == (static_error_mm is None):
-        raise ValueError("give exactly one of compliance_mm_per_n and static_error_mm")
-    if static_error_mm is not None:
-        compliance_mm_per_n = float(static_error_mm) / float(reference_load_n)
-    c = float(compliance_mm_per_n)
-    if not math.isfinite(c):
-        raise ValueError(f"compliance must be finite, got {compliance_mm_per_n!r}")
+    c = _compliance_of(compliance_mm_per_n, static_error_mm, reference_load_n)
     if axis_sign not in (1, -1):
         raise ValueError(f"axis_sign must be +1 or -1, got {axis_sign!r}")
     if dropout_kind not in ("nan", "gap"):
@@ -323,6 +317,73 @@ def simulate_trace(
     fs = float(ch.sample_rate_hz)
     dt = 1.0 / fs
     to_n = newton_from_kgf(1.0, g) if pr.unit == "kgf" else 1.0
+    t, L, applied, edges = _load_history(pr, rng, fs, dt)
+    x_mm = _structure_response(L * to_n, c, hysteresis_n, settle_s, dt)
+    v = _sensor_volts(x_mm, t, ch, rng, axis_sign)
+    load = _load_channel(L, pr, rng)
+    rec, keep = _recording(source, t, v, load, pr.unit, dropouts, dropout_kind)
+    truth = TraceTruth(
+        compliance_mm_per_n=c,
+        reference_load_n=float(reference_load_n),
+        static_error_mm=c * float(reference_load_n),
+        loads_n=applied * to_n,
+        plateaus_s=edges.reshape(len(pr.steps), 2),
+        steps=pr.steps,
+        unit=pr.unit,
+        axis_sign=axis_sign,
+        hysteresis_n=float(hysteresis_n),
+        g=float(g),
+        file=source,
+    )
+    return SimulatedTrace(rec, truth, x_mm[keep])
+
+
+def _load_channel(L: np.ndarray, pr: LoadSteps, rng: np.random.Generator) -> np.ndarray | None:
+    """The recorded load (noise, resolution), None when the protocol records none."""
+    if not pr.load_channel:
+        return None
+    load = L + (rng.normal(scale=pr.load_noise, size=L.size) if pr.load_noise > 0 else 0.0)
+    if pr.load_resolution > 0:
+        load = np.round(load / pr.load_resolution) * pr.load_resolution
+    return load
+
+
+def _recording(source, t, v, load, unit, dropouts, dropout_kind) -> tuple[Recording, np.ndarray]:
+    """The recording with its dropouts (NaN volts, or samples left out: ``keep``), and ``keep``."""
+    keep = np.ones(t.size, dtype=bool)
+    for a, b in dropouts:
+        m = (t >= a) & (t <= b)
+        if dropout_kind == "nan":
+            v[m] = np.nan
+        else:
+            keep &= ~m
+    rec = Recording(
+        source=source,
+        time_s=t[keep],
+        displacement_v=v[keep],
+        load=None if load is None else load[keep],
+        load_unit=unit if load is not None else None,
+        load_name=(f"load_{unit.lower()}" if load is not None else None),
+        meta={"simulated": True},
+    )
+    return rec, keep
+
+
+def _compliance_of(compliance_mm_per_n, static_error_mm, reference_load_n) -> float:
+    """The compliance (mm/N) from exactly one of the compliance and the static error."""
+    if (compliance_mm_per_n is None) == (static_error_mm is None):
+        raise ValueError("give exactly one of compliance_mm_per_n and static_error_mm")
+    if static_error_mm is not None:
+        compliance_mm_per_n = float(static_error_mm) / float(reference_load_n)
+    c = float(compliance_mm_per_n)
+    if not math.isfinite(c):
+        raise ValueError(f"compliance must be finite, got {compliance_mm_per_n!r}")
+    return c
+
+
+def _load_history(pr: LoadSteps, rng: np.random.Generator, fs: float, dt: float):
+    """The sample times, the load (in the steps' unit: constant on plateaus, raised cosine in
+    between), the loads applied (the steps with their error) and the plateaus' edges."""
     k = len(pr.steps)
     nominal = np.asarray(pr.steps)
     applied = nominal + (rng.normal(scale=pr.load_error, size=k) if pr.load_error > 0 else 0.0)
@@ -338,7 +399,6 @@ def simulate_trace(
             tcur += dur_t[i]
     n = int(math.floor(tcur * fs)) + 1
     t = np.arange(n) * dt
-    # Load history (in the steps' unit): constant on plateaus, raised cosine in between.
     L = np.empty(n)
     for i in range(k):
         a, b = edges[2 * i], edges[2 * i + 1]
@@ -349,7 +409,11 @@ def simulate_trace(
             m = (t > c0) & (t < c1)
             s = (t[m] - c0) / (c1 - c0)
             L[m] = applied[i] + (applied[i + 1] - applied[i]) * 0.5 * (1 - np.cos(np.pi * s))
-    F = L * to_n
+    return t, L, applied, edges
+
+
+def _structure_response(F: np.ndarray, c: float, hysteresis_n, settle_s, dt: float) -> np.ndarray:
+    """The displacement (mm) under the force history F (N): compliance, play, first-order lag."""
     x_mm = c * _play(F, float(hysteresis_n))
     if settle_s < 0 or not math.isfinite(settle_s):
         raise ValueError(f"settle_s must be >= 0, got {settle_s!r}")
@@ -358,6 +422,13 @@ def simulate_trace(
 
         alpha = dt / (settle_s + dt)
         x_mm = lfilter([alpha], [1.0, alpha - 1.0], x_mm, zi=[(1.0 - alpha) * x_mm[0]])[0]
+    return x_mm
+
+
+def _sensor_volts(x_mm, t, ch: DaqChain, rng: np.random.Generator, axis_sign: int) -> np.ndarray:
+    """The sensor's volts: the displacement with drift, noise, vibration and offset, clipped to
+    the sensor's range and quantised by the DAQ."""
+    n = t.size
     # Slow drift: linear + random wander (three sinusoids, periods >= drift_period_s).
     drift_um = ch.drift_um_per_s * t
     if ch.drift_wander_um > 0:
@@ -375,41 +446,7 @@ def simulate_trace(
     v = np.clip(v, -ch.range_v, ch.range_v)
     if ch.lsb_v > 0:
         v = np.clip(np.round(v / ch.lsb_v) * ch.lsb_v, -ch.daq_range_v, ch.daq_range_v - ch.lsb_v)
-    load = None
-    if pr.load_channel:
-        load = L + (rng.normal(scale=pr.load_noise, size=n) if pr.load_noise > 0 else 0.0)
-        if pr.load_resolution > 0:
-            load = np.round(load / pr.load_resolution) * pr.load_resolution
-    keep = np.ones(n, dtype=bool)
-    for a, b in dropouts:
-        m = (t >= a) & (t <= b)
-        if dropout_kind == "nan":
-            v[m] = np.nan
-        else:
-            keep &= ~m
-    rec = Recording(
-        source=source,
-        time_s=t[keep],
-        displacement_v=v[keep],
-        load=None if load is None else load[keep],
-        load_unit=pr.unit if load is not None else None,
-        load_name=(f"load_{pr.unit.lower()}" if load is not None else None),
-        meta={"simulated": True},
-    )
-    truth = TraceTruth(
-        compliance_mm_per_n=c,
-        reference_load_n=float(reference_load_n),
-        static_error_mm=c * float(reference_load_n),
-        loads_n=applied * to_n,
-        plateaus_s=edges.reshape(k, 2),
-        steps=pr.steps,
-        unit=pr.unit,
-        axis_sign=axis_sign,
-        hysteresis_n=float(hysteresis_n),
-        g=float(g),
-        file=source,
-    )
-    return SimulatedTrace(rec, truth, x_mm[keep])
+    return v
 
 
 def _n_params(f: Callable) -> int:
@@ -500,20 +537,8 @@ def simulate_point_traces(
     -------
     list of TraceTruth
     """
-    P = np.asarray(points, dtype=np.float64)
-    U = np.asarray(directions, dtype=np.float64)
-    if P.ndim != 2 or P.shape[1] not in (2, 3):
-        raise ValueError(f"points must have shape (m, 2) or (m, 3), got {P.shape}")
-    if U.shape != P.shape:
-        raise ValueError(f"directions must have the shape of points {P.shape}, got {U.shape}")
-    norms = np.linalg.norm(U, axis=1)
-    if np.any(norms == 0) or not np.all(np.isfinite(U)):
-        raise ValueError("every direction must be a finite non-zero vector")
-    U = U / norms[:, None]
+    P, U, signs = _checked_points(points, directions, axis_signs)
     m, d = P.shape
-    signs = np.ones(m, dtype=int) if axis_signs is None else np.asarray(axis_signs, dtype=int).ravel()
-    if signs.shape != (m,) or not np.all(np.isin(signs, (1, -1))):
-        raise ValueError(f"axis_signs must be {m} values of +1 or -1")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     ext = {"csv": ".csv", "tdms": ".tdms", "mat": ".mat"}[fmt]
@@ -541,3 +566,22 @@ def simulate_point_traces(
     atomic_write_text(out / "index.csv", "\n".join(rows) + "\n")
     atomic_write_text(out / "truth.json", dumps_json({"traces": [tr.to_dict() for tr in truths]}) + "\n")
     return truths
+
+
+def _checked_points(points, directions, axis_signs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points, unit directions and axis signs of :func:`simulate_point_traces`, checked."""
+    P = np.asarray(points, dtype=np.float64)
+    U = np.asarray(directions, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] not in (2, 3):
+        raise ValueError(f"points must have shape (m, 2) or (m, 3), got {P.shape}")
+    if U.shape != P.shape:
+        raise ValueError(f"directions must have the shape of points {P.shape}, got {U.shape}")
+    norms = np.linalg.norm(U, axis=1)
+    if np.any(norms == 0) or not np.all(np.isfinite(U)):
+        raise ValueError("every direction must be a finite non-zero vector")
+    U = U / norms[:, None]
+    m = P.shape[0]
+    signs = np.ones(m, dtype=int) if axis_signs is None else np.asarray(axis_signs, dtype=int).ravel()
+    if signs.shape != (m,) or not np.all(np.isin(signs, (1, -1))):
+        raise ValueError(f"axis_signs must be {m} values of +1 or -1")
+    return P, U, signs

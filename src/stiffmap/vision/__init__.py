@@ -23,7 +23,7 @@ the pose perturbation) live in :mod:`stiffmap.posemath`, the image check in
 :func:`stiffmap.vision.images.check_image`.
 """
 
-from ..posemath import BoardPose, projection_jacobian
+from ..posemath import BoardPose, PoseEstimate, projection_jacobian
 from .calibrate import DIST_MODELS, CalibrationResult, ViewResult, calibrate_camera
 from .corners import refine_corners
 from .detect import BoardDetection, DetectionError, board_label, detect_board, detect_boards, track_board
@@ -46,6 +46,7 @@ from .validate import StageStep, StageValidation, validate_stage, validate_stage
 __all__ = [
     "BoardDetection",
     "BoardPose",
+    "PoseEstimate",
     "CalibrationResult",
     "CameraView",
     "DIST_MODELS",

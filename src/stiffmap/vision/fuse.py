@@ -7,10 +7,11 @@ parameters. :func:`fuse_poses` maps each into the rig frame and combines them in
 pose, ``board2rig``, with its covariance and its sensitivity to every parameter of the rig.
 
 **The rig frame plays the camera frame.** The result is a :class:`FusedPose`, a
-:class:`~stiffmap.posemath.BoardPose` whose ``board2cam`` holds ``board2rig`` and whose
-covariance is over the (t, r) left perturbation in the rig frame (``docs/conventions.md``,
-"Pose uncertainty"); everything downstream (``mobile2base``, displacements, campaigns) takes
-it as it takes a camera-frame pose, with ``cam2base`` reading ``rig2base``. A rig of one
+:class:`~stiffmap.posemath.PoseEstimate` whose pose is ``board2rig`` and whose covariance is
+over the (t, r) left perturbation in the rig frame (``docs/conventions.md``, "Pose
+uncertainty"); everything downstream (``mobile2base``, displacements, campaigns) takes it
+through ``board2frame`` as it takes a camera's :class:`~stiffmap.posemath.BoardPose`
+(``board2cam``), with ``cam2base`` reading ``rig2base``. A rig of one
 camera is that camera: its fused pose is the camera's pose (to rounding).
 
 To the rig frame (``cam2rig_k`` = C_k = (R_c, t_c); (t, r) left perturbations):
@@ -63,13 +64,13 @@ the same board frame.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 
 from ..geometry import displacement_from_poses, rotvec_from_matrix
-from ..posemath import BoardPose, check_pose, perturb_pose, point_jacobian
+from ..posemath import BoardPose, PoseEstimate, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
 from ..stats import chi2_ppf, chi2_sf
 from ..targets import CharucoBoard, Chessboard
@@ -140,11 +141,12 @@ class ViewPose:
 
 
 @dataclass(frozen=True)
-class FusedPose(BoardPose):
+class FusedPose(PoseEstimate):
     """A board's pose in the rig frame from every camera that saw it (see the module docstring).
 
-    A :class:`~stiffmap.posemath.BoardPose` whose ``board2cam`` is ``board2rig`` (the rig frame
-    plays the camera frame) and whose ``calibration_jacobian`` is over ``rig.param_names``.
+    A :class:`~stiffmap.posemath.PoseEstimate` whose pose is ``board2rig`` (the rig frame plays
+    the camera frame: ``board2frame`` is ``board2rig``) and whose ``calibration_jacobian`` is
+    over ``rig.param_names``.
     The corner statistics pool the views: ``rms_px`` over all their corners, ``n_corners``
     their sum, ``residuals_px`` stacked in the order of ``views``, ``sigma_px`` pooled.
     ``method`` is the view's own for one camera, ``"fused"`` for several; ``fallback`` names
@@ -153,6 +155,8 @@ class FusedPose(BoardPose):
 
     Attributes
     ----------
+    board2rig : ndarray, shape (4, 4), mm
+        The board's pose in the rig frame (a keyword argument).
     views : tuple of ViewPose
         The cameras that saw the board, in the rig's order.
     chi2 : float
@@ -163,10 +167,15 @@ class FusedPose(BoardPose):
         Set when ``chi2`` exceeds the :data:`CONSISTENCY_QUANTILE` of its law.
     """
 
+    board2rig: np.ndarray = field(kw_only=True)
     views: tuple[ViewPose, ...] = ()
     chi2: float = 0.0
     dof: int = 0
     consistency_warning: str | None = None
+
+    @property
+    def board2frame(self) -> np.ndarray:
+        return self.board2rig
 
     @property
     def cameras(self) -> tuple[str, ...]:
@@ -417,7 +426,7 @@ def fuse_poses(
     Returns
     -------
     FusedPose
-        ``board2cam`` holds board2rig. One view: that camera's pose mapped to the rig frame
+        Its pose is ``board2rig``. One view: that camera's pose mapped to the rig frame
         (itself for the first camera).
 
     Raises
@@ -452,7 +461,7 @@ def fuse_poses(
         [v.Q for v in mapped], [v.B for v in mapped], offsets, rig.calibration_cov if with_A else None
     )
     return FusedPose(
-        board2cam=T_f,
+        board2rig=T_f,
         cov=_sym(cov),
         calibration_jacobian=A,
         cov_calibration=cov_cal,

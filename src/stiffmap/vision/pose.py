@@ -53,6 +53,7 @@ from ..camera import CameraModel
 from ..geometry import matrix_from_rotvec
 from ..posemath import (
     BoardPose,
+    PoseEstimate,
     calibration_sensitivity,
     check_pose,
     faces_camera,
@@ -130,20 +131,20 @@ def check_refine(refine: str) -> str:
     return refine
 
 
-def pose_shift_sigma(a: BoardPose, b: BoardPose) -> float:
+def pose_shift_sigma(a: PoseEstimate, b: PoseEstimate) -> float:
     """Mahalanobis distance between two poses of one board, in combined sigmas.
 
     d^2 = delta^T (cov_a + cov_b)^-1 delta with delta = (t_b - t_a, rotvec(R_b R_a^T))
     (``docs/conventions.md``, pose uncertainty), with the fits' own covariances
-    (``cov_noise``): both poses are taken with the same camera, so its calibration's error
-    moves them alike.
+    (``cov_noise``): both poses are taken with the same camera (or rig: ``board2frame``), so
+    its calibration's error moves them alike.
     """
     d = np.empty(6)
-    d[:3] = b.board2cam[:3, 3] - a.board2cam[:3, 3]
+    d[:3] = b.board2frame[:3, 3] - a.board2frame[:3, 3]
     # OpenCV's logarithm, kept rather than geometry.rotvec_from_matrix: it reads rotations
     # below 1e-5 rad as zero (and is less precise just above), so the other would move this
     # check's verdict in edge cases.
-    rv, _ = cv2.Rodrigues(b.board2cam[:3, :3] @ a.board2cam[:3, :3].T)
+    rv, _ = cv2.Rodrigues(b.board2frame[:3, :3] @ a.board2frame[:3, :3].T)
     d[3:] = rv.ravel()
     C = a.cov_noise + b.cov_noise
     try:

@@ -18,7 +18,7 @@ __all__ = ["pose_record", "displacement_records", "validation_record"]
 
 
 def _pose_keys(p) -> dict:
-    """JSON fields of a BoardPose beyond board2cam and cov."""
+    """JSON fields of a pose (a camera's or a rig's) beyond the pose and cov."""
     d = {"rms_px": p.rms_px, "n_corners": p.n_corners, "method": p.method}
     # The calibration's share of cov (None: the camera.json gives no uncertainty).
     d["cov_calibration"] = p.cov_calibration
@@ -69,8 +69,8 @@ def _consistency(p) -> dict | None:
 def pose_record(m: ImageMeasurement, with_cameras: bool = False) -> dict:
     """The JSON object of one image (set): its pose, or its error; with a rig, each camera's.
 
-    Keys: ``image``, then ``board2cam`` (4x4, mm; with a rig ``frame`` is ``"rig"`` and it
-    holds board2rig), ``cov`` (6x6: t in mm, r in rad), ``rms_px``, ``n_corners``,
+    Keys: ``image``, then ``board2cam`` (4x4, mm; with a rig ``board2rig``, and ``frame`` is
+    ``"rig"``), ``cov`` (6x6: t in mm, r in rad), ``rms_px``, ``n_corners``,
     ``method``, ``cov_calibration``, ``t_std_calibration_mm``, ``photometric`` and
     ``fallback`` when they apply; or ``error``. With a rig also ``consistency`` and
     ``cameras`` (what each camera saw).
@@ -78,7 +78,8 @@ def pose_record(m: ImageMeasurement, with_cameras: bool = False) -> dict:
     cams = {"cameras": cameras_record(m)} if with_cameras else {}
     if not m.ok:
         return {"image": m.image, "error": m.error, **cams}
-    row = {"image": m.image, "board2cam": m.mobile.board2cam, "cov": m.mobile.cov, **_pose_keys(m.mobile)}
+    pose = "board2rig" if with_cameras else "board2cam"
+    row = {"image": m.image, pose: m.mobile.board2frame, "cov": m.mobile.cov, **_pose_keys(m.mobile)}
     if with_cameras:
         row["frame"] = "rig"
         row["consistency"] = _consistency(m.mobile)

@@ -12,8 +12,9 @@ Several cameras (a :class:`~stiffmap.rig.Rig`): each item of the sequence is the
 set, one image per camera (a mapping camera name -> path or array, or a sequence in the rig's
 order). Each camera is tracked on its own images; each board's poses from the cameras that
 saw it are fused into one pose in the rig frame (:func:`~stiffmap.vision.fuse.fuse_poses`),
-so ``ImageMeasurement.mobile`` and ``fixed`` are poses in the rig frame (``board2cam`` holds
-board2rig, ``cam2base`` reads rig2base) and the calibration sensitivities are over
+so ``ImageMeasurement.mobile`` and ``fixed`` are poses in the rig frame (``board2rig``; a
+single camera is a rig of one, its own frame; ``board2frame`` reads either, ``cam2base`` reads
+rig2base) and the calibration sensitivities are over
 ``rig.param_names``; ``ImageMeasurement.views`` keeps what each camera gave. A camera whose
 image is missing, unreadable, of another size than that camera's, or without the board, is
 named in its view's ``error`` and the others go on; a board that no camera saw makes the
@@ -103,8 +104,8 @@ class ImageMeasurement:
         File name (or a label for arrays; for a rig, the set's label).
     mobile, fixed : BoardPose or None
         Poses of the mobile and fixed targets in the camera frame; with a rig, in the rig
-        frame, fused from every camera that saw them (:class:`~stiffmap.vision.fuse.FusedPose`,
-        ``board2cam`` holding board2rig).
+        frame, fused from every camera that saw them (:class:`~stiffmap.vision.fuse.FusedPose`:
+        ``board2rig``; ``board2frame`` whatever the frame).
     mobile2base : ndarray, shape (4, 4) or None
         The mobile target in the robot base frame (fixed target and
         ``fixed2base`` given), mm.
@@ -148,7 +149,7 @@ class ImageMeasurement:
 
     @property
     def mobile2cam(self) -> np.ndarray | None:
-        return None if self.mobile is None else self.mobile.board2cam
+        return None if self.mobile is None else self.mobile.board2frame
 
     @property
     def mobile2cam_cov(self) -> np.ndarray | None:
@@ -156,7 +157,7 @@ class ImageMeasurement:
 
     @property
     def fixed2cam(self) -> np.ndarray | None:
-        return None if self.fixed is None else self.fixed.board2cam
+        return None if self.fixed is None else self.fixed.board2frame
 
     @property
     def fixed2cam_cov(self) -> np.ndarray | None:
@@ -167,7 +168,7 @@ class ImageMeasurement:
         """cam2base (with a rig: rig2base) through this image's fixed target (None without one)."""
         if self.mobile2base is None or self.mobile is None:
             return None
-        return self.mobile2base @ invert_transform(self.mobile.board2cam)
+        return self.mobile2base @ invert_transform(self.mobile.board2frame)
 
     @property
     def rig2base(self) -> np.ndarray | None:
@@ -537,7 +538,7 @@ class PoseTracker:
             f = fuse_poses(
                 self.rig, seen, board=self.boards[b], reference=self._fused[b], label=self._what(b)
             )
-            self._fused[b] = f.board2cam
+            self._fused[b] = f.board2rig
             fused.append(f)
         return fused
 
@@ -548,10 +549,10 @@ class PoseTracker:
         if fixed is not None and self.fixed2base is not None:
             # The poses' own noise is independent; the calibration's error moves both at once.
             m2b, m2b_cov = mobile2base_from_poses(
-                mobile.board2cam, mobile.cov_noise, fixed.board2cam, fixed.cov_noise, self.fixed2base
+                mobile.board2frame, mobile.cov_noise, fixed.board2frame, fixed.cov_noise, self.fixed2base
             )
             if mobile.calibration_jacobian is not None and fixed.calibration_jacobian is not None:
-                _, Jm, Jf = _mobile2base_jacobians(mobile.board2cam, fixed.board2cam, self.fixed2base)
+                _, Jm, Jf = _mobile2base_jacobians(mobile.board2frame, fixed.board2frame, self.fixed2base)
                 m2b_A = Jm @ mobile.calibration_jacobian + Jf @ fixed.calibration_jacobian
                 if Sc is not None:
                     m2b_cov = m2b_cov + m2b_A @ Sc @ m2b_A.T
