@@ -242,6 +242,7 @@ def test_a_rig_of_one_camera_gives_the_cameras_own_pose():
     f = fuse_poses(Rig.single(cam), {0: p})
     assert isinstance(f, FusedPose) and f.cameras == ("camera",) and f.dof == 0
     np.testing.assert_array_equal(f.board2rig, p.board2cam)
+    np.testing.assert_array_equal(f.board2cam, p.board2cam)  # one camera: its own frame's pose
     np.testing.assert_allclose(f.cov, p.cov, rtol=1e-12, atol=0)
     np.testing.assert_allclose(f.cov_noise, p.cov_noise, rtol=1e-12, atol=1e-24)
     np.testing.assert_array_equal(f.calibration_jacobian, p.calibration_jacobian)
@@ -256,6 +257,10 @@ def test_a_board_seen_by_the_second_camera_only_is_mapped_to_the_rig_frame():
     N = random_cov(rng)
     f = fuse_poses(rig, {"right": pose_of(Tc[1], N, np.zeros((6, 9)))}, board=BOARD)
     np.testing.assert_allclose(f.board2rig, T_rig, atol=1e-9)
+    np.testing.assert_allclose(f.board2cam, Tc[1], atol=1e-9)  # the right camera's own pose
+    both = fuse_poses(rig, {"left": pose_of(Tc[0], N, np.zeros((6, 9))), "right": f.views[0].pose})
+    with pytest.raises(AttributeError, match="fused from 2 cameras has no one camera frame: read board2rig"):
+        _ = both.board2cam
     R = rig.cameras[1].cam2rig[:3, :3]
     J = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), R]])
     np.testing.assert_allclose(f.cov_noise, J @ N @ J.T, rtol=1e-12, atol=1e-20)

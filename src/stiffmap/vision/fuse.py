@@ -178,6 +178,23 @@ class FusedPose(PoseEstimate):
         return self.board2rig
 
     @property
+    def board2cam(self) -> np.ndarray:
+        """One camera's view: that camera's own pose of the board (its frame; ``board2rig`` is
+        the same when the camera frame is the rig's, as for a camera.json measured alone).
+
+        Raises
+        ------
+        AttributeError
+            Several cameras: there is no one camera frame (read ``board2rig``, or a view's).
+        """
+        if len(self.views) == 1:
+            return self.views[0].pose.board2cam
+        raise AttributeError(
+            f"a pose fused from {len(self.views)} cameras has no one camera frame: read board2rig "
+            "(the rig frame's) or views[i].pose.board2cam (camera i's)"
+        )
+
+    @property
     def cameras(self) -> tuple[str, ...]:
         """Names of the cameras that saw the board."""
         return tuple(v.camera for v in self.views)
