@@ -536,5 +536,6 @@ def _consistency_warning(views, chi2: float, dof: int, label: str) -> str | None
     return (
         f"the cameras disagree on the pose of the {label}: chi2 = {chi2:.0f} for {dof} degrees of freedom, "
         f"above its {100 * CONSISTENCY_QUANTILE:g} % quantile {limit:.1f} (each camera's pose from the "
-        f"fused one: {parts}); is the rig file this rig's, or did a camera move since it was calibrated?"
+        f"fused one: {parts}); is the rig file this rig's, did a camera move since it was calibrated, or "
+        "did the board move between the cameras' exposures?"
     )
