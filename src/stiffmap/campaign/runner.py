@@ -146,17 +146,7 @@ def run_vision_campaign(
     """
     t_start = time.perf_counter()
     campaign = _read_campaign(campaign_dir, method, allow_outside)  # plan: the spec's positions and images
-    summary = RunSummary(
-        campaign=campaign.spec.name,
-        positions=len(campaign.tasks),
-        db=str(campaign.db),
-        camera_file=campaign.camera_path.name,
-        calibration_known=campaign.rig.calibration_cov is not None,
-    )
-    for t in campaign.tasks:
-        for rel in t.missing:
-            summary.failures.append(f"{rel}: image not found (position {t.index})")
-    summary.backend = Backend(workers=workers, dask=dask).describe()
+    summary = _new_summary(campaign, Backend(workers=workers, dask=dask))
     with contextlib.ExitStack() as stack:  # a cluster first: an address that does not answer stops here
         backend = stack.enter_context(connected(Backend(workers=workers, dask=dask)))
         store = stack.enter_context(Store(campaign.db))
@@ -176,6 +166,22 @@ def run_vision_campaign(
         summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root, summary.info))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
+    return summary
+
+
+def _new_summary(campaign: _Campaign, backend: Backend) -> RunSummary:
+    """The run's summary before it measures: the campaign, its images not found, the backend."""
+    summary = RunSummary(
+        campaign=campaign.spec.name,
+        positions=len(campaign.tasks),
+        db=str(campaign.db),
+        camera_file=campaign.camera_path.name,
+        calibration_known=campaign.rig.calibration_cov is not None,
+    )
+    for t in campaign.tasks:
+        for rel in t.missing:
+            summary.failures.append(f"{rel}: image not found (position {t.index})")
+    summary.backend = backend.describe()
     return summary
 
 
@@ -583,17 +589,7 @@ def fit_and_evaluate_model(
     pts = np.array([[r.x, r.y, r.z] for r in rows], dtype=float)
     ok = [r for r in rows if r.status == "ok"]
     disp = store.displacement_rows(only_ok=True) if kind.joint_params or six else []
-    ihash = params_hash(
-        {
-            "model": name,
-            "params": spec.robot.params,
-            "robot": spec.robot.model_dump(exclude={"params"}),
-            "xyz": pts.tolist(),
-            **_turned(spec),  # level: the hash as before
-            "K": [r.K for r in ok],
-            "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
-        }
-    )
+    ihash = _model_inputs_hash(spec, pts, ok, disp)
     fit_row: dict[str, Any] = {
         "name": "stiffness",
         "model": name,
@@ -608,6 +604,29 @@ def fit_and_evaluate_model(
     else:
         fitted = _fit_to_measured(model, ok, spec, fit_row, problems)
     mm = platform_map(fitted, _poses(spec, rows), _lever(spec)) if six else fitted.evaluate(pts)
+    store.save_model_stiffness(fit_row, _model_rows(rows, mm, name, ihash, problems))
+    return problems
+
+
+def _model_inputs_hash(spec: CampaignSpec, pts: np.ndarray, ok: list, disp: list) -> str:
+    """The hash of what the model step used: the model, its parameters and robot, the positions
+    (and orientations), the measured K and displacements."""
+    return params_hash(
+        {
+            "model": spec.robot.model,
+            "params": spec.robot.params,
+            "robot": spec.robot.model_dump(exclude={"params"}),
+            "xyz": pts.tolist(),
+            **_turned(spec),  # level: the hash as before
+            "K": [r.K for r in ok],
+            "d": [(d.position, d.load, d.repeat, d.d, d.cov) for d in disp],
+        }
+    )
+
+
+def _model_rows(rows: list, mm, name: str, ihash: str, problems: list[str]) -> list[dict]:
+    """The model's stiffness at each position, as stored; a position outside the model is
+    appended to ``problems``."""
     per_position = []
     for r, K, valid, reason, det, lam in zip(
         rows, mm.K, mm.valid, mm.reasons, mm.det, mm.min_principal, strict=True
@@ -627,8 +646,7 @@ def fit_and_evaluate_model(
         if not valid:
             where = f"({r.x:g}, {r.y:g}, {r.z:g})"
             problems.append(f"position {r.position} {where}: outside the model: {reason}")
-    store.save_model_stiffness(fit_row, per_position)
-    return problems
+    return per_position
 
 
 def _turned(spec: CampaignSpec) -> dict:

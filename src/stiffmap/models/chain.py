@@ -845,19 +845,8 @@ class Chain:
             A = J[:3] if Rt is None else np.vstack([J[:3], L * J[3:]])
             e = e_p if Rt is None else np.concatenate([e_p, L * e_r])
             cost = float(e @ e)
-            while True:
-                H = A @ A.T
-                step = A.T @ np.linalg.solve(
-                    H + lam * (np.trace(H) / H.shape[0] + 1e-30) * np.eye(H.shape[0]), e
-                )
-                qn = q + step
-                pn, Rn = self.forward(qn)
-                n_p, n_r = error(pn, Rn)
-                en = n_p if Rt is None else np.concatenate([n_p, L * n_r])
-                if float(en @ en) < cost or lam > 1e6:
-                    break
-                lam *= 10.0
-            if float(en @ en) >= cost:
+            qn, n_p, n_r, cost_n, lam = self._damped_step(q, A, e, cost, lam, error, Rt is None, L)
+            if cost_n >= cost:
                 break
             q, e_p, e_r = qn, n_p, n_r
             lam = max(lam / 10.0, 1e-12)
@@ -865,6 +854,21 @@ class Chain:
         # The steps stalled (round-off) or ran out: converged when within a thousand times the
         # tolerances (1e-6 mm and 1e-9 rad by default), not reached otherwise.
         return IKResult(self._near(q, q_start), ep < tol_mm * 1e3 and er < tol_rad * 1e3, ep, er, it)
+
+    def _damped_step(self, q, A, e, cost: float, lam: float, error, position_only: bool, L: float):
+        """A Levenberg-Marquardt step of :meth:`inverse`: the damping ``lam`` raised tenfold until
+        the step lowers the weighted cost (or ``lam`` passes 1e6); the new joints, their position
+        and rotation errors, weighted cost, and the damping."""
+        while True:
+            H = A @ A.T
+            step = A.T @ np.linalg.solve(H + lam * (np.trace(H) / H.shape[0] + 1e-30) * np.eye(H.shape[0]), e)
+            qn = q + step
+            pn, Rn = self.forward(qn)
+            n_p, n_r = error(pn, Rn)
+            en = n_p if position_only else np.concatenate([n_p, L * n_r])
+            if float(en @ en) < cost or lam > 1e6:
+                return qn, n_p, n_r, float(en @ en), lam
+            lam *= 10.0
 
     def _near(self, q: np.ndarray, seed: np.ndarray) -> np.ndarray:
         """``q`` with each revolute joint turned by whole turns to lie within half a turn of ``seed``."""

@@ -295,28 +295,9 @@ def _check_design(names, J: np.ndarray, scale: float) -> tuple[float, np.ndarray
     return float(1.0 / inv_cond), sens
 
 
-def _fit(
-    kind: str,
-    model: Mechanism,
-    params: Sequence[str],
-    predict,
-    y: np.ndarray,
-    sigma: np.ndarray | None,
-    poses: np.ndarray,
-    pose_index: np.ndarray,
-    absolute_sigma: bool,
-    weights: np.ndarray | None = None,
-    whiten: np.ndarray | None = None,
-) -> ModelFit:
-    """The fit; ``weights`` (relative, used only when ``sigma`` is None) scale observations of
-    mixed units (K6's blocks) without claiming to be their standard errors; ``whiten`` (m, d, d),
-    when given, whitens the observations d at a time (``L^-1`` of each group's covariance,
-    :func:`~stiffmap.models.whiten.whitener`) instead of dividing them by ``sigma``, which is
-    then only recorded."""
-    names, p0 = _check_names(model, params)
-    n, p = y.size, len(names)
-    if n < p:
-        raise DesignError(f"{n} observation(s) cannot determine {p} parameters ({', '.join(names)})")
+def _weigher(sigma, weights, whiten, n: int):
+    """The observations' weights (``sigma``, else ``weights``, else ones) and the function that
+    weighs a residual vector (divides by them, or whitens ``d`` at a time by ``whiten``)."""
     w = (np.ones(n) if weights is None else weights) if sigma is None else sigma
     if whiten is None:
 
@@ -328,9 +309,12 @@ def _fit(
         def weigh(r: np.ndarray) -> np.ndarray:
             return np.einsum("mab,mb->ma", whiten, r.reshape(-1, d)).reshape(-1)
 
-    notes: list[str] = []
-    if sigma is None and absolute_sigma:
-        raise ValueError("absolute_sigma=True needs the standard errors of the observations")
+    return w, weigh
+
+
+def _residual_functions(model: Mechanism, names, predict, y: np.ndarray, weigh):
+    """The model at log parameters ``x`` and the weighted residuals there; a parameter run to 0
+    or infinity, or a pose made unreachable, is a :class:`DesignError` naming the values."""
 
     def model_at(x: np.ndarray) -> Mechanism:
         values = np.exp(x)
@@ -353,6 +337,53 @@ def _fit(
             )
         return weigh(y - yhat)
 
+    return model_at, resid
+
+
+def _log_covariance(
+    J: np.ndarray, red: float, dof: int, absolute_sigma: bool, notes: list[str]
+) -> np.ndarray:
+    """Covariance of the log parameters: ``(J^T J)^-1``, times the reduced chi-square unless
+    ``absolute_sigma``; NaN (with a note) without a residual degree of freedom."""
+    cov_log = np.linalg.inv(J.T @ J)
+    if absolute_sigma:
+        pass
+    elif dof > 0:
+        cov_log = cov_log * red
+    else:
+        p = J.shape[1]
+        cov_log = np.full((p, p), np.nan)
+        notes.append("no residual degree of freedom: standard errors unknown (give std and absolute_sigma)")
+    return cov_log
+
+
+def _fit(
+    kind: str,
+    model: Mechanism,
+    params: Sequence[str],
+    predict,
+    y: np.ndarray,
+    sigma: np.ndarray | None,
+    poses: np.ndarray,
+    pose_index: np.ndarray,
+    absolute_sigma: bool,
+    weights: np.ndarray | None = None,
+    whiten: np.ndarray | None = None,
+) -> ModelFit:
+    """The fit; ``weights`` (relative, used only when ``sigma`` is None) scale observations of
+    mixed units (K6's blocks) without claiming to be their standard errors; ``whiten`` (m, d, d),
+    when given, whitens the observations d at a time (``L^-1`` of each group's covariance,
+    :func:`~stiffmap.models.whiten.whitener`) instead of dividing them by ``sigma``, which is
+    then only recorded."""
+    names, p0 = _check_names(model, params)
+    n, p = y.size, len(names)
+    if n < p:
+        raise DesignError(f"{n} observation(s) cannot determine {p} parameters ({', '.join(names)})")
+    w, weigh = _weigher(sigma, weights, whiten, n)
+    notes: list[str] = []
+    if sigma is None and absolute_sigma:
+        raise ValueError("absolute_sigma=True needs the standard errors of the observations")
+    model_at, resid = _residual_functions(model, names, predict, y, weigh)
     x0 = np.log(p0)
     yhat0 = predict(model)
     scale = float(np.linalg.norm(weigh(yhat0)))
@@ -376,26 +407,65 @@ def _fit(
     chi2 = float(r_w @ r_w)
     dof = n - p
     red = chi2 / dof if dof > 0 else float("nan")
-    cov_log = np.linalg.inv(J.T @ J)
-    if absolute_sigma:
-        pass
-    elif dof > 0:
-        cov_log = cov_log * red
-    else:
-        cov_log = np.full((p, p), np.nan)
-        notes.append("no residual degree of freedom: standard errors unknown (give std and absolute_sigma)")
-    est = np.exp(x)
+    cov_log = _log_covariance(J, red, dof, absolute_sigma, notes)
+    return _model_fit(
+        kind,
+        names,
+        p0,
+        res,
+        cov_log,
+        fitted,
+        predict(fitted),
+        y,
+        w,
+        sigma is not None,
+        poses,
+        pose_index,
+        chi2=chi2,
+        dof=dof,
+        red=red,
+        condition=condition,
+        sens=sens,
+        absolute_sigma=absolute_sigma,
+        notes=notes,
+    )
+
+
+def _model_fit(
+    kind: str,
+    names,
+    p0,
+    res,
+    cov_log,
+    fitted,
+    yhat,
+    y,
+    w,
+    has_sigma: bool,
+    poses,
+    pose_index,
+    *,
+    chi2: float,
+    dof: int,
+    red: float,
+    condition: float,
+    sens,
+    absolute_sigma: bool,
+    notes: list[str],
+) -> ModelFit:
+    """The :class:`ModelFit` of a solved fit: the parameters' covariance from the log ones
+    (``dp = p dlog p``), the residuals and their RMS per pose, the notes (read-only arrays)."""
+    est = np.exp(res.x)
     cov = cov_log * np.outer(est, est)
     std = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
-    yhat = predict(fitted)
     resid_raw = y - yhat
     n_poses = poses.shape[0]
     rms = np.sqrt(np.bincount(pose_index, resid_raw**2, n_poses) / np.bincount(pose_index, minlength=n_poses))
     if not res.success:
         notes.append(f"least squares did not converge: {res.message}")
-    notes.extend(_misfit_notes(names, chi2, dof, sigma is not None, resid_raw, y))
+    notes.extend(_misfit_notes(names, chi2, dof, has_sigma, resid_raw, y))
     for a in (est, std, cov, corr, p0, poses, pose_index, y, yhat, w, resid_raw, rms, sens):
         a.setflags(write=False)
     return ModelFit(
@@ -653,6 +723,49 @@ def fit_static_errors(
     return _fit("static_error", model, params, predict, y, s, poses, idx, absolute_sigma)
 
 
+def _deflection_inputs(model: Mechanism, points, wrenches, deflections):
+    """The poses, wrenches and deflections of :func:`fit_deflections6`, checked: (n, 6) each,
+    finite, not every wrench zero."""
+    if model.dim != POSE_DIM:
+        raise ValueError(f"{model.name}: 6-DOF deflections need a platform that turns (dim = 6)")
+    P, _ = as_points(points, POSE_DIM)
+    n = P.shape[0]
+    W = np.asarray(wrenches, dtype=np.float64)
+    D = np.asarray(deflections, dtype=np.float64)
+    for a, name in ((W, "wrenches"), (D, "deflections")):
+        if a.shape != (n, 6):
+            raise ValueError(f"{name} must have shape ({n}, 6), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} contains NaN or infinite values")
+    if np.all(W == 0):
+        raise DesignError("every wrench is zero: deflections without load cannot determine stiffness")
+    return P, W, D
+
+
+def _deflection_fitter(P: np.ndarray, W: np.ndarray, D: np.ndarray, params, absolute_sigma: bool):
+    """``fit_with(start, Cx, absolute)``: the deflections fitted from the model ``start`` with
+    the covariances ``Cx`` (whitened by them; None: relative weights, rad as L mm)."""
+    n = P.shape[0]
+    poses, idx = _group_poses(P)
+
+    def predict(m: Mechanism) -> np.ndarray:
+        K6 = m.evaluate(poses).K6[idx]
+        return np.linalg.solve(K6, W[..., None])[..., 0].reshape(-1)
+
+    y, obs_pose = D.reshape(-1), np.repeat(idx, 6)
+
+    def fit_with(start: Mechanism, Cx: np.ndarray | None, absolute: bool = absolute_sigma) -> ModelFit:
+        if Cx is None:  # no covariance: relative weights, rad as L mm
+            L = float(getattr(start, "length_mm", 100.0))
+            weights = np.tile([1.0, 1.0, 1.0, 1 / L, 1 / L, 1 / L], n)
+            return _fit("deflection6", start, params, predict, y, None, poses, obs_pose, absolute, weights)
+        sigma = np.sqrt(np.einsum("mii->mi", Cx)).reshape(-1)
+        Linv = whitener(Cx, n, 6)
+        return _fit("deflection6", start, params, predict, y, sigma, poses, obs_pose, absolute, whiten=Linv)
+
+    return fit_with
+
+
 def fit_deflections6(
     model: Mechanism,
     points,
@@ -712,38 +825,10 @@ def fit_deflections6(
     InputError
         ``cov`` of a wrong shape, not finite, symmetric or positive definite (its row named).
     """
-    if model.dim != POSE_DIM:
-        raise ValueError(f"{model.name}: 6-DOF deflections need a platform that turns (dim = 6)")
-    P, _ = as_points(points, POSE_DIM)
-    n = P.shape[0]
-    W = np.asarray(wrenches, dtype=np.float64)
-    D = np.asarray(deflections, dtype=np.float64)
-    for a, name in ((W, "wrenches"), (D, "deflections")):
-        if a.shape != (n, 6):
-            raise ValueError(f"{name} must have shape ({n}, 6), got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"{name} contains NaN or infinite values")
-    if np.all(W == 0):
-        raise DesignError("every wrench is zero: deflections without load cannot determine stiffness")
-    C = _deflection_cov(std, cov, n)
+    P, W, D = _deflection_inputs(model, points, wrenches, deflections)
+    C = _deflection_cov(std, cov, P.shape[0])
     _check_valid_poses(model, P, "observation")
-    poses, idx = _group_poses(P)
-
-    def predict(m: Mechanism) -> np.ndarray:
-        K6 = m.evaluate(poses).K6[idx]
-        return np.linalg.solve(K6, W[..., None])[..., 0].reshape(-1)
-
-    y, obs_pose = D.reshape(-1), np.repeat(idx, 6)
-
-    def fit_with(start: Mechanism, Cx: np.ndarray | None, absolute: bool = absolute_sigma) -> ModelFit:
-        if Cx is None:  # no covariance: relative weights, rad as L mm
-            L = float(getattr(start, "length_mm", 100.0))
-            weights = np.tile([1.0, 1.0, 1.0, 1 / L, 1 / L, 1 / L], n)
-            return _fit("deflection6", start, params, predict, y, None, poses, obs_pose, absolute, weights)
-        sigma = np.sqrt(np.einsum("mii->mi", Cx)).reshape(-1)
-        Linv = whitener(Cx, n, 6)
-        return _fit("deflection6", start, params, predict, y, sigma, poses, obs_pose, absolute, whiten=Linv)
-
+    fit_with = _deflection_fitter(P, W, D, params, absolute_sigma)
     if not extra_noise:
         return fit_with(model, C)
     if C is None:
