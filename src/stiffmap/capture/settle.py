@@ -208,6 +208,39 @@ def _chi2s(poses: list[np.ndarray], covs: list[np.ndarray], extra: np.ndarray) -
     return out
 
 
+def _frame_problem(boards, labels, m, max_saturated_fraction: float) -> str | None:
+    """Why a frame whose boards were found cannot be judged: a board saturated, or seen only
+    in part (None: it can)."""
+    for b, label in zip(boards, labels, strict=True):
+        if b.saturated_fraction > max_saturated_fraction:
+            return (
+                f"the {label} is saturated ({100 * b.saturated_fraction:.1f} % of its pixels at "
+                f"{SATURATED_DN}): lower the exposure time, the gain or the light"
+            )
+    for name, det in (("mobile", m.mobile_detection), ("fixed", m.fixed_detection)):
+        if not det.complete:
+            return f"only part of the {name} target is seen ({det.n_corners} corners)"
+    return None
+
+
+def _rest(frames: list[_Seen], vib: np.ndarray, limit: float) -> tuple[float, float]:
+    """chi2 of all the frames, and the time at rest: that of the longest trailing run of frames
+    within the noise of their own mean (0 when none)."""
+    chi2_all = np.nan
+    at_rest = 0.0
+    for start in range(len(frames)):
+        run = frames[start:]
+        c_m = _chi2s([f.mobile for f in run], [f.mobile_cov for f in run], vib)
+        c_f = _chi2s([f.fixed for f in run], [f.fixed_cov for f in run], np.zeros((6, 6)))
+        c = float(max(c_m.max(), c_f.max()))
+        if start == 0:
+            chi2_all = c
+        if c <= limit:
+            at_rest = frames[-1].t - run[0].t
+            break
+    return chi2_all, at_rest
+
+
 def board_exposure(image: np.ndarray, det: BoardDetection, name: str) -> BoardCheck:
     """Exposure and sharpness on a found board's squares (its quadrilateral, one square past the
     outer inner corners)."""
@@ -300,21 +333,27 @@ class SettleMonitor:
         """Forget the frames seen (after a load change or a move: the platform is not at rest)."""
         self._window.clear()
 
+    def _quick_miss(self, img: np.ndarray, timestamp_s: float) -> FrameCheck | None:
+        """The frame's check when the quick search misses a board (None: search fully); every
+        :data:`FULL_SEARCH_EVERY`-th such frame is searched fully all the same."""
+        missing = self._quick_missing(img)
+        if missing and self._quick_misses % FULL_SEARCH_EVERY != FULL_SEARCH_EVERY - 1:
+            self._quick_misses += 1
+            self.reset()
+            boards = tuple(BoardCheck(n, n not in missing) for n in ("mobile", "fixed"))
+            labels = [lb for n, lb in zip(("mobile", "fixed"), self.labels, strict=True) if n in missing]
+            why = f"board not found: the {' and the '.join(labels)} not in view (or not recognisable)"
+            return FrameCheck(timestamp_s, boards, why, np.nan, self.settings.chi2_limit, 0.0, False)
+        self._quick_misses = 0
+        return None
+
     def check(self, image, timestamp_s: float) -> FrameCheck:
         """Judge one frame (a grey or BGR uint8 array) taken at ``timestamp_s`` (s)."""
         s = self.settings
         img = check_image(image)
         limit = s.chi2_limit
-        if not self._tracking:
-            missing = self._quick_missing(img)
-            if missing and self._quick_misses % FULL_SEARCH_EVERY != FULL_SEARCH_EVERY - 1:
-                self._quick_misses += 1
-                self.reset()
-                boards = tuple(BoardCheck(n, n not in missing) for n in ("mobile", "fixed"))
-                labels = [lb for n, lb in zip(("mobile", "fixed"), self.labels, strict=True) if n in missing]
-                why = f"board not found: the {' and the '.join(labels)} not in view (or not recognisable)"
-                return FrameCheck(timestamp_s, boards, why, np.nan, limit, 0.0, False)
-            self._quick_misses = 0
+        if not self._tracking and (missed := self._quick_miss(img, timestamp_s)) is not None:
+            return missed
         m = self.tracker.measure(img, name="live frame")
         self._tracking = m.ok
         if not m.ok:
@@ -327,17 +366,7 @@ class SettleMonitor:
             board_exposure(img, m.mobile_detection, "mobile"),
             board_exposure(img, m.fixed_detection, "fixed"),
         )
-        problem = None
-        for b, label in zip(boards, self.labels, strict=True):
-            if b.saturated_fraction > s.max_saturated_fraction:
-                problem = (
-                    f"the {label} is saturated ({100 * b.saturated_fraction:.1f} % of its pixels at "
-                    f"{SATURATED_DN}): lower the exposure time, the gain or the light"
-                )
-                break
-        for name, det in (("mobile", m.mobile_detection), ("fixed", m.fixed_detection)):
-            if problem is None and not det.complete:
-                problem = f"only part of the {name} target is seen ({det.n_corners} corners)"
+        problem = _frame_problem(boards, self.labels, m, s.max_saturated_fraction)
         prev = self._window[-1] if self._window else None
         seen = _Seen(
             float(timestamp_s),
@@ -362,20 +391,7 @@ class SettleMonitor:
         tol = 1e-6
         while w and w[0].t < seen.t - s.settle_seconds - tol:
             w.popleft()
-        # The longest trailing run of frames within the noise of their own mean.
-        frames = list(w)
-        chi2_all = np.nan
-        at_rest = 0.0
-        for start in range(len(frames)):
-            run = frames[start:]
-            c_m = _chi2s([f.mobile for f in run], [f.mobile_cov for f in run], self._vib)
-            c_f = _chi2s([f.fixed for f in run], [f.fixed_cov for f in run], np.zeros((6, 6)))
-            c = float(max(c_m.max(), c_f.max()))
-            if start == 0:
-                chi2_all = c
-            if c <= limit:
-                at_rest = seen.t - run[0].t
-                break
+        chi2_all, at_rest = _rest(list(w), self._vib, limit)
         settled = at_rest >= s.settle_seconds - tol
         return FrameCheck(
             timestamp_s,

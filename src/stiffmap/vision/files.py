@@ -516,6 +516,43 @@ def match_views(
     )
 
 
+def _camera_names(cameras) -> list[str]:
+    """The cameras' names, checked: at least one camera, no outer spaces, none given twice."""
+    if not cameras:
+        raise InputError("no cameras given")
+    names = [str(n) for n, _ in cameras]
+    for n in names:
+        if not n.strip() or n != n.strip():
+            raise InputError(f"camera name {n!r}: a camera needs a name without outer spaces")
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        raise InputError(f"camera {dup} is given twice: cameras need different names")
+    return names
+
+
+def _camera_detections(name: str, row: list, board: Board, scale: int | None, tick):
+    """One camera's detections in each view (None where it has no image) and its image size;
+    refused when none of its images could be read or they differ in size."""
+    paths = [p for p in row if p is not None]
+    d, sz, _ = _detect_files(paths, board, scale, tick, early=True)
+    seen = [s for s in sz if s is not None]
+    if not seen:
+        raise InputError(
+            f"camera {name}: none of its {len(paths)} images could be read: "
+            + "; ".join(f"{p}: {x}" for p, x in zip(paths, d, strict=True))
+        )
+    if len(set(seen)) > 1:
+        common = max(dict.fromkeys(seen), key=seen.count)
+        odd = next(p for p, s in zip(paths, sz, strict=True) if s is not None and s != common)
+        w, h = next(s for s in sz if s is not None and s != common)
+        raise InputError(
+            f"camera {name}: its images are not all of one size: {odd} is {w}x{h} px, "
+            f"{seen.count(common)} others are {common[0]}x{common[1]} px (an image of another camera?)"
+        )
+    it = iter(d)
+    return [None if p is None else next(it) for p in row], seen[0]
+
+
 def calibrate_rig_files(
     cameras: Sequence[tuple[str, str | os.PathLike]],
     board: Board,
@@ -560,15 +597,7 @@ def calibrate_rig_files(
         fewer than 3 usable views or fewer than 2 shared with the others.
     """
     board = as_board(board, square_mm, "board")
-    if not cameras:
-        raise InputError("no cameras given")
-    names = [str(n) for n, _ in cameras]
-    for n in names:
-        if not n.strip() or n != n.strip():
-            raise InputError(f"camera name {n!r}: a camera needs a name without outer spaces")
-    dup = next((n for n in names if names.count(n) > 1), None)
-    if dup is not None:
-        raise InputError(f"camera {dup} is given twice: cameras need different names")
+    names = _camera_names(cameras)
     files = [camera_images(n, pat) for n, pat in cameras]
     view_names, table = match_views(names, files)
     check_board_size([p for fs in files for p in fs], board, progress=progress)
@@ -584,25 +613,9 @@ def calibrate_rig_files(
     dets: list[list[BoardDetection | str | None]] = []
     sizes: list[tuple[int, int]] = []
     for name, row in zip(names, table, strict=True):
-        paths = [p for p in row if p is not None]
-        d, sz, _ = _detect_files(paths, board, scale, tick, early=True)
-        seen = [s for s in sz if s is not None]
-        if not seen:
-            raise InputError(
-                f"camera {name}: none of its {len(paths)} images could be read: "
-                + "; ".join(f"{p}: {x}" for p, x in zip(paths, d, strict=True))
-            )
-        if len(set(seen)) > 1:
-            common = max(dict.fromkeys(seen), key=seen.count)
-            odd = next(p for p, s in zip(paths, sz, strict=True) if s is not None and s != common)
-            w, h = next(s for s in sz if s is not None and s != common)
-            raise InputError(
-                f"camera {name}: its images are not all of one size: {odd} is {w}x{h} px, "
-                f"{seen.count(common)} others are {common[0]}x{common[1]} px (an image of another camera?)"
-            )
-        sizes.append(seen[0])
-        it = iter(d)
-        dets.append([None if p is None else next(it) for p in row])
+        d, size = _camera_detections(name, row, board, scale, tick)
+        sizes.append(size)
+        dets.append(d)
     return calibrate_rig(
         dets,
         board,
