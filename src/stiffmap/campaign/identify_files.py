@@ -92,6 +92,58 @@ class IdentifyReport:
         }
 
 
+def _columns(ft, dt, ff: str, df: str, notes: list[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The force and displacement columns identified from: with rotations when the forces carry
+    moments (all three, and the rotations then needed), else the forces and displacements."""
+    f_mom = [c for c in FORCE_COLUMNS[3:] if ft.has(c)]
+    d_rot = [c for c in DISP_COLUMNS[3:] if dt.has(c)]
+    if f_mom and len(f_mom) < 3:
+        missing = [c for c in FORCE_COLUMNS[3:] if c not in f_mom]
+        raise InputError(f"has moment column(s) {', '.join(f_mom)} but not {', '.join(missing)}", source=ff)
+    if f_mom:
+        if len(d_rot) < 3:
+            missing = [c for c in DISP_COLUMNS[3:] if c not in d_rot]
+            raise InputError(
+                f"missing column(s) {', '.join(repr(c) for c in missing)}: the forces carry moments "
+                f"(mx, my, mz), so rotations are needed for a 6x6 stiffness",
+                source=df,
+            )
+        return FORCE_COLUMNS, DISP_COLUMNS
+    if d_rot:
+        notes.append("rotations in the displacements are not used: the forces have no moments (3x3 K)")
+    return FORCE_COLUMNS[:3], DISP_COLUMNS[:3]
+
+
+def _repeat_groups(dt, D_all: np.ndarray, n_loads: int, ff: str, df: str) -> list[np.ndarray]:
+    """The displacements of each repeat (the ``repeat`` column's labels in their order; one
+    repeat without it), each one row per load case."""
+    if "repeat" not in dt.text:
+        if D_all.shape[1] != n_loads:
+            raise InputError(
+                f"has {D_all.shape[1]} data rows but {ff} has {n_loads} load cases; "
+                "give one row per load case in the same order (or a 'repeat' column for repeats)",
+                source=df,
+            )
+        return [D_all]
+    labels = dt.text["repeat"]
+    order: list[str] = []
+    for lab in labels:
+        if lab == "":
+            raise InputError("column 'repeat' has an empty cell", source=df)
+        if lab not in order:
+            order.append(lab)
+    groups = []
+    for lab in order:
+        rows = [i for i, x in enumerate(labels) if x == lab]
+        if len(rows) != n_loads:
+            raise InputError(
+                f"repeat {lab!r} has {len(rows)} rows, expected {n_loads} (one per load case in {ff})",
+                source=df,
+            )
+        groups.append(D_all[:, rows])
+    return groups
+
+
 def identify_from_files(
     forces_file: str | Path, displacements_file: str | Path, *, method: str = "compliance"
 ) -> IdentifyReport:
@@ -113,56 +165,16 @@ def identify_from_files(
     dt.check_magnitude(DISP_COLUMNS[:3], MAX_DISPLACEMENT_MM, "mm", "compliant displacement")
     dt.check_magnitude(DISP_COLUMNS[3:], MAX_ROTATION_RAD, "rad", "compliant rotation")
     notes: list[str] = []
-    f_mom = [c for c in FORCE_COLUMNS[3:] if ft.has(c)]
-    d_rot = [c for c in DISP_COLUMNS[3:] if dt.has(c)]
-    if f_mom and len(f_mom) < 3:
-        missing = [c for c in FORCE_COLUMNS[3:] if c not in f_mom]
-        raise InputError(f"has moment column(s) {', '.join(f_mom)} but not {', '.join(missing)}", source=ff)
-    if f_mom:
-        if len(d_rot) < 3:
-            missing = [c for c in DISP_COLUMNS[3:] if c not in d_rot]
-            raise InputError(
-                f"missing column(s) {', '.join(repr(c) for c in missing)}: the forces carry moments "
-                f"(mx, my, mz), so rotations are needed for a 6x6 stiffness",
-                source=df,
-            )
-        fcols, dcols = FORCE_COLUMNS, DISP_COLUMNS
-    else:
-        fcols, dcols = FORCE_COLUMNS[:3], DISP_COLUMNS[:3]
-        if d_rot:
-            notes.append("rotations in the displacements are not used: the forces have no moments (3x3 K)")
+    fcols, dcols = _columns(ft, dt, ff, df, notes)
     F1 = ft.stack(fcols)
     D_all = dt.stack(dcols)
     n_loads = F1.shape[1]
+    groups = _repeat_groups(dt, D_all, n_loads, ff, df)
     if "repeat" in dt.text:
-        labels = dt.text["repeat"]
-        order: list[str] = []
-        for lab in labels:
-            if lab == "":
-                raise InputError("column 'repeat' has an empty cell", source=df)
-            if lab not in order:
-                order.append(lab)
-        groups = []
-        for lab in order:
-            rows = [i for i, x in enumerate(labels) if x == lab]
-            if len(rows) != n_loads:
-                raise InputError(
-                    f"repeat {lab!r} has {len(rows)} rows, expected {n_loads} (one per load case in {ff})",
-                    source=df,
-                )
-            groups.append(D_all[:, rows])
-        D = np.concatenate(groups, axis=1)
-        F = np.tile(F1, len(groups))
-        repeats = len(groups)
+        D, F = np.concatenate(groups, axis=1), np.tile(F1, len(groups))
     else:
-        if D_all.shape[1] != n_loads:
-            raise InputError(
-                f"has {D_all.shape[1]} data rows but {ff} has {n_loads} load cases; "
-                "give one row per load case in the same order (or a 'repeat' column for repeats)",
-                source=df,
-            )
-        D, F, repeats = D_all, F1, 1
-        groups = [D_all]
+        D, F = D_all, F1
+    repeats = len(groups)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StiffmapWarning)
         try:

@@ -256,7 +256,6 @@ def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
         n = m["points"].shape[1]
         return [f"campaign.toml: sensor points have {n} coordinates but the {name} model has {model.dim}"]
     v = m["valid"]
-    ref = m["reference_load_n"]
     ihash = params_hash(
         {
             "model": name,
@@ -283,6 +282,16 @@ def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
         )
     reach = model.evaluate(m["points"]).valid
     v = v & ~negative & reach  # unreachable points are named below
+    fitted = _fit_static(model, m, v, fit_names, row, problems)
+    _save_static_errors(store, fitted, m, row, name, ihash, problems)
+    return problems
+
+
+def _fit_static(model, m: dict, v: np.ndarray, fit_names, row: dict[str, Any], problems: list[str]):
+    """The model fitted to the usable recordings ``v`` (``model`` itself when the fit fails: the
+    failure in ``row`` and ``problems``); the fit's columns in ``row``."""
+    ref = m["reference_load_n"]
+    fitted = model
     try:
         if v.sum() == 0:
             raise InputError("no usable recording to fit")
@@ -301,7 +310,15 @@ def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
     except (InputError, ValueError) as e:
         row.update(status="failed", error=str(e))
         problems.append(f"model fit: {e}")
-    # The fitted model's static error along each measured direction, and its reach.
+    return fitted
+
+
+def _save_static_errors(
+    store: Store, fitted, m: dict, row: dict[str, Any], name: str, ihash: str, problems: list[str]
+) -> None:
+    """Store the fit ``row`` and the fitted model's static error along each measured direction,
+    and its reach (a recording outside it appended to ``problems``)."""
+    ref = m["reference_load_n"]
     mm = fitted.evaluate(m["points"])
     pred = np.einsum("ij,ij->i", mm.static_error(ref * m["directions"]), m["directions"])
     store.save_model_static_errors(
@@ -323,4 +340,3 @@ def _fit_model(spec: CampaignSpec, store: Store, root: Path) -> list[str]:
             problems.append(
                 f"recording {f}: point {m['points'][i].tolist()} outside the model: {mm.reasons[i]}"
             )
-    return problems

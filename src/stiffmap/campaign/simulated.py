@@ -637,6 +637,43 @@ def write_campaign(
         return _write_campaign(out, config, backend, render_images, progress, command, plan, t0)
 
 
+def _no_calibration_note(config: SimConfig) -> str:
+    """Why a simulated campaign holds the true camera (no calibration views rendered)."""
+    if config.scene.rig is not None and not config.calibration_views:
+        return "no calibration views (calibration_views = 0, --true-camera): rig.json holds the true cameras"
+    if config.calibration_views:
+        return "truth only: no images to calibrate from"
+    return "no calibration views (calibration_views = 0, --true-camera)"
+
+
+def _write_setup(out: Path, config: SimConfig, plan: CampaignPlan, command: str, result, rig_result) -> None:
+    """Write the camera (or rig) calibrated or true, the robot's own files and campaign.toml."""
+    rig = config.scene.rig
+    if rig is None:
+        save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
+    else:
+        save_rig(rig if rig_result is None else rig_result.rig, out / RIG_NAME)
+    for name, source in config.robot.files.items():  # the robot's own files (a URDF robot's URDF)
+        atomic_write_bytes(out / name, source if isinstance(source, bytes) else Path(source).read_bytes())
+    spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
+    header = (
+        f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "
+        f"seed {config.seed}).\n"
+        f"The ground truth (true K at every position, every image's poses and corners) is in {TRUTH_NAME}."
+    )
+    atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
+
+
+def _write_corners(out: Path, corners: list, rendered_views: dict) -> None:
+    """Write the true corners of every image (and calibration view) to ``corners.json.gz``."""
+    gz = {"format": TRUTH_FORMAT, "images": corners}
+    if rendered_views:
+        # In file order (viewNN, per camera folder): the pool finishes views in any order.
+        gz["calibration"] = [rendered_views[f][0] for f in sorted(rendered_views)]
+    data = json.dumps(to_jsonable(gz), allow_nan=False)
+    atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
+
+
 def _write_campaign(
     out: Path,
     config: SimConfig,
@@ -666,30 +703,9 @@ def _write_campaign(
         n_total = len(rendered_views) + len(jobs)
     else:
         rendered_views = {}
-        if rig is not None and not config.calibration_views:
-            note = (
-                "no calibration views (calibration_views = 0, --true-camera): rig.json holds the true cameras"
-            )
-        elif config.calibration_views:
-            note = "truth only: no images to calibrate from"
-        else:
-            note = "no calibration views (calibration_views = 0, --true-camera)"
-        calibration = _true_camera(note)
+        calibration = _true_camera(_no_calibration_note(config))
     t_cal = time.perf_counter() - t_cal
-    if rig is None:
-        save_camera(config.scene.camera if result is None else result.camera, out / "camera.json")
-    else:
-        save_rig(rig if rig_result is None else rig_result.rig, out / RIG_NAME)
-    for name, source in config.robot.files.items():  # the robot's own files (a URDF robot's URDF)
-        atomic_write_bytes(out / name, source if isinstance(source, bytes) else Path(source).read_bytes())
-    spec = CampaignSpec.model_validate(campaign_spec_dict(config, plan))
-    header = (
-        f"Simulated on the virtual test-bed by {command or 'stiffmap'} (stiffmap {__version__}, "
-        f"seed {config.seed}).\n"
-        f"The ground truth (true K at every position, every image's poses and corners) is in {TRUTH_NAME}."
-    )
-    atomic_write_text(out / "campaign.toml", dump_spec(spec, header))
-
+    _write_setup(out, config, plan, command, result, rig_result)
     img_progress = None
     if progress is not None:
         img_progress = (
@@ -698,13 +714,7 @@ def _write_campaign(
     results = render_campaign_images(
         out, config, jobs, workers=backend, render_images=render_images, progress=img_progress
     )
-    corners = [results[j.file][0] for j in jobs]
-    gz = {"format": TRUTH_FORMAT, "images": corners}
-    if rendered_views:
-        # In file order (viewNN, per camera folder): the pool finishes views in any order.
-        gz["calibration"] = [rendered_views[f][0] for f in sorted(rendered_views)]
-    data = json.dumps(to_jsonable(gz), allow_nan=False)
-    atomic_write_bytes(out / CORNERS_NAME, gzip.compress(data.encode("utf-8"), mtime=0))
+    _write_corners(out, [results[j.file][0] for j in jobs], rendered_views)
     if rig_result is not None:
         cal_truth = _rig_calibration_truth(calibration, rig_result, rig)
     else:

@@ -228,10 +228,26 @@ def run(
             send_images=send_images,
         )
     nothing = done.nothing_measured()
+    _print_results(done, spec, instrument, as_json=as_json, tables=nothing is None)
+    if nothing is not None:  # one line with the first failures; summary.json lists them all
+        raise InputError(nothing + "; no report written", source=str(done.root))
+    page = (
+        write_campaign_report(done.root, done.failures, allow_outside=allow_outside_paths) if report else None
+    )
+    _print_warnings(done)  # the warnings first, then the summary that ends with "done" (read last)
+    if not as_json:
+        _print_counts(done, page, time.perf_counter() - t0)
+    if done.failures:
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+def _print_results(done, spec, instrument, *, as_json: bool, tables: bool) -> None:
+    """The run's JSON summary, or its tables (K per position and the model fit, or the
+    sensor recordings) when something was measured."""
     with Store(done.db) as store:
         if as_json:
             print_json(summary_dict(store, spec.name, done.failures, done.vision.info if done.vision else ()))
-        elif nothing is not None:
+        elif not tables:
             pass
         elif instrument.measures == STIFFNESS:
             out.print(_summary_table(store))
@@ -241,12 +257,10 @@ def run(
                 out.print(fitted)
         else:
             out.print(_sensor_table(spec, store))
-    if nothing is not None:  # one line with the first failures; summary.json lists them all
-        raise InputError(nothing + "; no report written", source=str(done.root))
-    page = (
-        write_campaign_report(done.root, done.failures, allow_outside=allow_outside_paths) if report else None
-    )
-    # The warnings first, then the summary that ends with "done" (the last thing one reads).
+
+
+def _print_warnings(done) -> None:
+    """The run's notes and failures (the first :data:`MAX_WARNINGS`; summary.json has them all)."""
     for n in done.vision.notes if done.vision is not None else ():
         warn(n)
     for n in done.vision.info if done.vision is not None else ():
@@ -258,10 +272,6 @@ def run(
             f"... and {len(done.failures) - MAX_WARNINGS} more failures, all listed in "
             f"{done.exports / 'summary.json'}"
         )
-    if not as_json:
-        _print_counts(done, page, time.perf_counter() - t0)
-    if done.failures:
-        raise typer.Exit(EXIT_PARTIAL)
 
 
 def _calibration_line(share: tuple[float, float] | None, run: RunSummary | None) -> str:

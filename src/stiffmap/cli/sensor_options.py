@@ -76,6 +76,29 @@ def parse_step_times(text: str) -> tuple[tuple[float, float], ...]:
     return tuple(out)
 
 
+def _steps(steps_kgf: str | None, steps_n: str | None):
+    """The table of applied loads and its unit (None, "kgf" without either option)."""
+    if steps_kgf and steps_n:
+        raise InputError("give either --steps-kgf or --steps-n, not both")
+    if steps_kgf:
+        return parse_loads(steps_kgf, "--steps-kgf"), "kgf"
+    if steps_n:
+        return parse_loads(steps_n, "--steps-n"), "N"
+    return None, "kgf"
+
+
+def _load_unit(load_unit: str | None, load_n_per_v: float | None) -> str | None:
+    """The load channel's unit: "V" with a load-cell scale (another unit given is an error)."""
+    if load_n_per_v is None:
+        return load_unit
+    if load_unit is not None and load_unit != "V":
+        raise InputError(
+            f"--load-n-per-v is the scale of a load channel in volts, but --load-unit is "
+            f"{load_unit}; leave one out"
+        )
+    return "V"  # a load-cell scale says the load channel is in volts
+
+
 def config_from_options(
     channel_map: str | None,
     *,
@@ -121,25 +144,13 @@ def config_from_options(
         Naming the option that is wrong (a SensorConfig field is worded as its option,
         :func:`sensor_option_names`).
     """
-    if steps_kgf and steps_n:
-        raise InputError("give either --steps-kgf or --steps-n, not both")
-    steps, unit = (None, "kgf")
-    if steps_kgf:
-        steps, unit = parse_loads(steps_kgf, "--steps-kgf"), "kgf"
-    elif steps_n:
-        steps, unit = parse_loads(steps_n, "--steps-n"), "N"
+    steps, unit = _steps(steps_kgf, steps_n)
     names = sensor_option_names(steps_n=bool(steps_n) and not steps_kgf)
     try:
         cmap = parse_channel_map(channel_map)
     except FieldError as e:
         raise e.worded(names) from None
-    if load_n_per_v is not None:
-        if load_unit is not None and load_unit != "V":
-            raise InputError(
-                f"--load-n-per-v is the scale of a load channel in volts, but --load-unit is "
-                f"{load_unit}; leave one out"
-            )
-        load_unit = "V"  # a load-cell scale says the load channel is in volts
+    load_unit = _load_unit(load_unit, load_n_per_v)
     try:
         cfg = SensorConfig(
             scale_um_per_v=scale_um_per_v,
