@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
@@ -61,6 +62,30 @@ class _ConsoleOperator:
         return "retry" if a else "quit"
 
 
+def _viewer(live: Live | None) -> Callable[[ViewState], None]:
+    """Show the capture's state: in the live view, else a line per image saved and one every
+    :data:`WAITING_LINE_S` while waiting."""
+    last_saved: list[str] = []
+    last_line = [time.monotonic()]
+
+    def view(state: ViewState) -> None:
+        if live is not None:
+            live.update(render_view(state), refresh=True)
+        elif state.saved and state.saved[-1:] != last_saved[-1:]:
+            last_saved[:] = state.saved
+            last_line[0] = time.monotonic()
+            out.print(f"saved {state.saved[-1]}  ({state.on_disk} on disk)", highlight=False)
+        elif time.monotonic() - last_line[0] > WAITING_LINE_S:  # progress without a live view
+            last_line[0] = time.monotonic()
+            out.print(
+                f"step {state.step} of {state.steps}, {state.image}: {state.status or 'waiting'} "
+                f"({state.collected} of {state.needed} settled frames kept)",
+                highlight=False,
+            )
+
+    return view
+
+
 def capture(
     campaign: Path = typer.Argument(..., help="The campaign directory (its campaign.toml)."),
     camera: str = typer.Option(
@@ -100,24 +125,7 @@ def capture(
     spec = load_spec(root)
     source = open_camera(camera, root, spec)
     live = Live(console=err, auto_refresh=False, transient=False) if err.is_terminal else None
-    last_saved: list[str] = []
-    last_line = [time.monotonic()]
-
-    def view(state: ViewState) -> None:
-        if live is not None:
-            live.update(render_view(state), refresh=True)
-        elif state.saved and state.saved[-1:] != last_saved[-1:]:
-            last_saved[:] = state.saved
-            last_line[0] = time.monotonic()
-            out.print(f"saved {state.saved[-1]}  ({state.on_disk} on disk)", highlight=False)
-        elif time.monotonic() - last_line[0] > WAITING_LINE_S:  # progress without a live view
-            last_line[0] = time.monotonic()
-            out.print(
-                f"step {state.step} of {state.steps}, {state.image}: {state.status or 'waiting'} "
-                f"({state.collected} of {state.needed} settled frames kept)",
-                highlight=False,
-            )
-
+    view = _viewer(live)
     operator = None if yes else _ConsoleOperator(live)
     with source:
         if live is not None:
