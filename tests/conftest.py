@@ -28,6 +28,41 @@ def pytest_configure(config: pytest.Config) -> None:
     settings.load_profile("fuzz" if long else "default-run")
 
 
+#: Modules whose tests (with their shared fixtures) take most of the suite's time: all their
+#: tests count as ``slow``, out of the fast loop (``make test-fast``), still in ``make test``.
+#: Seconds per module (calls and fixtures, 2 workers, 2026-11-29): real photographs 98, the
+#: simulate CLI 50, vision fuzzing 44, campaign paths 35, the vision CLI 34, table fuzzing 31,
+#: sensor campaigns 30, rig measurement 25 and calibration 24 (CLI 11), the browser 20, capture
+#: 18, photometric 18, detection 15, simulated campaigns 13, the sensors CLI 12, report files 11.
+SLOW_MODULES = frozenset(
+    {
+        "test_vision_real",
+        "test_sim_cli",
+        "test_fuzz_vision",
+        "test_campaign_paths",
+        "test_vision_cli",
+        "test_fuzz_tables",
+        "test_campaign_sensor",
+        "test_rig_measure",
+        "test_rig_calibration",
+        "test_rig_calibration_cli",
+        "test_report_browser",
+        "test_capture",
+        "test_vision_photometric",
+        "test_vision_detect",
+        "test_sim_campaign",
+        "test_sensors_cli",
+        "test_report_write",
+    }
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.path.stem in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
