@@ -5,33 +5,23 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 import pytest
 from helpers.cli_process import run_in_process as _cli
+from helpers.poses import rpy_matrix
 
 from stiffmap.models.legs import LegRobot
 
 HEXAPOD = str(files("stiffmap.models") / "robots" / "hexapod.toml")
 
 
-def _rot(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), written out."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    return (
-        np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-        @ np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-        @ np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    )
-
-
 def _gosselin(robot, k, pose_deg) -> np.ndarray:
     """K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i), from the TOML's joints (written here)."""
     p = np.asarray(pose_deg, dtype=float)
-    R = _rot(*np.radians(p[3:]))
+    R = rpy_matrix(*np.radians(p[3:]))
     K6 = np.zeros((6, 6))
     for d, ki in zip(robot.description, k, strict=True):
         r = R @ np.asarray(d.attach_mm)

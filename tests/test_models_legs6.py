@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from helpers.frame_fe import beam_global, condensed, rps_leg_platform_stiffness
 from helpers.fuzz_campaign import mutated_spec, toml_text_mutations
+from helpers.poses import rps_pose, rpy_matrix
 from hypothesis import given
 from hypothesis import strategies as st
-from scipy.optimize import least_squares
 
 from stiffmap.errors import InputError
 from stiffmap.models import PRR3, DeltaRobot, Mechanism, PoseError
@@ -40,17 +40,8 @@ BEFORE = Path(__file__).with_name("data") / "legs_before_6d.json"
 # ---------------------------------------------------------------------- written here, not from stiffmap
 
 
-def _rot(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (URDF's convention), written out."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
 def _rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """The inverse of :func:`_rot` away from pitch = +-90 deg."""
+    """The inverse of :func:`rpy_matrix` away from pitch = +-90 deg."""
     return math.atan2(R[2, 1], R[2, 2]), -math.asin(R[2, 0]), math.atan2(R[1, 0], R[0, 0])
 
 
@@ -67,7 +58,7 @@ def _exp(theta) -> np.ndarray:
 
 def _closed_form_ups(base, attach, k, pose) -> np.ndarray:
     """Gosselin's K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i): springs along the legs' lines."""
-    R = _rot(*pose[3:])
+    R = rpy_matrix(*pose[3:])
     K6 = np.zeros((6, 6))
     for b, a, ki in zip(base, attach, k, strict=True):
         r = R @ a
@@ -129,7 +120,7 @@ def test_hexapod_K6_is_the_sum_over_its_legs_lines(hexapods):
             C6 = np.linalg.inv(K6)
             assert _relative(m.K[i], np.linalg.inv(C6[:3, :3])) < 1e-9  # a pure force's K
             assert _relative(m.K_rot[i], np.linalg.inv(C6[3:, 3:])) < 1e-9
-            lengths = np.linalg.norm(p[:3] + attach @ _rot(*p[3:]).T - base, axis=1)
+            lengths = np.linalg.norm(p[:3] + attach @ rpy_matrix(*p[3:]).T - base, axis=1)
             np.testing.assert_allclose(m.q[i], lengths, rtol=0, atol=1e-7)  # the legs' lengths, mm
             w = np.array([10.0, -20.0, 30.0, 800.0, -500.0, 1200.0])  # N, N*mm
             np.testing.assert_allclose(robot.static_error6(p, w), C6 @ w, rtol=1e-9, atol=1e-14)
@@ -190,7 +181,7 @@ def test_universal_platform_joint_holds_the_moment_about_its_cross(hexapods):
     legs = list(robot.description)
     leg = legs[0]
     twist = LegJoint("twist", "spring", "k_twist", type="revolute", axis=(0.0, 0.0, 1.0))
-    u_frame = _rot(*leg.joints[0].rpy)
+    u_frame = rpy_matrix(*leg.joints[0].rpy)
     legs[0] = LegDescription(
         leg.name,
         leg.attach_mm,
@@ -220,7 +211,7 @@ def test_universal_platform_joint_holds_the_moment_about_its_cross(hexapods):
 def test_arm_map_and_the_legs_jacobian_by_finite_differences(hexapods):
     robot, base, attach, _, h = hexapods[1]
     pose = np.array([15.0, -25.0, h + 20.0, *np.radians([6.0, -4.0, 9.0])])
-    R0 = _rot(*pose[3:])
+    R0 = rpy_matrix(*pose[3:])
     eps = 1e-6
 
     def moved(delta):
@@ -236,7 +227,9 @@ def test_arm_map_and_the_legs_jacobian_by_finite_differences(hexapods):
         e = np.zeros(6)
         e[j] = eps
         up, dn = moved(e), moved(-e)
-        J[:, j] = (up[:3] + _rot(*up[3:]) @ attach[2] - dn[:3] - _rot(*dn[3:]) @ attach[2]) / (2 * eps)
+        J[:, j] = (up[:3] + rpy_matrix(*up[3:]) @ attach[2] - dn[:3] - rpy_matrix(*dn[3:]) @ attach[2]) / (
+            2 * eps
+        )
     np.testing.assert_allclose(J, A[:3], rtol=0, atol=1e-7)
     # The legs' lengths (the IK's actuated joints) change by a_i . delta, a_i = (n_i, r_i x n_i).
     Jq = np.zeros((6, 6))
@@ -256,18 +249,6 @@ def test_arm_map_and_the_legs_jacobian_by_finite_differences(hexapods):
 
 
 # ---------------------------------------------------------------------- the 3-RPS against frame FE
-
-
-def _rps_pose(z: float, roll: float, pitch: float, attach, axes) -> np.ndarray:
-    """A pose the 3-RPS reaches: x, y, yaw such that every platform joint is in its leg's plane."""
-
-    def planes(v):
-        R = _rot(roll, pitch, v[2])
-        return [(np.array([v[0], v[1], z]) + R @ a) @ w for a, w in zip(attach, axes, strict=True)]
-
-    sol = least_squares(planes, [0.0, 0.0, 0.0], xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    assert np.abs(sol.fun).max() < 1e-10
-    return np.array([sol.x[0], sol.x[1], z, roll, pitch, sol.x[2]])
 
 
 def test_frame_fe_cantilever_is_the_textbook_one():
@@ -300,8 +281,8 @@ def test_3rps_matches_a_frame_finite_element_model():
     axes = np.stack([-np.sin(ang), np.cos(ang), 0 * ang], axis=1)
     attach = RPS3["platform_radius_mm"] * np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
     for z, roll, pitch in ((250.0, 0.0, 0.0), (270.0, 0.12, -0.08), (230.0, -0.15, 0.1)):
-        pose = _rps_pose(z, roll, pitch, attach, axes)
-        R = _rot(*pose[3:])
+        pose = rps_pose(z, roll, pitch, attach, axes)
+        R = rpy_matrix(*pose[3:])
         tips = pose[:3] + attach @ R.T
         lengths = np.linalg.norm(tips - base, axis=1)
         params = {f"k_leg{i + 1}": E * A / L for i, L in enumerate(lengths)}
@@ -323,7 +304,7 @@ def test_singularity_measures_are_the_jacobians_inverse_condition(hexapods):
     serial, parallel = robot.singularity_measures(poses)
     np.testing.assert_allclose(serial, 1.0, rtol=1e-12)  # each actuator along the force its leg holds
     for i, p in enumerate(poses):
-        R = _rot(*p[3:])
+        R = rpy_matrix(*p[3:])
         rows = []
         for b, a in zip(base, attach, strict=True):
             r = R @ a

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.fuzz_campaign import mutated_spec, toml_text_mutations
+from helpers.poses import rps_pose, rpy_matrix
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -178,14 +179,6 @@ def _hexapod_with_rods(k) -> LegRobot:
     )
 
 
-def _rot(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
 def _series_closed_form(k, E: float, pose) -> np.ndarray:
     """K6 = sum a_i a_i^T / (1/k_i + L/(E A)), a_i = (n_i, r_i x n_i): each leg's actuator and rod
     in series along its line (Gosselin's J^T K J with the series stiffness)."""
@@ -193,7 +186,7 @@ def _series_closed_form(k, E: float, pose) -> np.ndarray:
     base, attach = gough_stewart_points(
         p["base_radius_mm"], p["platform_radius_mm"], p["base_pair_deg"], p["platform_pair_deg"]
     )
-    R = _rot(*pose[3:])
+    R = rpy_matrix(*pose[3:])
     K6 = np.zeros((6, 6))
     for b, a, ki in zip(base, attach, k, strict=True):
         r = R @ a
@@ -606,19 +599,6 @@ def test_campaign_takes_link_parameters_and_refuses_bad_ones_before_measuring(tm
     assert not (root / "stiffmap.db").exists()
 
 
-def _rps_pose(z: float, roll: float, pitch: float, attach, axes) -> np.ndarray:
-    """A pose the 3-RPS reaches: x, y, yaw such that every platform joint is in its leg's plane."""
-    from scipy.optimize import least_squares
-
-    def planes(v):
-        R = _rot(roll, pitch, v[2])
-        return [(np.array([v[0], v[1], z]) + R @ a) @ w for a, w in zip(attach, axes, strict=True)]
-
-    sol = least_squares(planes, [0.0, 0.0, 0.0], xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    assert np.abs(sol.fun).max() < 1e-10
-    return np.array([sol.x[0], sol.x[1], z, roll, pitch, sol.x[2]])
-
-
 def test_3rps_whose_legs_are_beam_links_equals_a_frame_finite_element_model():
     # Each leg a steel tube as a link (its actuator and bending spring made rigid), of the leg's
     # length at the pose: K6 equals tests/helpers/frame_fe's model of beams from revolute joints
@@ -632,8 +612,8 @@ def test_3rps_whose_legs_are_beam_links_equals_a_frame_finite_element_model():
     axes = np.stack([-np.sin(ang), np.cos(ang), 0 * ang], axis=1)
     head, *legs = rps3_toml({"k_leg": 1e12, "k_bend": math.inf}).split("\n[[legs]]\n")
     for z, roll, pitch in ((250.0, 0.0, 0.0), (270.0, 0.12, -0.08), (230.0, -0.15, 0.1)):
-        pose = _rps_pose(z, roll, pitch, attach, axes)
-        tips = pose[:3] + attach @ _rot(*pose[3:]).T
+        pose = rps_pose(z, roll, pitch, attach, axes)
+        tips = pose[:3] + attach @ rpy_matrix(*pose[3:]).T
         lengths = np.linalg.norm(tips - base, axis=1)
         text = head
         for i, (lg, L) in enumerate(zip(legs, lengths, strict=True), start=1):

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.fuzz import mutated_text
+from helpers.poses import rpy_matrix
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -25,18 +26,9 @@ HOME = np.array([0.0, 0.0, 300.0])
 _K33 = ",".join(f"k{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 
 
-def _rot(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), written out."""
-    cr, sr, cp, sp, cy, sy = (f(a) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
 def _closed_form(base, attach, k, pose) -> np.ndarray:
     """K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i) (Gosselin), written here."""
-    R = _rot(*pose[3:])
+    R = rpy_matrix(*pose[3:])
     K6 = np.zeros((6, 6))
     for b, a, ki in zip(base, attach, k, strict=True):
         r = R @ a
@@ -174,7 +166,7 @@ def test_6dof_deflections_under_wrenches_fit_back_to_the_legs(hexapod, poses):
     forces = 20.0 * np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, -1.0]])
     rows, W, D = [], [], []
     for p in P:
-        R, K6 = _rot(*p[3:]), _closed_form(base, attach, K_LEGS, p)
+        R, K6 = rpy_matrix(*p[3:]), _closed_form(base, attach, K_LEGS, p)
         for r in pts:
             for F in forces:
                 w = np.concatenate([F, np.cross(R @ r, F)])

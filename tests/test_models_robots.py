@@ -28,6 +28,7 @@ import pytest
 from helpers import urdf_reference as ref
 from helpers.cli_process import run_in_process as _cli
 from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
+from helpers.poses import rpy_matrix
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -530,15 +531,6 @@ def test_a_description_in_a_default_namespace_reads_as_without(tmp_path):
     assert _rel(ns.stiffness6(q), plain.stiffness6(q)) < 1e-15
 
 
-def _rpy_matrix_in_test(r, p, y):
-    """R = Rz(y) Ry(p) Rx(r), URDF's convention, written out here."""
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return rz @ ry @ rx
-
-
 def test_a_fixed_frame_beside_the_chain_is_a_base_frame(rng, tmp_path):
     """ROS-Industrial's ``base`` (a fixed frame hung off ``base_link``, nothing below it): the
     tip's position, K and K6 in it are those in base_link moved by the constant transform,
@@ -557,7 +549,7 @@ def test_a_fixed_frame_beside_the_chain_is_a_base_frame(rng, tmp_path):
     plain = SerialRobot.from_urdf(f, "tool0", OFFSET, k_theta=K_ACME, base_frame="base_link")
     based = SerialRobot.from_urdf(f, "tool0", OFFSET, k_theta=K_ACME, base_frame="base")
     assert based.chain.joint_names == plain.chain.joint_names
-    R = _rpy_matrix_in_test(*rpy)
+    R = rpy_matrix(*rpy)
     T = np.zeros((6, 6))
     T[:3, :3] = T[3:, 3:] = R
     for q in rng.uniform(plain.chain.lower, plain.chain.upper, size=(4, 6)):

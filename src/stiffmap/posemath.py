@@ -29,6 +29,7 @@ cannot live in either. It is pure NumPy: OpenCV stays in ``vision`` and ``sim``.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -52,7 +53,7 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class PoseEstimate:
+class PoseEstimate(ABC):
     """A board's measured pose: its covariance and the fit's quality. The pose itself is a
     field of the subclass, named by its frame: :attr:`BoardPose.board2cam` (a camera's) or
     :attr:`FusedPose.board2rig <stiffmap.vision.fuse.FusedPose>` (a rig's, fused from its
@@ -132,10 +133,10 @@ class PoseEstimate:
         return np.sqrt(np.diag(self.cov)[3:])
 
     @property
+    @abstractmethod
     def board2frame(self) -> np.ndarray:
         """The pose, mm, in the frame of what measured it: a camera's (``board2cam``) or a
         rig's (``board2rig``); the covariances are over the (t, r) perturbation in that frame."""
-        raise NotImplementedError
 
 
 @dataclass(frozen=True)
