@@ -263,7 +263,8 @@ def test_model_urdf_json_per_configuration(tmp_path, monkeypatch, capsys):
     k = ",".join(f"{v:g}" for v in K_ARM)
     args = ["model", "urdf", ARM6, "--tip", "tool0", "--tip-offset-mm", "30,-20,120", "--configs", cfg]
     code, out, err = _cli([*args, "--param", f"k_theta={k}", "--json"], monkeypatch, capsys)
-    assert code == 1 and "1 of 3 configuration(s) of" in err  # the third is singular
+    # The third is a wrist singularity: K given (the point still moves every way), K6 not.
+    assert code == 0 and "note: 1 of 3 configuration(s) at a joint singularity: K given" in err, err
     recs = json.loads(out)
     robot = _arm()
     Q = np.radians(Q_deg[:2])
@@ -273,16 +274,21 @@ def test_model_urdf_json_per_configuration(tmp_path, monkeypatch, capsys):
         np.testing.assert_allclose(r["position"], robot.chain.forward(q)[0], rtol=1e-12)
         np.testing.assert_allclose(r["K"], robot.stiffness3(q), rtol=1e-12)
         np.testing.assert_allclose(r["K6"], robot.stiffness6(q), rtol=1e-12)
-    assert set(recs[2]) == {"q_deg", "position", "error"}  # a singular configuration has its point
-    np.testing.assert_allclose(recs[2]["position"], robot.chain.forward(np.radians(Q_deg[2]))[0], rtol=1e-12)
-    assert recs[2]["error"].startswith(
+    assert set(recs[2]) == {"q_deg", "position", "K", "K6", "note"} and recs[2]["K6"] is None
+    q2 = np.radians(Q_deg[2])
+    np.testing.assert_allclose(recs[2]["position"], robot.chain.forward(q2)[0], rtol=1e-12)
+    # K = (J K^-1 J^T)[:3, :3]^-1 computed here from the Jacobian: it exists at the wrist singularity
+    J = robot.chain.jacobian(q2)
+    C = J @ np.diag(1.0 / np.asarray(K_ARM)) @ J.T
+    np.testing.assert_allclose(recs[2]["K"], np.linalg.inv(C[:3, :3]), rtol=1e-9)
+    assert recs[2]["note"].startswith(
         f"{cfg} line 4: singular: joints joint_4 and joint_6 move the tip alike"
     )
     # The table: the tip positions and principal stiffnesses; k3 alone changes joint 3's spring.
     code, out, err = _cli([*args, "--param", f"k_theta={k}", "--param", "k3=5e8"], monkeypatch, capsys)
     flat = "".join(out.split())  # rich wraps the header at the terminal's width
     # (the singular configuration's reason is in the table too, folded to the terminal's width)
-    assert code == 1 and "k_theta=(2e+09,1.5e+09,5e+08,3e+08" in flat
+    assert code == 0 and "k_theta=(2e+09,1.5e+09,5e+08,3e+08" in flat and "Konly:singular:" in flat
 
 
 def test_fit_urdf_recovers_joint_stiffnesses_from_a_matrices_file(tmp_path, monkeypatch, capsys, rng):
@@ -331,7 +337,7 @@ def test_fit_urdf_recovers_joint_stiffnesses_from_a_matrices_file(tmp_path, monk
         ),
         (
             ["--tip", "tool0", "--configs", "{sing}", "--param", "k_theta=1e9"],
-            "{sing} line 2: singular: joints joint_4 and joint_6 move the tip alike",
+            "its stiffness there is infinite in a joint-spring model (translation measure",
         ),
     ],
 )
@@ -339,7 +345,7 @@ def test_model_urdf_bad_input_is_one_line(tmp_path, monkeypatch, capsys, args, m
     names = {"urdf": ARM6, "cfg": tmp_path / "c.csv", "bad": tmp_path / "c5.csv", "sing": tmp_path / "s.csv"}
     _write_configs(names["cfg"], [[10.0, 20.0, -30.0, 15.0, 50.0, 40.0]])
     names["bad"].write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg\n0,0,0,0,0\n")
-    _write_configs(names["sing"], [[0.0, 0.0, -30.0, 0.0, 0.0, 0.0]])
+    _write_configs(names["sing"], [[0.0, 20.0, -90.0, 0.0, 0.0, 0.0]])  # arm stretched to the tool: no K
     code, out, err = _cli(["model", "urdf", ARM6, *(a.format(**names) for a in args)], monkeypatch, capsys)
     assert code == 2 and err.startswith("error: ") and err.count("\n") == 1, err
     assert message.format(**names) in err

@@ -280,6 +280,12 @@ def _model_configurations(robot, configs: Path, as_json: bool, output: Path | No
         raise InputError("--output needs --json")
     else:
         _print_configurations(robot, mp, recs, lines)
+    noted = [r["note"] for r in recs if "note" in r]
+    if noted:
+        note(
+            f"{len(noted)} of {len(recs)} configuration(s) at a joint singularity: K given, K6 only "
+            f"where it still exists (see 'note'); the first: {noted[0]}"
+        )
     bad = [r["error"] for r in recs if "error" in r]
     if len(bad) == len(recs):
         if len(bad) == 1:
@@ -308,6 +314,10 @@ def _print_configurations(robot, mp, recs, lines) -> None:
         if "error" in r:
             xyz = [fmt(_mm(v), 6) for v in r["position"]] if "position" in r else [""] * 3
             t.add_row(*head, *xyz, *([""] * 3), mp.reasons[i])
+        elif "note" in r:  # a joint singularity: K, not the map's (it flags the configuration)
+            w = np.linalg.eigvalsh(np.asarray(r["K"]))
+            xyz = (fmt(_mm(v), 6) for v in r["position"])
+            t.add_row(*head, *xyz, *(fmt(v, 4) for v in w), "K only: " + mp.reasons[i])
         else:
             t.add_row(
                 *head, *(fmt(_mm(v), 6) for v in mp.points[i]), *(fmt(v, 4) for v in mp.eigenvalues[i]), "ok"

@@ -695,9 +695,11 @@ def configuration_records(
     records : list of dict
         ``q_deg`` (degrees; mm for prismatic joints), ``position`` (mm, base frame), ``K``
         (3 x 3, N/mm: the stiffness a pure force sees), ``K6`` (6 x 6 over u mm and rotation
-        rad, or None when the robot has fewer than six compliant joints); or ``q_deg``,
-        ``error`` (the reason, after ``FILE line L:`` when given) and, where the configuration
-        has a point (a singular one), ``position``.
+        rad, or None when the robot has fewer than six compliant joints); at a joint singularity
+        where the point still moves every way (a wrist singularity) also ``note`` (the reason),
+        K given and K6 too while it exists numerically (:meth:`SerialRobot.past_joint_singularity`),
+        else None; or ``q_deg``, ``error`` (the reason, after ``FILE line L:`` when given) and,
+        where the configuration has a point (a singular one), ``position``.
     """
     m = robot.evaluate_configurations(Q)
     six = robot.has_k6
@@ -707,14 +709,34 @@ def configuration_records(
     out = []
     for i in range(len(m)):
         rec: dict = {"q_deg": _q_display(robot, m.q[i])}
+        where = " ".join(x for x in (source or "", "" if lines is None else f"line {int(lines[i])}") if x)
+        reason = f"{where}: {m.reasons[i]}" if where else m.reasons[i]
         if m.valid[i]:
             rec["position"] = m.points[i].tolist()
             rec["K"] = m.K[i].tolist()
             rec["K6"] = K6[i].tolist() if six else None
+        elif (past := _past_joint_singularity(robot, m, i)) is not None:
+            rec["position"] = m.points[i].tolist()
+            rec["K"], rec["K6"] = past[0].tolist(), None if past[1] is None else past[1].tolist()
+            given = "K and K6" if past[1] is not None else "K"
+            rec["note"] = f"{reason} ({given} given: the point still moves every way)"
         else:
             if np.all(np.isfinite(m.points[i])):  # a singular configuration still has its point
                 rec["position"] = m.points[i].tolist()
-            where = " ".join(x for x in (source or "", "" if lines is None else f"line {int(lines[i])}") if x)
-            rec["error"] = f"{where}: {m.reasons[i]}" if where else m.reasons[i]
+            rec["error"] = reason
         out.append(rec)
     return m, out
+
+
+def _past_joint_singularity(robot: SerialRobot, m: ModelMap, i: int):
+    """(K, K6 or None) of configuration i when the map flags it for a joint singularity only
+    (:meth:`SerialRobot.past_joint_singularity`), else None."""
+    if not m.reasons[i].startswith("singular: ") or not np.all(np.isfinite(m.points[i])):
+        return None
+    joint, trans = robot.singularity_measures(m.q[i])
+    if not (joint[0] < robot.singular_tol <= trans[0]):
+        return None
+    try:
+        return robot.past_joint_singularity(m.q[i])
+    except InputError:
+        return None

@@ -213,6 +213,9 @@ class SerialRobot:
 
     name: ClassVar[str] = "urdf"
     dim: ClassVar[int] = 3
+    #: The joint measure below which K6 is not given at a joint singularity (:meth:`past_joint_singularity`):
+    #: C6's condition grows as the measure's inverse squared, so K6 = C6^-1 keeps about 8 digits here.
+    k6_tol: ClassVar[float] = 1e-4
 
     def __post_init__(self) -> None:
         if self.load_offset_mm is not None:
@@ -951,6 +954,34 @@ class SerialRobot:
         K = np.linalg.inv(C)
         K = 0.5 * (K + np.swapaxes(K, 1, 2))
         return K[0] if single else K
+
+    def past_joint_singularity(self, q) -> tuple[np.ndarray, np.ndarray | None]:
+        """K, and K6 where it still exists numerically, at a configuration flagged for a joint
+        singularity only (joint measure below ``singular_tol``, translation measure above it).
+
+        There the joints lose their independence (a wrist singularity: joints 4 and 6 aligned)
+        but the point still moves every way, so ``K = (C6[:3, :3])^-1`` exists and is well
+        conditioned; ``K6 = C6^-1`` is given while the joint measure is at least :attr:`k6_tol`
+        (it grows without bound as the configuration nears the singularity), else None.
+
+        Parameters
+        ----------
+        q : array_like, shape (n,)
+
+        Returns
+        -------
+        K : ndarray, shape (3, 3), N/mm
+        K6 : ndarray, shape (6, 6), or None
+
+        Raises
+        ------
+        InputError
+            Where K does not exist either (:meth:`stiffness3`).
+        """
+        K = self.stiffness3(q)
+        if not self.has_k6 or self.singularity_measures(q)[0][0] < self.k6_tol:
+            return K, None
+        return K, replace(self, singular_tol=min(self.k6_tol, self.singular_tol)).stiffness6(q)
 
     def stiffness3(self, q) -> np.ndarray:
         """``K = (C6[:3, :3])^-1`` (N/mm): the stiffness a pure force at the point sees.
