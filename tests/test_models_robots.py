@@ -18,6 +18,7 @@ import io
 import json
 import math
 import os
+import re
 import shutil
 import sys
 from importlib.metadata import distribution
@@ -604,3 +605,57 @@ def test_ros1_unprefixed_xacro_tags_expand_as_ros1_did(rng, tmp_path):
         msg
     )
     assert "\n" not in msg
+
+
+def _package_uri_style(tmp_path) -> Path:
+    """The xacro workspace with its includes written ``package://PKG/...`` (ROS 2 descriptions'
+    style) instead of ``$(find PKG)/...``."""
+    ws = shutil.copytree(XACRO_WS, tmp_path / "uri_ws")
+    for f in ws.rglob("*.xacro"):
+        text = f.read_text()
+        f.write_text(re.sub(r'filename="\$\(find ([\w-]+)\)/', r'filename="package://\1/', text))
+    return ws / "acme_description" / "urdf" / ACME_XACRO.name
+
+
+def test_includes_by_package_uri_expand_as_find(rng, tmp_path):
+    """<xacro:include filename="package://PKG/urdf/x.xacro"> (the PyPI xacro takes it for a
+    relative path) is found as $(find PKG) is, a package found by its package.xml's name too:
+    the same K6 as the description written out by hand; a package no folder holds is named."""
+    top = _package_uri_style(tmp_path)
+    assert "package://acme_resources/" in (top.parent / "acme_rs6_macro.xacro").read_text()
+    args = {"mount_height": "0.4"}
+    a = SerialRobot.from_urdf(top, "tool0", OFFSET, k_theta=K_ACME, xacro_args=args)
+    plain = SerialRobot.from_urdf(ACME_URDF, "tool0", OFFSET, k_theta=K_ACME)
+    Q = rng.uniform(plain.chain.lower, plain.chain.upper, size=(3, 6))
+    assert _rel(a.stiffness6(Q), plain.stiffness6(Q)) < 1e-12
+    shutil.rmtree(top.parents[2] / "common")  # the package acme_resources
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(top, "tool0", k_theta=1e8, xacro_args=args)
+    assert "xacro: $(find acme_resources): no package 'acme_resources' in the package folders" in str(e.value)
+
+
+def test_xacro_messages_that_name_the_description_s_own_faults(tmp_path):
+    """An argument a macro call needs is global: named without a macro's place; a property
+    named with '__' (refused by xacro since 2021, common in older descriptions) says why."""
+    f = tmp_path / "cell.urdf.xacro"
+    f.write_text(
+        '<robot name="c" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:macro name="arm" params="namespace"><link name="${namespace}base"/></xacro:macro>'
+        '<xacro:arm namespace="$(arg namespace)"/></robot>'
+    )
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(f, "base", k_theta=1e8)
+    assert str(e.value) == (
+        f"{f}: xacro: argument 'namespace' has no value: give it with --xacro-arg namespace=VALUE "
+        "(campaign.toml: xacro_args)"
+    )
+    f.write_text(
+        '<robot name="c" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:property name="__limits" value="1"/><link name="base"/></robot>'
+    )
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(f, "base", k_theta=1e8)
+    assert "double underscore:__limits (xacro refuses property names starting with '__' since 2021" in str(
+        e.value
+    )
+    assert "\n" not in str(e.value)

@@ -452,7 +452,8 @@ def expand_xacro(
                     "folder with --package-path DIR (campaign.toml: package_paths) or ROS_PACKAGE_PATH",
                     source=src,
                 ) from None
-            raise InputError(f"xacro: {_xacro_message(e)}{_xacro_where(p)}", source=src) from None
+            where = "" if _cause(e, "ArgException") else _xacro_where(p)  # arguments are global
+            raise InputError(f"xacro: {_xacro_message(e)}{where}", source=src) from None
         finally:
             xacro.parse = parse
             xacro_subs._eval_find, xacro_subs._eval_dict["find"] = saved
@@ -462,17 +463,25 @@ def expand_xacro(
 #: ROS 1's xacro also took these tags without the ``xacro:`` prefix (older ROS-Industrial
 #: descriptions use ``<property>``); xacro 2 ignores them, so they are prefixed on reading.
 LEGACY_TAGS = ("property", "macro", "include", "arg", "if", "unless", "insert_block")
+_PACKAGE_URI = "package://"
 
 
 def _legacy_tags(parse):
     """xacro's ``parse``, with the unprefixed tags of ROS 1's xacro (:data:`LEGACY_TAGS`)
-    given their ``xacro:`` prefix, in the file and every file it includes."""
+    given their ``xacro:`` prefix and ``<xacro:include filename="package://PKG/...">`` read as
+    ``$(find PKG)/...`` (ROS 2 descriptions write both; the PyPI xacro takes the URI for a
+    relative path), in the file and every file it includes."""
 
     def parse_prefixed(inp, filename=None):
         doc = parse(inp, filename)
         for tag in LEGACY_TAGS:
             for el in list(doc.getElementsByTagName(tag)):
                 el.tagName = el.nodeName = f"xacro:{tag}"
+        for el in doc.getElementsByTagName("xacro:include"):
+            uri = el.getAttribute("filename")
+            pkg, _, rest = uri[len(_PACKAGE_URI) :].partition("/")
+            if uri.startswith(_PACKAGE_URI) and pkg and "$" not in pkg:
+                el.setAttribute("filename", f"$(find {pkg})/{rest}")
         return doc
 
     return parse_prefixed
@@ -514,6 +523,11 @@ def _xacro_message(e: Exception) -> str:
     text = " ".join(str(e).split())
     if isinstance(e, ET.ParseError) or type(e).__name__ == "ExpatError":
         return f"not valid XML ({text})"
+    if "must not start with double underscore" in text or "invalid name(s): __" in text:
+        text += (
+            " (xacro refuses property names starting with '__' since 2021, 1.13.13/1.14.9; the "
+            "description predates that: rename them, as its maintainers since did)"
+        )
     return text or type(e).__name__
 
 
