@@ -149,6 +149,16 @@ ARMS = [
     ),
 ]
 ARMS += [
+    (
+        "Kinova Gen3 7-DOF (ROS 2 kortex)",
+        "ros2_kortex/kortex_description/robots/gen3.xacro",
+        "tool_frame",
+        None,
+        {"vision": "false"},
+        [],
+    ),
+]
+ARMS += [
     (f"example-robot-data {name}", f"example-robot-data/{path}", tip, base, {}, [])
     for name, path, tip, base in (
         (
@@ -162,6 +172,12 @@ ARMS += [
             "pr2_description/urdf/pr2.urdf",
             "l_gripper_palm_link",
             "torso_lift_link",
+        ),
+        (
+            "PR2 left arm and torso lift (prismatic)",
+            "pr2_description/urdf/pr2.urdf",
+            "l_gripper_palm_link",
+            "base_link",
         ),
         (
             "TIAGo arm from the torso",
