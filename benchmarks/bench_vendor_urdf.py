@@ -150,6 +150,14 @@ ARMS = [
 ]
 ARMS += [
     (
+        "Denso (ROS 2 denso_robot_ros: xacro.load_yaml, ^| defaults, a Gazebo $(find) of an absent package)",
+        "denso_robot_ros/denso_robot_description/urdf/denso_robot.urdf.xacro",
+        "tool0",
+        None,
+        {},
+        [],
+    ),
+    (
         "Kinova Gen3 7-DOF (ROS 2 kortex)",
         "ros2_kortex/kortex_description/robots/gen3.xacro",
         "tool_frame",
@@ -218,7 +226,8 @@ def expand(path: Path, args: dict, root: Path) -> str:
         return doc
 
     saved = xacro_subs._eval_find, xacro_subs._eval_dict.get("find")
-    xacro_subs._eval_find = xacro_subs._eval_dict["find"] = lambda p: str(pkgs[p])
+    # a package only named in text (a Gazebo plugin's parameters) may be absent, as for stiffmap
+    xacro_subs._eval_find = xacro_subs._eval_dict["find"] = lambda p: str(pkgs.get(p, f"/absent/{p}"))
     xacro.parse = parse_ros1
     try:
         with contextlib.redirect_stderr(io.StringIO()):

@@ -659,3 +659,31 @@ def test_xacro_messages_that_name_the_description_s_own_faults(tmp_path):
         e.value
     )
     assert "\n" not in str(e.value)
+
+
+def test_a_package_named_only_in_text_need_not_be_found(tmp_path):
+    """$(find PKG) in a Gazebo plugin's parameters (Denso's ROS 2 description, sim_gazebo true by
+    default) names a package the kinematic tree does not need: the description loads as without
+    it; the same package needed to load a file is named, in one line."""
+    f = tmp_path / "cell.urdf.xacro"
+    gazebo = (
+        "<gazebo><plugin filename='gz_ros2_control-system' name='p'>"
+        "<parameters>$(find acme_bringup)/config/controllers.yaml</parameters></plugin></gazebo>"
+    )
+    f.write_text(
+        f'<robot name="c" xmlns:xacro="http://www.ros.org/wiki/xacro">{ONE_JOINT[24:-8]}{gazebo}</robot>'
+    )
+    robot = SerialRobot.from_urdf(f, "plate", k_theta=1e8)
+    assert robot.chain.joint_names == ("turn",)
+    f.write_text(
+        '<robot name="c" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        "<xacro:property name='q0' lazy_eval='false' "
+        "value=\"${xacro.load_yaml('$(find acme_bringup)/config/q0.yaml')}\"/>"
+        f"{ONE_JOINT[24:-8]}</robot>"
+    )
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(f, "plate", k_theta=1e8)
+    assert str(e.value).startswith(
+        f"{f}: xacro: $(find acme_bringup): no package 'acme_bringup' in the package"
+    )
+    assert "\n" not in str(e.value)

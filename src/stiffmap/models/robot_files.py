@@ -20,8 +20,11 @@ ROS), with ``xacro:arg`` values given as ``NAME=VALUE`` and ``$(find PKG)`` reso
 the package folders given (``--package-path``), ``ROS_PACKAGE_PATH``, then the workspace
 the file lies in (the folder holding its own package: its siblings): a folder named PKG,
 or holding a ``package.xml`` whose ``<name>`` is PKG, at most four levels below one of
-them. An unresolved package or argument is one :class:`~stiffmap.errors.InputError` naming
-it. Units stay the file's: metres and radians (the chain turns them into mm).
+them; ``<xacro:include filename="package://PKG/...">`` likewise. A package only named in
+text (a Gazebo plugin's parameters) need not be found; an unresolved package needed to
+include or load a file, or an argument without value, is one
+:class:`~stiffmap.errors.InputError` naming it. Units stay the file's: metres and radians
+(the chain turns them into mm).
 """
 
 from __future__ import annotations
@@ -388,8 +391,10 @@ def find_package(name: str, search: Sequence[Path]) -> Path | None:
     return None
 
 
-class _Unresolved(Exception):
-    """A ``$(find PKG)`` that no search folder holds."""
+#: Where an unresolved ``$(find PKG)`` points (no file is there): a package only named in text
+#: (a Gazebo plugin's parameters, a mesh) is not needed for the kinematic tree, so expansion
+#: goes on; one needed to include or load a file fails there, and is named then.
+_UNRESOLVED = "/stiffmap-unresolved-package"
 
 
 def expand_xacro(
@@ -425,9 +430,7 @@ def expand_xacro(
 
     def find(pkg: str) -> str:
         d = find_package(pkg, search)
-        if d is None:
-            raise _Unresolved(pkg)
-        return str(d.resolve())
+        return f"{_UNRESOLVED}/{pkg}" if d is None else str(d.resolve())
 
     p = Path(path)
     if not p.is_file():
@@ -443,9 +446,9 @@ def expand_xacro(
             doc = xacro.process_file(str(p.resolve()), mappings=dict(args or {}))
             return doc.toxml()
         except Exception as e:  # noqa: BLE001  xacro raises many kinds; each becomes one line
-            missing = _cause(e, _Unresolved)
-            if missing is not None:
-                pkg = missing.args[0]
+            text = _chain_text(e)
+            if f"{_UNRESOLVED}/" in text:
+                pkg = text.split(f"{_UNRESOLVED}/", 1)[1].split("/", 1)[0].split()[0].strip("'\"")
                 where = ", ".join(str(s) for s in search) or "none given"
                 raise InputError(
                     f"xacro: $(find {pkg}): no package {pkg!r} in the package folders ({where}); give its "
@@ -511,6 +514,16 @@ def _cause(e: BaseException | None, kind) -> BaseException | None:
             return e
         e = getattr(e, "exc", None) or e.__cause__ or e.__context__
     return None
+
+
+def _chain_text(e: BaseException | None) -> str:
+    """The messages (and file names) of ``e`` and the exceptions behind it, in one string."""
+    out, seen = [], set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        out.append(f"{e} {getattr(e, 'filename', '') or ''}")
+        e = getattr(e, "exc", None) or e.__cause__ or e.__context__
+    return " ".join(out)
 
 
 def _xacro_message(e: Exception) -> str:
