@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 import math
 from importlib.resources import files
+from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import urdf_reference as ref
 from helpers.cli_process import run_in_process as _cli
 from scipy.spatial.transform import Rotation
 
@@ -371,3 +373,38 @@ def test_urdf_arguments_are_refused_where_they_do_not_belong(tmp_path, monkeypat
     for args, message in cases:
         code, _, err = _cli(args, monkeypatch, capsys)
         assert code == 2 and err.count("\n") == 1 and message in err, (args, err)
+
+
+def test_near_a_wrist_singularity_k_and_k6_are_given_with_a_note(tmp_path, monkeypatch, capsys):
+    """q5 = 0.3 deg: the joint measure (9e-4) is below singular_tol, the configuration flagged,
+    but the point still moves every way: K and K6 are printed with the reason as a note and
+    equal C = J K^-1 J^T of the URDF's numbers (helpers.urdf_reference: its own forward
+    kinematics, central differences) inverted; at q5 = 0 (exactly singular) K6 is null. Wrist
+    springs 300 times the arm's make C6's raw principal values (mm/N beside rad/(N*mm)) span
+    2e13: the rigidity check compares them with rotations taken times L, not units."""
+    k = np.array([2e7, 2e7, 1e7, 3e9, 3e9, 3e9])
+    Q_deg = np.array([[10.0, 20.0, -30.0, 15.0, 0.3, 40.0], [0.0, 0.0, -30.0, 0.0, 0.0, 0.0]])
+    cfg = tmp_path / "configs.csv"
+    _write_configs(cfg, Q_deg)
+    args = ["model", "urdf", ARM6, "--tip", "tool0", "--tip-offset-mm", "30,-20,120", "--configs", cfg]
+    code, out, err = _cli(
+        [*args, "--param", "k_theta=" + ",".join(map(str, k)), "--json"], monkeypatch, capsys
+    )
+    assert code == 0 and "note: 2 of 2 configuration(s) at a joint singularity" in err, err
+    recs = json.loads(out)
+    _, joints = ref.read_joints(Path(ARM6).read_text())
+    chain = ref.path(joints, "tool0")
+    coords = ref.coordinates(joints, chain)
+    for rec, qd in zip(recs, Q_deg, strict=True):
+        J = ref.jacobian_fd(joints, chain, coords, np.radians(qd), (30.0, -20.0, 120.0))
+        C = J @ np.diag(1.0 / k) @ J.T
+        assert "wrist singularity" in rec["note"]
+        assert _rel(rec["K"], np.linalg.inv(C[:3, :3])) < 1e-7
+        if rec is recs[0]:
+            assert _rel(rec["K6"], np.linalg.inv(C)) < 1e-6
+    assert recs[1]["K6"] is None
+
+
+def _rel(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))

@@ -925,7 +925,10 @@ class SerialRobot:
         C = self._compliance(Q, J)
         C = C if need6 else C[:, :3, :3]
         reasons = ["" for _ in range(Q.shape[0])]
-        ok = _check_rigid(C, np.arange(Q.shape[0]), reasons)
+        # C6 mixes mm/N and rad/(N*mm): its rotations are taken times L (as the singularity
+        # measures are), so that the rigidity ratio compares springs, not units
+        S = np.diag([1.0, 1.0, 1.0, *([self.length] * 3)]) if need6 else np.eye(3)
+        ok = _check_rigid(S @ C @ S, np.arange(Q.shape[0]), reasons)
         if not ok.all():
             i = int(np.flatnonzero(~ok)[0])
             where = "" if single else f"configuration {i + 1}: "
@@ -962,7 +965,9 @@ class SerialRobot:
         There the joints lose their independence (a wrist singularity: joints 4 and 6 aligned)
         but the point still moves every way, so ``K = (C6[:3, :3])^-1`` exists and is well
         conditioned; ``K6 = C6^-1`` is given while the joint measure is at least :attr:`k6_tol`
-        (it grows without bound as the configuration nears the singularity), else None.
+        and C6 is not "almost rigid" (its principal values, rotations taken times L, within
+        1e12 of each other; K6 grows without bound as the configuration nears the singularity),
+        else None.
 
         Parameters
         ----------
@@ -981,7 +986,10 @@ class SerialRobot:
         K = self.stiffness3(q)
         if not self.has_k6 or self.singularity_measures(q)[0][0] < self.k6_tol:
             return K, None
-        return K, replace(self, singular_tol=min(self.k6_tol, self.singular_tol)).stiffness6(q)
+        try:
+            return K, replace(self, singular_tol=min(self.k6_tol, self.singular_tol)).stiffness6(q)
+        except InputError:  # C6 almost rigid along some direction: K6 not given, K still is
+            return K, None
 
     def stiffness3(self, q) -> np.ndarray:
         """``K = (C6[:3, :3])^-1`` (N/mm): the stiffness a pure force at the point sees.
