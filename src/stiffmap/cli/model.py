@@ -283,8 +283,8 @@ def _model_configurations(robot, configs: Path, as_json: bool, output: Path | No
     noted = [r["note"] for r in recs if "note" in r]
     if noted:
         note(
-            f"{len(noted)} of {len(recs)} configuration(s) at a joint singularity: K given, K6 only "
-            f"where it still exists (see 'note'); the first: {noted[0]}"
+            f"{len(noted)} of {len(recs)} configuration(s) at a joint singularity: K given, K6 not "
+            f"(see 'note'); the first: {noted[0]}"
         )
     bad = [r["error"] for r in recs if "error" in r]
     if len(bad) == len(recs):

@@ -697,8 +697,8 @@ def configuration_records(
         (3 x 3, N/mm: the stiffness a pure force sees), ``K6`` (6 x 6 over u mm and rotation
         rad, or None when the robot has fewer than six compliant joints); at a joint singularity
         where the point still moves every way (a wrist singularity) also ``note`` (the reason),
-        K given and K6 too while it exists numerically (:meth:`SerialRobot.past_joint_singularity`),
-        else None; or ``q_deg``, ``error`` (the reason, after ``FILE line L:`` when given) and,
+        K given, K6 None (:meth:`SerialRobot.past_joint_singularity`); or ``q_deg``, ``error``
+        (the reason, after ``FILE line L:`` when given) and,
         where the configuration has a point (a singular one), ``position``.
     """
     m = robot.evaluate_configurations(Q)
@@ -717,9 +717,8 @@ def configuration_records(
             rec["K6"] = K6[i].tolist() if six else None
         elif (past := _past_joint_singularity(robot, m, i)) is not None:
             rec["position"] = m.points[i].tolist()
-            rec["K"], rec["K6"] = past[0].tolist(), None if past[1] is None else past[1].tolist()
-            given = "K and K6" if past[1] is not None else "K"
-            rec["note"] = f"{reason} ({given} given: the point still moves every way)"
+            rec["K"], rec["K6"] = past.tolist(), None
+            rec["note"] = f"{reason} (K given: the point still moves every way; K6 not)"
         else:
             if np.all(np.isfinite(m.points[i])):  # a singular configuration still has its point
                 rec["position"] = m.points[i].tolist()
@@ -729,7 +728,7 @@ def configuration_records(
 
 
 def _past_joint_singularity(robot: SerialRobot, m: ModelMap, i: int):
-    """(K, K6 or None) of configuration i when the map flags it for a joint singularity only
+    """K of configuration i when the map flags it for a joint singularity only
     (:meth:`SerialRobot.past_joint_singularity`), else None."""
     if not m.reasons[i].startswith("singular: ") or not np.all(np.isfinite(m.points[i])):
         return None

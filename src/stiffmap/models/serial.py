@@ -213,9 +213,6 @@ class SerialRobot:
 
     name: ClassVar[str] = "urdf"
     dim: ClassVar[int] = 3
-    #: The joint measure below which K6 is not given at a joint singularity (:meth:`past_joint_singularity`):
-    #: C6's condition grows as the measure's inverse squared, so K6 = C6^-1 keeps about 8 digits here.
-    k6_tol: ClassVar[float] = 1e-4
 
     def __post_init__(self) -> None:
         if self.load_offset_mm is not None:
@@ -958,16 +955,16 @@ class SerialRobot:
         K = 0.5 * (K + np.swapaxes(K, 1, 2))
         return K[0] if single else K
 
-    def past_joint_singularity(self, q) -> tuple[np.ndarray, np.ndarray | None]:
-        """K, and K6 where it still exists numerically, at a configuration flagged for a joint
-        singularity only (joint measure below ``singular_tol``, translation measure above it).
+    def past_joint_singularity(self, q) -> np.ndarray:
+        """K at a configuration flagged for a joint singularity only (joint measure below
+        ``singular_tol``, translation measure above it).
 
         There the joints lose their independence (a wrist singularity: joints 4 and 6 aligned)
         but the point still moves every way, so ``K = (C6[:3, :3])^-1`` exists and is well
-        conditioned; ``K6 = C6^-1`` is given while the joint measure is at least :attr:`k6_tol`
-        and C6 is not "almost rigid" (its principal values, rotations taken times L, within
-        1e12 of each other; K6 grows without bound as the configuration nears the singularity),
-        else None.
+        conditioned. K6 = C6^-1 is not given there: it grows without bound as the configuration
+        nears the singularity, and within ``singular_tol`` of it (inverse condition 1e-3) its
+        value hangs on the Jacobian's last digits (a Jacobian by central differences, good to
+        1e-10, moves it by 1e-6 at 1e-4).
 
         Parameters
         ----------
@@ -975,21 +972,14 @@ class SerialRobot:
 
         Returns
         -------
-        K : ndarray, shape (3, 3), N/mm
-        K6 : ndarray, shape (6, 6), or None
+        ndarray, shape (3, 3), N/mm
 
         Raises
         ------
         InputError
             Where K does not exist either (:meth:`stiffness3`).
         """
-        K = self.stiffness3(q)
-        if not self.has_k6 or self.singularity_measures(q)[0][0] < self.k6_tol:
-            return K, None
-        try:
-            return K, replace(self, singular_tol=min(self.k6_tol, self.singular_tol)).stiffness6(q)
-        except InputError:  # C6 almost rigid along some direction: K6 not given, K still is
-            return K, None
+        return self.stiffness3(q)
 
     def stiffness3(self, q) -> np.ndarray:
         """``K = (C6[:3, :3])^-1`` (N/mm): the stiffness a pure force at the point sees.
