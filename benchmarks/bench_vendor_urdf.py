@@ -158,7 +158,7 @@ ARMS = [
 ]
 ARMS += [
     (
-        "Denso (ROS 2 denso_robot_ros: xacro.load_yaml, ^| defaults, a Gazebo $(find) of an absent package)",
+        "Denso (ROS 2: xacro.load_yaml, parent-scope defaults, a Gazebo $(find) of an absent package)",
         "denso_robot_ros/denso_robot_description/urdf/denso_robot.urdf.xacro",
         "tool0",
         None,
