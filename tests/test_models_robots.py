@@ -687,3 +687,32 @@ def test_a_package_named_only_in_text_need_not_be_found(tmp_path):
         f"{f}: xacro: $(find acme_bringup): no package 'acme_bringup' in the package"
     )
     assert "\n" not in str(e.value)
+
+
+def test_a_missing_file_named_by_an_argument_s_default_names_the_argument(tmp_path):
+    """Universal Robots' ROS 2 description: <robot name="$(arg name)"> (xacro reads the root's
+    attributes before its xacro:arg elements, so name must be given) and ur_type defaulting to
+    the non-existent 'ur5x', whose YAML files xacro.load_yaml then cannot open: the line says
+    which argument to give."""
+    cfg = tmp_path / "config" / "ur5e"
+    cfg.mkdir(parents=True)
+    (cfg / "joint_limits.yaml").write_text("joint_limits: {lift: 1.0}\n")
+    f = tmp_path / "ur.urdf.xacro"
+    f.write_text(
+        '<robot name="$(arg name)" xmlns:xacro="http://wiki.ros.org/xacro">'
+        '<xacro:arg name="name" default="ur"/><xacro:arg name="ur_type" default="ur5x"/>'
+        f"<xacro:property name='limits' lazy_eval='false' "
+        f"value=\"${{xacro.load_yaml('{tmp_path}/config/$(arg ur_type)/joint_limits.yaml')}}\"/>"
+        f"{ONE_JOINT[24:-8]}</robot>"
+    )
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(f, "plate", k_theta=1e8)
+    assert "xacro: argument 'name' has no value: give it with --xacro-arg name=VALUE" in str(e.value)
+    with pytest.raises(InputError) as e:
+        SerialRobot.from_urdf(f, "plate", k_theta=1e8, xacro_args={"name": "ur"})
+    assert "ur5x/joint_limits.yaml" in str(e.value) and str(e.value).endswith(
+        "(argument 'ur_type' is 'ur5x' there by default: give it with --xacro-arg ur_type=VALUE, "
+        "campaign.toml: xacro_args)"
+    ), str(e.value)
+    robot = SerialRobot.from_urdf(f, "plate", k_theta=1e8, xacro_args={"name": "ur", "ur_type": "ur5e"})
+    assert robot.chain.joint_names == ("turn",)

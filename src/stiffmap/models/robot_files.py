@@ -33,6 +33,7 @@ import contextlib
 import io as _io
 import math
 import os
+import re
 import threading
 import tomllib
 import xml.etree.ElementTree as ET
@@ -456,7 +457,8 @@ def expand_xacro(
                     source=src,
                 ) from None
             where = "" if _cause(e, "ArgException") else _xacro_where(p)  # arguments are global
-            raise InputError(f"xacro: {_xacro_message(e)}{where}", source=src) from None
+            hint = _default_arg_hint(p, text) if "No such file" in text else ""
+            raise InputError(f"xacro: {_xacro_message(e)}{hint}{where}", source=src) from None
         finally:
             xacro.parse = parse
             xacro_subs._eval_find, xacro_subs._eval_dict["find"] = saved
@@ -514,6 +516,30 @@ def _cause(e: BaseException | None, kind) -> BaseException | None:
             return e
         e = getattr(e, "exc", None) or e.__cause__ or e.__context__
     return None
+
+
+def _default_arg_hint(top: Path, text: str) -> str:
+    """`` (argument 'ur_type' is 'ur5x' by default: ...)`` when a missing file's path holds the
+    default of an argument the top file declares (UR's ROS 2 description defaults ur_type to
+    the non-existent 'ur5x', so that it must be given), else ""."""
+    try:
+        root = ET.parse(top).getroot()
+    except (ET.ParseError, OSError):
+        return ""
+    for el in root.iter():
+        if isinstance(el.tag, str) and el.tag.split("}")[-1] in ("arg", "xacro:arg"):
+            name, default = el.get("name"), el.get("default") or ""
+            hit = (
+                len(default) > 1
+                and "$" not in default
+                and re.search(rf"/{re.escape(default)}(?=[/'\"\s.]|$)", text)
+            )
+            if name and hit:
+                return (
+                    f" (argument {name!r} is {default!r} there by default: give it with "
+                    f"--xacro-arg {name}=VALUE, campaign.toml: xacro_args)"
+                )
+    return ""
 
 
 def _chain_text(e: BaseException | None) -> str:
