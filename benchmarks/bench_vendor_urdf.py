@@ -260,17 +260,7 @@ def _limits(joints, coords) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _reference(joints, chain, coords, q, k):
-    p, _ = ref.tip_pose_mm(joints, chain, coords, q, OFFSET)
-    J = ref.jacobian_fd(joints, chain, coords, q, OFFSET)
-    C = J @ np.diag(1.0 / k) @ J.T
-    s = np.linalg.svd(J[:3], compute_uv=False)
-    K = np.linalg.inv(C[:3, :3]) if s.size == 3 and s[-1] > 1e-6 * s[0] else None
-    K6 = (
-        np.linalg.inv(C)
-        if len(coords) >= 6 and np.linalg.matrix_rank(J, tol=1e-9 * np.abs(J).max()) == 6
-        else None
-    )
-    return p, K, K6
+    return ref.stiffness(joints, chain, coords, q, k, OFFSET)[:3]
 
 
 def _in_frame(joints, frame: str, p, K, K6):

@@ -74,18 +74,7 @@ def _limits(joints, coords) -> tuple[np.ndarray, np.ndarray]:
 
 def _reference(joints, chain, coords, q, k):
     """Tip position, K, K6 (None where singular) and the translation rank measure, independently."""
-    p, _ = ref.tip_pose_mm(joints, chain, coords, q, OFFSET)
-    J = ref.jacobian_fd(joints, chain, coords, q, OFFSET)
-    C = J @ np.diag(1.0 / k) @ J.T
-    s = np.linalg.svd(J[:3], compute_uv=False)
-    trans = s[-1] / s[0] if s.size >= 3 and s[0] > 0 else 0.0
-    K = np.linalg.inv(C[:3, :3]) if trans > 1e-6 else None
-    K6 = (
-        np.linalg.inv(C)
-        if len(coords) >= 6 and np.linalg.matrix_rank(J, tol=1e-9 * np.abs(J).max()) == 6
-        else None
-    )
-    return p, K, K6, trans
+    return ref.stiffness(joints, chain, coords, q, k, OFFSET)
 
 
 def _rel(a, b) -> float:

@@ -191,3 +191,20 @@ def joint_column_fd(joints, chain, coords, q, offset_mm, joint: str, h: float = 
     pp, Rp = pose(step)
     pm, Rm = pose(-step)
     return np.concatenate([(pp - pm) / (2 * step), rotvec(Rp @ Rm.T) / (2 * step)])
+
+
+def stiffness(
+    joints, chain, coords, q, k, offset_mm
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, float]:
+    """Measured point (mm), K, K6 and the translation rank measure at coordinates q, from
+    C = J diag(1/k) J^T with J by central differences: K = C[:3, :3]^-1 where the translational
+    rows have rank 3 (their inverse condition above 1e-6, else None), K6 = C^-1 where J has
+    rank 6 (else None)."""
+    p, _ = tip_pose_mm(joints, chain, coords, q, offset_mm)
+    J = jacobian_fd(joints, chain, coords, q, offset_mm)
+    C = J @ np.diag(1.0 / np.asarray(k, dtype=float)) @ J.T
+    s = np.linalg.svd(J[:3], compute_uv=False)
+    trans = s[-1] / s[0] if s.size >= 3 and s[0] > 0 else 0.0
+    K = np.linalg.inv(C[:3, :3]) if trans > 1e-6 else None
+    rank6 = len(coords) >= 6 and np.linalg.matrix_rank(J, tol=1e-9 * np.abs(J).max()) == 6
+    return p, K, np.linalg.inv(C) if rank6 else None, trans
