@@ -705,3 +705,28 @@ def test_a_missing_file_named_by_an_argument_s_default_names_the_argument(tmp_pa
     ), str(e.value)
     robot = SerialRobot.from_urdf(f, "plate", k_theta=1e8, xacro_args={"name": "ur", "ur_type": "ur5e"})
     assert robot.chain.joint_names == ("turn",)
+
+
+def test_xacro_saved_as_urdf_is_expanded_and_a_written_out_urdf_is_not(rng, tmp_path):
+    """A .urdf that declares the xacro namespace and uses it (macros, $(find), $(arg)) is xacro
+    under a URDF's name: expanded, the K6 of the URDF written by hand; a URDF xacro wrote out
+    (Motoman's sia20d.urdf: the namespace kept, nothing of xacro in it) is read as it is, and
+    xacro arguments given to it are refused."""
+    ws = shutil.copytree(XACRO_WS, tmp_path / "ws")
+    top = ws / "acme_description" / "urdf" / "acme_rs6.urdf.xacro"
+    as_urdf = top.with_name("acme_rs6_cell.urdf")
+    shutil.copy(top, as_urdf)
+    args = {"mount_height": "0.4"}
+    a = SerialRobot.from_urdf(as_urdf, "tool0", OFFSET, k_theta=K_ACME, xacro_args=args)
+    plain = SerialRobot.from_urdf(ACME_URDF, "tool0", OFFSET, k_theta=K_ACME)
+    Q = rng.uniform(plain.chain.lower, plain.chain.upper, size=(3, 6))
+    assert _rel(a.stiffness6(Q), plain.stiffness6(Q)) < 1e-12
+    written = tmp_path / "written.urdf"
+    text = ACME_URDF.read_text()
+    written.write_text(text.replace("<robot ", '<robot xmlns:xacro="http://ros.org/wiki/xacro" ', 1))
+    b = SerialRobot.from_urdf(written, "tool0", OFFSET, k_theta=K_ACME)
+    assert _rel(b.stiffness6(Q), plain.stiffness6(Q)) == 0.0
+    with pytest.raises(
+        InputError, match=r"xacro arguments \(mount_height\) given, but the file is not xacro"
+    ):
+        SerialRobot.from_urdf(written, "tool0", k_theta=1e8, xacro_args=args)

@@ -581,7 +581,8 @@ def read_urdf(
     Parameters
     ----------
     path : path-like
-        ``ROBOT.urdf``, or ``ROBOT.xacro`` / ``ROBOT.urdf.xacro``.
+        ``ROBOT.urdf``, or ``ROBOT.xacro`` / ``ROBOT.urdf.xacro`` (or a ``.urdf`` that declares
+        the xacro namespace and uses it: xacro saved under a URDF's name, expanded as well).
     xacro_args : mapping of str to str, optional
         xacro arguments (a plain URDF takes none: refused, so a mistyped file name is seen).
     package_paths : sequence of path-like
@@ -594,16 +595,24 @@ def read_urdf(
     """
     src = str(path)
     if is_xacro(path):
-        text = expand_xacro(path, xacro_args, package_paths)
-    else:
-        if xacro_args:
-            raise InputError(
-                f"xacro arguments ({', '.join(xacro_args)}) given, but the file is not xacro "
-                "(its name does not end in .xacro)",
-                source=src,
-            )
-        text = read_text_file(path, "URDF file")
+        return parse_urdf(expand_xacro(path, xacro_args, package_paths), src)
+    text = read_text_file(path, "URDF file")
+    if _holds_xacro(text):  # xacro saved as .urdf: ROS's xacro command takes any name too
+        return parse_urdf(expand_xacro(path, xacro_args, package_paths), src)
+    if xacro_args:
+        raise InputError(
+            f"xacro arguments ({', '.join(xacro_args)}) given, but the file is not xacro "
+            "(its name does not end in .xacro and it holds no xacro element or expression)",
+            source=src,
+        )
     return parse_urdf(text, src)
+
+
+def _holds_xacro(text: str) -> bool:
+    """Whether a file not named .xacro is xacro all the same: it declares the xacro namespace
+    and uses it (an ``<xacro:...>`` element, a ``${...}`` or ``$(...)`` expression); a URDF
+    xacro wrote out keeps the namespace only."""
+    return "xmlns:xacro" in text and re.search(r"<xacro:|\$\{|\$\(", text) is not None
 
 
 _LINK_KEYS = ("link", "name", "xyz_mm", "rpy", "beam", "compliance")
