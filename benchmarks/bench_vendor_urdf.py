@@ -158,6 +158,14 @@ ARMS = [
 ]
 ARMS += [
     (
+        "Franka FR3 (franka_description: YAML limits read as attributes, ** block parameters)",
+        "franka_ros/franka_description/robots/fr3/fr3.urdf.xacro",
+        "fr3_link8",
+        None,
+        {},
+        [],
+    ),
+    (
         "Denso (ROS 2: xacro.load_yaml, parent-scope defaults, a Gazebo $(find) of an absent package)",
         "denso_robot_ros/denso_robot_description/urdf/denso_robot.urdf.xacro",
         "tool0",
