@@ -453,7 +453,7 @@ def bad_cases(root: Path, tmp: Path) -> list[tuple[str, str]]:
     out = []
     for name, argv in cases:
         code, _, err = run([*argv, "--configs", cfg, "--param", "k_theta=1e8"])
-        line = err.strip().replace(str(root) + "/", "")
+        line = err.strip().replace(str(root) + "/", "").replace(str(tmp) + "/", "")
         ok = code == 2 and line.count("\n") == 0 and line.startswith("error:")
         out.append((name, ("" if ok else f"NOT ONE LINE (status {code}): ") + line))
     return out
