@@ -730,3 +730,46 @@ def test_xacro_saved_as_urdf_is_expanded_and_a_written_out_urdf_is_not(rng, tmp_
         InputError, match=r"xacro arguments \(mount_height\) given, but the file is not xacro"
     ):
         SerialRobot.from_urdf(written, "tool0", k_theta=1e8, xacro_args=args)
+
+
+PALLETIZER = Path(__file__).parent / "robots" / "palletizer_4ax.urdf"
+
+
+def test_a_palletizer_s_parallelogram_mimic_joints_on_the_chain(rng, tmp_path, monkeypatch):
+    """Mimic joints ON the chain, each following a joint of the chain (a palletizer's parallelogram
+    keeping the flange level): the coordinates are A1..A4, the tool stays level at every
+    configuration, and position and K printed by ``model urdf`` equal the independent computation;
+    with the mimic joints' own springs given (k5, k6), K includes their compliance
+    (their columns by central differences, joint held)."""
+    text = PALLETIZER.read_text()
+    _, joints = ref.read_joints(text)
+    chain = ref.path(joints, "tool0")
+    coords = ref.coordinates(joints, chain)
+    assert coords == ["joint_a1", "joint_a2", "joint_a3", "joint_a4"]
+    lo, hi = _limits(joints, coords)
+    Q = rng.uniform(lo, hi, size=(6, 4))
+    k = np.array([3e9, 4e9, 2e9, 5e8])
+    cfg = tmp_path / "pal_configs.csv"
+    _write_configs(cfg, joints, coords, Q)
+    code, out, err = _run(
+        ["model", "urdf", PALLETIZER, "--tip", "tool0", "--tip-offset-mm", ",".join(map(str, OFFSET)),
+         "--configs", cfg, "--param", "k_theta=" + ",".join(map(str, k)), "--json"],
+        monkeypatch,
+    )  # fmt: skip
+    assert code == 0, err
+    for rec, q in zip(json.loads(out), Q, strict=True):
+        p, K, K6, _ = _reference(joints, chain, coords, q, k)
+        _, R = ref.tip_pose_mm(joints, chain, coords, q, OFFSET)
+        np.testing.assert_allclose(R[:, 2], [0.0, 0.0, -1.0], atol=1e-12)  # level: tool0 points down
+        assert _rel(rec["position"], p) < 1e-12 and _rel(rec["K"], K) < TOL
+        assert rec["K6"] is None and K6 is None  # four joints
+    k_m = np.array([8e8, 6e8])  # joint_a4_level_3, joint_a4_level_2 (chain order)
+    robot = SerialRobot.from_urdf(PALLETIZER, "tool0", OFFSET, k_theta=[*k, *k_m])
+    assert robot.chain.mimic_names == ("joint_a4_level_3", "joint_a4_level_2")
+    for q in Q:
+        J = ref.jacobian_fd(joints, chain, coords, q, OFFSET)
+        C = J @ np.diag(1.0 / k) @ J.T
+        for name, km in zip(robot.chain.mimic_names, k_m, strict=True):
+            j = ref.joint_column_fd(joints, chain, coords, q, OFFSET, name)
+            C += np.outer(j, j) / km
+        assert _rel(robot.stiffness3(q), np.linalg.inv(C[:3, :3])) < TOL
