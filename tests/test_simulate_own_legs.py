@@ -228,3 +228,25 @@ def test_own_hexapod_campaign_recovers_K6_and_its_legs(own_toml, monkeypatch, ca
     code, _, err = _cli(["report", out], monkeypatch, capsys)
     assert code in (0, 1), err
     assert (out / "report" / "index.html").is_file()
+
+
+def test_a_load_file_too_light_for_stiff_legs_is_kept_with_a_warning(own_toml, monkeypatch, capsys, tmp_path):
+    # paper9's forces as a file: used as given (the user chose them), with one warning saying how far
+    # they move the tool point (the closed form's largest displacement) and the range measured well.
+    loads = tmp_path / "light.csv"
+    F = np.array([ld.force for ld in paper9()])
+    loads.write_text("fx,fy,fz\n" + "".join(",".join(f"{v:.17g}" for v in f) + "\n" for f in F))
+    out = tmp_path / "light"
+    args = ["simulate", out, "--robot", own_toml, "--truth-only", "--loads", loads, "--select", "1,18"]
+    code, _, err = _cli(args, monkeypatch, capsys)
+    assert code == 1, err
+    truth = _truth(out)
+    np.testing.assert_allclose([ld["force_n"] for ld in truth["loads"]], F, rtol=1e-12)
+    lp = np.array([0.0, 0.0, -100.0])
+    P = [p["position"] for p in truth["positions"]]
+    u = max(
+        np.linalg.norm(np.linalg.solve(_gosselin(p), np.r_[f, np.cross(lp, f)])[:3]) for p in P for f in F
+    )
+    (line,) = [t for t in err.splitlines() if t.startswith("warning: ")]
+    assert f"move the tool point by {u:.3g} mm at most, too small for the camera to measure well" in line
+    assert "0.5 to 4 mm measure well" in line

@@ -383,8 +383,9 @@ def simulate_camera_campaign(
     setup: tuple[tuple[str, str], ...] = ()
     if own is not None:
         cfg, loads_text, warnings = _own_loads(cfg, options.loads)
-        setup = (("positions", own.positions_text if request.positions is None else request.positions),
-                 ("loads", loads_text))  # fmt: skip
+        where = own.positions_text if request.positions is None else request.positions
+        where += f"; positions {request.select} of them" if request.select else ""
+        setup = (("positions", where), ("loads", loads_text))
     render = not options.truth_only
     try:
         sim = plan_simulation(cfg, out_dir, render_images=render, advice=_DISK_ADVICE)
