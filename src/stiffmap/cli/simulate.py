@@ -225,8 +225,8 @@ _OPT_ROT_STIFFNESS = typer.Option(
 _OPT_LOAD_POINT = typer.Option(
     None,
     "--load-point-mm",
-    help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
-    "150,100,-150 for arm6).",
+    help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, "
+    "150,100,-150 for arm6, 0,0,-100 for hexapod and a dim = 6 legs TOML).",
     show_default=False,
 )
 _OPT_PARAM = typer.Option(
@@ -274,7 +274,7 @@ _OPT_NAME = typer.Option(
 )
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON summary instead of a table.")
 #: The options of a robot of one's own (--robot FILE), as 'stiffmap model urdf' says them.
-_OWN = "--robot FILE: "
+_OWN = "--robot FILE.urdf or .xacro: "
 _OPT_TIP = typer.Option(None, "--tip", help=_OWN + _TIP_HELP.removeprefix("urdf: "), show_default=False)
 _OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OWN + _OFFSET_HELP.removeprefix("urdf: "))
 _OPT_BASE = typer.Option(None, "--base", help=_OWN + _BASE_HELP.removeprefix("urdf: "))
