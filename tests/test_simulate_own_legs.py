@@ -250,3 +250,23 @@ def test_a_load_file_too_light_for_stiff_legs_is_kept_with_a_warning(own_toml, m
     (line,) = [t for t in err.splitlines() if t.startswith("warning: ")]
     assert f"move the tool point by {u:.3g} mm at most, too small for the camera to measure well" in line
     assert "0.5 to 4 mm measure well" in line
+
+
+def test_a_default_grid_out_of_reach_asks_for_positions(monkeypatch, capsys, tmp_path):
+    # The shipped hexapod with legs whose stroke is 342-343.7 mm (home: 342.85 mm): no position of
+    # its grid (z 280 and 320 mm) is reachable, so it asks for the positions, naming a leg and its
+    # limit; the home position given is simulated.
+    robot = tmp_path / "short_stroke.toml"
+    text = Path(HEXAPOD).read_text(encoding="utf-8")
+    robot.write_text(text.replace("lower = 260.0", "lower = 342.0").replace("upper = 440.0", "upper = 343.7"))
+    args = ["simulate", tmp_path / "o", "--robot", robot, "--truth-only"]
+    code, out, err = _cli(args, monkeypatch, capsys)
+    assert (
+        code == 2
+        and err.startswith("error: --positions: no position of the default grid")
+        and err.count("\n") == 1
+    )
+    assert "position 1 (-40, -40, 280) mm: unreachable: leg 1 (leg1)" in err and "[342, 343.7] mm" in err
+    assert err.rstrip().endswith("; give them")
+    code, out, err = _cli([*args, "--positions", "0,0,300"], monkeypatch, capsys)
+    assert code == 0, err

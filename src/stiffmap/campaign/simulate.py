@@ -213,6 +213,8 @@ def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.nda
             )
         except ValueError as e:
             raise FieldError("select", str(e), value=request.select) from None
+    elif setup.positions_text:
+        raise FieldError("positions", f"{setup.positions_text}; give them")
     else:
         raise FieldError(
             "positions", "give the positions: joint configurations (a CSV file) or points the robot reaches"
@@ -453,7 +455,7 @@ def _own_loads(cfg: SimConfig, loads: str) -> tuple[SimConfig, str, tuple[str, .
     if lo <= u <= hi:
         return cfg, f"{loads}, {at}; largest predicted displacement {u:.3g} mm", ()
     if loads.strip().lower() not in PRESETS:
-        why = "too small for the camera to measure well" if u < lo else "large: the model is linear"
+        why = "too small for the camera to measure well" if u < lo else "large for a linear model"
         return (
             cfg,
             f"{loads}, {at}; largest predicted displacement {u:.3g} mm",

@@ -173,7 +173,7 @@ def _round_spacing(mm: float) -> float:
     return max(round(mm / half), 1) * half
 
 
-def legs_default_grid(model) -> tuple[np.ndarray, float]:
+def legs_default_grid(model) -> tuple[np.ndarray, np.ndarray, float]:
     """The test-bed's grid about a legs robot's home: 3 x 3 x 2 positions, the platform level.
 
     x and y at the home's and one spacing either side, z half a spacing below and above it
@@ -206,15 +206,14 @@ def _own_legs_setup(model) -> OwnSetup:
     Raises
     ------
     FieldError
-        ``robot``: a planar robot (``dim = 2``), legs given by URDFs; ``positions``: no position
-        of the default grid is reachable.
+        ``robot``: a planar robot (``dim = 2``), legs given by URDFs.
     """
     if model.dim == 2:
         raise FieldError(
             "robot",
-            f"{model.source}: dim = 2, a planar robot: the test-bed simulates planar robots as "
-            f"displacement-sensor recordings of its own 3PRR (--robot {PRR3_KIND.testbed.name}); a legs "
-            "TOML of dim = 6 or dim = 3 is simulated as seen by a camera",
+            f"{{robot}} {model.source}: dim = 2, a planar robot: the test-bed simulates planar robots as "
+            f"displacement-sensor recordings of its own 3PRR ({{robot}} {PRR3_KIND.testbed.name}); a "
+            "legs TOML of dim = 6 or dim = 3 is simulated as seen by a camera",
         )
     if any(d.urdf for d in model.description):
         raise FieldError(
@@ -224,16 +223,16 @@ def _own_legs_setup(model) -> OwnSetup:
         )
     grid, home, s = legs_default_grid(model)
     turns = model.dim == 6
+    load_point = HEXAPOD_LOAD_POINT_MM if turns else (0.0, 0.0, 0.0)
     m = model.evaluate(np.c_[grid, np.zeros((len(grid), 3))] if turns else grid)
     where = f"a 3 x 3 x 2 grid {s:g} mm apart about the home position {_mm(home)} mm" + (
         ", the platform level" if turns else ""
     )
     out = np.flatnonzero(~m.valid)
     first = f"position {out[0] + 1} {_mm(grid[out[0]])} mm: {m.reasons[out[0]]}" if out.size else ""
-    if out.size == len(grid):
-        raise FieldError(
-            "positions", f"no position of the default grid ({where}) suits {model.name} ({first}); give them"
-        )
+    if out.size == len(grid):  # positions must be given: say why the default does not do
+        why = f"no position of the default grid ({where}) suits {model.name} ({first})"
+        return OwnSetup(None, why, turns, load_point)
     notes = ()
     if out.size:
         notes = (
@@ -244,7 +243,7 @@ def _own_legs_setup(model) -> OwnSetup:
         positions=grid[m.valid],
         positions_text=where + (f", {out.size} out of reach left out" if out.size else ""),
         rotations=turns,
-        load_point_mm=HEXAPOD_LOAD_POINT_MM if turns else (0.0, 0.0, 0.0),
+        load_point_mm=load_point,
         notes=notes,
     )
 

@@ -96,7 +96,8 @@ class OwnSetup:
     positions : ndarray, shape (n, 3) mm, or None
         Its positions when none are given (None: none by default).
     positions_text : str
-        What those positions are, in words (the simulation's summary).
+        What those positions are, in words (the simulation's summary); without positions, why
+        there are none by default.
     rotations : bool
         Its field holds rotations itself (a 6x6 field; :attr:`TestBed.rotations`).
     load_point_mm : (float, float, float)
