@@ -12,14 +12,15 @@ hung 100 mm below the platform's centre. Two load cases:
   largest displacement of the tool point (0.025 mm here) is outside 0.5-4 mm, so its masses
   are scaled (x 50: about 1.2 mm; campaign.simulate.OWN_DISPLACEMENT_RANGE_MM);
 - ``paper9``: the reference study's forces themselves, as a CSV file (kept as given, with a
-  warning): what a user would get without the rule.
+  warning): what a user would get without the rule;
+- ``paper9x10``: those forces times 10, as a CSV file (0.25 mm: about the lower end of the range).
 
 Per seed and case: each leg's error and reported standard error (``stiffmap run``'s fit,
 ``campaign.platform.fit_platform``), and the fitted model's K6 at each position against the true
 K6 (relative Frobenius of D K6 D, D = diag(1, 1, 1, 1/L, 1/L, 1/L), L the robot's size).
 
 Run:  nice -n 10 .venv/bin/python benchmarks/bench_own_legs.py [--seeds 3] [--select 1,5,9,10,14,18]
-      [--cases scaled,paper9] [--cache /tmp/ownlegs]
+      [--cases scaled,paper9x10,paper9] [--cache /tmp/ownlegs]
 Saves benchmarks/results/own_legs.md.
 """
 
@@ -62,10 +63,14 @@ def write_robot(path: Path) -> Path:
     return path
 
 
-def write_paper9(path: Path) -> Path:
-    """paper9's forces (g = 9.81) as a --loads CSV file: kept as given for a robot of one's own."""
+def write_paper9(path: Path, factor: float = 1.0) -> Path:
+    """paper9's forces (g = 9.81) times ``factor`` as a --loads CSV file: kept as given for a robot
+    of one's own."""
     rows = ["fx,fy,fz,label"] + [
-        ",".join(f"{v:.17g}" for v in ld.force) + f",{ld.label}" for ld in paper9(g=G_REFERENCE_PAPER)
+        ",".join(f"{factor * v:.17g}" for v in ld.force)
+        + f",{ld.label}"
+        + (f" x {factor:g}" if factor != 1 else "")
+        for ld in paper9(g=G_REFERENCE_PAPER)
     ]
     path.write_text("\n".join(rows) + "\n")
     return path
@@ -116,13 +121,15 @@ def main() -> None:
     ap.add_argument("--select", default="1,5,9,10,14,18")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--cases", default="scaled,paper9")
+    ap.add_argument("--cases", default="scaled,paper9x10,paper9")
     ap.add_argument("--cache", type=Path, help="keep the simulated campaigns here and reuse them")
     args = ap.parse_args()
     tmp = None if args.cache else tempfile.TemporaryDirectory(prefix="bench_own_legs_")
     base = args.cache or Path(tmp.name)
     base.mkdir(parents=True, exist_ok=True)
-    robot, csv = write_robot(base / "my_hexapod.toml"), write_paper9(base / "paper9.csv")
+    robot = write_robot(base / "my_hexapod.toml")
+    load_files = {"scaled": "paper9", "paper9": str(write_paper9(base / "paper9.csv"))}
+    load_files["paper9x10"] = str(write_paper9(base / "paper9x10.csv", 10.0))
     truth = np.array(OWN_K)
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     results, times, forces = {}, [], {}
@@ -131,7 +138,7 @@ def main() -> None:
         for seed in range(args.seeds):
             root = base / f"{case}_s{seed}_{args.select.replace(',', '-')}_r{args.repeats}" / "own"
             root.parent.mkdir(parents=True, exist_ok=True)
-            t = campaign(root, robot, "paper9" if case == "scaled" else str(csv), seed, args)
+            t = campaign(root, robot, load_files[case], seed, args)
             times.append(t)
             forces[case] = t["forces"]
             runs.append(evaluate(root))
@@ -182,7 +189,8 @@ def intro(args, cases, results, forces, times) -> str:
         "about its home, the platform level), loads hung 100 mm below the platform's centre, one camera "
         "calibrated from 20 rendered views. **scaled**: `--loads paper9` as `simulate` takes it for a "
         "robot of one's own (paper9 alone would move the tool point by 0.025 mm at most: its masses "
-        "scaled x 50, 1.2 mm); **paper9**: the same forces unscaled, given as a CSV file. Legs fitted by "
+        "scaled x 50, 1.2 mm); **paper9**: the same forces unscaled, given as a CSV file; **paper9x10**: "
+        "those forces x 10 in a CSV file. Legs fitted by "
         "`stiffmap run` (whitened by the displacements' full covariances plus an extra noise); errors, "
         "standard errors and scatter in % of the truth. The fitted model's K6 at each position against "
         f"the true K6 (relative Frobenius, rad as L mm). {per_case}. {timing}"

@@ -409,7 +409,8 @@ def simulate_camera_campaign(
 #: a preset's loads (``paper9``) outside this range has the preset scaled to about
 #: :data:`OWN_TARGET_DISPLACEMENT_MM` (a load file's forces are kept, with a warning). Measured
 #: (the shipped hexapod's geometry on legs of 375-600 N/mm, 6 positions x 9 loads x 2 repeats,
-#: benchmarks/results/own_legs.md): paper9 moves the tool point by 0.019 mm at most and the
+#: seed 0; docs/simulation.md; benchmarks/results/own_legs.md on another geometry, three seeds):
+#: paper9 moves the tool point by 0.019 mm at most and the
 #: campaign recovers K6 within 6.5 % and the legs within 11.5 %; its forces x 10 (0.22 mm) within
 #: 0.58 % and 1.0 %; x 50 (0.95 mm) within 0.13 % and 0.2 %: the legs' error goes as about
 #: 0.2 % mm / displacement, 0.4 % at the lower bound.
