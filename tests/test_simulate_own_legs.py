@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.cli_process import run_in_process as _cli
+from helpers.poses import rpy_matrix
 
 from stiffmap.campaign.robot import campaign_model
 from stiffmap.campaign.spec import load_spec
@@ -270,3 +271,28 @@ def test_a_default_grid_out_of_reach_asks_for_positions(monkeypatch, capsys, tmp
     assert err.rstrip().endswith("; give them")
     code, out, err = _cli([*args, "--positions", "0,0,300"], monkeypatch, capsys)
     assert code == 0, err
+
+
+def test_own_hexapod_at_turned_poses_from_a_csv(own_toml, monkeypatch, capsys, tmp_path):
+    # x, y, z, roll_deg, pitch_deg, yaw_deg: the platform held turned, its truth the closed form
+    # at the turned pose (r_i = R attach_i).
+    poses = tmp_path / "poses.csv"
+    rows = [[0.0, 0.0, 260.0, 6.0, -4.0, 0.0], [20.0, -10.0, 250.0, -3.0, 5.0, 8.0]]
+    poses.write_text(
+        "x,y,z,roll_deg,pitch_deg,yaw_deg\n" + "".join(",".join(map(str, r)) + "\n" for r in rows)
+    )
+    out = tmp_path / "turned"
+    code, _, err = _cli(
+        ["simulate", out, "--robot", own_toml, "--positions", poses, "--truth-only"], monkeypatch, capsys
+    )
+    assert code == 0, err
+    for p, r in zip(_truth(out)["positions"], rows, strict=True):
+        assert p["orientation_deg"] == pytest.approx(r[3:])
+        R = rpy_matrix(*np.radians(r[3:]))
+        K6 = np.zeros((6, 6))
+        for b, a, k in zip(B_MM, A_MM, OWN_K, strict=True):
+            ra = R @ a
+            n = np.asarray(r[:3]) + ra - b
+            n /= np.linalg.norm(n)
+            K6 += k * np.outer(np.r_[n, np.cross(ra, n)], np.r_[n, np.cross(ra, n)])
+        np.testing.assert_allclose(p["K_tcp"], K6, rtol=1e-9, atol=1e-9 * np.abs(K6).max())
