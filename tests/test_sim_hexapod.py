@@ -46,9 +46,9 @@ def test_platform_field_names_a_position_the_legs_cannot_reach(hexapod):
         PlatformField(hexapod)([[0.0, 0.0, 600.0]])
 
 
-def test_platform_robot_needs_a_turning_platform():
-    with pytest.raises(ValueError, match="dim = 6 legs TOML"):
-        platform_robot(LegRobot.from_toml(ROBOTS / "delta.toml"), "legs", "legs")
+def test_platform_robot_needs_a_platform_in_space():
+    with pytest.raises(ValueError, match="dim = 6 or dim = 3 legs TOML"):
+        platform_robot(LegRobot.from_toml(ROBOTS / "3prr.toml"), "legs", "legs")
 
 
 def test_hexapod_scene_sees_both_boards_over_the_platforms_workspace():

@@ -20,6 +20,7 @@ stiffness (fewer than three independent directions).
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +40,7 @@ __all__ = [
     "paper9",
     "PRESETS",
     "preset",
+    "scaled_loads",
     "AXES",
     "check_load_design",
     "read_loads_csv",
@@ -214,6 +216,29 @@ def preset(name: str, *, g: float | None = None) -> list[LoadCase]:
     if name not in PRESETS:
         raise ValueError(f"unknown load preset {name!r}; known: {', '.join(PRESETS)}")
     return PRESETS[name]() if g is None else PRESETS[name](g=g)
+
+
+def scaled_loads(loads: Sequence[LoadCase], factor: float) -> list[LoadCase]:
+    """The load cases ``factor`` times heavier: forces times ``factor``, covariances times its
+    square, a mass in a label (``0.5 kg +y``) times ``factor`` (else `` x factor`` appended).
+
+    Examples
+    --------
+    >>> [ld.label for ld in scaled_loads(paper9()[:2], 50)]
+    ['25 kg +y', '25 kg -x']
+    """
+    f = float(factor)
+    if not (np.isfinite(f) and f > 0):
+        raise ValueError(f"factor must be a positive number, got {factor!r}")
+    out = []
+    for ld in loads:
+        m = _MASS_LABEL.match(ld.label)
+        label = f"{float(m.group(1)) * f:g} kg{m.group(2)}" if m else f"{ld.label} x {f:g}".strip()
+        out.append(LoadCase(np.asarray(ld.force) * f, np.asarray(ld.cov) * f * f, label))
+    return out
+
+
+_MASS_LABEL = re.compile(r"^\s*([0-9.]+(?:e[-+]?[0-9]+)?) kg(.*)$")
 
 
 def check_load_design(forces, *, source: str | None = None) -> None:

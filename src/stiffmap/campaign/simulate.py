@@ -37,6 +37,7 @@ from ..errors import FieldError, InputError
 from ..kinds import (
     DEFAULT_TESTBED,
     ROBOT_KINDS,
+    OwnSetup,
     RobotDescription,
     RobotKind,
     TestBed,
@@ -45,12 +46,13 @@ from ..kinds import (
     positions_from_text,
     robot_kind,
 )
-from ..loads import load_design
+from ..loads import PRESETS, load_design, scaled_loads
 from ..models.presets import select_positions
 from ..parallel import Backend, local_workers
 from ..sim.plan import SimulationPlan, plan_simulation, vision_config
+from ..sim.robot import translational_stiffness
 from ..sim.scene import scene_around
-from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
+from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS, SimConfig
 from ..units import G_REFERENCE_PAPER
 from .simulated import SimSummary, check_output_dir, write_campaign
 from .simulated_sensor import SensorSimSummary, write_sensor_campaign
@@ -166,14 +168,20 @@ def testbed(name: str) -> tuple[RobotKind, TestBed]:
     return table[name]
 
 
-def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.ndarray]:
-    """A user's own robot on its kind's test-bed: (kind, test-bed, positions (n, 3) mm).
+def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.ndarray, OwnSetup]:
+    """A user's own robot on its kind's test-bed: (kind, test-bed, positions (n, 3) mm or poses
+    (n, 6), how the test-bed takes it).
+
+    Its positions: those given, else its configurations' measured points, else its kind's
+    default (:attr:`~stiffmap.kinds.registry.TestBed.own_setup`: a legs robot's grid about
+    its home).
 
     Raises
     ------
     FieldError
-        ``robot``: its kind has no test-bed for a robot of one's own; ``positions``: none
-        given and no configurations; a wrong value of the description, naming its field.
+        ``robot``: its kind has no test-bed for a robot of one's own, or not for this one;
+        ``positions``: none given and none by default; a wrong value of the description,
+        naming its field.
     """
     d = request.description
     kind = robot_kind(d.kind)
@@ -181,36 +189,47 @@ def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.nda
     if own is None:
         raise FieldError("robot", f"a {kind.name} robot of your own cannot be simulated (no test-bed for it)")
     model = build_robot(d)
-    Q = getattr(model, "configurations", None)
-    if request.positions is not None:
-        P = _positions(request, kind, kind.testbed)
-    elif Q is not None:
-        try:
-            P = select_positions(model.chain.forward_many(Q)[0], request.select)
-        except ValueError as e:
-            raise FieldError("select", str(e), value=request.select) from None
-    else:
-        raise FieldError(
-            "positions", "give the positions: joint configurations (a CSV file) or points the robot reaches"
-        )
+    setup = (
+        kind.testbed.own_setup(model)
+        if kind.testbed.own_setup is not None
+        else OwnSetup(rotations=kind.testbed.rotations)
+    )
     tb = replace(
         kind.testbed,
         name=str(request.robot),
         positions="",
         robot=lambda params, **kw: own(model, d, **kw),
-        scene=lambda camera: scene_around(P, camera),
-        load_point_mm=(0.0, 0.0, 0.0),
-        campaign_name=f"{getattr(model.chain, 'name', kind.name)} on the virtual test-bed",
+        rotations=setup.rotations,
+        load_point_mm=setup.load_point_mm,
+        campaign_name=f"{getattr(getattr(model, 'chain', model), 'name', kind.name)} on the virtual test-bed",
     )
-    return kind, tb, P
+    Q = getattr(model, "configurations", None)
+    if request.positions is not None:
+        P = _positions(request, kind, tb)
+    elif Q is not None or setup.positions is not None:
+        try:
+            P = select_positions(
+                model.chain.forward_many(Q)[0] if Q is not None else setup.positions, request.select
+            )
+        except ValueError as e:
+            raise FieldError("select", str(e), value=request.select) from None
+    elif setup.positions_text:
+        raise FieldError("positions", f"{setup.positions_text}; give them")
+    else:
+        raise FieldError(
+            "positions", "give the positions: joint configurations (a CSV file) or points the robot reaches"
+        )
+    return kind, replace(tb, scene=lambda camera: scene_around(P[:, :3], camera)), P, setup
 
 
-def _request_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.ndarray | None]:
+def _request_testbed(
+    request: SimulationRequest,
+) -> tuple[RobotKind, TestBed, np.ndarray | None, OwnSetup | None]:
     """The request's robot: a test-bed robot (its positions later), or the user's own."""
     if request.description is not None:
         return _own_testbed(request)
     kind, tb = testbed(request.robot)
-    return kind, tb, None
+    return kind, tb, None, None
 
 
 def _positions(request: SimulationRequest, kind: RobotKind, tb: TestBed) -> np.ndarray:
@@ -273,7 +292,7 @@ def simulate_campaign(
     InputError
         As :func:`simulate_camera_campaign` and :func:`simulate_sensor_campaign`.
     """
-    _, tb, _ = _request_testbed(request)
+    _, tb, _, _ = _request_testbed(request)
     if tb.instrument == SENSOR:
         if camera is not None:
             raise FieldError("camera", f"not used when simulating {request.robot}'s sensor recordings")
@@ -343,7 +362,7 @@ def simulate_camera_campaign(
         leaves the image (naming the positions' or loads' file when they come from one);
         a disk too small.
     """
-    kind, tb, P = _request_testbed(request)
+    kind, tb, P, own = _request_testbed(request)
     check_output_dir(out_dir, request.force)
     P = _positions(request, kind, tb) if P is None else P
     try:
@@ -363,6 +382,12 @@ def simulate_camera_campaign(
         calibration_views=options.calibration_views, cameras=options.cameras,
         camera_angle_deg=options.camera_angle_deg, scene=None if tb.scene is None else tb.scene(cam),
     )  # fmt: skip
+    setup: tuple[tuple[str, str], ...] = ()
+    if own is not None:
+        cfg, loads_text, warnings = _own_loads(cfg, options.loads)
+        where = own.positions_text if request.positions is None else request.positions
+        where += f"; positions {request.select} of them" if request.select else ""
+        setup = (("positions", where), ("loads", loads_text))
     render = not options.truth_only
     try:
         sim = plan_simulation(cfg, out_dir, render_images=render, advice=_DISK_ADVICE)
@@ -375,7 +400,85 @@ def simulate_camera_campaign(
         out_dir, cfg, workers=workers, force=request.force, render_images=render, progress=progress,
         command=request.command, plan=sim.plan, dask=options.dask,
     )  # fmt: skip
+    if own is not None:
+        summary = replace(summary, setup=setup, notes=own.notes, warnings=warnings)
     return summary, sim
+
+
+#: A robot of one's own on the test-bed: the largest displacement of its tool point (mm) under
+#: a preset's loads (``paper9``) outside this range has the preset scaled to about
+#: :data:`OWN_TARGET_DISPLACEMENT_MM` (a load file's forces are kept, with a warning). Measured
+#: (the shipped hexapod's geometry on legs of 375-600 N/mm, 6 positions x 9 loads x 2 repeats,
+#: seed 0; docs/simulation.md; benchmarks/results/own_legs.md on another geometry, three seeds):
+#: paper9 moves the tool point by 0.019 mm at most and the
+#: campaign recovers K6 within 6.5 % and the legs within 11.5 %; its forces x 10 (0.22 mm) within
+#: 0.58 % and 1.0 %; x 50 (0.95 mm) within 0.13 % and 0.2 %: the legs' error goes as about
+#: 0.2 % mm / displacement, 0.4 % at the lower bound.
+OWN_DISPLACEMENT_RANGE_MM = (0.5, 4.0)
+#: What a scaled preset aims at, mm: the test-bed's own robots' (the reference study's Delta, the
+#: test-bed hexapod: about 1 mm).
+OWN_TARGET_DISPLACEMENT_MM = 1.0
+
+
+def _largest_displacement(cfg: SimConfig) -> float | None:
+    """The largest displacement of the tool point (mm) over the positions and load cases (None:
+    the field fails at a position, which the plan names)."""
+    try:
+        K = cfg.robot.stiffness(cfg.positions, cfg.orientations)
+    except ValueError:
+        return None
+    K3 = translational_stiffness(K, cfg.robot.load_point_mm)
+    F = np.array([ld.force for ld in cfg.loads], dtype=float)
+    u = np.linalg.solve(K3[:, None], np.broadcast_to(F[None, :, :, None], (len(K3), *F.shape, 1)))
+    return float(np.max(np.linalg.norm(u[..., 0], axis=-1)))
+
+
+def _round_factor(x: float) -> float:
+    """``x`` rounded to the nearest of 1, 2 and 5 times a power of ten, in log scale (48 -> 50, 3 -> 2)."""
+    k = np.floor(np.log10(x))
+    candidates = np.array([1.0, 2.0, 5.0, 10.0]) * 10.0**k
+    return float(candidates[np.argmin(np.abs(np.log(candidates / x)))])
+
+
+def _own_loads(cfg: SimConfig, loads: str) -> tuple[SimConfig, str, tuple[str, ...]]:
+    """A robot of one's own: its loads scaled as :data:`OWN_DISPLACEMENT_RANGE_MM` says (a preset),
+    in words for the summary, and the warnings (a load file's forces too small or too large)."""
+    lp = cfg.robot.load_point_mm
+    at = (
+        f"hung at ({', '.join(f'{v:g}' for v in lp)}) mm from the tool point"
+        if any(lp)
+        else "at the tool point"
+    )
+    u = _largest_displacement(cfg)
+    lo, hi = OWN_DISPLACEMENT_RANGE_MM
+    if u is None:
+        return cfg, f"{loads}, {at}", ()
+    if lo <= u <= hi:
+        return cfg, f"{loads}, {at}; largest predicted displacement {u:.3g} mm", ()
+    if loads.strip().lower() not in PRESETS:
+        why = "too small for the camera to measure well" if u < lo else "large for a linear model"
+        return (
+            cfg,
+            f"{loads}, {at}; largest predicted displacement {u:.3g} mm",
+            (
+                f"the loads of {loads} move the tool point by {u:.3g} mm at most, {why} (the test-bed's "
+                f"robots move by about {OWN_TARGET_DISPLACEMENT_MM:g} mm; {lo:g} to {hi:g} mm measure well): "
+                "scale its forces",
+            ),
+        )
+    f = _round_factor(OWN_TARGET_DISPLACEMENT_MM / u)
+    cfg = replace(cfg, loads=tuple(scaled_loads(cfg.loads, f)))
+    masses = ", ".join(
+        dict.fromkeys(ld.label.split(" kg")[0] + " kg" for ld in cfg.loads if " kg" in ld.label)
+    )
+    return (
+        cfg,
+        (
+            f"{loads} x {f:g} ({masses}), {at}; largest predicted displacement {u * f:.3g} mm (x {f:g}: "
+            f"{loads} alone gives {u:.3g} mm, outside the {lo:g} to {hi:g} mm measured well)"
+        ),
+        (),
+    )
 
 
 #: What a full disk's message suggests.

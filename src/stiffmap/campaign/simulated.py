@@ -121,6 +121,13 @@ class SimSummary:
         How camera.json was obtained (calibrated from views, or the true camera).
     calibration_seconds : float
         Wall time of rendering the calibration views and calibrating (0 without).
+    setup : tuple of (str, str)
+        What was simulated, in words, for the summary: ("positions", ...), ("loads", ...) of a
+        robot of one's own (empty for a test-bed robot: its documented set-up).
+    notes : tuple of str
+        What the user should know (default positions left out).
+    warnings : tuple of str
+        What the user should look at (a load file's forces too small to measure).
     """
 
     out_dir: Path
@@ -135,6 +142,9 @@ class SimSummary:
     files: tuple[str, ...]
     calibration: CalibrationSummary
     calibration_seconds: float = 0.0
+    setup: tuple[tuple[str, str], ...] = ()
+    notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
 
 
 # ------------------------------------------------------------------ directory

@@ -42,6 +42,7 @@ from ..errors import InputError
 from ..kinds import (
     CONFIGS_OPTION,
     DEFAULT_TESTBED,
+    ROBOT_KINDS,
     command_names,
     description_from_command,
     kind_of_file,
@@ -50,7 +51,17 @@ from ..kinds import (
 from ..parallel import Backend
 from ..sim.plan import SimulationPlan
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS
-from .common import dask_option, err, fmt, options_named, print_json, print_summary, three_numbers
+from .common import (
+    dask_option,
+    err,
+    fmt,
+    note,
+    options_named,
+    print_json,
+    print_summary,
+    three_numbers,
+    warn,
+)
 from .model import _BASE_HELP, _LINKS_HELP, _OFFSET_HELP, _PACKAGE_PATH_HELP, _TIP_HELP, _XACRO_ARG_HELP
 
 
@@ -151,7 +162,10 @@ _OPT_ROBOT = typer.Option(
     "six-joint arm from its URDF, tool pointing down, loads hung from a bracket at (150, 100, "
     "-150) mm from the measured point; its joint stiffnesses k1..k6 are fitted by 'stiffmap run'. "
     "Or a robot of your own, its description ROBOT.urdf or .xacro, with --tip, --configs, --param "
-    "k_theta=... (and --base, --xacro-arg, --package-path, --links as 'stiffmap model urdf').",
+    "k_theta=... (and --base, --xacro-arg, --package-path, --links as 'stiffmap model urdf'); or "
+    "a legs TOML, ROBOT.toml (dim = 6: a hexapod, a 3-RPS, the loads hung 100 mm below the tool "
+    "point as for hexapod; dim = 3: a translational robot, a 3x3 field), with --param k_leg1=... "
+    "overriding its [params]; without --positions, a 3 x 3 x 2 grid about its home position.",
 )
 _OPT_POSITIONS = typer.Option(
     None,
@@ -160,7 +174,8 @@ _OPT_POSITIONS = typer.Option(
     "x, y, z (mm), or 'x,y,z;x,y,z'. 3PRR: points22 (default), a CSV file with x, y, or 'x,y;x,y'. "
     "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list. hexapod: 18 "
     "level positions (default), a list, or a CSV file with x, y, z and optionally roll_deg, pitch_deg, "
-    "yaw_deg (degrees): the platform turned.",
+    "yaw_deg (degrees): the platform turned; the same for a dim = 6 legs TOML of your own, whose "
+    "default is a 3 x 3 x 2 grid about its home position, spacing 0.12 of its size.",
     show_default=False,
 )
 _OPT_SELECT = typer.Option(
@@ -210,8 +225,8 @@ _OPT_ROT_STIFFNESS = typer.Option(
 _OPT_LOAD_POINT = typer.Option(
     None,
     "--load-point-mm",
-    help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, and "
-    "150,100,-150 for arm6).",
+    help="Where the loads act, in the tool frame, mm (with a 6x6 field; default 0,0,0, "
+    "150,100,-150 for arm6, 0,0,-100 for hexapod and a dim = 6 legs TOML).",
     show_default=False,
 )
 _OPT_PARAM = typer.Option(
@@ -259,7 +274,7 @@ _OPT_NAME = typer.Option(
 )
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print a JSON summary instead of a table.")
 #: The options of a robot of one's own (--robot FILE), as 'stiffmap model urdf' says them.
-_OWN = "--robot FILE: "
+_OWN = "--robot FILE.urdf or .xacro: "
 _OPT_TIP = typer.Option(None, "--tip", help=_OWN + _TIP_HELP.removeprefix("urdf: "), show_default=False)
 _OPT_TIP_OFFSET = typer.Option(None, "--tip-offset-mm", help=_OWN + _OFFSET_HELP.removeprefix("urdf: "))
 _OPT_BASE = typer.Option(None, "--base", help=_OWN + _BASE_HELP.removeprefix("urdf: "))
@@ -286,8 +301,7 @@ def _own_robot(robot: str, param, options: dict, configs):
     if kind is None:
         if given:
             raise InputError(
-                f"{', '.join(given)}: for a robot of your own (--robot FILE.urdf or .xacro), not the "
-                f"test-bed's {robot}"
+                f"{', '.join(given)}: for a robot of your own ({_own_files()}), not the test-bed's {robot}"
             )
         return None, _OPTION_NAMES
     if not Path(robot).is_file():
@@ -298,6 +312,13 @@ def _own_robot(robot: str, param, options: dict, configs):
         kind.name, robot, param or [], options, configs=configs, command="simulate", configs_required=False
     )
     return d, {**_OPTION_NAMES, **command_names(kind), "file": "--robot"}
+
+
+def _own_files() -> str:
+    """The files ``--robot`` takes as a robot of one's own (``--robot FILE.urdf, .xacro or .toml``)."""
+    suffixes = [x for k in ROBOT_KINDS.values() if k.testbed and k.testbed.own for x in k.file_suffixes]
+    listed = ", ".join(suffixes[:-1]) + (" or " if len(suffixes) > 1 else "") + suffixes[-1]
+    return f"--robot FILE{listed}"
 
 
 def _instrument(robot: str) -> str:
@@ -458,7 +479,11 @@ def _rendering(out_dir: Path, show: bool):
 
 
 def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: bool) -> None:
-    """The simulated vision campaign: a table, or one JSON object."""
+    """The simulated vision campaign: a table, or one JSON object (its notes and warnings first)."""
+    for text in summary.notes:
+        note(text)
+    for text in summary.warnings:
+        warn(text)
     cfg = sim.config
     vr = cfg.robot
     lo, hi = summary.principal_range
@@ -485,6 +510,7 @@ def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: boo
                     "seconds": summary.calibration_seconds,
                 },
                 "files": list(summary.files),
+                **({"setup": dict(summary.setup)} if summary.setup else {}),
             }
         )
         return
@@ -497,6 +523,7 @@ def _print_vision_summary(summary: SimSummary, sim: SimulationPlan, as_json: boo
             ),
             ("positions x loads x repeats", f"{summary.n_positions} x {summary.n_loads} x {summary.repeats}"),
             ("robot", f"{vr.model} ({', '.join(f'{k}={v:g}' for k, v in vr.params.items())})"),
+            *summary.setup,
             ("true principal stiffnesses", f"{fmt(lo, 4)} to {fmt(hi, 4)} N/mm"),
             *_calibration_rows(summary),
             ("seed", str(cfg.seed)),

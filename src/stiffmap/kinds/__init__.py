@@ -25,6 +25,7 @@ from .positions import grid_from_text, kind_dim, position_presets, positions_fro
 from .registry import (
     NO_ROBOT,
     ROBOT_KINDS,
+    OwnSetup,
     RobotDescription,
     RobotKind,
     TestBed,
@@ -53,6 +54,7 @@ __all__ = [
     "DEFAULT_TESTBED",
     "RobotDescription",
     "TestBed",
+    "OwnSetup",
     "ROBOT_KINDS",
     "NO_ROBOT",
     "register_robot_kind",

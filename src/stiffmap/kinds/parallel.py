@@ -9,6 +9,7 @@ its test-bed robot; the mechanisms themselves are in :mod:`stiffmap.models.delta
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from importlib.resources import files
 
@@ -21,9 +22,18 @@ from ..models.presets import paper48, prr3_points22
 from ..models.prr3 import PRR3
 from ..sim.robot import mechanism_robot, platform_robot
 from ..sim.scene import hexapod_scene
-from .registry import RobotDescription, RobotKind, TestBed, allow_keys, float_params
+from .registry import OwnSetup, RobotDescription, RobotKind, TestBed, allow_keys, float_params
 
-__all__ = ["DELTA", "PRR3_KIND", "LEGS", "BUILTIN_LEGS", "HEXAPOD_TESTBED_K", "build_with_params"]
+__all__ = [
+    "DELTA",
+    "PRR3_KIND",
+    "LEGS",
+    "BUILTIN_LEGS",
+    "HEXAPOD_TESTBED_K",
+    "OWN_GRID_FRACTION",
+    "build_with_params",
+    "legs_default_grid",
+]
 
 
 def build_with_params(cls, description: RobotDescription):
@@ -151,6 +161,97 @@ def _legs(description: RobotDescription):
         raise FieldError("params", str(e)) from None
 
 
+#: A legs robot of one's own on the test-bed: its default grid's spacing, as a fraction of the
+#: robot's size at home (:meth:`~stiffmap.models.legs.LegRobot.home`): the test-bed hexapod's
+#: 40 mm of its 335 mm.
+OWN_GRID_FRACTION = 0.12
+
+
+def _round_spacing(mm: float) -> float:
+    """``mm`` rounded to a half of its decade (40.2 -> 40, 32.3 -> 30, 3.6 -> 3.5), at least that half."""
+    half = 10.0 ** math.floor(math.log10(mm)) / 2
+    return max(round(mm / half), 1) * half
+
+
+def legs_default_grid(model) -> tuple[np.ndarray, np.ndarray, float]:
+    """The test-bed's grid about a legs robot's home: 3 x 3 x 2 positions, the platform level.
+
+    x and y at the home's and one spacing either side, z half a spacing below and above it
+    (x fastest, then y, then z: the test-bed hexapod's order); the spacing is
+    :data:`OWN_GRID_FRACTION` of the robot's size, rounded (40 mm for the shipped hexapod,
+    whose grid is then the test-bed's ``HEXAPOD_TESTBED_POSITIONS``).
+
+    Returns
+    -------
+    points : ndarray, shape (18, 3), mm
+    home : ndarray, shape (3,), mm
+    spacing : float, mm
+    """
+    home, size = model.home()
+    home = np.round(home, 6) + 0.0  # the seeds' roundoff (1e-13 mm) left out
+    s = _round_spacing(OWN_GRID_FRACTION * size)
+    steps = [(x, y, z) for z in (-s / 2, s / 2) for y in (-s, 0.0, s) for x in (-s, 0.0, s)]
+    return home + np.array(steps), home, s
+
+
+def _own_legs(model, description: RobotDescription, **kw):
+    """A user's own legs TOML on the test-bed (:func:`~stiffmap.sim.robot.platform_robot`)."""
+    return platform_robot(model, _LEGS_NAME, _LEGS_NAME, **kw)
+
+
+def _own_legs_setup(model) -> OwnSetup:
+    """A legs robot of one's own on the test-bed: its default grid (the positions the legs reach),
+    and for ``dim = 6`` the loads hung as for the test-bed hexapod.
+
+    Raises
+    ------
+    FieldError
+        ``robot``: a planar robot (``dim = 2``), legs given by URDFs.
+    """
+    if model.dim == 2:
+        raise FieldError(
+            "robot",
+            f"{{robot}} {model.source}: dim = 2, a planar robot: the test-bed simulates planar robots as "
+            f"displacement-sensor recordings of its own 3PRR ({{robot}} {PRR3_KIND.testbed.name}); a "
+            "legs TOML of dim = 6 or dim = 3 is simulated as seen by a camera",
+        )
+    if any(d.urdf for d in model.description):
+        raise FieldError(
+            "robot",
+            f"{model.source}: legs given by URDFs cannot be simulated yet (the campaign would need "
+            "their files); describe each leg by its joints (docs/models.md)",
+        )
+    grid, home, s = legs_default_grid(model)
+    turns = model.dim == 6
+    load_point = HEXAPOD_LOAD_POINT_MM if turns else (0.0, 0.0, 0.0)
+    m = model.evaluate(np.c_[grid, np.zeros((len(grid), 3))] if turns else grid)
+    where = f"a 3 x 3 x 2 grid {s:g} mm apart about the home position {_mm(home)} mm" + (
+        ", the platform level" if turns else ""
+    )
+    out = np.flatnonzero(~m.valid)
+    first = f"position {out[0] + 1} {_mm(grid[out[0]])} mm: {m.reasons[out[0]]}" if out.size else ""
+    if out.size == len(grid):  # positions must be given: say why the default does not do
+        why = f"no position of the default grid ({where}) suits {model.name} ({first})"
+        return OwnSetup(None, why, turns, load_point)
+    notes = ()
+    if out.size:
+        notes = (
+            f"{out.size} of the default grid's {len(grid)} positions left out (positions "
+            f"{', '.join(str(i + 1) for i in out)}: the robot model has no stiffness there; {first})",
+        )
+    return OwnSetup(
+        positions=grid[m.valid],
+        positions_text=where + (f", {out.size} out of reach left out" if out.size else ""),
+        rotations=turns,
+        load_point_mm=load_point,
+        notes=notes,
+    )
+
+
+def _mm(p) -> str:
+    return "(" + ", ".join(f"{v:g}" for v in p) + ")"
+
+
 LEGS = RobotKind(
     name=_LEGS_NAME,
     summary="a parallel robot described by its legs in a TOML (virtual joint method; dim = 6: a "
@@ -160,6 +261,7 @@ LEGS = RobotKind(
     file="legs TOML",
     file_example="ROBOT.toml",
     file_key=_LEGS_NAME,
+    file_suffixes=(".toml",),
     builtin_files=BUILTIN_LEGS,
     turning_platform=True,
     testbed=TestBed(
@@ -171,5 +273,7 @@ LEGS = RobotKind(
         load_point_mm=HEXAPOD_LOAD_POINT_MM,
         rotations=True,
         campaign_name="virtual test-bed (hexapod)",
+        own=_own_legs,
+        own_setup=_own_legs_setup,
     ),
 )

@@ -41,6 +41,7 @@ __all__ = [
     "RobotDescription",
     "RobotKind",
     "TestBed",
+    "OwnSetup",
     "ROBOT_KINDS",
     "NO_ROBOT",
     "register_robot_kind",
@@ -87,6 +88,32 @@ class RobotDescription:
 
 
 @dataclass(frozen=True)
+class OwnSetup:
+    """How the test-bed takes a user's own robot of a kind (:attr:`TestBed.own_setup`).
+
+    Attributes
+    ----------
+    positions : ndarray, shape (n, 3) mm, or None
+        Its positions when none are given (None: none by default).
+    positions_text : str
+        What those positions are, in words (the simulation's summary); without positions, why
+        there are none by default.
+    rotations : bool
+        Its field holds rotations itself (a 6x6 field; :attr:`TestBed.rotations`).
+    load_point_mm : (float, float, float)
+        Where the loads act by default, tool frame, mm.
+    notes : tuple of str
+        What the user should know (default positions left out, and why).
+    """
+
+    positions: np.ndarray | None = None
+    positions_text: str = ""
+    rotations: bool = True
+    load_point_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class TestBed:
     """A kind's robot on the virtual test-bed (``stiffmap simulate --robot NAME``).
 
@@ -117,6 +144,10 @@ class TestBed:
         ``own(model, description, **virtual_robot_fields)`` -> its virtual robot, seen by a
         camera; its positions are its model's configurations' measured points (or points
         given), the scene the demo's moved to look at them.
+    own_setup : callable, optional
+        ``own_setup(model) -> OwnSetup``: its default positions, field and load point (None:
+        its configurations' measured points, a 6x6 field, loads at the measured point); a
+        FieldError naming ``"robot"`` when such a robot cannot be simulated.
     """
 
     __test__ = False  # not a pytest test class
@@ -130,6 +161,7 @@ class TestBed:
     rotations: bool = False
     campaign_name: str = "virtual test-bed"
     own: Callable[..., Any] | None = None
+    own_setup: Callable[[Any], OwnSetup] | None = None
 
 
 @dataclass(frozen=True)

@@ -476,6 +476,22 @@ class LegRobot(LegMechanism):
         """Each leg's joints' roles, in its chain's order."""
         return tuple(lg.roles for lg in self._legs)
 
+    def home(self) -> tuple[np.ndarray, float]:
+        """Where the legs' seeds put the tool point, and the robot's size there.
+
+        Returns
+        -------
+        point : ndarray, shape (3,), mm
+            The tool point (the platform level) at the legs' seeds ``q0``: the mean over the
+            legs of their platform joint there less its ``attach_mm`` (the legs agree when the
+            seeds are one assembly's; ``z`` is the plane's for a planar robot).
+        size : float, mm
+            The mean distance from the base frame's origin to the legs' platform joints there.
+        """
+        tips = np.array([lg.tip0 for lg in self._legs])
+        point = np.mean(tips - np.array([lg.target for lg in self._legs]), axis=0)
+        return point, float(np.mean(np.linalg.norm(tips, axis=1)))
+
     def describe(self) -> str:
         """One line: the legs and the parameters."""
         ps = ", ".join(f"{k}={v:g}" for k, v in self.params().items())

@@ -486,33 +486,42 @@ LEGS_NAME = "robot.toml"
 
 
 def platform_robot(model, kind: str, file_key: str, **kw) -> VirtualRobot:
-    """A parallel robot whose platform turns as a virtual robot (a ``dim = 6`` legs TOML:
-    :class:`~stiffmap.models.legs6.LegRobot6`).
+    """A parallel robot described by its legs TOML as a virtual robot (``dim = 6``: a platform
+    that turns, :class:`~stiffmap.models.legs6.LegRobot6`; ``dim = 3``: a translational one).
 
-    Its field is K6 at the tool point with the platform level (:class:`PlatformField`): under
-    a load the platform turns as well as moves, and a load off the tool point
-    (``load_point_mm``) turns it more. The campaign it writes is ``robot.model = kind`` with
-    its TOML copied into the folder (:data:`LEGS_NAME`) and named by ``robot.<file_key>``.
+    ``dim = 6``: its field is K6 at the tool point with the platform level (:class:`PlatformField`):
+    under a load the platform turns as well as moves, and a load off the tool point
+    (``load_point_mm``) turns it more. ``dim = 3``: its field is the model's 3x3 K (the platform
+    keeps its orientation, as the Delta's). The campaign it writes is ``robot.model = kind``
+    with its TOML copied into the folder (:data:`LEGS_NAME`) and named by ``robot.<file_key>``.
 
     Parameters
     ----------
-    model : LegRobot6
+    model : LegRobot
         Read from its TOML (``model.source``), with its parameters.
     kind, file_key : str
         The robot kind (the registry's) and its campaign.toml key of the TOML.
     **kw
         :class:`VirtualRobot` fields (load_point_mm, repeatability_mm, ...).
+
+    Raises
+    ------
+    ValueError
+        Not a legs robot of ``dim`` 3 or 6 read from a TOML, or legs given by URDFs (the
+        campaign would need them too).
     """
-    if getattr(model, "dim", None) != 6 or not getattr(model, "source", None):
-        raise ValueError("platform_robot needs a robot read from a dim = 6 legs TOML")
+    dim = getattr(model, "dim", None)
+    if dim not in (3, 6) or not getattr(model, "source", None):
+        raise ValueError("platform_robot needs a robot read from a dim = 6 or dim = 3 legs TOML")
     if any(d.urdf for d in model.description):
         raise ValueError(
             "platform_robot copies the legs TOML alone: its legs must be given by joints, not URDFs"
         )
     return VirtualRobot(
-        field=PlatformField(model),
+        field=PlatformField(model) if dim == 6 else model.stiffness,
         model=kind,
-        params={k: float(v) for k, v in model.params().items()},
+        # Its finite parameters (a rigid element, inf, stays the copied TOML's).
+        params={k: float(v) for k, v in model.params().items() if math.isfinite(v)},
         spec={file_key: LEGS_NAME},
         files={LEGS_NAME: str(model.source)},
         **kw,
