@@ -213,6 +213,8 @@ def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.nda
             )
         except ValueError as e:
             raise FieldError("select", str(e), value=request.select) from None
+        if Q is not None:
+            setup = replace(setup, positions_text=f"the measured points of its {len(Q)} joint configurations")
     elif setup.positions_text:
         raise FieldError("positions", f"{setup.positions_text}; give them")
     else:
