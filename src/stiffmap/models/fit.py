@@ -513,24 +513,65 @@ def _log_covariance(
     return cov_log
 
 
-def _start(model: Mechanism, names, p0: np.ndarray, views, y: np.ndarray, predict, weigh, trial):
-    """The log parameters the fit starts from: the model's values (the given start), or, when
-    its weighted residuals are smaller, the solution of :func:`linear_start` (the observations
-    themselves first, then ``views``), else the point :func:`linearised_start` reaches; the
-    given values when none can be evaluated (``_fit`` then names the problem)."""
+#: A run from the given values is kept unless a run from the linear start reaches a cost
+#: lower by more than this (relative): the same minimum reached twice differs by rounding.
+COST_RTOL = 1e-9
+
+
+def _solve(model: Mechanism, names, p0: np.ndarray, views, y: np.ndarray, fns):
+    """``least_squares`` from the given values (the design first checked there), kept when it
+    converged and its cost is not above that of the solution of :func:`linear_start` (the
+    observations themselves first, then ``views``): results at a good start are those of a
+    plain fit. Otherwise a second run from that solution (or, where no view is linear, from
+    the point :func:`linearised_start` reaches), with central differences, and the run of lower
+    cost is kept. When neither runs, the first run's error (a parameter the data cannot
+    determine, named) is raised."""
+
+    model_at, predict, weigh, resid, trial = fns
 
     def cost(x: np.ndarray) -> float:
         r = trial(x)
         return float(r @ r) if np.all(np.isfinite(r)) else np.inf
 
-    x0 = np.log(p0)
     own = LinearView(predict, y)
     xl = linear_start(model, names, p0, (own, *views), weigh)
+    first, error = _run(names, np.log(p0), fns, "2-point"), None
+    if isinstance(first, Exception):
+        first, error = None, first
+    if first is not None and first.success and (xl is None or cost(first.x) <= cost(xl) * (1 + COST_RTOL)):
+        return first
     if xl is None or not np.all(np.isfinite(xl)):
         xl = linearised_start(model, names, p0, own, weigh, cost)
-    if xl is None or not np.all(np.isfinite(xl)):
-        return x0
-    return xl if cost(xl) < cost(x0) else x0
+    second = None if xl is None else _run(names, xl, fns, _trial_jacobian)
+    runs = [r for r in (first, second) if r is not None and not isinstance(r, Exception)]
+    if not runs:
+        raise error
+    return min(runs, key=lambda r: (not r.success, cost(r.x)))
+
+
+def _run(names, x0: np.ndarray, fns, jac):
+    """``least_squares`` from x0 (log parameters) after the design check there; its error (a
+    ``ValueError``: the design refused, the start cannot be evaluated, a Jacobian not finite)
+    returned, not raised. ``fns``: (model_at, predict, weigh, resid, trial); ``jac``:
+    "2-point" (``least_squares``' own) or a function ``(trial, x) -> J``."""
+    from scipy import optimize  # on first use: 0.15 s that most commands never need
+
+    model_at, predict, weigh, resid, trial = fns
+    try:
+        scale = float(np.linalg.norm(weigh(predict(model_at(x0)))))
+        _check_design(names, _jac_log(resid, x0), scale)
+        return optimize.least_squares(
+            trial,
+            x0,
+            jac=jac if isinstance(jac, str) else (lambda x: jac(trial, x)),
+            method="trf",
+            x_scale="jac",
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+        )
+    except ValueError as e:
+        return e
 
 
 def _fit(
@@ -547,7 +588,7 @@ def _fit(
     whiten: np.ndarray | None = None,
     views: Sequence[LinearView] = (),
 ) -> ModelFit:
-    """The fit, started where :func:`_start` says; ``weights`` (relative, used only when
+    """The fit, solved as :func:`_solve` says; ``weights`` (relative, used only when
     ``sigma`` is None) scale observations of mixed units (K6's blocks) without claiming to be
     their standard errors; ``whiten`` (m, d, d), when given, whitens the observations d at a
     time (``L^-1`` of each group's covariance, :func:`~stiffmap.models.whiten.whitener`)
@@ -562,23 +603,7 @@ def _fit(
     if sigma is None and absolute_sigma:
         raise ValueError("absolute_sigma=True needs the standard errors of the observations")
     model_at, resid, trial = _residual_functions(model, names, predict, y, weigh)
-    x0 = _start(model, names, p0, views, y, predict, weigh, trial)
-    scale = float(np.linalg.norm(weigh(predict(model_at(x0)))))
-    _check_design(names, _jac_log(resid, x0), scale)
-    from scipy import optimize  # on first use: 0.15 s that most commands never need
-
-    # Central differences: at the minimum a one-sided Jacobian's error alone moves a weakly
-    # determined parameter by ~1e-6 (relative), differently from each start.
-    res = optimize.least_squares(
-        trial,
-        x0,
-        jac=lambda x: _trial_jacobian(trial, x),
-        method="trf",
-        x_scale="jac",
-        xtol=1e-12,
-        ftol=1e-12,
-        gtol=1e-12,
-    )
+    res = _solve(model, names, p0, views, y, (model_at, predict, weigh, resid, trial))
     x = res.x
     fitted = model_at(x)
     r_w = resid(x)
