@@ -419,8 +419,8 @@ def _view_columns(view: LinearView, model: Mechanism, names, v0: np.ndarray, to_
 def _solve_view(view: LinearView, model: Mechanism, names, v0: np.ndarray, to_p, weigh, check: bool = True):
     """The non-negative weighted least-squares solution v of the view's values ``A v + b``
     (:func:`_view_columns` at v0; columns scaled to unit length), a parameter held at 0 moved to
-    where its column gives 1e-3 of the predictions; None when the view is not linear (when
-    ``check``) or a column is zero (not felt)."""
+    where its column gives 1e-3 of the predictions, and whether one was; None when the view is
+    not linear (when ``check``) or a column is zero (not felt)."""
     from scipy import optimize  # on first use, as in _fit
 
     cols = _view_columns(view, model, names, v0, to_p, check)
@@ -435,13 +435,14 @@ def _solve_view(view: LinearView, model: Mechanism, names, v0: np.ndarray, to_p,
     v = optimize.lsq_linear(M / norms, r0, bounds=(0.0, np.inf), method="bvls", tol=1e-14).x / norms
     if not np.any(v > 0):
         return None
-    return np.where(v > 0, v, 1e-3 * np.linalg.norm(M @ v) / norms)
+    return np.where(v > 0, v, 1e-3 * np.linalg.norm(M @ v) / norms), not np.all(v > 0)
 
 
 def linear_start(model: Mechanism, names, p0: np.ndarray, views: Sequence[LinearView], weigh):
-    """Log parameters minimising the weighted residuals of the first view in which the fitted
-    parameters (or their inverses, the compliances) act linearly, non-negative (bounded linear
-    least squares); None when no view is linear.
+    """(x, exact): log parameters minimising the weighted residuals of the first view in which
+    the fitted parameters (or their inverses, the compliances) act linearly, non-negative
+    (bounded linear least squares), and whether x is the minimum of the fit itself (the first
+    view linear, no parameter held by the bound); None when no view is linear.
 
     A serial robot's static errors ``n . J C J^T F`` and compliances ``C = sum c_i J_i J_i^T``
     are linear in the joints' compliances c_i = 1/k_i, as are a non-redundant parallel robot's
@@ -452,38 +453,56 @@ def linear_start(model: Mechanism, names, p0: np.ndarray, views: Sequence[Linear
     infinitely soft) starts where its column gives 1e-3 of the predictions, and the nonlinear
     fit decides.
     """
-    for view in views:
+    for i, view in enumerate(views):
         for to_p in (np.reciprocal, np.asarray):
-            v = _solve_view(view, model, names, to_p(p0), to_p, weigh)
-            if v is not None:
-                v = _solve_view(view, model, names, v, to_p, weigh)
-            if v is not None:
-                return np.log(to_p(v))
+            found = _solve_view(view, model, names, to_p(p0), to_p, weigh)
+            if found is not None:
+                found = _solve_view(view, model, names, found[0], to_p, weigh)
+            if found is not None:
+                return np.log(to_p(found[0])), i == 0 and not found[1]
     return None
 
 
 #: Linearised steps of :func:`linearised_start` at most (each p + 1 evaluations of the model),
-#: and halvings of a step that does not lower the cost.
+#: halvings of a step that does not lower the cost, and tenfold raises of a parameter the
+#: predictions do not feel at the start (a compliance far below the others' in series).
 LINEARISED_STEPS = 10
 HALVINGS = 8
+RAISES = 30
+
+
+def _felt(view: LinearView, model: Mechanism, names, v: np.ndarray, to_p) -> np.ndarray:
+    """v with each parameter the view does not feel at all (its column zero: far below the
+    others in rounding) raised tenfold until it is felt (at most ``RAISES`` times)."""
+    for _ in range(RAISES):
+        cols = _view_columns(view, model, names, v, to_p, check=False)
+        dead = None if cols is None else ~(np.linalg.norm(cols[0], axis=0) > 0)
+        if dead is None or not dead.any():
+            break
+        v = np.where(dead, 10.0 * v, v)
+    return v
 
 
 def linearised_start(model: Mechanism, names, p0: np.ndarray, view: LinearView, weigh, cost):
     """Where the parameters do not act linearly (a robot whose legs have two springs in series
-    and in parallel, geometry fitted with springs): bounded linear least-squares steps from the
-    given values, the columns found again at each step (Gauss-Newton in the compliances, then
-    in the parameters themselves, kept positive by the bound), each step halved in log
-    parameters until ``cost`` (log parameters -> sum of squared weighted residuals, inf where
-    the model cannot be evaluated) falls; the log parameters of the lowest cost reached (None
-    when no step lowered it)."""
-    best, best_cost = None, cost(np.log(p0))
+    and in parallel, geometry fitted with springs): from the given values (a parameter not felt
+    there raised until it is, :func:`_felt`), bounded linear least-squares steps, the columns
+    found again at each step (Gauss-Newton in the compliances, then in the parameters
+    themselves, kept positive by the bound), each step halved in log parameters until ``cost``
+    (log parameters -> sum of squared weighted residuals, inf where the model cannot be
+    evaluated) falls; the log parameters of the lowest cost reached (None when none could be
+    evaluated)."""
+    best, best_cost = None, np.inf
     for to_p in (np.reciprocal, np.asarray):
-        x, c = np.log(p0), cost(np.log(p0))
+        x = np.log(to_p(_felt(view, model, names, to_p(p0), to_p)))
+        c = cost(x)
+        if c < best_cost:
+            best, best_cost = x, c
         for _ in range(LINEARISED_STEPS):
-            v_new = _solve_view(view, model, names, to_p(np.exp(x)), to_p, weigh, check=False)
-            if v_new is None:
+            found = _solve_view(view, model, names, to_p(np.exp(x)), to_p, weigh, check=False)
+            if found is None:
                 break
-            step = np.log(to_p(v_new)) - x
+            step = np.log(to_p(found[0])) - x
             for t in 0.5 ** np.arange(HALVINGS):
                 c_new = cost(x + t * step)
                 if c_new < c:
@@ -515,18 +534,20 @@ def _log_covariance(
 
 #: A run from the given values is kept unless a run from the linear start reaches a cost
 #: lower by more than this (relative): the same minimum reached twice differs by rounding.
-COST_RTOL = 1e-9
+COST_RTOL = 1e-12
 
 
 def _solve(model: Mechanism, names, p0: np.ndarray, views, y: np.ndarray, fns):
-    """``least_squares`` from the given values (the design first checked there), kept when it
-    converged and its cost is not above that of the solution of :func:`linear_start` (the
-    observations themselves first, then ``views``): results at a good start are those of a
-    plain fit. Otherwise a second run from that solution (or, where no view is linear, from
-    the point :func:`linearised_start` reaches), with central differences, and the run of lower
-    cost is kept. When neither runs, the first run's error (a parameter the data cannot
+    """The ``least_squares`` run of the fit. Where the observations are linear in the fitted
+    parameters or their inverses, the minimum is the solution of :func:`linear_start` whatever
+    the start: the run starts there (central differences). Otherwise a run from the given
+    values (the design first checked there), kept when it converged and its cost is not above
+    that of the linear start (a start from ``views``), or, where no view is linear, when the
+    data feel every parameter where it ended (:func:`_held`): results at a good start are those
+    of a plain fit. Else a second run from the linear start (or from the point
+    :func:`linearised_start` reaches), and of the two the run that ended held, at the lower
+    cost, is kept. When none runs, the first run's error (a parameter the data cannot
     determine, named) is raised."""
-
     model_at, predict, weigh, resid, trial = fns
 
     def cost(x: np.ndarray) -> float:
@@ -534,19 +555,37 @@ def _solve(model: Mechanism, names, p0: np.ndarray, views, y: np.ndarray, fns):
         return float(r @ r) if np.all(np.isfinite(r)) else np.inf
 
     own = LinearView(predict, y)
-    xl = linear_start(model, names, p0, (own, *views), weigh)
+    xl, exact = linear_start(model, names, p0, (own, *views), weigh) or (None, False)
+    if exact:
+        run = _run(names, xl, fns, _trial_jacobian)
+        if not isinstance(run, Exception) and run.success:
+            return run
     first, error = _run(names, np.log(p0), fns, "2-point"), None
     if isinstance(first, Exception):
         first, error = None, first
-    if first is not None and first.success and (xl is None or cost(first.x) <= cost(xl) * (1 + COST_RTOL)):
-        return first
+    if first is not None and first.success:
+        if cost(first.x) <= cost(xl) * (1 + COST_RTOL) if xl is not None else _held(names, first, fns):
+            return first
     if xl is None or not np.all(np.isfinite(xl)):
         xl = linearised_start(model, names, p0, own, weigh, cost)
     second = None if xl is None else _run(names, xl, fns, _trial_jacobian)
     runs = [r for r in (first, second) if r is not None and not isinstance(r, Exception)]
     if not runs:
         raise error
-    return min(runs, key=lambda r: (not r.success, cost(r.x)))
+    return min(runs, key=lambda r: (not _held(names, r, fns), cost(r.x)))
+
+
+def _held(names, run, fns) -> bool:
+    """Whether a run converged where the data feel and separate every parameter (the design
+    check passes there): not a parameter run off to where nothing changes with it."""
+    if run is None or isinstance(run, Exception) or not run.success:
+        return False
+    model_at, predict, weigh, resid, _ = fns
+    try:
+        _check_design(names, _jac_log(resid, run.x), float(np.linalg.norm(weigh(predict(model_at(run.x))))))
+    except ValueError:
+        return False
+    return True
 
 
 def _run(names, x0: np.ndarray, fns, jac):
