@@ -13,7 +13,13 @@ The chosen parameters (any of the model's scalar parameters: ``kj``, ``kb`` of
 the 3PRR, ``k_theta`` of the Delta, or geometric ones) are estimated by
 ``scipy.optimize.least_squares`` on the weighted residuals
 ``(observed - predicted) / std``, over the parameters' logarithms (so they stay
-positive and the problem is scaled). The covariance is
+positive and the problem is scaled). The model's values of the parameters are only a start:
+where the observations (or, for stiffness matrices, their inverses) are linear in the
+parameters or in their inverses (a serial robot's joint compliances, a parallel robot's leg
+stiffnesses), the fit runs from the weighted linear least-squares solution (non-negative), its
+own minimum whatever the start (:func:`linear_start`); otherwise from the given values, with a
+second run from a linear or linearised start when the first fails or ends higher
+(:func:`_solve`). A trial step the model cannot evaluate is a rejected step. The covariance is
 ``(J^T J)^-1`` in log parameters (J the Jacobian of the weighted residuals at the
 solution), multiplied by the reduced chi-square ``chi2 / dof`` unless
 ``absolute_sigma`` is True (the given standard errors are then taken as exact),
