@@ -479,7 +479,8 @@ def fit(
     param: list[str] = typer.Option(
         None,
         "--param",
-        help="Fixed model parameter or starting value NAME=VALUE (repeatable). urdf: "
+        help="Fixed model parameter or starting value NAME=VALUE (repeatable; a fitted "
+        "parameter's value is only where the fit starts, docs/models.md 'Fitting'). urdf: "
         "k1=K1,...,kn=Kn (required; N*mm/rad, N/mm for prismatic joints) or k_theta=K for all.",
     ),
     tip: str = _OPT_TIP,

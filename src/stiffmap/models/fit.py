@@ -13,7 +13,13 @@ The chosen parameters (any of the model's scalar parameters: ``kj``, ``kb`` of
 the 3PRR, ``k_theta`` of the Delta, or geometric ones) are estimated by
 ``scipy.optimize.least_squares`` on the weighted residuals
 ``(observed - predicted) / std``, over the parameters' logarithms (so they stay
-positive and the problem is scaled). The covariance is
+positive and the problem is scaled). The model's values of the parameters are only a start:
+where the observations (or, for stiffness matrices, their inverses) are linear in the
+parameters or in their inverses (a serial robot's joint compliances, a parallel robot's leg
+stiffnesses), the fit runs from the weighted linear least-squares solution (non-negative), its
+own minimum whatever the start (:func:`linear_start`); otherwise from the given values, with a
+second run from a linear or linearised start when the first fails or ends higher
+(:func:`_solve`). A trial step the model cannot evaluate is a rejected step. The covariance is
 ``(J^T J)^-1`` in log parameters (J the Jacobian of the weighted residuals at the
 solution), multiplied by the reduced chi-square ``chi2 / dof`` unless
 ``absolute_sigma`` is True (the given standard errors are then taken as exact),
@@ -41,7 +47,7 @@ A design that can determine the parameters, but badly, passes with an
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -269,6 +275,27 @@ def _jac_log(fun, x: np.ndarray, step: float = 1e-5) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
+def _trial_jacobian(trial, x: np.ndarray) -> np.ndarray:
+    """The optimiser's Jacobian of ``trial`` at an accepted point x: central differences with
+    ``least_squares``' own "3-point" steps, one-sided on a side where the model cannot be
+    evaluated (a pose at the edge of its reach), zero when neither side can."""
+    f0 = trial(x)
+    cols = []
+    for k in range(x.size):
+        h = np.zeros_like(x)
+        h[k] = np.finfo(float).eps ** (1 / 3) * max(1.0, abs(x[k])) * (1.0 if x[k] >= 0 else -1.0)
+        h[k] = (x[k] + h[k]) - x[k]
+        fp, fm = trial(x + h), trial(x - h)
+        ok_p, ok_m = np.all(np.isfinite(fp)), np.all(np.isfinite(fm))
+        if ok_p and ok_m:
+            cols.append((fp - fm) / (2 * h[k]))
+        elif ok_p or ok_m:
+            cols.append((fp - f0) / h[k] if ok_p else (f0 - fm) / h[k])
+        else:
+            cols.append(np.zeros_like(f0))
+    return np.stack(cols, axis=1)
+
+
 def _check_design(names, J: np.ndarray, scale: float) -> tuple[float, np.ndarray]:
     """Refuse parameters the data cannot determine; return (condition, relative sensitivities)."""
     norms = np.linalg.norm(J, axis=0)
@@ -337,7 +364,161 @@ def _residual_functions(model: Mechanism, names, predict, y: np.ndarray, weigh):
             )
         return weigh(y - yhat)
 
-    return model_at, resid
+    def trial(x: np.ndarray) -> np.ndarray:
+        """The residuals at a trial step of the optimiser: NaN where ``resid`` refuses, which
+        ``least_squares`` takes as a rejected step (it shrinks its trust region and tries again)."""
+        try:
+            return resid(x)
+        except ValueError:
+            return np.full(y.size, np.nan)
+
+    return model_at, resid, trial
+
+
+@dataclass(frozen=True)
+class LinearView:
+    """Observations in which a model's spring parameters may act linearly (the start of a fit).
+
+    ``predict(model)`` gives the view's values (for static errors the predictions themselves,
+    for stiffness matrices their inverses, the compliances), ``observed`` the measured ones, and
+    ``to_observations(r)`` carries a residual of the view, linearly, to (about) the residual of
+    the observations (identity, or ``-K r K`` per pose for compliances), so that the weights of
+    the observations weigh it.
+    """
+
+    predict: Callable[[Mechanism], np.ndarray]
+    observed: np.ndarray
+    to_observations: Callable[[np.ndarray], np.ndarray] = np.asarray
+
+
+#: A view is taken as linear in the parameters (or in their inverses) when its values at a
+#: second point differ from the straight line through the first by less than this (relative).
+LINEAR_TOL = 1e-6
+
+
+def _view_columns(view: LinearView, model: Mechanism, names, v0: np.ndarray, to_p, check: bool = True):
+    """(A, b): the view's values ``A v + b`` for parameters ``to_p(v)``, the columns found by
+    doubling each v in turn at v0; when ``check``, None unless they are linear in v (checked
+    at a second point), else (a linearisation) by moving each v by 1 % (a geometric parameter
+    doubled or halved may leave the poses unreachable). None where the model refuses a value."""
+
+    def g(v: np.ndarray) -> np.ndarray:
+        return view.predict(model.with_params(**dict(zip(names, to_p(v).tolist(), strict=True))))
+
+    try:
+        with np.errstate(all="ignore"):
+            g0 = g(v0)
+            h = v0 * (1.0 if check else 1e-2)
+            A = np.stack([(g(v0 + h[j] * np.eye(v0.size)[j]) - g0) / h[j] for j in range(v0.size)], axis=1)
+            v1 = v0 * np.where(np.arange(v0.size) % 2, 0.6, 1.5)
+            g1 = g(v1) if check else g0
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    b = g0 - A @ v0
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(g1))):
+        return None
+    if check and np.linalg.norm(g1 - (A @ v1 + b)) > LINEAR_TOL * max(np.linalg.norm(g1), np.linalg.norm(g0)):
+        return None
+    return A, b
+
+
+def _solve_view(view: LinearView, model: Mechanism, names, v0: np.ndarray, to_p, weigh, check: bool = True):
+    """The non-negative weighted least-squares solution v of the view's values ``A v + b``
+    (:func:`_view_columns` at v0; columns scaled to unit length), a parameter held at 0 moved to
+    where its column gives 1e-3 of the predictions, and whether one was; None when the view is
+    not linear (when ``check``) or a column is zero (not felt)."""
+    from scipy import optimize  # on first use, as in _fit
+
+    cols = _view_columns(view, model, names, v0, to_p, check)
+    if cols is None:
+        return None
+    A, b = cols
+    M = np.stack([weigh(view.to_observations(A[:, j])) for j in range(A.shape[1])], axis=1)
+    norms = np.linalg.norm(M, axis=0)
+    if not np.all(norms > 0):
+        return None
+    r0 = weigh(view.to_observations(view.observed - b))
+    v = optimize.lsq_linear(M / norms, r0, bounds=(0.0, np.inf), method="bvls", tol=1e-14).x / norms
+    if not np.any(v > 0):
+        return None
+    return np.where(v > 0, v, 1e-3 * np.linalg.norm(M @ v) / norms), not np.all(v > 0)
+
+
+def linear_start(model: Mechanism, names, p0: np.ndarray, views: Sequence[LinearView], weigh):
+    """(x, exact): log parameters minimising the weighted residuals of the first view in which
+    the fitted parameters (or their inverses, the compliances) act linearly, non-negative
+    (bounded linear least squares), and whether x is the minimum of the fit itself (the first
+    view linear, no parameter held by the bound); None when no view is linear.
+
+    A serial robot's static errors ``n . J C J^T F`` and compliances ``C = sum c_i J_i J_i^T``
+    are linear in the joints' compliances c_i = 1/k_i, as are a non-redundant parallel robot's
+    (``C = J^-1 diag(c) J^-T``); a parallel robot's stiffness ``K = sum k_i u_i u_i^T`` is linear
+    in its legs' stiffnesses. There the solution does not depend on the starting values: the
+    columns are found at them, then again at the first solution (where no parameter swamps the
+    others), and the problem solved again. A parameter the bound holds at 0 (rigid, or
+    infinitely soft) starts where its column gives 1e-3 of the predictions, and the nonlinear
+    fit decides.
+    """
+    for i, view in enumerate(views):
+        for to_p in (np.reciprocal, np.asarray):
+            found = _solve_view(view, model, names, to_p(p0), to_p, weigh)
+            if found is not None:
+                found = _solve_view(view, model, names, found[0], to_p, weigh)
+            if found is not None:
+                return np.log(to_p(found[0])), i == 0 and not found[1]
+    return None
+
+
+#: Linearised steps of :func:`linearised_start` at most (each p + 1 evaluations of the model),
+#: halvings of a step that does not lower the cost, and tenfold raises of a parameter the
+#: predictions do not feel at the start (a compliance far below the others' in series).
+LINEARISED_STEPS = 10
+HALVINGS = 8
+RAISES = 30
+
+
+def _felt(view: LinearView, model: Mechanism, names, v: np.ndarray, to_p) -> np.ndarray:
+    """v with each parameter the view does not feel at all (its column zero: far below the
+    others in rounding) raised tenfold until it is felt (at most ``RAISES`` times)."""
+    for _ in range(RAISES):
+        cols = _view_columns(view, model, names, v, to_p, check=False)
+        dead = None if cols is None else ~(np.linalg.norm(cols[0], axis=0) > 0)
+        if dead is None or not dead.any():
+            break
+        v = np.where(dead, 10.0 * v, v)
+    return v
+
+
+def linearised_start(model: Mechanism, names, p0: np.ndarray, view: LinearView, weigh, cost):
+    """Where the parameters do not act linearly (a robot whose legs have two springs in series
+    and in parallel, geometry fitted with springs): from the given values (a parameter not felt
+    there raised until it is, :func:`_felt`), bounded linear least-squares steps, the columns
+    found again at each step (Gauss-Newton in the compliances, then in the parameters
+    themselves, kept positive by the bound), each step halved in log parameters until ``cost``
+    (log parameters -> sum of squared weighted residuals, inf where the model cannot be
+    evaluated) falls; the log parameters of the lowest cost reached (None when none could be
+    evaluated)."""
+    best, best_cost = None, np.inf
+    for to_p in (np.reciprocal, np.asarray):
+        x = np.log(to_p(_felt(view, model, names, to_p(p0), to_p)))
+        c = cost(x)
+        if c < best_cost:
+            best, best_cost = x, c
+        for _ in range(LINEARISED_STEPS):
+            found = _solve_view(view, model, names, to_p(np.exp(x)), to_p, weigh, check=False)
+            if found is None:
+                break
+            step = np.log(to_p(found[0])) - x
+            for t in 0.5 ** np.arange(HALVINGS):
+                c_new = cost(x + t * step)
+                if c_new < c:
+                    break
+            if not c_new < c:
+                break
+            x, c = x + t * step, c_new
+            if c < best_cost:
+                best, best_cost = x, c
+    return best
 
 
 def _log_covariance(
@@ -357,6 +538,87 @@ def _log_covariance(
     return cov_log
 
 
+#: A run from the given values is kept unless a run from the linear start reaches a cost
+#: lower by more than this (relative): the same minimum reached twice differs by rounding.
+COST_RTOL = 1e-12
+
+
+def _solve(model: Mechanism, names, p0: np.ndarray, views, y: np.ndarray, fns):
+    """The ``least_squares`` run of the fit. Where the observations are linear in the fitted
+    parameters or their inverses, the minimum is the solution of :func:`linear_start` whatever
+    the start: the run starts there (central differences). Otherwise a run from the given
+    values (the design first checked there), kept when it converged and its cost is not above
+    that of the linear start (a start from ``views``), or, where no view is linear, when the
+    data feel every parameter where it ended (:func:`_held`): results at a good start are those
+    of a plain fit. Else a second run from the linear start (or from the point
+    :func:`linearised_start` reaches), and of the two the run that ended held, at the lower
+    cost, is kept. When none runs, the first run's error (a parameter the data cannot
+    determine, named) is raised."""
+    model_at, predict, weigh, resid, trial = fns
+
+    def cost(x: np.ndarray) -> float:
+        r = trial(x)
+        return float(r @ r) if np.all(np.isfinite(r)) else np.inf
+
+    own = LinearView(predict, y)
+    xl, exact = linear_start(model, names, p0, (own, *views), weigh) or (None, False)
+    if exact:
+        run = _run(names, xl, fns, _trial_jacobian)
+        if not isinstance(run, Exception) and run.success:
+            return run
+    first, error = _run(names, np.log(p0), fns, "2-point"), None
+    if isinstance(first, Exception):
+        first, error = None, first
+    if first is not None and first.success:
+        if cost(first.x) <= cost(xl) * (1 + COST_RTOL) if xl is not None else _held(names, first, fns):
+            return first
+    if xl is None or not np.all(np.isfinite(xl)):
+        xl = linearised_start(model, names, p0, own, weigh, cost)
+    second = None if xl is None else _run(names, xl, fns, _trial_jacobian)
+    runs = [r for r in (first, second) if r is not None and not isinstance(r, Exception)]
+    if not runs:
+        raise error
+    return min(runs, key=lambda r: (not _held(names, r, fns), cost(r.x)))
+
+
+def _held(names, run, fns) -> bool:
+    """Whether a run converged where the data feel and separate every parameter (the design
+    check passes there): not a parameter run off to where nothing changes with it."""
+    if run is None or isinstance(run, Exception) or not run.success:
+        return False
+    model_at, predict, weigh, resid, _ = fns
+    try:
+        _check_design(names, _jac_log(resid, run.x), float(np.linalg.norm(weigh(predict(model_at(run.x))))))
+    except ValueError:
+        return False
+    return True
+
+
+def _run(names, x0: np.ndarray, fns, jac):
+    """``least_squares`` from x0 (log parameters) after the design check there; its error (a
+    ``ValueError``: the design refused, the start cannot be evaluated, a Jacobian not finite)
+    returned, not raised. ``fns``: (model_at, predict, weigh, resid, trial); ``jac``:
+    "2-point" (``least_squares``' own) or a function ``(trial, x) -> J``."""
+    from scipy import optimize  # on first use: 0.15 s that most commands never need
+
+    model_at, predict, weigh, resid, trial = fns
+    try:
+        scale = float(np.linalg.norm(weigh(predict(model_at(x0)))))
+        _check_design(names, _jac_log(resid, x0), scale)
+        return optimize.least_squares(
+            trial,
+            x0,
+            jac=jac if isinstance(jac, str) else (lambda x: jac(trial, x)),
+            method="trf",
+            x_scale="jac",
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+        )
+    except ValueError as e:
+        return e
+
+
 def _fit(
     kind: str,
     model: Mechanism,
@@ -369,12 +631,14 @@ def _fit(
     absolute_sigma: bool,
     weights: np.ndarray | None = None,
     whiten: np.ndarray | None = None,
+    views: Sequence[LinearView] = (),
 ) -> ModelFit:
-    """The fit; ``weights`` (relative, used only when ``sigma`` is None) scale observations of
-    mixed units (K6's blocks) without claiming to be their standard errors; ``whiten`` (m, d, d),
-    when given, whitens the observations d at a time (``L^-1`` of each group's covariance,
-    :func:`~stiffmap.models.whiten.whitener`) instead of dividing them by ``sigma``, which is
-    then only recorded."""
+    """The fit, solved as :func:`_solve` says; ``weights`` (relative, used only when
+    ``sigma`` is None) scale observations of mixed units (K6's blocks) without claiming to be
+    their standard errors; ``whiten`` (m, d, d), when given, whitens the observations d at a
+    time (``L^-1`` of each group's covariance, :func:`~stiffmap.models.whiten.whitener`)
+    instead of dividing them by ``sigma``, which is then only recorded; ``views`` are where the
+    parameters may act linearly besides the observations themselves (:func:`linear_start`)."""
     names, p0 = _check_names(model, params)
     n, p = y.size, len(names)
     if n < p:
@@ -383,14 +647,8 @@ def _fit(
     notes: list[str] = []
     if sigma is None and absolute_sigma:
         raise ValueError("absolute_sigma=True needs the standard errors of the observations")
-    model_at, resid = _residual_functions(model, names, predict, y, weigh)
-    x0 = np.log(p0)
-    yhat0 = predict(model)
-    scale = float(np.linalg.norm(weigh(yhat0)))
-    _check_design(names, _jac_log(resid, x0), scale)
-    from scipy import optimize  # on first use: 0.15 s that most commands never need
-
-    res = optimize.least_squares(resid, x0, method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    model_at, resid, trial = _residual_functions(model, names, predict, y, weigh)
+    res = _solve(model, names, p0, views, y, (model_at, predict, weigh, resid, trial))
     x = res.x
     fitted = model_at(x)
     r_w = resid(x)
@@ -617,7 +875,27 @@ def fit_stiffness(
         idx,
         absolute_sigma,
         weights,
+        views=_compliance_views(predict, Km),
     )
+
+
+def _compliance_views(predict, Km: np.ndarray) -> tuple[LinearView, ...]:
+    """The measured stiffness matrices as compliances ``K^-1`` (linear in a serial robot's joint
+    compliances), their residuals carried back to stiffness by ``-K r K`` (none when a measured K
+    is singular: the fit then starts from the given values)."""
+    n, d = Km.shape[0], Km.shape[-1]
+    try:
+        Cm = np.linalg.inv(Km)
+    except np.linalg.LinAlgError:
+        return ()
+
+    def compliances(m: Mechanism) -> np.ndarray:
+        return np.linalg.inv(predict(m).reshape(n, d, d)).reshape(-1)
+
+    def to_stiffness(r: np.ndarray) -> np.ndarray:
+        return -(Km @ r.reshape(n, d, d) @ Km).reshape(-1)
+
+    return (LinearView(compliances, Cm.reshape(-1), to_stiffness),)
 
 
 def static_error_predictions(model: Mechanism, points, forces, directions) -> np.ndarray:
