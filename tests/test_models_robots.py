@@ -82,17 +82,6 @@ def _rel(a, b) -> float:
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
-def _write_configs(path: Path, joints, coords, Q) -> None:
-    cols = [f"{c}_{'mm' if joints[c].type == 'prismatic' else 'deg'}" for c in coords]
-    rows = [",".join(["label", *cols])]
-    for i, q in enumerate(Q):
-        vals = [
-            v if joints[c].type == "prismatic" else math.degrees(v) for c, v in zip(coords, q, strict=True)
-        ]
-        rows.append(",".join([f"c{i + 1}", *(repr(float(v)) for v in vals)]))
-    path.write_text("\n".join(rows) + "\n")
-
-
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
     """Every URDF of the collection through ``stiffmap model urdf --json``: (name, outcome) pairs."""
@@ -130,7 +119,7 @@ def _one(f: Path, rng, tmp: Path, mp) -> dict:
     )
     cfg = tmp / f"{f.stem}_configs.csv"
     if coords:
-        _write_configs(cfg, joints, coords, Q)
+        ref.write_configs(cfg, joints, coords, Q)
     else:
         cfg.write_text("q1_deg\n0\n")
     args = ["model", "urdf", f, "--tip", tip or "base_link", "--tip-offset-mm", ",".join(map(str, OFFSET))]
@@ -750,7 +739,7 @@ def test_a_palletizer_s_parallelogram_mimic_joints_on_the_chain(rng, tmp_path, m
     Q = rng.uniform(lo, hi, size=(6, 4))
     k = np.array([3e9, 4e9, 2e9, 5e8])
     cfg = tmp_path / "pal_configs.csv"
-    _write_configs(cfg, joints, coords, Q)
+    ref.write_configs(cfg, joints, coords, Q)
     code, out, err = _run(
         ["model", "urdf", PALLETIZER, "--tip", "tool0", "--tip-offset-mm", ",".join(map(str, OFFSET)),
          "--configs", cfg, "--param", "k_theta=" + ",".join(map(str, k)), "--json"],

@@ -48,11 +48,13 @@ def own_toml(tmp_path_factory) -> Path:
     return path
 
 
-def _gosselin(p, k=OWN_K) -> np.ndarray:
+def _gosselin(p, k=OWN_K, R=None) -> np.ndarray:
     """K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i): legs that are springs along their line, the
-    platform level at p (r_i = attach_i; n_i from the base joint to the platform joint)."""
+    platform at p turned by R (r_i = R attach_i; n_i from the base joint to the platform joint)."""
+    R = np.eye(3) if R is None else R
     K6 = np.zeros((6, 6))
-    for b, r, ki in zip(B_MM, A_MM, k, strict=True):
+    for b, a, ki in zip(B_MM, A_MM, k, strict=True):
+        r = R @ a
         n = np.asarray(p) + r - b
         n /= np.linalg.norm(n)
         a = np.r_[n, np.cross(r, n)]
@@ -64,6 +66,7 @@ def _truth(out: Path) -> dict:
     return json.loads((out / "truth.json").read_text())
 
 
+@pytest.mark.slow  # about 10 s on one core: two truths of 18 positions
 def test_the_shipped_hexapod_as_a_file_is_the_testbed_hexapod(monkeypatch, capsys, tmp_path):
     # The same TOML with the test-bed's legs: the same default positions (the 3 x 3 x 2 grid about
     # its home, 40 mm apart, is HEXAPOD_TESTBED_POSITIONS), loads, load point and truth.
@@ -87,6 +90,7 @@ def test_the_shipped_hexapod_as_a_file_is_the_testbed_hexapod(monkeypatch, capsy
     assert model.params() == {f"k_leg{i}": k for i, k in enumerate(HEXAPOD_TESTBED_K, start=1)}
 
 
+@pytest.mark.slow  # about 5 s on one core: the truth of 18 positions
 def test_own_hexapod_truth_is_the_closed_form_and_its_stiff_legs_get_heavier_loads(
     own_toml, monkeypatch, capsys, tmp_path
 ):
@@ -288,11 +292,27 @@ def test_own_hexapod_at_turned_poses_from_a_csv(own_toml, monkeypatch, capsys, t
     assert code == 0, err
     for p, r in zip(_truth(out)["positions"], rows, strict=True):
         assert p["orientation_deg"] == pytest.approx(r[3:])
-        R = rpy_matrix(*np.radians(r[3:]))
-        K6 = np.zeros((6, 6))
-        for b, a, k in zip(B_MM, A_MM, OWN_K, strict=True):
-            ra = R @ a
-            n = np.asarray(r[:3]) + ra - b
-            n /= np.linalg.norm(n)
-            K6 += k * np.outer(np.r_[n, np.cross(ra, n)], np.r_[n, np.cross(ra, n)])
+        K6 = _gosselin(r[:3], R=rpy_matrix(*np.radians(r[3:])))
         np.testing.assert_allclose(p["K_tcp"], K6, rtol=1e-9, atol=1e-9 * np.abs(K6).max())
+
+
+def test_a_3rps_keeps_the_grid_positions_its_legs_reach_and_select_numbers_those(
+    monkeypatch, capsys, tmp_path
+):
+    # A 3-RPS with its platform level cannot shift sideways (x, y and yaw follow z, roll and pitch:
+    # zero for the shipped symmetric one), so of its default grid (30 mm apart about (0, 0, 250))
+    # only the two centre positions (0, 0, 235) and (0, 0, 265), grid numbers 5 and 14, are kept;
+    # the note names the others and says --select numbers the kept ones.
+    args = ["--robot", ROBOTS / "3rps.toml", "--truth-only"]
+    code, _, err = _cli(["simulate", tmp_path / "all", *args], monkeypatch, capsys)
+    assert code == 0, err
+    (line,) = [t for t in err.splitlines() if t.startswith("note: ")]
+    left = ", ".join(str(i) for i in range(1, 19) if i not in (5, 14))
+    assert f"16 of the default grid's 18 positions left out (positions {left}:" in line
+    assert line.endswith("--select numbers the 2 kept)")
+    P = [p["position"] for p in _truth(tmp_path / "all")["positions"]]
+    np.testing.assert_allclose(P, [[0.0, 0.0, 235.0], [0.0, 0.0, 265.0]], atol=1e-9)
+    code, _, err = _cli(["simulate", tmp_path / "one", *args, "--select", "2"], monkeypatch, capsys)
+    assert code == 0, err
+    (p,) = _truth(tmp_path / "one")["positions"]
+    np.testing.assert_allclose(p["position"], [0.0, 0.0, 265.0], atol=1e-9)
