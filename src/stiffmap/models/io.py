@@ -732,10 +732,4 @@ def _past_joint_singularity(robot: SerialRobot, m: ModelMap, i: int):
     (:meth:`SerialRobot.past_joint_singularity`), else None."""
     if not m.reasons[i].startswith("singular: ") or not np.all(np.isfinite(m.points[i])):
         return None
-    joint, trans = robot.singularity_measures(m.q[i])
-    if not (joint[0] < robot.singular_tol <= trans[0]):
-        return None
-    try:
-        return robot.past_joint_singularity(m.q[i])
-    except InputError:
-        return None
+    return robot.past_joint_singularity(m.q[i])
