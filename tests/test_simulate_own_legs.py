@@ -142,10 +142,22 @@ def test_a_dim3_legs_file_is_a_translational_platform(monkeypatch, capsys, tmp_p
     P = np.array([p["position"] for p in truth["positions"]])
     np.testing.assert_allclose(P, grid[[0, 17]])
     np.testing.assert_allclose([p["K"] for p in truth["positions"]], model.stiffness(P), rtol=1e-12)
-    assert s == 40.0 and home[2] == pytest.approx(-347.029402, abs=1e-6)
+    # Its home, the closed form at the actuators' seed 0.5 rad (delta.toml: base radius 150 mm,
+    # arm 300 mm, forearm 425 mm, platform radius 40 mm); size hypot(40, 347) = 349 mm: spacing
+    # 0.12 x 349 = 41.9 mm, rounded to 40.
+    z = -300.0 * np.sin(0.5) - np.sqrt(425.0**2 - (150.0 + 300.0 * np.cos(0.5) - 40.0) ** 2)
+    np.testing.assert_allclose(home, [0.0, 0.0, z], atol=1e-6)
+    assert s == 40.0
     rot = ["--rot-stiffness-nmm-per-rad", "2e5", "--load-point-mm", "0,0,-50"]
     code, _, err = _cli([*args, "--force", *rot], monkeypatch, capsys)
     assert code == 0, err
+    # As for the Delta test-bed: K6 = diag(K, 2e5 I) at the tool point, the loads 50 mm below it.
+    truth = _truth(out)
+    assert truth["robot"]["field"] == "6x6" and truth["robot"]["load_point_mm"] == [0.0, 0.0, -50.0]
+    for p, K in zip(truth["positions"], model.stiffness(P), strict=True):
+        K6 = np.zeros((6, 6))
+        K6[:3, :3], K6[3:, 3:] = K, 2e5 * np.eye(3)
+        np.testing.assert_allclose(p["K_tcp"], K6, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize(
