@@ -328,3 +328,7 @@ def test_a_3rps_keeps_the_grid_positions_its_legs_reach_and_select_numbers_those
     assert code == 0, err
     (p,) = _truth(tmp_path / "one")["positions"]
     np.testing.assert_allclose(p["position"], [0.0, 0.0, 265.0], atol=1e-9)
+    # Positions given: the default grid's note is not said.
+    given = ["simulate", tmp_path / "given", *args, "--positions", "0,0,250"]
+    code, _, err = _cli(given, monkeypatch, capsys)
+    assert code == 0 and "note:" not in err, err

@@ -206,6 +206,7 @@ def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.nda
     Q = getattr(model, "configurations", None)
     if request.positions is not None:
         P = _positions(request, kind, tb)
+        setup = replace(setup, notes=())  # those of the default positions, not used
     elif Q is not None or setup.positions is not None:
         try:
             P = select_positions(
