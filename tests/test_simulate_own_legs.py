@@ -175,6 +175,7 @@ def test_a_dim3_legs_file_is_a_translational_platform(monkeypatch, capsys, tmp_p
         ("testbed", ["--tip", "tool0"],
          "--tip: for a robot of your own (--robot FILE.urdf, .xacro or .toml)"),
         ("urdf_legs", [], "legs given by URDFs cannot be simulated yet"),
+        ("campaign", [], "campaign.toml: a campaign.toml (kind, [robot]), not a legs TOML: that has dim"),
     ],
 )  # fmt: skip
 def test_bad_input_is_one_line(own_toml, monkeypatch, capsys, tmp_path, make, extra, message):
@@ -188,6 +189,9 @@ def test_bad_input_is_one_line(own_toml, monkeypatch, capsys, tmp_path, make, ex
         robot = tmp_path / "nowhere.toml"
     elif make == "urdf_legs":
         robot = _urdf_legs_toml(tmp_path)
+    elif make == "campaign":  # a simulated campaign's own file, taken for a robot
+        robot = tmp_path / "campaign.toml"
+        robot.write_text('name = "x"\nkind = "vision"\n[robot]\nmodel = "legs"\nlegs = "robot.toml"\n')
     code, out, err = _cli(
         ["simulate", tmp_path / "o", "--robot", robot, "--truth-only", *extra], monkeypatch, capsys
     )
