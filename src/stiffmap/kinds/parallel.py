@@ -218,7 +218,7 @@ def _own_legs_setup(model) -> OwnSetup:
     if any(d.urdf for d in model.description):
         raise FieldError(
             "robot",
-            f"{model.source}: legs given by URDFs cannot be simulated yet (the campaign would need "
+            f"{{robot}} {model.source}: legs given by URDFs cannot be simulated yet (the campaign would need "
             "their files); describe each leg by its joints (docs/models.md)",
         )
     grid, home, s = legs_default_grid(model)
