@@ -26,6 +26,7 @@ from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
 from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
+from ..stiffness import stiffness_indices
 from ..textfmt import fmt, fmt_pm
 from .common import (
     EXIT_PARTIAL,
@@ -315,7 +316,7 @@ def _print_configurations(robot, mp, recs, lines) -> None:
             xyz = [fmt(_mm(v), 6) for v in r["position"]] if "position" in r else [""] * 3
             t.add_row(*head, *xyz, *([""] * 3), mp.reasons[i])
         elif "note" in r:  # a joint singularity: K, not the map's (it flags the configuration)
-            w = np.linalg.eigvalsh(np.asarray(r["K"]))
+            w = stiffness_indices(r["K"]).eigenvalues
             xyz = (fmt(_mm(v), 6) for v in r["position"])
             t.add_row(*head, *xyz, *(fmt(v, 4) for v in w), "K only: " + mp.reasons[i])
         else:
