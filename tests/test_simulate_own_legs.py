@@ -336,3 +336,21 @@ def test_a_3rps_keeps_the_grid_positions_its_legs_reach_and_select_numbers_those
     given = ["simulate", tmp_path / "given", *args, "--positions", "0,0,250"]
     code, _, err = _cli(given, monkeypatch, capsys)
     assert code == 0 and "note:" not in err, err
+
+
+def test_poses_for_a_platform_that_keeps_its_orientation_are_refused(monkeypatch, capsys, tmp_path):
+    # The Delta as legs (dim = 3) given a poses CSV: a roll of 5 deg would be left out (it was:
+    # the positions alone simulated), so it is one line naming the file, the line and the column;
+    # orientations of 0 are the positions themselves.
+    poses = tmp_path / "poses.csv"
+    poses.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,-347,0,0,0\n10,0,-347,5,0,0\n")
+    for robot in (ROBOTS / "delta.toml", "delta"):
+        args = ["simulate", tmp_path / "o", "--robot", robot, "--positions", poses, "--truth-only"]
+        code, _, err = _cli(args, monkeypatch, capsys)
+        assert code == 2 and err.count("\n") == 1, err
+        assert err.startswith(f"error: {poses}: line 3, column 'roll_deg': 5 deg, but this robot's platform")
+    poses.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,-347,0,0,0\n10,0,-347,0,0,0\n")
+    code, _, err = _cli([*args[:3], ROBOTS / "delta.toml", *args[4:]], monkeypatch, capsys)
+    assert code == 0, err
+    P = [p["position"] for p in _truth(tmp_path / "o")["positions"]]
+    np.testing.assert_allclose(P, [[0.0, 0.0, -347.0], [10.0, 0.0, -347.0]])
