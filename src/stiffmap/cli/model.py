@@ -176,7 +176,9 @@ def model(
 
     urdf (a serial robot): 'stiffmap model urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv
     --param k1=K1,...,kn=Kn' prints, per configuration, the measured point's position (mm,
-    base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
+    base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6). At a
+    joint singularity alone (a wrist singularity: the point still moves every way) K is
+    printed with the reason as a note, K6 is null, and the status stays 0.
 
     legs with a dim = 6 TOML (a hexapod, a 3-RPS: robots/hexapod.toml): points are poses,
     --points with x, y, z and roll_deg, pitch_deg, yaw_deg, or --grid positions at
