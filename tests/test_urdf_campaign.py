@@ -10,6 +10,7 @@ flexible link goes into a campaign that needs neither xacro nor its packages.
 
 from __future__ import annotations
 
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main as stiffmap
 from stiffmap.errors import InputError
 from stiffmap.models.io import read_configuration_rows
+from stiffmap.models.serial import SerialRobot
 
 ROBOTS = Path(__file__).parent / "robots"
 CLUTTERED = ROBOTS / "cluttered_mm.urdf"
@@ -174,11 +176,7 @@ def test_a_configuration_at_a_joint_singularity_is_named_by_its_position(tmp_pat
     # The simulated field is K6, which a wrist singularity (q5 = 0) has not ('model urdf' gives K
     # there with a note): one line naming the position (the configuration's row, its measured point
     # from the chain's forward kinematics) and the reason; was the reason alone, no position.
-    from importlib.resources import files
-
-    from helpers.cli_process import run_in_process
-
-    from stiffmap.models.serial import SerialRobot
+    from helpers.cli_process import run_in_process  # as the test above
 
     arm6 = files("stiffmap.models") / "robots" / "arm6.urdf"
     cfg = tmp_path / "configs.csv"
@@ -200,8 +198,6 @@ def test_campaign_toml_reads_a_xacro_description_with_its_packages_in_the_campai
     """urdf = a .xacro, xacro_args, package_paths relative to the campaign folder (not the working
     directory): the K of the pre-expanded URDF; a wrong argument named by its key."""
     import shutil
-
-    from stiffmap.models.serial import SerialRobot
 
     monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
     monkeypatch.chdir(tmp_path)
