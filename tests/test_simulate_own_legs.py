@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.cli_process import run_in_process as _cli
+from helpers.own_hexapod import OWN_K, write_own_hexapod
+from helpers.own_hexapod import gosselin_k6 as _gosselin
 from helpers.poses import rpy_matrix
 
 from stiffmap.campaign.robot import campaign_model
@@ -16,50 +18,16 @@ from stiffmap.campaign.spec import load_spec
 from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K, legs_default_grid
 from stiffmap.loads import paper9
 from stiffmap.models.legs import LegRobot
-from stiffmap.models.legs6 import ups_legs
-from stiffmap.models.legs_file import legs_text
 
 ROBOTS = files("stiffmap.models") / "robots"
 HEXAPOD = str(ROBOTS / "hexapod.toml")
 TESTBED_PARAMS = ",".join(f"k_leg{i}={k:g}" for i, k in enumerate(HEXAPOD_TESTBED_K, start=1))
 
-# A 6-UPS of our own (not the shipped one): base joints on a 220 mm circle, platform joints on a
-# 120 mm circle, at the angles below (degrees; leg i joins base angle i to platform angle i: the
-# legs cross as a Gough-Stewart platform's), home height 260 mm, legs of six different stiffnesses.
-BASE_DEG = (260.0, 280.0, 20.0, 40.0, 140.0, 160.0)
-PLATFORM_DEG = (220.0, 320.0, 340.0, 80.0, 100.0, 200.0)
-OWN_K = (350.0, 420.0, 500.0, 380.0, 460.0, 540.0)  # N/mm
-
-
-def _circle(radius: float, degrees) -> np.ndarray:
-    a = np.radians(degrees)
-    return np.c_[radius * np.cos(a), radius * np.sin(a), np.zeros(len(a))]
-
-
-B_MM, A_MM = _circle(220.0, BASE_DEG), _circle(120.0, PLATFORM_DEG)
-
 
 @pytest.fixture(scope="module")
 def own_toml(tmp_path_factory) -> Path:
-    names = tuple(f"k_leg{i}" for i in range(1, 7))
-    legs = ups_legs(B_MM, A_MM, (0.0, 0.0, 260.0), names, stroke_mm=(180.0, 380.0))
-    path = tmp_path_factory.mktemp("own") / "my_hexapod.toml"
-    path.write_text(legs_text("my_hexapod", 6, dict(zip(names, OWN_K, strict=True)), legs, 1e-3))
-    return path
-
-
-def _gosselin(p, k=OWN_K, R=None) -> np.ndarray:
-    """K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i): legs that are springs along their line, the
-    platform at p turned by R (r_i = R attach_i; n_i from the base joint to the platform joint)."""
-    R = np.eye(3) if R is None else R
-    K6 = np.zeros((6, 6))
-    for b, a, ki in zip(B_MM, A_MM, k, strict=True):
-        r = R @ a
-        n = np.asarray(p) + r - b
-        n /= np.linalg.norm(n)
-        a = np.r_[n, np.cross(r, n)]
-        K6 += ki * np.outer(a, a)
-    return K6
+    """The 6-UPS of helpers.own_hexapod, its legs' stroke 180-380 mm."""
+    return write_own_hexapod(tmp_path_factory.mktemp("own") / "my_hexapod.toml", stroke_mm=(180.0, 380.0))
 
 
 def _truth(out: Path) -> dict:
