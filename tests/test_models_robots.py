@@ -35,6 +35,7 @@ from hypothesis import strategies as st
 
 from stiffmap.cli.main import run
 from stiffmap.errors import InputError
+from stiffmap.models.robot_files import expand_xacro
 from stiffmap.models.serial import SerialRobot
 
 OFFSET = (10.0, -20.0, 30.0)  # mm in the tip frame
@@ -653,6 +654,8 @@ def test_a_package_named_only_in_text_need_not_be_found(tmp_path):
     )
     robot = SerialRobot.from_urdf(f, "plate", k_theta=1e8)
     assert robot.chain.joint_names == ("turn",)
+    # The expansion (copied into a simulated campaign) keeps the $(find) as written.
+    assert "<parameters>$(find acme_bringup)/config/controllers.yaml</parameters>" in expand_xacro(f)
     f.write_text(
         '<robot name="c" xmlns:xacro="http://www.ros.org/wiki/xacro">'
         "<xacro:property name='q0' lazy_eval='false' "
