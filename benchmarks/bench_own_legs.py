@@ -1,12 +1,12 @@
 """A user's own legs TOML on the virtual test-bed: K6 and the leg stiffnesses recovered, loads scaled or not.
 
 As a user would: ``stiffmap simulate OUT --robot my_hexapod.toml --seed S --select ... --repeats R``
-then ``stiffmap run OUT``. The robot is a 6-UPS of our own written here (base joints on a
-220 mm circle, platform joints on a 120 mm circle, home height 260 mm: the geometry of
-``tests/test_simulate_own_legs.py``) on stiff legs of six different stiffnesses (350-540 N/mm,
+then ``stiffmap run OUT``. The robot is a 6-UPS of our own (``tests/helpers/own_hexapod.py``,
+shared with ``tests/test_simulate_own_legs.py``: base joints on a 220 mm circle, platform joints
+on a 120 mm circle, home height 260 mm) on stiff legs of six different stiffnesses (350-540 N/mm,
 the order of the shipped hexapod.toml's 500 N/mm), seen by one camera calibrated from its own
 rendered views; its default positions (a 3 x 3 x 2 grid 35 mm apart about its home), loads
-hung 100 mm below the platform's centre. Two load cases:
+hung 100 mm below the platform's centre. Three load cases:
 
 - ``scaled``: ``--loads paper9`` as ``simulate`` takes it for a robot of one's own: paper9's
   largest displacement of the tool point (0.025 mm here) is outside 0.5-4 mm, so its masses
@@ -37,30 +37,14 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
 from _table import save  # noqa: E402
-from bench_hexapod_campaign import NAMES, evaluate  # noqa: E402
+from bench_hexapod_campaign import evaluate  # noqa: E402
+from helpers.own_hexapod import NAMES, OWN_K, write_own_hexapod  # noqa: E402
 
 from stiffmap.cli.main import main as stiffmap  # noqa: E402
 from stiffmap.loads import paper9  # noqa: E402
-from stiffmap.models.legs6 import ups_legs  # noqa: E402
-from stiffmap.models.legs_file import legs_text  # noqa: E402
 from stiffmap.units import G_REFERENCE_PAPER  # noqa: E402
-
-BASE_DEG = (260.0, 280.0, 20.0, 40.0, 140.0, 160.0)
-PLATFORM_DEG = (220.0, 320.0, 340.0, 80.0, 100.0, 200.0)
-OWN_K = (350.0, 420.0, 500.0, 380.0, 460.0, 540.0)
-
-
-def _circle(radius: float, degrees) -> np.ndarray:
-    a = np.radians(degrees)
-    return np.c_[radius * np.cos(a), radius * np.sin(a), np.zeros(len(a))]
-
-
-def write_robot(path: Path) -> Path:
-    """The 6-UPS of the module docstring as a legs TOML."""
-    legs = ups_legs(_circle(220.0, BASE_DEG), _circle(120.0, PLATFORM_DEG), (0.0, 0.0, 260.0), NAMES)
-    path.write_text(legs_text("my_hexapod", 6, dict(zip(NAMES, OWN_K, strict=True)), legs, 1e-3))
-    return path
 
 
 def write_paper9(path: Path, factor: float = 1.0) -> Path:
@@ -127,7 +111,7 @@ def main() -> None:
     tmp = None if args.cache else tempfile.TemporaryDirectory(prefix="bench_own_legs_")
     base = args.cache or Path(tmp.name)
     base.mkdir(parents=True, exist_ok=True)
-    robot = write_robot(base / "my_hexapod.toml")
+    robot = write_own_hexapod(base / "my_hexapod.toml")
     load_files = {"scaled": "paper9", "paper9": str(write_paper9(base / "paper9.csv"))}
     load_files["paper9x10"] = str(write_paper9(base / "paper9x10.csv", 10.0))
     truth = np.array(OWN_K)

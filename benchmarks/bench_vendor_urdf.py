@@ -296,17 +296,6 @@ def run(args: list[str]) -> tuple[int, str, str]:
     return code, o.getvalue(), e.getvalue()
 
 
-def _configs(path: Path, joints, coords, Q) -> None:
-    cols = [f"{c}_{'mm' if joints[c].type == 'prismatic' else 'deg'}" for c in coords]
-    rows = [",".join(["label", *cols])]
-    for i, q in enumerate(Q):
-        vals = [
-            v if joints[c].type == "prismatic" else math.degrees(v) for c, v in zip(coords, q, strict=True)
-        ]
-        rows.append(",".join([f"c{i + 1}", *(repr(float(v)) for v in vals)]))
-    path.write_text("\n".join(rows) + "\n")
-
-
 def check_arm(root: Path, arm, n_configs: int, rng, tmp: Path) -> dict:
     label, rel, tip, base, xargs, pkg_dirs = arm
     f = root / rel
@@ -338,7 +327,7 @@ def check_arm(root: Path, arm, n_configs: int, rng, tmp: Path) -> dict:
         [rng.uniform(2e5, 2e6) if joints[c].type == "prismatic" else rng.uniform(2e7, 2e8) for c in coords]
     )
     cfg = tmp / f"{f.stem}_{len(coords)}_configs.csv"
-    _configs(cfg, joints, coords, Q)
+    ref.write_configs(cfg, joints, coords, Q)
     common = [
         "--tip",
         tip,

@@ -10,6 +10,7 @@ from importlib.resources import files
 import numpy as np
 import pytest
 from helpers.cli_process import run_in_process as _cli
+from helpers.fitted_campaign import k6_error, run_and_fit
 
 from stiffmap.campaign.platform import hung_force_stiffness
 from stiffmap.campaign.positions import campaign_poses
@@ -221,7 +222,6 @@ def test_report_orientation_map_is_the_models_hung_K_over_roll_and_pitch(hexapod
 def test_turned_hexapod_campaign_recovers_K6_and_its_legs_and_reports_them(monkeypatch, capsys, tmp_path):
     # simulate then run then report, three turned poses, one repeat: every K6 within 2 % (relative
     # Frobenius, rad as L mm) at its pose, the six legs within 1 %; the report maps over orientations.
-    from stiffmap.campaign.store import DB_NAME, Store
     from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K
 
     csv = tmp_path / "poses.csv"
@@ -237,22 +237,15 @@ def test_turned_hexapod_campaign_recovers_K6_and_its_legs_and_reports_them(monke
     args = ["simulate", out, "--robot", "hexapod", "--positions", csv, "--repeats", "1", "--workers", "2"]
     code, _, err = _cli(args, monkeypatch, capsys)
     assert code == 0, err
-    code, _, err = _cli(["run", out, "--workers", "2"], monkeypatch, capsys)
-    assert code in (0, 1), err
-    with Store(out / DB_NAME) as st:
-        fit = st.model_fit("stiffness")
-    assert fit is not None and fit.status == "ok", fit
+    fit, model = run_and_fit(out, monkeypatch, capsys)
     # The extra noise the fit estimated is stored with it (model_fit.info) and on the report.
     assert len(fit.info) == 1 and "an extra noise was estimated" in fit.info[0], fit.info
     for i, k in enumerate(HEXAPOD_TESTBED_K, start=1):
         assert abs(fit.params[f"k_leg{i}"] - k) < 0.01 * k, (i, fit.params)
-    model = campaign_model(load_spec(out / "campaign.toml"), out).with_params(**fit.params)
-    d = np.r_[np.ones(3), np.full(3, 1.0 / model.length_mm)]
     truth = json.loads((out / "truth.json").read_text())
     for p, r in zip(truth["positions"], rows, strict=True):
         K6 = model.stiffness6(np.r_[r[:3], np.radians(r[3:])])
-        T6 = np.array(p["K_tcp"]) * np.outer(d, d)
-        assert np.linalg.norm(K6 * np.outer(d, d) - T6) < 0.02 * np.linalg.norm(T6)
+        assert k6_error(K6, p["K_tcp"], model.length_mm) < 0.02
     code, _, err = _cli(["report", out], monkeypatch, capsys)
     assert code in (0, 1), err
     page = (out / "report" / "index.html").read_text()

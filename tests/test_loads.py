@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stiffmap.loads import force_covariances, forces_matrix, load_from_mass, paper9, preset, with_friction
+from stiffmap.loads import (
+    LoadCase,
+    force_covariances,
+    forces_matrix,
+    load_from_mass,
+    paper9,
+    preset,
+    scaled_loads,
+    with_friction,
+)
 from stiffmap.units import G_STANDARD
 
 
@@ -49,3 +58,19 @@ def test_friction_of_the_reference_experiment():
 def test_bad_loads_are_refused(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_scaled_loads_are_the_masses_times_the_factor():
+    # A mass x f hangs f times the force (F = m g), its covariance f^2 times (a std f times); a label
+    # without a mass gets ' x f'; the given cases are left as they were.
+    base = [load_from_mass(0.5, "+y"), LoadCase(np.array([0.0, 0.0, -3.0]), 0.01 * np.eye(3), "push")]
+    base[0] = LoadCase(base[0].force, 0.04 * np.eye(3), base[0].label)
+    out = scaled_loads(base, 20)
+    np.testing.assert_allclose(out[0].force, load_from_mass(10.0, "+y").force, rtol=1e-15)
+    np.testing.assert_allclose(out[0].cov, 0.04 * 400 * np.eye(3), rtol=1e-15)
+    np.testing.assert_allclose(out[1].force, [0.0, 0.0, -60.0])
+    assert [ld.label for ld in out] == ["10 kg +y", "push x 20"]
+    np.testing.assert_array_equal(base[1].force, [0.0, 0.0, -3.0])
+    for bad in (0.0, -2.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="factor must be a positive number"):
+            scaled_loads(base, bad)

@@ -35,6 +35,7 @@ from hypothesis import strategies as st
 
 from stiffmap.cli.main import run
 from stiffmap.errors import InputError
+from stiffmap.models.robot_files import expand_xacro
 from stiffmap.models.serial import SerialRobot
 
 OFFSET = (10.0, -20.0, 30.0)  # mm in the tip frame
@@ -82,17 +83,6 @@ def _rel(a, b) -> float:
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
-def _write_configs(path: Path, joints, coords, Q) -> None:
-    cols = [f"{c}_{'mm' if joints[c].type == 'prismatic' else 'deg'}" for c in coords]
-    rows = [",".join(["label", *cols])]
-    for i, q in enumerate(Q):
-        vals = [
-            v if joints[c].type == "prismatic" else math.degrees(v) for c, v in zip(coords, q, strict=True)
-        ]
-        rows.append(",".join([f"c{i + 1}", *(repr(float(v)) for v in vals)]))
-    path.write_text("\n".join(rows) + "\n")
-
-
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
     """Every URDF of the collection through ``stiffmap model urdf --json``: (name, outcome) pairs."""
@@ -130,7 +120,7 @@ def _one(f: Path, rng, tmp: Path, mp) -> dict:
     )
     cfg = tmp / f"{f.stem}_configs.csv"
     if coords:
-        _write_configs(cfg, joints, coords, Q)
+        ref.write_configs(cfg, joints, coords, Q)
     else:
         cfg.write_text("q1_deg\n0\n")
     args = ["model", "urdf", f, "--tip", tip or "base_link", "--tip-offset-mm", ",".join(map(str, OFFSET))]
@@ -664,6 +654,8 @@ def test_a_package_named_only_in_text_need_not_be_found(tmp_path):
     )
     robot = SerialRobot.from_urdf(f, "plate", k_theta=1e8)
     assert robot.chain.joint_names == ("turn",)
+    # The expansion (copied into a simulated campaign) keeps the $(find) as written.
+    assert "<parameters>$(find acme_bringup)/config/controllers.yaml</parameters>" in expand_xacro(f)
     f.write_text(
         '<robot name="c" xmlns:xacro="http://www.ros.org/wiki/xacro">'
         "<xacro:property name='q0' lazy_eval='false' "
@@ -750,7 +742,7 @@ def test_a_palletizer_s_parallelogram_mimic_joints_on_the_chain(rng, tmp_path, m
     Q = rng.uniform(lo, hi, size=(6, 4))
     k = np.array([3e9, 4e9, 2e9, 5e8])
     cfg = tmp_path / "pal_configs.csv"
-    _write_configs(cfg, joints, coords, Q)
+    ref.write_configs(cfg, joints, coords, Q)
     code, out, err = _run(
         ["model", "urdf", PALLETIZER, "--tip", "tool0", "--tip-offset-mm", ",".join(map(str, OFFSET)),
          "--configs", cfg, "--param", "k_theta=" + ",".join(map(str, k)), "--json"],

@@ -409,3 +409,17 @@ def test_near_a_wrist_singularity_k_is_given_with_a_note(tmp_path, monkeypatch, 
 def _rel(a, b) -> float:
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+def test_past_joint_singularity_gives_k_only_where_the_joints_alone_are_singular():
+    # A wrist singularity (q5 = 0: joints 4 and 6 aligned): K = (J K^-1 J^T)[:3, :3]^-1 computed
+    # here; a regular configuration and the arm stretched to tool0 (no K at all): None.
+    robot = _arm()
+    wrist = np.radians([0.0, 0.0, -30.0, 0.0, 0.0, 0.0])
+    J = robot.chain.jacobian(wrist)
+    C = J @ np.diag(1.0 / np.asarray(K_ARM)) @ J.T
+    np.testing.assert_allclose(robot.past_joint_singularity(wrist), np.linalg.inv(C[:3, :3]), rtol=1e-9)
+    assert robot.past_joint_singularity(np.radians([10.0, 20.0, -30.0, 15.0, 50.0, 40.0])) is None
+    at_tool0 = SerialRobot.from_urdf(ARM6, "tool0", (0.0, 0.0, 0.0), k_theta=K_ARM)
+    stretched = np.radians([0.0, 20.0, -90.0, 0.0, 0.0, 0.0])  # translation measure 5e-17 there
+    assert at_tool0.past_joint_singularity(stretched) is None

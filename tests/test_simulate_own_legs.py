@@ -9,6 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.cli_process import run_in_process as _cli
+from helpers.fitted_campaign import k6_error, run_and_fit
+from helpers.own_hexapod import OWN_K, write_own_hexapod
+from helpers.own_hexapod import gosselin_k6 as _gosselin
 from helpers.poses import rpy_matrix
 
 from stiffmap.campaign.robot import campaign_model
@@ -16,54 +19,23 @@ from stiffmap.campaign.spec import load_spec
 from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K, legs_default_grid
 from stiffmap.loads import paper9
 from stiffmap.models.legs import LegRobot
-from stiffmap.models.legs6 import ups_legs
-from stiffmap.models.legs_file import legs_text
 
 ROBOTS = files("stiffmap.models") / "robots"
 HEXAPOD = str(ROBOTS / "hexapod.toml")
 TESTBED_PARAMS = ",".join(f"k_leg{i}={k:g}" for i, k in enumerate(HEXAPOD_TESTBED_K, start=1))
 
-# A 6-UPS of our own (not the shipped one): base joints on a 220 mm circle, platform joints on a
-# 120 mm circle, at the angles below (degrees; leg i joins base angle i to platform angle i: the
-# legs cross as a Gough-Stewart platform's), home height 260 mm, legs of six different stiffnesses.
-BASE_DEG = (260.0, 280.0, 20.0, 40.0, 140.0, 160.0)
-PLATFORM_DEG = (220.0, 320.0, 340.0, 80.0, 100.0, 200.0)
-OWN_K = (350.0, 420.0, 500.0, 380.0, 460.0, 540.0)  # N/mm
-
-
-def _circle(radius: float, degrees) -> np.ndarray:
-    a = np.radians(degrees)
-    return np.c_[radius * np.cos(a), radius * np.sin(a), np.zeros(len(a))]
-
-
-B_MM, A_MM = _circle(220.0, BASE_DEG), _circle(120.0, PLATFORM_DEG)
-
 
 @pytest.fixture(scope="module")
 def own_toml(tmp_path_factory) -> Path:
-    names = tuple(f"k_leg{i}" for i in range(1, 7))
-    legs = ups_legs(B_MM, A_MM, (0.0, 0.0, 260.0), names, stroke_mm=(180.0, 380.0))
-    path = tmp_path_factory.mktemp("own") / "my_hexapod.toml"
-    path.write_text(legs_text("my_hexapod", 6, dict(zip(names, OWN_K, strict=True)), legs, 1e-3))
-    return path
-
-
-def _gosselin(p, k=OWN_K) -> np.ndarray:
-    """K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i): legs that are springs along their line, the
-    platform level at p (r_i = attach_i; n_i from the base joint to the platform joint)."""
-    K6 = np.zeros((6, 6))
-    for b, r, ki in zip(B_MM, A_MM, k, strict=True):
-        n = np.asarray(p) + r - b
-        n /= np.linalg.norm(n)
-        a = np.r_[n, np.cross(r, n)]
-        K6 += ki * np.outer(a, a)
-    return K6
+    """The 6-UPS of helpers.own_hexapod, its legs' stroke 180-380 mm."""
+    return write_own_hexapod(tmp_path_factory.mktemp("own") / "my_hexapod.toml", stroke_mm=(180.0, 380.0))
 
 
 def _truth(out: Path) -> dict:
     return json.loads((out / "truth.json").read_text())
 
 
+@pytest.mark.slow  # about 10 s on one core: two truths of 18 positions
 def test_the_shipped_hexapod_as_a_file_is_the_testbed_hexapod(monkeypatch, capsys, tmp_path):
     # The same TOML with the test-bed's legs: the same default positions (the 3 x 3 x 2 grid about
     # its home, 40 mm apart, is HEXAPOD_TESTBED_POSITIONS), loads, load point and truth.
@@ -87,6 +59,7 @@ def test_the_shipped_hexapod_as_a_file_is_the_testbed_hexapod(monkeypatch, capsy
     assert model.params() == {f"k_leg{i}": k for i, k in enumerate(HEXAPOD_TESTBED_K, start=1)}
 
 
+@pytest.mark.slow  # about 5 s on one core: the truth of 18 positions
 def test_own_hexapod_truth_is_the_closed_form_and_its_stiff_legs_get_heavier_loads(
     own_toml, monkeypatch, capsys, tmp_path
 ):
@@ -138,10 +111,22 @@ def test_a_dim3_legs_file_is_a_translational_platform(monkeypatch, capsys, tmp_p
     P = np.array([p["position"] for p in truth["positions"]])
     np.testing.assert_allclose(P, grid[[0, 17]])
     np.testing.assert_allclose([p["K"] for p in truth["positions"]], model.stiffness(P), rtol=1e-12)
-    assert s == 40.0 and home[2] == pytest.approx(-347.029402, abs=1e-6)
+    # Its home, the closed form at the actuators' seed 0.5 rad (delta.toml: base radius 150 mm,
+    # arm 300 mm, forearm 425 mm, platform radius 40 mm); size hypot(40, 347) = 349 mm: spacing
+    # 0.12 x 349 = 41.9 mm, rounded to 40.
+    z = -300.0 * np.sin(0.5) - np.sqrt(425.0**2 - (150.0 + 300.0 * np.cos(0.5) - 40.0) ** 2)
+    np.testing.assert_allclose(home, [0.0, 0.0, z], atol=1e-6)
+    assert s == 40.0
     rot = ["--rot-stiffness-nmm-per-rad", "2e5", "--load-point-mm", "0,0,-50"]
     code, _, err = _cli([*args, "--force", *rot], monkeypatch, capsys)
     assert code == 0, err
+    # As for the Delta test-bed: K6 = diag(K, 2e5 I) at the tool point, the loads 50 mm below it.
+    truth = _truth(out)
+    assert truth["robot"]["field"] == "6x6" and truth["robot"]["load_point_mm"] == [0.0, 0.0, -50.0]
+    for p, K in zip(truth["positions"], model.stiffness(P), strict=True):
+        K6 = np.zeros((6, 6))
+        K6[:3, :3], K6[3:, 3:] = K, 2e5 * np.eye(3)
+        np.testing.assert_allclose(p["K_tcp"], K6, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -159,6 +144,7 @@ def test_a_dim3_legs_file_is_a_translational_platform(monkeypatch, capsys, tmp_p
         ("testbed", ["--tip", "tool0"],
          "--tip: for a robot of your own (--robot FILE.urdf, .xacro or .toml)"),
         ("urdf_legs", [], "legs given by URDFs cannot be simulated yet"),
+        ("campaign", [], "campaign.toml: a campaign.toml (kind, [robot]), not a legs TOML: that has dim"),
     ],
 )  # fmt: skip
 def test_bad_input_is_one_line(own_toml, monkeypatch, capsys, tmp_path, make, extra, message):
@@ -172,6 +158,9 @@ def test_bad_input_is_one_line(own_toml, monkeypatch, capsys, tmp_path, make, ex
         robot = tmp_path / "nowhere.toml"
     elif make == "urdf_legs":
         robot = _urdf_legs_toml(tmp_path)
+    elif make == "campaign":  # a simulated campaign's own file, taken for a robot
+        robot = tmp_path / "campaign.toml"
+        robot.write_text('name = "x"\nkind = "vision"\n[robot]\nmodel = "legs"\nlegs = "robot.toml"\n')
     code, out, err = _cli(
         ["simulate", tmp_path / "o", "--robot", robot, "--truth-only", *extra], monkeypatch, capsys
     )
@@ -207,25 +196,16 @@ def _urdf_legs_toml(tmp_path: Path) -> Path:
 def test_own_hexapod_campaign_recovers_K6_and_its_legs(own_toml, monkeypatch, capsys, tmp_path):
     # simulate then run then report, two positions of the default grid, one repeat, the true camera:
     # each K6 within 2 % (relative Frobenius, rad as L mm), the six legs within 1 %.
-    from stiffmap.campaign.store import DB_NAME, Store
-
     out = tmp_path / "own"
     args = ["simulate", out, "--robot", own_toml, "--select", "1,14", "--repeats", "1", "--true-camera"]
     code, _, err = _cli([*args, "--workers", "2"], monkeypatch, capsys)
     assert code == 0, err
-    code, _, err = _cli(["run", out, "--workers", "2"], monkeypatch, capsys)
-    assert code in (0, 1), err
-    with Store(out / DB_NAME) as st:
-        fit = st.model_fit("stiffness")
-    assert fit is not None and fit.status == "ok", fit
+    fit, model = run_and_fit(out, monkeypatch, capsys)
     for i, k in enumerate(OWN_K, start=1):
         assert abs(fit.params[f"k_leg{i}"] - k) < 0.01 * k, (i, fit.params)
-    model = campaign_model(load_spec(out / "campaign.toml"), out).with_params(**fit.params)
-    d = np.r_[np.ones(3), np.full(3, 1.0 / model.length_mm)]
     for p in _truth(out)["positions"]:
-        K6 = model.stiffness6(np.r_[p["position"], 0.0, 0.0, 0.0]) * np.outer(d, d)
-        T6 = _gosselin(p["position"]) * np.outer(d, d)
-        assert np.linalg.norm(K6 - T6) < 0.02 * np.linalg.norm(T6)
+        K6 = model.stiffness6(np.r_[p["position"], 0.0, 0.0, 0.0])
+        assert k6_error(K6, _gosselin(p["position"]), model.length_mm) < 0.02
     code, _, err = _cli(["report", out], monkeypatch, capsys)
     assert code in (0, 1), err
     assert (out / "report" / "index.html").is_file()
@@ -288,11 +268,49 @@ def test_own_hexapod_at_turned_poses_from_a_csv(own_toml, monkeypatch, capsys, t
     assert code == 0, err
     for p, r in zip(_truth(out)["positions"], rows, strict=True):
         assert p["orientation_deg"] == pytest.approx(r[3:])
-        R = rpy_matrix(*np.radians(r[3:]))
-        K6 = np.zeros((6, 6))
-        for b, a, k in zip(B_MM, A_MM, OWN_K, strict=True):
-            ra = R @ a
-            n = np.asarray(r[:3]) + ra - b
-            n /= np.linalg.norm(n)
-            K6 += k * np.outer(np.r_[n, np.cross(ra, n)], np.r_[n, np.cross(ra, n)])
+        K6 = _gosselin(r[:3], R=rpy_matrix(*np.radians(r[3:])))
         np.testing.assert_allclose(p["K_tcp"], K6, rtol=1e-9, atol=1e-9 * np.abs(K6).max())
+
+
+def test_a_3rps_keeps_the_grid_positions_its_legs_reach_and_select_numbers_those(
+    monkeypatch, capsys, tmp_path
+):
+    # A 3-RPS with its platform level cannot shift sideways (x, y and yaw follow z, roll and pitch:
+    # zero for the shipped symmetric one), so of its default grid (30 mm apart about (0, 0, 250))
+    # only the two centre positions (0, 0, 235) and (0, 0, 265), grid numbers 5 and 14, are kept;
+    # the note names the others and says --select numbers the kept ones.
+    args = ["--robot", ROBOTS / "3rps.toml", "--truth-only"]
+    code, _, err = _cli(["simulate", tmp_path / "all", *args], monkeypatch, capsys)
+    assert code == 0, err
+    (line,) = [t for t in err.splitlines() if t.startswith("note: ")]
+    left = ", ".join(str(i) for i in range(1, 19) if i not in (5, 14))
+    assert f"16 of the default grid's 18 positions left out (positions {left}:" in line
+    assert line.endswith("--select numbers the 2 kept)")
+    P = [p["position"] for p in _truth(tmp_path / "all")["positions"]]
+    np.testing.assert_allclose(P, [[0.0, 0.0, 235.0], [0.0, 0.0, 265.0]], atol=1e-9)
+    code, _, err = _cli(["simulate", tmp_path / "one", *args, "--select", "2"], monkeypatch, capsys)
+    assert code == 0, err
+    (p,) = _truth(tmp_path / "one")["positions"]
+    np.testing.assert_allclose(p["position"], [0.0, 0.0, 265.0], atol=1e-9)
+    # Positions given: the default grid's note is not said.
+    given = ["simulate", tmp_path / "given", *args, "--positions", "0,0,250"]
+    code, _, err = _cli(given, monkeypatch, capsys)
+    assert code == 0 and "note:" not in err, err
+
+
+def test_poses_for_a_platform_that_keeps_its_orientation_are_refused(monkeypatch, capsys, tmp_path):
+    # The Delta as legs (dim = 3) given a poses CSV: a roll of 5 deg would be left out (it was:
+    # the positions alone simulated), so it is one line naming the file, the line and the column;
+    # orientations of 0 are the positions themselves.
+    poses = tmp_path / "poses.csv"
+    poses.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,-347,0,0,0\n10,0,-347,5,0,0\n")
+    for robot in (ROBOTS / "delta.toml", "delta"):
+        args = ["simulate", tmp_path / "o", "--robot", robot, "--positions", poses, "--truth-only"]
+        code, _, err = _cli(args, monkeypatch, capsys)
+        assert code == 2 and err.count("\n") == 1, err
+        assert err.startswith(f"error: {poses}: line 3, column 'roll_deg': 5 deg, but this robot's platform")
+    poses.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,-347,0,0,0\n10,0,-347,0,0,0\n")
+    code, _, err = _cli([*args[:3], ROBOTS / "delta.toml", *args[4:]], monkeypatch, capsys)
+    assert code == 0, err
+    P = [p["position"] for p in _truth(tmp_path / "o")["positions"]]
+    np.testing.assert_allclose(P, [[0.0, 0.0, -347.0], [10.0, 0.0, -347.0]])

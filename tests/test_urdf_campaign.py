@@ -10,6 +10,7 @@ flexible link goes into a campaign that needs neither xacro nor its packages.
 
 from __future__ import annotations
 
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from stiffmap.campaign.truth import load_truth
 from stiffmap.cli.main import main as stiffmap
 from stiffmap.errors import InputError
 from stiffmap.models.io import read_configuration_rows
+from stiffmap.models.serial import SerialRobot
 
 ROBOTS = Path(__file__).parent / "robots"
 CLUTTERED = ROBOTS / "cluttered_mm.urdf"
@@ -170,14 +172,32 @@ def test_a_robot_of_ones_own_that_cannot_be_simulated_is_one_line(
     assert not (tmp_path / "out").exists()
 
 
+def test_a_configuration_at_a_joint_singularity_is_named_by_its_position(tmp_path, monkeypatch, capsys):
+    # The simulated field is K6, which a wrist singularity (q5 = 0) has not ('model urdf' gives K
+    # there with a note): one line naming the position (the configuration's row, its measured point
+    # from the chain's forward kinematics) and the reason; was the reason alone, no position.
+    from helpers.cli_process import run_in_process  # as the test above
+
+    arm6 = files("stiffmap.models") / "robots" / "arm6.urdf"
+    cfg = tmp_path / "configs.csv"
+    cfg.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n0,10,-40,0,40,0\n0,0,-30,0,0,0\n")
+    args = ["--robot", arm6, "--tip", "tool0", "--configs", cfg, "--param", "k_theta=4e8", "--truth-only"]
+    code, out, err = run_in_process(["simulate", tmp_path / "out", *args], monkeypatch, capsys)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    p = SerialRobot.from_urdf(arm6, "tool0", k_theta=4e8).chain.forward(np.radians([0, 0, -30, 0, 0, 0]))[0]
+    at = ", ".join(f"{v:g}" for v in p)
+    assert lines[0].startswith(f"error: position 2 ({at}) mm: the robot model has no stiffness there")
+    assert "(singular: joints joint_4 and joint_6 move the tip alike (wrist singularity)" in lines[0]
+    assert not (tmp_path / "out" / "campaign.toml").exists()
+
+
 def test_campaign_toml_reads_a_xacro_description_with_its_packages_in_the_campaign_folder(
     tmp_path, monkeypatch
 ):
     """urdf = a .xacro, xacro_args, package_paths relative to the campaign folder (not the working
     directory): the K of the pre-expanded URDF; a wrong argument named by its key."""
     import shutil
-
-    from stiffmap.models.serial import SerialRobot
 
     monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
     monkeypatch.chdir(tmp_path)

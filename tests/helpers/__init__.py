@@ -15,4 +15,8 @@ makes sure of it whatever the import mode); a benchmark inserts ``tests/`` itsel
 - :mod:`helpers.mechanism_checks` draws reachable poses of a model and checks its Jacobian.
 - :mod:`helpers.sensor_traces` simulates short sensor recordings.
 - :mod:`helpers.report_cases` builds degenerate report data.
+- :mod:`helpers.urdf_reference` reads a URDF independently of stiffmap: forward kinematics,
+  Jacobian by central differences, K and K6; writes configurations as ``--configs`` reads them.
+- :mod:`helpers.own_hexapod` is a 6-UPS hexapod of our own (legs TOML) and its closed-form K6.
+- :mod:`helpers.fitted_campaign` runs a simulated campaign and returns the model it fitted.
 """

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -208,3 +209,17 @@ def stiffness(
     K = np.linalg.inv(C[:3, :3]) if trans > 1e-6 else None
     rank6 = len(coords) >= 6 and np.linalg.matrix_rank(J, tol=1e-9 * np.abs(J).max()) == 6
     return p, K, np.linalg.inv(C) if rank6 else None, trans
+
+
+def write_configs(path: Path, joints, coords, Q) -> None:
+    """Configurations Q (rows over ``coords``, rad or mm for a prismatic joint, as
+    :func:`tip_pose_mm` takes them) as the CSV ``stiffmap model urdf --configs`` reads: a
+    ``label`` column, then ``NAME_deg`` (``NAME_mm`` for a prismatic joint), full precision."""
+    cols = [f"{c}_{'mm' if joints[c].type == 'prismatic' else 'deg'}" for c in coords]
+    rows = [",".join(["label", *cols])]
+    for i, q in enumerate(Q):
+        vals = [
+            v if joints[c].type == "prismatic" else math.degrees(v) for c, v in zip(coords, q, strict=True)
+        ]
+        rows.append(",".join([f"c{i + 1}", *(repr(float(v)) for v in vals)]))
+    path.write_text("\n".join(rows) + "\n")

@@ -206,6 +206,7 @@ def _own_testbed(request: SimulationRequest) -> tuple[RobotKind, TestBed, np.nda
     Q = getattr(model, "configurations", None)
     if request.positions is not None:
         P = _positions(request, kind, tb)
+        setup = replace(setup, notes=())  # those of the default positions, not used
     elif Q is not None or setup.positions is not None:
         try:
             P = select_positions(
@@ -239,7 +240,8 @@ def _positions(request: SimulationRequest, kind: RobotKind, tb: TestBed) -> np.n
     text = request.positions or tb.positions
     # A kind whose description gives its dimension (legs): its platform's positions, 3-D;
     # from a CSV file, with the orientation columns when its platform turns: poses (n, 6).
-    turned = kind.turning_platform and tb.rotations and Path(text).suffix.lower() == ".csv"
+    as_file = Path(text).suffix.lower() == ".csv" or Path(text).is_file()  # as positions_from_text
+    turned = kind.turning_platform and tb.rotations and as_file
     try:
         P = positions_from_text(text, kind.name, 6 if turned else kind.dim or 3)
     except InputError:

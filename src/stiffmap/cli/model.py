@@ -26,6 +26,7 @@ from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
 from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
+from ..stiffness import stiffness_indices
 from ..textfmt import fmt, fmt_pm
 from .common import (
     EXIT_PARTIAL,
@@ -175,7 +176,9 @@ def model(
 
     urdf (a serial robot): 'stiffmap model urdf ROBOT.urdf --tip FRAME --configs CONFIGS.csv
     --param k1=K1,...,kn=Kn' prints, per configuration, the measured point's position (mm,
-    base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6).
+    base frame) and K (N/mm, the stiffness a pure force sees); --json adds K6 (6x6). At a
+    joint singularity alone (a wrist singularity: the point still moves every way) K is
+    printed with the reason as a note, K6 is null, and the status stays 0.
 
     legs with a dim = 6 TOML (a hexapod, a 3-RPS: robots/hexapod.toml): points are poses,
     --points with x, y, z and roll_deg, pitch_deg, yaw_deg, or --grid positions at
@@ -315,7 +318,7 @@ def _print_configurations(robot, mp, recs, lines) -> None:
             xyz = [fmt(_mm(v), 6) for v in r["position"]] if "position" in r else [""] * 3
             t.add_row(*head, *xyz, *([""] * 3), mp.reasons[i])
         elif "note" in r:  # a joint singularity: K, not the map's (it flags the configuration)
-            w = np.linalg.eigvalsh(np.asarray(r["K"]))
+            w = stiffness_indices(r["K"]).eigenvalues
             xyz = (fmt(_mm(v), 6) for v in r["position"])
             t.add_row(*head, *xyz, *(fmt(v, 4) for v in w), "K only: " + mp.reasons[i])
         else:

@@ -28,6 +28,8 @@ from rich.progress import (
 
 from ..campaign.simulate import (
     CAMERA,
+    OWN_DISPLACEMENT_RANGE_MM,
+    OWN_TARGET_DISPLACEMENT_MM,
     SENSOR,
     CameraSimOptions,
     SensorSimOptions,
@@ -184,7 +186,11 @@ _OPT_SELECT = typer.Option(
 _OPT_LOADS = typer.Option(
     "paper9",
     "--loads",
-    help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N).",
+    help="paper9 (0.5, 0.2, 0.1 kg along +y, -x, -z) or a CSV file with fx, fy, fz (N). For a robot "
+    "of your own (--robot FILE), paper9's masses are scaled (by 1, 2 or 5 times a power of ten, "
+    f"towards {OWN_TARGET_DISPLACEMENT_MM:g} mm) when they would move the tool point by less than "
+    f"{OWN_DISPLACEMENT_RANGE_MM[0]:g} or more than {OWN_DISPLACEMENT_RANGE_MM[1]:g} mm; a CSV "
+    "file's forces are used as given (a warning when outside that range).",
 )
 _OPT_REPEATS = typer.Option(
     3,

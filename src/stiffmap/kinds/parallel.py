@@ -218,7 +218,7 @@ def _own_legs_setup(model) -> OwnSetup:
     if any(d.urdf for d in model.description):
         raise FieldError(
             "robot",
-            f"{model.source}: legs given by URDFs cannot be simulated yet (the campaign would need "
+            f"{{robot}} {model.source}: legs given by URDFs cannot be simulated yet (the campaign would need "
             "their files); describe each leg by its joints (docs/models.md)",
         )
     grid, home, s = legs_default_grid(model)
@@ -237,7 +237,8 @@ def _own_legs_setup(model) -> OwnSetup:
     if out.size:
         notes = (
             f"{out.size} of the default grid's {len(grid)} positions left out (positions "
-            f"{', '.join(str(i + 1) for i in out)}: the robot model has no stiffness there; {first})",
+            f"{', '.join(str(i + 1) for i in out)}: the robot model has no stiffness there; {first}; "
+            f"--select numbers the {len(grid) - out.size} kept)",
         )
     return OwnSetup(
         positions=grid[m.valid],

@@ -105,11 +105,22 @@ def read_points(path: str | os.PathLike, dim: int) -> np.ndarray:
     ------
     InputError
         Naming the file, line and column of a bad cell; for poses, an orientation column
-        without the others.
+        without the others; for positions (dim 2 or 3), an orientation that is not 0 (it
+        would be left out: the robot's platform does not turn).
     """
     if dim == POSE_DIM:
         return _read_poses(path)
-    t = read_csv_columns(path, AXIS_NAMES[:dim])
+    t = read_csv_columns(path, AXIS_NAMES[:dim], ORIENTATION_COLUMNS)
+    for c in ORIENTATION_COLUMNS:  # poses given for a robot whose platform keeps its orientation
+        turned = np.flatnonzero(t.columns.get(c, np.zeros(0)) != 0)
+        if turned.size:
+            i = int(turned[0])
+            raise InputError(
+                f"line {t.lines[i]}, column {c!r}: {t.columns[c][i]:g} deg, but this robot's platform keeps "
+                "its orientation (only a platform that turns, as a dim = 6 legs TOML's, is held turned): "
+                "leave the orientation columns out",
+                source=str(path),
+            )
     t.check_magnitude(AXIS_NAMES[:dim], MAX_POSITION_MM, "mm", "position")
     return t.stack(AXIS_NAMES[:dim]).T.copy()
 
@@ -732,10 +743,4 @@ def _past_joint_singularity(robot: SerialRobot, m: ModelMap, i: int):
     (:meth:`SerialRobot.past_joint_singularity`), else None."""
     if not m.reasons[i].startswith("singular: ") or not np.all(np.isfinite(m.points[i])):
         return None
-    joint, trans = robot.singularity_measures(m.q[i])
-    if not (joint[0] < robot.singular_tol <= trans[0]):
-        return None
-    try:
-        return robot.past_joint_singularity(m.q[i])
-    except InputError:
-        return None
+    return robot.past_joint_singularity(m.q[i])

@@ -507,6 +507,12 @@ def parse_legs_text(
         raise InputError("not valid TOML: arrays or tables nested too deeply", source=source) from None
     except ValueError:  # an integer of thousands of digits
         raise InputError("not a usable TOML file: a number has thousands of digits", source=source) from None
+    if "legs" not in data and {"kind", "robot"} <= data.keys():  # every key would be listed
+        raise InputError(
+            "a campaign.toml (kind, [robot]), not a legs TOML: that has dim, [params] and [[legs]] "
+            "(docs/models.md, 'Parallel robots from their legs')",
+            source=source,
+        )
     name, dim, tol, params, legs = _descriptions(data, source, default_name)
     return LegsFile(name, dim, tol, params, legs, source, Path(base_dir))
 

@@ -396,6 +396,9 @@ def find_package(name: str, search: Sequence[Path]) -> Path | None:
 #: (a Gazebo plugin's parameters, a mesh) is not needed for the kinematic tree, so expansion
 #: goes on; one needed to include or load a file fails there, and is named then.
 _UNRESOLVED = "/stiffmap-unresolved-package"
+#: That path in the expanded text, given back as the ``$(find PKG)`` it was (the expansion
+#: copied into a simulated campaign's folder keeps no path of stiffmap's).
+_UNRESOLVED_IN_TEXT = re.compile(rf"{re.escape(_UNRESOLVED)}/([^/\s\"'<>]+)")
 
 
 def expand_xacro(
@@ -445,7 +448,7 @@ def expand_xacro(
         xacro.parse = _legacy_tags(parse)
         try:
             doc = xacro.process_file(str(p.resolve()), mappings=dict(args or {}))
-            return doc.toxml()
+            return _UNRESOLVED_IN_TEXT.sub(r"$(find \1)", doc.toxml())  # kept as written
         except Exception as e:  # noqa: BLE001  xacro raises many kinds; each becomes one line
             text = _chain_text(e)
             if f"{_UNRESOLVED}/" in text:

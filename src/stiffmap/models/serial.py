@@ -955,9 +955,9 @@ class SerialRobot:
         K = 0.5 * (K + np.swapaxes(K, 1, 2))
         return K[0] if single else K
 
-    def past_joint_singularity(self, q) -> np.ndarray:
-        """K at a configuration flagged for a joint singularity only (joint measure below
-        ``singular_tol``, translation measure above it).
+    def past_joint_singularity(self, q) -> np.ndarray | None:
+        """K at a configuration singular for its joints only (joint measure below
+        ``singular_tol``, translation measure at or above it), else None.
 
         There the joints lose their independence (a wrist singularity: joints 4 and 6 aligned)
         but the point still moves every way, so ``K = (C6[:3, :3])^-1`` exists and is well
@@ -972,14 +972,18 @@ class SerialRobot:
 
         Returns
         -------
-        ndarray, shape (3, 3), N/mm
-
-        Raises
-        ------
-        InputError
-            Where K does not exist either (:meth:`stiffness3`).
+        ndarray, shape (3, 3), N/mm, or None
+            None where the configuration is not singular for its joints alone, or where K does
+            not exist either (:meth:`stiffness3` refuses it: a translation singularity, a
+            compliance almost rigid).
         """
-        return self.stiffness3(q)
+        joint, trans = self.singularity_measures(q)
+        if not (joint[0] < self.singular_tol <= trans[0]):
+            return None
+        try:
+            return self.stiffness3(q)
+        except InputError:
+            return None
 
     def stiffness3(self, q) -> np.ndarray:
         """``K = (C6[:3, :3])^-1`` (N/mm): the stiffness a pure force at the point sees.

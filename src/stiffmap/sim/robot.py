@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
 from ..models import arm6
 from ..models.base import PoseError
@@ -361,7 +362,13 @@ class SerialField:
         ik = self.model.configurations_for(P)
         for i in np.flatnonzero(~ik.reachable):
             raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
-        return np.array([self.model.stiffness6(q) for q in ik.q]).reshape(-1, 6, 6)
+        K = []
+        for i, q in enumerate(ik.q):
+            try:
+                K.append(self.model.stiffness6(q))
+            except InputError as e:  # a singular configuration: named by the plan as its position
+                raise PoseError(str(e), pose=P[i], index=i, reason=e.detail) from None
+        return np.array(K).reshape(-1, 6, 6)
 
     def positions_q_deg(self, points) -> list[list[float]] | None:
         """The joint configurations of ``points`` when the model was given configurations
