@@ -103,6 +103,31 @@ def test_rewritten_lines_keep_words_comments_and_style():
     assert lines[3] == "G2 X0. Y0. I-4.5 J0."  # the motion word restored
 
 
+def test_motion_mode_set_on_a_line_of_its_own_is_not_written_again():
+    # a hand-written program (the style of a teaching example: ``G00;`` alone, then axis words;
+    # ``G01 F5.;`` alone, then a plunge): unchanged moves are written back unchanged, without a
+    # motion word added in front of them
+    text = "G90 G17;\nG00;\nX0. Y0. Z0.;\nG91;\nZ0.15;\nG01 F5.;\nZ-0.3;\nX0.25 Y-0.25;\n"
+    p = parse_program(text)
+    assert [m.motion_before for m in p.moves] == [0, 0, 1, 1]
+    assert render_program(p, {}, {}) == text
+
+
+def test_incremental_lines_after_a_compensated_cut_start_where_the_tool_is():
+    # G91: a cut compensated to end 0.5 mm off its programmed end; the retract names only Z, so
+    # X and Y stay where the cut left them, and the rapid into the next cut takes its increments
+    # from there to that cut's compensated start (20, 0.3, 5)
+    text = "G21 G91\nG0 X0 Y0 Z0\nG1 X10 F100\nG0 Z5\nG0 X10\nG1 Z-5\n"
+    p = parse_program(text)
+    outs = {1: [Piece(LINE, np.array([10.0, 0.5, 0.0]))], 3: [Piece(RAPID, np.array([20.0, 0.3, 5.0]))]}
+    lines = render_program(p, outs, {1: (0, 1, 2), 3: (0, 1, 2)}).splitlines()
+    assert lines[2] == "G1 X10. Y0.5 Z0. F100"
+    assert lines[3] == "G0 Z5"  # verbatim: its Z increment starts where the program's does
+    assert lines[4] == "G0 X10. Y-0.2 Z0."
+    q = parse_program("\n".join(lines))
+    np.testing.assert_allclose(q.moves[3].end, [20.0, 0.3, 5.0], atol=1e-12)
+
+
 def test_g28_leaves_z_unknown_until_given():
     p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
     assert p.moves[1].known == (True, True, False)

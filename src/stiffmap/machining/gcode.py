@@ -137,6 +137,9 @@ class Move:
     known : tuple of bool
         Whether x, y, z of the end are known (False after G28/G30/G53 or a line passed
         through, until the program gives that axis again).
+    motion_before : int or None
+        The motion mode in force before the line (set by an earlier move, or by a line
+        that only sets it: ``G00;``, ``G01 F5.``), None if none was.
     """
 
     kind: int
@@ -155,6 +158,7 @@ class Move:
     lower: bool
     compact: bool
     known: tuple[bool, bool, bool] = (True, True, True)
+    motion_before: int | None = None
 
     @property
     def feed(self) -> bool:
@@ -498,6 +502,7 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             st.motion = motion
         st.moved = True
         return None
+    before = st.motion
     if motion is not None:
         st.motion = motion
     has_centre = any(w.letter in "IJKR" for w in words)
@@ -550,6 +555,7 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             bool(st.known[1]) or "Y" in axes,
             bool(st.known[2]) or "Z" in axes,
         ),
+        motion_before=before,
     )
     st.pos = end
     for a in axes:
@@ -664,21 +670,28 @@ def render_program(
     out_lines: list[str] = []
     pos = None  # commanded position after the previous move (mm)
     mode = None  # the motion mode the output has in force
+    mode_in = None  # the motion mode the input has in force after its previous move
     for n, raw in enumerate(program.lines, start=1):
         idx = program.move_at_line.get(n)
         if idx is None:
             out_lines.append(raw)
             continue
         mv = program.moves[idx]
+        if mv.motion_before != mode_in:  # a line kept verbatim set it (``G00;``): in the output too
+            mode = mv.motion_before
+        mode_in = mv.kind
         start = mv.start if pos is None else pos
         pieces = outputs.get(idx)
+        written = tuple("XYZ".index(a) for a in mv.axes)
         if pieces is None:
             pieces = [Piece(mv.kind, mv.end, mv.centre)]
-            if not mv.incremental or np.array_equal(start, mv.start):
+            # verbatim, unless its increments start elsewhere than the program's (an earlier
+            # line left the tool at a compensated point along an axis this line writes)
+            if not mv.incremental or np.array_equal(start[list(written)], mv.start[list(written)]):
                 out_lines.append(raw if mv.motion_word or mode == mv.kind else _with_motion(raw, mv))
-                pos, mode = mv.end, mv.kind
+                pos, mode = _moved(start, mv.end, written), mv.kind
                 continue
-        ax = axes.get(idx, tuple("XYZ".index(a) for a in mv.axes))
+        ax = axes.get(idx, written)
         first = True
         for pc in pieces:
             words = _coord_words(mv, pc, start, ax)
@@ -689,13 +702,22 @@ def render_program(
                 first = False
             else:
                 out_lines.append(_style([_G[pc.kind], *words], mv))
-            start, mode = pc.end, pc.kind
+            start, mode = _moved(start, pc.end, ax), pc.kind
         pos = start
     text = program.newline.join(out_lines)
     return text + program.newline if program.final_newline else text
 
 
 _G = {RAPID: "G0", LINE: "G1", ARC_CW: "G2", ARC_CCW: "G3"}
+
+
+def _moved(start: np.ndarray, end: np.ndarray, written) -> np.ndarray:
+    """Where a line leaves the tool: ``end`` along the axes it writes, ``start`` along the others
+    (an axis a line does not name stays put, compensated or not, in G90 as in G91)."""
+    out = np.array(start, dtype=float)
+    idx = list(written)
+    out[idx] = end[idx]
+    return out
 
 
 def _with_motion(raw: str, move: Move) -> str:
