@@ -128,6 +128,29 @@ def test_incremental_lines_after_a_compensated_cut_start_where_the_tool_is():
     np.testing.assert_allclose(q.moves[3].end, [20.0, 0.3, 5.0], atol=1e-12)
 
 
+def test_lines_after_the_program_end_are_kept_and_not_read():
+    # M2/M30 end a program (RS274/NGC: lines after them are not run), so does the second '%' of
+    # a program delimited by '%' lines; what follows (notes, a tool list, junk) is kept verbatim
+    for text in (
+        "G21\nG0 X0 Y0 Z0\nG1 X5 F100\nM30\nT1 D=6 (Fraeser\nG1 X#1\n",
+        "%\nG21\nG0 X0 Y0 Z0\nG1 X5 F100\n%\nG81 X1 Y1 Z-1 R1\n",
+        "g0 x0 y0 z0\ng1 x5 f100\nm02\nblah\n",
+    ):
+        p = parse_program(text)
+        assert [m.end[0] for m in p.moves] == [0.0, 5.0]
+        assert render_program(p, {}, {}) == text
+    with pytest.raises(GcodeError, match="line 2: cannot read 'blah'"):
+        parse_program("G0 X0 Y0 Z0\nblah\nM30\n")
+
+
+def test_spaces_inside_words_and_colon_program_numbers():
+    # RS274/NGC ignores spaces: "G0 Z 10", "G2 I -45" (LinuxCNC's hk_ba20_testmill.ngc) and
+    # "X - 5"; ":1000" is an ISO program number (Fanuc), like "O1000"
+    p = parse_program(":1000\nG21 G90\nG0 X0 Y 0 Z 10\nG1 X - 5 Z -1 F100\nG2 I -45\n")
+    np.testing.assert_allclose([m.end for m in p.moves], [[0, 0, 10], [-5, 0, -1], [-5, 0, -1]])
+    np.testing.assert_allclose(p.moves[2].centre, [-50.0, 0.0, -1.0])
+
+
 def test_g28_leaves_z_unknown_until_given():
     p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
     assert p.moves[1].known == (True, True, False)

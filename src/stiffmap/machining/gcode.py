@@ -15,7 +15,10 @@ unknown until the program gives them again), G40, G43/G49, G54-G59 (one work off
 G61/G64, G80, G94/G95, G98/G99. Rotary and other axes (A, B, C, U, V, W) stay in their
 lines unchanged.
 
-A line holding only a program number (``O1001``, as Fanuc posts write) is kept. What
+Spaces are ignored inside words as RS274/NGC says (``G0 Z 10``, ``X - 5``). A line holding
+only a program number (``O1001``, ``:1001``, as Fanuc posts write) is kept. M2/M30, or the
+second ``%`` of a program that opens with one, end the program: the lines after them are
+kept verbatim and not read (a controller never runs them). What
 cannot be compensated safely is refused with its line number (a :class:`GcodeError`):
 O-words (subprograms, loops, conditions), ``#`` parameters, ``[expressions]``,
 canned cycles (G73-G89), cutter-radius compensation on (G41/G42), inverse-time feed (G93),
@@ -61,9 +64,10 @@ _CENTRE_WORD = {0: "I", 1: "J", 2: "K"}
 ARC_RADIUS_TOL_MM = 0.002
 ARC_RADIUS_RTOL = 1e-3
 
-_WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+#: A word: a letter and a number; RS274/NGC ignores spaces, so ``X -5`` and ``X - 5`` read as ``X-5``.
+_WORD = re.compile(r"([A-Za-z])\s*([+-]?)\s*(\d+\.?\d*|\.\d+)")
 _LETTERS = set("ABCDFGHIJKLMNPQRSTUVWXYZ")
-_PROGRAM_NUMBER = re.compile(r"\s*[Oo]\s*\d+\s*")
+_PROGRAM_NUMBER = re.compile(r"\s*[Oo:]\s*\d+\s*")
 _KEEP_G = {4, 40, 43, 43.1, 49, 54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3, 61, 61.1, 64, 69, 80, 94, 95}
 _KEEP_G |= {96, 97, 98, 99, 17, 18, 19, 20, 21, 90, 91, 90.1, 91.1, 0, 1, 2, 3, 28, 30, 28.1, 30.1, 53}
 _REFUSED_G = {
@@ -280,7 +284,7 @@ def _words(code: str, line: int, src: str | None) -> list[Word]:
             raise GcodeError(
                 f"cannot read {what!r}: expected a word, a letter and a number", line=line, source=src
             )
-        words.append(Word(m.group(1).upper(), float(m.group(2)), m.start(), m.end()))
+        words.append(Word(m.group(1).upper(), float(m.group(2) + m.group(3)), m.start(), m.end()))
         i = m.end()
     return words
 
@@ -443,12 +447,17 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
     moves: list[Move] = []
     warnings: list[str] = []
     at: dict[int, int] = {}
+    percent = None  # the program is delimited by '%' lines (then the second one ends it)
     for i, raw in enumerate(lines):
         n = i + 1
         code, has_code = _strip_comments(raw, n, source)
         if not has_code:
             continue
         stripped = code.lstrip()
+        if percent is None:
+            percent = stripped.rstrip() == "%"
+        elif percent and stripped.rstrip() == "%":
+            break  # the program's end: what follows is kept verbatim, never run
         if stripped.startswith("/"):
             why = "block delete '/': whether the line runs is the operator's choice"
             _pass_or_refuse(why, [], st, n, source, pass_through, warnings)
@@ -468,6 +477,8 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
         if move is not None:
             at[n] = len(moves)
             moves.append(move)
+        if any(w.letter == "M" and w.value in (2, 30) for w in words):
+            break  # M2/M30 end the program: the lines after it are kept verbatim, never run
     return Program(source or "<program>", lines, newline, final, tuple(moves), at, tuple(warnings))
 
 
