@@ -151,6 +151,21 @@ def test_spaces_inside_words_and_colon_program_numbers():
     np.testing.assert_allclose(p.moves[2].centre, [-50.0, 0.0, -1.0])
 
 
+def test_axis_words_after_g80_are_refused_or_passed_through():
+    # "G80 X10 (do nothing)", as in the webgcode simulator's example program: RS274/NGC refuses
+    # axis words with no motion mode, Fanuc moves in the last G0/G1: refused, naming the line;
+    # with pass_through the line is kept and X is unknown until the program gives it again
+    text = "G21 G90\nG0 X0 Y0 Z0\nG1 X5 F100\nG80 X10 (do nothing)\nG0 X30 Y30 Z30\nG1 X40\n"
+    with pytest.raises(GcodeError, match="line 4: axis words with no motion mode in force"):
+        parse_program(text)
+    p = parse_program(text, pass_through=True)
+    assert [w.split(":")[0] for w in p.warnings] == ["line 4"]
+    assert p.moves[2].known == (True, True, True) and p.moves[2].end.tolist() == [30.0, 30.0, 30.0]
+    assert render_program(p, {}, {}) == text
+    with pytest.raises(GcodeError, match="line 5: an incremental X move from an unknown X"):
+        parse_program(text.replace("G0 X30 Y30 Z30", "G91 G0 X30 Y30 Z30"), pass_through=True)
+
+
 def test_g28_leaves_z_unknown_until_given():
     p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
     assert p.moves[1].known == (True, True, False)

@@ -94,6 +94,14 @@ class GcodeError(InputError):
         self.line = line
 
 
+class _NoMotion(GcodeError):
+    """Axis words with no motion mode in force: refused, or passed through (``why``)."""
+
+    def __init__(self, why: str, *, line: int, source: str | None = None):
+        super().__init__(why, line=line, source=source)
+        self.why = why
+
+
 @dataclass(frozen=True)
 class Word:
     """One word of a line: letter (upper case), value, and its span in the line's text."""
@@ -473,7 +481,11 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
             _update_passing(words, st)
             _pass_or_refuse(why, words, st, n, source, pass_through, warnings)
             continue
-        move = _line_move(raw, words, st, n, source, warnings)
+        try:
+            move = _line_move(raw, words, st, n, source, warnings)
+        except _NoMotion as e:
+            _pass_or_refuse(e.why, words, st, n, source, pass_through, warnings)
+            continue
         if move is not None:
             at[n] = len(moves)
             moves.append(move)
@@ -522,8 +534,11 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             raise GcodeError("I/J/K/R words outside an arc", line=n, source=source)
         return None
     if st.motion is None:
-        raise GcodeError(
-            "axis words with no motion mode in force (after G80, or before any G0-G3)", line=n, source=source
+        raise _NoMotion(
+            "axis words with no motion mode in force (after G80, or before any G0-G3): whether the axes "
+            "move is the controller's choice (RS274/NGC refuses the line, Fanuc moves in the last G0/G1)",
+            line=n,
+            source=source,
         )
     if not st.moved:
         if st.motion != 0:
