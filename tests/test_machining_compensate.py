@@ -55,6 +55,7 @@ PROGRAMS = [
     "cncjs_circle.nc",
     "own_inch_r_planes.nc",
     "own_cam_mm.nc",
+    "cncjs_linear.nc",
 ]
 
 

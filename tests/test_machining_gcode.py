@@ -166,6 +166,17 @@ def test_axis_words_after_g80_are_refused_or_passed_through():
         parse_program(text.replace("G0 X30 Y30 Z30", "G91 G0 X30 Y30 Z30"), pass_through=True)
 
 
+def test_work_offset_chosen_after_g53_before_the_first_move():
+    # cncjs's linear.nc (MIT; a Fusion-style preamble): G53 Z0. moves in machine coordinates,
+    # then G55 chooses the work offset before any move in the program's frame: accepted. A change
+    # after a move in the program's frame is still refused.
+    prog, _ = read_program(DATA / "cncjs_linear.nc")
+    assert [m.line for m in prog.moves] == [10, 11, 12, 13] and prog.moves[-1].feed
+    np.testing.assert_allclose(prog.moves[-1].end, [1.1185 * 25.4, 0.5562 * 25.4, -0.0365 * 25.4])
+    with pytest.raises(GcodeError, match="line 3: G55 changes the work offset"):
+        parse_program("G0 X0 Y0 Z0\nG53 G0 Z0\nG55\nG0 X1 Y1 Z1\n")
+
+
 def test_g28_leaves_z_unknown_until_given():
     p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
     assert p.moves[1].known == (True, True, False)

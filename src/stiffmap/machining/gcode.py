@@ -224,6 +224,7 @@ class _State:
     motion: int | None = None
     work_offset: float | None = None
     moved: bool = False
+    framed: bool = False  # a move in the program's frame happened (not only G28/G30/G53)
     pos: np.ndarray = field(default_factory=lambda: np.zeros(3))
     known: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=bool))
     passing: str = ""  # G41/G42 or G93 in force under pass_through: the reason
@@ -307,7 +308,11 @@ def _refusal(words: list[Word], state: _State) -> str:
             return f"canned cycle G{g:g} (its moves are made by the controller)"
         if g not in _KEEP_G:
             return f"G{g:g} is not supported"
-        if g in (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3) and state.moved and g != (state.work_offset or 54):
+        if (
+            g in (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3)
+            and state.framed
+            and g != (state.work_offset or 54)
+        ):
             return f"G{g:g} changes the work offset after the first move (the program's origin would move)"
     for w in words:
         if w.letter == "M" and round(w.value) in (98, 99):
@@ -510,7 +515,7 @@ def _pass_or_refuse(why, words, st: _State, n, source, pass_through, warnings) -
     for k, a in enumerate("XYZ"):
         if any(w.letter == a for w in words) or not words:
             st.known[k] = False
-    st.moved = True
+    st.moved = st.framed = True
 
 
 def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
@@ -586,7 +591,7 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
     st.pos = end
     for a in axes:
         st.known["XYZ".index(a)] = True
-    st.moved = True
+    st.moved = st.framed = True
     return move
 
 
