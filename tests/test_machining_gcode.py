@@ -177,6 +177,24 @@ def test_work_offset_chosen_after_g53_before_the_first_move():
         parse_program("G0 X0 Y0 Z0\nG53 G0 Z0\nG55\nG0 X1 Y1 Z1\n")
 
 
+def test_arc_tolerances_are_linuxcncs():
+    # CAM output rounds centres and end points (4 decimals in inch): an arc whose end radius
+    # differs by 0.0001 in (2.5 um, 1 %) is cut by LinuxCNC (CENTER_ARC_RADIUS_TOLERANCE_INCH
+    # 0.002 sqrt 2 in) and read here, as the spiral LinuxCNC cuts; 0.01 mm in a mm program too
+    p = parse_program("G20\nG0 X0 Y0 Z0\nG1 X0.0100 F10\nG3 X0.0001 Y0.0101 I-0.0100 J0\n")
+    path = toolpath_from_moves(p.moves)
+    assert path.r0[2] == pytest.approx(0.254) and path.r1[2] - path.r0[2] == pytest.approx(0.00254, rel=0.02)
+    parse_program("G21\nG0 X0 Y0 Z0\nG3 X-5 Y5.01 I-5 J0\n")
+    with pytest.raises(GcodeError, match="line 2: arc radius"):  # 0.05 mm and 1 %: beyond both
+        parse_program("G21\nG0 X0 Y0 Z0\nG3 X-5 Y5.05 I-5 J0\n")
+    # an R-format half circle whose R was rounded down by 0.5 um (LinuxCNC: RADIUS_TOLERANCE
+    # 0.00005 in) is a half circle about the chord's middle
+    q = parse_program("G21\nG0 X0 Y0 Z0\nG2 X10.001 Y0 R5\n")
+    np.testing.assert_allclose(q.moves[1].centre, [5.0005, 0.0, 0.0], atol=1e-12)
+    with pytest.raises(GcodeError, match="less than half the chord"):
+        parse_program("G21\nG0 X0 Y0 Z0\nG2 X10.01 Y0 R5\n")
+
+
 def test_g28_leaves_z_unknown_until_given():
     p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
     assert p.moves[1].known == (True, True, False)

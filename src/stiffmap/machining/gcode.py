@@ -60,9 +60,18 @@ RAPID, LINE, ARC_CW, ARC_CCW = 0, 1, 2, 3
 PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 #: Arc centre words of each axis.
 _CENTRE_WORD = {0: "I", 1: "J", 2: "K"}
-#: An arc's start and end radii may differ by this much (mm) or this fraction of the radius.
-ARC_RADIUS_TOL_MM = 0.002
+#: An arc's start and end radii may differ by this much (mm; in an inch program by
+#: ARC_RADIUS_TOL_INCH) or by this fraction of the radius, as LinuxCNC allows (its
+#: CENTER_ARC_RADIUS_TOLERANCE and SPIRAL_RELATIVE_TOLERANCE, src/emc/rs274ngc/interp_internal.hh:
+#: "any valid arc where the endpoints and/or centerpoint got rounded or truncated to 0.001 inch
+#: or 0.01 mm precision would be accepted"); between them the path is a spiral, as LinuxCNC cuts it.
+ARC_RADIUS_TOL_MM = 2 * 0.01 * math.sqrt(2)
+ARC_RADIUS_TOL_INCH = 2 * 0.001 * math.sqrt(2)
 ARC_RADIUS_RTOL = 1e-3
+#: An R-format arc's R may be this much (mm; inch: R_TOL_INCH) shorter than half its chord (the
+#: arc is then a half circle): LinuxCNC's RADIUS_TOLERANCE, for R rounded in the program.
+R_TOL_MM = 0.00005 * 25.4
+R_TOL_INCH = 0.00005
 
 #: A word: a letter and a number; RS274/NGC ignores spaces, so ``X -5`` and ``X - 5`` read as ``X-5``.
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?)\s*(\d+\.?\d*|\.\d+)")
@@ -403,7 +412,8 @@ def _arc_centre(words, state: _State, start, end, kind, line, src) -> tuple[np.n
             centre[k] = v if state.arc_absolute else start[k] + v
         r0 = math.hypot(start[a] - centre[a], start[b] - centre[b])
         r1 = math.hypot(end[a] - centre[a], end[b] - centre[b])
-        if r0 <= 0 or abs(r1 - r0) > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_RTOL * r0):
+        tol = ARC_RADIUS_TOL_INCH * MM_PER_INCH if state.units_inch else ARC_RADIUS_TOL_MM
+        if r0 <= 0 or abs(r1 - r0) > max(tol, ARC_RADIUS_RTOL * max(r0, r1)):
             raise GcodeError(
                 f"arc radius at the start {r0:.6g} mm and at the end {r1:.6g} mm differ: the centre does "
                 "not fit the end point",
@@ -419,7 +429,7 @@ def _arc_centre(words, state: _State, start, end, kind, line, src) -> tuple[np.n
             "an R-format arc needs distinct start and end points and R != 0", line=line, source=src
         )
     half = chord / 2
-    if half > abs(R) * (1 + 1e-9) + 1e-9:
+    if half > abs(R) + (R_TOL_INCH * MM_PER_INCH if state.units_inch else R_TOL_MM):
         raise GcodeError(
             f"R {abs(R):.6g} mm is less than half the chord ({half:.6g} mm)", line=line, source=src
         )
