@@ -185,7 +185,7 @@ def test_arc_tolerances_are_linuxcncs():
     path = toolpath_from_moves(p.moves)
     assert path.r0[2] == pytest.approx(0.254) and path.r1[2] - path.r0[2] == pytest.approx(0.00254, rel=0.02)
     parse_program("G21\nG0 X0 Y0 Z0\nG3 X-5 Y5.01 I-5 J0\n")
-    with pytest.raises(GcodeError, match="line 2: arc radius"):  # 0.05 mm and 1 %: beyond both
+    with pytest.raises(GcodeError, match="line 3: arc radius"):  # 0.05 mm and 1 %: beyond both
         parse_program("G21\nG0 X0 Y0 Z0\nG3 X-5 Y5.05 I-5 J0\n")
     # an R-format half circle whose R was rounded down by 0.5 um (LinuxCNC: RADIUS_TOLERANCE
     # 0.00005 in) is a half circle about the chord's middle
