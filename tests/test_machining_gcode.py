@@ -195,6 +195,16 @@ def test_arc_tolerances_are_linuxcncs():
         parse_program("G21\nG0 X0 Y0 Z0\nG2 X10.01 Y0 R5\n")
 
 
+def test_carriage_return_line_endings_are_kept():
+    # a program saved with CR alone (classic Mac OS, some old DNC tools) is written back so
+    for nl in ("\r", "\r\n", "\n"):
+        text = nl.join(["%", "G21 G90", "G0 X0 Y0 Z0", "G1 X5 F100", "%"]) + nl
+        p = parse_program(text)
+        assert [m.end[0] for m in p.moves] == [0.0, 5.0]
+        out = render_program(p, {1: [Piece(LINE, np.array([5.25, 0.0, 0.0]))]}, {1: (0, 1)})
+        assert out == text.replace("X5 F100", "X5.25 Y0. F100")
+
+
 def test_g28_leaves_z_unknown_until_given():
     p = parse_program("G21 G90\nG0 X0 Y0 Z5\nG28 G91 Z0.\nG90\nG0 X10 Y10\nG43 Z15. H1\n")
     assert p.moves[1].known == (True, True, False)

@@ -463,7 +463,7 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
         Naming the line: an unsupported construct, a malformed word, an arc whose centre
         does not fit, an incremental move from an unknown position.
     """
-    newline = "\r\n" if "\r\n" in text else "\n"
+    newline = "\r\n" if "\r\n" in text else ("\r" if "\r" in text and "\n" not in text else "\n")
     final = text.endswith(("\n", "\r"))
     lines = tuple(text.splitlines())
     st = _State()
