@@ -229,6 +229,12 @@ def test_g28_leaves_z_unknown_until_given():
         ("G0 X0 Y0\nG1 X1 E5\n", 2, "cannot read"),
         ("G0 X0 Y0\nG5.1 X1 I1 J1\n", 2, "G5.1 is not supported"),
         ("G0 X0 Y0\nM98 P100\n", 2, "subprogram"),
+        # what is not G-code, seen in public programs (grbl senders, RepRap hosts, LinuxCNC)
+        ("$I  ; View build info\nG0 X0\n", 1, "'$' starts a grbl system command"),
+        ("N3 T0*57\n", 1, "RepRap line checksum"),
+        ("G0 X1.5 Y0 Z0\nG91 G81 R.1 Z-.5 ^60 L6 F10\n", 2, "polar coordinates"),
+        ("G0 X0 Y0\nG1 X1,5 F100\n", 2, "decimal comma"),
+        ("G0 X0 Y0\nG1 X1 E5\n", 2, "extruder word"),
     ],
 )
 def test_refusals_name_the_line(text, line, what):

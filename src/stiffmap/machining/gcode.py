@@ -22,9 +22,12 @@ kept verbatim and not read (a controller never runs them). What
 cannot be compensated safely is refused with its line number (a :class:`GcodeError`):
 O-words (subprograms, loops, conditions), ``#`` parameters, ``[expressions]``,
 canned cycles (G73-G89), cutter-radius compensation on (G41/G42), inverse-time feed (G93),
+axis words with no motion mode in force (``G80 X10``),
 coordinate offsets (G10, G52, G92), a change of work offset after the first move, and
-every other G-code. With ``pass_through=True`` such a line is kept unchanged and named
-in :attr:`Program.warnings`; the axes it names are then unknown, and the lines between
+every other G-code; what is not G-code (grbl's ``$`` commands, RepRap checksums ``*57``,
+polar ``^``, decimal commas, extruder ``E`` words) is named as such. With
+``pass_through=True`` such a line is kept unchanged and named in :attr:`Program.warnings`;
+the axes it names are then unknown, and the lines between
 G41/G42 and G40 (or G93 and G94) are passed through too.
 """
 
@@ -262,6 +265,17 @@ def _strip_comments(text: str, line: int, src: str | None) -> tuple[str, bool]:
     return code, bool(code.strip())
 
 
+#: What a character that cannot start a word usually is (added to the refusal).
+_NOT_GCODE = {
+    "$": " ('$' starts a grbl system command, not G-code)",
+    "*": " ('*' starts a RepRap line checksum, not G-code)",
+    "^": " (LinuxCNC's polar coordinates, @ and ^, are not supported)",
+    "@": " (LinuxCNC's polar coordinates, @ and ^, are not supported)",
+    ",": " (a decimal comma: write 1.5, not 1,5)",
+    "E": " (an extruder word: a 3D printer's program, not a machining one)",
+}
+
+
 def _words(code: str, line: int, src: str | None) -> list[Word]:
     """The words of a comment-free line; refuses what is not a letter and a number."""
     if "#" in code:
@@ -299,8 +313,9 @@ def _words(code: str, line: int, src: str | None) -> list[Word]:
                 raise GcodeError(
                     "O-words (subprograms, loops, conditions) are not supported", line=line, source=src
                 )
+            hint = _NOT_GCODE.get(ch.upper(), "")
             raise GcodeError(
-                f"cannot read {what!r}: expected a word, a letter and a number", line=line, source=src
+                f"cannot read {what!r}: expected a word, a letter and a number{hint}", line=line, source=src
             )
         words.append(Word(m.group(1).upper(), float(m.group(2) + m.group(3)), m.start(), m.end()))
         i = m.end()
