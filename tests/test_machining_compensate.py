@@ -55,6 +55,7 @@ PROGRAMS = [
     "cncjs_circle.nc",
     "own_inch_r_planes.nc",
     "own_cam_mm.nc",
+    "cncjs_linear.nc",
 ]
 
 
@@ -123,3 +124,37 @@ def test_delta_programs_deflect_onto_the_programmed_path(tmp_path, name):
     d = delta_deflection(robot, C + place, np.tile(force, (C.shape[0], 1)))
     _check(prog_path, C + d, 1 / PER_MM)
     assert res.summary["deflection_before_um"]["worst"] > 100.0
+
+
+#: Two squares cut in G91, in the style of a hand-written teaching program (``G00;`` alone, a
+#: retract naming only Z between the shapes): the rapid to the second shape takes its increments
+#: from where the compensated first shape left the tool, not from the programmed point.
+G91_SHAPES = (
+    "G21 G90 G17;\nG00;\nX0. Y0. Z0.;\nG91;\nZ5.;\nX20. Y30.;\nG01 F300.;\nZ-6.;\n"
+    "X10.;\nY-10.;\nX-10.;\nY10.;\nZ6. G00;\nX25.;\nG01 Z-6.;\nX10. Y-10.;\nX-10. Y-10.;\nX-10. Y10.;\n"
+    "X10. Y10.;\nZ6. G00;\nG28;\nM30\n"
+)
+
+
+def test_3prr_incremental_program_between_shapes(tmp_path):
+    (tmp_path / "g91.nc").write_text(G91_SHAPES)
+    model = PRR3(**PRR3_STUDY)
+    force = np.array([0.0, -LOAD_50_KGF_N, 0.0])
+    out = tmp_path / "out.nc"
+    opts = CompensateOptions(
+        tolerance_um=TOL_UM, place_mm=(380.0, 200.0, 0.0), force=ForceSpec.constant(force)
+    )
+    res = compensate_file(model, tmp_path / "g91.nc", out, opts)
+    prog, _ = read_program(tmp_path / "g91.nc")
+    done, _ = read_program(out)
+    out_path = toolpath_from_moves(done.moves)
+    _, _, C = output_samples(out_path, per_mm=PER_MM)
+    d = truss_3prr(
+        (C[:, :2] + [380.0, 200.0]), force[:2], EA=7e6, **{k: PRR3_STUDY[k] for k in ("h", "L", "kj", "kb")}
+    )
+    D = C.copy()
+    D[:, :2] += d
+    _check(toolpath_from_moves(prog.moves), D, 1 / PER_MM)
+    assert res.summary["deflection_before_um"]["worst"] > 100.0
+    # the retract between the shapes names only Z: written as it was
+    assert done.lines[12] == "Z6. G00;" and done.lines[2] == "X0. Y0. Z0.;"

@@ -15,13 +15,19 @@ unknown until the program gives them again), G40, G43/G49, G54-G59 (one work off
 G61/G64, G80, G94/G95, G98/G99. Rotary and other axes (A, B, C, U, V, W) stay in their
 lines unchanged.
 
-A line holding only a program number (``O1001``, as Fanuc posts write) is kept. What
+Spaces are ignored inside words as RS274/NGC says (``G0 Z 10``, ``X - 5``). A line holding
+only a program number (``O1001``, ``:1001``, as Fanuc posts write) is kept. M2/M30, or the
+second ``%`` of a program that opens with one, end the program: the lines after them are
+kept verbatim and not read (a controller never runs them). What
 cannot be compensated safely is refused with its line number (a :class:`GcodeError`):
 O-words (subprograms, loops, conditions), ``#`` parameters, ``[expressions]``,
 canned cycles (G73-G89), cutter-radius compensation on (G41/G42), inverse-time feed (G93),
+axis words with no motion mode in force (``G80 X10``),
 coordinate offsets (G10, G52, G92), a change of work offset after the first move, and
-every other G-code. With ``pass_through=True`` such a line is kept unchanged and named
-in :attr:`Program.warnings`; the axes it names are then unknown, and the lines between
+every other G-code; what is not G-code (grbl's ``$`` commands, RepRap checksums ``*57``,
+polar ``^``, decimal commas, extruder ``E`` words) is named as such. With
+``pass_through=True`` such a line is kept unchanged and named in :attr:`Program.warnings`;
+the axes it names are then unknown, and the lines between
 G41/G42 and G40 (or G93 and G94) are passed through too.
 """
 
@@ -57,13 +63,23 @@ RAPID, LINE, ARC_CW, ARC_CCW = 0, 1, 2, 3
 PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 #: Arc centre words of each axis.
 _CENTRE_WORD = {0: "I", 1: "J", 2: "K"}
-#: An arc's start and end radii may differ by this much (mm) or this fraction of the radius.
-ARC_RADIUS_TOL_MM = 0.002
+#: An arc's start and end radii may differ by this much (mm; in an inch program by
+#: ARC_RADIUS_TOL_INCH) or by this fraction of the radius, as LinuxCNC allows (its
+#: CENTER_ARC_RADIUS_TOLERANCE and SPIRAL_RELATIVE_TOLERANCE, src/emc/rs274ngc/interp_internal.hh:
+#: "any valid arc where the endpoints and/or centerpoint got rounded or truncated to 0.001 inch
+#: or 0.01 mm precision would be accepted"); between them the path is a spiral, as LinuxCNC cuts it.
+ARC_RADIUS_TOL_MM = 2 * 0.01 * math.sqrt(2)
+ARC_RADIUS_TOL_INCH = 2 * 0.001 * math.sqrt(2)
 ARC_RADIUS_RTOL = 1e-3
+#: An R-format arc's R may be this much (mm; inch: R_TOL_INCH) shorter than half its chord (the
+#: arc is then a half circle): LinuxCNC's RADIUS_TOLERANCE, for R rounded in the program.
+R_TOL_MM = 0.00005 * 25.4
+R_TOL_INCH = 0.00005
 
-_WORD = re.compile(r"([A-Za-z])\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+#: A word: a letter and a number; RS274/NGC ignores spaces, so ``X -5`` and ``X - 5`` read as ``X-5``.
+_WORD = re.compile(r"([A-Za-z])\s*([+-]?)\s*(\d+\.?\d*|\.\d+)")
 _LETTERS = set("ABCDFGHIJKLMNPQRSTUVWXYZ")
-_PROGRAM_NUMBER = re.compile(r"\s*[Oo]\s*\d+\s*")
+_PROGRAM_NUMBER = re.compile(r"\s*[Oo:]\s*\d+\s*")
 _KEEP_G = {4, 40, 43, 43.1, 49, 54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3, 61, 61.1, 64, 69, 80, 94, 95}
 _KEEP_G |= {96, 97, 98, 99, 17, 18, 19, 20, 21, 90, 91, 90.1, 91.1, 0, 1, 2, 3, 28, 30, 28.1, 30.1, 53}
 _REFUSED_G = {
@@ -88,6 +104,14 @@ class GcodeError(InputError):
     def __init__(self, message: str, *, line: int, source: str | None = None):
         super().__init__(f"line {line}: {message}", source=source)
         self.line = line
+
+
+class _NoMotion(GcodeError):
+    """Axis words with no motion mode in force: refused, or passed through (``why``)."""
+
+    def __init__(self, why: str, *, line: int, source: str | None = None):
+        super().__init__(why, line=line, source=source)
+        self.why = why
 
 
 @dataclass(frozen=True)
@@ -137,6 +161,9 @@ class Move:
     known : tuple of bool
         Whether x, y, z of the end are known (False after G28/G30/G53 or a line passed
         through, until the program gives that axis again).
+    motion_before : int or None
+        The motion mode in force before the line (set by an earlier move, or by a line
+        that only sets it: ``G00;``, ``G01 F5.``), None if none was.
     """
 
     kind: int
@@ -155,6 +182,7 @@ class Move:
     lower: bool
     compact: bool
     known: tuple[bool, bool, bool] = (True, True, True)
+    motion_before: int | None = None
 
     @property
     def feed(self) -> bool:
@@ -208,6 +236,7 @@ class _State:
     motion: int | None = None
     work_offset: float | None = None
     moved: bool = False
+    framed: bool = False  # a move in the program's frame happened (not only G28/G30/G53)
     pos: np.ndarray = field(default_factory=lambda: np.zeros(3))
     known: np.ndarray = field(default_factory=lambda: np.zeros(3, dtype=bool))
     passing: str = ""  # G41/G42 or G93 in force under pass_through: the reason
@@ -234,6 +263,17 @@ def _strip_comments(text: str, line: int, src: str | None) -> tuple[str, bool]:
         raise GcodeError("a comment '(' is not closed on its line", line=line, source=src)
     code = "".join(out)
     return code, bool(code.strip())
+
+
+#: What a character that cannot start a word usually is (added to the refusal).
+_NOT_GCODE = {
+    "$": " ('$' starts a grbl system command, not G-code)",
+    "*": " ('*' starts a RepRap line checksum, not G-code)",
+    "^": " (LinuxCNC's polar coordinates, @ and ^, are not supported)",
+    "@": " (LinuxCNC's polar coordinates, @ and ^, are not supported)",
+    ",": " (a decimal comma: write 1.5, not 1,5)",
+    "E": " (an extruder word: a 3D printer's program, not a machining one)",
+}
 
 
 def _words(code: str, line: int, src: str | None) -> list[Word]:
@@ -273,10 +313,11 @@ def _words(code: str, line: int, src: str | None) -> list[Word]:
                 raise GcodeError(
                     "O-words (subprograms, loops, conditions) are not supported", line=line, source=src
                 )
+            hint = _NOT_GCODE.get(ch.upper(), "")
             raise GcodeError(
-                f"cannot read {what!r}: expected a word, a letter and a number", line=line, source=src
+                f"cannot read {what!r}: expected a word, a letter and a number{hint}", line=line, source=src
             )
-        words.append(Word(m.group(1).upper(), float(m.group(2)), m.start(), m.end()))
+        words.append(Word(m.group(1).upper(), float(m.group(2) + m.group(3)), m.start(), m.end()))
         i = m.end()
     return words
 
@@ -291,7 +332,11 @@ def _refusal(words: list[Word], state: _State) -> str:
             return f"canned cycle G{g:g} (its moves are made by the controller)"
         if g not in _KEEP_G:
             return f"G{g:g} is not supported"
-        if g in (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3) and state.moved and g != (state.work_offset or 54):
+        if (
+            g in (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3)
+            and state.framed
+            and g != (state.work_offset or 54)
+        ):
             return f"G{g:g} changes the work offset after the first move (the program's origin would move)"
     for w in words:
         if w.letter == "M" and round(w.value) in (98, 99):
@@ -382,7 +427,8 @@ def _arc_centre(words, state: _State, start, end, kind, line, src) -> tuple[np.n
             centre[k] = v if state.arc_absolute else start[k] + v
         r0 = math.hypot(start[a] - centre[a], start[b] - centre[b])
         r1 = math.hypot(end[a] - centre[a], end[b] - centre[b])
-        if r0 <= 0 or abs(r1 - r0) > max(ARC_RADIUS_TOL_MM, ARC_RADIUS_RTOL * r0):
+        tol = ARC_RADIUS_TOL_INCH * MM_PER_INCH if state.units_inch else ARC_RADIUS_TOL_MM
+        if r0 <= 0 or abs(r1 - r0) > max(tol, ARC_RADIUS_RTOL * max(r0, r1)):
             raise GcodeError(
                 f"arc radius at the start {r0:.6g} mm and at the end {r1:.6g} mm differ: the centre does "
                 "not fit the end point",
@@ -398,7 +444,7 @@ def _arc_centre(words, state: _State, start, end, kind, line, src) -> tuple[np.n
             "an R-format arc needs distinct start and end points and R != 0", line=line, source=src
         )
     half = chord / 2
-    if half > abs(R) * (1 + 1e-9) + 1e-9:
+    if half > abs(R) + (R_TOL_INCH * MM_PER_INCH if state.units_inch else R_TOL_MM):
         raise GcodeError(
             f"R {abs(R):.6g} mm is less than half the chord ({half:.6g} mm)", line=line, source=src
         )
@@ -432,19 +478,24 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
         Naming the line: an unsupported construct, a malformed word, an arc whose centre
         does not fit, an incremental move from an unknown position.
     """
-    newline = "\r\n" if "\r\n" in text else "\n"
+    newline = "\r\n" if "\r\n" in text else ("\r" if "\r" in text and "\n" not in text else "\n")
     final = text.endswith(("\n", "\r"))
     lines = tuple(text.splitlines())
     st = _State()
     moves: list[Move] = []
     warnings: list[str] = []
     at: dict[int, int] = {}
+    percent = None  # the program is delimited by '%' lines (then the second one ends it)
     for i, raw in enumerate(lines):
         n = i + 1
         code, has_code = _strip_comments(raw, n, source)
         if not has_code:
             continue
         stripped = code.lstrip()
+        if percent is None:
+            percent = stripped.rstrip() == "%"
+        elif percent and stripped.rstrip() == "%":
+            break  # the program's end: what follows is kept verbatim, never run
         if stripped.startswith("/"):
             why = "block delete '/': whether the line runs is the operator's choice"
             _pass_or_refuse(why, [], st, n, source, pass_through, warnings)
@@ -460,10 +511,16 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
             _update_passing(words, st)
             _pass_or_refuse(why, words, st, n, source, pass_through, warnings)
             continue
-        move = _line_move(raw, words, st, n, source, warnings)
+        try:
+            move = _line_move(raw, words, st, n, source, warnings)
+        except _NoMotion as e:
+            _pass_or_refuse(e.why, words, st, n, source, pass_through, warnings)
+            continue
         if move is not None:
             at[n] = len(moves)
             moves.append(move)
+        if any(w.letter == "M" and w.value in (2, 30) for w in words):
+            break  # M2/M30 end the program: the lines after it are kept verbatim, never run
     return Program(source or "<program>", lines, newline, final, tuple(moves), at, tuple(warnings))
 
 
@@ -483,7 +540,7 @@ def _pass_or_refuse(why, words, st: _State, n, source, pass_through, warnings) -
     for k, a in enumerate("XYZ"):
         if any(w.letter == a for w in words) or not words:
             st.known[k] = False
-    st.moved = True
+    st.moved = st.framed = True
 
 
 def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
@@ -498,6 +555,7 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             st.motion = motion
         st.moved = True
         return None
+    before = st.motion
     if motion is not None:
         st.motion = motion
     has_centre = any(w.letter in "IJKR" for w in words)
@@ -506,8 +564,11 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             raise GcodeError("I/J/K/R words outside an arc", line=n, source=source)
         return None
     if st.motion is None:
-        raise GcodeError(
-            "axis words with no motion mode in force (after G80, or before any G0-G3)", line=n, source=source
+        raise _NoMotion(
+            "axis words with no motion mode in force (after G80, or before any G0-G3): whether the axes "
+            "move is the controller's choice (RS274/NGC refuses the line, Fanuc moves in the last G0/G1)",
+            line=n,
+            source=source,
         )
     if not st.moved:
         if st.motion != 0:
@@ -550,11 +611,12 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             bool(st.known[1]) or "Y" in axes,
             bool(st.known[2]) or "Z" in axes,
         ),
+        motion_before=before,
     )
     st.pos = end
     for a in axes:
         st.known["XYZ".index(a)] = True
-    st.moved = True
+    st.moved = st.framed = True
     return move
 
 
@@ -664,21 +726,28 @@ def render_program(
     out_lines: list[str] = []
     pos = None  # commanded position after the previous move (mm)
     mode = None  # the motion mode the output has in force
+    mode_in = None  # the motion mode the input has in force after its previous move
     for n, raw in enumerate(program.lines, start=1):
         idx = program.move_at_line.get(n)
         if idx is None:
             out_lines.append(raw)
             continue
         mv = program.moves[idx]
+        if mv.motion_before != mode_in:  # a line kept verbatim set it (``G00;``): in the output too
+            mode = mv.motion_before
+        mode_in = mv.kind
         start = mv.start if pos is None else pos
         pieces = outputs.get(idx)
+        written = tuple("XYZ".index(a) for a in mv.axes)
         if pieces is None:
             pieces = [Piece(mv.kind, mv.end, mv.centre)]
-            if not mv.incremental or np.array_equal(start, mv.start):
+            # verbatim, unless its increments start elsewhere than the program's (an earlier
+            # line left the tool at a compensated point along an axis this line writes)
+            if not mv.incremental or np.array_equal(start[list(written)], mv.start[list(written)]):
                 out_lines.append(raw if mv.motion_word or mode == mv.kind else _with_motion(raw, mv))
-                pos, mode = mv.end, mv.kind
+                pos, mode = _moved(start, mv.end, written), mv.kind
                 continue
-        ax = axes.get(idx, tuple("XYZ".index(a) for a in mv.axes))
+        ax = axes.get(idx, written)
         first = True
         for pc in pieces:
             words = _coord_words(mv, pc, start, ax)
@@ -689,13 +758,22 @@ def render_program(
                 first = False
             else:
                 out_lines.append(_style([_G[pc.kind], *words], mv))
-            start, mode = pc.end, pc.kind
+            start, mode = _moved(start, pc.end, ax), pc.kind
         pos = start
     text = program.newline.join(out_lines)
     return text + program.newline if program.final_newline else text
 
 
 _G = {RAPID: "G0", LINE: "G1", ARC_CW: "G2", ARC_CCW: "G3"}
+
+
+def _moved(start: np.ndarray, end: np.ndarray, written) -> np.ndarray:
+    """Where a line leaves the tool: ``end`` along the axes it writes, ``start`` along the others
+    (an axis a line does not name stays put, compensated or not, in G90 as in G91)."""
+    out = np.array(start, dtype=float)
+    idx = list(written)
+    out[idx] = end[idx]
+    return out
 
 
 def _with_motion(raw: str, move: Move) -> str:
