@@ -192,7 +192,7 @@ def _urdf_legs_toml(tmp_path: Path) -> Path:
     return path
 
 
-@pytest.mark.slow  # about 60 s on 2 cores: 2 positions x 9 load cases rendered, measured and fitted
+@pytest.mark.long  # about 60 s on 2 cores: 9 load cases at 2 positions rendered, measured, fitted
 def test_own_hexapod_campaign_recovers_K6_and_its_legs(own_toml, monkeypatch, capsys, tmp_path):
     # simulate then run then report, two positions of the default grid, one repeat, the true camera:
     # each K6 within 2 % (relative Frobenius, rad as L mm), the six legs within 1 %.
