@@ -796,6 +796,22 @@ def _misfit_notes(
     return []
 
 
+def _stiffness_shape(model: Mechanism, P: np.ndarray, Km: np.ndarray) -> tuple[bool, int]:
+    """Whether measured stiffnesses ``Km`` are K6 and their size (ValueError: a wrong shape, or
+    a matrix with NaN or infinite values)."""
+    six = model.dim == POSE_DIM and Km.shape[1:] == (6, 6)
+    dim = 6 if six else (3 if model.dim == POSE_DIM else model.dim)
+    if Km.shape != (P.shape[0], dim, dim):
+        also = f" or ({P.shape[0]}, 6, 6) (K6)" if model.dim == POSE_DIM else ""
+        raise ValueError(
+            f"K must have shape ({P.shape[0]}, {dim}, {dim}){also} (one matrix per pose), got {Km.shape}"
+        )
+    if not np.all(np.isfinite(Km)):
+        i = int(np.flatnonzero(~np.all(np.isfinite(Km), axis=(1, 2)))[0])
+        raise ValueError(f"K of pose {i} contains NaN or infinite values")
+    return six, dim
+
+
 def fit_stiffness(
     model: Mechanism,
     points,
@@ -842,16 +858,7 @@ def fit_stiffness(
     """
     P, _ = as_points(points, model.dim)
     Km = np.asarray(K, dtype=np.float64)
-    six = model.dim == POSE_DIM and Km.shape[1:] == (6, 6)
-    dim = 6 if six else (3 if model.dim == POSE_DIM else model.dim)
-    if Km.shape != (P.shape[0], dim, dim):
-        also = f" or ({P.shape[0]}, 6, 6) (K6)" if model.dim == POSE_DIM else ""
-        raise ValueError(
-            f"K must have shape ({P.shape[0]}, {dim}, {dim}){also} (one matrix per pose), got {Km.shape}"
-        )
-    if not np.all(np.isfinite(Km)):
-        i = int(np.flatnonzero(~np.all(np.isfinite(Km), axis=(1, 2)))[0])
-        raise ValueError(f"K of pose {i} contains NaN or infinite values")
+    six, dim = _stiffness_shape(model, P, Km)
     S = _check_sigma(K_std, Km.shape, "K_std")
     weights = None
     if six and S is None:  # K6's entries in mm and rad-as-L-mm alike
