@@ -173,7 +173,9 @@ def objective_at(fld, place, P, F, feed, objective: str) -> float:
     return float(_many(fld, np.asarray(place, dtype=float)[None], P, F, feed, objective)[0])
 
 
-def _evaluate(fld, T: np.ndarray, P: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _evaluate(
+    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None
+) -> tuple[np.ndarray, np.ndarray, object]:
     """Deflections (K, N, 3) at N points under K placements T (K, 3), and which placements are
     feasible (every point valid, conditioning at least MIN_CONDITIONING). P is (N, 3), or
     (K, N, 3) for points that differ per placement. One evaluation for a mechanism's map;
@@ -181,18 +183,20 @@ def _evaluate(fld, T: np.ndarray, P: np.ndarray, F: np.ndarray) -> tuple[np.ndar
     K = T.shape[0]
     PK = np.broadcast_to(P, (K, *P.shape[-2:]))
     N = PK.shape[1]
+    Q = None
     if hasattr(fld, "mechanism"):
         res = fld.with_place(np.zeros(3))((PK + T[:, None]).reshape(-1, 3), np.tile(F, (K, 1)))
         valid, cond, delta = res.valid, res.conditioning, res.delta
     else:
-        out = [fld.with_place(t)(PK[i], F) for i, t in enumerate(T)]
+        out = [fld.with_place(t)(PK[i], F, q0=None if q0 is None else q0[i]) for i, t in enumerate(T)]
+        Q = np.stack([r.q for r in out]) if all(r.q is not None for r in out) else None
         valid = np.concatenate([r.valid for r in out])
         cond = np.concatenate([r.conditioning for r in out])
         delta = np.concatenate([r.delta for r in out])
     ok = np.all(
         valid.reshape(K, N) & (np.nan_to_num(cond, nan=-1.0).reshape(K, N) >= MIN_CONDITIONING), axis=1
     )
-    return delta.reshape(K, N, 3), ok
+    return delta.reshape(K, N, 3), ok, Q
 
 
 def _outward(P: np.ndarray, dims) -> np.ndarray:
@@ -221,12 +225,13 @@ def _many(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
 
 def _many_all(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
     """:func:`_many` on every point."""
-    delta, ok = _evaluate(fld, T, P, F)
+    delta, ok, Q = _evaluate(fld, T, P, F)
     if np.any(ok):
         sub = np.flatnonzero(ok)
-        d1, ok1 = _evaluate(fld, T[sub], P[None] - delta[sub], F)
+        near = None if Q is None else Q[sub]  # an arm's solutions: seeds for the nearby commanded points
+        d1, ok1, _ = _evaluate(fld, T[sub], P[None] - delta[sub], F, near)
         C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
-        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F)[1]
+        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F, near)[1]
     d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
     if d.shape[1] == 0:
         val = np.zeros(T.shape[0])
