@@ -12,16 +12,21 @@ the truss's worst deflection at its placement.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 from helpers.machining_checks import truss_3prr
 
+from stiffmap.errors import InputError
+from stiffmap.machining import place as place_mod
 from stiffmap.machining.field import field_for
 from stiffmap.machining.forces import ForceSpec
 from stiffmap.machining.io import read_program
 from stiffmap.machining.path import toolpath_from_moves
 from stiffmap.machining.place import MIN_CONDITIONING, default_region, place_program, program_samples
+from stiffmap.machining.run import CompensateOptions, compensate_file
 from stiffmap.models.prr3 import PRR3
 
 DATA = Path(__file__).parent / "data" / "gcode"
@@ -64,3 +69,85 @@ def test_place_auto_is_the_brute_force_minimum():
 def _evaluable(model, Q):
     m = model.evaluate(Q)
     return m.valid & (np.nan_to_num(m.conditioning, nan=-1.0) >= MIN_CONDITIONING)
+
+
+def _spiral_nc(tmp_path, turns=10, segments=1500, r0=5.0, r1=80.0) -> Path:
+    """An Archimedean spiral of many short G1 segments (1.8 mm each on average), written here."""
+    a = np.linspace(0.0, 2 * np.pi * turns, segments + 1)
+    r = r0 + (r1 - r0) * a / a[-1]
+    lines = ["G21 G90", f"G0 X{r0:.4f} Y0", "G1 F600"]
+    lines += [f"G1 X{x:.4f} Y{y:.4f}" for x, y in zip(r * np.cos(a), r * np.sin(a), strict=True)]
+    f = tmp_path / "spiral.nc"
+    f.write_text("\n".join(lines) + "\n")
+    return f
+
+
+def _long_program(tmp_path):
+    prog, _ = read_program(_spiral_nc(tmp_path))
+    path = toolpath_from_moves(prog.moves)
+    forces = ForceSpec.constant((0.0, -50 * 9.81))
+    P, F, feed = program_samples(path, forces, dense_mm=place_mod.DENSE_MM)
+    assert P.shape[0] > 3 * place_mod.SEARCH_POINTS
+    return path, forces, P, F, feed
+
+
+def _worst_every_point(found, P, F, feed) -> float:
+    """The truss's worst deflection at every point of the program placed at ``found``; checks
+    that the placement is feasible there and that the search reported this value."""
+    model = PRR3(**STUDY)
+    Q = P[:, :2] + found.place[:2]
+    d = _truss(Q, F[:, :2])
+    assert _evaluable(model, Q).all() and _evaluable(model, Q - d).all()
+    ours = np.linalg.norm(d[feed], axis=1).max()
+    assert abs(found.value - ours) <= 1e-9 + 1e-6 * ours
+    return ours
+
+
+def test_place_auto_on_a_long_program_is_quick_and_the_grid_minimum(tmp_path):
+    """A long program (7 500 check points) is searched on a sample of at most SEARCH_POINTS; the
+    placement found deflects (truss, on every point) within 1 % of a brute-force grid's minimum
+    over the region on every point."""
+    model = PRR3(**STUDY)
+    path, forces, P, F, feed = _long_program(tmp_path)
+    t0 = time.perf_counter()
+    found = place_program(field_for(model), path, forces, objective="worst")
+    took = time.perf_counter() - t0
+    assert took < 30.0, f"--place auto took {took:.1f} s on {P.shape[0]} points"
+    ours = _worst_every_point(found, P, F, feed)
+    lo, hi = default_region(model)
+    brute = np.inf
+    for x in np.arange(lo[0] - P[:, 0].min(), hi[0] - P[:, 0].max(), 50.0):
+        for y in np.arange(lo[1] - P[:, 1].min(), hi[1] - P[:, 1].max(), 50.0):
+            Q = P[:, :2] + (x, y)
+            if not _evaluable(model, Q).all():
+                continue
+            d = _truss(Q, F[:, :2])
+            if _evaluable(model, Q - d).all():
+                brute = min(brute, np.linalg.norm(d[feed], axis=1).max())
+    assert np.isfinite(brute) and ours <= 1.01 * brute, f"search {ours:.6f} mm, brute grid {brute:.6f} mm"
+
+
+@pytest.mark.slow
+def test_place_auto_sampled_is_the_search_on_every_point(tmp_path, monkeypatch):
+    """The sampled search's placement deflects within 1 % of the same search run on every point."""
+    path, forces, P, F, feed = _long_program(tmp_path)
+    ours = _worst_every_point(place_program(field_for(PRR3(**STUDY)), path, forces), P, F, feed)
+    monkeypatch.setattr(place_mod, "SEARCH_POINTS", 10**9)
+    every = place_program(field_for(PRR3(**STUDY)), path, forces)
+    assert ours <= 1.01 * every.value, f"sampled {ours:.6f} mm, on every point {every.value:.6f} mm"
+
+
+def test_place_auto_refusal_writes_nothing(tmp_path):
+    """A long program that does not fit the region: one line, and no output file."""
+    out = tmp_path / "out.nc"
+    region = ((300.0, 100.0, -1.0), (400.0, 200.0, 1.0))  # 100 mm: the spiral is 160 mm across
+    opts = CompensateOptions(
+        tolerance_um=2.0, place_auto=True, place_region_mm=region, force=ForceSpec.constant((0.0, -490.5))
+    )
+    try:
+        compensate_file(PRR3(**STUDY), _spiral_nc(tmp_path), out, opts)
+    except InputError as e:
+        assert "larger than the region" in str(e) and "\n" not in str(e)
+    else:
+        raise AssertionError("a program larger than its region was placed")
+    assert not out.exists()

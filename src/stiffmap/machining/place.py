@@ -9,7 +9,11 @@ singularities: the model's conditioning at least :data:`MIN_CONDITIONING`.
 Method: the objective on a coarse grid of placements (:data:`GRID` per axis; a planar
 mechanism places in x, y only), at a subset of the program's points; then a compass
 search from the best three feasible grid points, on points at most :data:`DENSE_MM` apart
-along the feed moves, the step halved down to :data:`STEP_MM`. A placement is feasible
+along the feed moves, the step halved down to :data:`STEP_MM`. A long program (more than
+:data:`SEARCH_POINTS` such points) is searched on a sample instead (:func:`search_samples`:
+its vertices and points spread by arc length, at most :data:`SEARCH_POINTS`), and the
+searched placements are then checked on every point, best first: the first feasible one
+is kept, with its objective on every point. A placement is feasible
 when the programmed points and their commanded points (pushed :data:`REACH_MARGIN_MM`
 outwards: the optimum often lies on the edge of the workspace) are all evaluable. The
 grid's values are kept for the placement map.
@@ -35,6 +39,7 @@ __all__ = [
     "place_program",
     "default_region",
     "program_samples",
+    "search_samples",
     "objective_at",
     "MIN_CONDITIONING",
 ]
@@ -49,6 +54,12 @@ STEP_MM = 0.02
 COARSE_POINTS = 400
 #: The compass search checks the program's feed moves at least every this many mm.
 DENSE_MM = 1.0
+#: The compass search runs on at most this many of the program's points (a longer program: a sample).
+SEARCH_POINTS = 2000
+#: Grid points the compass search starts from (on a long program, more when the first fail on
+#: every point: at most :data:`MAX_STARTS`).
+STARTS = 3
+MAX_STARTS = 12
 #: Commanded points are checked this far (mm) beyond where they are, away from the program's centre.
 REACH_MARGIN_MM = 0.01
 
@@ -121,6 +132,36 @@ def program_samples(
         k = np.where(path.feed, np.maximum(k, np.ceil(path.length() / dense_mm).astype(int) + 1), 2)
     m = np.repeat(np.arange(n), k)
     s = np.concatenate([np.linspace(0.0, 1.0, c) for c in k]) if n else np.zeros(0)
+    return _samples_at(path, forces, m, s)
+
+
+def search_samples(
+    path: Toolpath, forces: ForceSpec, budget: int = SEARCH_POINTS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At most about ``budget`` points of a program for the placement search: the moves' ends
+    (every k-th when there are more than half the budget, and each axis's extreme ends), and
+    the rest of the budget spread evenly by arc length along the feed moves. Returns as
+    :func:`program_samples`."""
+    n = len(path)
+    if n == 0:
+        return program_samples(path, forces)
+    ends = path.point(np.arange(n), np.ones(n))
+    every = max(1, math.ceil(n / max(1, budget // 2)))
+    mv = np.unique(np.concatenate([np.arange(0, n, every), ends.argmin(axis=0), ends.argmax(axis=0)]))
+    L = np.where(path.feed, path.length(), 0.0)
+    cum = np.cumsum(L)
+    r = max(0, budget - 1 - mv.size)
+    u = (np.arange(r) + 0.5) * (cum[-1] / r) if r and cum[-1] > 0 else np.zeros(0)
+    mr = np.minimum(np.searchsorted(cum, u, side="right"), n - 1)
+    sr = np.clip((u - (cum[mr] - L[mr])) / np.where(L[mr] > 0, L[mr], 1.0), 0.0, 1.0)
+    m = np.concatenate([[0], mv, mr])
+    s = np.concatenate([[0.0], np.ones(mv.size), sr])
+    return _samples_at(path, forces, m, s)
+
+
+def _samples_at(path: Toolpath, forces: ForceSpec, m: np.ndarray, s: np.ndarray):
+    """The points, forces and feed flags at moves m and fractions s (a rapid's ends only,
+    points with an unknown axis left out)."""
     keep = path.feed[m] | (s == 0) | (s == 1)
     keep &= np.where(s == 0, np.all(path.known_start[m], axis=1), np.all(path.known[m], axis=1))
     m, s = m[keep], s[keep]
@@ -132,7 +173,9 @@ def objective_at(fld, place, P, F, feed, objective: str) -> float:
     return float(_many(fld, np.asarray(place, dtype=float)[None], P, F, feed, objective)[0])
 
 
-def _evaluate(fld, T: np.ndarray, P: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _evaluate(
+    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None
+) -> tuple[np.ndarray, np.ndarray, object]:
     """Deflections (K, N, 3) at N points under K placements T (K, 3), and which placements are
     feasible (every point valid, conditioning at least MIN_CONDITIONING). P is (N, 3), or
     (K, N, 3) for points that differ per placement. One evaluation for a mechanism's map;
@@ -140,18 +183,20 @@ def _evaluate(fld, T: np.ndarray, P: np.ndarray, F: np.ndarray) -> tuple[np.ndar
     K = T.shape[0]
     PK = np.broadcast_to(P, (K, *P.shape[-2:]))
     N = PK.shape[1]
+    Q = None
     if hasattr(fld, "mechanism"):
         res = fld.with_place(np.zeros(3))((PK + T[:, None]).reshape(-1, 3), np.tile(F, (K, 1)))
         valid, cond, delta = res.valid, res.conditioning, res.delta
     else:
-        out = [fld.with_place(t)(PK[i], F) for i, t in enumerate(T)]
+        out = [fld.with_place(t)(PK[i], F, q0=None if q0 is None else q0[i]) for i, t in enumerate(T)]
+        Q = np.stack([r.q for r in out]) if all(r.q is not None for r in out) else None
         valid = np.concatenate([r.valid for r in out])
         cond = np.concatenate([r.conditioning for r in out])
         delta = np.concatenate([r.delta for r in out])
     ok = np.all(
         valid.reshape(K, N) & (np.nan_to_num(cond, nan=-1.0).reshape(K, N) >= MIN_CONDITIONING), axis=1
     )
-    return delta.reshape(K, N, 3), ok
+    return delta.reshape(K, N, 3), ok, Q
 
 
 def _outward(P: np.ndarray, dims) -> np.ndarray:
@@ -165,13 +210,28 @@ def _outward(P: np.ndarray, dims) -> np.ndarray:
 def _many(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
     """The objective at many placements T (K, 3); inf where a programmed point, or the commanded
     point ``c = p - delta(c)`` that compensates it (two fixed-point steps) pushed outwards by
-    :data:`REACH_MARGIN_MM`, is out of reach or too poorly conditioned."""
-    delta, ok = _evaluate(fld, T, P, F)
+    :data:`REACH_MARGIN_MM`, is out of reach or too poorly conditioned. The placements are first
+    screened on the points at each axis's extremes (an arm solves its inverse kinematics point
+    by point: most placements of a large program fail there, at a few points' cost)."""
+    out = np.full(T.shape[0], np.inf)
+    ok = np.ones(T.shape[0], dtype=bool)
+    if P.shape[0] > 6 * 4:
+        ext = np.unique(np.concatenate([P.argmin(axis=0), P.argmax(axis=0)]))
+        ok = _evaluate(fld, T, P[ext], F[ext])[1]
+    if np.any(ok):
+        out[ok] = _many_all(fld, T[ok], P, F, feed, objective)
+    return out
+
+
+def _many_all(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
+    """:func:`_many` on every point."""
+    delta, ok, Q = _evaluate(fld, T, P, F)
     if np.any(ok):
         sub = np.flatnonzero(ok)
-        d1, ok1 = _evaluate(fld, T[sub], P[None] - delta[sub], F)
+        near = None if Q is None else Q[sub]  # an arm's solutions: seeds for the nearby commanded points
+        d1, ok1, _ = _evaluate(fld, T[sub], P[None] - delta[sub], F, near)
         C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
-        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F)[1]
+        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F, near)[1]
     d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
     if d.shape[1] == 0:
         val = np.zeros(T.shape[0])
@@ -227,18 +287,40 @@ def place_program(
             f"from singularities (conditioning >= {MIN_CONDITIONING:g})"
         )
     step0 = np.array([(a[1] - a[0]) if a.size > 1 else 1.0 for a in axes])
-    best_t, best_v, evals = None, math.inf, T.shape[0]
-    Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
-    for i in np.argsort(coarse)[:3]:
-        if not np.isfinite(coarse[i]):
-            break
-        t, v, n = _compass(fld, T[i], dims, step0 / 2, Pd, Fd, feedd, objective)
-        evals += n
-        if v < best_v:
-            best_t, best_v = t, v
+    best_t, best_v, n = _refine(
+        fld, path, forces, T[np.argsort(coarse)[: int(np.isfinite(coarse).sum())]], dims, step0 / 2, objective
+    )
     if not np.isfinite(best_v):
         raise InputError("--place auto: no feasible placement on all of the program's points")
-    return Placement(best_t, best_v, objective, axes, values, evals)
+    return Placement(best_t, best_v, objective, axes, values, T.shape[0] + n)
+
+
+def _refine(fld, path, forces, starts, dims, step, objective) -> tuple[np.ndarray | None, float, int]:
+    """The best placement of compass searches from ``starts`` (best first), and the placements
+    evaluated. On a program of at most :data:`SEARCH_POINTS` dense points: the best of the first
+    :data:`STARTS` searches on every point. On a longer one: the searches run on
+    :func:`search_samples`, and their results are checked on every point best first
+    (more starts while none passes, :data:`STARTS` at a time, up to :data:`MAX_STARTS`); the first
+    feasible one is returned with its objective on every point."""
+    Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
+    full = Pd.shape[0] <= SEARCH_POINTS
+    Ps, Fs, feeds = (Pd, Fd, feedd) if full else search_samples(path, forces)
+    evals = 0
+    for k in range(0, min(STARTS if full else MAX_STARTS, starts.shape[0]), STARTS):
+        found = []
+        for t0 in starts[k : k + STARTS]:
+            t, v, n = _compass(fld, t0, dims, step, Ps, Fs, feeds, objective)
+            evals += n
+            found.append((v, t))
+        for v, t in sorted(found, key=lambda c: c[0]):
+            if full:
+                return t, v, evals
+            if np.isfinite(v):
+                evals += 1
+                v_all = objective_at(fld, t, Pd, Fd, feedd, objective)
+                if np.isfinite(v_all):
+                    return t, v_all, evals
+    return None, math.inf, evals
 
 
 def _compass(fld, t0, dims, step, P, F, feed, objective) -> tuple[np.ndarray, float, int]:
