@@ -204,3 +204,88 @@ def test_a_platform_that_turns_is_refused_in_one_line(tmp_path, monkeypatch, cap
     code, _, err = run_in_process([*args, "--place", "0,0,300", "--force-n", "0,0,-10"], monkeypatch, capsys)
     _one_line(code, err, "hexapod", "dim = 6")
     assert list(tmp_path.iterdir()) == []
+
+
+# Findings of the fuzzing of compensate (tests/helpers/fuzz_machining.py, issue 31): each failed
+# on the code before its fix.
+
+
+def test_a_delta_compensates_a_csv_of_points_with_z(tmp_path):
+    """x,y,z points for a spatial robot (z both required and optional) were an internal error."""
+    from helpers.fuzz import run_argv, write_case
+    from helpers.fuzz_machining import check_compensation, compensate_case, points_seed
+
+    for forces in (False, True):
+        opts = ("--place", "-40,-30,-300") + (() if forces else ("--force-n", "4,3,-2"))
+        case = compensate_case(
+            {"p.csv": points_seed(forces, planar=False).encode()}, "delta", "p.csv", *opts, out="o.csv"
+        )
+        d = tmp_path / str(forces)
+        d.mkdir()
+        o = run_argv(write_case(case, d))
+        assert o.code == 0, o.stderr
+        assert check_compensation(case, d, o) == ""  # on the path, deflected, by the independent solver
+
+
+def test_a_place_far_outside_the_workspace_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    """--place 1e9,1e9 was an internal error (the model's plausibility check, a ValueError)."""
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "1e9,1e9",
+            "--force-n",
+            "0,-490.5",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "own_cam_mm.nc: line 12:", "(1e+09, 1e+09)", "beyond")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_out_onto_the_program_is_refused_and_the_program_kept(tmp_path, monkeypatch, capsys):
+    """--out the program itself overwrote the program with its compensated version."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(PROGRAM.read_bytes())
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            prog,
+            "--out",
+            prog,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "--out", "the program itself")
+    assert prog.read_bytes() == PROGRAM.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.nc"]
+
+
+def test_warnings_and_unreachable_points_name_the_program(tmp_path, monkeypatch, capsys):
+    """The program's warnings ("X was never set") and a point out of reach named a line, not the file."""
+    out = tmp_path / "out.nc"
+    base = ["compensate", "3prr", "--out", out, "-q", "--no-figures", "--force-n", "0,-490.5"]
+    code, _, err = run_in_process(
+        [*base, "--path", DATA / "cncjs_circle-inch.gcode", "--place", "380,200"], monkeypatch, capsys
+    )
+    assert code == 1, err
+    warnings = [ln for ln in err.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 2 and all("cncjs_circle-inch.gcode: line 2:" in w for w in warnings), err
+    code, _, err = run_in_process([*base, "--path", PROGRAM, "--place", "0,0"], monkeypatch, capsys)
+    _one_line(code, err, "own_cam_mm.nc: line 12:", "unreachable")

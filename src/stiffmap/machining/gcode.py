@@ -521,7 +521,8 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
             moves.append(move)
         if any(w.letter == "M" and w.value in (2, 30) for w in words):
             break  # M2/M30 end the program: the lines after it are kept verbatim, never run
-    return Program(source or "<program>", lines, newline, final, tuple(moves), at, tuple(warnings))
+    named = tuple(f"{source}: {w}" for w in warnings) if source else tuple(warnings)
+    return Program(source or "<program>", lines, newline, final, tuple(moves), at, named)
 
 
 def _update_passing(words: list[Word], st: _State) -> None:

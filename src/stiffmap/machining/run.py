@@ -15,13 +15,14 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..models.base import Mechanism
 from ..stats import chi2_ppf
-from .compensate import Compensation, compensate_path
+from .compensate import Compensation, CompensationError, compensate_path
 from .field import ArmField, field_for
 from .forces import ForceSpec, force_at
 from .gcode import render_program
@@ -177,7 +178,8 @@ def compensate_file(
     InputError
         Naming the file, line and field: a construct that cannot be compensated, a point
         out of reach or at a singularity, force rows that do not match the program, a
-        tolerance that is not positive. Nothing is written then.
+        tolerance that is not positive, an output that is the program itself. Nothing is
+        written then.
     """
     tol_um = float(options.tolerance_um)
     if not (math.isfinite(tol_um) and tol_um > 0):
@@ -192,20 +194,14 @@ def compensate_file(
         )
     if options.free_tool_spin and not _is_arm(mechanism):
         raise InputError(f"--free-tool-spin is for a serial arm (urdf); {mechanism.name} has no tool spin")
+    _check_out(program, out)
     path, forces, gcode, n_csv, warnings = _load(program, mechanism.dim, options)
-    place = np.zeros(3) if options.place_mm is None else np.asarray(options.place_mm, dtype=float)
-    fld = field_for(mechanism, place, tool_rotation=options.tool_rotation, q_seed=options.q_seed)
-    placement = None
-    if options.place_auto:
-        placement = place_program(
-            fld, path, forces, region=options.place_region_mm, objective=options.objective
+    try:  # a point out of reach names its line: and the program it is in
+        fld, placement, spin, comp, band = _compensate(
+            mechanism, path, forces, options, uncertainty, progress
         )
-        fld = fld.with_place(placement.place)
-    spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
-    comp = compensate_path(
-        fld, path, forces, tol_um * 1e-3, spin_of=None if spin is None else spin.spin_of, progress=progress
-    )
-    band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
+    except CompensationError as e:
+        raise e.with_source(str(program)) from None
     if gcode is not None:
         prog, text = gcode
         outs, axes = program_pieces(prog, path, comp, fld.corrected)
@@ -224,6 +220,35 @@ def compensate_file(
     )
     summary["written"] = written
     return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
+
+
+def _compensate(mechanism, path, forces, options: CompensateOptions, uncertainty, progress):
+    """Place the program, choose the tool spin and compensate: the field, placement, spin,
+    compensation and the residual's band (the steps of :func:`compensate_file`)."""
+    place = np.zeros(3) if options.place_mm is None else np.asarray(options.place_mm, dtype=float)
+    fld = field_for(mechanism, place, tool_rotation=options.tool_rotation, q_seed=options.q_seed)
+    placement = None
+    if options.place_auto:
+        placement = place_program(
+            fld, path, forces, region=options.place_region_mm, objective=options.objective
+        )
+        fld = fld.with_place(placement.place)
+    spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
+    spin_of = None if spin is None else spin.spin_of
+    comp = compensate_path(
+        fld, path, forces, float(options.tolerance_um) * 1e-3, spin_of=spin_of, progress=progress
+    )
+    band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
+    return fld, placement, spin, comp, band
+
+
+def _check_out(program, out) -> None:
+    """Refuse an output that would overwrite the program (or a folder)."""
+    p, o = Path(program), Path(out)
+    if o.exists() and p.exists() and os.path.samefile(p, o):
+        raise InputError(
+            f"--out {out} is the program itself: the corrected program is written to another file"
+        )
 
 
 def _is_arm(mechanism) -> bool:
