@@ -289,3 +289,53 @@ def test_warnings_and_unreachable_points_name_the_program(tmp_path, monkeypatch,
     assert len(warnings) == 2 and all("cncjs_circle-inch.gcode: line 2:" in w for w in warnings), err
     code, _, err = run_in_process([*base, "--path", PROGRAM, "--place", "0,0"], monkeypatch, capsys)
     _one_line(code, err, "own_cam_mm.nc: line 12:", "unreachable")
+
+
+@pytest.mark.parametrize("tolerance", ["0.1", "0.02"])
+def test_a_fine_tolerance_is_honoured_by_the_written_program(tmp_path, tolerance):
+    """--tolerance-um 0.1 on an inch program gave a program 0.19 um off the path (its coordinates
+    written to 0.25 um); now written with the digits the tolerance needs, re-checked by the
+    independent solver."""
+    from helpers.fuzz import run_argv, write_case
+    from helpers.fuzz_machining import check_compensation, compensate_case
+
+    name = "own_inch_r_planes.nc"
+    case = compensate_case(
+        {"p.nc": (DATA / name).read_bytes()},
+        "3prr",
+        "p.nc",
+        "--place",
+        "380,200",
+        "--force-n",
+        "0,-490.5",
+        "--tolerance-um",
+        tolerance,
+    )
+    o = run_argv(write_case(case, tmp_path))
+    assert o.code == 0, o.stderr
+    assert check_compensation(case, tmp_path, o) == ""
+
+
+def test_a_tolerance_below_ten_nanometres_is_refused(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+            "--tolerance-um",
+            "1e-9",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "--tolerance-um", "below 0.01 um")
+    assert list(tmp_path.iterdir()) == []

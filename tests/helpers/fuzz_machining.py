@@ -144,7 +144,7 @@ def _off_path(argv, out: Path, o: Outcome) -> str:
         return "the output has no feed move"
     dm, ds, C = output_samples(done, per_mm=per_mm)
     pm, ps, P = output_samples(prog, per_mm=min(20.0, 20000.0 / L))
-    D = _deflected(robot, prog, dm, ds, C, place, pm, ps, P, force, tol_mm)
+    D = _deflected(robot, prog, dm, ds, C, place, pm, ps, P, force, tol_mm, ~done.is_arc[np.unique(dm)])
     far = distance_to_path(prog, D) if len(D) else np.zeros(0)
     slack = tol_mm * 1e-6 + 1e-9
     if far.size and np.max(far) > tol_mm + slack:
@@ -195,7 +195,7 @@ def _landing(robot, prog, C, place, m, P, pm, ps, force):
     return X, Fk
 
 
-def _deflected(robot: str, prog, dm, ds, C, place, pm, ps, P, force, tol_mm: float) -> np.ndarray:
+def _deflected(robot: str, prog, dm, ds, C, place, pm, ps, P, force, tol_mm: float, straight) -> np.ndarray:
     """The output's points deflected under the force, one output move at a time: the output's
     pieces of a programmed move m carry m's force (of the programmed moves near all of the piece's
     points, the one it lands on best); a short move the compensation adds at a corner where the
@@ -218,11 +218,13 @@ def _deflected(robot: str, prog, dm, ds, C, place, pm, ps, P, force, tol_mm: flo
     D = C.copy()
     D[rows[pick]] = X[pick]
     for k in np.flatnonzero(worst[np.arange(starts.size), choice] > tol_mm):
-        D[piece == k] = _corner(robot, prog, C, place, piece, rows, mi, F, k, feed, worst, tol_mm, ds, D)
+        D[piece == k] = _corner(
+            robot, prog, C, place, piece, rows, mi, F, k, feed, worst, tol_mm, ds, D, straight
+        )
     return D
 
 
-def _corner(robot, prog, C, place, piece, rows, mi, F, k, feed, worst, tol_mm, ds, D):
+def _corner(robot, prog, C, place, piece, rows, mi, F, k, feed, worst, tol_mm, ds, D, straight):
     """The points of output move k if it is a short move at a corner (see :func:`_deflected`)."""
     mine = piece[rows] == k
     r, js, Fk = rows[mine], mi[mine], F[mine]
@@ -236,7 +238,8 @@ def _corner(robot, prog, C, place, piece, rows, mi, F, k, feed, worst, tol_mm, d
             e = np.minimum(
                 prog.distance(np.full(2, feed[ja]), ends), prog.distance(np.full(2, feed[jb]), ends)
             ).max()
-            if e < best:  # its ends at the corner; between them the force is not known
+            corner = np.linalg.norm(ends[1] - ends[0]) <= 2 * tol_mm + 1e-9 and straight[k]
+            if corner and e < best:  # its ends at the corner; between them the force is not known
                 best = e
                 out = ends[0] + ds[piece == k, None] * (ends[1] - ends[0])
     return out

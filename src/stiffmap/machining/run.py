@@ -22,10 +22,10 @@ import numpy as np
 from ..errors import InputError
 from ..models.base import Mechanism
 from ..stats import chi2_ppf
-from .compensate import Compensation, CompensationError, compensate_path
+from .compensate import CHECK_FRACTION, FIXED_POINT_TOL_MM, Compensation, CompensationError, compensate_path
 from .field import ArmField, field_for
 from .forces import ForceSpec, force_at
-from .gcode import render_program
+from .gcode import render_program, written_resolution_mm
 from .io import is_points_file, read_force_file, read_points_path, read_program, write_text
 from .output import point_rows, program_pieces
 from .path import toolpath_from_moves, toolpath_from_points
@@ -42,6 +42,8 @@ __all__ = [
 
 #: Points (at most) at which the model's uncertainty is propagated.
 BAND_POINTS = 2000
+#: The finest --tolerance-um (10 nm): the commanded points are solved to 1 nm.
+MIN_TOLERANCE_UM = 0.01
 
 
 @dataclass(frozen=True)
@@ -186,6 +188,11 @@ def compensate_file(
         raise InputError(
             f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
         )
+    if tol_um < MIN_TOLERANCE_UM:
+        raise InputError(
+            f"--tolerance-um {tol_um:g} is below {MIN_TOLERANCE_UM:g} um: finer than the commanded points "
+            f"are solved ({FIXED_POINT_TOL_MM * 1e3:g} um) and than any machine moves"
+        )
     if mechanism.dim not in (2, 3):
         raise InputError(
             f"compensate: {mechanism.name} is a platform that turns (a legs file with dim = {mechanism.dim}, "
@@ -205,7 +212,7 @@ def compensate_file(
     if gcode is not None:
         prog, text = gcode
         outs, axes = program_pieces(prog, path, comp, fld.corrected)
-        body, encoding = render_program(prog, outs, axes), text.encoding
+        body, encoding = render_program(prog, outs, axes, _extra_digits(prog, tol_um)), text.encoding
     else:
         rows = point_rows(comp, path, n_csv)
         body, encoding = _points_csv(rows), "utf-8"
@@ -240,6 +247,17 @@ def _compensate(mechanism, path, forces, options: CompensateOptions, uncertainty
     )
     band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
     return fld, placement, spin, comp, band
+
+
+def _extra_digits(prog, tol_um: float) -> int:
+    """Digits to write beyond the usual (0.1 um, inch 0.25 um) so that rounding a point, at most
+    sqrt(3)/2 of a step, stays within the margin the compensation leaves: (1 - CHECK_FRACTION) of
+    the tolerance (a tolerance of 0.1 um: 5 decimals in mm, 6 in inch)."""
+    inch = any(m.inch for m in prog.moves)
+    extra = 0
+    while math.sqrt(3) / 2 * written_resolution_mm(inch, extra) > (1 - CHECK_FRACTION) * tol_um * 1e-3:
+        extra += 1
+    return extra
 
 
 def _check_out(program, out) -> None:
