@@ -339,3 +339,50 @@ def test_a_tolerance_below_ten_nanometres_is_refused(tmp_path, monkeypatch, caps
     )
     _one_line(code, err, "--tolerance-um", "below 0.01 um")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("line", "needles"),
+    [
+        ("G1 X" + "9" * 400, ["p.nc: line 3:", "X999999999999...", "beyond 1e+09"]),  # inf: NaN arcs
+        ("G" + "7" * 320 + " G1 X5", ["p.nc: line 3:", "beyond 1e+09"]),  # int(inf): OverflowError
+    ],
+)
+def test_numbers_of_hundreds_of_digits_are_refused(line, needles):
+    """A word of hundreds of digits is infinite in floating point: it was an internal error."""
+    from helpers.fuzz import run_case
+    from helpers.fuzz_machining import compensate_case
+
+    text = f"G21 G90\nG0 X0 Y0\n{line}\nG1 Y5 F100\n".encode()
+    case = compensate_case(
+        {"p.nc": text}, "3prr", "p.nc", "--place", "380,200", "--force-n", "0,-490.5", blamed="p.nc"
+    )
+    o = run_case(case)
+    assert o.kind == "clear" and o.code == 2, (o.kind, o.stderr)
+    _one_line(o.code, o.stderr, *needles)
+
+
+def test_an_arc_as_the_first_move_is_refused(tmp_path, monkeypatch, capsys):
+    """An arc from wherever the machine stands, then a cut: its entry had no centre (internal error)."""
+    prog = tmp_path / "p.nc"
+    prog.write_text("G3 X0 Y0 I0 J-5\nG21 G90\nG1 X10 Y0 F100\nG1 X20\n")
+    out = tmp_path / "o.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            prog,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "p.nc: line 1:", "an arc (G3) as the first move")
+    assert not out.exists()

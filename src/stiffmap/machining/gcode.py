@@ -77,6 +77,9 @@ ARC_RADIUS_RTOL = 1e-3
 R_TOL_MM = 0.00005 * 25.4
 R_TOL_INCH = 0.00005
 
+#: The largest number a word may hold (a coordinate of 1e9 mm is already beyond any machine; a
+#: number of hundreds of digits is infinite in floating point).
+MAX_WORD_VALUE = 1e9
 #: A word: a letter and a number; RS274/NGC ignores spaces, so ``X -5`` and ``X - 5`` read as ``X-5``.
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?)\s*(\d+\.?\d*|\.\d+)")
 _LETTERS = set("ABCDFGHIJKLMNPQRSTUVWXYZ")
@@ -318,7 +321,16 @@ def _words(code: str, line: int, src: str | None) -> list[Word]:
             raise GcodeError(
                 f"cannot read {what!r}: expected a word, a letter and a number{hint}", line=line, source=src
             )
-        words.append(Word(m.group(1).upper(), float(m.group(2) + m.group(3)), m.start(), m.end()))
+        value = float(m.group(2) + m.group(3))
+        if not abs(value) <= MAX_WORD_VALUE:
+            digits = m.group(3)[:12] + ("..." if len(m.group(3)) > 12 else "")
+            raise GcodeError(
+                f"{m.group(1).upper()}{m.group(2)}{digits}: a number beyond {MAX_WORD_VALUE:g}, which no "
+                "program holds",
+                line=line,
+                source=src,
+            )
+        words.append(Word(m.group(1).upper(), value, m.start(), m.end()))
         i = m.end()
     return words
 
@@ -573,6 +585,13 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             source=source,
         )
     if not st.moved:
+        if st.motion in (2, 3):
+            raise GcodeError(
+                f"an arc (G{st.motion}) as the first move starts wherever the machine stands: its centre "
+                "is from an unknown point; move to its start first (G0/G1)",
+                line=n,
+                source=source,
+            )
         if st.motion != 0:
             warnings.append(
                 f"line {n}: the first move is a feed from wherever the machine stands: taken as an "
