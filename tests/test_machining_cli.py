@@ -386,3 +386,39 @@ def test_an_arc_as_the_first_move_is_refused(tmp_path, monkeypatch, capsys):
     )
     _one_line(code, err, "p.nc: line 1:", "an arc (G3) as the first move")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--tool-rpy-deg", "0,180,0"], ["--tool-rpy-deg is for a serial arm"]),
+        (["--q-seed-deg", "0,0,0"], ["--q-seed-deg is for a serial arm"]),
+        (["--place-region", "0:1,0:1"], ["--place-region is for --place auto"]),
+        (["--objective", "rms"], ["--objective is for --place auto"]),
+        (["--objective", "best"], ["--objective must be worst or rms", "'best'"]),
+    ],
+)
+def test_options_the_run_would_ignore_are_refused(tmp_path, monkeypatch, capsys, args, needles):
+    """These were silently ignored (exit 0, a program written as without them): a tool orientation or
+    seed joints for the 3PRR, a region or an objective (even 'best') with --place X,Y."""
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+            *args,
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, *needles)
+    assert list(tmp_path.iterdir()) == []

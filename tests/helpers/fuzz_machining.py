@@ -65,19 +65,22 @@ def compensate_case(
     blamed: str | None = None,
     note: str = "",
     out: str = OUT,
+    expect: str | None = None,
 ) -> FuzzCase:
     """``stiffmap compensate ROBOT --path {dir}/PATH --out {dir}/OUT --json -q --no-figures OPTIONS``,
-    its outcome re-checked by :func:`check_compensation`."""
+    its outcome re-checked by :func:`check_compensation`; ``expect``: what an error or warning must
+    say when the run gives results (``FuzzCase.expect``)."""
     argv = ("compensate", robot, "--path", f"{{dir}}/{path}", "--out", f"{{dir}}/{out}", "--json", "-q")
     if "--figures" not in options:
         argv += ("--no-figures",)
     argv += tuple(o for o in options if o != "--figures")
-    case = FuzzCase(files=files, argv=argv, blamed=blamed, note=note)
+    case = FuzzCase(files=files, argv=argv, blamed=blamed, note=note, expect=expect)
     return FuzzCase(
         files=files,
         argv=argv,
         blamed=blamed,
         note=note,
+        expect=expect,
         check=functools.partial(check_compensation, case),
     )
 
@@ -731,7 +734,22 @@ def option_cases(draw) -> FuzzCase:
         blamed=None,
         note=f"{name} x {robot}: " + ", ".join(notes),
         out=out,
+        expect=_ignored(opts),
     )
+
+
+def _ignored(opts: dict) -> str | None:
+    """An option the run would ignore (the 3PRR and the Delta have no tool to turn, a placement
+    given leaves nothing to search): a message must name it, or the run is silently wrong."""
+    auto = (opts.get("--place") or "").strip().lower() == "auto"
+    for name in ("--tool-rpy-deg", "--q-seed-deg", "--free-tool-spin"):
+        if name in opts:
+            return name
+    if not auto and "--place-region" in opts:
+        return "--place-region"
+    if not auto and opts.get("--objective", "worst") != "worst":
+        return "--objective"
+    return None
 
 
 FUZZ_CLASSES = [

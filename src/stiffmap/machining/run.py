@@ -29,7 +29,7 @@ from .gcode import render_program, written_resolution_mm
 from .io import is_points_file, read_force_file, read_points_path, read_program, write_text
 from .output import point_rows, program_pieces
 from .path import toolpath_from_moves, toolpath_from_points
-from .place import Placement, place_program
+from .place import OBJECTIVES, Placement, place_program
 from .spin import SpinPlan, choose_spin
 
 __all__ = [
@@ -183,24 +183,7 @@ def compensate_file(
         tolerance that is not positive, an output that is the program itself. Nothing is
         written then.
     """
-    tol_um = float(options.tolerance_um)
-    if not (math.isfinite(tol_um) and tol_um > 0):
-        raise InputError(
-            f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
-        )
-    if tol_um < MIN_TOLERANCE_UM:
-        raise InputError(
-            f"--tolerance-um {tol_um:g} is below {MIN_TOLERANCE_UM:g} um: finer than the commanded points "
-            f"are solved ({FIXED_POINT_TOL_MM * 1e3:g} um) and than any machine moves"
-        )
-    if mechanism.dim not in (2, 3):
-        raise InputError(
-            f"compensate: {mechanism.name} is a platform that turns (a legs file with dim = {mechanism.dim}, "
-            "its points are poses); a program is compensated for a robot whose points are positions "
-            "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
-        )
-    if options.free_tool_spin and not _is_arm(mechanism):
-        raise InputError(f"--free-tool-spin is for a serial arm (urdf); {mechanism.name} has no tool spin")
+    tol_um = _check_options(mechanism, options)
     _check_out(program, out)
     path, forces, gcode, n_csv, warnings = _load(program, mechanism.dim, options)
     try:  # a point out of reach names its line: and the program it is in
@@ -258,6 +241,46 @@ def _extra_digits(prog, tol_um: float) -> int:
     while math.sqrt(3) / 2 * written_resolution_mm(inch, extra) > (1 - CHECK_FRACTION) * tol_um * 1e-3:
         extra += 1
     return extra
+
+
+def _check_options(mechanism, options: CompensateOptions) -> float:
+    """Refuse options that are wrong or that this mechanism or placement would ignore; the
+    tolerance (um)."""
+    tol_um = float(options.tolerance_um)
+    if not (math.isfinite(tol_um) and tol_um > 0):
+        raise InputError(
+            f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
+        )
+    if tol_um < MIN_TOLERANCE_UM:
+        raise InputError(
+            f"--tolerance-um {tol_um:g} is below {MIN_TOLERANCE_UM:g} um: finer than the commanded points "
+            f"are solved ({FIXED_POINT_TOL_MM * 1e3:g} um) and than any machine moves"
+        )
+    if mechanism.dim not in (2, 3):
+        raise InputError(
+            f"compensate: {mechanism.name} is a platform that turns (a legs file with dim = {mechanism.dim}, "
+            "its points are poses); a program is compensated for a robot whose points are positions "
+            "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
+        )
+    if not _is_arm(mechanism):
+        for name, given in (
+            ("--free-tool-spin", options.free_tool_spin),
+            ("--tool-rpy-deg", options.tool_rotation is not None),
+            ("--q-seed-deg", options.q_seed is not None),
+        ):
+            if given:
+                raise InputError(
+                    f"{name} is for a serial arm (urdf); {mechanism.name} has no tool orientation or joints "
+                    "to give"
+                )
+    if options.objective not in OBJECTIVES:
+        raise InputError(f"--objective must be worst or rms, got {options.objective!r}")
+    if not options.place_auto and (options.place_region_mm is not None or options.objective != "worst"):
+        what = "--place-region" if options.place_region_mm is not None else "--objective"
+        raise InputError(
+            f"{what} is for --place auto (the placement search); with --place X,Y it does nothing"
+        )
+    return tol_um
 
 
 def _check_out(program, out) -> None:
