@@ -275,6 +275,14 @@ def test_out_onto_the_program_is_refused_and_the_program_kept(tmp_path, monkeypa
     _one_line(code, err, "--out", "the program itself")
     assert prog.read_bytes() == PROGRAM.read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.nc"]
+    forces = tmp_path / "f.csv"  # nor the force file (it was overwritten by the program)
+    forces.write_text(_FORCES)
+    short = tmp_path / "s.nc"
+    short.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:17]))
+    args = ["compensate", "3prr", "--path", short, "--out", forces, "-q", "--place", "380,200"]
+    code, _, err = run_in_process([*args, "--force-file", forces], monkeypatch, capsys)
+    _one_line(code, err, "--out", "the force file itself")
+    assert forces.read_text() == _FORCES
 
 
 def test_warnings_and_unreachable_points_name_the_program(tmp_path, monkeypatch, capsys):
@@ -422,3 +430,34 @@ def test_options_the_run_would_ignore_are_refused(tmp_path, monkeypatch, capsys,
     )
     _one_line(code, err, *needles)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_force_that_pushes_the_commanded_point_out_of_reach_names_the_force_file(
+    tmp_path, monkeypatch, capsys
+):
+    """A force row of 1e7 N (the 3PRR would deflect by metres): the error named the program's line only,
+    as if the program were out of reach; now the force and the file it came from too."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16]))  # feed: lines 15, 16
+    forces = tmp_path / "f.csv"
+    forces.write_text("line,fx,fy\n15,0,-490.5\n16,0,10000000\n")
+    out = tmp_path / "o.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            prog,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-file",
+            forces,
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "p.nc: line 16:", "under F = (0, 1e+07, 0) N", "unreachable", "from " + str(forces))
+    assert not out.exists()

@@ -644,6 +644,7 @@ def force_cases(draw) -> FuzzCase:
     robot = draw(st.sampled_from(("3prr", "3prr", "delta")))
     data = draw(force_text(force_seed(name, planar=robot == "3prr")))
     p = "p" + Path(name).suffix
+    out = draw(st.sampled_from((OUT,) * 9 + ("f.csv",)))  # the output onto the force file
     return compensate_case(
         {p: (DATA / name).read_bytes(), "f.csv": data},
         robot,
@@ -653,7 +654,8 @@ def force_cases(draw) -> FuzzCase:
         "--force-file",
         "{dir}/f.csv",
         blamed="f.csv",
-        note=f"force file of {name} x {robot}",
+        note=f"force file of {name} x {robot}" + (", --out f.csv" if out != OUT else ""),
+        out=out,
     )
 
 

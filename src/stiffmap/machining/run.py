@@ -184,13 +184,15 @@ def compensate_file(
         written then.
     """
     tol_um = _check_options(mechanism, options)
-    _check_out(program, out)
+    _check_out(program, out, options.force_file)
     path, forces, gcode, n_csv, warnings = _load(program, mechanism.dim, options)
     try:  # a point out of reach names its line: and the program it is in
         fld, placement, spin, comp, band = _compensate(
             mechanism, path, forces, options, uncertainty, progress
         )
     except CompensationError as e:
+        if options.force_file is not None and " under F = " in e.detail:  # the force is from that file
+            e = CompensationError(f"{e.detail}; the force of that line is from {options.force_file}")
         raise e.with_source(str(program)) from None
     if gcode is not None:
         prog, text = gcode
@@ -283,13 +285,14 @@ def _check_options(mechanism, options: CompensateOptions) -> float:
     return tol_um
 
 
-def _check_out(program, out) -> None:
-    """Refuse an output that would overwrite the program (or a folder)."""
-    p, o = Path(program), Path(out)
-    if o.exists() and p.exists() and os.path.samefile(p, o):
-        raise InputError(
-            f"--out {out} is the program itself: the corrected program is written to another file"
-        )
+def _check_out(program, out, force_file) -> None:
+    """Refuse an output that would overwrite an input: the program or the force file."""
+    o = Path(out)
+    for what, p in (("the program", program), ("the force file", force_file)):
+        if p is not None and o.exists() and Path(p).exists() and os.path.samefile(p, o):
+            raise InputError(
+                f"--out {out} is {what} itself: the corrected program is written to another file"
+            )
 
 
 def _is_arm(mechanism) -> bool:
