@@ -461,3 +461,27 @@ def test_a_force_that_pushes_the_commanded_point_out_of_reach_names_the_force_fi
     )
     _one_line(code, err, "p.nc: line 16:", "under F = (0, 1e+07, 0) N", "unreachable", "from " + str(forces))
     assert not out.exists()
+
+
+def test_a_force_too_large_for_the_model_is_refused_not_a_hang():
+    """1e5 N across a cut of the 3PRR (a deflection of 90 mm): the commanded point's fixed point never
+    converged and every piece was halved again, 32768 pieces after 23 s (a hang under the fuzz
+    harness's 20 s limit); now one line naming the line, the force and its file, in seconds."""
+    from helpers.fuzz import run_case
+    from helpers.fuzz_machining import compensate_case
+
+    prog = b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16])  # feed moves: lines 15, 16
+    forces = b"line,fx,fy\n15,0,-490.5\n16,0,100000\n"
+    case = compensate_case(
+        {"p.nc": prog, "f.csv": forces},
+        "3prr",
+        "p.nc",
+        "--place",
+        "380,200",
+        "--force-file",
+        "{dir}/f.csv",
+        blamed="f.csv",
+    )
+    o = run_case(case)
+    assert o.kind == "clear" and o.seconds < 10.0, (o.kind, o.seconds, o.stderr)
+    _one_line(o.code, o.stderr, "p.nc: line 16:", "no commanded point", "under F = (0, 100000, 0) N", "f.csv")

@@ -179,10 +179,20 @@ def solve_commanded(fld, path: Toolpath, forces: ForceSpec, m, s, q0=None, spin=
         _raise_invalid(path, m, res, fld, C, "commanded point", F)
         new = P - res.delta
         q = res.q
-        step = float(np.max(np.abs(new - C))) if C.size else 0.0
+        moved = np.max(np.abs(new - C), axis=1) if C.size else np.zeros(0)
         C = new
-        if step < FIXED_POINT_TOL_MM:
+        if not np.any(moved >= FIXED_POINT_TOL_MM):
             break
+    else:  # the deflection changes as much as the point moves: no commanded point to find
+        j = int(
+            np.flatnonzero(moved >= FIXED_POINT_TOL_MM)[np.argmin(path.line[m[moved >= FIXED_POINT_TOL_MM]])]
+        )
+        raise CompensationError(
+            f"line {path.line[m[j]]}: no commanded point brings the tool onto the programmed point "
+            f"{fld.describe_point(P[j])} under F = ({F[j][0]:.6g}, {F[j][1]:.6g}, {F[j][2]:.6g}) N: the "
+            f"deflection ({np.linalg.norm(P[j] - C[j]):.4g} mm) changes as fast as the point moves (a force "
+            "too large for the model, or a singularity near) (nothing written)"
+        )
     return C, q
 
 
