@@ -222,7 +222,13 @@ def _deflected(robot: str, prog, dm, ds, C, place, pm, ps, P, force, tol_mm: flo
     feed = np.unique(pm)
     starts = np.flatnonzero(np.r_[True, dm[1:] != dm[:-1]])
     far = np.stack([np.maximum.reduceat(prog.distance(np.full(len(C), m), C), starts) for m in feed], axis=1)
-    cand = far <= far.min(axis=1, keepdims=True) + 3.0  # (output moves, feed moves)
+    # (output moves, feed moves): the moves within 3 mm and twice the deflection under the largest
+    # force of the nearest one (a deflection of centimetres puts a piece nearer another move)
+    FP = force(prog, pm, ps)
+    Fmax = np.tile(FP[np.argmax(np.linalg.norm(FP, axis=1))], (starts.size, 1))
+    reach = 3.0 + 2.0 * np.linalg.norm(_deflection(robot, C[starts] + place, Fmax), axis=1)
+    reach = np.nan_to_num(reach, nan=np.inf)  # out of the model's reach: every move
+    cand = far <= far.min(axis=1, keepdims=True) + reach[:, None]
     sizes = np.diff(np.r_[starts, len(C)])
     piece = np.repeat(np.arange(starts.size), sizes)
     rows, mi = np.nonzero(cand[piece])
@@ -600,10 +606,15 @@ def force_text(draw, valid: str) -> bytes:
                 "fz dropped",
                 "line as float",
                 "line negative",
+                "huge force",
             )
         )
     )
     i = draw(st.integers(0, len(rows) - 1))
+    if special == "huge force":  # within the 1e9 N plausibility limit, beyond the linear model
+        c = rows[i].split(",")
+        c[draw(st.integers(1, 2))] = draw(st.sampled_from(("1e4", "-1e5", "1e6", "3e8")))
+        rows[i] = ",".join(c)
     if special == "row dropped":
         rows = rows[:i] + rows[i + 1 :]
     elif special == "row added":
@@ -662,6 +673,7 @@ def force_cases(draw) -> FuzzCase:
 # ------------------------------------------------------------------------------ options
 _NUMBERS = ("0", "-1", "nan", "inf", "1e-9", "1e9", "1e12", "-0", "abc", "", "1,2", "1e400")
 _VECTORS = ("0,-490.5", "1", "1,2,3,4", "nan,0", "0,inf", "1e12,0", "1e12,1e12,1e12", "0,0", "a,b", "", ",,")
+_VECTORS += ("0,100000", "-1e6,0,0", "3e8,0")  # within the 1e9 N limit, far beyond the linear model
 _PLACES = ("auto", "AUTO", " auto ", "380,200", "0,0", "1e9,1e9", "nan,0", "380", "380,200,0,0", "x,y", "")
 _REGIONS = (
     "300:460,150:250",
