@@ -416,6 +416,35 @@ def _check_link_names(legs: tuple[LegDescription, ...], params: dict[str, float]
             )
 
 
+def _geometry(leg: LegDescription) -> tuple:
+    """What places a leg: its platform joint, its URDF and its joints' kinematics (not its
+    stiffnesses, seeds or limits)."""
+    joints = tuple((j.type, j.axis, j.xyz_mm, j.rpy) for j in leg.joints)
+    return (
+        leg.attach_mm,
+        leg.tip_offset_mm,
+        leg.urdf,
+        leg.tip_frame,
+        leg.platform_joint,
+        leg.platform_axes,
+        joints,
+    )
+
+
+def _check_distinct(legs: list[LegDescription], fail) -> None:
+    """Two legs in the same place (a leg copied and not edited) would make the model count one
+    leg twice, or a platform singular everywhere: refused, naming both."""
+    seen: dict[tuple, int] = {}
+    for i, leg in enumerate(legs, start=1):
+        first = seen.setdefault(_geometry(leg), i)
+        if first != i:
+            fail(
+                f"legs[{i}]",
+                f"leg {leg.name!r} is in the same place as legs[{first}] ({legs[first - 1].name!r}): "
+                "the same attach_mm, tip_offset_mm and joints (a copied leg not edited?)",
+            )
+
+
 def _check_used(params: dict[str, float], used: dict[str, str], fail) -> None:
     for pname in params:
         if pname not in used:
@@ -459,6 +488,7 @@ def _descriptions(data: dict, source: str, default_name: str):
             )
         )
     _check_used(spec.params, used, fail)
+    _check_distinct(legs, fail)
     _check_link_names(tuple(legs), spec.params, fail)
     tol = spec.singular_tol
     if not (0 <= tol < 1):

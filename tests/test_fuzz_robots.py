@@ -1,0 +1,153 @@
+"""Fuzz tests of the robot descriptions (helpers.fuzz_robots): legs TOMLs (dim 2, 3, 6), the
+hexapod's poses CSV and options, URDF, xacro, configurations CSV, ``simulate --robot``.
+
+Each class is one hypothesis test: the command succeeds with the right answer where it can be
+computed independently (the closed-form K6 of UPS legs, helpers.urdf_reference for a URDF; the
+JSON then holds only finite numbers) or ends with one clear message naming the file (exit 1 or
+2). ``pytest -m fuzz tests/test_fuzz_robots.py`` runs the long profile; the default run takes 3
+examples of each class (1 of ``simulate --robot``). Below them, the misbehaviours the fuzzing
+found, as regression tests.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from helpers import fuzz_robots as fr
+from helpers.fuzz import assert_handled, run_argv, run_case
+from hypothesis import given, settings
+
+pytestmark = pytest.mark.fuzz
+
+_BY_NAME = {c.name: c for c in fr.FUZZ_CLASSES}
+
+#: The current profile's number of examples, at most 3 in the default run (conftest: 12).
+_EXAMPLES = settings(max_examples=settings().max_examples if settings().max_examples > 12 else 3)
+_ONE = settings(max_examples=settings().max_examples if settings().max_examples > 12 else 1)
+
+
+def _check(case):
+    o = run_case(case)
+    assert_handled(case, o)
+    return o
+
+
+@_EXAMPLES
+@given(case=_BY_NAME["robots: legs TOML x model legs"].cases)
+def test_legs_tomls(case):
+    _check(case)
+
+
+@_EXAMPLES
+@given(case=_BY_NAME["robots: poses CSV x model legs"].cases)
+def test_poses_and_options_of_a_hexapod(case):
+    _check(case)
+
+
+@_EXAMPLES
+@given(case=_BY_NAME["robots: URDF x model urdf"].cases)
+def test_urdfs(case):
+    _check(case)
+
+
+@_EXAMPLES
+@given(case=_BY_NAME["robots: xacro x model urdf"].cases)
+def test_xacro_descriptions(case):
+    _check(case)
+
+
+@_EXAMPLES
+@given(case=_BY_NAME["robots: configurations CSV x model urdf"].cases)
+def test_configurations(case):
+    _check(case)
+
+
+@_ONE
+@given(case=_BY_NAME["robots: robot file x simulate --robot"].cases)
+def test_simulate_robot_files(case):
+    _check(case)
+
+
+# ------------------------------------------------------------------------ the oracles can fail
+def _valid_hexapod_case() -> fr.RobotCase:
+    text = (fr.SHIPPED / "hexapod.toml").read_bytes()
+    argv = ("model", "legs", "{dir}/hexapod.toml", *fr.LEGS_SEEDS["hexapod.toml"], "--json")
+    return fr.RobotCase({"hexapod.toml": text}, argv, "hexapod.toml", oracle=fr.legs_check(text))
+
+
+def test_the_hexapod_oracle_accepts_the_model_and_refuses_a_K6_off_by_a_percent():
+    case = _valid_hexapod_case()
+    o = run_case(case)
+    assert o.kind == "ok", o.stderr
+    recs = json.loads(o.stdout)
+    assert len(recs) == 4 and all(r["K6"] is not None for r in recs)
+    for r in recs:
+        r["K6"][2][2] *= 1.01  # a leg's stiffness misread by 1 % in z
+    o.stdout = json.dumps(recs)
+    assert "differs from the closed form" in case.oracle(o)
+
+
+def test_the_urdf_oracle_accepts_the_model_and_refuses_a_point_moved_by_a_micrometre():
+    seed = "acme_rs6.urdf"
+    tip, base, rows = fr.URDF_SEEDS[seed]
+    data = (fr.TEST_ROBOTS / seed).read_bytes()
+    case = fr.RobotCase(
+        {seed: data, "q.csv": fr._configs_text(rows).encode()},
+        fr._urdf_argv(seed, tip, base),
+        None,
+        oracle=fr.urdf_check(data, tip, base, np.array(rows), fr.OFFSET_MM, fr.K_ALL),
+    )
+    o = run_case(case)
+    assert o.kind == "ok", o.stderr
+    recs = json.loads(o.stdout)
+    recs[1]["position"][0] += 1e-3
+    o.stdout = json.dumps(recs)
+    assert "configuration 2: position" in case.oracle(o)
+
+
+def test_every_class_is_tested():
+    assert set(_BY_NAME) == {
+        "robots: legs TOML x model legs",
+        "robots: poses CSV x model legs",
+        "robots: URDF x model urdf",
+        "robots: xacro x model urdf",
+        "robots: configurations CSV x model urdf",
+        "robots: robot file x simulate --robot",
+    }
+
+
+# ------------------------------------------------------------------------ findings
+def _with_copied_leg(seed: str, src: int, dst: int) -> bytes:
+    """The shipped TOML with leg ``dst`` (0-based) a copy of leg ``src`` under its own name and
+    stiffness names: a copied leg not edited."""
+    data = json.loads(json.dumps(fr.legs_seed(seed), allow_nan=True))
+    legs = data["legs"]
+    copy = json.loads(json.dumps(legs[src], allow_nan=True))
+    copy["name"] = legs[dst]["name"]
+    for a, b in zip(copy["joints"], legs[dst]["joints"], strict=True):
+        if "stiffness" in b:
+            a["stiffness"] = b["stiffness"]
+    legs[dst] = copy
+    return fr.toml_text(data).encode()
+
+
+@pytest.mark.parametrize("seed", ["3prr.toml", "delta.toml", "hexapod.toml"])
+def test_two_legs_in_the_same_place_are_refused_naming_both(tmp_path, seed):
+    """Found by the fuzzing: a 3PRR whose third leg is a copy of its second gave exit 0 and a K
+    that counts one leg twice (the Delta and the hexapod: every point singular, the file not
+    named)."""
+    f = tmp_path / seed
+    f.write_bytes(_with_copied_leg(seed, 1, 2))
+    o = run_argv(["model", "legs", str(f), *fr.LEGS_SEEDS[seed], "--json"])
+    assert o.code == 2, (o.code, o.stdout[:500])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and seed in lines[0], o.stderr
+    assert "legs[3]" in lines[0] and "same place as legs[2]" in lines[0], lines[0]
+
+
+def test_the_shipped_files_legs_are_all_in_different_places():
+    for seed in ("3prr.toml", "delta.toml", "hexapod.toml", "3rps.toml", "delta_links.toml"):
+        o = run_argv(["model", "legs", str(fr.SHIPPED / seed), "--grid", "0,0,0", "--json"])
+        assert "same place" not in o.stderr, (seed, o.stderr)
