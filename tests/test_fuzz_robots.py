@@ -12,6 +12,7 @@ found, as regression tests.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -151,3 +152,17 @@ def test_the_shipped_files_legs_are_all_in_different_places():
     for seed in ("3prr.toml", "delta.toml", "hexapod.toml", "3rps.toml", "delta_links.toml"):
         o = run_argv(["model", "legs", str(fr.SHIPPED / seed), "--grid", "0,0,0", "--json"])
         assert "same place" not in o.stderr, (seed, o.stderr)
+
+
+@pytest.mark.parametrize(("grid", "orientation"), fr.TOO_MANY_POSES[:2])
+def test_a_grid_at_orientations_of_too_many_poses_is_refused(grid, orientation):
+    """Found by the fuzzing: --grid and --orientation each within their limits (a million
+    positions, 1e5 orientations) joined into 1e11 poses: an internal error (MemoryError
+    allocating 2.18 TiB), or 1e8 poses allocated and mapped for days."""
+    hexapod = str(fr.SHIPPED / "hexapod.toml")
+    o = run_argv(["model", "legs", hexapod, f"--grid={grid}", f"--orientation={orientation}", "--json"])
+    assert o.code == 2 and o.escaped is None, (o.code, o.stderr[-500:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: --grid with --orientation gives"), o.stderr
+    n_pos, n_or = (int(w) for w in re.findall(r"(\d+) (?:positions|orientations)", lines[0]))
+    assert n_pos * n_or > 1_000_000 and f"{n_pos * n_or} poses; at most 1000000" in lines[0]
