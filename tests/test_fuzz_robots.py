@@ -166,3 +166,41 @@ def test_a_grid_at_orientations_of_too_many_poses_is_refused(grid, orientation):
     assert len(lines) == 1 and lines[0].startswith("error: --grid with --orientation gives"), o.stderr
     n_pos, n_or = (int(w) for w in re.findall(r"(\d+) (?:positions|orientations)", lines[0]))
     assert n_pos * n_or > 1_000_000 and f"{n_pos * n_or} poses; at most 1000000" in lines[0]
+
+
+@pytest.mark.parametrize(("multiplier", "offset"), [("1e300", "0"), ("-2e6", "0"), ("1", "1e300")])
+def test_a_mimic_of_absurd_multiplier_or_offset_on_the_chain_is_refused(tmp_path, multiplier, offset):
+    """Found by the fuzzing: <mimic multiplier="1e300"> on the chain was an internal error
+    (RuntimeWarning: overflow encountered in dot)."""
+    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
+    follower = f'<mimic joint="joint_1" multiplier="{multiplier}" offset="{offset}"/>'
+    text = text.replace(
+        '<joint name="joint_3" type="revolute">', f'<joint name="joint_3" type="revolute">{follower}'
+    )
+    f = tmp_path / "acme_rs6.urdf"
+    f.write_text(text)
+    q = tmp_path / "q.csv"
+    q.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg\n10,20,30,40,50\n")
+    o = run_argv(["model", "urdf", str(f), "--tip", "tool0", "--configs", str(q), "--param", "k_theta=1e7"])
+    assert o.code == 2, (o.code, o.stderr[-500:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "acme_rs6.urdf" in lines[0] and "joint 'joint_3'" in lines[0], o.stderr
+    assert "<mimic multiplier>" in lines[0] or "<mimic offset>" in lines[0], lines[0]
+
+
+def test_a_mimic_of_a_moderate_multiplier_is_still_followed(tmp_path):
+    # a mimic within the bounds is followed: the model runs and agrees with the reference
+    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
+    follower = '<mimic joint="joint_2" multiplier="-0.5" offset="0.1"/>'
+    text = text.replace(
+        '<joint name="joint_3" type="revolute">', f'<joint name="joint_3" type="revolute">{follower}'
+    )
+    rows = ((10.0, 20.0, 40.0, 50.0, 60.0),)
+    case = fr.RobotCase(
+        {"acme_rs6.urdf": text.encode(), "q.csv": fr._configs_text(rows).encode()},
+        fr._urdf_argv("acme_rs6.urdf", "tool0", None),
+        None,
+        oracle=fr.urdf_check(text.encode(), "tool0", None, np.array(rows), fr.OFFSET_MM, fr.K_ALL),
+    )
+    o = run_case(case)
+    assert o.kind == "ok", o.stderr

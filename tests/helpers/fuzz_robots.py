@@ -632,15 +632,41 @@ def _joints(root, moving_only: bool = False):
     return [j for j in js if j.get("type") in ref.MOVING] if moving_only else js
 
 
+URDF_MUTATIONS = (
+    "drop joint", "drop link", "duplicate joint", "duplicate link", "type", "axis", "origin", "rpy",
+    "mimic missing", "mimic self", "mimic loop", "mimic", "limits", "cycle", "two roots", "orphan joint",
+    "valid type", "drop element", "unexpanded xacro", "commas",
+)  # fmt: skip
+#: Changes that leave a valid URDF of another robot (the oracle then checks the answer).
+VALID_TYPES = ("prismatic", "continuous", "fixed")
+
+
+def _other_mutation(draw, root: ET.Element, j: ET.Element, kind: str) -> str:
+    """The mutations of a joint that may leave a valid URDF (a joint of another type, an element
+    left to its default) or leave a text a URDF reader must not take for numbers."""
+    if kind == "valid type":
+        j.set("type", draw(st.sampled_from(VALID_TYPES)))
+        return f"type {j.get('type')}"
+    if kind == "drop element":
+        tag = draw(st.sampled_from(("axis", "origin", "limit")))
+        if j.find(tag) is not None:
+            j.remove(j.find(tag))
+        return f"<{tag}> removed"
+    el = j.find("origin") if j.find("origin") is not None else ET.SubElement(j, "origin")
+    if kind == "unexpanded xacro":
+        el.set("xyz", "${d1} 0 0")
+        return "origin ${d1} 0 0"
+    xyz = el.get("xyz", "0 0 0").split()
+    el.set("xyz", ",".join(xyz))
+    return f"origin xyz {el.get('xyz')!r}"
+
+
 def _mutate_urdf(draw, root: ET.Element) -> str:
     """One element-level mutation of a parsed URDF (in place); what it was."""
     moving = _joints(root, True)
     j = moving[draw(st.integers(0, len(moving) - 1))]
     name = j.get("name")
-    kind = draw(st.sampled_from(
-        ("drop joint", "drop link", "duplicate joint", "duplicate link", "type", "axis", "origin", "rpy",
-         "mimic missing", "mimic self", "mimic loop", "mimic", "limits", "cycle", "two roots", "orphan joint")
-    ))  # fmt: skip
+    kind = draw(st.sampled_from(URDF_MUTATIONS))
     if kind == "drop joint":
         root.remove(j)
     elif kind == "drop link":
@@ -684,6 +710,8 @@ def _mutate_urdf(draw, root: ET.Element) -> str:
     elif kind == "two roots":
         j.find("parent").set("link", "floating_island")
         root.append(ET.Element("link", name="floating_island"))
+    elif kind in ("valid type", "drop element", "unexpanded xacro", "commas"):
+        kind = _other_mutation(draw, root, j, kind)
     else:
         o = ET.SubElement(root, "joint", name="orphan", type="revolute")
         ET.SubElement(o, "parent", link="nowhere")
@@ -793,7 +821,8 @@ XACRO_EDITS = (
 
 #: --xacro-arg values: none (mount_height has no default), no value, not a number, huge.
 XACRO_ARGS = (
-    (), ("--xacro-arg", "mount_height"), ("--xacro-arg", "mount_height=abc"),
+    (), ("--xacro-arg", "mount_height"), ("--xacro-arg", "mount_height=0.25"),
+    ("--xacro-arg", "mount_height=-3"), ("--xacro-arg", "mount_height=abc"),
     ("--xacro-arg", "mount_height=nan"),
     ("--xacro-arg", "=0.4"), ("--xacro-arg", "mount_height=1e300"), ("--xacro-arg", "prefix=a b"),
 )  # fmt: skip
@@ -825,12 +854,20 @@ def xacro_cases(draw) -> RobotCase:
 
 def _xacro_check(files: dict[str, bytes], args, rows) -> Callable[[Outcome], str | None]:
     """Finite JSON; where the description is unchanged but for its arguments' values, the
-    pre-expanded URDF's answer (the pedestal raised by mount_height)."""
+    reference's answer on the vendor's pre-expanded URDF with that pedestal height."""
 
-    def check(o: Outcome) -> str | None:
-        return _finite_json(o.stdout) if o.stdout.strip() else None
-
-    return check
+    seed = xacro_seed()
+    mount = next((a.split("=", 1)[1] for a in args if a.startswith("mount_height=")), None)
+    try:
+        height = float(mount) if mount is not None else math.nan
+    except ValueError:
+        height = math.nan
+    same = all(files[k] == v for k, v in seed.items())
+    if not (same and math.isfinite(height)):
+        return lambda o: _finite_json(o.stdout) if o.stdout.strip() else None
+    # the vendor's pre-expanded file is the same robot on a pedestal of 0.4 m
+    text = (TEST_ROBOTS / "acme_rs6.urdf").read_text().replace('xyz="0 0 0.4"', f'xyz="0 0 {height!r}"')
+    return urdf_check(text.encode(), "tool0", None, np.array(rows, dtype=float), OFFSET_MM, K_ALL)
 
 
 # --------------------------------------------------------------------------- configurations CSV
