@@ -204,3 +204,37 @@ def test_a_mimic_of_a_moderate_multiplier_is_still_followed(tmp_path):
     )
     o = run_case(case)
     assert o.kind == "ok", o.stderr
+
+
+def test_a_urdf_of_two_roots_is_said_and_the_root_used_named(tmp_path):
+    """Found by the fuzzing: joint_1's parent link misspelt (a link of that name added: the file
+    reads) made link 'base_lnk' a second root; the chain started there, 0.4 m below the robot's
+    'world', with exit 0 and no word (the positions 400 mm off)."""
+    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
+    text = text.replace(
+        '<parent link="base_link"/><child link="link_1"/>', '<parent link="base_lnk"/><child link="link_1"/>'
+    )
+    text = text.replace('<link name="world"/>', '<link name="world"/><link name="base_lnk"/>')
+    (tmp_path / "acme_rs6.urdf").write_text(text)
+    (tmp_path / "q.csv").write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n10,20,-30,40,50,60\n")
+    argv = [
+        "model",
+        "urdf",
+        str(tmp_path / "acme_rs6.urdf"),
+        "--tip",
+        "tool0",
+        "--configs",
+        str(tmp_path / "q.csv"),
+    ]
+    o = run_argv([*argv, "--param", "k_theta=1e7", "--json"])
+    assert o.code == 1, (o.code, o.stderr)
+    lines = [ln for ln in o.stderr.splitlines() if ln.startswith("warning:")]
+    assert len(lines) == 1 and "acme_rs6.urdf: 2 root links ('world', 'base_lnk')" in lines[0], o.stderr
+    assert "starts at 'base_lnk'" in lines[0]
+    shipped = [str(fr.TEST_ROBOTS / "acme_rs6.urdf") if a.endswith("acme_rs6.urdf") else a for a in argv]
+    good = run_argv([*shipped, "--param", "k_theta=1e7", "--json"])
+    assert good.code == 0 and not good.stderr.strip(), good.stderr
+    z = [json.loads(x.stdout)[0]["position"][2] for x in (o, good)]
+    assert z[1] - z[0] == pytest.approx(400.0, abs=1e-9)  # what the warning is about: the pedestal
+    chosen = run_argv([*argv, "--base", "base_lnk", "--param", "k_theta=1e7"])  # the user said which
+    assert chosen.code == 0 and "root links" not in chosen.stderr, chosen.stderr
