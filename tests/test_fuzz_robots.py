@@ -238,3 +238,37 @@ def test_a_urdf_of_two_roots_is_said_and_the_root_used_named(tmp_path):
     assert z[1] - z[0] == pytest.approx(400.0, abs=1e-9)  # what the warning is about: the pedestal
     chosen = run_argv([*argv, "--base", "base_lnk", "--param", "k_theta=1e7"])  # the user said which
     assert chosen.code == 0 and "root links" not in chosen.stderr, chosen.stderr
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["model", "delta", "--grid", "0,0,1e300"],
+        ["model", "legs", "hexapod", "--grid", "0,0,1e300", "--json"],
+        ["model", "legs", "hexapod", "--grid=0,0,1e300", "--orientation=-10:10:3,0,0"],
+        ["model", "legs", "delta", "--grid", "-2e6:0:3,0,-300"],
+    ],
+)
+def test_a_grid_beyond_a_plausible_position_is_an_error_of_the_option(argv):
+    """Found by the fuzzing: --grid 0,0,1e300 was an internal error (ValueError 'points: row 0 ...
+    is beyond +-1e+06 mm') for every robot kind; the same number in a --points CSV is named."""
+    o = run_argv(argv)
+    assert o.code == 2, (o.code, o.stderr[-500:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: --grid"), o.stderr
+    assert "mm is beyond +-1e+06 mm: not a plausible position" in lines[0]
+
+
+@pytest.mark.parametrize("value", ["1e300", "1e-300", "2e12"])
+def test_a_leg_stiffness_outside_the_files_range_is_an_error_of_param(value):
+    """Found by the fuzzing: --param k_leg1=1e300 (or 1e-300) reached the model, whose every pose
+    was 'singular: the legs do not hold the platform in every direction' (the TOML's [params]
+    refuses the same number, by name)."""
+    o = run_argv(["model", "legs", "hexapod", "--grid", "0,0,300", "--param", f"k_leg1={value}"])
+    assert o.code == 2, (o.code, o.stderr[-500:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith(
+        "error: --param: k_leg1: a stiffness between 1e-06 and 1e+12"
+    )
+    ok = run_argv(["model", "legs", "hexapod", "--grid", "0,0,300", "--param", "k_leg1=1e12", "--json"])
+    assert ok.code == 0, ok.stderr  # the range's end is in it

@@ -470,8 +470,12 @@ def legs_cases(draw) -> RobotCase:
     # Another robot that reaches none of the points (an axis turned, a single leg): each point's
     # reason is printed ("unreachable: leg 2 ...", "singular: ..."), the file need not be named.
     # A spring made rigid (inf) where no other spring acts: "singular: leg 3 rigid along a direction".
+    # Finite geometry changed (a joint moved, an attach point, a tip offset left to its default):
+    # a valid file of another robot, which may reach none of the points.
     rigid = what.startswith("params.") and what.endswith("= inf")
-    blamed = None if rigid or what.endswith(("[1e+300, 0.0, 0.0]", "[1.0, 1.0, 0.0]", "one leg")) else seed
+    moved = re.search(r"\.(attach_mm|xyz_mm|tip_offset_mm|rpy|axis|q0) = (?!nan|inf|-inf)", what)
+    other = what.endswith(("[1e+300, 0.0, 0.0]", "[1.0, 1.0, 0.0]", "one leg", "tip_offset_mm dropped"))
+    blamed = None if rigid or moved or other else seed
     return RobotCase({seed: text}, argv, blamed, f"{seed}: {what}", oracle=legs_check(text))
 
 
@@ -537,6 +541,11 @@ GRID_VALUES = ("0,0,300", "-20:20:3,0,300", "0,0", "0:0:0,0,300", "1:2:1e9,0,300
 ORIENTATION_VALUES = ("0,0,0", "5,0,0", "1e6,0,0", "nan,0,0", "0,0", "-10:10:3,0,0", "0,0,0,0", "inf,0,0",
                       "10:-10:0,0,0", "0:1:1e7,0,0", "x,y,z")  # fmt: skip
 MOMENT_VALUES = ("0,0,0", "100,0,-50", "1e300,0,0", "nan,0,0", "1,2", "inf,0,0", "a,b,c")
+#: --param values of the hexapod: within the [params] range or not, unknown names, not numbers.
+PARAM_VALUES = (
+    "k_leg1=500", "k_leg2=700,k_leg5=650", "k_leg1=1e300", "k_leg1=1e-300", "k_leg1=1e12", "k_leg1=2e12",
+    "k_leg1=-1", "k_leg1=nan", "k_leg1=inf", "k_leg9=5", "k_leg1", "=5", "k_leg1=1e-6",
+)  # fmt: skip
 #: A --grid and --orientation each within their limits whose poses are not (1e11 and 1e8 poses:
 #: a MemoryError, or a map of days). A grid of a million positions alone is a legitimate long run
 #: (its progress printed): not drawn, it would count as a hang.
@@ -551,6 +560,7 @@ TOO_MANY_POSES = (
 def poses_cases(draw) -> RobotCase:
     hexapod = (SHIPPED / "hexapod.toml").read_bytes()
     opts: tuple[str, ...]
+    override = None
     if draw(st.booleans()):
         text, what = draw(poses_csv())
         files = {"hexapod.toml": hexapod, "poses.csv": text}
@@ -559,16 +569,22 @@ def poses_cases(draw) -> RobotCase:
         g, o, m = (draw(st.sampled_from(v)) for v in (GRID_VALUES, ORIENTATION_VALUES, MOMENT_VALUES))
         if draw(st.integers(0, 4)) == 0:
             g, o = draw(st.sampled_from(TOO_MANY_POSES))
-        files, what, blamed = (
-            {"hexapod.toml": hexapod},
-            f"--grid {g!r} --orientation {o!r} --moment-nmm {m!r}",
-            None,
-        )
-        opts = (f"--grid={g}", f"--orientation={o}", f"--moment-nmm={m}")
+        p = draw(st.sampled_from(PARAM_VALUES))
+        files, blamed = {"hexapod.toml": hexapod}, None
+        what = f"--grid {g!r} --orientation {o!r} --moment-nmm {m!r} --param {p!r}"
+        opts = (f"--grid={g}", f"--orientation={o}", f"--moment-nmm={m}", f"--param={p}")
+        override = _param_override(p)
     argv = ("model", "legs", "{dir}/hexapod.toml", *opts, "--json")
-    return RobotCase(
-        files, argv, blamed, what, oracle=_poses_check(files.get("poses.csv"), legs_check(hexapod))
-    )
+    k6 = legs_check(hexapod, override)
+    return RobotCase(files, argv, blamed, what, oracle=_poses_check(files.get("poses.csv"), k6))
+
+
+def _param_override(text: str) -> dict[str, float] | None:
+    """``--param NAME=VALUE[,NAME=VALUE]`` as the oracle takes it (None when it is not that)."""
+    try:
+        return {k: float(v) for k, v in (item.split("=") for item in text.split(","))}
+    except ValueError:
+        return None
 
 
 def _poses_check(text: bytes | None, k6_check) -> Callable[[Outcome], str | None]:
