@@ -272,3 +272,29 @@ def test_a_leg_stiffness_outside_the_files_range_is_an_error_of_param(value):
     )
     ok = run_argv(["model", "legs", "hexapod", "--grid", "0,0,300", "--param", "k_leg1=1e12", "--json"])
     assert ok.code == 0, ok.stderr  # the range's end is in it
+
+
+@pytest.mark.parametrize("offset", ["a,b,c", "1;2;3"])
+def test_a_tip_offset_that_is_not_numbers_is_named(tmp_path, offset):
+    """Found by the fuzzing: --tip-offset-mm a,b,c was an internal error (ValueError: could not
+    convert string to float), where 1,2 or nan,0,0 were named."""
+    (tmp_path / "q.csv").write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n10,20,-30,40,50,60\n")
+    urdf = str(fr.TEST_ROBOTS / "acme_rs6.urdf")
+    argv = [
+        "model",
+        "urdf",
+        urdf,
+        "--tip",
+        "tool0",
+        "--configs",
+        str(tmp_path / "q.csv"),
+        "--param",
+        "k_theta=1e7",
+    ]
+    o = run_argv([*argv, f"--tip-offset-mm={offset}"])
+    assert o.code == 2, (o.code, o.stderr[-500:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert (
+        len(lines) == 1
+        and f"tip offset must be three finite numbers within 1e+06 mm, got {offset!r}" in lines[0]
+    )

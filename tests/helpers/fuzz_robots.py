@@ -755,12 +755,33 @@ def _configs_text(rows, prismatic=()) -> str:
     return "\n".join([head, *(",".join(map(str, r)) for r in rows)]) + "\n"
 
 
-def _urdf_argv(name: str, tip: str, base: str | None, extra=()) -> tuple[str, ...]:
+def _urdf_argv(
+    name: str, tip: str, base: str | None, extra=(), offset: str | None = None, param: str | None = None
+) -> tuple[str, ...]:
+    offset = ",".join(map(str, OFFSET_MM)) if offset is None else offset
+    param = f"k_theta={K_ALL:g}" if param is None else param
     return (
         "model", "urdf", f"{{dir}}/{name}", "--tip", tip, *(("--base", base) if base else ()),
-        "--tip-offset-mm", ",".join(map(str, OFFSET_MM)), "--configs", "{dir}/q.csv",
-        "--param", f"k_theta={K_ALL:g}", *extra, "--json",
+        f"--tip-offset-mm={offset}", "--configs", "{dir}/q.csv", f"--param={param}", *extra, "--json",
     )  # fmt: skip
+
+
+#: --tip-offset-mm values: plausible, absurd, malformed.
+OFFSET_VALUES = ("0,0,0", "-5,0,250", "1e300,0,0", "1e6,0,0", "nan,0,0", "1,2", "inf,0,0", "a,b,c", "2e6,0,0")
+#: --param values of a six-joint arm: one for all, one each, absurd, too few, unknown.
+PARAM_URDF_VALUES = (
+    "k_theta=1e300", "k_theta=1e-300", "k_theta=0", "k_theta=nan", "k_theta=inf", "k_theta=1,2,3",
+    "k_theta=5e7,4e8,2e8,5e7,5e7,3e7", "k1=1e7", "k7=5", "k_theta=1e7,k1=5", "k_theta=", "k_theta=-1e7",
+)  # fmt: skip
+
+
+def _k_of(param: str) -> float | None:
+    """The one stiffness ``k_theta=K`` gives every joint (None: not that form)."""
+    m = re.fullmatch(r"k_theta=([^,]+)", param)
+    try:
+        return float(m.group(1)) if m else None
+    except ValueError:
+        return None
 
 
 def _matching_configs(data: bytes, tip: str, base: str | None, rows) -> tuple[tuple, tuple[int, ...]]:
@@ -791,10 +812,23 @@ def urdf_cases(draw) -> RobotCase:
              ("world", "tool0"), ("r_tool0", "l_link_2"))
         ))  # fmt: skip
         what = f"--tip {tip} --base {base}"
+    offset, param, k, off = None, None, K_ALL, OFFSET_MM
+    if draw(st.integers(0, 4)) == 0:  # the options of the valid file
+        data = (TEST_ROBOTS / seed).read_bytes()
+        offset, param = draw(st.sampled_from(OFFSET_VALUES)), draw(st.sampled_from(PARAM_URDF_VALUES))
+        what = f"--tip-offset-mm {offset} --param {param}"
+        k = _k_of(param)
+        off = (
+            tuple(map(float, offset.split(","))) if re.fullmatch(r"[-\d.e]+(,[-\d.e]+){2}", offset) else None
+        )
     rows, prismatic = _matching_configs(data, tip, base, rows)
     files = {seed: data, "q.csv": _configs_text(rows, prismatic).encode()}
-    check = urdf_check(data, tip, base, np.array(rows, dtype=float), OFFSET_MM, K_ALL)
-    return RobotCase(files, _urdf_argv(seed, tip, base), None, f"{seed}: {what}", oracle=check)
+    if k is not None and off is not None and 0 < k < math.inf:
+        check = urdf_check(data, tip, base, np.array(rows, dtype=float), off, k)
+    else:
+        check = lambda o: _finite_json(o.stdout) if o.stdout.strip() else None  # noqa: E731
+    argv = _urdf_argv(seed, tip, base, offset=offset, param=param)
+    return RobotCase(files, argv, None, f"{seed}: {what}", oracle=check)
 
 
 # --------------------------------------------------------------------------- xacro

@@ -312,7 +312,10 @@ def _kind(jtype: str) -> str:
 
 
 def _check_offset(tip_offset_mm, source: str) -> np.ndarray:
-    off = np.asarray(tip_offset_mm, dtype=float)
+    try:
+        off = np.asarray(tip_offset_mm, dtype=float)
+    except (TypeError, ValueError):  # text that is not numbers ('a,b,c', '1;2;3')
+        off = np.full(1, np.nan)
     if off.shape != (3,) or not np.all(np.isfinite(off)) or np.max(np.abs(off)) > MAX_POSITION_MM:
         raise InputError(
             f"tip offset must be three finite numbers within {MAX_POSITION_MM:g} mm, got {tip_offset_mm!r}",
