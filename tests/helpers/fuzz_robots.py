@@ -323,6 +323,7 @@ LEGS_SEEDS = {
     "hexapod.toml": ("--grid", "-20:20:2,0,280:320:2", "--orientation", "0,5,0"),
     "3rps.toml": ("--grid", "0,0,250"),
     "delta.toml": ("--grid", "-50:50:2,0,-300"),
+    "delta_links.toml": ("--grid", "-50:50:2,0,-300"),
     "3prr.toml": ("--grid", "300:400:2,150:200:2"),
 }
 #: Values that replace a number (a stiffness, a length, a limit).
@@ -381,7 +382,8 @@ def _coincide(draw, data: dict) -> str:
 
 LEGS_MUTATIONS = (
     "text", "number", "number", "drop key", "extra key", "wrong type", "2-number attach", "duplicate leg",
-    "coincide", "joint kind", "dim", "lower > upper", "axis", "no legs", "missing param", "one leg",
+    "coincide", "joint kind", "dim", "lower > upper", "axis", "no legs", "missing param", "one leg", "link",
+    "link",
 )  # fmt: skip
 
 
@@ -456,10 +458,29 @@ def legs_data(draw, seed: str) -> tuple[bytes, str]:
         key = draw(st.sampled_from(sorted(data["params"])))
         del data["params"][key]
         what = f"params.{key} missing"
+    elif kind == "link" and any("links" in lg for lg in legs):
+        what = _mutate_link(draw, [lg for lg in legs if "links" in lg])
     else:
         data["legs"] = legs[:1]
         what = "one leg"
     return toml_text(data).encode(), what
+
+
+def _mutate_link(draw, legs: list[dict]) -> str:
+    """One flexible link's data ([[legs.links]]) made wrong: a beam value, a key, its joint."""
+    leg = legs[draw(st.integers(0, len(legs) - 1))]
+    link = leg["links"][0]
+    beam = link.get("beam", {})
+    key = draw(st.sampled_from(sorted(beam) + ["after", "name", "beam"]))
+    if key == "after":
+        link["after"] = draw(st.sampled_from(("no_such_joint", "", "elbow_x")))
+    elif key == "name":
+        link["name"] = draw(st.sampled_from(("", "k_theta", "E_arm", "a b")))
+    elif key == "beam":
+        del link["beam"]
+    else:
+        beam[key] = draw(st.sampled_from(BAD_NUMBERS + BAD_TYPES[:2]))
+    return f"{leg['name']}.links[1].{key} = {link.get(key, beam.get(key))!r}"
 
 
 @st.composite
@@ -475,6 +496,7 @@ def legs_cases(draw) -> RobotCase:
     rigid = what.startswith("params.") and what.endswith("= inf")
     moved = re.search(r"\.(attach_mm|xyz_mm|tip_offset_mm|rpy|axis|q0) = (?!nan|inf|-inf)", what)
     other = what.endswith(("[1e+300, 0.0, 0.0]", "[1.0, 1.0, 0.0]", "one leg", "tip_offset_mm dropped"))
+    other = other or what.endswith(("dim = 2", "dim = 3", "dim = 6"))  # what the file says it is
     blamed = None if rigid or moved or other else seed
     return RobotCase({seed: text}, argv, blamed, f"{seed}: {what}", oracle=legs_check(text))
 
