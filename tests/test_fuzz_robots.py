@@ -298,3 +298,32 @@ def test_a_tip_offset_that_is_not_numbers_is_named(tmp_path, offset):
         len(lines) == 1
         and f"tip offset must be three finite numbers within 1e+06 mm, got {offset!r}" in lines[0]
     )
+
+
+@pytest.mark.parametrize(
+    ("param", "offset"),
+    [("k_theta=1e-300", "1e6,0,0"), ("k_theta=1e-300", "0,0,0"), ("k_theta=1e13", "0,0,0")],
+)
+def test_a_joint_stiffness_outside_the_range_is_an_error_of_param(tmp_path, param, offset):
+    """Found by the fuzzing: k_theta=1e-300 with --tip-offset-mm 1e6,0,0 on the cluttered mobile
+    manipulator was an internal error (RuntimeWarning: invalid value encountered in matmul); the
+    legs TOML's range 1e-6..1e12 (N*mm/rad or N/mm, or inf) now holds for a URDF's --param too."""
+    (tmp_path / "q.csv").write_text(
+        "q1_mm,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n120,10,20,-30,40,50,60\n"
+    )
+    argv = [
+        "model",
+        "urdf",
+        str(fr.TEST_ROBOTS / "cluttered_mm.urdf"),
+        "--base",
+        "base_link",
+        "--tip",
+        "r_tool0",
+    ]
+    o = run_argv([*argv, "--configs", str(tmp_path / "q.csv"), f"--tip-offset-mm={offset}", "--param", param])
+    assert o.code == 2, (o.code, o.stderr[-500:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith(
+        "error: --param: k1 (torso_lift_joint): a stiffness between 1e-06"
+    ), o.stderr
+    assert "N/mm" in lines[0]  # the torso lift is prismatic

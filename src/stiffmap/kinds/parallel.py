@@ -16,9 +16,9 @@ from importlib.resources import files
 import numpy as np
 
 from ..errors import FieldError
+from ..models.base import check_stiffness
 from ..models.delta import DeltaRobot
 from ..models.legs import LegRobot
-from ..models.legs_file import STIFFNESS_RANGE
 from ..models.presets import paper48, prr3_points22
 from ..models.prr3 import PRR3
 from ..sim.robot import mechanism_robot, platform_robot
@@ -156,14 +156,10 @@ def _legs(description: RobotDescription):
     values = float_params(description.params, description.kind)
     if not values:
         return model
-    lo, hi = STIFFNESS_RANGE
-    for k, v in values.items():  # the file's [params] range, for the values that override them
-        if k in model.param_keys and math.isfinite(v) and not lo <= v <= hi:
-            raise FieldError(
-                "params",
-                f"{k}: a stiffness between {lo:g} and {hi:g} N*mm/rad or N/mm (or inf for rigid), got {v!r}",
-            )
     try:
+        for k, v in values.items():  # the file's [params] range, for the values that override them
+            if k in model.param_keys:
+                check_stiffness(k, v, "N*mm/rad or N/mm")
         return model.with_params(**values)
     except (TypeError, ValueError) as e:
         raise FieldError("params", str(e)) from None

@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..geometry import euler_from_matrix
 from ..io import read_text_file
 from ..stiffness import MAX_POSITION_MM, MAX_ROTATION_RAD
-from .base import SINGULAR_TOL
+from .base import SINGULAR_TOL, STIFFNESS_RANGE
 from .links import LinkSpring
 from .robot_files import links_from_tables
 
@@ -47,8 +47,6 @@ __all__ = [
 ROLES = ("actuated", "passive", "spring")
 #: A legs TOML larger than this is refused unread (the Delta's is 3 kB).
 MAX_TOML_BYTES = 1024 * 1024
-#: The stiffnesses a legs TOML may give (N*mm/rad or N/mm), besides inf (rigid).
-STIFFNESS_RANGE = (1e-6, 1e12)
 
 # ---------------------------------------------------------------------- the data
 

@@ -52,7 +52,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..stiffness import MAX_POSITION_MM
-from .base import check_positive
+from .base import check_positive, check_stiffness
 from .io import AXIS_NAMES
 
 __all__ = [
@@ -329,7 +329,11 @@ def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...
             f"no stiffness for joint(s) {', '.join(missing)} of {chain.source}: a URDF robot has no "
             f"default; give k1=K1,...,k{n}=K{n} for {joints} ({units}), or k_theta=K for all"
         )
-    return tuple(
-        check_positive(f"k{i + 1} ({chain.joint_names[i]})", v, units.split(",")[0], allow_inf=True)
-        for i, v in enumerate(k)
-    )
+    out = []
+    for i, v in enumerate(k):
+        name, unit = (
+            f"k{i + 1} ({chain.joint_names[i]})",
+            "N/mm" if chain.joint_types[i] == "prismatic" else "N*mm/rad",
+        )
+        out.append(check_stiffness(name, check_positive(name, v, unit, allow_inf=True), unit))
+    return tuple(out)
