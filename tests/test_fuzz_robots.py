@@ -327,3 +327,42 @@ def test_a_joint_stiffness_outside_the_range_is_an_error_of_param(tmp_path, para
         "error: --param: k1 (torso_lift_joint): a stiffness between 1e-06"
     ), o.stderr
     assert "N/mm" in lines[0]  # the torso lift is prismatic
+
+
+def test_a_configurations_header_of_a_huge_field_is_named(tmp_path):
+    """Found by the long fuzz profile: a header cell of 200 000 characters was an internal error
+    (_csv.Error: field larger than field limit) in the configurations reader."""
+    q = tmp_path / "q.csv"
+    q.write_text("q" + "7" * 200_000 + "_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n10,20,-30,40,50,60\n")
+    urdf = str(fr.TEST_ROBOTS / "acme_rs6.urdf")
+    o = run_argv(["model", "urdf", urdf, "--tip", "tool0", "--configs", str(q), "--param", "k_theta=1e7"])
+    assert o.code == 2, (o.code, o.stderr[-300:])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "q.csv: line 1: not a table of numbers" in lines[0], o.stderr[-300:]
+
+
+def test_simulate_of_configurations_at_one_point_names_the_position(tmp_path):
+    """Found by the long fuzz profile: a URDF whose chain to the tip is one joint turning the tip
+    about its own axis (joint_6's parent link misspelt) puts both configurations at one point;
+    simulate --robot was an internal error (ValueError: the robot does not reach ... ambiguous)."""
+    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
+    text = text.replace(
+        '<parent link="link_5"/><child link="link_6"/>', '<parent link="link_55"/><child link="link_6"/>'
+    )
+    text = text.replace('<link name="world"/>', '<link name="world"/><link name="link_55"/>')
+    (tmp_path / "r.urdf").write_text(text)
+    (tmp_path / "q.csv").write_text("q1_deg\n10.0\n-80.0\n")
+    argv = [
+        "simulate",
+        str(tmp_path / "out"),
+        "--truth-only",
+        "--robot",
+        str(tmp_path / "r.urdf"),
+        "--tip",
+        "tool0",
+    ]
+    o = run_argv([*argv, "--configs", str(tmp_path / "q.csv"), "--param", "k_theta=1e7"])
+    assert o.code == 2, (o.code, o.stderr[-500:])
+    errors = [ln for ln in o.stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and errors[0].startswith("error: position 1 (80, 0, 0) mm"), o.stderr
+    assert "configurations 1 and 2 both put the point here" in errors[0]
