@@ -415,9 +415,10 @@ def _check_link_names(legs: tuple[LegDescription, ...], params: dict[str, float]
 
 
 def _geometry(leg: LegDescription) -> tuple:
-    """What places a leg: its platform joint, its URDF and its joints' kinematics (not its
-    stiffnesses, seeds or limits)."""
-    joints = tuple((j.type, j.axis, j.xyz_mm, j.rpy) for j in leg.joints)
+    """What places a leg and what acts in it: its platform joint, its URDF, its joints' kinematics
+    and roles (not their stiffnesses, seeds or limits). One URDF's chain listed as several legs,
+    each with another joint actuated, is several legs: a Cartesian stage as three."""
+    joints = tuple((j.name, j.role, j.type, j.axis, j.xyz_mm, j.rpy) for j in leg.joints)
     return (
         leg.attach_mm,
         leg.tip_offset_mm,
