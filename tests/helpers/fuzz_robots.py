@@ -17,6 +17,8 @@ Exit 0 is not enough where the answer can be checked independently (:class:`Robo
 - a dim-6 legs TOML whose legs are still UPS legs (a universal joint, the actuated prismatic
   leg, a ball joint on the platform): K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i) at the pose
   read from the input (Gosselin's closed form, the form ``tests/test_models_legs6.py`` checks);
+- legs given as URDFs (one URDF's Cartesian chain listed as three legs, each with another joint
+  actuated): K = diag(k1, k2, k3) whatever [params] says;
 - a URDF: the measured point and K of :mod:`helpers.urdf_reference` (forward kinematics in
   NumPy from the file's numbers, no stiffmap code) on the same mutated file, when it can read
   it (finite numbers, no cycle of joints or mimics);
@@ -494,8 +496,96 @@ def _reads(text: bytes) -> bool:
     return True
 
 
+# ------------------------------------------------------------------ legs given as URDFs
+#: One URDF's chain (three prismatic joints x, y, z to link l3) listed as three legs, each with
+#: another joint actuated: a Cartesian stage, K = diag(k1, k2, k3) (N/mm) at every position.
+STAGE_URDF = """<robot name="leg"><link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/>
+<joint name="x" type="prismatic"><parent link="base"/><child link="l1"/><axis xyz="1 0 0"/>
+<limit lower="-500" upper="500" effort="1" velocity="1"/></joint>
+<joint name="y" type="prismatic"><parent link="l1"/><child link="l2"/><axis xyz="0 1 0"/>
+<limit lower="-500" upper="500" effort="1" velocity="1"/></joint>
+<joint name="z" type="prismatic"><parent link="l2"/><child link="l3"/><axis xyz="0 0 1"/>
+<limit lower="-500" upper="500" effort="1" velocity="1"/></joint></robot>
+"""
+STAGE_K = (100.0, 200.0, 300.0)
+
+
+def stage_data() -> dict:
+    legs = [
+        {"name": f"leg{i}", "attach_mm": [0.0, 0.0, 0.0], "urdf": "leg.urdf", "tip_frame": "l3",
+         "joints": [{"name": j, "role": "actuated", "stiffness": f"k{i}"}]}
+        for i, j in enumerate("xyz", start=1)
+    ]  # fmt: skip
+    return {
+        "name": "cartesian",
+        "dim": 3,
+        "params": {f"k{i}": k for i, k in enumerate(STAGE_K, 1)},
+        "legs": legs,
+    }
+
+
+#: What a leg's urdf and tip_frame keys may wrongly say.
+STAGE_KEYS = (
+    ("urdf", "no_such.urdf"), ("urdf", "../leg.urdf"), ("urdf", "/etc/passwd"), ("urdf", "."), ("urdf", ""),
+    ("urdf", "stage.toml"), ("tip_frame", "l9"), ("tip_frame", "base"), ("tip_frame", "l1"),
+    ("tip_frame", ""),
+)  # fmt: skip
+
+
+@st.composite
+def stage_cases(draw) -> RobotCase:
+    """The Cartesian stage of URDF legs with its TOML or its URDF made wrong."""
+    data, urdf = stage_data(), STAGE_URDF.encode()
+    kind = draw(st.sampled_from(("key", "param", "urdf", "urdf text")))
+    blamed: str | None = None
+    if kind == "key":
+        key, value = draw(st.sampled_from(STAGE_KEYS))
+        leg = data["legs"][draw(st.integers(0, 2))]
+        leg[key] = value
+        what = f"{leg['name']}.{key} = {value!r}"
+    elif kind == "param":
+        key = draw(st.sampled_from(sorted(data["params"])))
+        data["params"][key] = draw(st.sampled_from(BAD_NUMBERS + (50.0, 1e6)))
+        what, blamed = f"params.{key} = {data['params'][key]}", "stage.toml"
+    elif kind == "urdf":
+        root = ET.fromstring(STAGE_URDF)
+        what = "leg.urdf: " + _mutate_urdf(draw, root)
+        urdf = ET.tostring(root)
+    else:
+        urdf, what = draw(mutated_text(STAGE_URDF)), "leg.urdf: text mutation"
+    toml = toml_text(data).encode()
+    files = {"stage.toml": toml, "leg.urdf": urdf}
+    check = _stage_check(data["params"]) if kind in ("param",) else _json_only
+    blamed = None if blamed and _reads(toml) else blamed
+    argv = ("model", "legs", "{dir}/stage.toml", "--grid", "-20:20:2,0,30", "--json")
+    return RobotCase(files, argv, blamed, f"urdf legs: {what}", oracle=check)
+
+
+def _json_only(o: Outcome) -> str | None:
+    return _finite_json(o.stdout) if o.stdout.strip() else None
+
+
+def _stage_check(params: dict[str, float]) -> Callable[[Outcome], str | None]:
+    """K = diag(k1, k2, k3): each leg holds the stage along its actuated joint's axis."""
+
+    def check(o: Outcome) -> str | None:
+        bad = _json_only(o)
+        if bad or not o.stdout.strip():
+            return bad
+        K = np.diag([params[f"k{i}"] for i in (1, 2, 3)])
+        for rec in json.loads(o.stdout):
+            if rec.get("K") is not None and _rel(rec["K"], K) > REL_TOL:
+                where = f"({rec['x']}, {rec['y']}, {rec['z']})"
+                return f"K at {where} is not diag(k1, k2, k3) = {np.diag(K).tolist()}"
+        return None
+
+    return check
+
+
 @st.composite
 def legs_cases(draw) -> RobotCase:
+    if draw(st.integers(0, 4)) == 0:
+        return draw(stage_cases())
     seed = draw(st.sampled_from(sorted(LEGS_SEEDS)))
     text, what = draw(legs_data(seed))
     argv = ("model", "legs", f"{{dir}}/{seed}", *LEGS_SEEDS[seed], "--json")
