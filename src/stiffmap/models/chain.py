@@ -43,13 +43,14 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InputError
+from ..errors import InputError, StiffmapWarning
 from ..stiffness import MAX_POSITION_MM
 from .robot_files import MOVING_TYPES, UrdfJoint, UrdfTree, read_urdf
 
@@ -229,6 +230,22 @@ def _chain_path(tree: UrdfTree, tip: str, base: str | None) -> tuple[str, list[s
     )
 
 
+def _warn_roots(tree: UrdfTree, tip_frame: str, root: str) -> None:
+    """A URDF is one tree: several roots (a joint dropped, a parent link misspelt) make the chain
+    start at the root of the tip's tree, which may not be the robot's base: said, not refused
+    (a base frame chosen says which)."""
+    roots = tree.roots
+    if len(roots) > 1:
+        shown = ", ".join(repr(r) for r in roots[:5]) + (", ..." if len(roots) > 5 else "")
+        warnings.warn(
+            f"{tree.source}: {len(roots)} root links ({shown}) where a URDF has one (a joint missing, a "
+            f"parent link misspelt?); the chain to {tip_frame!r} starts at {root!r}, the root of its tree "
+            "(choose the base frame to say which)",
+            StiffmapWarning,
+            stacklevel=3,
+        )
+
+
 def _moving_below(tree: UrdfTree, link: str) -> str | None:
     """The first moving joint (breadth first) in the subtree below ``link``, or None."""
     level = {link}
@@ -295,7 +312,10 @@ def _kind(jtype: str) -> str:
 
 
 def _check_offset(tip_offset_mm, source: str) -> np.ndarray:
-    off = np.asarray(tip_offset_mm, dtype=float)
+    try:
+        off = np.asarray(tip_offset_mm, dtype=float)
+    except (TypeError, ValueError):  # text that is not numbers ('a,b,c', '1;2;3')
+        off = np.full(1, np.nan)
     if off.shape != (3,) or not np.all(np.isfinite(off)) or np.max(np.abs(off)) > MAX_POSITION_MM:
         raise InputError(
             f"tip offset must be three finite numbers within {MAX_POSITION_MM:g} mm, got {tip_offset_mm!r}",
@@ -500,6 +520,8 @@ class Chain:
         tip = _link_of(tree, tip_frame, "the measured point")
         base = None if base_frame is None else _link_of(tree, base_frame, "the base frame")
         base, held, path, branch = _chain_path(tree, tip, base)
+        if base_frame is None:
+            _warn_roots(tree, tip_frame, base)
         movers: list[_Mover] = []
         links: dict[str, tuple[int, pin.SE3]] = {base: (0, pin.SE3.Identity())}
         acc = pin.SE3.Identity()  # placement after the last mover (or the base)
