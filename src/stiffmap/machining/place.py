@@ -22,6 +22,7 @@ grid's values are kept for the placement map.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -284,7 +285,13 @@ def _many_all(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tu
 
 
 def place_program(
-    fld, path: Toolpath, forces: ForceSpec, *, region=None, objective: str = "worst"
+    fld,
+    path: Toolpath,
+    forces: ForceSpec,
+    *,
+    region=None,
+    objective: str = "worst",
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> Placement:
     """The placement of the program that minimises the objective (module docstring).
 
@@ -297,6 +304,10 @@ def place_program(
         The box the program must stay in (default :func:`default_region`).
     objective : str
         ``"worst"`` or ``"rms"`` deflection along the feed moves.
+    progress : callable (what, done, total), optional
+        Called as the search goes: ``"placement grid"`` with the grid's placements evaluated,
+        then ``"placement search"`` with the compass searches' step halvings done (its total
+        grows when more starts are needed); each count rises to its total.
 
     Raises
     ------
@@ -322,7 +333,13 @@ def place_program(
     T = np.zeros((mesh.shape[0], 3))
     T[:, dims] = mesh
     sub = np.linspace(0, P.shape[0] - 1, min(P.shape[0], COARSE_POINTS)).round().astype(int)
-    coarse = _many(fld, T, P[sub], F[sub], feed[sub], objective)[0]
+    chunks = np.array_split(T, range(axes[0].size, T.shape[0], axes[0].size))  # a grid line each
+    coarse = []
+    for Tc in chunks:
+        coarse.append(_many(fld, Tc, P[sub], F[sub], feed[sub], objective)[0])
+        if progress is not None:
+            progress("placement grid", sum(c.size for c in coarse), T.shape[0])
+    coarse = np.concatenate(coarse)
     values = np.where(np.isfinite(coarse), coarse, np.nan).reshape(tuple(a.size for a in axes))
     if not np.any(np.isfinite(coarse)):
         raise InputError(
@@ -330,15 +347,14 @@ def place_program(
             f"from singularities (conditioning >= {MIN_CONDITIONING:g})"
         )
     step0 = np.array([(a[1] - a[0]) if a.size > 1 else 1.0 for a in axes])
-    best_t, best_v, n = _refine(
-        fld, path, forces, T[np.argsort(coarse)[: int(np.isfinite(coarse).sum())]], dims, step0 / 2, objective
-    )
+    starts = T[np.argsort(coarse)[: int(np.isfinite(coarse).sum())]]
+    best_t, best_v, n = _refine(fld, path, forces, starts, dims, step0 / 2, objective, _Ticks(progress))
     if not np.isfinite(best_v):
         raise InputError("--place auto: no feasible placement on all of the program's points")
     return Placement(best_t, best_v, objective, axes, values, T.shape[0] + n)
 
 
-def _refine(fld, path, forces, starts, dims, step, objective) -> tuple[np.ndarray | None, float, int]:
+def _refine(fld, path, forces, starts, dims, step, objective, ticks) -> tuple[np.ndarray | None, float, int]:
     """The best placement of compass searches from ``starts`` (best first), and the placements
     evaluated. On a program of at most :data:`SEARCH_POINTS` dense points: the best of the first
     :data:`STARTS` searches on every point. On a longer one: the searches run on
@@ -347,7 +363,8 @@ def _refine(fld, path, forces, starts, dims, step, objective) -> tuple[np.ndarra
     feasible one is returned with its objective on every point. For an arm (its inverse
     kinematics per placement), the searches run on :data:`ARM_COMPASS_POINTS` points
     (:func:`search_samples`) and each result is polished, best first, on the points above by a
-    compass search from a step of :data:`POLISH_MM` before its check."""
+    compass search from a step of :data:`POLISH_MM` before its check. ``ticks`` (:class:`_Ticks`)
+    counts the searches' step halvings."""
     Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
     full = Pd.shape[0] <= SEARCH_POINTS
     fine = (Pd, Fd, feedd) if full else search_samples(path, forces)
@@ -356,23 +373,56 @@ def _refine(fld, path, forces, starts, dims, step, objective) -> tuple[np.ndarra
     polish = np.full(step.shape, POLISH_MM)
     evals = 0
     for k in range(0, min(STARTS if full and not arm else MAX_STARTS, starts.shape[0]), STARTS):
+        batch = starts[k : k + STARTS]
+        ticks.plan(len(batch) * (_halvings(step) + (_halvings(polish) if arm else 0)))
         found = []
-        for t0 in starts[k : k + STARTS]:
-            t, v, n, Q = _compass(fld, t0, dims, step, *coarse, objective)
+        for t0 in batch:
+            t, v, n, Q = _compass(fld, t0, dims, step, *coarse, objective, ticks.tick)
             evals += n
             found.append((v, t, Q))
         for v, t, Q in sorted(found, key=lambda c: c[0]):
             if arm and np.isfinite(v):
-                t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective)
+                t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, ticks.tick)
                 evals += n
             if full and (not arm or np.isfinite(v)):
+                ticks.finish()
                 return t, v, evals
             if np.isfinite(v):
                 evals += 1
                 v_all = _every_point(fld, t, Pd, Fd, feedd, objective, fine[0], Q)
                 if np.isfinite(v_all):
+                    ticks.finish()
                     return t, v_all, evals
+        ticks.finish()
     return None, math.inf, evals
+
+
+def _halvings(step) -> int:
+    """How many times a compass search halves ``step`` before it stops."""
+    return max(0, math.ceil(math.log2(float(np.max(step)) / STEP_MM)))
+
+
+class _Ticks:
+    """The compass searches' progress, in step halvings: ``progress("placement search", done,
+    total)`` (:func:`place_program`); ``total`` grows as searches are planned."""
+
+    def __init__(self, progress):
+        self.progress, self.done, self.total = progress, 0, 0
+
+    def plan(self, n: int) -> None:
+        self.total += n
+
+    def tick(self) -> None:
+        self.done = min(self.done + 1, self.total)
+        self._say()
+
+    def finish(self) -> None:
+        self.done = self.total
+        self._say()
+
+    def _say(self) -> None:
+        if self.progress is not None:
+            self.progress("placement search", self.done, self.total)
 
 
 def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> float:
@@ -386,8 +436,9 @@ def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> float:
     return objective_at(fld, t, P, F, feed, objective)
 
 
-def _compass(fld, t0, dims, step, P, F, feed, objective) -> tuple[np.ndarray, float, int, object]:
-    """Compass search from t0 on the points P: the best neighbour along each axis, steps halved.
+def _compass(fld, t0, dims, step, P, F, feed, objective, tick=None) -> tuple[np.ndarray, float, int, object]:
+    """Compass search from t0 on the points P: the best neighbour along each axis, steps halved
+    (``tick()`` called at each halving).
     Returns the placement, its objective, the placements evaluated, and an arm's configurations
     at P there (else None); an arm's are followed from the current placement to its neighbours."""
     t = t0.copy()
@@ -410,4 +461,6 @@ def _compass(fld, t0, dims, step, P, F, feed, objective) -> tuple[np.ndarray, fl
             t, v, Q = cand[i], float(vals[i]), None if QK is None else QK[i]
         else:
             step /= 2
+            if tick is not None:
+                tick()
     return t, v, n, Q
