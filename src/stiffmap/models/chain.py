@@ -162,6 +162,10 @@ class _Coord:
     row: int
 
 
+#: Configurations per block in :meth:`Chain._frames_many`.
+_CHUNK = 2048
+
+
 def _cross_matrix(a: np.ndarray) -> np.ndarray:
     """[a]x: the matrix of the cross product with a, ``[a]x v = a x v``."""
     return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
@@ -718,7 +722,11 @@ class Chain:
         """The tip's position (N, 3) and rotation (N, 3, 3) at configurations Q (N, n), and each
         moving joint's origin (N, nf, 3) and axis (N, nf, 3) in the base frame: the chain's
         placements and joint motions composed with NumPy over all configurations at once."""
-        Qf = np.asarray(Q, dtype=float).reshape(-1, self.n) @ self._G.T + self._b
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
+        if Q.shape[0] > _CHUNK:  # small matrix products: a large one is slow when BLAS threads it
+            parts = [self._frames_many(Q[i : i + _CHUNK]) for i in range(0, Q.shape[0], _CHUNK)]
+            return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+        Qf = Q @ self._G.T + self._b
         N, nf = Qf.shape[0], self._axes.shape[0]
         R = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
         p = np.zeros((N, 3))
