@@ -3,10 +3,11 @@
 The program (written here): ``SQUARES`` stacked 200 mm squares (G1, one every 0.5 mm in z,
 a G0 to the start), 80 m of feed for 100 squares; the arm ``urdf arm6`` with its default tool,
 seed and a force turning with the feed (FT 20, FN 15, FZ 10 N), as in
-``bench_gcode_sweep.py``. Printed: the wall time of :func:`place_program` (the search alone,
-one process), the placement, its worst deflection, and the placements evaluated.
+``bench_gcode_sweep.py``. Printed and saved (``benchmarks/results/place_arm.md``) for each
+count of squares: the wall time of :func:`place_program` (the search alone, one process),
+the placement, its worst deflection, and the placements evaluated.
 
-Run:  nice .venv/bin/python benchmarks/bench_place_arm.py [SQUARES]
+Run:  nice .venv/bin/python benchmarks/bench_place_arm.py [SQUARES ...]   (default 1 3 100)
 """
 
 from __future__ import annotations
@@ -18,12 +19,16 @@ from pathlib import Path
 
 import numpy as np
 
-from stiffmap.machining.field import field_for
-from stiffmap.machining.forces import ForceSpec
-from stiffmap.machining.io import read_program
-from stiffmap.machining.path import toolpath_from_moves
-from stiffmap.machining.place import place_program
-from stiffmap.models import arm6
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from _table import save  # noqa: E402
+
+from stiffmap.machining.field import field_for  # noqa: E402
+from stiffmap.machining.forces import ForceSpec  # noqa: E402
+from stiffmap.machining.io import read_program  # noqa: E402
+from stiffmap.machining.path import toolpath_from_moves  # noqa: E402
+from stiffmap.machining.place import place_program  # noqa: E402
+from stiffmap.models import arm6  # noqa: E402
 
 
 def stacked_squares(n: int, side: float = 200.0, dz: float = 0.5) -> str:
@@ -36,7 +41,8 @@ def stacked_squares(n: int, side: float = 200.0, dz: float = 0.5) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(n: int = 100) -> None:
+def run(n: int) -> list:
+    """One row: squares, feed (m), seconds, placement (mm), worst deflection (um), placements."""
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "squares.nc"
         f.write_text(stacked_squares(n))
@@ -48,12 +54,22 @@ def main(n: int = 100) -> None:
     found = place_program(fld, path, forces)
     took = time.perf_counter() - t0
     feed_m = float(np.sum(np.where(path.feed, path.length(), 0.0))) / 1e3
-    print(
-        f"{n} stacked 200 mm squares ({feed_m:.1f} m of feed), arm6: --place auto {took:.1f} s, "
-        f"place {np.round(found.place, 3).tolist()} mm, worst {found.value * 1e3:.3f} um, "
-        f"{found.evaluations} placements evaluated"
+    place = ", ".join(f"{v:.3f}" for v in found.place)
+    row = [n, f"{feed_m:.1f}", f"{took:.1f}", f"({place})", f"{found.value * 1e3:.3f}", found.evaluations]
+    print(row, flush=True)
+    return row
+
+
+def main(counts) -> None:
+    rows = [run(n) for n in counts]
+    save(
+        "place_arm",
+        "compensate --place auto: the six-joint arm on stacked 200 mm squares",
+        ["squares", "feed (m)", "search (s)", "placement (mm)", "worst deflection (um)", "placements"],
+        rows,
+        notes=__doc__.split("Run:")[0],
     )
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 100)
+    main([int(a) for a in sys.argv[1:]] or [1, 3, 100])

@@ -190,7 +190,7 @@ _OPT_Q_SEED_DEG = typer.Option(
 )
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print the summary as JSON.")
 _OPT_FIGURES = typer.Option(True, "--figures/--no-figures", help="Write OUT.deflection.png and OUT.html.")
-_OPT_QUIET = typer.Option(False, "--quiet", "-q", help="No progress bar.")
+_OPT_QUIET = typer.Option(False, "--quiet", "-q", help="No progress bars.")
 
 
 def compensate(

@@ -13,7 +13,9 @@ along the feed moves, the step halved down to :data:`STEP_MM`. A long program (m
 :data:`SEARCH_POINTS` such points) is searched on a sample instead (:func:`search_samples`:
 its vertices and points spread by arc length, at most :data:`SEARCH_POINTS`), and the
 searched placements are then checked on every point, best first: the first feasible one
-is kept, with its objective on every point. A placement is feasible
+is kept, with its objective on every point. A serial arm's searches run on fewer points
+(:data:`ARM_COMPASS_POINTS`) and are polished on the sample; its configurations are followed
+from one placement to the next (:func:`_follow`) rather than solved afresh. A placement is feasible
 when the programmed points and their commanded points (pushed :data:`REACH_MARGIN_MM`
 outwards: the optimum often lies on the edge of the workspace) are all evaluable. The
 grid's values are kept for the placement map.
