@@ -170,8 +170,9 @@ def test_place_auto_arm_on_a_long_program_places_and_verifies(tmp_path, monkeypa
     knobs scaled down so that it runs in seconds: a 3 x 3 x 3 grid, 600 search points, 150 for the
     arm's compass): the placement's reported worst deflection is the one an independent solver
     (``helpers.machining_checks.arm_deflection``: its own inverse kinematics point by point and a
-    central-difference Jacobian) finds at every programmed point; no feasible neighbour 0.5 mm
-    away along an axis deflects less (a local minimum on the feasible set); the compensated
+    central-difference Jacobian) finds at every programmed point; the program stays in the region
+    given; no feasible neighbour 0.5 mm away along an axis in the region deflects less (a local
+    minimum on the feasible set); the compensated
     program, deflected by that solver, lies on the programmed path within the tolerance (2 um);
     and the progress hook reports each stage
     with a count that rises to its total."""
@@ -180,9 +181,9 @@ def test_place_auto_arm_on_a_long_program_places_and_verifies(tmp_path, monkeypa
     monkeypatch.setattr(place_mod, "ARM_COMPASS_POINTS", 150)
     robot = arm6.model()
     force = np.array([20.0, -15.0, 10.0])
-    prog = _stacked_squares_nc(tmp_path, 3, 100.0)
+    prog = _stacked_squares_nc(tmp_path, 2, 100.0)
     centre = np.array([0.0, -300.0, 540.0])  # near the arm's best for 200 mm squares (docs/machining.md)
-    region = (centre - 40.0, centre + np.array([140.0, 140.0, 41.0]))
+    region = (centre - 40.0, centre + np.array([140.0, 140.0, 41.0]))  # placements within 40 mm
     calls: dict[str, list[tuple[int, int]]] = {}
     opts = CompensateOptions(
         tolerance_um=2.0, place_auto=True, place_region_mm=region, force=ForceSpec.constant(force)
@@ -203,10 +204,14 @@ def test_place_auto_arm_on_a_long_program_places_and_verifies(tmp_path, monkeypa
     ours = worst(t)
     assert abs(res.placement.value - ours) <= 1e-6 * ours, f"reported {res.placement.value}, check {ours}"
     fld = field_for(robot)
+    tlo, thi = region[0] - P.min(axis=0), region[1] - P.max(axis=0)  # the program stays in the region
+    assert np.all((t >= tlo - 1e-9) & (t <= thi + 1e-9)), f"{t} leaves the region"
     for k in range(3):
         for sgn in (-0.5, 0.5):
             n = t.copy()
             n[k] += sgn
+            if not tlo[k] <= n[k] <= thi[k]:
+                continue
             if worst(n) < ours * (1 - 1e-6):  # then the neighbour breaks the feasibility rule
                 v = place_mod.objective_at(fld, n, P, np.tile(force, (P.shape[0], 1)), feed, "worst")
                 assert v == np.inf, f"a feasible neighbour {n} deflects less than {t}"

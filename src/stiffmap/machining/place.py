@@ -206,7 +206,9 @@ def _evaluate(
         for i, t in enumerate(T):
             f = fld.with_place(t)
             if q0 is None and origin is not None:
-                out.append(f.deflect(PK[i], F, *_follow(fld, origin[0], origin[1], t, PK[i])))
+                Qf, conv = _follow(fld, origin[0], origin[1], t, PK[i])
+                same = _seed_branch(f, PK[i], Qf, conv)  # else solved afresh, as without origin
+                out.append(f.deflect(PK[i], F, Qf, conv) if same else f(PK[i], F))
             else:
                 out.append(f(PK[i], F, q0=None if q0 is None else q0[i]))
         Q = np.stack([r.q for r in out]) if all(r.q is not None for r in out) else None
@@ -217,6 +219,17 @@ def _evaluate(
         valid.reshape(K, N) & (np.nan_to_num(cond, nan=-1.0).reshape(K, N) >= MIN_CONDITIONING), axis=1
     )
     return delta.reshape(K, N, 3), ok, Q
+
+
+def _seed_branch(f, P, Q, conv) -> bool:
+    """Whether configurations Q (N, n) at the points P of an arm's field f, followed from another
+    placement, are those its inverse kinematics along the points in order from the seed gives
+    (what the compensation uses): the first point's solution from the seed is Q's first row
+    (to 1e-6 rad or mm, turns not wrapped), or both do not converge there."""
+    q0, ok0 = f.solve_path(P[:1])
+    if bool(ok0[0]) != bool(conv[0]):
+        return False
+    return not ok0[0] or float(np.max(np.abs(q0[0] - Q[0]))) <= 1e-6
 
 
 def _follow(fld, t0, Q0, t1, P) -> tuple[np.ndarray, np.ndarray]:
@@ -350,13 +363,16 @@ def place_program(
         )
     step0 = np.array([(a[1] - a[0]) if a.size > 1 else 1.0 for a in axes])
     starts = T[np.argsort(coarse)[: int(np.isfinite(coarse).sum())]]
-    best_t, best_v, n = _refine(fld, path, forces, starts, dims, step0 / 2, objective, _Ticks(progress))
+    box = (tlo, thi)
+    best_t, best_v, n = _refine(fld, path, forces, starts, dims, step0 / 2, objective, _Ticks(progress), box)
     if not np.isfinite(best_v):
         raise InputError("--place auto: no feasible placement on all of the program's points")
     return Placement(best_t, best_v, objective, axes, values, T.shape[0] + n)
 
 
-def _refine(fld, path, forces, starts, dims, step, objective, ticks) -> tuple[np.ndarray | None, float, int]:
+def _refine(
+    fld, path, forces, starts, dims, step, objective, ticks, box
+) -> tuple[np.ndarray | None, float, int]:
     """The best placement of compass searches from ``starts`` (best first), and the placements
     evaluated. On a program of at most :data:`SEARCH_POINTS` dense points: the best of the first
     :data:`STARTS` searches on every point. On a longer one: the searches run on
@@ -366,7 +382,7 @@ def _refine(fld, path, forces, starts, dims, step, objective, ticks) -> tuple[np
     kinematics per placement), the searches run on :data:`ARM_COMPASS_POINTS` points
     (:func:`search_samples`) and each result is polished, best first, on the points above by a
     compass search from a step of :data:`POLISH_MM` before its check. ``ticks`` (:class:`_Ticks`)
-    counts the searches' step halvings."""
+    counts the searches' step halvings; ``box`` (lo, hi) bounds the placements searched."""
     Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
     full = Pd.shape[0] <= SEARCH_POINTS
     fine = (Pd, Fd, feedd) if full else search_samples(path, forces)
@@ -379,12 +395,12 @@ def _refine(fld, path, forces, starts, dims, step, objective, ticks) -> tuple[np
         ticks.plan(len(batch) * (_halvings(step) + (_halvings(polish) if arm else 0)))
         found = []
         for t0 in batch:
-            t, v, n, Q = _compass(fld, t0, dims, step, *coarse, objective, ticks.tick)
+            t, v, n, Q = _compass(fld, t0, dims, step, *coarse, objective, box, ticks.tick)
             evals += n
             found.append((v, t, Q))
         for v, t, Q in sorted(found, key=lambda c: c[0]):
             if arm and np.isfinite(v):
-                t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, ticks.tick)
+                t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, box, ticks.tick)
                 evals += n
             if full and (not arm or np.isfinite(v)):
                 ticks.finish()
@@ -430,33 +446,40 @@ class _Ticks:
 def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> float:
     """:func:`objective_at` t on the points P. An arm's configurations there start from its
     configurations Qs at the nearest of the points Ps (:func:`_follow`, all at once), and are
-    solved along the points in order (as without Qs) if that does not converge everywhere."""
+    solved along the points in order (as without Qs) if that does not converge everywhere or
+    turns a joint more than :data:`FOLLOW_JUMP_RAD` between two points."""
     if Qs is not None:
         Q, conv = _follow(fld, t, Qs[cKDTree(Ps).query(P)[1]], t, P)
-        if np.all(conv):
+        if np.all(conv) and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) <= FOLLOW_JUMP_RAD:
             return float(_many(fld, t[None], P, F, feed, objective, (t, Q))[0][0])
     return objective_at(fld, t, P, F, feed, objective)
 
 
-def _compass(fld, t0, dims, step, P, F, feed, objective, tick=None) -> tuple[np.ndarray, float, int, object]:
-    """Compass search from t0 on the points P: the best neighbour along each axis, steps halved
-    (``tick()`` called at each halving).
-    Returns the placement, its objective, the placements evaluated, and an arm's configurations
-    at P there (else None); an arm's are followed from the current placement to its neighbours."""
+def _compass(
+    fld, t0, dims, step, P, F, feed, objective, box, tick=None
+) -> tuple[np.ndarray, float, int, object]:
+    """Compass search from t0 on the points P: the best neighbour along each axis within the box
+    (lo, hi) of placements, steps halved (``tick()`` called at each halving). Returns the
+    placement, its objective, the placements evaluated, and an arm's configurations at P there
+    (else None); an arm's are followed from the current placement to its neighbours."""
     t = t0.copy()
     vals, QK = _many(fld, t[None], P, F, feed, objective)
     v, Q = float(vals[0]), None if QK is None else QK[0]
     n = 1
     step = step.copy()
+    lo, hi = box[0][dims] - 1e-9, box[1][dims] + 1e-9
     while np.max(step) > STEP_MM:
         cand = []
         for j, k in enumerate(dims):
             for sgn in (-1.0, 1.0):
                 c = t.copy()
                 c[k] += sgn * step[j]
-                cand.append(c)
+                if np.all((c[dims] >= lo) & (c[dims] <= hi)):
+                    cand.append(c)
         origin = None if Q is None or not np.isfinite(v) else (t, Q)
-        vals, QK = _many(fld, np.array(cand), P, F, feed, objective, origin)
+        vals, QK = (
+            _many(fld, np.array(cand), P, F, feed, objective, origin) if cand else (np.full(1, np.inf), None)
+        )
         n += len(cand)
         i = int(np.argmin(vals))
         if vals[i] < v:
