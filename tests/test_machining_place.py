@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers.machining_checks import truss_3prr
+from helpers.machining_checks import arm_deflection, distance_to_path, output_samples, truss_3prr
 
 from stiffmap.errors import InputError
 from stiffmap.machining import place as place_mod
@@ -27,6 +27,7 @@ from stiffmap.machining.io import read_program
 from stiffmap.machining.path import toolpath_from_moves
 from stiffmap.machining.place import MIN_CONDITIONING, default_region, place_program, program_samples
 from stiffmap.machining.run import CompensateOptions, compensate_file
+from stiffmap.models import arm6
 from stiffmap.models.prr3 import PRR3
 
 DATA = Path(__file__).parent / "data" / "gcode"
@@ -151,3 +152,86 @@ def test_place_auto_refusal_writes_nothing(tmp_path):
     else:
         raise AssertionError("a program larger than its region was placed")
     assert not out.exists()
+
+
+def _stacked_squares_nc(tmp_path, n: int, side: float, dz: float = 0.5) -> Path:
+    """``n`` squares of ``side`` mm cut in G1, one above the other ``dz`` mm apart, written here."""
+    lines = ["G21 G90 G17", "G0 X0 Y0 Z5", "G1 Z0 F600"]
+    for i in range(n):
+        lines += [f"G1 Z{i * dz:.3f}", f"G1 X{side:g}", f"G1 Y{side:g}", "G1 X0", "G1 Y0"]
+    f = tmp_path / "squares.nc"
+    f.write_text("\n".join(lines + ["G0 Z20", "M2"]) + "\n")
+    return f
+
+
+@pytest.mark.slow
+def test_place_auto_arm_on_a_long_program_places_and_verifies(tmp_path, monkeypatch):
+    """The six-joint arm, ``--place auto`` on stacked squares longer than the search's sample (the
+    knobs scaled down so that it runs in seconds: a 3 x 3 x 3 grid, 600 search points, 150 for the
+    arm's compass): the placement's reported worst deflection is the one an independent solver
+    (``helpers.machining_checks.arm_deflection``: its own inverse kinematics point by point and a
+    central-difference Jacobian) finds at every programmed point; the program stays in the region
+    given; no feasible neighbour 0.5 mm away along an axis in the region deflects less (a local
+    minimum on the feasible set); the compensated
+    program, deflected by that solver, lies on the programmed path within the tolerance (2 um);
+    and the progress hook reports each stage
+    with a count that rises to its total."""
+    monkeypatch.setitem(place_mod.GRID, 3, 3)
+    monkeypatch.setattr(place_mod, "SEARCH_POINTS", 600)
+    monkeypatch.setattr(place_mod, "ARM_COMPASS_POINTS", 150)
+    robot = arm6.model()
+    force = np.array([20.0, -15.0, 10.0])
+    prog = _stacked_squares_nc(tmp_path, 2, 100.0)
+    centre = np.array([0.0, -300.0, 540.0])  # near the arm's best for 200 mm squares (docs/machining.md)
+    region = (centre - 40.0, centre + np.array([140.0, 140.0, 41.0]))  # placements within 40 mm
+    calls: dict[str, list[tuple[int, int]]] = {}
+    opts = CompensateOptions(
+        tolerance_um=2.0, place_auto=True, place_region_mm=region, force=ForceSpec.constant(force)
+    )
+    out = tmp_path / "out.nc"
+    res = compensate_file(
+        robot, prog, out, opts, progress=lambda what, d, n: calls.setdefault(what, []).append((d, n))
+    )
+    path = toolpath_from_moves(read_program(prog)[0].moves)
+    P, _, feed = program_samples(path, ForceSpec.constant(force), dense_mm=place_mod.DENSE_MM)
+    assert P.shape[0] > place_mod.SEARCH_POINTS  # the sampled search and its every-point check ran
+
+    def worst(t):
+        d, _ = _arm_check(robot, P + t, force)
+        return np.linalg.norm(d[feed], axis=1).max()
+
+    t = res.placement.place
+    ours = worst(t)
+    assert abs(res.placement.value - ours) <= 1e-6 * ours, f"reported {res.placement.value}, check {ours}"
+    fld = field_for(robot)
+    tlo, thi = region[0] - P.min(axis=0), region[1] - P.max(axis=0)  # the program stays in the region
+    assert np.all((t >= tlo - 1e-9) & (t <= thi + 1e-9)), f"{t} leaves the region"
+    for k in range(3):
+        for sgn in (-0.5, 0.5):
+            n = t.copy()
+            n[k] += sgn
+            if not tlo[k] <= n[k] <= thi[k]:
+                continue
+            if worst(n) < ours * (1 - 1e-6):  # then the neighbour breaks the feasibility rule
+                v = place_mod.objective_at(fld, n, P, np.tile(force, (P.shape[0], 1)), feed, "worst")
+                assert v == np.inf, f"a feasible neighbour {n} deflects less than {t}"
+    _, _, C = output_samples(toolpath_from_moves(read_program(out)[0].moves), per_mm=2.0)
+    d, _ = _arm_check(robot, C + t, force)
+    assert np.max(distance_to_path(path, C + d)) <= 2e-3 + 1e-9
+    assert set(calls) == {"placement grid", "placement search", "compensating"}
+    for what, seq in calls.items():
+        done = [c[0] for c in seq]
+        assert all(b >= a for a, b in zip(done, done[1:], strict=False)), f"{what}: {done}"
+        assert done[-1] == seq[-1][1] and all(c[0] <= c[1] for c in seq), f"{what}: {seq[-3:]}"
+    assert calls["placement grid"][-1][1] == 27
+
+
+def _arm_check(robot, points, force):
+    return arm_deflection(
+        robot.chain,
+        arm6.K_THETA,
+        arm6.TOOL_ROTATION,
+        points,
+        np.tile(force, (points.shape[0], 1)),
+        np.radians(arm6.Q_SEED_DEG),
+    )

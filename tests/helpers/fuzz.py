@@ -15,7 +15,9 @@ time limit. :func:`classify` says what happened:
                robot file outside the campaign, an unknown tip frame) ran (exit 0 or 1)
 ``wrong``      silently wrong: the case says what must be said (``FuzzCase.expect``: a swapped
                rig file, a camera that measured nothing), results were given (exit 0 or 1) and no
-               ``error:``/``warning:`` line says it (a refusal, exit 2, is right); or the case's
+               ``error:``/``warning:`` line says it (a refusal, exit 2, is right); or a run that
+               exited 0 whose output the case's ``oracle`` (an independent computation of the
+               right answer: ``helpers.fuzz_robots.RobotCase``) finds wrong; or the case's
                ``check`` found what the run left wrong (an output off its tolerance, an input
                changed, an output or temporary file left by a failed run: ``Outcome.detail``)
 ``bug``        stiffmap's guard caught an unexpected exception (exit 3, "internal error")
@@ -217,6 +219,11 @@ def run_case(case: FuzzCase, *, time_limit: float = TIME_LIMIT_S) -> Outcome:
     o.kind = classify(o, case.blamed, getattr(case, "expect", None), getattr(case, "must_refuse", False))
     if o.detail and o.kind in (*HANDLED, "unnamed", "silent"):
         o.kind = "wrong"
+    oracle = getattr(case, "oracle", None)  # an independent check of a successful run's output
+    why = oracle(o) if o.kind == "ok" and oracle is not None else None
+    if why:
+        o.kind = "wrong"
+        o.stderr += f"\noracle: {why}\n"
     return o
 
 

@@ -103,20 +103,27 @@ def _tool(tool_rpy_deg: str | None, q_seed_deg: str | None) -> dict:
 
 @contextmanager
 def _progress(show: bool):
+    """Progress bars on stderr, one per stage the library reports (placement grid, placement
+    search, compensating); yields the hook ``update(what, done, total)``."""
     if not show:
         yield None
         return
     with Progress(
-        TextColumn("compensating"),
+        TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
-        TextColumn("moves"),
         TimeRemainingColumn(),
         console=err,
         transient=True,
     ) as prog:
-        task = prog.add_task("moves", total=None)
-        yield lambda done, total: prog.update(task, completed=done, total=total)
+        tasks: dict[str, object] = {}
+
+        def update(what: str, done: int, total: int) -> None:
+            if what not in tasks:
+                tasks[what] = prog.add_task(what, total=total)
+            prog.update(tasks[what], completed=done, total=total)
+
+        yield update
 
 
 # The options of `compensate` (declared here so that the command's signature reads at once).
@@ -183,7 +190,7 @@ _OPT_Q_SEED_DEG = typer.Option(
 )
 _OPT_AS_JSON = typer.Option(False, "--json", help="Print the summary as JSON.")
 _OPT_FIGURES = typer.Option(True, "--figures/--no-figures", help="Write OUT.deflection.png and OUT.html.")
-_OPT_QUIET = typer.Option(False, "--quiet", "-q", help="No progress bar.")
+_OPT_QUIET = typer.Option(False, "--quiet", "-q", help="No progress bars.")
 
 
 def compensate(

@@ -246,7 +246,8 @@ def _positions(kind, dim: int, grid: str | None, points: Path | None, orientatio
         return read_points(points, dim)
     if grid is not None and dim == POSE_DIM:
         at = from_option("--orientation", orientations_from_text, orientation or "0,0,0")
-        return poses_from(from_option("--grid", grid_from_text, grid, kind.name, 3), at)
+        P = from_option("--grid", grid_from_text, grid, kind.name, 3)
+        return from_option("--grid with --orientation", poses_from, P, at)
     if grid is not None:
         return from_option("--grid", grid_from_text, grid, kind.name, dim)
     if kind.default_positions() is None:

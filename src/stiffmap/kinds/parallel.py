@@ -16,6 +16,7 @@ from importlib.resources import files
 import numpy as np
 
 from ..errors import FieldError
+from ..models.base import check_stiffness
 from ..models.delta import DeltaRobot
 from ..models.legs import LegRobot
 from ..models.presets import paper48, prr3_points22
@@ -156,6 +157,9 @@ def _legs(description: RobotDescription):
     if not values:
         return model
     try:
+        for k, v in values.items():  # the file's [params] range, for the values that override them
+            if k in model.param_keys:
+                check_stiffness(k, v, "N*mm/rad or N/mm")
         return model.with_params(**values)
     except (TypeError, ValueError) as e:
         raise FieldError("params", str(e)) from None

@@ -209,9 +209,13 @@ class ArmField:
             Q, conv = self.solve_path(P, spin)
         else:
             Q, conv = self.solve(P, q0, spin)
-        return self._deflect(P, np.asarray(forces, dtype=float), Q, conv)
+        return self.deflect(P, forces, Q, conv)
 
-    def _deflect(self, P, F, Q, conv) -> FieldResult:
+    def deflect(self, points, forces, Q, conv) -> FieldResult:
+        """Deflections at program points (N, 3) under forces (N, 3) with the arm at configurations
+        Q (N, n) already solved there (``conv``: which ones converged); joint limits and
+        conditioning checked."""
+        P, F = np.asarray(points, dtype=float), np.asarray(forces, dtype=float)
         n = P.shape[0]
         robot = self.robot
         reasons = [""] * n

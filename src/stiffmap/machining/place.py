@@ -13,7 +13,9 @@ along the feed moves, the step halved down to :data:`STEP_MM`. A long program (m
 :data:`SEARCH_POINTS` such points) is searched on a sample instead (:func:`search_samples`:
 its vertices and points spread by arc length, at most :data:`SEARCH_POINTS`), and the
 searched placements are then checked on every point, best first: the first feasible one
-is kept, with its objective on every point. A placement is feasible
+is kept, with its objective on every point. A serial arm's searches run on fewer points
+(:data:`ARM_COMPASS_POINTS`) and are polished on the sample; its configurations are followed
+from one placement to the next (:func:`_follow`) rather than solved afresh. A placement is feasible
 when the programmed points and their commanded points (pushed :data:`REACH_MARGIN_MM`
 outwards: the optimum often lies on the edge of the workspace) are all evaluable. The
 grid's values are kept for the placement map.
@@ -22,9 +24,11 @@ grid's values are kept for the placement map.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..models.delta import DeltaRobot
@@ -61,6 +65,14 @@ SEARCH_POINTS = 2000
 #: every point: at most :data:`MAX_STARTS`).
 STARTS = 3
 MAX_STARTS = 12
+#: An arm's compass searches run on this many of the program's points, then are polished on
+#: the search's points (at most SEARCH_POINTS) from a step of POLISH_MM (mm).
+ARM_COMPASS_POINTS = 400
+POLISH_MM = 2.0
+#: An arm's configurations are followed from one placement to the next in steps of at most
+#: this (mm); a point whose joint turns more than FOLLOW_JUMP_RAD in one step is not followed.
+FOLLOW_MM = 20.0
+FOLLOW_JUMP_RAD = 0.5
 #: Commanded points are checked this far (mm) beyond where they are, away from the program's centre.
 REACH_MARGIN_MM = 0.01
 
@@ -175,16 +187,18 @@ def _samples_at(path: Toolpath, forces: ForceSpec, m: np.ndarray, s: np.ndarray)
 
 def objective_at(fld, place, P, F, feed, objective: str) -> float:
     """The objective (mm) at one placement: inf when a point is infeasible (:func:`_many`)."""
-    return float(_many(fld, np.asarray(place, dtype=float)[None], P, F, feed, objective)[0])
+    return float(_many(fld, np.asarray(place, dtype=float)[None], P, F, feed, objective)[0][0])
 
 
 def _evaluate(
-    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None
+    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None, origin=None
 ) -> tuple[np.ndarray, np.ndarray, object]:
-    """Deflections (K, N, 3) at N points under K placements T (K, 3), and which placements are
-    feasible (every point valid, conditioning at least MIN_CONDITIONING). P is (N, 3), or
-    (K, N, 3) for points that differ per placement. One evaluation for a mechanism's map;
-    placement by placement for an arm (its inverse kinematics along the points, in order)."""
+    """Deflections (K, N, 3) at N points under K placements T (K, 3), which placements are
+    feasible (every point valid, conditioning at least MIN_CONDITIONING), and an arm's
+    configurations (K, N, n) (else None). P is (N, 3), or (K, N, 3) for points that differ per
+    placement. One evaluation for a mechanism's map; placement by placement for an arm: its
+    inverse kinematics from ``q0`` (K, N, n), else followed from ``origin`` (a nearby placement
+    and its configurations at P, :func:`_follow`), else along the points in order."""
     K = T.shape[0]
     PK = np.broadcast_to(P, (K, *P.shape[-2:]))
     N = PK.shape[1]
@@ -193,7 +207,15 @@ def _evaluate(
         res = fld.with_place(np.zeros(3))((PK + T[:, None]).reshape(-1, 3), np.tile(F, (K, 1)))
         valid, cond, delta = res.valid, res.conditioning, res.delta
     else:
-        out = [fld.with_place(t)(PK[i], F, q0=None if q0 is None else q0[i]) for i, t in enumerate(T)]
+        out = []
+        for i, t in enumerate(T):
+            f = fld.with_place(t)
+            if q0 is None and origin is not None:
+                Qf, conv = _follow(fld, origin[0], origin[1], t, PK[i])
+                same = _seed_branch(f, PK[i], Qf, conv)  # else solved afresh, as without origin
+                out.append(f.deflect(PK[i], F, Qf, conv) if same else f(PK[i], F))
+            else:
+                out.append(f(PK[i], F, q0=None if q0 is None else q0[i]))
         Q = np.stack([r.q for r in out]) if all(r.q is not None for r in out) else None
         valid = np.concatenate([r.valid for r in out])
         cond = np.concatenate([r.conditioning for r in out])
@@ -204,6 +226,37 @@ def _evaluate(
     return delta.reshape(K, N, 3), ok, Q
 
 
+def _seed_branch(f, P, Q, conv) -> bool:
+    """Whether configurations Q (N, n) at the points P of an arm's field f, followed from another
+    placement, are those its inverse kinematics along the points in order from the seed gives
+    (what the compensation uses): the first point's solution from the seed is Q's first row
+    (to 1e-6 rad or mm, turns not wrapped), or both do not converge there."""
+    q0, ok0 = f.solve_path(P[:1])
+    if bool(ok0[0]) != bool(conv[0]):
+        return False
+    return not ok0[0] or float(np.max(np.abs(q0[0] - Q[0]))) <= 1e-6
+
+
+def _follow(fld, t0, Q0, t1, P) -> tuple[np.ndarray, np.ndarray]:
+    """An arm's configurations at the points P placed at t1, followed from its configurations Q0
+    (N, n) at P placed at t0: Newton steps (:meth:`ArmField.solve`, every point at once) as the
+    placement moves from t0 to t1 in steps of at most :data:`FOLLOW_MM`. A point converges when
+    every step does and turns no joint more than :data:`FOLLOW_JUMP_RAD` (else it may have
+    jumped to another branch); returns the configurations and which points converged."""
+    d = np.asarray(t1, dtype=float) - t0
+    k = max(1, math.ceil(float(np.linalg.norm(d)) / FOLLOW_MM))
+    Q = np.asarray(Q0, dtype=float)
+    ok = np.all(np.isfinite(Q), axis=1)
+    Q = np.where(ok[:, None], Q, 0.0)
+    for j in range(1, k + 1):
+        Qn, conv = fld.with_place(t0 + d * (j / k)).solve(P, Q)
+        ok &= conv & (np.max(np.abs(Qn - Q), axis=1) <= FOLLOW_JUMP_RAD)
+        Q = np.where(ok[:, None], Qn, Q)
+        if not np.any(ok):
+            break
+    return Q, ok
+
+
 def _outward(P: np.ndarray, dims) -> np.ndarray:
     """Unit directions (N, 3) from the program's centre to its points, in the placed axes."""
     d = np.zeros_like(P)
@@ -212,25 +265,31 @@ def _outward(P: np.ndarray, dims) -> np.ndarray:
     return np.divide(d, n[:, None], out=np.zeros_like(d), where=n[:, None] > 0)
 
 
-def _many(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
+def _many(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tuple[np.ndarray, object]:
     """The objective at many placements T (K, 3); inf where a programmed point, or the commanded
     point ``c = p - delta(c)`` that compensates it (two fixed-point steps) pushed outwards by
-    :data:`REACH_MARGIN_MM`, is out of reach or too poorly conditioned. The placements are first
+    :data:`REACH_MARGIN_MM`, is out of reach or too poorly conditioned; and an arm's
+    configurations at the programmed points (K, N, n), else None. Without ``origin`` (an arm's
+    nearby placement and configurations to follow, :func:`_follow`), the placements are first
     screened on the points at each axis's extremes (an arm solves its inverse kinematics point
     by point: most placements of a large program fail there, at a few points' cost)."""
     out = np.full(T.shape[0], np.inf)
     ok = np.ones(T.shape[0], dtype=bool)
-    if P.shape[0] > 6 * 4:
+    if origin is None and P.shape[0] > 6 * 4:
         ext = np.unique(np.concatenate([P.argmin(axis=0), P.argmax(axis=0)]))
         ok = _evaluate(fld, T, P[ext], F[ext])[1]
+    Q = None
     if np.any(ok):
-        out[ok] = _many_all(fld, T[ok], P, F, feed, objective)
-    return out
+        out[ok], Qok = _many_all(fld, T[ok], P, F, feed, objective, origin)
+        if Qok is not None:
+            Q = np.full((T.shape[0], *Qok.shape[1:]), np.nan)
+            Q[ok] = Qok
+    return out, Q
 
 
-def _many_all(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
+def _many_all(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tuple[np.ndarray, object]:
     """:func:`_many` on every point."""
-    delta, ok, Q = _evaluate(fld, T, P, F)
+    delta, ok, Q = _evaluate(fld, T, P, F, origin=origin)
     if np.any(ok):
         sub = np.flatnonzero(ok)
         near = None if Q is None else Q[sub]  # an arm's solutions: seeds for the nearby commanded points
@@ -242,11 +301,17 @@ def _many_all(fld, T: np.ndarray, P, F, feed, objective: str) -> np.ndarray:
         val = np.zeros(T.shape[0])
     else:
         val = d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
-    return np.where(ok, val, np.inf)
+    return np.where(ok, val, np.inf), Q
 
 
 def place_program(
-    fld, path: Toolpath, forces: ForceSpec, *, region=None, objective: str = "worst"
+    fld,
+    path: Toolpath,
+    forces: ForceSpec,
+    *,
+    region=None,
+    objective: str = "worst",
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> Placement:
     """The placement of the program that minimises the objective (module docstring).
 
@@ -259,6 +324,10 @@ def place_program(
         The box the program must stay in (default :func:`default_region`).
     objective : str
         ``"worst"`` or ``"rms"`` deflection along the feed moves.
+    progress : callable (what, done, total), optional
+        Called as the search goes: ``"placement grid"`` with the grid's placements evaluated,
+        then ``"placement search"`` with the compass searches' step halvings done (its total
+        grows when more starts are needed); each count rises to its total.
 
     Raises
     ------
@@ -284,7 +353,13 @@ def place_program(
     T = np.zeros((mesh.shape[0], 3))
     T[:, dims] = mesh
     sub = np.linspace(0, P.shape[0] - 1, min(P.shape[0], COARSE_POINTS)).round().astype(int)
-    coarse = _many(fld, T, P[sub], F[sub], feed[sub], objective)
+    chunks = np.array_split(T, range(axes[0].size, T.shape[0], axes[0].size))  # a grid line each
+    coarse = []
+    for Tc in chunks:
+        coarse.append(_many(fld, Tc, P[sub], F[sub], feed[sub], objective)[0])
+        if progress is not None:
+            progress("placement grid", sum(c.size for c in coarse), T.shape[0])
+    coarse = np.concatenate(coarse)
     values = np.where(np.isfinite(coarse), coarse, np.nan).reshape(tuple(a.size for a in axes))
     if not np.any(np.isfinite(coarse)):
         raise InputError(
@@ -292,60 +367,130 @@ def place_program(
             f"from singularities (conditioning >= {MIN_CONDITIONING:g})"
         )
     step0 = np.array([(a[1] - a[0]) if a.size > 1 else 1.0 for a in axes])
-    best_t, best_v, n = _refine(
-        fld, path, forces, T[np.argsort(coarse)[: int(np.isfinite(coarse).sum())]], dims, step0 / 2, objective
-    )
+    starts = T[np.argsort(coarse)[: int(np.isfinite(coarse).sum())]]
+    box = (tlo, thi)
+    best_t, best_v, n = _refine(fld, path, forces, starts, dims, step0 / 2, objective, _Ticks(progress), box)
     if not np.isfinite(best_v):
         raise InputError("--place auto: no feasible placement on all of the program's points")
     return Placement(best_t, best_v, objective, axes, values, T.shape[0] + n)
 
 
-def _refine(fld, path, forces, starts, dims, step, objective) -> tuple[np.ndarray | None, float, int]:
+def _refine(
+    fld, path, forces, starts, dims, step, objective, ticks, box
+) -> tuple[np.ndarray | None, float, int]:
     """The best placement of compass searches from ``starts`` (best first), and the placements
     evaluated. On a program of at most :data:`SEARCH_POINTS` dense points: the best of the first
     :data:`STARTS` searches on every point. On a longer one: the searches run on
     :func:`search_samples`, and their results are checked on every point best first
     (more starts while none passes, :data:`STARTS` at a time, up to :data:`MAX_STARTS`); the first
-    feasible one is returned with its objective on every point."""
+    feasible one is returned with its objective on every point. For an arm (its inverse
+    kinematics per placement), the searches run on :data:`ARM_COMPASS_POINTS` points
+    (:func:`search_samples`) and each result is polished, best first, on the points above by a
+    compass search from a step of :data:`POLISH_MM` before its check. ``ticks`` (:class:`_Ticks`)
+    counts the searches' step halvings; ``box`` (lo, hi) bounds the placements searched."""
     Pd, Fd, feedd = program_samples(path, forces, dense_mm=DENSE_MM)
     full = Pd.shape[0] <= SEARCH_POINTS
-    Ps, Fs, feeds = (Pd, Fd, feedd) if full else search_samples(path, forces)
+    fine = (Pd, Fd, feedd) if full else search_samples(path, forces)
+    arm = not hasattr(fld, "mechanism") and fine[0].shape[0] > ARM_COMPASS_POINTS
+    coarse = search_samples(path, forces, ARM_COMPASS_POINTS) if arm else fine
+    polish = np.full(step.shape, POLISH_MM)
     evals = 0
-    for k in range(0, min(STARTS if full else MAX_STARTS, starts.shape[0]), STARTS):
+    for k in range(0, min(STARTS if full and not arm else MAX_STARTS, starts.shape[0]), STARTS):
+        batch = starts[k : k + STARTS]
+        ticks.plan(len(batch) * (_halvings(step) + (_halvings(polish) if arm else 0)))
         found = []
-        for t0 in starts[k : k + STARTS]:
-            t, v, n = _compass(fld, t0, dims, step, Ps, Fs, feeds, objective)
+        for t0 in batch:
+            t, v, n, Q = _compass(fld, t0, dims, step, *coarse, objective, box, ticks.tick)
             evals += n
-            found.append((v, t))
-        for v, t in sorted(found, key=lambda c: c[0]):
-            if full:
+            found.append((v, t, Q))
+        for v, t, Q in sorted(found, key=lambda c: c[0]):
+            if arm and np.isfinite(v):
+                t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, box, ticks.tick)
+                evals += n
+            if full and (not arm or np.isfinite(v)):
+                ticks.finish()
                 return t, v, evals
             if np.isfinite(v):
                 evals += 1
-                v_all = objective_at(fld, t, Pd, Fd, feedd, objective)
+                v_all = _every_point(fld, t, Pd, Fd, feedd, objective, fine[0], Q)
                 if np.isfinite(v_all):
+                    ticks.finish()
                     return t, v_all, evals
+        ticks.finish()
     return None, math.inf, evals
 
 
-def _compass(fld, t0, dims, step, P, F, feed, objective) -> tuple[np.ndarray, float, int]:
-    """Compass search from t0 on every point: the best neighbour along each axis, steps halved."""
+def _halvings(step) -> int:
+    """How many times a compass search halves ``step`` before it stops."""
+    return max(0, math.ceil(math.log2(float(np.max(step)) / STEP_MM)))
+
+
+class _Ticks:
+    """The compass searches' progress, in step halvings: ``progress("placement search", done,
+    total)`` (:func:`place_program`); ``total`` grows as searches are planned."""
+
+    def __init__(self, progress):
+        self.progress, self.done, self.total = progress, 0, 0
+
+    def plan(self, n: int) -> None:
+        self.total += n
+
+    def tick(self) -> None:
+        self.done = min(self.done + 1, self.total)
+        self._say()
+
+    def finish(self) -> None:
+        self.done = self.total
+        self._say()
+
+    def _say(self) -> None:
+        if self.progress is not None:
+            self.progress("placement search", self.done, self.total)
+
+
+def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> float:
+    """:func:`objective_at` t on the points P. An arm's configurations there start from its
+    configurations Qs at the nearest of the points Ps (:func:`_follow`, all at once), and are
+    solved along the points in order (as without Qs) if that does not converge everywhere or
+    turns a joint more than :data:`FOLLOW_JUMP_RAD` between two points."""
+    if Qs is not None:
+        Q, conv = _follow(fld, t, Qs[cKDTree(Ps).query(P)[1]], t, P)
+        if np.all(conv) and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) <= FOLLOW_JUMP_RAD:
+            return float(_many(fld, t[None], P, F, feed, objective, (t, Q))[0][0])
+    return objective_at(fld, t, P, F, feed, objective)
+
+
+def _compass(
+    fld, t0, dims, step, P, F, feed, objective, box, tick=None
+) -> tuple[np.ndarray, float, int, object]:
+    """Compass search from t0 on the points P: the best neighbour along each axis within the box
+    (lo, hi) of placements, steps halved (``tick()`` called at each halving). Returns the
+    placement, its objective, the placements evaluated, and an arm's configurations at P there
+    (else None); an arm's are followed from the current placement to its neighbours."""
     t = t0.copy()
-    v = objective_at(fld, t, P, F, feed, objective)
+    vals, QK = _many(fld, t[None], P, F, feed, objective)
+    v, Q = float(vals[0]), None if QK is None else QK[0]
     n = 1
     step = step.copy()
+    lo, hi = box[0][dims] - 1e-9, box[1][dims] + 1e-9
     while np.max(step) > STEP_MM:
         cand = []
         for j, k in enumerate(dims):
             for sgn in (-1.0, 1.0):
                 c = t.copy()
                 c[k] += sgn * step[j]
-                cand.append(c)
-        vals = _many(fld, np.array(cand), P, F, feed, objective)
+                if np.all((c[dims] >= lo) & (c[dims] <= hi)):
+                    cand.append(c)
+        origin = None if Q is None or not np.isfinite(v) else (t, Q)
+        vals, QK = (
+            _many(fld, np.array(cand), P, F, feed, objective, origin) if cand else (np.full(1, np.inf), None)
+        )
         n += len(cand)
         i = int(np.argmin(vals))
         if vals[i] < v:
-            t, v = cand[i], float(vals[i])
+            t, v, Q = cand[i], float(vals[i]), None if QK is None else QK[i]
         else:
             step /= 2
-    return t, v, n
+            if tick is not None:
+                tick()
+    return t, v, n, Q

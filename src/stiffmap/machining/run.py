@@ -156,7 +156,7 @@ def compensate_file(
     options: CompensateOptions,
     *,
     uncertainty: ModelUncertainty | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
 ) -> CompensationResult:
     """Compensate a program for a mechanism's deflection and write the corrected one (module docstring).
 
@@ -173,7 +173,10 @@ def compensate_file(
     uncertainty : ModelUncertainty, optional
         The covariance of the model's parameters: the summary gets the 95 % band of the
         residual it leaves.
-    progress : callable (done, total), optional
+    progress : callable (what, done, total), optional
+        Called as the work goes: ``"placement grid"`` and ``"placement search"`` with ``--place
+        auto`` (:func:`~stiffmap.machining.place.place_program`), then ``"compensating"`` with
+        the feed moves done.
 
     Raises
     ------
@@ -222,13 +225,14 @@ def _compensate(mechanism, path, forces, options: CompensateOptions, uncertainty
     placement = None
     if options.place_auto:
         placement = place_program(
-            fld, path, forces, region=options.place_region_mm, objective=options.objective
+            fld, path, forces, region=options.place_region_mm, objective=options.objective, progress=progress
         )
         fld = fld.with_place(placement.place)
     spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
     spin_of = None if spin is None else spin.spin_of
+    moves = None if progress is None else (lambda done, total: progress("compensating", done, total))
     comp = compensate_path(
-        fld, path, forces, float(options.tolerance_um) * 1e-3, spin_of=spin_of, progress=progress
+        fld, path, forces, float(options.tolerance_um) * 1e-3, spin_of=spin_of, progress=moves
     )
     band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
     return fld, placement, spin, comp, band

@@ -33,6 +33,8 @@ from ..stiffness import MAX_POSITION_MM
 
 __all__ = [
     "MAX_POSITION_MM",
+    "STIFFNESS_RANGE",
+    "check_stiffness",
     "Mechanism",
     "LegMechanism",
     "IKSolution",
@@ -72,6 +74,9 @@ POSE_DIM = 6
 #: condition number, 1 far from singularities, 0 at one) below which a pose is
 #: flagged as singular.
 SINGULAR_TOL = 1e-3
+#: The joint and leg stiffnesses a user may give (N*mm/rad or N/mm), besides inf (rigid): a legs
+#: TOML's [params], --param, campaign.toml's params. Beyond, compliances overflow or vanish.
+STIFFNESS_RANGE = (1e-6, 1e12)
 
 
 class PoseError(InputError):
@@ -361,6 +366,16 @@ def as_wrenches(wrench, n: int) -> np.ndarray:
         raise ValueError("wrench contains NaN or infinite values")
     as_forces(w[:, :3], n, 3)  # the force's bound
     return w
+
+
+def check_stiffness(name: str, value: float, unit: str) -> float:
+    """A stiffness a user gave: within :data:`STIFFNESS_RANGE` or inf, else ValueError naming it."""
+    lo, hi = STIFFNESS_RANGE
+    if math.isfinite(value) and not lo <= value <= hi:
+        raise ValueError(
+            f"{name}: a stiffness between {lo:g} and {hi:g} {unit} (or inf for rigid), got {value!r}"
+        )
+    return value
 
 
 def check_positive(name: str, value, unit: str, *, allow_inf: bool = False) -> float:

@@ -43,13 +43,14 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InputError
+from ..errors import InputError, StiffmapWarning
 from ..stiffness import MAX_POSITION_MM
 from .robot_files import MOVING_TYPES, UrdfJoint, UrdfTree, read_urdf
 
@@ -162,6 +163,15 @@ class _Coord:
     row: int
 
 
+#: Configurations per block in :meth:`Chain._frames_many`.
+_CHUNK = 2048
+
+
+def _cross_matrix(a: np.ndarray) -> np.ndarray:
+    """[a]x: the matrix of the cross product with a, ``[a]x v = a x v``."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
 def _rpy_matrix(rpy) -> np.ndarray:
     r, p, y = (float(v) for v in rpy)
     return pin.rpy.rpyToMatrix(r, p, y)
@@ -227,6 +237,22 @@ def _chain_path(tree: UrdfTree, tip: str, base: str | None) -> tuple[str, list[s
         "below it)",
         source=tree.source,
     )
+
+
+def _warn_roots(tree: UrdfTree, tip_frame: str, root: str) -> None:
+    """A URDF is one tree: several roots (a joint dropped, a parent link misspelt) make the chain
+    start at the root of the tip's tree, which may not be the robot's base: said, not refused
+    (a base frame chosen says which)."""
+    roots = tree.roots
+    if len(roots) > 1:
+        shown = ", ".join(repr(r) for r in roots[:5]) + (", ..." if len(roots) > 5 else "")
+        warnings.warn(
+            f"{tree.source}: {len(roots)} root links ({shown}) where a URDF has one (a joint missing, a "
+            f"parent link misspelt?); the chain to {tip_frame!r} starts at {root!r}, the root of its tree "
+            "(choose the base frame to say which)",
+            StiffmapWarning,
+            stacklevel=3,
+        )
 
 
 def _moving_below(tree: UrdfTree, link: str) -> str | None:
@@ -295,7 +321,10 @@ def _kind(jtype: str) -> str:
 
 
 def _check_offset(tip_offset_mm, source: str) -> np.ndarray:
-    off = np.asarray(tip_offset_mm, dtype=float)
+    try:
+        off = np.asarray(tip_offset_mm, dtype=float)
+    except (TypeError, ValueError):  # text that is not numbers ('a,b,c', '1;2;3')
+        off = np.full(1, np.nan)
     if off.shape != (3,) or not np.all(np.isfinite(off)) or np.max(np.abs(off)) > MAX_POSITION_MM:
         raise InputError(
             f"tip offset must be three finite numbers within {MAX_POSITION_MM:g} mm, got {tip_offset_mm!r}",
@@ -411,11 +440,21 @@ class Chain:
                 else pin.JointModelRevoluteUnaligned
             )(mv.axis)
             parent = model.addJoint(parent, jm, mv.placement, mv.name)
+        # The same chain as arrays, for :meth:`forward_many` and :meth:`jacobian_many` (NumPy over
+        # many configurations; Pinocchio computes one configuration at a time).
+        self._prismatic = np.array([mv.type == "prismatic" for mv in movers], dtype=bool)
+        self._axes = np.array(
+            [np.asarray(mv.axis, float) / np.linalg.norm(mv.axis) for mv in movers]
+        ).reshape(-1, 3)
+        self._place_R = np.array([np.array(mv.placement.rotation) for mv in movers]).reshape(-1, 3, 3)
+        self._place_p = np.array([np.array(mv.placement.translation) for mv in movers]).reshape(-1, 3)
         self._model = model
         self._data = model.createData()
         off = np.asarray(tip_offset_mm, dtype=float)
         tip = pin.Frame(_TIP, parent, 0, tip_placement * pin.SE3(np.eye(3), off), pin.FrameType.OP_FRAME)
         self._fid = int(model.addFrame(tip))
+        self._tip_R = np.array(tip.placement.rotation)
+        self._tip_p = np.array(tip.placement.translation)
         self._data = model.createData()
         nf = len(movers)
         if coords is None:
@@ -500,6 +539,8 @@ class Chain:
         tip = _link_of(tree, tip_frame, "the measured point")
         base = None if base_frame is None else _link_of(tree, base_frame, "the base frame")
         base, held, path, branch = _chain_path(tree, tip, base)
+        if base_frame is None:
+            _warn_roots(tree, tip_frame, base)
         movers: list[_Mover] = []
         links: dict[str, tuple[int, pin.SE3]] = {base: (0, pin.SE3.Identity())}
         acc = pin.SE3.Identity()  # placement after the last mover (or the base)
@@ -692,20 +733,54 @@ class Chain:
 
     def forward_many(self, Q) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`forward` of many configurations: positions (N, 3) mm, rotations (N, 3, 3)."""
-        Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
-        out = [self.forward(q) for q in Q]
-        return np.array([p for p, _ in out]).reshape(-1, 3), np.array([R for _, R in out]).reshape(-1, 3, 3)
+        p, R = self._frames_many(Q)[:2]
+        return p, R
 
     def jacobian_many(self, Q) -> np.ndarray:
         """:meth:`jacobian` of many configurations, shape (N, 6, n)."""
+        return self._full_jacobian_many(Q) @ self._G
+
+    def _frames_many(self, Q) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The tip's position (N, 3) and rotation (N, 3, 3) at configurations Q (N, n), and each
+        moving joint's origin (N, nf, 3) and axis (N, nf, 3) in the base frame: the chain's
+        placements and joint motions composed with NumPy over all configurations at once."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
-        return np.array([self.jacobian(q) for q in Q]).reshape(-1, 6, self.n)
+        if Q.shape[0] > _CHUNK:  # small matrix products: a large one is slow when BLAS threads it
+            parts = [self._frames_many(Q[i : i + _CHUNK]) for i in range(0, Q.shape[0], _CHUNK)]
+            return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+        Qf = Q @ self._G.T + self._b
+        N, nf = Qf.shape[0], self._axes.shape[0]
+        R = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
+        p = np.zeros((N, 3))
+        origins, axes = np.zeros((N, nf, 3)), np.zeros((N, nf, 3))
+
+        def rot(A):  # R @ A for a fixed (3, 3) or (3,) A: one matrix product over all N
+            return (R.reshape(-1, 3) @ A).reshape(N, 3, *A.shape[1:])
+
+        for j in range(nf):
+            p = p + rot(self._place_p[j])
+            R = rot(self._place_R[j])
+            a = self._axes[j]
+            origins[:, j], axes[:, j] = p, rot(a)
+            if self._prismatic[j]:
+                p = p + axes[:, j] * Qf[:, j, None]
+            else:  # R Rot(a, q) = R + sin q (R K) + (1 - cos q) (R K K), K = [a]x (Rodrigues)
+                K = _cross_matrix(a)
+                s, c = np.sin(Qf[:, j])[:, None, None], np.cos(Qf[:, j])[:, None, None]
+                R = R + s * rot(K) + (1.0 - c) * rot(K @ K)
+        return p + rot(self._tip_p), rot(self._tip_R), origins, axes
+
+    def _full_jacobian_many(self, Q) -> np.ndarray:
+        """:meth:`_full_jacobian` of many configurations (N, 6, nf): a revolute joint's column is
+        ``(z x (p - o), z)``, a prismatic one's ``(z, 0)`` (z its axis, o its origin, p the tip)."""
+        p, _, o, z = self._frames_many(Q)
+        lin = np.where(self._prismatic[None, :, None], z, np.cross(z, p[:, None] - o))
+        ang = np.where(self._prismatic[None, :, None], 0.0, z)
+        return np.concatenate([lin, ang], axis=2).transpose(0, 2, 1)
 
     def mimic_jacobian_many(self, Q) -> np.ndarray:
         """:meth:`mimic_jacobian` of many configurations, shape (N, 6, m)."""
-        Q = np.asarray(Q, dtype=float).reshape(-1, self.n)
-        m = len(self.mimics)
-        return np.array([self.mimic_jacobian(q) for q in Q]).reshape(-1, 6, m)
+        return self._full_jacobian_many(Q)[:, :, self._mimic_rows]
 
     def link_poses(
         self, Q, frames: Sequence[tuple[str, np.ndarray, np.ndarray]]

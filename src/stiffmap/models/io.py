@@ -539,9 +539,13 @@ def _first_header(path: str | os.PathLike, expected: str) -> list[str]:
     if os.path.isdir(path):
         raise InputError("is a directory, expected a CSV file", source=src)
     lines = read_text_file(path, "CSV file").splitlines()
-    for row in csv.reader(lines, delimiter=sniff_delimiter(lines)):
-        if row and not row[0].lstrip().startswith("#"):
-            return [h.strip().lower() for h in row]
+    reader = csv.reader(lines, delimiter=sniff_delimiter(lines))
+    try:
+        for row in reader:
+            if row and not row[0].lstrip().startswith("#"):
+                return [h.strip().lower() for h in row]
+    except csv.Error as e:  # a field longer than the csv module's limit (131072 characters)
+        raise InputError(f"line {reader.line_num}: not a table of numbers ({e})", source=src) from None
     raise InputError(f"empty file; expected a header with columns {expected}", source=src)
 
 

@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..geometry import euler_from_matrix
 from ..io import read_text_file
 from ..stiffness import MAX_POSITION_MM, MAX_ROTATION_RAD
-from .base import SINGULAR_TOL
+from .base import SINGULAR_TOL, STIFFNESS_RANGE
 from .links import LinkSpring
 from .robot_files import links_from_tables
 
@@ -47,8 +47,6 @@ __all__ = [
 ROLES = ("actuated", "passive", "spring")
 #: A legs TOML larger than this is refused unread (the Delta's is 3 kB).
 MAX_TOML_BYTES = 1024 * 1024
-#: The stiffnesses a legs TOML may give (N*mm/rad or N/mm), besides inf (rigid).
-STIFFNESS_RANGE = (1e-6, 1e12)
 
 # ---------------------------------------------------------------------- the data
 
@@ -416,6 +414,36 @@ def _check_link_names(legs: tuple[LegDescription, ...], params: dict[str, float]
             )
 
 
+def _geometry(leg: LegDescription) -> tuple:
+    """What places a leg and what acts in it: its platform joint, its URDF, its joints' kinematics
+    and roles (not their stiffnesses, seeds or limits). One URDF's chain listed as several legs,
+    each with another joint actuated, is several legs: a Cartesian stage as three."""
+    joints = tuple((j.name, j.role, j.type, j.axis, j.xyz_mm, j.rpy) for j in leg.joints)
+    return (
+        leg.attach_mm,
+        leg.tip_offset_mm,
+        leg.urdf,
+        leg.tip_frame,
+        leg.platform_joint,
+        leg.platform_axes,
+        joints,
+    )
+
+
+def _check_distinct(legs: list[LegDescription], fail) -> None:
+    """Two legs in the same place (a leg copied and not edited) would make the model count one
+    leg twice, or a platform singular everywhere: refused, naming both."""
+    seen: dict[tuple, int] = {}
+    for i, leg in enumerate(legs, start=1):
+        first = seen.setdefault(_geometry(leg), i)
+        if first != i:
+            fail(
+                f"legs[{i}]",
+                f"leg {leg.name!r} is in the same place as legs[{first}] ({legs[first - 1].name!r}): "
+                "the same attach_mm, tip_offset_mm and joints (a copied leg not edited?)",
+            )
+
+
 def _check_used(params: dict[str, float], used: dict[str, str], fail) -> None:
     for pname in params:
         if pname not in used:
@@ -459,6 +487,7 @@ def _descriptions(data: dict, source: str, default_name: str):
             )
         )
     _check_used(spec.params, used, fail)
+    _check_distinct(legs, fail)
     _check_link_names(tuple(legs), spec.params, fail)
     tol = spec.singular_tol
     if not (0 <= tol < 1):

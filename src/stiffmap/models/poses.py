@@ -14,12 +14,17 @@ import math
 
 import numpy as np
 
-__all__ = ["MAX_ANGLE_DEG", "MAX_ORIENTATIONS", "orientations_from_text", "poses_from"]
+from .presets import MAX_GRID_POINTS
+
+__all__ = ["MAX_ANGLE_DEG", "MAX_ORIENTATIONS", "MAX_POSES", "orientations_from_text", "poses_from"]
 
 #: Largest roll, pitch or yaw a pose may hold, degrees.
 MAX_ANGLE_DEG = 180.0
 #: Most orientations a text may give.
 MAX_ORIENTATIONS = 100_000
+#: Most poses positions and orientations may join into (a grid's limit: a map of a million poses
+#: of a hexapod takes hours).
+MAX_POSES = MAX_GRID_POINTS
 
 _NAMES = ("roll", "pitch", "yaw")
 
@@ -98,7 +103,17 @@ def poses_from(positions, orientations) -> np.ndarray:
     ndarray, shape (M * N, 6)
         Poses, the positions varying fastest: row ``k N + i`` is position i at orientation k
         (a map over positions at each orientation in turn).
+
+    Raises
+    ------
+    ValueError
+        When they join into more than :data:`MAX_POSES` poses (the counts named).
     """
     P = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
     A = np.asarray(orientations, dtype=np.float64).reshape(-1, 3)
+    if P.shape[0] * A.shape[0] > MAX_POSES:
+        raise ValueError(
+            f"gives {P.shape[0]} positions at {A.shape[0]} orientations, {P.shape[0] * A.shape[0]} poses; "
+            f"at most {MAX_POSES}"
+        )
     return np.concatenate([np.tile(P, (A.shape[0], 1)), np.repeat(A, P.shape[0], axis=0)], axis=1)

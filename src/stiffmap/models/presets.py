@@ -51,7 +51,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .base import check_positive
+from ..stiffness import MAX_POSITION_MM
+from .base import check_positive, check_stiffness
 from .io import AXIS_NAMES
 
 __all__ = [
@@ -163,6 +164,7 @@ def grid_points(spec: str, dim: int, presets: str = "") -> np.ndarray:
             raise ValueError(f"{spec!r}: bad axis {p!r}; {hint}") from None
         if not np.all(np.isfinite(axes[-1])):
             raise ValueError(f"{spec!r}: axis {p!r} is not finite")
+        _check_plausible(axes[-1], f"{spec!r}: axis {p!r}")
     mesh = np.meshgrid(*axes[::-1], indexing="ij")
     pts = np.stack([m.ravel() for m in mesh[::-1]], axis=1)
     if pts.shape[0] > MAX_GRID_POINTS:
@@ -190,7 +192,17 @@ def positions_from_list(text: str, dim: int, robot: str = "the robot", presets: 
             f"{text!r}: expected {f'a preset ({presets}), ' if presets else ''}a CSV file with columns "
             f"{', '.join(cols)} (mm), or positions '{c};{c}' in mm for {robot}"
         )
+    _check_plausible(P, repr(text))
     return P
+
+
+def _check_plausible(values: np.ndarray, what: str) -> None:
+    """Coordinates within +-MAX_POSITION_MM (a position the models can take), else ValueError."""
+    far = np.abs(values) > MAX_POSITION_MM
+    if far.any():
+        raise ValueError(
+            f"{what}: {values[far][0]:g} mm is beyond +-{MAX_POSITION_MM:g} mm: not a plausible position"
+        )
 
 
 def select_positions(points: np.ndarray, select: str | None) -> np.ndarray:
@@ -317,7 +329,11 @@ def joint_stiffnesses_from_text(items: Sequence[str], chain) -> tuple[float, ...
             f"no stiffness for joint(s) {', '.join(missing)} of {chain.source}: a URDF robot has no "
             f"default; give k1=K1,...,k{n}=K{n} for {joints} ({units}), or k_theta=K for all"
         )
-    return tuple(
-        check_positive(f"k{i + 1} ({chain.joint_names[i]})", v, units.split(",")[0], allow_inf=True)
-        for i, v in enumerate(k)
-    )
+    out = []
+    for i, v in enumerate(k):
+        name, unit = (
+            f"k{i + 1} ({chain.joint_names[i]})",
+            "N/mm" if chain.joint_types[i] == "prismatic" else "N*mm/rad",
+        )
+        out.append(check_stiffness(name, check_positive(name, v, unit, allow_inf=True), unit))
+    return tuple(out)

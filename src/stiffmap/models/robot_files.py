@@ -56,6 +56,7 @@ __all__ = [
     "MOVING_TYPES",
     "URDF_JOINT_TYPES",
     "MAX_ORIGIN_M",
+    "MAX_MIMIC_MULTIPLIER",
     "parse_urdf",
     "read_urdf",
     "expand_xacro",
@@ -73,6 +74,9 @@ MOVING_TYPES = ("revolute", "continuous", "prismatic")
 URDF_JOINT_TYPES = (*MOVING_TYPES, "fixed", "floating", "planar")
 #: Largest origin coordinate taken (m): 1000 km; beyond, a description is not a robot's.
 MAX_ORIGIN_M = 1e6
+#: Largest ``<mimic multiplier>`` taken (a gear ratio, in m/rad between a prismatic and a
+#: revolute joint); beyond, the follower's motion overflows the Jacobian.
+MAX_MIMIC_MULTIPLIER = 1e6
 #: How deep below a package folder ``$(find PKG)`` looks for ``PKG``.
 PACKAGE_SEARCH_DEPTH = 4
 
@@ -248,6 +252,10 @@ def _joint(el: ET.Element, index: int, source: str) -> UrdfJoint:
             problems.append("<mimic> names no joint")
         elif mult is None or off is None or not (math.isfinite(mult) and math.isfinite(off)):
             problems.append("<mimic multiplier/offset> is not a finite number")
+        elif abs(mult) > MAX_MIMIC_MULTIPLIER:
+            problems.append(f"<mimic multiplier> {mult:g} is beyond +-{MAX_MIMIC_MULTIPLIER:g}")
+        elif abs(off) > MAX_ORIGIN_M:
+            problems.append(f"<mimic offset> {off:g} is beyond +-{MAX_ORIGIN_M:g} (m or rad)")
         else:
             mimic = UrdfMimic(leader, mult, off)
     return UrdfJoint(

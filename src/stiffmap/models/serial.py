@@ -518,11 +518,12 @@ class SerialRobot:
                 f"got shape {np.shape(q)}",
                 source=self.chain.source,
             )
-        for i, row in enumerate(Q):
-            if not np.all(np.isfinite(row)):
-                raise InputError(
-                    f"configuration {i + 1} is not finite: {row.tolist()}", source=self.chain.source
-                )
+        bad = ~np.all(np.isfinite(Q), axis=1)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"configuration {i + 1} is not finite: {Q[i].tolist()}", source=self.chain.source
+            )
         return Q, single
 
     def _solve(self, p: np.ndarray) -> tuple[np.ndarray, str]:

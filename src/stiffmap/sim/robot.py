@@ -360,8 +360,13 @@ class SerialField:
     def __call__(self, points) -> np.ndarray:
         P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         ik = self.model.configurations_for(P)
-        for i in np.flatnonzero(~ik.reachable):
-            raise ValueError(f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}")
+        for i in np.flatnonzero(~ik.reachable):  # unreachable, or ambiguous: named by the plan
+            raise PoseError(
+                f"the robot does not reach {P[i].tolist()} mm: {ik.reasons[i]}",
+                pose=P[i],
+                index=i,
+                reason=ik.reasons[i],
+            )
         K = []
         for i, q in enumerate(ik.q):
             try:
