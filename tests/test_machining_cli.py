@@ -485,3 +485,20 @@ def test_a_force_too_large_for_the_model_is_refused_not_a_hang():
     o = run_case(case)
     assert o.kind == "clear" and o.seconds < 10.0, (o.kind, o.seconds, o.stderr)
     _one_line(o.code, o.stderr, "p.nc: line 16:", "no commanded point", "under F = (0, 100000, 0) N", "f.csv")
+
+
+def test_an_arc_whose_ends_share_an_in_plane_coordinate_writes_it():
+    """A G18 arc from z 0 to z 0 (its line names X and Y, the helix's normal axis, not Z): its pieces
+    did not write Z, so the machine cut a chord 3.4 mm (the arc's sagitta) from the arc. Found by the
+    long fuzz profile (own_inch_r_planes.nc with a G18 line inserted); the output now passes the
+    independent re-check."""
+    from helpers.fuzz import run_case
+    from helpers.fuzz_machining import compensate_case
+
+    lines = (DATA / "own_inch_r_planes.nc").read_text().splitlines(keepends=True)
+    text = "".join([*lines[:3], "G18\n", *lines[3:]]).encode()
+    case = compensate_case(
+        {"p.nc": text}, "3prr", "p.nc", "--place", "380,200", "--force-n", "0,-490.5", blamed="p.nc"
+    )
+    o = run_case(case)
+    assert o.kind == "ok", (o.kind, o.detail, o.stderr)
