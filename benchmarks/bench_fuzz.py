@@ -71,7 +71,7 @@ def count(cls: FuzzClass, examples: int, seed: int) -> tuple[collections.Counter
         counts[o.kind] += 1
         slowest[0] = max(slowest[0], o.seconds)
         if o.kind not in HANDLED:
-            last = (o.stderr.strip().splitlines() or [""])[-1]
+            last = o.detail or (o.stderr.strip().splitlines() or [""])[-1]
             last = re.sub(r"/tmp/stiffmap-fuzz-\w+", "{dir}", last)[:200]
             what = f"{case.note} -> " if case.note else ""
             finding = f"{cls.name}: {o.kind}: {what}{last}"

@@ -204,3 +204,301 @@ def test_a_platform_that_turns_is_refused_in_one_line(tmp_path, monkeypatch, cap
     code, _, err = run_in_process([*args, "--place", "0,0,300", "--force-n", "0,0,-10"], monkeypatch, capsys)
     _one_line(code, err, "hexapod", "dim = 6")
     assert list(tmp_path.iterdir()) == []
+
+
+# Findings of the fuzzing of compensate (tests/helpers/fuzz_machining.py, issue 31): each failed
+# on the code before its fix.
+
+
+def test_a_delta_compensates_a_csv_of_points_with_z(tmp_path):
+    """x,y,z points for a spatial robot (z both required and optional) were an internal error."""
+    from helpers.fuzz import run_argv, write_case
+    from helpers.fuzz_machining import check_compensation, compensate_case, points_seed
+
+    for forces in (False, True):
+        opts = ("--place", "-40,-30,-300") + (() if forces else ("--force-n", "4,3,-2"))
+        case = compensate_case(
+            {"p.csv": points_seed(forces, planar=False).encode()}, "delta", "p.csv", *opts, out="o.csv"
+        )
+        d = tmp_path / str(forces)
+        d.mkdir()
+        o = run_argv(write_case(case, d))
+        assert o.code == 0, o.stderr
+        assert check_compensation(case, d, o) == ""  # on the path, deflected, by the independent solver
+
+
+def test_a_place_far_outside_the_workspace_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    """--place 1e9,1e9 was an internal error (the model's plausibility check, a ValueError)."""
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "1e9,1e9",
+            "--force-n",
+            "0,-490.5",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "own_cam_mm.nc: line 12:", "(1e+09, 1e+09)", "beyond")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_out_onto_the_program_is_refused_and_the_program_kept(tmp_path, monkeypatch, capsys):
+    """--out the program itself overwrote the program with its compensated version."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(PROGRAM.read_bytes())
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            prog,
+            "--out",
+            prog,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "--out", "the program itself")
+    assert prog.read_bytes() == PROGRAM.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.nc"]
+    forces = tmp_path / "f.csv"  # nor the force file (it was overwritten by the program)
+    forces.write_text(_FORCES)
+    short = tmp_path / "s.nc"
+    short.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:17]))
+    args = ["compensate", "3prr", "--path", short, "--out", forces, "-q", "--place", "380,200"]
+    code, _, err = run_in_process([*args, "--force-file", forces], monkeypatch, capsys)
+    _one_line(code, err, "--out", "the force file itself")
+    assert forces.read_text() == _FORCES
+
+
+def test_warnings_and_unreachable_points_name_the_program(tmp_path, monkeypatch, capsys):
+    """The program's warnings ("X was never set") and a point out of reach named a line, not the file."""
+    out = tmp_path / "out.nc"
+    base = ["compensate", "3prr", "--out", out, "-q", "--no-figures", "--force-n", "0,-490.5"]
+    code, _, err = run_in_process(
+        [*base, "--path", DATA / "cncjs_circle-inch.gcode", "--place", "380,200"], monkeypatch, capsys
+    )
+    assert code == 1, err
+    warnings = [ln for ln in err.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 2 and all("cncjs_circle-inch.gcode: line 2:" in w for w in warnings), err
+    code, _, err = run_in_process([*base, "--path", PROGRAM, "--place", "0,0"], monkeypatch, capsys)
+    _one_line(code, err, "own_cam_mm.nc: line 12:", "unreachable")
+
+
+@pytest.mark.parametrize("tolerance", ["0.1", "0.02"])
+def test_a_fine_tolerance_is_honoured_by_the_written_program(tmp_path, tolerance):
+    """--tolerance-um 0.1 on an inch program gave a program 0.19 um off the path (its coordinates
+    written to 0.25 um); now written with the digits the tolerance needs, re-checked by the
+    independent solver."""
+    from helpers.fuzz import run_argv, write_case
+    from helpers.fuzz_machining import check_compensation, compensate_case
+
+    name = "own_inch_r_planes.nc"
+    case = compensate_case(
+        {"p.nc": (DATA / name).read_bytes()},
+        "3prr",
+        "p.nc",
+        "--place",
+        "380,200",
+        "--force-n",
+        "0,-490.5",
+        "--tolerance-um",
+        tolerance,
+    )
+    o = run_argv(write_case(case, tmp_path))
+    assert o.code == 0, o.stderr
+    assert check_compensation(case, tmp_path, o) == ""
+
+
+def test_a_tolerance_below_ten_nanometres_is_refused(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+            "--tolerance-um",
+            "1e-9",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "--tolerance-um", "below 0.01 um")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("line", "needles"),
+    [
+        ("G1 X" + "9" * 400, ["p.nc: line 3:", "X999999999999...", "beyond 1e+09"]),  # inf: NaN arcs
+        ("G" + "7" * 320 + " G1 X5", ["p.nc: line 3:", "beyond 1e+09"]),  # int(inf): OverflowError
+    ],
+)
+def test_numbers_of_hundreds_of_digits_are_refused(line, needles):
+    """A word of hundreds of digits is infinite in floating point: it was an internal error."""
+    from helpers.fuzz import run_case
+    from helpers.fuzz_machining import compensate_case
+
+    text = f"G21 G90\nG0 X0 Y0\n{line}\nG1 Y5 F100\n".encode()
+    case = compensate_case(
+        {"p.nc": text}, "3prr", "p.nc", "--place", "380,200", "--force-n", "0,-490.5", blamed="p.nc"
+    )
+    o = run_case(case)
+    assert o.kind == "clear" and o.code == 2, (o.kind, o.stderr)
+    _one_line(o.code, o.stderr, *needles)
+
+
+def test_an_arc_as_the_first_move_is_refused(tmp_path, monkeypatch, capsys):
+    """An arc from wherever the machine stands, then a cut: its entry had no centre (internal error)."""
+    prog = tmp_path / "p.nc"
+    prog.write_text("G3 X0 Y0 I0 J-5\nG21 G90\nG1 X10 Y0 F100\nG1 X20\n")
+    out = tmp_path / "o.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            prog,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "p.nc: line 1:", "an arc (G3) as the first move")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--tool-rpy-deg", "0,180,0"], ["--tool-rpy-deg is for a serial arm"]),
+        (["--q-seed-deg", "0,0,0"], ["--q-seed-deg is for a serial arm"]),
+        (["--place-region", "0:1,0:1"], ["--place-region is for --place auto"]),
+        (["--objective", "rms"], ["--objective is for --place auto"]),
+        (["--objective", "best"], ["--objective must be worst or rms", "'best'"]),
+    ],
+)
+def test_options_the_run_would_ignore_are_refused(tmp_path, monkeypatch, capsys, args, needles):
+    """These were silently ignored (exit 0, a program written as without them): a tool orientation or
+    seed joints for the 3PRR, a region or an objective (even 'best') with --place X,Y."""
+    out = tmp_path / "out.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            PROGRAM,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-n",
+            "0,-490.5",
+            *args,
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_force_that_pushes_the_commanded_point_out_of_reach_names_the_force_file(
+    tmp_path, monkeypatch, capsys
+):
+    """A force row of 1e7 N (the 3PRR would deflect by metres): the error named the program's line only,
+    as if the program were out of reach; now the force and the file it came from too."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16]))  # feed: lines 15, 16
+    forces = tmp_path / "f.csv"
+    forces.write_text("line,fx,fy\n15,0,-490.5\n16,0,10000000\n")
+    out = tmp_path / "o.nc"
+    code, _, err = run_in_process(
+        [
+            "compensate",
+            "3prr",
+            "--path",
+            prog,
+            "--out",
+            out,
+            "-q",
+            "--place",
+            "380,200",
+            "--force-file",
+            forces,
+        ],
+        monkeypatch,
+        capsys,
+    )
+    _one_line(code, err, "p.nc: line 16:", "under F = (0, 1e+07, 0) N", "unreachable", "from " + str(forces))
+    assert not out.exists()
+
+
+def test_a_force_too_large_for_the_model_is_refused_not_a_hang():
+    """1e5 N across a cut of the 3PRR (a deflection of 90 mm): the commanded point's fixed point never
+    converged and every piece was halved again, 32768 pieces after 23 s (a hang under the fuzz
+    harness's 20 s limit); now one line naming the line, the force and its file, in seconds."""
+    from helpers.fuzz import run_case
+    from helpers.fuzz_machining import compensate_case
+
+    prog = b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16])  # feed moves: lines 15, 16
+    forces = b"line,fx,fy\n15,0,-490.5\n16,0,100000\n"
+    case = compensate_case(
+        {"p.nc": prog, "f.csv": forces},
+        "3prr",
+        "p.nc",
+        "--place",
+        "380,200",
+        "--force-file",
+        "{dir}/f.csv",
+        blamed="f.csv",
+    )
+    o = run_case(case)
+    assert o.kind == "clear" and o.seconds < 10.0, (o.kind, o.seconds, o.stderr)
+    _one_line(o.code, o.stderr, "p.nc: line 16:", "no commanded point", "under F = (0, 100000, 0) N", "f.csv")
+
+
+def test_an_arc_whose_ends_share_an_in_plane_coordinate_writes_it():
+    """A G18 arc from z 0 to z 0 (its line names X and Y, the helix's normal axis, not Z): its pieces
+    did not write Z, so the machine cut a chord 3.4 mm (the arc's sagitta) from the arc. Found by the
+    long fuzz profile (own_inch_r_planes.nc with a G18 line inserted); the output now passes the
+    independent re-check."""
+    from helpers.fuzz import run_case
+    from helpers.fuzz_machining import compensate_case
+
+    lines = (DATA / "own_inch_r_planes.nc").read_text().splitlines(keepends=True)
+    text = "".join([*lines[:3], "G18\n", *lines[3:]]).encode()
+    case = compensate_case(
+        {"p.nc": text}, "3prr", "p.nc", "--place", "380,200", "--force-n", "0,-490.5", blamed="p.nc"
+    )
+    o = run_case(case)
+    assert o.kind == "ok", (o.kind, o.detail, o.stderr)

@@ -17,7 +17,9 @@ time limit. :func:`classify` says what happened:
                rig file, a camera that measured nothing), results were given (exit 0 or 1) and no
                ``error:``/``warning:`` line says it (a refusal, exit 2, is right); or a run that
                exited 0 whose output the case's ``oracle`` (an independent computation of the
-               right answer: ``helpers.fuzz_robots.RobotCase``) finds wrong
+               right answer: ``helpers.fuzz_robots.RobotCase``) finds wrong; or the case's
+               ``check`` found what the run left wrong (an output off its tolerance, an input
+               changed, an output or temporary file left by a failed run: ``Outcome.detail``)
 ``bug``        stiffmap's guard caught an unexpected exception (exit 3, "internal error")
 ``traceback``  an exception escaped the guard (or ``Traceback`` was printed)
 ``hang``       the time limit passed
@@ -43,6 +45,7 @@ import sys
 import tempfile
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -70,6 +73,9 @@ class FuzzCase:
     is right too); None when success is right. ``must_refuse``: the input must be refused
     before anything is done (exit 2). ``links``: symbolic links to make (name -> target, both
     relative to the directory). In the bytes of a ``.toml`` file, ``{dir}`` is the directory.
+    ``check``: called with the directory and the outcome after the run (before the directory is
+    removed); what it returns, when not empty, is what the run left wrong: the outcome is then
+    ``wrong`` (unless worse) and the text its ``detail``.
     """
 
     files: dict[str, bytes]
@@ -79,6 +85,7 @@ class FuzzCase:
     expect: str | None = None
     must_refuse: bool = False
     links: dict[str, str] = field(default_factory=dict)
+    check: Callable[[Path, Outcome], str] | None = field(default=None, compare=False)
 
     def __repr__(self) -> str:
         # Short, for hypothesis's report of a failing case (the files' bytes can be megabytes).
@@ -110,6 +117,7 @@ class Outcome:
     kind: str = ""
     seconds: float = 0.0
     escaped: BaseException | None = field(default=None, repr=False)
+    detail: str = ""
 
 
 class _Hang(BaseException):
@@ -203,9 +211,14 @@ def run_case(case: FuzzCase, *, time_limit: float = TIME_LIMIT_S) -> Outcome:
     d = Path(tempfile.mkdtemp(prefix="stiffmap-fuzz-"))
     try:
         o = run_argv(write_case(case, d), time_limit=time_limit)
+        check = getattr(case, "check", None)
+        if check is not None and not isinstance(o.escaped, _Hang):
+            o.detail = check(d, o)
     finally:
         shutil.rmtree(d, ignore_errors=True)
     o.kind = classify(o, case.blamed, getattr(case, "expect", None), getattr(case, "must_refuse", False))
+    if o.detail and o.kind in (*HANDLED, "unnamed", "silent"):
+        o.kind = "wrong"
     oracle = getattr(case, "oracle", None)  # an independent check of a successful run's output
     why = oracle(o) if o.kind == "ok" and oracle is not None else None
     if why:
@@ -218,7 +231,7 @@ def assert_handled(case: FuzzCase, o: Outcome) -> None:
     """The fuzz property: the command succeeded, or said clearly what is wrong with which file."""
     if o.kind in HANDLED:
         return
-    detail = f"{type(o.escaped).__name__}: {o.escaped}" if o.escaped is not None else ""
+    detail = f"{type(o.escaped).__name__}: {o.escaped}" if o.escaped is not None else o.detail
     raise AssertionError(
         f"{o.kind}: stiffmap {' '.join(case.argv)} (exit {o.code}) {detail}\n"
         f"files: {', '.join(f'{k} ({len(v)} bytes)' for k, v in case.files.items())}"

@@ -131,15 +131,17 @@ class Compensation:
         return float(np.max(self.after)) if self.after.size else 0.0
 
 
-def _raise_invalid(path: Toolpath, m: np.ndarray, res, fld, P: np.ndarray, what: str) -> None:
-    """Raise a :class:`CompensationError` for the first invalid point in program order."""
+def _raise_invalid(path: Toolpath, m: np.ndarray, res, fld, P: np.ndarray, what: str, F=None) -> None:
+    """Raise a :class:`CompensationError` for the first invalid point in program order (with the
+    force ``F`` (N, 3) that put a commanded point there, when given)."""
     bad = np.flatnonzero(~res.valid)
     if bad.size == 0:
         return
     j = bad[np.argmin(path.line[m[bad]] * 1.0)]
+    under = "" if F is None else " under F = ({:.6g}, {:.6g}, {:.6g}) N".format(*F[j])
     raise CompensationError(
-        f"line {path.line[m[j]]}: {what} {fld.describe_point(P[j])} {res.reasons[j] or 'cannot be evaluated'}"
-        " (nothing written)"
+        f"line {path.line[m[j]]}: {what} {fld.describe_point(P[j])}{under} "
+        f"{res.reasons[j] or 'cannot be evaluated'} (nothing written)"
     )
 
 
@@ -174,13 +176,23 @@ def solve_commanded(fld, path: Toolpath, forces: ForceSpec, m, s, q0=None, spin=
     q = q0
     for _ in range(FIXED_POINT_MAX):
         res = fld(C, F, q, spin)
-        _raise_invalid(path, m, res, fld, C, "commanded point")
+        _raise_invalid(path, m, res, fld, C, "commanded point", F)
         new = P - res.delta
         q = res.q
-        step = float(np.max(np.abs(new - C))) if C.size else 0.0
+        moved = np.max(np.abs(new - C), axis=1) if C.size else np.zeros(0)
         C = new
-        if step < FIXED_POINT_TOL_MM:
+        if not np.any(moved >= FIXED_POINT_TOL_MM):
             break
+    else:  # the deflection changes as much as the point moves: no commanded point to find
+        j = int(
+            np.flatnonzero(moved >= FIXED_POINT_TOL_MM)[np.argmin(path.line[m[moved >= FIXED_POINT_TOL_MM]])]
+        )
+        raise CompensationError(
+            f"line {path.line[m[j]]}: no commanded point brings the tool onto the programmed point "
+            f"{fld.describe_point(P[j])} under F = ({F[j][0]:.6g}, {F[j][1]:.6g}, {F[j][2]:.6g}) N: the "
+            f"deflection ({np.linalg.norm(P[j] - C[j]):.4g} mm) changes as fast as the point moves (a force "
+            "too large for the model, or a singularity near) (nothing written)"
+        )
     return C, q
 
 
@@ -268,7 +280,7 @@ def _check(fld, path: Toolpath, forces: ForceSpec, pc: _Pieces, spin_of) -> tupl
     F = force_at(path, forces, m, s)
     q0 = None if pc.qa is None else pc.qa[rep]
     res = fld(X, F, q0, spin_of(m, s))
-    _raise_invalid(path, m, res, fld, X, "point between commanded points")
+    _raise_invalid(path, m, res, fld, X, "point between commanded points", F)
     dev = path.distance(m, X + res.delta)
     worst = np.max(dev.reshape(n, k), axis=1)
     return worst, centres

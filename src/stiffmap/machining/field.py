@@ -24,6 +24,7 @@ import numpy as np
 from ..geometry import rotvec_from_matrix
 from ..models.base import Mechanism, format_pose
 from ..models.serial import SerialRobot
+from ..stiffness import MAX_POSITION_MM
 
 __all__ = ["FieldResult", "MechanismField", "ArmField", "field_for", "spin_rotation"]
 
@@ -97,14 +98,25 @@ class MechanismField:
     def __call__(self, points, forces, q0=None, spin=None) -> FieldResult:
         """Deflections at program points (N, 3) mm under forces (N, 3) N (``q0``, ``spin`` unused)."""
         d = self.mechanism.dim
-        mp = self.mechanism.evaluate(self.base_points(points))
+        P = self.base_points(points)
         F = np.asarray(forces, dtype=float)[:, :d]
         delta = np.full((F.shape[0], 3), np.nan)
-        v = mp.valid
         delta[:, d:] = 0.0
-        if np.any(v):
-            delta[v, :d] = np.linalg.solve(mp.K[v], F[v][..., None])[..., 0]
-        return FieldResult(delta, v.copy(), mp.reasons, np.asarray(mp.conditioning, dtype=float))
+        near = np.all(np.abs(P) <= MAX_POSITION_MM, axis=1)  # the model refuses the rest
+        v = np.zeros(len(P), dtype=bool)
+        reasons = [f"unreachable: beyond +-{MAX_POSITION_MM:g} mm of the base"] * len(P)
+        conditioning = np.full(len(P), np.nan)
+        if np.any(near):
+            mp = self.mechanism.evaluate(P[near])
+            idx = np.flatnonzero(near)
+            v[idx] = mp.valid
+            for k, r in zip(idx, mp.reasons, strict=True):
+                reasons[k] = r
+            conditioning[idx] = mp.conditioning
+            ok = idx[mp.valid]
+            if ok.size:
+                delta[ok, :d] = np.linalg.solve(mp.K[mp.valid], F[ok][..., None])[..., 0]
+        return FieldResult(delta, v, tuple(reasons), conditioning)
 
     def describe_point(self, p) -> str:
         return format_pose(self.base_points(np.atleast_2d(p))[0]) + " (base frame)"

@@ -49,6 +49,7 @@ __all__ = [
     "parse_program",
     "render_program",
     "MM_PER_INCH",
+    "written_resolution_mm",
     "RAPID",
     "LINE",
     "ARC_CW",
@@ -76,6 +77,9 @@ ARC_RADIUS_RTOL = 1e-3
 R_TOL_MM = 0.00005 * 25.4
 R_TOL_INCH = 0.00005
 
+#: The largest number a word may hold (a coordinate of 1e9 mm is already beyond any machine; a
+#: number of hundreds of digits is infinite in floating point).
+MAX_WORD_VALUE = 1e9
 #: A word: a letter and a number; RS274/NGC ignores spaces, so ``X -5`` and ``X - 5`` read as ``X-5``.
 _WORD = re.compile(r"([A-Za-z])\s*([+-]?)\s*(\d+\.?\d*|\.\d+)")
 _LETTERS = set("ABCDFGHIJKLMNPQRSTUVWXYZ")
@@ -317,7 +321,16 @@ def _words(code: str, line: int, src: str | None) -> list[Word]:
             raise GcodeError(
                 f"cannot read {what!r}: expected a word, a letter and a number{hint}", line=line, source=src
             )
-        words.append(Word(m.group(1).upper(), float(m.group(2) + m.group(3)), m.start(), m.end()))
+        value = float(m.group(2) + m.group(3))
+        if not abs(value) <= MAX_WORD_VALUE:
+            digits = m.group(3)[:12] + ("..." if len(m.group(3)) > 12 else "")
+            raise GcodeError(
+                f"{m.group(1).upper()}{m.group(2)}{digits}: a number beyond {MAX_WORD_VALUE:g}, which no "
+                "program holds",
+                line=line,
+                source=src,
+            )
+        words.append(Word(m.group(1).upper(), value, m.start(), m.end()))
         i = m.end()
     return words
 
@@ -521,7 +534,8 @@ def parse_program(text: str, source: str | None = None, *, pass_through: bool = 
             moves.append(move)
         if any(w.letter == "M" and w.value in (2, 30) for w in words):
             break  # M2/M30 end the program: the lines after it are kept verbatim, never run
-    return Program(source or "<program>", lines, newline, final, tuple(moves), at, tuple(warnings))
+    named = tuple(f"{source}: {w}" for w in warnings) if source else tuple(warnings)
+    return Program(source or "<program>", lines, newline, final, tuple(moves), at, named)
 
 
 def _update_passing(words: list[Word], st: _State) -> None:
@@ -571,6 +585,13 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             source=source,
         )
     if not st.moved:
+        if st.motion in (2, 3):
+            raise GcodeError(
+                f"an arc (G{st.motion}) as the first move starts wherever the machine stands: its centre "
+                "is from an unknown point; move to its start first (G0/G1)",
+                line=n,
+                source=source,
+            )
         if st.motion != 0:
             warnings.append(
                 f"line {n}: the first move is a feed from wherever the machine stands: taken as an "
@@ -654,38 +675,53 @@ class Piece:
     centre: np.ndarray | None = None
 
 
-def _fmt(v: float, inch: bool) -> str:
-    """A coordinate with its decimal point (0.1 um in mm, 0.25 um in inch)."""
-    s = f"{v:.5f}" if inch else f"{v:.4f}"
+def _fmt(v: float, inch: bool, extra: int = 0) -> str:
+    """A coordinate with its decimal point (0.1 um in mm, 0.25 um in inch; ``extra`` digits more)."""
+    s = f"{v:.{(5 if inch else 4) + extra}f}"
     s = s.rstrip("0")
     if s in ("-0.", "+0."):
         s = "0."
     return s
 
 
-def _coord_words(move: Move, piece: Piece, start: np.ndarray, axes: tuple[int, ...]) -> list[str]:
-    """The X/Y/Z (and I/J/K or R) words of a piece that starts at ``start`` (mm)."""
+def written_resolution_mm(inch: bool, extra: int = 0) -> float:
+    """The step (mm) of the coordinates :func:`render_program` writes (:func:`_fmt`)."""
+    return (MM_PER_INCH * 1e-5 if inch else 1e-4) * 10.0**-extra
+
+
+def _rounded(v: float, inch: bool, extra: int) -> float:
+    """``v`` (in the program's units) as :func:`_fmt` writes it."""
+    return float(_fmt(v, inch, extra))
+
+
+def _coord_words(
+    move: Move, piece: Piece, start: np.ndarray, axes: tuple[int, ...], extra: int = 0
+) -> list[str]:
+    """The X/Y/Z (and I/J/K or R) words of a piece that starts at ``start`` (mm). An increment
+    (G91) is the difference of the two positions as written, so that rounding never adds up."""
     scale = 1.0 / MM_PER_INCH if move.inch else 1.0
+    inch = move.inch
     words = []
     for k in axes:
-        v = piece.end[k] - start[k] if move.incremental else piece.end[k]
-        words.append("XYZ"[k] + _fmt(v * scale, move.inch))
+        v = piece.end[k] * scale
+        if move.incremental:
+            v = _rounded(v, inch, extra) - _rounded(start[k] * scale, inch, extra)
+        words.append("XYZ"[k] + _fmt(v, inch, extra))
     if piece.kind in (ARC_CW, ARC_CCW):
         a, b, _ = PLANE_AXES[move.plane]
         c = piece.centre
         if move.arc_r:
             r = math.hypot(start[a] - c[a], start[b] - c[b])
-            words.append(
-                "R"
-                + _fmt(
-                    (-r if _sweep(piece.kind, start, piece.end, c, move.plane) > math.pi else r) * scale,
-                    move.inch,
-                )
-            )
+            r = -r if _sweep(piece.kind, start, piece.end, c, move.plane) > math.pi else r
+            words.append("R" + _fmt(r * scale, inch, extra))
         else:
             for k in sorted((a, b)):
-                v = c[k] if move.arc_absolute else c[k] - start[k]
-                words.append(_CENTRE_WORD[k] + _fmt(v * scale, move.inch))
+                v = (
+                    c[k] * scale
+                    if move.arc_absolute
+                    else c[k] * scale - _rounded(start[k] * scale, inch, extra)
+                )
+                words.append(_CENTRE_WORD[k] + _fmt(v, inch, extra))
     return words
 
 
@@ -704,7 +740,7 @@ def _style(words: list[str], move: Move) -> str:
 
 
 def render_program(
-    program: Program, outputs: dict[int, list[Piece]], axes: dict[int, tuple[int, ...]]
+    program: Program, outputs: dict[int, list[Piece]], axes: dict[int, tuple[int, ...]], extra_digits: int = 0
 ) -> str:
     """The program with the moves of ``outputs`` rewritten and every other line verbatim.
 
@@ -717,6 +753,8 @@ def render_program(
         its increments from where the previous output left the tool.
     axes : dict of int to tuple of int
         Move index -> the axes (0, 1, 2) its pieces write.
+    extra_digits : int
+        Digits written beyond 0.1 um (mm) or 0.25 um (inch), for a tolerance finer than those.
 
     Returns
     -------
@@ -750,7 +788,7 @@ def render_program(
         ax = axes.get(idx, written)
         first = True
         for pc in pieces:
-            words = _coord_words(mv, pc, start, ax)
+            words = _coord_words(mv, pc, start, ax, extra_digits)
             if first:
                 if not mv.motion_word and mode != pc.kind:
                     words = [_G[pc.kind], *words]

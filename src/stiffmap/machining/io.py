@@ -92,7 +92,7 @@ def read_points_path(path: str | os.PathLike, dim: int) -> tuple[np.ndarray, np.
         A missing column, a bad cell (its line named), fewer than two points.
     """
     need = ["x", "y"] + (["z"] if dim == 3 else [])
-    t = read_csv_columns(path, need, ["z", "fx", "fy", "fz"])
+    t = read_csv_columns(path, need, [c for c in ("z", "fx", "fy", "fz") if c not in need])
     n = len(t)
     if n < 2:
         raise InputError(f"{n} point(s): a path needs at least two", source=str(path))

@@ -50,8 +50,12 @@ def program_pieces(
 
 
 def _changed(path: Toolpath, m: int) -> set[int]:
-    """Axes whose value changes along move m (a ramp's z on a planar mechanism)."""
-    return {k for k in range(3) if path.start[m, k] != path.end[m, k]}
+    """Axes whose value changes along move m (a ramp's z on a planar mechanism; both axes of an
+    arc's plane, which change along it even where its ends agree: a G18 arc from z 0 to z 0)."""
+    moved = {k for k in range(3) if path.start[m, k] != path.end[m, k]}
+    if path.is_arc[m]:
+        moved |= {int(path.axes[m, 0]), int(path.axes[m, 1])}
+    return moved
 
 
 def output_points(comp: Compensation) -> tuple[np.ndarray, np.ndarray]:

@@ -46,6 +46,7 @@ __all__ = [
     "search_samples",
     "objective_at",
     "MIN_CONDITIONING",
+    "OBJECTIVES",
 ]
 
 #: A placement is feasible when the model's conditioning (in [0, 1]) is at least this at every point.
@@ -102,6 +103,10 @@ class Placement:
     grid: tuple[np.ndarray, ...]
     values: np.ndarray
     evaluations: int
+
+
+#: What ``--place auto`` minimises: the worst or the RMS deflection along the program.
+OBJECTIVES = ("worst", "rms")
 
 
 def default_region(mechanism) -> tuple[np.ndarray, np.ndarray]:
@@ -329,7 +334,7 @@ def place_program(
     InputError
         No feasible placement in the region, or the program does not fit in it.
     """
-    if objective not in ("worst", "rms"):
+    if objective not in OBJECTIVES:
         raise InputError(f"--objective must be worst or rms, got {objective!r}")
     dims = list(fld.corrected)
     lo, hi = (

@@ -15,20 +15,21 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..models.base import Mechanism
 from ..stats import chi2_ppf
-from .compensate import Compensation, compensate_path
+from .compensate import CHECK_FRACTION, FIXED_POINT_TOL_MM, Compensation, CompensationError, compensate_path
 from .field import ArmField, field_for
 from .forces import ForceSpec, force_at
-from .gcode import render_program
+from .gcode import render_program, written_resolution_mm
 from .io import is_points_file, read_force_file, read_points_path, read_program, write_text
 from .output import point_rows, program_pieces
 from .path import toolpath_from_moves, toolpath_from_points
-from .place import Placement, place_program
+from .place import OBJECTIVES, Placement, place_program
 from .spin import SpinPlan, choose_spin
 
 __all__ = [
@@ -41,6 +42,8 @@ __all__ = [
 
 #: Points (at most) at which the model's uncertainty is propagated.
 BAND_POINTS = 2000
+#: The finest --tolerance-um (10 nm): the commanded points are solved to 1 nm.
+MIN_TOLERANCE_UM = 0.01
 
 
 @dataclass(frozen=True)
@@ -180,40 +183,24 @@ def compensate_file(
     InputError
         Naming the file, line and field: a construct that cannot be compensated, a point
         out of reach or at a singularity, force rows that do not match the program, a
-        tolerance that is not positive. Nothing is written then.
+        tolerance that is not positive, an output that is the program itself. Nothing is
+        written then.
     """
-    tol_um = float(options.tolerance_um)
-    if not (math.isfinite(tol_um) and tol_um > 0):
-        raise InputError(
-            f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
-        )
-    if mechanism.dim not in (2, 3):
-        raise InputError(
-            f"compensate: {mechanism.name} is a platform that turns (a legs file with dim = {mechanism.dim}, "
-            "its points are poses); a program is compensated for a robot whose points are positions "
-            "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
-        )
-    if options.free_tool_spin and not _is_arm(mechanism):
-        raise InputError(f"--free-tool-spin is for a serial arm (urdf); {mechanism.name} has no tool spin")
+    tol_um = _check_options(mechanism, options)
+    _check_out(program, out, options.force_file)
     path, forces, gcode, n_csv, warnings = _load(program, mechanism.dim, options)
-    place = np.zeros(3) if options.place_mm is None else np.asarray(options.place_mm, dtype=float)
-    fld = field_for(mechanism, place, tool_rotation=options.tool_rotation, q_seed=options.q_seed)
-    placement = None
-    if options.place_auto:
-        placement = place_program(
-            fld, path, forces, region=options.place_region_mm, objective=options.objective, progress=progress
+    try:  # a point out of reach names its line: and the program it is in
+        fld, placement, spin, comp, band = _compensate(
+            mechanism, path, forces, options, uncertainty, progress
         )
-        fld = fld.with_place(placement.place)
-    spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
-    moves = None if progress is None else (lambda done, total: progress("compensating", done, total))
-    comp = compensate_path(
-        fld, path, forces, tol_um * 1e-3, spin_of=None if spin is None else spin.spin_of, progress=moves
-    )
-    band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
+    except CompensationError as e:
+        if options.force_file is not None and " under F = " in e.detail:  # the force is from that file
+            e = CompensationError(f"{e.detail}; the force of that line is from {options.force_file}")
+        raise e.with_source(str(program)) from None
     if gcode is not None:
         prog, text = gcode
         outs, axes = program_pieces(prog, path, comp, fld.corrected)
-        body, encoding = render_program(prog, outs, axes), text.encoding
+        body, encoding = render_program(prog, outs, axes, _extra_digits(prog, tol_um)), text.encoding
     else:
         rows = point_rows(comp, path, n_csv)
         body, encoding = _points_csv(rows), "utf-8"
@@ -228,6 +215,88 @@ def compensate_file(
     )
     summary["written"] = written
     return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
+
+
+def _compensate(mechanism, path, forces, options: CompensateOptions, uncertainty, progress):
+    """Place the program, choose the tool spin and compensate: the field, placement, spin,
+    compensation and the residual's band (the steps of :func:`compensate_file`)."""
+    place = np.zeros(3) if options.place_mm is None else np.asarray(options.place_mm, dtype=float)
+    fld = field_for(mechanism, place, tool_rotation=options.tool_rotation, q_seed=options.q_seed)
+    placement = None
+    if options.place_auto:
+        placement = place_program(
+            fld, path, forces, region=options.place_region_mm, objective=options.objective, progress=progress
+        )
+        fld = fld.with_place(placement.place)
+    spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
+    spin_of = None if spin is None else spin.spin_of
+    moves = None if progress is None else (lambda done, total: progress("compensating", done, total))
+    comp = compensate_path(
+        fld, path, forces, float(options.tolerance_um) * 1e-3, spin_of=spin_of, progress=moves
+    )
+    band = None if uncertainty is None else residual_band_mm(fld, path, forces, comp, uncertainty, spin)
+    return fld, placement, spin, comp, band
+
+
+def _extra_digits(prog, tol_um: float) -> int:
+    """Digits to write beyond the usual (0.1 um, inch 0.25 um) so that rounding a point, at most
+    sqrt(3)/2 of a step, stays within the margin the compensation leaves: (1 - CHECK_FRACTION) of
+    the tolerance (a tolerance of 0.1 um: 5 decimals in mm, 6 in inch)."""
+    inch = any(m.inch for m in prog.moves)
+    extra = 0
+    while math.sqrt(3) / 2 * written_resolution_mm(inch, extra) > (1 - CHECK_FRACTION) * tol_um * 1e-3:
+        extra += 1
+    return extra
+
+
+def _check_options(mechanism, options: CompensateOptions) -> float:
+    """Refuse options that are wrong or that this mechanism or placement would ignore; the
+    tolerance (um)."""
+    tol_um = float(options.tolerance_um)
+    if not (math.isfinite(tol_um) and tol_um > 0):
+        raise InputError(
+            f"--tolerance-um must be a positive number of micrometres, got {options.tolerance_um!r}"
+        )
+    if tol_um < MIN_TOLERANCE_UM:
+        raise InputError(
+            f"--tolerance-um {tol_um:g} is below {MIN_TOLERANCE_UM:g} um: finer than the commanded points "
+            f"are solved ({FIXED_POINT_TOL_MM * 1e3:g} um) and than any machine moves"
+        )
+    if mechanism.dim not in (2, 3):
+        raise InputError(
+            f"compensate: {mechanism.name} is a platform that turns (a legs file with dim = {mechanism.dim}, "
+            "its points are poses); a program is compensated for a robot whose points are positions "
+            "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
+        )
+    if not _is_arm(mechanism):
+        for name, given in (
+            ("--free-tool-spin", options.free_tool_spin),
+            ("--tool-rpy-deg", options.tool_rotation is not None),
+            ("--q-seed-deg", options.q_seed is not None),
+        ):
+            if given:
+                raise InputError(
+                    f"{name} is for a serial arm (urdf); {mechanism.name} has no tool orientation or joints "
+                    "to give"
+                )
+    if options.objective not in OBJECTIVES:
+        raise InputError(f"--objective must be worst or rms, got {options.objective!r}")
+    if not options.place_auto and (options.place_region_mm is not None or options.objective != "worst"):
+        what = "--place-region" if options.place_region_mm is not None else "--objective"
+        raise InputError(
+            f"{what} is for --place auto (the placement search); with --place X,Y it does nothing"
+        )
+    return tol_um
+
+
+def _check_out(program, out, force_file) -> None:
+    """Refuse an output that would overwrite an input: the program or the force file."""
+    o = Path(out)
+    for what, p in (("the program", program), ("the force file", force_file)):
+        if p is not None and o.exists() and Path(p).exists() and os.path.samefile(p, o):
+            raise InputError(
+                f"--out {out} is {what} itself: the corrected program is written to another file"
+            )
 
 
 def _is_arm(mechanism) -> bool:
