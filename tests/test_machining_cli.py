@@ -502,3 +502,29 @@ def test_an_arc_whose_ends_share_an_in_plane_coordinate_writes_it():
     )
     o = run_case(case)
     assert o.kind == "ok", (o.kind, o.detail, o.stderr)
+
+
+def test_a_deflection_too_large_for_a_stiffness_model_is_warned(tmp_path, monkeypatch, capsys):
+    """A force that deflects the 3PRR by millimetres (a kN typed for N, a model's stiffness off by
+    ten) was compensated with exit 0 and no word: now one warning naming the program and the
+    deflection (exit 1, the program still written); the study's 50 kgf stays silent."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16]))
+    study = {"h": 800.0, "L": 250.0, "EA": 7e6, "kj": 525.0, "kb": 9800.0}
+    P = output_samples(toolpath_from_moves(read_program(prog)[0].moves))[2][:, :2] + [380.0, 200.0]
+    for fy, warned in ((-490.5, False), (-4000.0, True)):
+        out = tmp_path / f"out{-fy:g}.nc"
+        args = ["compensate", "3prr", "--path", prog, "--out", out, "-q", "--no-figures"]
+        code, _, err = run_in_process(
+            [*args, "--place", "380,200", "--force-n", f"0,{fy}"], monkeypatch, capsys
+        )
+        before = np.linalg.norm(truss_3prr(P, [0.0, fy], **study), axis=1).max()  # independent
+        assert out.exists() and (before > 4.0) == warned, (before, err)
+        if not warned:
+            assert code == 0 and "warning" not in err, err
+            continue
+        assert code == 1, err
+        lines = [ln for ln in err.splitlines() if ln.startswith("warning:")]
+        assert len(lines) == 1 and "p.nc" in lines[0] and "stiffness model" in lines[0], err
+        shown = float(lines[0].split("by up to ")[1].split(" mm")[0])
+        assert shown == pytest.approx(before, rel=0.02), (shown, before)

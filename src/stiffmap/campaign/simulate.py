@@ -53,6 +53,7 @@ from ..sim.plan import SimulationPlan, plan_simulation, vision_config
 from ..sim.robot import translational_stiffness
 from ..sim.scene import scene_around
 from ..sim.testbed import DEFAULT_CALIBRATION_VIEWS, SimConfig
+from ..stiffness import LARGE_DISPLACEMENT_MM
 from ..units import G_REFERENCE_PAPER
 from .simulated import SimSummary, check_output_dir, write_campaign
 from .simulated_sensor import SensorSimSummary, write_sensor_campaign
@@ -418,7 +419,7 @@ def simulate_camera_campaign(
 #: campaign recovers K6 within 6.5 % and the legs within 11.5 %; its forces x 10 (0.22 mm) within
 #: 0.58 % and 1.0 %; x 50 (0.95 mm) within 0.13 % and 0.2 %: the legs' error goes as about
 #: 0.2 % mm / displacement, 0.4 % at the lower bound.
-OWN_DISPLACEMENT_RANGE_MM = (0.5, 4.0)
+OWN_DISPLACEMENT_RANGE_MM = (0.5, LARGE_DISPLACEMENT_MM)
 #: What a scaled preset aims at, mm: the test-bed's own robots' (the reference study's Delta, the
 #: test-bed hexapod: about 1 mm).
 OWN_TARGET_DISPLACEMENT_MM = 1.0

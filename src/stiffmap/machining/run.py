@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import InputError
 from ..models.base import Mechanism
 from ..stats import chi2_ppf
+from ..stiffness import LARGE_DISPLACEMENT_MM
 from .compensate import CHECK_FRACTION, FIXED_POINT_TOL_MM, Compensation, CompensationError, compensate_path
 from .field import ArmField, field_for
 from .forces import ForceSpec, force_at
@@ -204,6 +205,7 @@ def compensate_file(
     else:
         rows = point_rows(comp, path, n_csv)
         body, encoding = _points_csv(rows), "utf-8"
+    warnings = (*warnings, *_large_deflection(program, comp))
     written = [str(out)]
     write_text(out, body, encoding)
     if spin is not None:
@@ -215,6 +217,18 @@ def compensate_file(
     )
     summary["written"] = written
     return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
+
+
+def _large_deflection(program, comp) -> tuple[str, ...]:
+    """A warning when the force deflects the robot beyond what a stiffness model describes."""
+    worst = comp.worst_before_mm
+    if not worst > LARGE_DISPLACEMENT_MM:
+        return ()
+    return (
+        f"{program}: the force deflects the tool point by up to {worst:.3g} mm, more than the "
+        f"{LARGE_DISPLACEMENT_MM:g} mm a stiffness model is meant for (it describes small deflections): "
+        "check the force (N) and the model's parameters",
+    )
 
 
 def _compensate(mechanism, path, forces, options: CompensateOptions, uncertainty, progress):
