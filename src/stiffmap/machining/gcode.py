@@ -585,24 +585,7 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
             source=source,
         )
     if not st.moved:
-        if st.motion in (2, 3):
-            raise GcodeError(
-                f"an arc (G{st.motion}) as the first move starts wherever the machine stands: its centre "
-                "is from an unknown point; move to its start first (G0/G1)",
-                line=n,
-                source=source,
-            )
-        if st.motion != 0:
-            warnings.append(
-                f"line {n}: the first move is a feed from wherever the machine stands: taken as an "
-                "approach (no force; it goes to the next cut's compensated start)"
-            )
-        for k, a in enumerate("XYZ"):
-            if not st.known[k] and not any(w.letter == a for w in words):
-                warnings.append(f"line {n}: {a} was never set before the first move: taken as 0")
-                st.known[k] = True
-    if not st.moved:  # the program's origin: where the machine stands for the axes it never gives
-        st.known[:] = True
+        _first_move(words, st, n, source, warnings)
     end, axes = _target(words, st, n, source)
     start = st.pos.copy()
     centre, arc_r = None, False
@@ -639,6 +622,28 @@ def _line_move(raw, words, st: _State, n, source, warnings) -> Move | None:
         st.known["XYZ".index(a)] = True
     st.moved = st.framed = True
     return move
+
+
+def _first_move(words, st: _State, n, source, warnings) -> None:
+    """The program's first move: an arc refused (its centre is from an unknown point), a feed taken as
+    an approach, axes never set taken as 0 (each said)."""
+    if st.motion in (2, 3):
+        raise GcodeError(
+            f"an arc (G{st.motion}) as the first move starts wherever the machine stands: its centre "
+            "is from an unknown point; move to its start first (G0/G1)",
+            line=n,
+            source=source,
+        )
+    if st.motion != 0:
+        warnings.append(
+            f"line {n}: the first move is a feed from wherever the machine stands: taken as an "
+            "approach (no force; it goes to the next cut's compensated start)"
+        )
+    for k, a in enumerate("XYZ"):
+        if not st.known[k] and not any(w.letter == a for w in words):
+            warnings.append(f"line {n}: {a} was never set before the first move: taken as 0")
+            st.known[k] = True
+    st.known[:] = True  # the program's origin: where the machine stands for the axes it never gives
 
 
 def _code_lower(raw: str, words: list[Word]) -> bool:
