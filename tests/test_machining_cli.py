@@ -30,6 +30,12 @@ def _one_line(code, err, *needles):
         assert n in lines[0], lines[0]
 
 
+def _run_3prr(program, out, monkeypatch, capsys, *args, place="380,200", force=("--force-n", "0,-490.5")):
+    """``stiffmap compensate 3prr PROGRAM`` (quiet) placed at ``place``, under ``force``, then ``args``."""
+    argv = ["compensate", "3prr", "--path", program, "--out", out, "-q", "--place", place, *force, *args]
+    return run_in_process(argv, monkeypatch, capsys)
+
+
 @pytest.mark.parametrize(
     ("args", "needles"),
     [
@@ -230,23 +236,7 @@ def test_a_delta_compensates_a_csv_of_points_with_z(tmp_path):
 def test_a_place_far_outside_the_workspace_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
     """--place 1e9,1e9 was an internal error (the model's plausibility check, a ValueError)."""
     out = tmp_path / "out.nc"
-    code, _, err = run_in_process(
-        [
-            "compensate",
-            "3prr",
-            "--path",
-            PROGRAM,
-            "--out",
-            out,
-            "-q",
-            "--place",
-            "1e9,1e9",
-            "--force-n",
-            "0,-490.5",
-        ],
-        monkeypatch,
-        capsys,
-    )
+    code, _, err = _run_3prr(PROGRAM, out, monkeypatch, capsys, place="1e9,1e9")
     _one_line(code, err, "own_cam_mm.nc: line 12:", "(1e+09, 1e+09)", "beyond")
     assert list(tmp_path.iterdir()) == []
 
@@ -255,23 +245,7 @@ def test_out_onto_the_program_is_refused_and_the_program_kept(tmp_path, monkeypa
     """--out the program itself overwrote the program with its compensated version."""
     prog = tmp_path / "p.nc"
     prog.write_bytes(PROGRAM.read_bytes())
-    code, _, err = run_in_process(
-        [
-            "compensate",
-            "3prr",
-            "--path",
-            prog,
-            "--out",
-            prog,
-            "-q",
-            "--place",
-            "380,200",
-            "--force-n",
-            "0,-490.5",
-        ],
-        monkeypatch,
-        capsys,
-    )
+    code, _, err = _run_3prr(prog, prog, monkeypatch, capsys)
     _one_line(code, err, "--out", "the program itself")
     assert prog.read_bytes() == PROGRAM.read_bytes()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.nc"]
@@ -326,25 +300,7 @@ def test_a_fine_tolerance_is_honoured_by_the_written_program(tmp_path, tolerance
 
 def test_a_tolerance_below_ten_nanometres_is_refused(tmp_path, monkeypatch, capsys):
     out = tmp_path / "out.nc"
-    code, _, err = run_in_process(
-        [
-            "compensate",
-            "3prr",
-            "--path",
-            PROGRAM,
-            "--out",
-            out,
-            "-q",
-            "--place",
-            "380,200",
-            "--force-n",
-            "0,-490.5",
-            "--tolerance-um",
-            "1e-9",
-        ],
-        monkeypatch,
-        capsys,
-    )
+    code, _, err = _run_3prr(PROGRAM, out, monkeypatch, capsys, "--tolerance-um", "1e-9")
     _one_line(code, err, "--tolerance-um", "below 0.01 um")
     assert list(tmp_path.iterdir()) == []
 
@@ -375,23 +331,7 @@ def test_an_arc_as_the_first_move_is_refused(tmp_path, monkeypatch, capsys):
     prog = tmp_path / "p.nc"
     prog.write_text("G3 X0 Y0 I0 J-5\nG21 G90\nG1 X10 Y0 F100\nG1 X20\n")
     out = tmp_path / "o.nc"
-    code, _, err = run_in_process(
-        [
-            "compensate",
-            "3prr",
-            "--path",
-            prog,
-            "--out",
-            out,
-            "-q",
-            "--place",
-            "380,200",
-            "--force-n",
-            "0,-490.5",
-        ],
-        monkeypatch,
-        capsys,
-    )
+    code, _, err = _run_3prr(prog, out, monkeypatch, capsys)
     _one_line(code, err, "p.nc: line 1:", "an arc (G3) as the first move")
     assert not out.exists()
 
@@ -410,24 +350,7 @@ def test_options_the_run_would_ignore_are_refused(tmp_path, monkeypatch, capsys,
     """These were silently ignored (exit 0, a program written as without them): a tool orientation or
     seed joints for the 3PRR, a region or an objective (even 'best') with --place X,Y."""
     out = tmp_path / "out.nc"
-    code, _, err = run_in_process(
-        [
-            "compensate",
-            "3prr",
-            "--path",
-            PROGRAM,
-            "--out",
-            out,
-            "-q",
-            "--place",
-            "380,200",
-            "--force-n",
-            "0,-490.5",
-            *args,
-        ],
-        monkeypatch,
-        capsys,
-    )
+    code, _, err = _run_3prr(PROGRAM, out, monkeypatch, capsys, *args)
     _one_line(code, err, *needles)
     assert list(tmp_path.iterdir()) == []
 
@@ -442,23 +365,7 @@ def test_a_force_that_pushes_the_commanded_point_out_of_reach_names_the_force_fi
     forces = tmp_path / "f.csv"
     forces.write_text("line,fx,fy\n15,0,-490.5\n16,0,10000000\n")
     out = tmp_path / "o.nc"
-    code, _, err = run_in_process(
-        [
-            "compensate",
-            "3prr",
-            "--path",
-            prog,
-            "--out",
-            out,
-            "-q",
-            "--place",
-            "380,200",
-            "--force-file",
-            forces,
-        ],
-        monkeypatch,
-        capsys,
-    )
+    code, _, err = _run_3prr(prog, out, monkeypatch, capsys, force=("--force-file", forces))
     _one_line(code, err, "p.nc: line 16:", "under F = (0, 1e+07, 0) N", "unreachable", "from " + str(forces))
     assert not out.exists()
 
@@ -514,9 +421,8 @@ def test_a_deflection_too_large_for_a_stiffness_model_is_warned(tmp_path, monkey
     P = output_samples(toolpath_from_moves(read_program(prog)[0].moves))[2][:, :2] + [380.0, 200.0]
     for fy, warned in ((-490.5, False), (-4000.0, True)):
         out = tmp_path / f"out{-fy:g}.nc"
-        args = ["compensate", "3prr", "--path", prog, "--out", out, "-q", "--no-figures"]
-        code, _, err = run_in_process(
-            [*args, "--place", "380,200", "--force-n", f"0,{fy}"], monkeypatch, capsys
+        code, _, err = _run_3prr(
+            prog, out, monkeypatch, capsys, "--no-figures", force=("--force-n", f"0,{fy}")
         )
         before = np.linalg.norm(truss_3prr(P, [0.0, fy], **study), axis=1).max()  # independent
         assert out.exists() and (before > 4.0) == warned, (before, err)
