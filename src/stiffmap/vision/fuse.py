@@ -69,7 +69,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..geometry import displacement_from_poses, rotvec_from_matrix
+from ..geometry import displacement_from_poses, invert_transform, rotvec_from_matrix
 from ..posemath import BoardPose, PoseEstimate, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
 from ..stats import chi2_ppf, chi2_sf
@@ -475,7 +475,11 @@ def fuse_poses(
         for v, off in zip(mapped, offsets, strict=True)
     )
     chi2, dof = _consistency(
-        [v.Q for v in mapped], [v.B for v in mapped], offsets, rig.calibration_cov if with_A else None
+        [v.Q for v in mapped],
+        [v.B for v in mapped],
+        offsets,
+        rig.calibration_cov if with_A else None,
+        _dispersion_terms(rig, mapped),
     )
     return FusedPose(
         board2rig=T_f,
@@ -490,11 +494,28 @@ def fuse_poses(
     )
 
 
-def _consistency(Ns, Bs, offsets, Sc) -> tuple[float, int]:
+def _dispersion_terms(rig: Rig, mapped: list[_View]) -> tuple[np.ndarray, np.ndarray] | None:
+    """(G, D): the views' stacked sensitivities G to their cameras' ``cam2rig`` perturbations (the
+    extrinsic Jacobian at each view's board origin, in the rig's parameter columns) and the rig's
+    dispersion D over them; None when the rig has no dispersion."""
+    D = rig.dispersion
+    if D is None:
+        return None
+    G = np.zeros((6 * len(mapped), len(rig.param_names)))
+    for i, v in enumerate(mapped):
+        se = rig.extrinsic_slice(v.k)
+        if se is not None:
+            C = rig.cameras[v.k].cam2rig
+            G[6 * i : 6 * i + 6, se] = extrinsic_jacobian(invert_transform(C) @ v.T, C)
+    return G, D
+
+
+def _consistency(Ns, Bs, offsets, Sc, dispersion=None) -> tuple[float, int]:
     """chi2 = min_x (r - H x)^T V^-1 (r - H x) over the stacked views' offsets r, and 6 (n - 1).
 
     V = blockdiag(N_k) + B Sc B^T (B the views' stacked sensitivities to the rig's
-    parameters) when the rig's calibration covariance is known, else blockdiag(N_k).
+    parameters) when the rig's calibration covariance is known, else blockdiag(N_k); plus
+    G D G^T with the rig's dispersion (``dispersion`` = (G, D), :func:`_dispersion_terms`).
     """
     n = len(Ns)
     if n < 2:
@@ -505,6 +526,9 @@ def _consistency(Ns, Bs, offsets, Sc) -> tuple[float, int]:
     if Sc is not None and all(B is not None for B in Bs):
         Bst = np.vstack(Bs)
         V += Bst @ Sc @ Bst.T
+    if dispersion is not None:
+        G, D = dispersion
+        V += G @ D @ G.T
     # Scale translations and rotations alike before solving (mm against rad).
     scale = np.sqrt(np.diag(V))
     Vs = V / np.outer(scale, scale)
