@@ -122,10 +122,13 @@ def excess_dispersion(
     variance): D is the positive part of sum e_i e_i^T / (n - 1) - mean P_i (n - 1: the e_i are
     deviations from an estimate fitted to them), and zero when sum e_i^T P_i^-1 e_i is within its
     chi-square law (p (n - 1) degrees of freedom) at ``level``, so that vectors whose covariances
-    hold give D = 0 (not the positive part of chance scatter). Robust to a bad vector: the one
-    farthest outside D estimated without it (its e^T (P + D)^-1 e above the ``outlier_quantile``
-    of the chi-square law of p degrees of freedom) is left out and D estimated again, at most a
-    tenth of the vectors (at least one) and while more than p + 1 remain.
+    hold give D = 0 (not the positive part of chance scatter). Robust to a gross bad vector: the
+    one farthest outside D estimated without it is left out and D estimated again (at most a
+    tenth of the vectors, at least one, while more than p + 1 remain) when its e^T (P + D)^-1 e
+    is above the ``outlier_quantile`` of the law of that statistic for a D estimated from the
+    other m vectors (Hotelling's, nu p / (nu - p + 1) F(p, nu - p + 1) with nu = m - 1: 13
+    vectors of 6, 390 where chi-square's is 28): a D estimated from a dozen vectors is itself
+    uncertain, and leaving out a vector it merely fails to cover would make D too small.
 
     Parameters
     ----------
@@ -151,9 +154,12 @@ def excess_dispersion(
     if P.shape != (n, p, p):
         raise ValueError(f"covs must be ({n}, {p}, {p}) for residuals {e.shape}, got {P.shape}")
     keep = list(range(n))
-    limit = chi2_ppf(outlier_quantile, p)
     while len(keep) - 1 > p + 1 and n - len(keep) < max(1, n // 10):
-        worst, worst_i = limit, None
+        # A vector is left out when beyond what a D estimated from the other m can explain:
+        # e^T D^-1 e of a new vector follows Hotelling's law (nu p / (nu - p + 1)) F(p, nu - p + 1),
+        # nu = m - 1, when D dominates (and chi-square, below it, when P does).
+        nu = len(keep) - 2
+        worst, worst_i = nu * p / (nu - p + 1) * f_ppf(outlier_quantile, p, nu - p + 1), None
         for i in keep:
             rest = [j for j in keep if j != i]
             D, _, _ = _excess_moments(e[rest], P[rest], level)
