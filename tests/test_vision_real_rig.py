@@ -9,14 +9,17 @@ moved after calibration (50 mm, 3 degrees; 2 mm, 0.3 degree).
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.cli_process import run_in_process
 
 from stiffmap.errors import InputError
 from stiffmap.geometry import matrix_from_rotvec, rotvec_from_matrix
+from stiffmap.rig import EXTRINSIC_NAMES, load_rig
 from stiffmap.targets import Chessboard
 from stiffmap.vision import detect_board, read_image
 from stiffmap.vision.files import calibrate_rig_files, measure_image_sets
@@ -57,7 +60,7 @@ def test_the_cameras_agree_on_the_pairs_that_calibrated_the_rig(measured):
     assert all(m.mobile.dof == 6 for m in measured)
     # Under the law: median 5.3, 99.99 % quantile 27.9. Before the corner noise factor: median 139
     # (default photometric poses) and 17 (corners), 2 to 13 of the 13 pairs flagged; before the
-    # rig's dispersion: median 6.4, pair 08 flagged (chi2 79). Now median 3.6, max 12.3 (pair 02).
+    # rig's dispersion: median 6.4, pair 08 flagged (chi2 79). Now median 2.4, max 12.3 (pair 02).
     assert 1.5 < np.median(chi2) < 8.0
     assert [m.image for m in measured if m.mobile.consistency_warning] == []
 
@@ -81,6 +84,24 @@ def test_the_corner_noise_factor_sees_correlated_residuals():
     smooth = np.cumsum(rng.normal(0, 0.05, (54, 2)), axis=0)  # neighbours err alike
     assert corner_noise_factor(white) < 1.6
     assert corner_noise_factor(smooth) > 3.0
+
+
+def test_calibrate_rig_says_what_it_keeps_of_the_pairs_dispersion(tmp_path, monkeypatch, capsys):
+    """The command: exit 0, one note with the ratio and the excess's 1 sigma, rig.json holds it."""
+    out = tmp_path / "rig.json"
+    cams = [f"--camera=left={DATA}/left*.jpg", f"--camera=right={DATA}/right*.jpg"]
+    code, stdout, stderr = run_in_process(
+        ["calibrate-rig", *cams, "--board", "9x6", "--square-mm", "25", "--out", out], monkeypatch, capsys
+    )
+    assert code == 0, stderr
+    notes = [ln for ln in stderr.splitlines() if ln.startswith("note: ")]
+    assert len(notes) == 1 and "warning" not in stderr, stderr
+    assert "camera right: its pose relative to left scattered 2.9 times" in notes[0]
+    assert "13 views" in notes[0] and "kept in the rig file" in notes[0]
+    rig = load_rig(out)
+    names = [f"right.{p}" for p in EXTRINSIC_NAMES]
+    assert json.loads(out.read_text())["dispersion"]["params"] == names
+    assert np.sqrt(rig.dispersion[rig.param_names.index("right.ty")].max()) > 0.1
 
 
 @pytest.mark.parametrize("move", ["50 mm", "3 degrees", "2 mm", "0.3 degree"])

@@ -99,16 +99,16 @@ class ExcessDispersion:
     left_out: tuple[int, ...] = ()
 
 
-def _excess_moments(e: np.ndarray, P: np.ndarray, level: float) -> tuple[np.ndarray, float, float]:
-    """D = the positive part of sum e e^T / (n - 1) - mean P, zero unless the scatter's chi-square
-    (p (n - 1) degrees of freedom) is significant at ``level``; with its ratio and p-value."""
-    n, p = e.shape
-    q = float(sum(x @ np.linalg.solve(c, x) for x, c in zip(e, P, strict=True)))
+def _excess_moments(q: float, EE: np.ndarray, SP: np.ndarray, n: int, level: float):
+    """D = the positive part of EE / (n - 1) - SP / n (EE = sum e e^T, SP = sum P over n vectors),
+    zero unless q = sum e^T P^-1 e is significant at ``level`` under the chi-square law of
+    p (n - 1) degrees of freedom; with the ratio q / (p (n - 1)) and the p-value."""
+    p = len(EE)
     dof = p * (n - 1)
     p_value = chi2_sf(q, dof)
     if p_value > level:
         return np.zeros((p, p)), q / dof, p_value
-    M = e.T @ e / (n - 1) - P.mean(axis=0)
+    M = EE / (n - 1) - SP / n
     w, V = np.linalg.eigh(0.5 * (M + M.T))
     return (V * np.maximum(w, 0.0)) @ V.T, q / dof, p_value
 
@@ -153,23 +153,27 @@ def excess_dispersion(
     n, p = e.shape
     if P.shape != (n, p, p):
         raise ValueError(f"covs must be ({n}, {p}, {p}) for residuals {e.shape}, got {P.shape}")
+    q = np.array([x @ np.linalg.solve(c, x) for x, c in zip(e, P, strict=True)])
+    outer = e[:, :, None] * e[:, None, :]
     keep = list(range(n))
     while len(keep) - 1 > p + 1 and n - len(keep) < max(1, n // 10):
         # A vector is left out when beyond what a D estimated from the other m can explain:
         # e^T D^-1 e of a new vector follows Hotelling's law (nu p / (nu - p + 1)) F(p, nu - p + 1),
         # nu = m - 1, when D dominates (and chi-square, below it, when P does).
-        nu = len(keep) - 2
-        worst, worst_i = nu * p / (nu - p + 1) * f_ppf(outlier_quantile, p, nu - p + 1), None
+        m = len(keep) - 1
+        worst, worst_i = (m - 1) * p / (m - p) * f_ppf(outlier_quantile, p, m - p), None
+        Q, EE, SP = q[keep].sum(), outer[keep].sum(axis=0), P[keep].sum(axis=0)
         for i in keep:
-            rest = [j for j in keep if j != i]
-            D, _, _ = _excess_moments(e[rest], P[rest], level)
+            D, _, _ = _excess_moments(Q - q[i], EE - outer[i], SP - P[i], m, level)
             c = float(e[i] @ np.linalg.solve(P[i] + D, e[i]))
             if c > worst:
                 worst, worst_i = c, i
         if worst_i is None:
             break
         keep.remove(worst_i)
-    D, ratio, p_value = _excess_moments(e[keep], P[keep], level)
+    D, ratio, p_value = _excess_moments(
+        q[keep].sum(), outer[keep].sum(axis=0), P[keep].sum(axis=0), len(keep), level
+    )
     return ExcessDispersion(D, ratio, p_value, tuple(i for i in range(n) if i not in keep))
 
 

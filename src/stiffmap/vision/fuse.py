@@ -48,8 +48,13 @@ fallback to the corner pose exactly as they are for one camera.
 Consistency: the per-camera rig-frame poses should agree within their uncertainty. The
 statistic chi2 = min_x sum (x_k - x)^T V^-1 (x_k - x) over the stacked views, with V their
 joint covariance (each view's noise, and the rig's calibration error through the views'
-sensitivities, correlated across cameras), follows a chi-square law with 6 (n - 1) degrees
-of freedom when the rig file describes the cameras. Above its :data:`CONSISTENCY_QUANTILE`
+sensitivities, correlated across cameras; and the rig's dispersion, ``Rig.dispersion``, through
+each view's extrinsic Jacobian: how much the cameras' relative pose scattered between the
+calibration's views beyond what their poses predict), follows a chi-square law with 6 (n - 1)
+degrees of freedom when the rig file describes the cameras. The dispersion enters the test only:
+the fused pose and its covariance are those of the views' own noise and the calibration (its
+split between the cameras, hence its share in the fused pose, is not known from their
+difference; see docs/vision.md, "Several cameras"). Above its :data:`CONSISTENCY_QUANTILE`
 the pose carries a warning (``consistency_warning``) saying how far each camera's pose is
 from the fused one: a rig file that is not this rig's, or a camera moved since the rig was
 calibrated.

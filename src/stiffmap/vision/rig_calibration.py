@@ -166,6 +166,36 @@ class RigCalibrationResult:
             n_used=self.n_used[k],
         )
 
+    def dispersion_notes(self) -> list[str]:
+        """A line per camera after the first whose pose relative to the camera it was placed from
+        scattered over the views beyond what their poses predict (step 5 of the module
+        docstring): the ratio and the excess kept in the rig for the cameras' agreement test;
+        and one naming the views left out of that estimate. None when the views scatter as
+        their poses predict (the test-bed's renders)."""
+        lines = []
+        rel = self.rig.info.get("relative_poses", {})
+        for name, r in rel.items():
+            s = self.rig.extrinsic_slice(self.rig.index(name))
+            sd = np.sqrt(np.maximum(np.diag(self.rig.dispersion[s, s]), 0.0))
+            head = (
+                f"camera {name}: its pose relative to {r['relative_to']} scattered {r['variance_ratio']:.2g} "
+                f"times what the poses of its {r['views']} views predict (p = {r['p_value']:.2g})"
+            )
+            if sd.any():
+                t = " / ".join(f"{x:.3f}" for x in sd[:3])
+                rr = " / ".join(f"{1000 * x:.2f}" for x in sd[3:])
+                lines.append(
+                    f"{head}: its excess, 1 sigma {t} mm and {rr} mrad (tx..rz), is kept in the rig file "
+                    "for pose --rig's test of the cameras' agreement"
+                )
+            if r["left_out"]:
+                lines.append(
+                    f"camera {name}: view(s) {', '.join(r['left_out'])} left out of that estimate: their "
+                    "relative pose is beyond what the others' scatter explains (did the board move between "
+                    "the cameras' exposures?)"
+                )
+        return lines
+
     def extrinsics_matlab(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Camera ``k``'s pose relative to the first: the Matlab toolbox's om, T and their 1 sigma."""
         return matlab_extrinsics(self.rig, k)
