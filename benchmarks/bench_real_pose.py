@@ -292,7 +292,7 @@ def _stereo_only() -> None:
         end = text.index("\n\n", start)
         text = text[:start] + head + "\n" + chi2 + text[end:]
     else:
-        at = text.index("\n\n| set ")
+        at = text.rindex("\n\n| set ")  # before the main table (the last), as main() writes it
         text = text[:at] + "\n\n" + head + "\n" + chi2 + text[at:]
     print(chi2)
     path.write_text(text, encoding="utf-8")

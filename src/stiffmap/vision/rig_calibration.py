@@ -795,7 +795,11 @@ def calibrate_rig(
     # 3. Bundle adjustment, 4. outliers left out one at a time.
     problem, outliers = _adjust(problem, used, usable, reasons, **options)
     res = _result(problem, dets, missing, reasons, used, names, vnames, inames, model, outliers, obj_all)
-    # 5. The views' excess dispersion about the calibrated poses between cameras.
+    return _with_dispersion(res, dets, used, board, vnames)  # 5. the views' excess dispersion
+
+
+def _with_dispersion(res: RigCalibrationResult, dets, used, board, vnames) -> RigCalibrationResult:
+    """The result with its rig's dispersion and, in its ``info``, how it was estimated."""
     D, summary = _dispersion(res.rig, dets, used, board, vnames)
     rig = replace(res.rig, dispersion=D, info={**res.rig.info, "relative_poses": summary})
     return replace(res, rig=rig)
