@@ -16,9 +16,14 @@ default settings, in subprocesses:
   image's photometric fit: the edges' scale about the board's centre and one image offset; what
   moves a photometric pose away from the corner pose), median and range over the set;
 - a wrong board size (9x6 on Bouguet's 13x12 board): the answer, and the command's time
-  (wall and CPU of the child process).
+  (wall and CPU of the child process);
+- the stereo set's consistency chi2 per pair, with the rig calibrated from all 13 pairs and
+  leaving each pair out of the calibration (``calibrate_rig`` on the 12 others), with the rig's
+  dispersion and without it (``Rig.dispersion`` set to None: the test as it was before it).
 
 Run: .venv/bin/python benchmarks/bench_real_pose.py   (writes results/real_pose.md)
+     .venv/bin/python benchmarks/bench_real_pose.py --stereo   (the stereo set's row and its
+     per-pair chi2 only, about 1 min, written into the existing results/real_pose.md)
 """
 
 from __future__ import annotations
@@ -48,9 +53,12 @@ from stiffmap.vision.files import image_files, measure_files, measure_image_sets
 from stiffmap.vision.photometric import PhotometricError, refine_pose_photometric  # noqa: E402
 from stiffmap.vision.photometric.diagnostics import edge_agreement  # noqa: E402
 from stiffmap.vision.pose import corner_noise_factor, estimate_pose, pose_shift_sigma  # noqa: E402
+from stiffmap.vision.rig_calibration import calibrate_rig  # noqa: E402
 from stiffmap.vision.sequence import photometric_counts  # noqa: E402
 
 STEREO = HERE.parent / "tests" / "data" / "stereo_opencv"
+#: The stereo set's per-pair chi2 paragraph of results/real_pose.md starts with this line.
+CHI2_HEAD = "Rig consistency chi2 per pair (6 dof; law: median 5.35, 99.99 % quantile 27.9), the stereo set:"
 STIFFMAP = [sys.executable, "-m", "stiffmap"]
 #: Warnings that name an image that cannot be measured (right to warn).
 IMAGE_PROBLEMS = ("no complete", "image is ", "partly", "not an image")
@@ -232,6 +240,65 @@ def stereo(tmp: Path, board: Chessboard) -> list:
     ]
 
 
+def _chi2s(ms) -> str:
+    c = [m.mobile.chi2 for m in ms]
+    return (
+        ", ".join(f"{x:.1f}" for x in c)
+        + f" (median {np.median(c):.1f}, {sum(x > 27.9 for x in c)} above 27.9)"
+    )
+
+
+def stereo_chi2(rig_json: Path, board: Chessboard) -> str:
+    """The stereo set's consistency chi2 per pair (default poses): the rig from all pairs, and
+    each pair posed with the rig calibrated from the 12 others; with and without the dispersion."""
+    numbers = sorted(p.stem[4:] for p in STEREO.glob("left*.jpg"))
+    sets = [(n, {"left": STEREO / f"left{n}.jpg", "right": STEREO / f"right{n}.jpg"}) for n in numbers]
+    rig = load_rig(rig_json)
+    lines = [f"pairs {', '.join(numbers)}:"]
+    for label, r in (("with the dispersion", rig), ("without it", replace(rig, dispersion=None))):
+        lines.append(f"- all 13 pairs in the rig, {label}: {_chi2s(measure_image_sets(sets, r, board))}")
+    dets = [
+        [detect_board(read_image(STEREO / f"{c}{n}.jpg"), board) for n in numbers] for c in ("left", "right")
+    ]
+    loo = {True: [], False: []}
+    for i in range(len(numbers)):
+        keep = [j for j in range(len(numbers)) if j != i]
+        r = calibrate_rig(
+            [[d[j] for j in keep] for d in dets], board, [(640, 480)] * 2, camera_names=["left", "right"]
+        ).rig
+        for with_d in (True, False):
+            rr = r if with_d else replace(r, dispersion=None)
+            loo[with_d].append(measure_image_sets([sets[i]], rr, board)[0])
+    lines.append(f"- each pair left out of the rig, with the dispersion: {_chi2s(loo[True])}")
+    lines.append(f"- each pair left out of the rig, without it: {_chi2s(loo[False])}")
+    return "\n".join(lines)
+
+
+def _stereo_only() -> None:
+    """The stereo set's row and per-pair chi2 written into the existing results/real_pose.md."""
+    board = Chessboard(9, 6, 25.0)
+    path = HERE / "results" / "real_pose.md"
+    text = path.read_text(encoding="utf-8")
+    with tempfile.TemporaryDirectory() as d:
+        row = stereo(Path(d), board)
+        chi2 = stereo_chi2(Path(d) / "rig.json", board)
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("| stereo (OpenCV samples, rig)"))
+    lines[i] = "| " + " | ".join(str(c) for c in row) + " |"
+    text = "\n".join(lines) + "\n"
+    head = CHI2_HEAD
+    if head in text:
+        start = text.index(head)
+        end = text.index("\n\n", start)
+        text = text[:start] + head + "\n" + chi2 + text[end:]
+    else:
+        at = text.rindex("\n\n| set ")  # before the main table (the last), as main() writes it
+        text = text[:at] + "\n\n" + head + "\n" + chi2 + text[at:]
+    print(chi2)
+    path.write_text(text, encoding="utf-8")
+    print(f"saved {path}")
+
+
 def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as d:
@@ -240,6 +307,7 @@ def main() -> None:
         for name, (folder, *_) in REAL_SETS.items():
             rows.append(one_camera(name, folder, Chessboard(9, 6, 25.0), tmp))
         rows.append(stereo(tmp, Chessboard(9, 6, 25.0)))
+        chi2 = stereo_chi2(tmp / "rig.json", Chessboard(9, 6, 25.0))
         rc, w, wall, cpu = _run(
             [
                 "calibrate",
@@ -290,8 +358,9 @@ def main() -> None:
         "`(cut)` when it runs out of the image; `partial`/`not_found` when no piece of it could "
         "be grown):\n\n" + table
     )
+    notes += "\n\n" + CHI2_HEAD + "\n" + chi2
     save("real_pose", "Real photographs: default warnings and photometric refinements", headers, rows, notes)
 
 
 if __name__ == "__main__":
-    main()
+    _stereo_only() if "--stereo" in sys.argv[1:] else main()

@@ -28,6 +28,7 @@ EXAMPLES = {
     "stiffmap.campaign.simulate": [],
     "stiffmap.errors": [],
     "stiffmap.rig": [],
+    "stiffmap.stats": ["excess_dispersion"],
 }
 
 

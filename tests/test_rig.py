@@ -157,3 +157,62 @@ def test_a_covariance_in_another_order_is_read_in_the_rig_order(rng):
         "matrix": rig.cov[np.ix_(order, order)].tolist(),
     }
     np.testing.assert_allclose(Rig.from_dict(obj).cov, rig.cov, rtol=1e-15)
+
+
+def _with_dispersion(rig: Rig, rng: np.random.Generator) -> Rig:
+    """The rig with a random dispersion over each camera's cam2rig perturbation after the first."""
+    D = np.zeros((len(rig.param_names),) * 2)
+    for k in range(1, len(rig)):
+        s = rig.extrinsic_slice(k)
+        D[s, s] = _spd(6, rng)
+    return Rig(rig.cameras, cov=rig.cov, info=rig.info, dispersion=D)
+
+
+def test_the_dispersion_round_trips_and_an_older_file_has_none(rng, tmp_path):
+    rig = _with_dispersion(_rig(rng), rng)
+    obj = _obj(rig)
+    names = [f"{c}.{p}" for c in ("right", "top") for p in EXTRINSIC_NAMES]
+    assert obj["dispersion"]["params"] == names  # over the cam2rig perturbations only
+    back = Rig.from_dict(obj)
+    np.testing.assert_allclose(back.dispersion, rig.dispersion, rtol=1e-15, atol=0)
+    assert "dispersion" not in back.info
+    # A file written before the dispersion existed: loaded, dispersion unknown (None).
+    del obj["dispersion"]
+    assert Rig.from_dict(obj).dispersion is None
+    # Over a subset of the cameras (the others' zero), in any order.
+    obj["dispersion"] = {"params": names[6:][::-1], "matrix": np.diag(np.arange(1.0, 7.0)).tolist()}
+    D = Rig.from_dict(obj).dispersion
+    s = rig.extrinsic_slice(2)
+    np.testing.assert_array_equal(np.diag(D)[s], np.arange(6.0, 0.0, -1.0))
+    assert np.count_nonzero(D) == 6
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "what"),
+    [
+        (lambda o: o.update(dispersion=[1, 2]), "'dispersion'", "must be an object"),
+        (
+            lambda o: o["dispersion"]["params"].__setitem__(0, "left.fx"),
+            "'dispersion.params'",
+            "'left.fx' is not a parameter of the cameras' poses",
+        ),
+        (
+            lambda o: o["dispersion"]["matrix"][0].__setitem__(0, -1.0),
+            "'dispersion.matrix[0][0]'",
+            "variance of right.tx must be zero or positive",
+        ),
+    ],
+)
+def test_a_bad_dispersion_is_named(rng, tmp_path, change, key, what):
+    obj = _obj(_with_dispersion(_rig(rng), rng))
+    change(obj)
+    path = tmp_path / "rig.json"
+    path.write_text(json.dumps(obj))
+    with pytest.raises(InputError) as info:
+        load_rig(path)
+    msg = str(info.value)
+    assert str(path) in msg and key in msg and what in msg and "\n" not in msg, msg
+    # A rig of one camera has no poses between cameras.
+    one = {"cameras": [obj["cameras"][0]], "dispersion": {"matrix": [[1.0]]}}
+    with pytest.raises(InputError, match="'dispersion'.*one camera"):
+        Rig.from_dict(one)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -27,6 +28,8 @@ from stiffmap.sim.render import true_corners
 from stiffmap.sim.scene import two_camera_rig
 from stiffmap.targets import Chessboard
 from stiffmap.vision import BoardDetection, calibrate_camera
+from stiffmap.vision.fuse import fuse_poses
+from stiffmap.vision.pose import estimate_pose
 from stiffmap.vision.rig_calibration import (
     NO_IMAGE,
     _evaluate,
@@ -123,6 +126,11 @@ def test_rendered_rigs_recover_camera_poses_within_their_uncertainty(rendered_re
         # The per-camera residuals are the renderer's corner noise (~0.02 px).
         for c in res.rig.cameras:
             assert c.camera.rms_px < 0.06
+        # The views' relative poses scatter as their covariances say (variance ratio seen
+        # 0.67-0.98 over four renders): no excess dispersion, pose --rig's test unchanged.
+        rel = res.rig.info["relative_poses"]["right"]
+        assert rel["views"] == 13 and rel["left_out"] == [] and 0.5 < rel["variance_ratio"] < 1.5, rel
+        assert rel["p_value"] > 0.05 and not np.any(res.rig.dispersion)
     # The stated uncertainty is the real one: normalised errors of RMS about 1 (seen: 0.71
     # for the poses, 0.86 for the intrinsics over these two rigs; 1.06 and 0.97 over six;
     # test_noise_model_gives_calibrated_uncertainty checks it closely).
@@ -141,7 +149,7 @@ def _whitened(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
 def test_noise_model_gives_calibrated_uncertainty():
     """Exact corners plus Gaussian noise: the covariance is the spread of the errors."""
     rng = np.random.default_rng(7)
-    w_all, w_ext = [], []
+    w_all, w_ext, ratios, zero = [], [], [], 0
     for seed in (1, 2):
         rig, views = true_rig("60deg"), rig_views("60deg", seed)
         for _ in range(5):
@@ -157,12 +165,54 @@ def test_noise_model_gives_calibrated_uncertainty():
             w_ext.append(_whitened(e, res.rig.cov[s, s]))
             # The residual variance estimates the noise (0.1 px per axis).
             assert res.rig.cameras[0].camera.residual_std_px[0] == pytest.approx(0.1, rel=0.1)
+            # Independent corner noise: the views' relative poses scatter as their covariances
+            # say, so no excess dispersion (zero in 10 of 10 draws; ratios 0.67-1.11).
+            ratios.append(res.rig.info["relative_poses"]["right"]["variance_ratio"])
+            zero += not np.any(res.rig.dispersion)
     # Whitened errors: 240 independent N(0, 1) draws (RMS 0.91-1.09 at 95 %; seen 0.96), and
     # 60 of the poses alone (0.82-1.17 at 95 %; seen 0.77-1.04 over three noise seeds).
     rms_all = float(np.sqrt(np.mean(np.square(w_all))))
     rms_ext = float(np.sqrt(np.mean(np.square(w_ext))))
     assert 0.88 < rms_all < 1.12, rms_all
     assert 0.7 < rms_ext < 1.3, rms_ext
+    # Mean of 10 ratios, each of 72 degrees of freedom (sd 0.17): 1 within 0.2.
+    assert abs(np.mean(ratios) - 1.0) < 0.2, ratios
+    assert zero >= 8, zero
+
+
+@pytest.mark.parametrize("move", ["0.3 mm along z", "0.03 deg about y"])
+def test_a_camera_moved_a_little_is_still_caught_on_a_rendered_rig(rendered_results, move):
+    """The rendered 60-degree rig (seed 1), its 13 calibration views posed from their corners
+    in each camera and fused: silent with the calibrated rig; with the right camera moved by
+    0.3 mm along z or 0.03 degree about y -- its weakest axes, about 5 sigma of the views'
+    relative pose (calibration 1 sigma 0.05-0.13 mm, 0.01-0.02 deg) -- every view warned
+    (chi2 seen 120-140 at least, limit 27.9). The rig's dispersion is zero there, so the test
+    is as sharp as before it."""
+    r, res = rendered_results[0]
+    rig = res.rig
+    d = [0.0, 0.0, 0.3, 0.0, 0.0, 0.0] if move.endswith("z") else [0.0, 0.0, 0.0, 0.0, np.radians(0.03), 0.0]
+    right = rig.cameras[1]
+    moved = replace(rig, cameras=(rig.cameras[0], replace(right, cam2rig=perturb_pose(right.cam2rig, d))))
+    shared = [
+        v for v in range(len(r.views)) if all(isinstance(r.detections[k][v], BoardDetection) for k in (0, 1))
+    ]
+    assert len(shared) == 13
+
+    def fused(rg):
+        return [
+            fuse_poses(
+                rg,
+                {
+                    k: estimate_pose(r.detections[k][v], BOARD, rg.cameras[k].camera, refine="corners")
+                    for k in (0, 1)
+                },
+                board=BOARD,
+            )
+            for v in shared
+        ]
+
+    assert not any(f.consistency_warning for f in fused(rig))
+    assert all(f.consistency_warning for f in fused(moved))
 
 
 def test_100mm_stereo_rig_is_recovered_well_within_the_real_photographs_tolerance():

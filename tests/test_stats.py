@@ -8,6 +8,7 @@ import pytest
 from stiffmap.stats import (
     cochran_critical,
     describe,
+    excess_dispersion,
     grubbs_critical,
     mandel_h_critical,
     mandel_k_critical,
@@ -104,3 +105,63 @@ def test_bad_input_is_refused():
         describe([1.0, float("nan")])
     with pytest.raises(ValueError, match="p"):
         mandel_h_critical(2, 0.05)
+
+
+# ------------------------------------------------------------------ excess dispersion
+def _draws(rng, n: int, D: np.ndarray):
+    """n vectors e_i ~ N(0, P_i + D) with P_i of random shapes and scales (a factor 10 apart)."""
+    p = len(D)
+    P = []
+    for _ in range(n):
+        A = rng.normal(size=(p, p))
+        P.append((A @ A.T / p + 0.1 * np.eye(p)) * 10 ** rng.uniform(-0.5, 0.5))
+    P = np.array(P)
+    e = np.array([rng.multivariate_normal(np.zeros(p), Pi + D) for Pi in P])
+    return e, P
+
+
+def test_excess_dispersion_recovers_a_known_excess():
+    """Seeded draws with D known: the estimate within its sampling error (n = 2000, a few %)."""
+    rng = np.random.default_rng(11)
+    L = rng.normal(size=(4, 4))
+    D = L @ L.T
+    e, P = _draws(rng, 2000, D)
+    r = excess_dispersion(e, P)
+    assert r.p_value < 1e-10 and r.left_out == ()
+    # Relative to D's scale: sampling error of a second moment over 2000 draws ~ 3-5 %.
+    assert np.abs(r.cov - D).max() < 0.12 * np.abs(D).max(), (r.cov, D)
+    # The variance ratio is (trace-wise) above 1: sum e P^-1 e / (p (n - 1)).
+    expected = np.mean([np.trace(np.linalg.solve(Pi, Pi + D)) for Pi in P]) / 4
+    assert r.ratio == pytest.approx(expected, rel=0.1)
+
+
+def test_excess_dispersion_is_zero_when_the_covariances_hold():
+    """Vectors drawn with their own covariances: D = 0 in about 95 % of sets (the 5 % test)."""
+    rng = np.random.default_rng(12)
+    zero = 0
+    for _ in range(100):
+        e, P = _draws(rng, 13, np.zeros((6, 6)))
+        r = excess_dispersion(e, P)
+        zero += not np.any(r.cov)
+        assert np.all(np.linalg.eigvalsh(r.cov) > -1e-12)  # positive semi-definite
+    # Binomial(100, 0.95): 89..99 at 99.9 %.
+    assert zero >= 88, zero
+
+
+def test_one_gross_bad_vector_is_left_out():
+    """13 vectors of 6 with a known excess, one shifted by 40 sigma: left out, D from the others."""
+    rng = np.random.default_rng(13)
+    D = np.diag([4.0, 1.0, 1.0, 0.5, 0.5, 0.5])
+    e, P = _draws(rng, 13, D)
+    clean = excess_dispersion(e, P)
+    e_bad = e.copy()
+    e_bad[5] += 40.0 * np.sqrt(np.diag(P[5] + D))
+    r = excess_dispersion(e_bad, P)
+    assert r.left_out == (5,)
+    without = excess_dispersion(np.delete(e, 5, axis=0), np.delete(P, 5, axis=0))
+    np.testing.assert_allclose(r.cov, without.cov, rtol=1e-12, atol=1e-12)
+    # Kept, it would have inflated D's largest variance many times over.
+    kept = excess_dispersion(e_bad, P, outlier_quantile=1.0)
+    assert np.linalg.eigvalsh(kept.cov).max() > 10 * np.linalg.eigvalsh(clean.cov).max()
+    with pytest.raises(ValueError, match="covs must be"):
+        excess_dispersion(e, P[:, :5, :5])

@@ -21,6 +21,7 @@ covariance over them (a rig calibration's errors are correlated across cameras).
          "cam2rig": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
         {"name": "right", ..., "cam2rig": [[...], ...]}],
      "cov": {"params": ["left.fx", ..., "right.rz"], "matrix": [[...], ...]},
+     "dispersion": {"params": ["right.tx", ..., "right.rz"], "matrix": [[...], ...]},
      ...}
 
 Each camera object holds every ``camera.json`` key (its own ``cov`` and ``std`` are its
@@ -29,6 +30,14 @@ covariance (optional: without it, the cameras' own covariances are taken as inde
 the poses between them as exact, :attr:`Rig.calibration_cov`). Other top-level keys (the
 calibration's residuals and views) are kept as they are. :func:`load_rig` also reads a
 ``camera.json``: a rig of that one camera.
+
+``dispersion`` (optional; older files have none): how much the cameras' poses relative to one
+another scattered from one calibration view to the next beyond what the views' pose
+covariances predict (:func:`~stiffmap.stats.excess_dispersion` over the per-view relative
+poses, ``calibrate-rig``), a covariance over the ``cam2rig`` perturbations ``NAME.tx..rz``
+(:attr:`Rig.dispersion`): a hand-held board moving between the cameras' exposures, what the
+lens model leaves, correlated corner errors. It is not an error of the calibrated poses but
+of each new view: the cameras' consistency test adds it (``vision.fuse``).
 """
 
 from __future__ import annotations
@@ -142,6 +151,9 @@ class Rig:
         The first one's frame is the rig frame.
     cov : ndarray, shape (n, n) or None
         Joint covariance over :attr:`param_names` (None: see :attr:`calibration_cov`).
+    dispersion : ndarray, shape (n, n) or None
+        The views' excess dispersion over :attr:`param_names` (non-zero in the ``cam2rig``
+        perturbations only; see the module docstring); None: unknown (taken as zero).
     info : dict
         Other ``rig.json`` keys (residuals, views), kept as they came.
     """
@@ -149,6 +161,7 @@ class Rig:
     cameras: tuple[RigCamera, ...]
     cov: np.ndarray | None = None
     info: dict = field(default_factory=dict)
+    dispersion: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         cams = tuple(self.cameras)
@@ -174,6 +187,21 @@ class Rig:
             C = 0.5 * C + 0.5 * C.T  # (C + C.T) / 2 would overflow near 1e308
             C.setflags(write=False)
             object.__setattr__(self, "cov", C)
+        if self.dispersion is not None:
+            D = np.asarray(self.dispersion, dtype=np.float64)
+            n = len(self.param_names)
+            intrinsic = np.ones(n, dtype=bool)
+            for k in range(1, len(cams)):
+                intrinsic[self.extrinsic_slice(k)] = False
+            if D.shape != (n, n) or not np.all(np.isfinite(D)):
+                raise ValueError(
+                    f"dispersion must be a finite ({n}, {n}) matrix over param_names, got {D.shape}"
+                )
+            if np.any(D[intrinsic]) or np.any(D[:, intrinsic]):
+                raise ValueError("dispersion is over the cameras' cam2rig perturbations only (NAME.tx..rz)")
+            D = 0.5 * D + 0.5 * D.T
+            D.setflags(write=False)
+            object.__setattr__(self, "dispersion", D)
 
     # ------------------------------------------------------------------ access
     @classmethod
@@ -279,6 +307,14 @@ class Rig:
         out: dict[str, Any] = {"cameras": cams}
         if self.cov is not None:
             out["cov"] = {"params": list(self.param_names), "matrix": self.cov.tolist()}
+        if self.dispersion is not None:
+            idx = [
+                i for k in range(1, len(self)) for i in range(len(self.param_names))[self.extrinsic_slice(k)]
+            ]
+            out["dispersion"] = {
+                "params": [self.param_names[i] for i in idx],
+                "matrix": self.dispersion[np.ix_(idx, idx)].tolist(),
+            }
         for k, v in self.info.items():
             if k not in out:
                 out[k] = v
@@ -343,8 +379,29 @@ class Rig:
         if data.get("cov") is not None:
             cov = check_cov_object(data["cov"], rig.param_names, bad, of="this rig")
             _check_sigmas(rig, cov, bad)
-        info = {k: v for k, v in data.items() if k not in ("cameras", "cov")}
-        return cls(rig.cameras, cov=cov, info=info)
+        dispersion = _dispersion(rig, data.get("dispersion"), bad)
+        info = {k: v for k, v in data.items() if k not in ("cameras", "cov", "dispersion")}
+        return cls(rig.cameras, cov=cov, info=info, dispersion=dispersion)
+
+
+def _dispersion(rig: Rig, value: Any, bad) -> np.ndarray | None:
+    """The ``dispersion`` object over the cameras' ``cam2rig`` perturbations (None when absent)."""
+    if value is None:
+        return None
+    names = tuple(f"{c.name}.{p}" for c in rig.cameras[1:] for p in EXTRINSIC_NAMES)
+    if not names:
+        raise bad("dispersion", "a rig of one camera has no poses between cameras to disperse")
+    # check_cov_object names its keys "cov", "cov.params", "cov.matrix": here they are dispersion's.
+    D = check_cov_object(
+        value,
+        names,
+        lambda key, what: bad(key.replace("cov", "dispersion", 1), what),
+        of="the cameras' poses",
+    )
+    full = np.zeros((len(rig.param_names),) * 2)
+    idx = [rig.param_names.index(n) for n in names]
+    full[np.ix_(idx, idx)] = D
+    return full
 
 
 def _check_sigmas(rig: Rig, cov: np.ndarray, bad) -> None:

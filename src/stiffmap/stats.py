@@ -39,6 +39,8 @@ __all__ = [
     "chi2_ppf",
     "t_ppf",
     "f_ppf",
+    "ExcessDispersion",
+    "excess_dispersion",
 ]
 
 
@@ -71,6 +73,108 @@ def t_ppf(q, dof):
 def f_ppf(q, dfn, dfd):
     """The ``q`` quantile of Fisher's F with (``dfn``, ``dfd``) degrees of freedom (elementwise)."""
     return _value(_laws().f.ppf(q, dfn, dfd))
+
+
+@dataclass(frozen=True)
+class ExcessDispersion:
+    """Result of :func:`excess_dispersion`.
+
+    Attributes
+    ----------
+    cov : ndarray, shape (p, p)
+        The excess covariance D (positive semi-definite; zeros when the scatter is what the
+        covariances predict).
+    ratio : float
+        sum e_i^T P_i^-1 e_i / (p (n - 1)) over the vectors kept: the variance ratio (about 1
+        when the P_i hold).
+    p_value : float
+        Of that sum under the chi-square law of p (n - 1) degrees of freedom.
+    left_out : tuple of int
+        Indices of the vectors left out of the estimate as outliers.
+    """
+
+    cov: np.ndarray
+    ratio: float
+    p_value: float
+    left_out: tuple[int, ...] = ()
+
+
+def _excess_moments(q: float, EE: np.ndarray, SP: np.ndarray, n: int, level: float):
+    """D = the positive part of EE / (n - 1) - SP / n (EE = sum e e^T, SP = sum P over n vectors),
+    zero unless q = sum e^T P^-1 e is significant at ``level`` under the chi-square law of
+    p (n - 1) degrees of freedom; with the ratio q / (p (n - 1)) and the p-value."""
+    p = len(EE)
+    dof = p * (n - 1)
+    p_value = chi2_sf(q, dof)
+    if p_value > level:
+        return np.zeros((p, p)), q / dof, p_value
+    M = EE / (n - 1) - SP / n
+    w, V = np.linalg.eigh(0.5 * (M + M.T))
+    return (V * np.maximum(w, 0.0)) @ V.T, q / dof, p_value
+
+
+def excess_dispersion(
+    residuals, covs, *, level: float = 0.05, outlier_quantile: float = 0.9999
+) -> ExcessDispersion:
+    """The covariance D of what scatters vectors beyond their own covariances: e_i ~ N(0, P_i + D).
+
+    The method of moments of a random-effects model (as in a meta-analysis's between-study
+    variance): D is the positive part of sum e_i e_i^T / (n - 1) - mean P_i (n - 1: the e_i are
+    deviations from an estimate fitted to them), and zero when sum e_i^T P_i^-1 e_i is within its
+    chi-square law (p (n - 1) degrees of freedom) at ``level``, so that vectors whose covariances
+    hold give D = 0 (not the positive part of chance scatter). Robust to a gross bad vector: the
+    one farthest outside D estimated without it is left out and D estimated again (at most a
+    tenth of the vectors, at least one, while more than p + 1 remain) when its e^T (P + D)^-1 e
+    is above the ``outlier_quantile`` of the law of that statistic for a D estimated from the
+    other m vectors (Hotelling's, nu p / (nu - p + 1) F(p, nu - p + 1) with nu = m - 1: 13
+    vectors of 6, 390 where chi-square's is 28): a D estimated from a dozen vectors is itself
+    uncertain, and leaving out a vector it merely fails to cover would make D too small.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (n, p)
+    covs : array_like, shape (n, p, p)
+        Each vector's covariance (positive definite).
+
+    Returns
+    -------
+    ExcessDispersion
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> P = np.stack([np.eye(2)] * 400)
+    >>> e = rng.normal(size=(400, 2)) * [2.0, 1.0]  # variances 4 and 1: 3 and 0 in excess
+    >>> np.round(np.diag(excess_dispersion(e, P).cov), 1)
+    array([3.1, 0. ])
+    """
+    e = np.asarray(residuals, dtype=np.float64)
+    P = np.asarray(covs, dtype=np.float64)
+    n, p = e.shape
+    if P.shape != (n, p, p):
+        raise ValueError(f"covs must be ({n}, {p}, {p}) for residuals {e.shape}, got {P.shape}")
+    q = np.array([x @ np.linalg.solve(c, x) for x, c in zip(e, P, strict=True)])
+    outer = e[:, :, None] * e[:, None, :]
+    keep = list(range(n))
+    while len(keep) - 1 > p + 1 and n - len(keep) < max(1, n // 10):
+        # A vector is left out when beyond what a D estimated from the other m can explain:
+        # e^T D^-1 e of a new vector follows Hotelling's law (nu p / (nu - p + 1)) F(p, nu - p + 1),
+        # nu = m - 1, when D dominates (and chi-square, below it, when P does).
+        m = len(keep) - 1
+        worst, worst_i = (m - 1) * p / (m - p) * f_ppf(outlier_quantile, p, m - p), None
+        Q, EE, SP = q[keep].sum(), outer[keep].sum(axis=0), P[keep].sum(axis=0)
+        for i in keep:
+            D, _, _ = _excess_moments(Q - q[i], EE - outer[i], SP - P[i], m, level)
+            c = float(e[i] @ np.linalg.solve(P[i] + D, e[i]))
+            if c > worst:
+                worst, worst_i = c, i
+        if worst_i is None:
+            break
+        keep.remove(worst_i)
+    D, ratio, p_value = _excess_moments(
+        q[keep].sum(), outer[keep].sum(axis=0), P[keep].sum(axis=0), len(keep), level
+    )
+    return ExcessDispersion(D, ratio, p_value, tuple(i for i in range(n) if i not in keep))
 
 
 STRAGGLER_ALPHA = 0.05

@@ -198,6 +198,8 @@ def calibrate_rig(
         for v in views:
             if not v.used and v.reason != NO_IMAGE:
                 note(f"{v.image}: not used by camera {c.name}: {v.reason}")
+    for line in res.dispersion_notes():
+        note(line)
     implausible = [_warn_calibrated(c.camera, out_path, f"camera {c.name}: ") for c in res.rig.cameras]
     if as_json:
         print_json(res.to_dict())

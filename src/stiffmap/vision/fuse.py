@@ -48,8 +48,13 @@ fallback to the corner pose exactly as they are for one camera.
 Consistency: the per-camera rig-frame poses should agree within their uncertainty. The
 statistic chi2 = min_x sum (x_k - x)^T V^-1 (x_k - x) over the stacked views, with V their
 joint covariance (each view's noise, and the rig's calibration error through the views'
-sensitivities, correlated across cameras), follows a chi-square law with 6 (n - 1) degrees
-of freedom when the rig file describes the cameras. Above its :data:`CONSISTENCY_QUANTILE`
+sensitivities, correlated across cameras; and the rig's dispersion, ``Rig.dispersion``, through
+each view's extrinsic Jacobian: how much the cameras' relative pose scattered between the
+calibration's views beyond what their poses predict), follows a chi-square law with 6 (n - 1)
+degrees of freedom when the rig file describes the cameras. The dispersion enters the test only:
+the fused pose and its covariance are those of the views' own noise and the calibration (its
+split between the cameras, hence its share in the fused pose, is not known from their
+difference; see docs/vision.md, "Several cameras"). Above its :data:`CONSISTENCY_QUANTILE`
 the pose carries a warning (``consistency_warning``) saying how far each camera's pose is
 from the fused one: a rig file that is not this rig's, or a camera moved since the rig was
 calibrated.
@@ -69,7 +74,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..geometry import displacement_from_poses, rotvec_from_matrix
+from ..geometry import displacement_from_poses, invert_transform, rotvec_from_matrix
 from ..posemath import BoardPose, PoseEstimate, check_pose, perturb_pose, point_jacobian
 from ..rig import Rig
 from ..stats import chi2_ppf, chi2_sf
@@ -475,7 +480,11 @@ def fuse_poses(
         for v, off in zip(mapped, offsets, strict=True)
     )
     chi2, dof = _consistency(
-        [v.Q for v in mapped], [v.B for v in mapped], offsets, rig.calibration_cov if with_A else None
+        [v.Q for v in mapped],
+        [v.B for v in mapped],
+        offsets,
+        rig.calibration_cov if with_A else None,
+        _dispersion_terms(rig, mapped),
     )
     return FusedPose(
         board2rig=T_f,
@@ -490,11 +499,28 @@ def fuse_poses(
     )
 
 
-def _consistency(Ns, Bs, offsets, Sc) -> tuple[float, int]:
+def _dispersion_terms(rig: Rig, mapped: list[_View]) -> tuple[np.ndarray, np.ndarray] | None:
+    """(G, D): the views' stacked sensitivities G to their cameras' ``cam2rig`` perturbations (the
+    extrinsic Jacobian at each view's board origin, in the rig's parameter columns) and the rig's
+    dispersion D over them; None when the rig has no dispersion."""
+    D = rig.dispersion
+    if D is None:
+        return None
+    G = np.zeros((6 * len(mapped), len(rig.param_names)))
+    for i, v in enumerate(mapped):
+        se = rig.extrinsic_slice(v.k)
+        if se is not None:
+            C = rig.cameras[v.k].cam2rig
+            G[6 * i : 6 * i + 6, se] = extrinsic_jacobian(invert_transform(C) @ v.T, C)
+    return G, D
+
+
+def _consistency(Ns, Bs, offsets, Sc, dispersion=None) -> tuple[float, int]:
     """chi2 = min_x (r - H x)^T V^-1 (r - H x) over the stacked views' offsets r, and 6 (n - 1).
 
     V = blockdiag(N_k) + B Sc B^T (B the views' stacked sensitivities to the rig's
-    parameters) when the rig's calibration covariance is known, else blockdiag(N_k).
+    parameters) when the rig's calibration covariance is known, else blockdiag(N_k); plus
+    G D G^T with the rig's dispersion (``dispersion`` = (G, D), :func:`_dispersion_terms`).
     """
     n = len(Ns)
     if n < 2:
@@ -505,6 +531,9 @@ def _consistency(Ns, Bs, offsets, Sc) -> tuple[float, int]:
     if Sc is not None and all(B is not None for B in Bs):
         Bst = np.vstack(Bs)
         V += Bst @ Sc @ Bst.T
+    if dispersion is not None:
+        G, D = dispersion
+        V += G @ D @ G.T
     # Scale translations and rotations alike before solving (mm against rad).
     scale = np.sqrt(np.diag(V))
     Vs = V / np.outer(scale, scale)
