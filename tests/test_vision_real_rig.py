@@ -124,7 +124,7 @@ def test_a_camera_moved_since_calibration_is_caught(rig, move):
     assert all(m.mobile.consistency_warning for m in ms)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_each_pair_posed_with_a_rig_calibrated_without_it():
     """Leave one out: the rig calibrated (through the library) on 12 pairs, the 13th posed with it.
 
