@@ -434,3 +434,59 @@ def test_a_deflection_too_large_for_a_stiffness_model_is_warned(tmp_path, monkey
         assert len(lines) == 1 and "p.nc" in lines[0] and "stiffness model" in lines[0], err
         shown = float(lines[0].split("by up to ")[1].split(" mm")[0])
         assert shown == pytest.approx(before, rel=0.02), (shown, before)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "place", "force", "needles"),
+    [
+        ("p.nc", "G21 G90\nG0 X0 Y0\nG1 X1_5 F100\nG1 Y5\n", "380,200", "0,-490", ["p.nc", "line 3", "'_5"]),
+        (
+            "p.csv",
+            "x,y\n0,0\n1_0,0\n10,10\n",
+            "380,200",
+            "0,-490",
+            ["p.csv", "line 3", "'1_0' is not a number"],
+        ),
+        (
+            "p.csv",
+            "x,y\n0,0\n١٠,0\n10,10\n",
+            "380,200",
+            "0,-490",
+            ["p.csv", "line 3", "'x'", "is not a number"],
+        ),
+        ("p.csv", "x,y\n0,0\n10,0\n", "380,200", "0,-49_0", ["--force-n", "'0,-49_0'"]),
+        ("p.csv", "x,y\n0,0\n10,0\n", "38_0,200", "0,-490", ["--place", "'38_0,200'"]),
+    ],
+)
+def test_a_number_with_an_underscore_is_refused(
+    tmp_path, monkeypatch, capsys, name, text, place, force, needles
+):
+    """Python's float reads '1_5' as 15 and '١٠' (Arabic-Indic digits) as 10; a controller refuses
+    them and so does compensate, naming the file and line (or the option). The CSV of points was
+    read with x = 10 and compensated (exit 0), as were --force-n 0,-49_0 (-490 N) and --place 38_0."""
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    out = tmp_path / ("o" + p.suffix)
+    code, _, err = _run_3prr(p, out, monkeypatch, capsys, place=place, force=("--force-n", force))
+    _one_line(code, err, *needles)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--q-seed-deg", "0,0"], ["--q-seed-deg", "expected 6 joint angles", "joint_6", "got 2"]),
+        (["--q-seed-deg", "400,0,0,0,0,0"], ["--q-seed-deg", "joint_1 at 400 deg beyond its limits"]),
+        (["--q-seed-deg", "nan"], ["--q-seed-deg", "1 to 12 comma-separated numbers"]),
+        (["--param", "k_theta=inf"], ["--param", "every joint of stiffmap_arm6 is rigid"]),
+    ],
+)
+def test_an_arm_seed_or_springs_it_cannot_take_are_refused(tmp_path, monkeypatch, capsys, args, needles):
+    """The seed's length was refused naming the URDF file (not the option); a seed beyond the joint
+    limits (400 deg) was taken, the program's first point then refused as unreachable ('joint_1 at
+    356 deg'); an arm of rigid joints had its first point called singular (conditioning 0)."""
+    out = tmp_path / "o.nc"
+    argv = ["compensate", "urdf", "arm6", "--path", PROGRAM, "--out", out, "-q", "--place", "480,-30,380"]
+    code, _, err = run_in_process([*argv, "--force-n", "20,-15,10", *args], monkeypatch, capsys)
+    _one_line(code, err, *needles)
+    assert list(tmp_path.iterdir()) == []

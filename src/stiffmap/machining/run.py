@@ -282,7 +282,9 @@ def _check_options(mechanism, options: CompensateOptions) -> float:
             "its points are poses); a program is compensated for a robot whose points are positions "
             "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
         )
-    if not _is_arm(mechanism):
+    if _is_arm(mechanism):
+        _check_arm(mechanism, options.q_seed)
+    else:
         for name, given in (
             ("--free-tool-spin", options.free_tool_spin),
             ("--tool-rpy-deg", options.tool_rotation is not None),
@@ -301,6 +303,29 @@ def _check_options(mechanism, options: CompensateOptions) -> float:
             f"{what} is for --place auto (the placement search); with --place X,Y it does nothing"
         )
     return tol_um
+
+
+def _check_arm(robot, q_seed) -> None:
+    """Refuse a seed the arm cannot take (its joints' count, their limits) and an arm that cannot
+    deflect (every joint rigid: its points would be called singular)."""
+    ch = robot.chain
+    if q_seed is not None:
+        q = np.asarray(q_seed, dtype=float).ravel()
+        if q.size != ch.n:
+            raise InputError(
+                f"--q-seed-deg: expected {ch.n} joint angles (deg) for {ch.name}'s joints "
+                f"{', '.join(ch.joint_names)}, got {q.size}"
+            )
+        beyond = ch.beyond_limits(q)
+        if beyond:
+            raise InputError(
+                f"--q-seed-deg: {'; '.join(beyond)}: the seed must be a configuration the arm can take"
+            )
+    if not robot.links and not any(math.isfinite(k) for k in robot.k_theta):
+        raise InputError(
+            f"--param: every joint of {ch.name} is rigid (k = inf) and it has no flexible link: "
+            "the arm does not deflect, there is nothing to compensate"
+        )
 
 
 def _check_out(program, out, force_file) -> None:
