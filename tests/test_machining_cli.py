@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from helpers.cli_process import run_in_process, run_stiffmap
 from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
+from helpers.fuzz_machining import campaign_files, edited_db
 from helpers.machining_checks import distance_to_path, output_samples, truss_3prr
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -490,3 +491,54 @@ def test_an_arm_seed_or_springs_it_cannot_take_are_refused(tmp_path, monkeypatch
     code, _, err = run_in_process([*argv, "--force-n", "20,-15,10", *args], monkeypatch, capsys)
     _one_line(code, err, *needles)
     assert list(tmp_path.iterdir()) == []
+
+
+def _campaign(tmp_path, seed: str, *sql) -> Path:
+    """A measured test-bed campaign (helpers.fuzz_safety.measured_seed: the sensor seed's 3PRR with
+    its fit of kj) in ``tmp_path/c``, its stiffmap.db edited by ``sql``."""
+    files = campaign_files(seed)
+    if sql:
+        files["c/stiffmap.db"] = edited_db(files["c/stiffmap.db"], *sql)
+    for name, data in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(data)
+    return tmp_path / "c"
+
+
+@pytest.mark.parametrize(
+    ("sql", "needles"),
+    [
+        (("UPDATE model_fit SET cov = '[[-1]]'",), ["negative variance"]),
+        (("UPDATE model_fit SET cov = '[[1e308]]'",), ["standard error of kj over a million times"]),
+        (("UPDATE model_fit SET params = '{\"kj\": -5}'",), ["fitted parameters", "kj must be a positive"]),
+        (("UPDATE model_fit SET params = '{\"nope\": 5}'",), ["fitted parameters", "unknown 3PRR parameter"]),
+        (("UPDATE model_fit SET status = 'half'",), ["model fit failed: its status is 'half'"]),
+    ],
+)
+def test_a_damaged_fit_is_refused_naming_the_database(tmp_path, monkeypatch, capsys, sql, needles):
+    """Found by the --from-campaign fuzz class: a negative variance gave a 95 % band of 0 um (exit 0),
+    a variance of 1e308 an internal error (exit 3), fitted parameters the robot refuses were blamed on
+    campaign.toml, and a status neither ok nor failed said 'failed: None'."""
+    camp = _campaign(tmp_path, "sensor", sql)
+    prog = tmp_path / "p.ngc"
+    prog.write_bytes(b"G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 Y0 F100\n")
+    out = tmp_path / "o.ngc"
+    argv = ["compensate", "--from-campaign", camp, "--path", prog, "--out", out, "-q", "--no-figures"]
+    code, _, err = run_in_process([*argv, "--place", "400,300", "--force-n", "100,-50"], monkeypatch, capsys)
+    _one_line(code, err, "stiffmap.db", *needles)
+    assert not out.exists()
+
+
+def test_a_campaign_without_a_model_is_refused_naming_it(tmp_path, monkeypatch, capsys):
+    """A campaign whose robot.model is "none" was told to run 'stiffmap run' again (no fit in its
+    database), which fits nothing either."""
+    camp = _campaign(tmp_path, "sensor")
+    toml = camp / "campaign.toml"
+    text = toml.read_text()
+    robot = text[text.index("[robot]") : text.index("\n[", text.index("[robot]"))]
+    toml.write_text(text.replace(robot, '[robot]\nmodel = "none"\n'))
+    prog = tmp_path / "p.ngc"
+    prog.write_bytes(b"G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 Y0 F100\n")
+    argv = ["compensate", "--from-campaign", camp, "--path", prog, "--out", tmp_path / "o.ngc", "-q"]
+    code, _, err = run_in_process([*argv, "--place", "400,300", "--force-n", "100,-50"], monkeypatch, capsys)
+    _one_line(code, err, "campaign.toml", 'robot.model = "none"', "give the robot KIND")
