@@ -157,12 +157,14 @@ def program_samples(
 
 
 def search_samples(
-    path: Toolpath, forces: ForceSpec, budget: int = SEARCH_POINTS
+    path: Toolpath, forces: ForceSpec, budget: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At most about ``budget`` points of a program for the placement search: the moves' ends
-    (every k-th when there are more than half the budget, and each axis's extreme ends), and
+    """At most about ``budget`` (default :data:`SEARCH_POINTS`) points of a program for the
+    placement search: the moves' ends (every k-th when there are more than half the budget, and
+    each axis's extreme ends), and
     the rest of the budget spread evenly by arc length along the feed moves. Returns as
     :func:`program_samples`."""
+    budget = SEARCH_POINTS if budget is None else budget
     n = len(path)
     if n == 0:
         return program_samples(path, forces)
