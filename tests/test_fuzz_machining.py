@@ -69,7 +69,7 @@ def test_arm_options(case):
 
 
 @_EXAMPLES
-@given(case=_BY_NAME["--from-campaign folder"].cases)
+@given(case=_BY_NAME["compensate --from-campaign folder"].cases)
 def test_from_campaign_folders(case):
     _check(case)
 
@@ -127,5 +127,5 @@ def test_every_class_is_tested():
         "force CSV x compensate",
         "compensate options",
         "compensate urdf arm6 options",
-        "--from-campaign folder",
+        "compensate --from-campaign folder",
     }

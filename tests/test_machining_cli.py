@@ -542,3 +542,25 @@ def test_a_campaign_without_a_model_is_refused_naming_it(tmp_path, monkeypatch, 
     argv = ["compensate", "--from-campaign", camp, "--path", prog, "--out", tmp_path / "o.ngc", "-q"]
     code, _, err = run_in_process([*argv, "--place", "400,300", "--force-n", "100,-50"], monkeypatch, capsys)
     _one_line(code, err, "campaign.toml", 'robot.model = "none"', "give the robot KIND")
+
+
+def test_a_tool_orientation_the_arm_cannot_hold_without_spin_is_summarised(tmp_path, monkeypatch, capsys):
+    """Found by the arm's fuzz class: with --free-tool-spin and a tool orientation (1e9 deg of roll)
+    that no knot of the program reaches without turning the tool, the summary's worst deflection at
+    the fixed spin was the max of NaNs: a RuntimeWarning (exit 3 under the fuzz harness, exit 1 with
+    'warning: All-NaN slice encountered' from the command line). It is null ('unreachable')."""
+    out = tmp_path / "o.nc"
+    argv = ["compensate", "urdf", "arm6", "--path", PROGRAM, "--out", out, "-q", "--place", "480,-30,380"]
+    argv += [
+        "--force-n",
+        "20,-15,10",
+        "--free-tool-spin",
+        "--tool-rpy-deg",
+        "1e9,0,0",
+        "--json",
+        "--no-figures",
+    ]
+    code, stdout, err = run_in_process(argv, monkeypatch, capsys)
+    assert code == 0 and "warning" not in err, err
+    spin = json.loads(stdout)["spin"]
+    assert spin["worst_fixed_um"] is None and 100.0 < spin["worst_chosen_um"] < 2000.0, spin

@@ -279,12 +279,17 @@ def _print(s: dict) -> None:
         rows.append(
             (
                 "tool spin, worst at knots fixed / chosen (um)",
-                f"{s['spin']['worst_fixed_um']:.2f} / {s['spin']['worst_chosen_um']:.2f}",
+                f"{_um(s['spin']['worst_fixed_um'])} / {_um(s['spin']['worst_chosen_um'])}",
             )
         )
     rows.append(("written", ", ".join(s["written"])))
     print_summary("stiffmap compensate", rows)
     out.print()
+
+
+def _um(v: float | None) -> str:
+    """A deflection (um) of the summary; None: at no point that the tool reaches."""
+    return "unreachable" if v is None else f"{v:.2f}"
 
 
 def register(app: typer.Typer) -> None:

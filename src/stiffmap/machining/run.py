@@ -398,6 +398,12 @@ def _shifted(fld, model, name: str, value: float):
     return type(fld)(new, fld.place)
 
 
+def _worst_um(d: np.ndarray) -> float | None:
+    """The largest of deflections (mm) in um, NaN (an unreachable knot) left out; None if all are."""
+    d = np.asarray(d, dtype=float)
+    return None if not np.any(np.isfinite(d)) else 1e3 * float(np.nanmax(d))
+
+
 def _summary(mechanism, program, out, path, forces, comp, fld, placement, spin, band, opts, warnings) -> dict:
     um = 1e3
     s = {
@@ -424,8 +430,8 @@ def _summary(mechanism, program, out, path, forces, comp, fld, placement, spin, 
         }
     if spin is not None:
         s["spin"] = {
-            "worst_fixed_um": um * float(np.nanmax(spin.fixed)),
-            "worst_chosen_um": um * float(np.nanmax(spin.deflection)),
+            "worst_fixed_um": _worst_um(spin.fixed),  # None: the fixed spin reaches none of the knots
+            "worst_chosen_um": _worst_um(spin.deflection),
             "range_deg": [float(np.degrees(spin.knots.min())), float(np.degrees(spin.knots.max()))],
         }
     return s
