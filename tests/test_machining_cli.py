@@ -564,3 +564,16 @@ def test_a_tool_orientation_the_arm_cannot_hold_without_spin_is_summarised(tmp_p
     assert code == 0 and "warning" not in err, err
     spin = json.loads(stdout)["spin"]
     assert spin["worst_fixed_um"] is None and 100.0 < spin["worst_chosen_um"] < 2000.0, spin
+
+
+def test_a_deflection_too_large_names_the_force_file_it_is_from(tmp_path, monkeypatch, capsys):
+    """Found by the force file's fuzz class (3 of 150 inputs): a force file of kN typed for N was
+    warned naming only the program; the force is the file's, so the warning names it too."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16]))
+    forces = tmp_path / "f.csv"
+    forces.write_text(_FORCES.replace("-490.5", "-4000"))
+    out = tmp_path / "o.nc"
+    code, _, err = _run_3prr(prog, out, monkeypatch, capsys, "--no-figures", force=("--force-file", forces))
+    lines = [ln for ln in err.splitlines() if ln.startswith("warning:")]
+    assert code == 1 and len(lines) == 1 and "p.nc" in lines[0] and "from " + str(forces) in lines[0], err

@@ -913,7 +913,7 @@ ARM_VALUES = {
         ("0,0,100", "0,0,0", "0,0,150", "20,-10,120", "0,0,-50", "0,0,1e5"),
         ("0,0", "nan,0,0", "1e9,0,0", "0,0,1e7", "", "x,0,0"),
     ),
-    "--tip": (("tool0", "link_6", "link_5", "base_link"), ("nope", "", "TOOL0")),
+    "--tip": (("tool0", "link_6", "link_5"), ("nope", "", "TOOL0", "base_link")),
     "--param": (
         ("k_theta=1e7", "k_theta=1e12", "k_theta=1e3", "k_theta=1e-3"),
         ("k_theta=-5", "k_theta=0", "k_theta=nan", "k_theta=inf", "nope=1", "k1", "k_theta=1e300", "k1=5e6"),

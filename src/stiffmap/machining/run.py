@@ -205,7 +205,7 @@ def compensate_file(
     else:
         rows = point_rows(comp, path, n_csv)
         body, encoding = _points_csv(rows), "utf-8"
-    warnings = (*warnings, *_large_deflection(program, comp))
+    warnings = (*warnings, *_large_deflection(program, comp, options.force_file))
     written = [str(out)]
     write_text(out, body, encoding)
     if spin is not None:
@@ -219,15 +219,17 @@ def compensate_file(
     return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
 
 
-def _large_deflection(program, comp) -> tuple[str, ...]:
-    """A warning when the force deflects the robot beyond what a stiffness model describes."""
+def _large_deflection(program, comp, force_file=None) -> tuple[str, ...]:
+    """A warning when the force deflects the robot beyond what a stiffness model describes (naming
+    the force file the force is from, if any)."""
     worst = comp.worst_before_mm
     if not worst > LARGE_DISPLACEMENT_MM:
         return ()
     return (
         f"{program}: the force deflects the tool point by up to {worst:.3g} mm, more than the "
         f"{LARGE_DISPLACEMENT_MM:g} mm a stiffness model is meant for (it describes small deflections): "
-        "check the force (N) and the model's parameters",
+        f"check the force (N{'' if force_file is None else f', from {force_file}'}) "
+        "and the model's parameters",
     )
 
 

@@ -569,9 +569,11 @@ class Chain:
                 acc = pin.SE3.Identity()
             links[j.child] = (len(movers), acc)
         if not movers:
-            raise InputError(
+            raise FieldError(
+                "tip_frame",
                 f"no joint moves frame {tip_frame!r} (from base frame {base!r}): its stiffness cannot be "
-                "modelled",
+                "modelled (give a frame the joints move as {tip_frame})",
+                value=tip_frame,
                 source=tree.source,
             )
         coords, mimics, rows = _coordinates(tree, movers, set(held))
