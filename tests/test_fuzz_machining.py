@@ -5,7 +5,8 @@ writes a corrected program that the independent solvers of ``helpers.machining_c
 the programmed path within the tolerance (deflected under the force) and covering all of it, or
 it ends with one clear message naming the file (exit 1 or 2) and leaves no output and no
 temporary file; the inputs are never changed. ``pytest -m fuzz tests/test_fuzz_machining.py``
-runs the long profile; the default run takes 3 examples of each class.
+runs the long profile; the default run takes 3 examples of each class (2 of the arm's: a run
+and its independent re-check take about 3 s).
 
 The check itself is tested first: a valid run passes it, and an output made wrong (not
 compensated, or one point moved by 5 um) fails it.
@@ -61,6 +62,18 @@ def test_options(case):
     _check(case)
 
 
+@settings(max_examples=settings().max_examples if settings().max_examples > 12 else 2)
+@given(case=_BY_NAME["compensate urdf arm6 options"].cases)
+def test_arm_options(case):
+    _check(case)
+
+
+@_EXAMPLES
+@given(case=_BY_NAME["compensate --from-campaign folder"].cases)
+def test_from_campaign_folders(case):
+    _check(case)
+
+
 def _own_cam(robot: str = "3prr"):
     return compensate_case(
         {"p.nc": (DATA / "own_cam_mm.nc").read_bytes()},
@@ -83,10 +96,11 @@ def _shift_one_coordinate(text: str, um: float) -> str:
     return "".join(lines)
 
 
-@pytest.mark.parametrize("robot", ["3prr", "delta"])
+@pytest.mark.parametrize("robot", ["3prr", "delta", "urdf arm6"])
 def test_the_check_passes_a_good_output_and_fails_a_wrong_one(robot):
     """The oracle is not blind: the run's own output passes; the program as programmed (not
-    compensated: the 3PRR deflects by 0.5 mm, the Delta by 0.3 mm) and the output with one point
+    compensated: the 3PRR deflects by 0.5 mm, the Delta by 0.3 mm, the arm by 0.6 mm) and the output
+    with one point
     moved by 5 um (five times the 1 um tolerance) fail it; an input changed is found."""
     case = _own_cam(robot)
     d = Path(tempfile.mkdtemp(prefix="stiffmap-fuzz-"))
@@ -112,4 +126,6 @@ def test_every_class_is_tested():
         "points CSV x compensate",
         "force CSV x compensate",
         "compensate options",
+        "compensate urdf arm6 options",
+        "compensate --from-campaign folder",
     }

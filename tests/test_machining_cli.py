@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from helpers.cli_process import run_in_process, run_stiffmap
 from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
+from helpers.fuzz_machining import campaign_files, edited_db
 from helpers.machining_checks import distance_to_path, output_samples, truss_3prr
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -434,3 +435,145 @@ def test_a_deflection_too_large_for_a_stiffness_model_is_warned(tmp_path, monkey
         assert len(lines) == 1 and "p.nc" in lines[0] and "stiffness model" in lines[0], err
         shown = float(lines[0].split("by up to ")[1].split(" mm")[0])
         assert shown == pytest.approx(before, rel=0.02), (shown, before)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "place", "force", "needles"),
+    [
+        ("p.nc", "G21 G90\nG0 X0 Y0\nG1 X1_5 F100\nG1 Y5\n", "380,200", "0,-490", ["p.nc", "line 3", "'_5"]),
+        (
+            "p.csv",
+            "x,y\n0,0\n1_0,0\n10,10\n",
+            "380,200",
+            "0,-490",
+            ["p.csv", "line 3", "'1_0' is not a number"],
+        ),
+        (
+            "p.csv",
+            "x,y\n0,0\n١٠,0\n10,10\n",
+            "380,200",
+            "0,-490",
+            ["p.csv", "line 3", "'x'", "is not a number"],
+        ),
+        ("p.csv", "x,y\n0,0\n10,0\n", "380,200", "0,-49_0", ["--force-n", "'0,-49_0'"]),
+        ("p.csv", "x,y\n0,0\n10,0\n", "38_0,200", "0,-490", ["--place", "'38_0,200'"]),
+    ],
+)
+def test_a_number_with_an_underscore_is_refused(
+    tmp_path, monkeypatch, capsys, name, text, place, force, needles
+):
+    """Python's float reads '1_5' as 15 and '١٠' (Arabic-Indic digits) as 10; a controller refuses
+    them and so does compensate, naming the file and line (or the option). The CSV of points was
+    read with x = 10 and compensated (exit 0), as were --force-n 0,-49_0 (-490 N) and --place 38_0."""
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    out = tmp_path / ("o" + p.suffix)
+    code, _, err = _run_3prr(p, out, monkeypatch, capsys, place=place, force=("--force-n", force))
+    _one_line(code, err, *needles)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--q-seed-deg", "0,0"], ["--q-seed-deg", "expected 6 joint angles", "joint_6", "got 2"]),
+        (["--q-seed-deg", "400,0,0,0,0,0"], ["--q-seed-deg", "joint_1 at 400 deg beyond its limits"]),
+        (["--q-seed-deg", "nan"], ["--q-seed-deg", "1 to 12 comma-separated numbers"]),
+        (["--param", "k_theta=inf"], ["--param", "every joint of stiffmap_arm6 is rigid"]),
+    ],
+)
+def test_an_arm_seed_or_springs_it_cannot_take_are_refused(tmp_path, monkeypatch, capsys, args, needles):
+    """The seed's length was refused naming the URDF file (not the option); a seed beyond the joint
+    limits (400 deg) was taken, the program's first point then refused as unreachable ('joint_1 at
+    356 deg'); an arm of rigid joints had its first point called singular (conditioning 0)."""
+    out = tmp_path / "o.nc"
+    argv = ["compensate", "urdf", "arm6", "--path", PROGRAM, "--out", out, "-q", "--place", "480,-30,380"]
+    code, _, err = run_in_process([*argv, "--force-n", "20,-15,10", *args], monkeypatch, capsys)
+    _one_line(code, err, *needles)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _campaign(tmp_path, seed: str, *sql) -> Path:
+    """A measured test-bed campaign (helpers.fuzz_safety.measured_seed: the sensor seed's 3PRR with
+    its fit of kj) in ``tmp_path/c``, its stiffmap.db edited by ``sql``."""
+    files = campaign_files(seed)
+    if sql:
+        files["c/stiffmap.db"] = edited_db(files["c/stiffmap.db"], *sql)
+    for name, data in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(data)
+    return tmp_path / "c"
+
+
+@pytest.mark.parametrize(
+    ("sql", "needles"),
+    [
+        (("UPDATE model_fit SET cov = '[[-1]]'",), ["negative variance"]),
+        (("UPDATE model_fit SET cov = '[[1e308]]'",), ["standard error of kj over a million times"]),
+        (("UPDATE model_fit SET params = '{\"kj\": -5}'",), ["fitted parameters", "kj must be a positive"]),
+        (("UPDATE model_fit SET params = '{\"nope\": 5}'",), ["fitted parameters", "unknown 3PRR parameter"]),
+        (("UPDATE model_fit SET status = 'half'",), ["model fit failed: its status is 'half'"]),
+    ],
+)
+def test_a_damaged_fit_is_refused_naming_the_database(tmp_path, monkeypatch, capsys, sql, needles):
+    """Found by the --from-campaign fuzz class: a negative variance gave a 95 % band of 0 um (exit 0),
+    a variance of 1e308 an internal error (exit 3), fitted parameters the robot refuses were blamed on
+    campaign.toml, and a status neither ok nor failed said 'failed: None'."""
+    camp = _campaign(tmp_path, "sensor", sql)
+    prog = tmp_path / "p.ngc"
+    prog.write_bytes(b"G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 Y0 F100\n")
+    out = tmp_path / "o.ngc"
+    argv = ["compensate", "--from-campaign", camp, "--path", prog, "--out", out, "-q", "--no-figures"]
+    code, _, err = run_in_process([*argv, "--place", "400,300", "--force-n", "100,-50"], monkeypatch, capsys)
+    _one_line(code, err, "stiffmap.db", *needles)
+    assert not out.exists()
+
+
+def test_a_campaign_without_a_model_is_refused_naming_it(tmp_path, monkeypatch, capsys):
+    """A campaign whose robot.model is "none" was told to run 'stiffmap run' again (no fit in its
+    database), which fits nothing either."""
+    camp = _campaign(tmp_path, "sensor")
+    toml = camp / "campaign.toml"
+    text = toml.read_text()
+    robot = text[text.index("[robot]") : text.index("\n[", text.index("[robot]"))]
+    toml.write_text(text.replace(robot, '[robot]\nmodel = "none"\n'))
+    prog = tmp_path / "p.ngc"
+    prog.write_bytes(b"G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 Y0 F100\n")
+    argv = ["compensate", "--from-campaign", camp, "--path", prog, "--out", tmp_path / "o.ngc", "-q"]
+    code, _, err = run_in_process([*argv, "--place", "400,300", "--force-n", "100,-50"], monkeypatch, capsys)
+    _one_line(code, err, "campaign.toml", 'robot.model = "none"', "give the robot KIND")
+
+
+def test_a_tool_orientation_the_arm_cannot_hold_without_spin_is_summarised(tmp_path, monkeypatch, capsys):
+    """Found by the arm's fuzz class: with --free-tool-spin and a tool orientation (1e9 deg of roll)
+    that no knot of the program reaches without turning the tool, the summary's worst deflection at
+    the fixed spin was the max of NaNs: a RuntimeWarning (exit 3 under the fuzz harness, exit 1 with
+    'warning: All-NaN slice encountered' from the command line). It is null ('unreachable')."""
+    out = tmp_path / "o.nc"
+    argv = ["compensate", "urdf", "arm6", "--path", PROGRAM, "--out", out, "-q", "--place", "480,-30,380"]
+    argv += [
+        "--force-n",
+        "20,-15,10",
+        "--free-tool-spin",
+        "--tool-rpy-deg",
+        "1e9,0,0",
+        "--json",
+        "--no-figures",
+    ]
+    code, stdout, err = run_in_process(argv, monkeypatch, capsys)
+    assert code == 0 and "warning" not in err, err
+    spin = json.loads(stdout)["spin"]
+    assert spin["worst_fixed_um"] is None and 100.0 < spin["worst_chosen_um"] < 2000.0, spin
+
+
+def test_a_deflection_too_large_names_the_force_file_it_is_from(tmp_path, monkeypatch, capsys):
+    """Found by the force file's fuzz class (3 of 150 inputs): a force file of kN typed for N was
+    warned naming only the program; the force is the file's, so the warning names it too."""
+    prog = tmp_path / "p.nc"
+    prog.write_bytes(b"".join(PROGRAM.read_bytes().splitlines(keepends=True)[:16]))
+    forces = tmp_path / "f.csv"
+    forces.write_text(_FORCES.replace("-490.5", "-4000"))
+    out = tmp_path / "o.nc"
+    code, _, err = _run_3prr(prog, out, monkeypatch, capsys, "--no-figures", force=("--force-file", forces))
+    lines = [ln for ln in err.splitlines() if ln.startswith("warning:")]
+    assert code == 1 and len(lines) == 1 and "p.nc" in lines[0] and "from " + str(forces) in lines[0], err

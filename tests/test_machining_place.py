@@ -226,6 +226,55 @@ def test_place_auto_arm_on_a_long_program_places_and_verifies(tmp_path, monkeypa
     assert calls["placement grid"][-1][1] == 27
 
 
+@pytest.mark.slow
+def test_place_auto_arm_keeps_a_placement_that_passes_on_every_point(tmp_path, monkeypatch):
+    """The search's sample can miss where a constraint is tightest: on the arm, joint_5 peaks in the
+    middle of a square's edge, and a placement searched on a sample of 150 points (one every 11 mm)
+    sits at that joint's limit there: it fails the check on every point. The failing points are then
+    added to the sample and the search goes on. Checked: such a failure happened (else this test
+    tests nothing); the placement kept passes on every point, with the worst deflection an
+    independent solver (``arm_deflection``) finds there; and it is within 1 % of the best placement
+    the searches stopped at on the sample (polished or searched again): a sample's value is a lower
+    bound of the placement's value on every point, so no searched placement is more than 1 % better.
+    Without the second search every start's placement failed on every point here and the program
+    was refused ('no feasible placement on all of the program's points'); on 100 stacked 200 mm
+    squares a placement 5 % worse was kept (docs/machining.md)."""
+    monkeypatch.setitem(place_mod.GRID, 3, 3)
+    monkeypatch.setattr(place_mod, "SEARCH_POINTS", 150)
+    monkeypatch.setattr(place_mod, "ARM_COMPASS_POINTS", 60)
+    checks, stops = [], []
+    every, compass = place_mod._every_point, place_mod._compass
+
+    def every_spy(*args):
+        v, bad = every(*args)
+        checks.append((args[1].copy(), v))
+        return v, bad
+
+    def compass_spy(fld, t0, dims, step, P, *rest, **kw):
+        out = compass(fld, t0, dims, step, P, *rest, **kw)
+        if P.shape[0] >= place_mod.SEARCH_POINTS:  # polished, or searched again, on the sample
+            stops.append((tuple(out[0]), out[1]))
+        return out
+
+    monkeypatch.setattr(place_mod, "_every_point", every_spy)
+    monkeypatch.setattr(place_mod, "_compass", compass_spy)
+    robot, forces = arm6.model(), ForceSpec.feed_frame((20.0, 15.0, 10.0))  # as bench_place_arm.py
+    path = toolpath_from_moves(read_program(_stacked_squares_nc(tmp_path, 2, 200.0))[0].moves)
+    fld = field_for(robot)
+    P, F, feed = program_samples(path, forces, dense_mm=place_mod.DENSE_MM)
+    B = program_samples(path, forces)[0]
+    c = np.array([-130.0, -308.0, 488.0])  # near the arm's best for 200 mm squares (docs/machining.md)
+    found = place_program(fld, path, forces, region=(c + B.min(axis=0) - 30.0, c + B.max(axis=0) + 30.0))
+    assert any(v == np.inf for _, v in checks), f"no sampled placement failed on every point: {checks}"
+    d, _ = arm_deflection(
+        robot.chain, arm6.K_THETA, arm6.TOOL_ROTATION, P + found.place, F, np.radians(arm6.Q_SEED_DEG)
+    )
+    ours = np.linalg.norm(d[feed], axis=1).max()
+    assert np.isfinite(found.value) and abs(found.value - ours) <= 1e-6 * ours, (found.value, ours)
+    best = min(v for _, v in stops)  # on the sample: a lower bound of its value on every point
+    assert found.value <= 1.01 * best, f"kept {found.value}, the best on the sample {best}"
+
+
 def _arm_check(robot, points, force):
     return arm_deflection(
         robot.chain,

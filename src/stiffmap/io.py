@@ -44,7 +44,17 @@ __all__ = [
     "ALLOW_OUTSIDE_OPTION",
     "leaves_directory",
     "no_such_path",
+    "parse_number",
 ]
+
+
+def parse_number(text: str) -> float:
+    """``float(text)`` without what Python's float takes that no file, controller or person means
+    as a number: underscores between digits (``1_5`` would be 15) and digits of other scripts
+    (``١٢٣``, ``５``). ValueError for those, as for any text float refuses."""
+    if "_" in text or not text.isascii():
+        raise ValueError(f"{text!r} is not a number")
+    return float(text)
 
 
 def no_such_path(path: str | os.PathLike) -> str:
@@ -300,7 +310,7 @@ def _number(cell: str, line: int, c: str, delimiter: str, allow_nan: bool, src: 
     if delimiter != "," and "," in cell and "." not in cell:
         cell = cell.replace(",", ".")  # decimal comma (files written with ; or tab)
     try:
-        v = float(cell) if cell != "" else math.nan
+        v = parse_number(cell) if cell != "" else math.nan
     except ValueError:
         raise InputError(f"line {line}, column {c!r}: {cell!r} is not a number", source=src) from None
     if not math.isfinite(v) and not allow_nan:

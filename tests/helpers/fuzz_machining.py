@@ -1,5 +1,5 @@
-"""Fuzz classes of ``stiffmap compensate`` (issue 31): G-code programs, CSVs of points, force files
-and the command's options.
+"""Fuzz classes of ``stiffmap compensate`` (issue 31): G-code programs, CSVs of points, force files,
+the command's options, the six-joint arm's options and ``--from-campaign`` folders.
 
 Every class starts from valid inputs a shop would feed the command: the G-code fixtures of
 ``tests/data/gcode`` (a Fanuc-style CAM program with line numbers, an O-word line, G28 G91, IJK
@@ -7,20 +7,26 @@ and R arcs and a G91 section; an inch program of R arcs in G17, G18 and G19 in l
 without spaces; a CRLF program of line numbers, G20 and four IJK quarter arcs), a CSV of
 points around a square, and the force file of a program's feed moves. The robots are cheap:
 the milling study's 3PRR with its paper parameters (``stiffmap compensate 3prr``, placed at
-380, 200 mm) and the Delta (placed at -40, -30, -300 mm).
+380, 200 mm) and the Delta (placed at -40, -30, -300 mm); for the arm's options, ``urdf arm6``
+placed at 480, -30, 380 mm; for ``--from-campaign``, a measured test-bed campaign (the sensor
+seed of ``helpers.fuzz_safety``: the 3PRR with its fitted kj, and the vision seed's Delta).
 
 Then one thing is made wrong: the generic mutations of :mod:`helpers.fuzz` (truncation, byte
 corruption, extreme and non-finite numbers, UTF-16, empty...) and, per format, what a program
 can hold that cannot be compensated or that is degenerate (O-words, ``#``, ``[]``, G41/G42, G93,
 canned cycles, repeated or unknown words, zero-length moves, zero-radius and impossible R arcs,
-full circles, enormous arcs, 1e300, NaN, -0, binary garbage).
+full circles, enormous arcs, 1e300, NaN, -0, binary garbage); the arm's options given values a
+user may give (some out of reach) or wrong ones; a campaign folder damaged (its database missing,
+corrupted, another program's, a link out; its fit failed, missing or edited; no model).
 
 Every case checks more than the exit status (:func:`check_compensation`, the case's ``check``):
 the input files are unchanged (bytes) after the run; on an exit of 2 or more, no output and no
 temporary file is left; on a run that gives results (exit 0 or 1), the corrected program is
 re-checked by the independent solvers of :mod:`helpers.machining_checks`: deflected under the
-force, it lies on the programmed path within the tolerance and covers all of it. A failing
-check makes the outcome ``wrong``.
+force, it lies on the programmed path within the tolerance and covers all of it (the arm by
+``arm_deflection``: its own inverse kinematics and central-difference Jacobians, the tool held as
+the options say; a campaign's 3PRR by the truss with the parameters of its campaign.toml and its
+fit, read here with tomllib and sqlite3). A failing check makes the outcome ``wrong``.
 
 :data:`FUZZ_CLASSES` lists them for ``tests/test_fuzz_machining.py`` and
 ``benchmarks/bench_fuzz.py``.
@@ -28,30 +34,45 @@ check makes the outcome ``wrong``.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import dataclasses
 import functools
 import io
 import json
 import math
+import re
+import sqlite3
+import tempfile
+import tomllib
 from pathlib import Path
 
 import numpy as np
 from hypothesis import strategies as st
 
-from helpers.fuzz import EXTREME_NUMBERS, FuzzCase, FuzzClass, Outcome, mutated_text
-from helpers.machining_checks import delta_deflection, distance_to_path, output_samples, truss_3prr
+from helpers.fuzz import EXTREME_NUMBERS, FuzzCase, FuzzClass, Outcome, mutated_bytes, mutated_text
+from helpers.fuzz_safety import measured_seed
+from helpers.machining_checks import (
+    arm_deflection,
+    delta_deflection,
+    distance_to_path,
+    output_samples,
+    truss_3prr,
+)
+from stiffmap.geometry import matrix_from_euler
+from stiffmap.kinds import robot_from_command
 from stiffmap.machining.io import read_program
 from stiffmap.machining.path import toolpath_from_moves, toolpath_from_points
 from stiffmap.models import PRR3, DeltaRobot
 
-__all__ = ["FUZZ_CLASSES", "check_compensation", "compensate_case", "PROGRAMS"]
+__all__ = ["FUZZ_CLASSES", "check_compensation", "compensate_case", "PROGRAMS", "campaign_files", "edited_db"]
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "gcode"
 #: The seed programs (fixtures of tests/data/gcode, README.md there for their source).
 PROGRAMS = ("own_cam_mm.nc", "own_inch_r_planes.nc", "cncjs_circle-inch.gcode")
 #: Where each robot takes the program's origin, and a force it cuts with (N, base frame).
-PLACES = {"3prr": "380,200", "delta": "-40,-30,-300"}
-FORCES = {"3prr": "0,-490.5", "delta": "4,3,-2"}
+PLACES = {"3prr": "380,200", "delta": "-40,-30,-300", "urdf arm6": "480,-30,380"}
+FORCES = {"3prr": "0,-490.5", "delta": "4,3,-2", "urdf arm6": "20,-15,10"}
 FEED_FORCES = {"3prr": "300,200", "delta": "4,3,1"}
 #: Runs deflected by more than this (a force of 1e3 N on the Delta, 1e5 N on the 3PRR: far beyond
 #: what a linear stiffness model describes) are not re-checked: the oracle's fixed-point landing of
@@ -72,10 +93,20 @@ def compensate_case(
     out: str = OUT,
     expect: str | None = None,
 ) -> FuzzCase:
-    """``stiffmap compensate ROBOT --path {dir}/PATH --out {dir}/OUT --json -q --no-figures OPTIONS``,
+    """``stiffmap compensate ROBOT --path {dir}/PATH --out {dir}/OUT --json -q --no-figures OPTIONS``
+    (ROBOT: the words before --path: ``3prr``, ``urdf arm6``, ``--from-campaign {dir}/c``),
     its outcome re-checked by :func:`check_compensation`; ``expect``: what an error or warning must
     say when the run gives results (``FuzzCase.expect``)."""
-    argv = ("compensate", robot, "--path", f"{{dir}}/{path}", "--out", f"{{dir}}/{out}", "--json", "-q")
+    argv = (
+        "compensate",
+        *robot.split(),
+        "--path",
+        f"{{dir}}/{path}",
+        "--out",
+        f"{{dir}}/{out}",
+        "--json",
+        "-q",
+    )
     if "--figures" not in options:
         argv += ("--no-figures",)
     argv += tuple(o for o in options if o != "--figures")
@@ -108,7 +139,10 @@ def check_compensation(case: FuzzCase, directory: Path, o: Outcome) -> str:
     extra = sorted(
         p.relative_to(directory).as_posix()
         for p in directory.rglob("*")
-        if p.is_file() and p.relative_to(directory).as_posix() not in case.files
+        if p.is_file()
+        and p.relative_to(directory).as_posix() not in case.files
+        and not _linked(p, directory)
+        and not p.name.endswith(_SQLITE_COMPANIONS)
     )
     if o.code not in (0, 1):
         return f"exit {o.code} left {', '.join(extra)}" if extra else ""
@@ -129,13 +163,96 @@ def check_compensation(case: FuzzCase, directory: Path, o: Outcome) -> str:
         return ""
 
 
+#: What SQLite leaves beside a database in WAL mode that a connection read (stiffmap.db-wal and
+#: -shm: a read-only connection cannot remove them; the database itself is unchanged, checked above).
+_SQLITE_COMPANIONS = (".db-wal", ".db-shm")
+
+
+def _linked(p: Path, directory: Path) -> bool:
+    """Whether p is, or is reached through, a symbolic link of the case (``FuzzCase.links``)."""
+    return any(q.is_symlink() for q in (p, *p.parents) if q != directory and q.is_relative_to(directory))
+
+
 class _Unchecked(Exception):
     """The run cannot be re-checked (a force file this check cannot read): not a finding."""
 
 
+def _solver(argv):
+    """The robot of a command line for :func:`_deflection`: "3prr" or "delta" (their paper and
+    default parameters), or a solver of the arm (:func:`_arm_solver`) or of a campaign's fitted
+    3PRR (its parameters read here from campaign.toml and stiffmap.db: :func:`_campaign_params`)."""
+    if argv[1] == "--from-campaign":
+        return functools.partial(_truss, _campaign_params(Path(argv[2])))
+    if argv[1] == "urdf":
+        return _arm_solver(argv)
+    return argv[1]
+
+
+def _truss(params: dict, X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    d = np.zeros_like(X)
+    m = params
+    d[:, :2] = truss_3prr(
+        X[:, :2], F[:, :2], h=m["h"], L=m["L"], EA=m["E"] * m["area"], kj=m["kj"], kb=m["kb"]
+    )
+    return d
+
+
+def _campaign_params(root: Path) -> dict:
+    """A 3PRR campaign's parameters: the paper's, campaign.toml's [robot] params, then the model
+    fit's (the first that succeeded, stiffness then static_error), read with tomllib and sqlite3."""
+    try:
+        spec = tomllib.loads((root / "campaign.toml").read_text(encoding="utf-8"))
+        if spec["robot"]["model"] != "3prr":
+            raise _Unchecked("not a 3PRR campaign")
+        params = {**PRR3().params(), **spec["robot"].get("params", {})}
+        with contextlib.closing(sqlite3.connect(f"file:{root / 'stiffmap.db'}?mode=ro", uri=True)) as c:
+            rows = dict(c.execute("SELECT name, params FROM model_fit WHERE status = 'ok'").fetchall())
+        fit = next(json.loads(rows[n]) for n in ("stiffness", "static_error") if n in rows)
+        params = {**params, **{k: float(v) for k, v in fit.items()}}
+    except (
+        OSError,
+        KeyError,
+        TypeError,
+        ValueError,
+        StopIteration,
+        sqlite3.Error,
+        tomllib.TOMLDecodeError,
+    ) as e:
+        raise _Unchecked(f"the campaign's parameters: {e}") from None
+    if not all(1e-6 < float(params[k]) < 1e12 for k in ("kj", "kb", "E", "area")):
+        # the truss's direct solve loses every digit with a spring of 1e308 N/mm beside one of 1e3
+        raise _Unchecked("a stiffness the check's direct solve cannot resolve")
+    return params
+
+
+def _arm_solver(argv):
+    """The arm of ``compensate urdf arm6 OPTIONS`` (built as the command builds it), deflected by
+    :func:`helpers.machining_checks.arm_deflection` (its own inverse kinematics in order from the
+    seed, central-difference Jacobians) holding the tool orientation of --tool-rpy-deg (else the
+    arm's). A run that chose the tool's spin is not re-checked (the spins between the knots)."""
+    if "--free-tool-spin" in argv:
+        raise _Unchecked("the tool spin chosen along the path")
+    params = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--param"]
+    options = {"--tip": _option(argv, "--tip"), "--tip-offset-mm": _option(argv, "--tip-offset-mm")}
+    robot = robot_from_command(
+        "urdf", argv[2], params, options, command="compensate", builtin_defaults=True, configs_required=False
+    )
+    seed, rpy = _option(argv, "--q-seed-deg"), _option(argv, "--tool-rpy-deg")
+    q0 = np.radians([float(v) for v in seed.split(",")]) if seed else robot.q_seed
+    if rpy:
+        R = matrix_from_euler(np.radians([float(v) for v in rpy.split(",")]))
+    else:
+        R = robot.tool_rotation if robot.tool_rotation is not None else robot.chain.forward(q0)[1]
+
+    def solve(X, F):
+        return arm_deflection(robot.chain, robot.k_theta, R, X, F, q0)[0]
+
+    return solve
+
+
 def _off_path(argv, out: Path, o: Outcome) -> str:
     """The independent re-check of a written program (module docstring)."""
-    robot, src = argv[1], Path(_option(argv, "--path"))
+    robot, src = _solver(argv), Path(_option(argv, "--path"))
     summary = json.loads(o.stdout)
     if summary["deflection_before_um"]["worst"] > MAX_CHECKED_DEFLECTION_MM * 1e3:
         raise _Unchecked("a deflection beyond the small deflections the oracle's landing follows")
@@ -276,8 +393,11 @@ def _corner(robot, prog, C, place, piece, rows, mi, F, k, feed, worst, tol_mm, d
     return out
 
 
-def _deflection(robot: str, X: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Tool deflections (N, 3) mm at base-frame points X under forces F, by the independent solvers."""
+def _deflection(robot, X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Tool deflections (N, 3) mm at base-frame points X under forces F, by the independent solvers
+    (``robot``: "3prr", "delta", or a solver ``f(X, F)`` of its own: :func:`_solver`)."""
+    if callable(robot):
+        return robot(X, F)
     d = np.zeros_like(X)
     if robot == "3prr":
         m = PRR3().params()
@@ -773,6 +893,228 @@ def _ignored(opts: dict) -> str | None:
     return None
 
 
+# ------------------------------------------------------------------------------ the arm
+#: The six-joint arm (``urdf arm6``): where its program's origin goes and a force (N, base frame)
+#: that deflects it by about 0.5 mm on the seed program (docs/machining.md).
+ARM = "urdf arm6"
+ARM_PLACE, ARM_FORCE = PLACES[ARM], FORCES[ARM]
+#: The arm's options: values a user may give (a program then compensated or refused as out of
+#: reach, naming its line), and values that are wrong whatever the program (refused naming the option).
+ARM_VALUES = {
+    "--tool-rpy-deg": (
+        ("0,180,0", "180,0,0", "0,180,90", "5,175,0", "720,180,0", "0,0,0", "0,90,0", "1e9,0,0"),
+        ("nan,0,0", "0,0", "1,2,3,4", "inf,0,0", "", "a,b,c", "1_0,180,0"),
+    ),
+    "--q-seed-deg": (
+        ("0,40,-10,0,60,0", "0,0,0,0,0,0", "10,30,-20,5,70,-5", "180,40,-10,0,60,0", "0,40,-10,0,-60,180"),
+        ("0,0", "0,0,0,0,0,0,0", "400,0,0,0,0,0", "1e9,0,0,0,0,0", "nan", "0,-91,0,0,0,0", ""),
+    ),
+    "--tip-offset-mm": (
+        ("0,0,100", "0,0,0", "0,0,150", "20,-10,120", "0,0,-50", "0,0,1e5"),
+        ("0,0", "nan,0,0", "1e9,0,0", "0,0,1e7", "", "x,0,0"),
+    ),
+    # not link_5: arm6's own seed (6 joints, for tool0) is refused on its 5-joint chain, naming
+    # q_seed_deg, which the user did not give (not fixed: the built-in keys are the tool0 chain's)
+    "--tip": (("tool0", "link_6"), ("nope", "", "TOOL0", "base_link")),
+    "--param": (
+        ("k_theta=1e7", "k_theta=1e12", "k_theta=1e3", "k_theta=1e-3"),
+        ("k_theta=-5", "k_theta=0", "k_theta=nan", "k_theta=inf", "nope=1", "k1", "k_theta=1e300", "k1=5e6"),
+    ),
+    "--place": (
+        (
+            "480,-30,380",
+            "480,-30,300",
+            "400,100,380",
+            "600,-30,380",
+            "700,0,380",
+            "300,0,600",
+            "0,0,0",
+            "480,-30",
+            "2000,0,380",
+        ),
+        ("nan,0,0", "480,-30,380,1", "480;-30;380", "4_80,-30,380"),
+    ),
+    "--free-tool-spin": ((None,), ()),
+}
+
+
+@st.composite
+def arm_cases(draw) -> FuzzCase:
+    """``compensate urdf arm6`` of the seed program (own_cam_mm.nc) with one to three of the arm's
+    options set: values a user may give, or wrong ones. When exactly one is wrong, the message must
+    name that option; the outputs of the others are re-checked by the arm's independent solver."""
+    opts: dict[str, str | None] = {"--place": ARM_PLACE, "--force-n": ARM_FORCE}
+    wrong, notes = [], []
+    for name in draw(st.lists(st.sampled_from(sorted(ARM_VALUES)), min_size=1, max_size=3, unique=True)):
+        good, bad = ARM_VALUES[name]
+        is_bad = bool(bad) and draw(st.booleans())
+        opts[name] = draw(st.sampled_from(bad if is_bad else good))
+        if is_bad:
+            wrong.append(name)
+        notes.append(f"{name} {opts[name]!r}" + (" (wrong)" if is_bad else ""))
+    args: list[str] = []
+    for k, v in opts.items():
+        args += [k] if v is None else [k, v]
+    return compensate_case(
+        {"p.nc": (DATA / "own_cam_mm.nc").read_bytes()},
+        ARM,
+        "p.nc",
+        *args,
+        blamed=wrong[0] if len(wrong) == 1 else None,
+        note="arm6: " + ", ".join(notes),
+    )
+
+
+# ------------------------------------------------------------------------------ --from-campaign
+#: A program the sensor seed's 3PRR cuts placed at CAMPAIGN_PLACE (mm), and the force (N).
+CAMPAIGN_PROGRAM = b"G21 G90 G17\nG0 X0 Y0 Z0\nG1 X10 Y0 F100\nG1 X10 Y5\nG1 X0 Y5\n"
+CAMPAIGN_PLACE, CAMPAIGN_FORCE = "400,300", "100,-50"
+#: What is done to the campaign folder (``c``), and the file a refusal must name (None: any).
+CAMPAIGN_DAMAGE = {
+    "none": None,
+    "folder reached through a link": None,
+    "stiffmap.db a link out to a copy": None,
+    "stiffmap.db a link out to another campaign's": "campaign.toml",
+    "stiffmap.db a dangling link": "stiffmap.db",
+    "campaign.toml a link out to another campaign's": "campaign.toml",
+    "no stiffmap.db": "stiffmap.db",
+    "stiffmap.db empty": "stiffmap.db",
+    "stiffmap.db text": "stiffmap.db",
+    "stiffmap.db damaged": None,  # a few bytes changed may leave it readable (and its fit changed)
+    "stiffmap.db another program's": "stiffmap.db",
+    "stiffmap.db a folder": "stiffmap.db",
+    "the fit failed": "stiffmap.db",
+    "no fit": "stiffmap.db",
+    "a value of the fit": None,
+    "no campaign.toml": "campaign.toml",
+    "campaign.toml damaged": None,
+    "a vision campaign without a model": "campaign.toml",
+    "DIR a file": "p.ngc",
+    "DIR missing": "nowhere",
+}
+#: Values of a model_fit column (params, std, cov, status...), and what a run given them must say.
+FIT_VALUES = (
+    ('{"kj": -5}', None),
+    ('{"kj": 0}', None),
+    ('{"nope": 5}', None),
+    ('{"kj": "abc"}', None),
+    ('{"kj": 1e308}', None),
+    ("{}", None),
+    ("[[-1]]", "covariance"),
+    ("[[NaN]]", None),
+    ("[[1e308]]", None),
+    ("[[1, 2], [3, 4]]", None),
+    ("failed", None),
+    (None, None),
+    ("NaN", None),
+    ("not json", None),
+    (-1, None),
+)
+
+
+def campaign_files(seed: str) -> dict[str, bytes]:
+    """A measured test-bed campaign (``helpers.fuzz_safety.measured_seed``) in ``c/``: what
+    --from-campaign reads (its campaign.toml, stiffmap.db and the files beside them, not its
+    recordings or images)."""
+    return {
+        f"c/{k}": v
+        for k, v in measured_seed(seed).items()
+        if not k.startswith(("recordings/", "images/")) and not k.endswith(".gz")
+    }
+
+
+def edited_db(db: bytes, *sql: tuple) -> bytes:
+    """The database with statements (SQL, parameters) run on it (one a constraint refuses: not run)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        f = Path(tmp) / "stiffmap.db"
+        f.write_bytes(db)
+        with contextlib.closing(sqlite3.connect(f)) as c:
+            for stmt in sql:
+                with contextlib.suppress(sqlite3.IntegrityError):  # NOT NULL: the value stays
+                    c.execute(*stmt)
+            c.commit()
+        return f.read_bytes()
+
+
+@st.composite
+def campaign_cases(draw) -> FuzzCase:
+    """``compensate --from-campaign DIR`` on the sensor seed (3PRR, its fit of kj) with its folder
+    damaged (:data:`CAMPAIGN_DAMAGE`); the outputs re-checked by the truss with the campaign's
+    parameters read here."""
+    damage = draw(st.sampled_from(sorted(CAMPAIGN_DAMAGE) + ["a value of the fit"] * 5))  # the most kinds
+    files = {**campaign_files("sensor"), "p.ngc": CAMPAIGN_PROGRAM}
+    links: dict[str, str] = {}
+    camp, expect, note = "c", None, damage
+    db = files["c/stiffmap.db"]
+    if damage == "folder reached through a link":
+        links["cl"], camp = "c", "cl"
+    elif damage.startswith("stiffmap.db a link out") or damage == "stiffmap.db a dangling link":
+        other = {"copy": db, "campaign's": campaign_files("vision")["c/stiffmap.db"]}
+        del files["c/stiffmap.db"]
+        if "dangling" not in damage:
+            files["elsewhere/stiffmap.db"] = other["copy" if damage.endswith("copy") else "campaign's"]
+        links["c/stiffmap.db"] = "elsewhere/stiffmap.db"
+    elif damage == "campaign.toml a link out to another campaign's":
+        files["elsewhere/campaign.toml"] = campaign_files("vision")["c/campaign.toml"]
+        del files["c/campaign.toml"]
+        links["c/campaign.toml"] = "elsewhere/campaign.toml"
+    elif damage == "no stiffmap.db":
+        del files["c/stiffmap.db"]
+    elif damage == "stiffmap.db empty":
+        files["c/stiffmap.db"] = b""
+    elif damage == "stiffmap.db text":
+        files["c/stiffmap.db"] = b"fit = ok\n"
+    elif damage == "stiffmap.db damaged":
+        files["c/stiffmap.db"] = draw(mutated_bytes(db))
+    elif damage == "stiffmap.db another program's":
+        files["c/stiffmap.db"] = edited_db(b"", ("CREATE TABLE users (name TEXT)",))
+    elif damage == "stiffmap.db a folder":
+        del files["c/stiffmap.db"]
+        files["c/stiffmap.db/model_fit"] = b"kj = 600\n"
+    elif damage == "the fit failed":
+        files["c/stiffmap.db"] = edited_db(
+            db, ("UPDATE model_fit SET status = 'failed', error = 'singular'",)
+        )
+    elif damage == "no fit":
+        files["c/stiffmap.db"] = edited_db(db, ("DELETE FROM model_fit",))
+    elif damage == "a value of the fit":
+        col = draw(st.sampled_from(("params", "params", "cov", "cov", "std", "status", "robot", "name")))
+        value, expect = draw(st.sampled_from(FIT_VALUES))
+        expect = expect if col == "cov" else None
+        files["c/stiffmap.db"] = edited_db(db, (f"UPDATE model_fit SET {col} = ?", (value,)))
+        note = f"model_fit.{col} = {value!r}"
+    elif damage == "no campaign.toml":
+        del files["c/campaign.toml"]
+    elif damage == "campaign.toml damaged":
+        files["c/campaign.toml"] = draw(mutated_text(files["c/campaign.toml"].decode()))
+    elif damage == "a vision campaign without a model":
+        files = {**campaign_files("vision"), "p.ngc": CAMPAIGN_PROGRAM}
+        files["c/campaign.toml"] = re.sub(
+            r"\[robot\]\n(?:.*\n)*?(?=\n\[)",
+            '[robot]\nmodel = "none"\n',
+            files["c/campaign.toml"].decode(),
+            count=1,
+        ).encode()
+    elif damage == "DIR a file":
+        camp = "p.ngc"
+    elif damage == "DIR missing":
+        camp = "nowhere"
+    case = compensate_case(
+        files,
+        f"--from-campaign {{dir}}/{camp}",
+        "p.ngc",
+        "--place",
+        CAMPAIGN_PLACE,
+        "--force-n",
+        CAMPAIGN_FORCE,
+        blamed=CAMPAIGN_DAMAGE[damage],
+        note=note,
+        out="o.ngc",
+        expect=expect,
+    )
+    return dataclasses.replace(case, links=links) if links else case
+
+
 FUZZ_CLASSES = [
     FuzzClass(
         "G-code program x compensate",
@@ -794,6 +1136,23 @@ FUZZ_CLASSES = [
         force_cases(),
         "a --force-file made wrong: rows dropped, added, swapped, lines shifted, NaN, kN headers, "
         "header only, fz added or dropped, and the generic mutations",
+    ),
+    FuzzClass(
+        "compensate urdf arm6 options",
+        arm_cases(),
+        "the six-joint arm's --tool-rpy-deg, --q-seed-deg, --tip, --tip-offset-mm, --param, --free-tool-spin "
+        "and --place: values a user may give (some out of reach) and wrong ones (NaN, the wrong count, "
+        "beyond the joint limits, an unknown frame, rigid or negative springs, 1_0); outputs re-checked "
+        "by the arm's independent solver",
+    ),
+    FuzzClass(
+        "compensate --from-campaign folder",
+        campaign_cases(),
+        "compensate --from-campaign on a measured campaign (the 3PRR's sensor seed) whose folder is damaged: "
+        "stiffmap.db missing, empty, text, corrupted, another program's, a folder, a link out (to a copy, to "
+        "another campaign's, dangling); the fit failed or missing or one of its values changed (params, std, "
+        "cov, status); campaign.toml missing, damaged or a link to another campaign's; a vision campaign "
+        "without a model; DIR a file or missing; outputs re-checked by the truss with the fitted kj",
     ),
     FuzzClass(
         "compensate options",

@@ -34,7 +34,7 @@ from rich.table import Table
 from rich.text import Text
 
 from ..errors import FieldError, InputError
-from ..io import dumps_json
+from ..io import dumps_json, parse_number
 
 # Re-exported for the commands that import it from here; its home is stiffmap.textfmt.
 from ..textfmt import fmt as fmt
@@ -353,7 +353,7 @@ def from_option(option: str, parse, *args):
 def three_numbers(text: str) -> tuple[float, ...] | None:
     """The three finite numbers of ``x,y,z``, or None when ``text`` is anything else."""
     try:
-        v = tuple(float(x) for x in text.split(","))
+        v = tuple(parse_number(x.strip()) for x in text.split(","))
     except ValueError:
         return None
     return v if len(v) == 3 and all(math.isfinite(x) for x in v) else None

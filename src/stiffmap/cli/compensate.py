@@ -13,6 +13,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from ..campaign.fitted import fitted_model
 from ..errors import InputError
 from ..geometry import matrix_from_euler
+from ..io import parse_number
 from ..kinds import kind_names, robot_from_command
 from ..machining import CompensateOptions, ForceSpec, ModelUncertainty, compensate_file
 from ..report.compensation import write_compensation_figures
@@ -24,11 +25,12 @@ def _numbers(text: str | None, option: str, counts: tuple[int, ...], unit: str) 
     if text is None:
         return None
     try:
-        v = tuple(float(x) for x in text.split(","))
+        v = tuple(parse_number(x.strip()) for x in text.split(","))
     except ValueError:
         v = ()
     if len(v) not in counts or not all(math.isfinite(x) for x in v):
-        n = " or ".join(str(c) for c in counts)
+        contiguous = len(counts) > 2 and counts == tuple(range(counts[0], counts[-1] + 1))
+        n = f"{counts[0]} to {counts[-1]}" if contiguous else " or ".join(str(c) for c in counts)
         raise InputError(f"{option}: expected {n} comma-separated numbers ({unit}), got {text!r}")
     return v
 
@@ -74,7 +76,7 @@ def _region(text: str | None):
     lo, hi = np.full(3, -1e6), np.full(3, 1e6)
     parts = text.split(",")
     try:
-        pairs = [tuple(float(v) for v in p.split(":")) for p in parts]
+        pairs = [tuple(parse_number(v.strip()) for v in p.split(":")) for p in parts]
     except ValueError:
         pairs = []
     if len(pairs) not in (2, 3) or any(len(p) != 2 or not p[0] < p[1] for p in pairs):
@@ -277,12 +279,17 @@ def _print(s: dict) -> None:
         rows.append(
             (
                 "tool spin, worst at knots fixed / chosen (um)",
-                f"{s['spin']['worst_fixed_um']:.2f} / {s['spin']['worst_chosen_um']:.2f}",
+                f"{_um(s['spin']['worst_fixed_um'])} / {_um(s['spin']['worst_chosen_um'])}",
             )
         )
     rows.append(("written", ", ".join(s["written"])))
     print_summary("stiffmap compensate", rows)
     out.print()
+
+
+def _um(v: float | None) -> str:
+    """A deflection (um) of the summary; None: at no point that the tool reaches."""
+    return "unreachable" if v is None else f"{v:.2f}"
 
 
 def register(app: typer.Typer) -> None:

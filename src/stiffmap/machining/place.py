@@ -69,6 +69,10 @@ MAX_STARTS = 12
 #: the search's points (at most SEARCH_POINTS) from a step of POLISH_MM (mm).
 ARM_COMPASS_POINTS = 400
 POLISH_MM = 2.0
+#: A searched placement that fails on a point its sample left out is searched again with the
+#: failing points (at most REPAIR_POINTS) added to the sample, at most REPAIRS times (:func:`_checked`).
+REPAIRS = 3
+REPAIR_POINTS = 200
 #: An arm's configurations are followed from one placement to the next in steps of at most
 #: this (mm); a point whose joint turns more than FOLLOW_JUMP_RAD in one step is not followed.
 FOLLOW_MM = 20.0
@@ -153,12 +157,14 @@ def program_samples(
 
 
 def search_samples(
-    path: Toolpath, forces: ForceSpec, budget: int = SEARCH_POINTS
+    path: Toolpath, forces: ForceSpec, budget: int | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At most about ``budget`` points of a program for the placement search: the moves' ends
-    (every k-th when there are more than half the budget, and each axis's extreme ends), and
+    """At most about ``budget`` (default :data:`SEARCH_POINTS`) points of a program for the
+    placement search: the moves' ends (every k-th when there are more than half the budget, and
+    each axis's extreme ends), and
     the rest of the budget spread evenly by arc length along the feed moves. Returns as
     :func:`program_samples`."""
+    budget = SEARCH_POINTS if budget is None else budget
     n = len(path)
     if n == 0:
         return program_samples(path, forces)
@@ -193,8 +199,8 @@ def objective_at(fld, place, P, F, feed, objective: str) -> float:
 def _evaluate(
     fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None, origin=None
 ) -> tuple[np.ndarray, np.ndarray, object]:
-    """Deflections (K, N, 3) at N points under K placements T (K, 3), which placements are
-    feasible (every point valid, conditioning at least MIN_CONDITIONING), and an arm's
+    """Deflections (K, N, 3) at N points under K placements T (K, 3), which points are feasible
+    under each placement (K, N: valid, conditioning at least MIN_CONDITIONING), and an arm's
     configurations (K, N, n) (else None). P is (N, 3), or (K, N, 3) for points that differ per
     placement. One evaluation for a mechanism's map; placement by placement for an arm: its
     inverse kinematics from ``q0`` (K, N, n), else followed from ``origin`` (a nearby placement
@@ -220,9 +226,7 @@ def _evaluate(
         valid = np.concatenate([r.valid for r in out])
         cond = np.concatenate([r.conditioning for r in out])
         delta = np.concatenate([r.delta for r in out])
-    ok = np.all(
-        valid.reshape(K, N) & (np.nan_to_num(cond, nan=-1.0).reshape(K, N) >= MIN_CONDITIONING), axis=1
-    )
+    ok = valid.reshape(K, N) & (np.nan_to_num(cond, nan=-1.0).reshape(K, N) >= MIN_CONDITIONING)
     return delta.reshape(K, N, 3), ok, Q
 
 
@@ -276,32 +280,42 @@ def _many(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tuple[
     out = np.full(T.shape[0], np.inf)
     ok = np.ones(T.shape[0], dtype=bool)
     if origin is None and P.shape[0] > 6 * 4:
-        ext = np.unique(np.concatenate([P.argmin(axis=0), P.argmax(axis=0)]))
-        ok = _evaluate(fld, T, P[ext], F[ext])[1]
+        ext = _extremes(P)
+        ok = _evaluate(fld, T, P[ext], F[ext])[1].all(axis=1)
     Q = None
     if np.any(ok):
-        out[ok], Qok = _many_all(fld, T[ok], P, F, feed, objective, origin)
+        out[ok], Qok, _ = _many_all(fld, T[ok], P, F, feed, objective, origin)
         if Qok is not None:
             Q = np.full((T.shape[0], *Qok.shape[1:]), np.nan)
             Q[ok] = Qok
     return out, Q
 
 
-def _many_all(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tuple[np.ndarray, object]:
-    """:func:`_many` on every point."""
-    delta, ok, Q = _evaluate(fld, T, P, F, origin=origin)
+def _extremes(P: np.ndarray) -> np.ndarray:
+    """The indices of the points at each axis's extremes."""
+    return np.unique(np.concatenate([P.argmin(axis=0), P.argmax(axis=0)]))
+
+
+def _many_all(
+    fld, T: np.ndarray, P, F, feed, objective: str, origin=None
+) -> tuple[np.ndarray, object, np.ndarray]:
+    """:func:`_many` on every point, and which points are feasible under each placement (K, N):
+    the programmed point and its commanded points."""
+    delta, okp, Q = _evaluate(fld, T, P, F, origin=origin)
+    ok = okp.all(axis=1)
     if np.any(ok):
         sub = np.flatnonzero(ok)
         near = None if Q is None else Q[sub]  # an arm's solutions: seeds for the nearby commanded points
         d1, ok1, _ = _evaluate(fld, T[sub], P[None] - delta[sub], F, near)
         C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
-        ok[sub] = ok1 & _evaluate(fld, T[sub], C, F, near)[1]
+        okp[sub] &= ok1 & _evaluate(fld, T[sub], C, F, near)[1]
+        ok = okp.all(axis=1)
     d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
     if d.shape[1] == 0:
         val = np.zeros(T.shape[0])
     else:
         val = d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
-    return np.where(ok, val, np.inf), Q
+    return np.where(ok, val, np.inf), Q, okp
 
 
 def place_program(
@@ -411,13 +425,36 @@ def _refine(
                 ticks.finish()
                 return t, v, evals
             if np.isfinite(v):
-                evals += 1
-                v_all = _every_point(fld, t, Pd, Fd, feedd, objective, fine[0], Q)
+                t, v_all, n, fine = _checked(fld, t, Q, (Pd, Fd, feedd), fine, dims, objective, box, ticks)
+                evals += n
                 if np.isfinite(v_all):
                     ticks.finish()
                     return t, v_all, evals
         ticks.finish()
     return None, math.inf, evals
+
+
+def _feasible_near(fld, t, dims, sample, objective, box) -> tuple[np.ndarray | None, int]:
+    """The best feasible placement on ``sample`` (points, forces, feed flags) among t's neighbours
+    along each placed axis, POLISH_MM away, then twice as far... up to 32 POLISH_MM (within the box);
+    None if there is none. And the placements evaluated."""
+    lo, hi = box[0][dims] - 1e-9, box[1][dims] + 1e-9
+    evals = 0
+    for k in range(6):
+        cand = []
+        for j in dims:
+            for sgn in (-1.0, 1.0):
+                c = np.array(t, dtype=float)
+                c[j] += sgn * POLISH_MM * 2**k
+                if np.all((c[dims] >= lo) & (c[dims] <= hi)):
+                    cand.append(c)
+        if not cand:
+            continue
+        vals = _many(fld, np.array(cand), *sample, objective)[0]
+        evals += len(cand)
+        if np.any(np.isfinite(vals)):
+            return cand[int(np.argmin(vals))], evals
+    return None, evals
 
 
 def _halvings(step) -> int:
@@ -448,16 +485,53 @@ class _Ticks:
             self.progress("placement search", self.done, self.total)
 
 
-def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> float:
-    """:func:`objective_at` t on the points P. An arm's configurations there start from its
-    configurations Qs at the nearest of the points Ps (:func:`_follow`, all at once), and are
-    solved along the points in order (as without Qs) if that does not converge everywhere or
-    turns a joint more than :data:`FOLLOW_JUMP_RAD` between two points."""
+def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> tuple[float, np.ndarray]:
+    """:func:`objective_at` t on the points P, and the indices of the points that fail there (a
+    programmed point or its commanded points; only those at the axes' extremes when one of them
+    fails). An arm's configurations there start from its configurations Qs at the nearest of the
+    points Ps (:func:`_follow`, all at once), and are solved along the points in order (as without
+    Qs) if that does not converge everywhere or turns a joint more than :data:`FOLLOW_JUMP_RAD`
+    between two points."""
+    origin = None
     if Qs is not None:
         Q, conv = _follow(fld, t, Qs[cKDTree(Ps).query(P)[1]], t, P)
         if np.all(conv) and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) <= FOLLOW_JUMP_RAD:
-            return float(_many(fld, t[None], P, F, feed, objective, (t, Q))[0][0])
-    return objective_at(fld, t, P, F, feed, objective)
+            origin = (t, Q)
+    if origin is None:  # solved along the points in order: screened on the extremes first
+        ext = _extremes(P)
+        ok = _evaluate(fld, t[None], P[ext], F[ext])[1][0]
+        if not np.all(ok):
+            return math.inf, ext[~ok]
+    val, _, okp = _many_all(fld, t[None], P, F, feed, objective, origin)
+    return float(val[0]), np.flatnonzero(~okp[0])
+
+
+def _checked(fld, t, Q, dense, fine, dims, objective, box, ticks):
+    """A searched placement t checked on every point (``dense``: points, forces, feed flags; an
+    arm's configurations Q at the sample's points ``fine[0]``). When it fails, the failing points
+    (at most :data:`REPAIR_POINTS` of them) are added to the sample and the search goes on from
+    the best feasible placement near t (:func:`_feasible_near`; a compass search from
+    :data:`POLISH_MM`), at most :data:`REPAIRS` times: a sample between
+    whose points a constraint is tightest (a joint at its limit in the middle of an edge) otherwise
+    leads the search to a placement that fails there. Returns the placement, its objective on every
+    point (inf if none passes), the placements evaluated, and the sample with the points added."""
+    evals = 0
+    for attempt in range(REPAIRS + 1):
+        evals += 1
+        v_all, bad = _every_point(fld, t, *dense, objective, fine[0], Q)
+        if np.isfinite(v_all) or attempt == REPAIRS or bad.size == 0:
+            break
+        pick = bad[np.linspace(0, bad.size - 1, min(bad.size, REPAIR_POINTS)).round().astype(int)]
+        fine = tuple(np.concatenate([a, b[pick]]) for a, b in zip(fine, dense, strict=True))
+        t, n = _feasible_near(fld, t, dims, fine, objective, box)
+        evals += n
+        if t is None:
+            break
+        polish = np.full(len(dims), POLISH_MM)
+        ticks.plan(_halvings(polish))
+        t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, box, ticks.tick)
+        evals += n
+    return t, v_all if np.isfinite(v_all) else math.inf, evals, fine
 
 
 def _compass(

@@ -205,7 +205,7 @@ def compensate_file(
     else:
         rows = point_rows(comp, path, n_csv)
         body, encoding = _points_csv(rows), "utf-8"
-    warnings = (*warnings, *_large_deflection(program, comp))
+    warnings = (*warnings, *_large_deflection(program, comp, options.force_file))
     written = [str(out)]
     write_text(out, body, encoding)
     if spin is not None:
@@ -219,15 +219,17 @@ def compensate_file(
     return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
 
 
-def _large_deflection(program, comp) -> tuple[str, ...]:
-    """A warning when the force deflects the robot beyond what a stiffness model describes."""
+def _large_deflection(program, comp, force_file=None) -> tuple[str, ...]:
+    """A warning when the force deflects the robot beyond what a stiffness model describes (naming
+    the force file the force is from, if any)."""
     worst = comp.worst_before_mm
     if not worst > LARGE_DISPLACEMENT_MM:
         return ()
     return (
         f"{program}: the force deflects the tool point by up to {worst:.3g} mm, more than the "
         f"{LARGE_DISPLACEMENT_MM:g} mm a stiffness model is meant for (it describes small deflections): "
-        "check the force (N) and the model's parameters",
+        f"check the force (N{'' if force_file is None else f', from {force_file}'}) "
+        "and the model's parameters",
     )
 
 
@@ -282,7 +284,9 @@ def _check_options(mechanism, options: CompensateOptions) -> float:
             "its points are poses); a program is compensated for a robot whose points are positions "
             "(delta, 3prr, a legs file with dim = 2 or 3) or a serial arm (urdf)"
         )
-    if not _is_arm(mechanism):
+    if _is_arm(mechanism):
+        _check_arm(mechanism, options.q_seed)
+    else:
         for name, given in (
             ("--free-tool-spin", options.free_tool_spin),
             ("--tool-rpy-deg", options.tool_rotation is not None),
@@ -301,6 +305,29 @@ def _check_options(mechanism, options: CompensateOptions) -> float:
             f"{what} is for --place auto (the placement search); with --place X,Y it does nothing"
         )
     return tol_um
+
+
+def _check_arm(robot, q_seed) -> None:
+    """Refuse a seed the arm cannot take (its joints' count, their limits) and an arm that cannot
+    deflect (every joint rigid: its points would be called singular)."""
+    ch = robot.chain
+    if q_seed is not None:
+        q = np.asarray(q_seed, dtype=float).ravel()
+        if q.size != ch.n:
+            raise InputError(
+                f"--q-seed-deg: expected {ch.n} joint angles (deg) for {ch.name}'s joints "
+                f"{', '.join(ch.joint_names)}, got {q.size}"
+            )
+        beyond = ch.beyond_limits(q)
+        if beyond:
+            raise InputError(
+                f"--q-seed-deg: {'; '.join(beyond)}: the seed must be a configuration the arm can take"
+            )
+    if not robot.links and not any(math.isfinite(k) for k in robot.k_theta):
+        raise InputError(
+            f"--param: every joint of {ch.name} is rigid (k = inf) and it has no flexible link: "
+            "the arm does not deflect, there is nothing to compensate"
+        )
 
 
 def _check_out(program, out, force_file) -> None:
@@ -373,6 +400,12 @@ def _shifted(fld, model, name: str, value: float):
     return type(fld)(new, fld.place)
 
 
+def _worst_um(d: np.ndarray) -> float | None:
+    """The largest of deflections (mm) in um, NaN (an unreachable knot) left out; None if all are."""
+    d = np.asarray(d, dtype=float)
+    return None if not np.any(np.isfinite(d)) else 1e3 * float(np.nanmax(d))
+
+
 def _summary(mechanism, program, out, path, forces, comp, fld, placement, spin, band, opts, warnings) -> dict:
     um = 1e3
     s = {
@@ -399,8 +432,8 @@ def _summary(mechanism, program, out, path, forces, comp, fld, placement, spin, 
         }
     if spin is not None:
         s["spin"] = {
-            "worst_fixed_um": um * float(np.nanmax(spin.fixed)),
-            "worst_chosen_um": um * float(np.nanmax(spin.deflection)),
+            "worst_fixed_um": _worst_um(spin.fixed),  # None: the fixed spin reaches none of the knots
+            "worst_chosen_um": _worst_um(spin.deflection),
             "range_deg": [float(np.degrees(spin.knots.min())), float(np.degrees(spin.knots.max()))],
         }
     return s

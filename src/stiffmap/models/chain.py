@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from ..errors import InputError, StiffmapWarning
+from ..errors import FieldError, InputError, StiffmapWarning
 from ..stiffness import MAX_POSITION_MM
 from .robot_files import MOVING_TYPES, UrdfJoint, UrdfTree, read_urdf
 
@@ -188,14 +188,18 @@ def _listing(names: Sequence[str]) -> str:
     return ", ".join(names[:_LIST_MAX]) + f", ... ({len(names) - _LIST_MAX} more)"
 
 
-def _link_of(tree: UrdfTree, frame: str, what: str) -> str:
-    """The link a frame name stands for: a link, or a joint (its child link, the same frame)."""
+def _link_of(tree: UrdfTree, frame: str, what: str, field: str) -> str:
+    """The link a frame name stands for: a link, or a joint (its child link, the same frame);
+    else a FieldError naming ``field`` (the caller's parameter that gave it)."""
     if frame in tree.links:
         return frame
     if frame in tree.joints:
         return tree.joints[frame].child
-    raise InputError(
-        f"no frame {frame!r} for {what}; the links are: {_listing(tree.links)}", source=tree.source
+    raise FieldError(
+        field,
+        f"no frame {frame!r} for {what}; the links are: {_listing(tree.links)} (give one as {{{field}}})",
+        value=frame,
+        source=tree.source,
     )
 
 
@@ -326,8 +330,11 @@ def _check_offset(tip_offset_mm, source: str) -> np.ndarray:
     except (TypeError, ValueError):  # text that is not numbers ('a,b,c', '1;2;3')
         off = np.full(1, np.nan)
     if off.shape != (3,) or not np.all(np.isfinite(off)) or np.max(np.abs(off)) > MAX_POSITION_MM:
-        raise InputError(
-            f"tip offset must be three finite numbers within {MAX_POSITION_MM:g} mm, got {tip_offset_mm!r}",
+        raise FieldError(
+            "tip_offset_mm",
+            f"tip offset must be three finite numbers within {MAX_POSITION_MM:g} mm, got {tip_offset_mm!r} "
+            "(give {tip_offset_mm} as X,Y,Z)",
+            value=tip_offset_mm,
             source=source,
         )
     return off
@@ -536,8 +543,8 @@ class Chain:
         See :meth:`from_urdf`; ``tree`` is :func:`~stiffmap.models.robot_files.parse_urdf`'s.
         """
         off = _check_offset(tip_offset_mm, tree.source)
-        tip = _link_of(tree, tip_frame, "the measured point")
-        base = None if base_frame is None else _link_of(tree, base_frame, "the base frame")
+        tip = _link_of(tree, tip_frame, "the measured point", "tip_frame")
+        base = None if base_frame is None else _link_of(tree, base_frame, "the base frame", "base_frame")
         base, held, path, branch = _chain_path(tree, tip, base)
         if base_frame is None:
             _warn_roots(tree, tip_frame, base)
@@ -562,9 +569,11 @@ class Chain:
                 acc = pin.SE3.Identity()
             links[j.child] = (len(movers), acc)
         if not movers:
-            raise InputError(
+            raise FieldError(
+                "tip_frame",
                 f"no joint moves frame {tip_frame!r} (from base frame {base!r}): its stiffness cannot be "
-                "modelled",
+                "modelled (give a frame the joints move as {tip_frame})",
+                value=tip_frame,
                 source=tree.source,
             )
         coords, mimics, rows = _coordinates(tree, movers, set(held))

@@ -46,7 +46,7 @@ import xacro
 import xacro.substitution_args as xacro_subs
 
 from ..errors import InputError
-from ..io import read_text_file
+from ..io import parse_number, read_text_file
 from .links import Beam, LinkSpring, check_beam, check_compliance_matrix
 
 __all__ = [
@@ -177,13 +177,6 @@ class UrdfTree:
         return out[::-1]
 
 
-def _float(text: str) -> float:
-    """A number as XML writes it (Python's ``1_000`` is not one), else ValueError."""
-    if "_" in text:
-        raise ValueError(text)
-    return float(text)
-
-
 def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float, ...] | None:
     """n finite numbers from an attribute (its default when absent); None when malformed."""
     if text is None:
@@ -192,7 +185,7 @@ def _floats(text: str | None, n: int, default: tuple[float, ...]) -> tuple[float
     if len(parts) != n:
         return None
     try:
-        vals = tuple(_float(p) for p in parts)
+        vals = tuple(parse_number(p) for p in parts)
     except ValueError:
         return None
     return vals if all(math.isfinite(v) for v in vals) else None
@@ -202,7 +195,7 @@ def _number(text: str | None, default: float) -> float | None:
     if text is None:
         return default
     try:
-        v = _float(text)
+        v = parse_number(text)
     except ValueError:
         return None
     return v if not math.isnan(v) else None

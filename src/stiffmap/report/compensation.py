@@ -167,7 +167,10 @@ def compensation_page(res: CompensationResult) -> str:
         rows.append(
             (
                 "worst deflection at the knots, fixed / chosen spin (µm)",
-                f"{s['spin']['worst_fixed_um']:.2f} / {s['spin']['worst_chosen_um']:.2f}",
+                " / ".join(
+                    "unreachable" if v is None else f"{v:.2f}"
+                    for v in (s["spin"]["worst_fixed_um"], s["spin"]["worst_chosen_um"])
+                ),
             )
         )
     table = (
