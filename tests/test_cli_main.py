@@ -95,3 +95,12 @@ def test_help_at_80_columns_cuts_no_option_name_or_word(name, monkeypatch, capsy
     names = [o for p in cmd.params for o in (*p.opts, *p.secondary_opts) if o.startswith("--")]
     shown = {w.strip("│ ,") for ln in lines for w in ln.split()}
     assert [n for n in names if n not in shown] == [], out
+
+
+def test_a_choice_not_offered_is_one_line_without_pydantic_words(monkeypatch, capsys):
+    """``--method foo`` said "Invalid value for '--method': Value error, 'foo' is not one of ..."."""
+    code, _, err = run_in_process(["identify", "f.csv", "d.csv", "--method", "foo"], monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    expected = "error: Invalid value for '--method': 'foo' is not one of 'compliance', 'paper', 'spd'"
+    assert err.startswith(expected), err
+    assert "Value error" not in err and "(see 'stiffmap identify --help')" in err

@@ -427,6 +427,7 @@ def _usage_error(e: TyperException) -> int:
         return EXIT_INPUT
     where = ctx.command_path if ctx is not None else "stiffmap"
     message = e.format_message() if hasattr(e, "format_message") else str(e)
+    message = message.replace(": Value error, ", ": ")  # pydantic's prefix, through typer's coercion
     fail(f"{' '.join(message.split())} (see '{where} --help')", getattr(e, "exit_code", EXIT_INPUT))
     return int(getattr(e, "exit_code", EXIT_INPUT))
 
