@@ -1,7 +1,10 @@
-"""A campaign given by its campaign.toml, as ``stiffmap run`` takes it, by ``report`` and ``capture`` too.
+"""A newcomer's first steps with a campaign: ``stiffmap init``, then run, report, capture.
 
-A newcomer types the file's path: ``report`` asked for an OUT_DIR ("give OUT_DIR, the
-directory to write the report to") and ``capture`` looked for ``CAMPAIGN/campaign.toml/campaign.toml``.
+A campaign given by its campaign.toml is taken as ``stiffmap run`` takes it, by ``report`` and
+``capture`` too (``report`` asked for an OUT_DIR, "give OUT_DIR, the directory to write the
+report to", and ``capture`` looked for ``CAMPAIGN/campaign.toml/campaign.toml``); running the
+example before giving it a camera file is one error line (an empty progress bar,
+``measuring images 0/? -- images/s``, came before it).
 """
 
 from __future__ import annotations
@@ -30,3 +33,13 @@ def test_capture_of_a_campaign_toml_reads_that_campaign(tmp_path, monkeypatch, c
     # the example campaign.toml names camera.json, which init does not write: that file is named
     assert code == 2 and err.count("\n") == 1, err
     assert f"{root.resolve() / 'camera.json'}: camera file not found" in err and "campaign.toml/" not in err
+
+
+def test_running_the_example_before_its_camera_file_is_one_error_line(tmp_path, monkeypatch, capsys):
+    root = _campaign(tmp_path, monkeypatch, capsys)
+    code, out, err = run_in_process(["run", root], monkeypatch, capsys)
+    assert (code, out) == (2, ""), err
+    assert (
+        err == f"error: {root.resolve() / 'camera.json'}: camera file not found (the camera file that "
+        "camera.file in campaign.toml names)\n"
+    )
