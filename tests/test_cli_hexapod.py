@@ -136,3 +136,11 @@ def test_the_shipped_hexapod_by_name(monkeypatch, capsys):
     np.testing.assert_allclose(
         rec["K6"], LegRobot.from_toml(HEXAPOD).stiffness6([0, 0, 300, 0, 0, 0]), rtol=1e-12
     )
+
+
+def test_the_table_is_headed_by_the_legs_as_describe_gives_them(monkeypatch, capsys, tmp_path):
+    """The first line names the legs in brackets: text, not markup (it lost '[leg1 ... ]')."""
+    code, out, err = _cli(["model", "legs", "hexapod", "--grid", "0,0,300"], monkeypatch, capsys)
+    assert code == 0, err
+    assert out.splitlines()[0] == LegRobot.from_toml(HEXAPOD).describe()
+    assert "6 legs [leg1 (3 joints), " in out.splitlines()[0]

@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import pytest
+from helpers.cli_process import run_in_process
 
 from stiffmap.cli import main
 
@@ -78,3 +79,28 @@ def test_debug_anywhere_shows_the_traceback(monkeypatch, capsys, tmp_path):
     err = capsys.readouterr().err
     assert "Traceback" in err and "_raise_bug" in err
     assert err.strip().splitlines()[-1].startswith("error: internal error")
+
+
+@pytest.mark.parametrize("name", sorted(main.COMMANDS))
+def test_help_at_80_columns_cuts_no_option_name_or_word(name, monkeypatch, capsys):
+    """``COLUMNS=80 stiffmap NAME --help``: every option name whole (it printed
+    ``--allow-outside-pat…`` in run's, ``--rot-stiffness-nm…`` in simulate's), every word of
+    the help shown (folded if it must), no line wider than the terminal."""
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = run_in_process([name, "--help"], monkeypatch, capsys)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert "…" not in out and max(map(len, lines)) <= 80, out
+    (cmd,) = [c for c in main.load_commands(main.COMMANDS[name].module) if c.name == name]
+    names = [o for p in cmd.params for o in (*p.opts, *p.secondary_opts) if o.startswith("--")]
+    shown = {w.strip("│ ,") for ln in lines for w in ln.split()}
+    assert [n for n in names if n not in shown] == [], out
+
+
+def test_a_choice_not_offered_is_one_line_without_pydantic_words(monkeypatch, capsys):
+    """``--method foo`` said "Invalid value for '--method': Value error, 'foo' is not one of ..."."""
+    code, _, err = run_in_process(["identify", "f.csv", "d.csv", "--method", "foo"], monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    expected = "error: Invalid value for '--method': 'foo' is not one of 'compliance', 'paper', 'spd'"
+    assert err.startswith(expected), err
+    assert "Value error" not in err and "(see 'stiffmap identify --help')" in err

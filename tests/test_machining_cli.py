@@ -107,6 +107,18 @@ def test_a_good_run_writes_program_figures_and_summary(tmp_path, monkeypatch, ca
     assert text.splitlines()[:3] == PROGRAM.read_text().splitlines()[:3]  # header lines kept verbatim
 
 
+def test_a_good_run_prints_nothing_on_stderr_without_a_terminal(tmp_path, monkeypatch, capsys):
+    """Without -q, on a pipe or a log: no progress bar, and none of the empty line a transient
+    bar left on stderr (before every summary and every error)."""
+    out = tmp_path / "out.nc"
+    args = ["compensate", "3prr", "--path", PROGRAM, "--out", out, "--no-figures", "--force-n", "0,-490.5"]
+    code, stdout, err = run_in_process([*args, "--place", "380,200"], monkeypatch, capsys)
+    assert (code, err) == (0, ""), err
+    assert "worst predicted residual after" in stdout
+    code, _, err = run_in_process([*args, "--place", "0,0"], monkeypatch, capsys)
+    assert code == 2 and err.startswith("error: ") and err.count("\n") == 1, repr(err)
+
+
 @pytest.mark.long  # a campaign simulated and run end to end: about 25 s
 def test_from_campaign_compensates_the_test_bed(tmp_path):
     """A 3PRR sensor campaign on the test-bed (true kj 700 N/mm, not the published 525) identifies

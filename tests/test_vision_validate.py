@@ -8,10 +8,13 @@ import numpy as np
 import pytest
 from helpers.board_scenes import exact_board_pose
 
+from stiffmap.camera import reference_camera
 from stiffmap.errors import InputError
 from stiffmap.geometry import matrix_from_rotvec
 from stiffmap.report.validation import stage_plot_svg
+from stiffmap.targets import Chessboard
 from stiffmap.vision import ImageMeasurement, validate_stage
+from stiffmap.vision.file_commands import validate_files
 from stiffmap.vision.validate import REFERENCE_TABLE_I
 
 
@@ -58,9 +61,22 @@ def test_steps_statistics_and_axis(rng):
 def test_no_usable_reference_or_moved_image():
     bad = ImageMeasurement(image="r.png", error="r.png: no 8x6 chessboard found in the image")
     good = _m("m.png", np.eye(4) + np.diag([0, 0, 0, 0]))
-    with pytest.raises(InputError, match="no usable reference image"):
+    with pytest.raises(InputError, match="no usable reference image") as e:
         validate_stage([bad], [(2.0, good)])
+    # the image named once: its error names it already ('r.png: r.png: no 8x6 ...' before)
+    expected = "no usable reference image (nominal 0): r.png: no 8x6 chessboard found in the image"
+    assert str(e.value) == expected
     with pytest.raises(InputError, match="no usable image of a moved stage"):
         validate_stage([good], [(2.0, bad)])
     with pytest.raises(ValueError, match="nominal"):
         validate_stage([good], [(-1.0, good)])
+
+
+def test_a_manifest_without_a_usable_reference_names_each_image_once_with_its_line(tmp_path):
+    """It said 'ref.png: ref.png: ... (line 2: ref.png: ...)': each reason twice, the image three times."""
+    (tmp_path / "stage.csv").write_text("image,nominal_mm\nref.png,0\nm.png,2\n")
+    with pytest.raises(InputError) as e:
+        validate_files(tmp_path / "stage.csv", reference_camera(), Chessboard(8, 6, 10.0))
+    msg = str(e.value)
+    assert msg.startswith(f"{tmp_path / 'stage.csv'}: no usable reference image (nominal 0): line 2: "), msg
+    assert msg.count("ref.png") == 1 and "no such file" in msg, msg

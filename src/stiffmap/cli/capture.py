@@ -10,6 +10,7 @@ import typer
 from rich.live import Live
 from rich.prompt import Confirm, Prompt
 
+from ..campaign.run import campaign_root
 from ..campaign.spec import load_spec
 from ..capture.cameras import open_camera
 from ..capture.session import LOG_NAME, CaptureStopped, ViewState, run_capture
@@ -121,7 +122,7 @@ def capture(
     Images already on disk are kept: an interrupted capture goes on at the first missing one.
     Everything is recorded in capture_log.jsonl in the campaign directory. See docs/capture.md.
     """
-    root = campaign
+    root = campaign_root(campaign)  # the directory, or its campaign.toml
     spec = load_spec(root)
     source = open_camera(camera, root, spec)
     live = Live(console=err, auto_refresh=False, transient=False) if err.is_terminal else None

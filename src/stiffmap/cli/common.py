@@ -382,12 +382,14 @@ class _Rate(ProgressColumn):
 def images_progress(description: str, show: bool = True, *, transient: bool = False):
     """A progress bar over images on stderr; yields its hook ``update(done, total, measured=done)``.
 
-    Yields None (no bar) when ``show`` is false.
+    Yields None (no bar) when ``show`` is false. The bar starts at the first update: a command
+    that stops before (a bad campaign.toml, a missing camera file) prints its one error line
+    with no empty bar above it.
     """
     if not show:
         yield None
         return
-    with Progress(
+    prog = Progress(
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
@@ -395,13 +397,21 @@ def images_progress(description: str, show: bool = True, *, transient: bool = Fa
         TimeRemainingColumn(),
         console=err,
         transient=transient,
-    ) as prog:
-        task = prog.add_task(description, total=None, measured=0)
+    )
+    task = prog.add_task(description, total=None, measured=0)  # its clock starts now
+    shown = []
 
-        def update(done: int, total: int, measured: int | None = None) -> None:
-            prog.update(task, completed=done, total=total, measured=done if measured is None else measured)
+    def update(done: int, total: int, measured: int | None = None) -> None:
+        if not shown:
+            prog.start()
+            shown.append(True)
+        prog.update(task, completed=done, total=total, measured=done if measured is None else measured)
 
+    try:
         yield update
+    finally:
+        if shown:
+            prog.stop()
 
 
 #: Seconds between two progress lines when stderr is no terminal (a log, a test harness).

@@ -106,7 +106,8 @@ def _tool(tool_rpy_deg: str | None, q_seed_deg: str | None) -> dict:
 @contextmanager
 def _progress(show: bool):
     """Progress bars on stderr, one per stage the library reports (placement grid, placement
-    search, compensating); yields the hook ``update(what, done, total)``."""
+    search, compensating); yields the hook ``update(what, done, total)``. Only on a terminal
+    (elsewhere a transient bar leaves nothing but an empty line on stderr)."""
     if not show:
         yield None
         return
@@ -241,7 +242,7 @@ def compensate(
         free_tool_spin=free_tool_spin,
         **tool,
     )
-    with _progress(not quiet and not as_json) as hook:
+    with _progress(not quiet and not as_json and err.is_terminal) as hook:
         res = compensate_file(mech, path, out_file, opts, uncertainty=unc, progress=hook)
     for w in res.warnings:
         warn(w)

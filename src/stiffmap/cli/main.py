@@ -24,7 +24,11 @@ from typing import NamedTuple
 
 import click
 import typer
+import typer.rich_utils
 from rich.markup import escape
+from rich.panel import Panel
+from rich.table import Table
+from rich.text import Text
 from typer.core import TyperGroup
 from typer.exceptions import TyperException
 from typer.models import ParameterInfo
@@ -287,6 +291,58 @@ def _unwrapped(doc: str) -> str:
     return "\n\n".join(out)
 
 
+#: The widest the type column of a help page's options table gets (``<float range>``).
+HELP_TYPE_WIDTH = 14
+
+
+class _HelpOptionsFit:
+    """A render hook of typer's help console: every option name whole at 80 columns.
+
+    typer prints each panel of options as a table of option names, short names, negative
+    forms, types and help; rich squeezes every column that may wrap to the same width when
+    the table is too wide, and cuts what does not fit with an ellipsis
+    (``--allow-outside-pat…``, ``(tcp://HOST:878…``). Here the columns empty on every row
+    go, a column of option names keeps the width of its longest name, the type column
+    wraps within :data:`HELP_TYPE_WIDTH`, and a word longer than its column folds.
+    """
+
+    def process_renderables(self, renderables: list) -> list:
+        for r in renderables:
+            table = getattr(r, "renderable", None) if isinstance(r, Panel) else None
+            if isinstance(table, Table):
+                _fit_options_table(table)
+        return renderables
+
+
+def _fit_options_table(table: Table) -> None:
+    def plain(cell) -> str:
+        return cell.plain if isinstance(cell, Text) else str(cell)
+
+    table.columns[:] = [c for c in table.columns if any(plain(x).strip() for x in c.cells)]
+    for col in table.columns:
+        cells = [plain(c) for c in col.cells]
+        col.overflow = "fold"
+        for cell in col.cells:  # the help column's cells hold their paragraphs' texts
+            for item in getattr(cell, "renderables", [cell]):
+                if isinstance(item, Text):
+                    item.overflow = "fold"
+        if any(c.startswith("-") for c in cells):
+            col.width = max(map(len, cells))
+        elif col is not table.columns[-1] and max(map(len, cells), default=0) > HELP_TYPE_WIDTH:
+            col.max_width = HELP_TYPE_WIDTH
+
+
+def _help_console(stderr: bool = False):
+    """typer's console for help pages and usage errors, with :class:`_HelpOptionsFit`."""
+    console = _typer_console(stderr)
+    console.push_render_hook(_HelpOptionsFit())
+    return console
+
+
+_typer_console = typer.rich_utils._get_rich_console
+typer.rich_utils._get_rich_console = _help_console
+
+
 def _one_line_warnings(message, category, filename, lineno, file=None, line=None) -> None:
     """Show a Python warning as one ``warning:`` line (no source path, no code line)."""
     warn(str(message))
@@ -371,6 +427,7 @@ def _usage_error(e: TyperException) -> int:
         return EXIT_INPUT
     where = ctx.command_path if ctx is not None else "stiffmap"
     message = e.format_message() if hasattr(e, "format_message") else str(e)
+    message = message.replace(": Value error, ", ": ")  # pydantic's prefix, through typer's coercion
     fail(f"{' '.join(message.split())} (see '{where} --help')", getattr(e, "exit_code", EXIT_INPUT))
     return int(getattr(e, "exit_code", EXIT_INPUT))
 

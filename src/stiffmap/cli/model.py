@@ -303,7 +303,7 @@ def _model_configurations(robot, configs: Path, as_json: bool, output: Path | No
 
 
 def _print_configurations(robot, mp, recs, lines) -> None:
-    out.print(robot.describe())
+    out.print(robot.describe(), markup=False)  # '[leg1 (3 joints), ...]' is text
     out.print(
         "K: the stiffness a pure force at the measured point sees (N/mm, base frame); "
         "k_min <= k_mid <= k_max its principal stiffnesses; q in deg (mm for prismatic joints)"
@@ -389,7 +389,7 @@ def _write_map(mp, F: np.ndarray, M, as_json: bool, output: Path | None) -> None
 def _print_map(m, mp, F) -> None:
     dim = m.dim
     ax = "xyz"[:dim]
-    out.print(m.describe())
+    out.print(m.describe(), markup=False)  # '[leg1 (3 joints), ...]' is text
     out.print(
         f"force F = ({', '.join(fmt(v, 5) for v in F)}) N; static error u = K^-1 F (mm); "
         "det K in (N/mm)^" + str(dim) + "; k_min: smallest principal stiffness"
@@ -429,7 +429,7 @@ def _print_map(m, mp, F) -> None:
 
 def _print_map6(m, mp, F, M) -> None:
     """The map of a platform that turns: pose, the wrench's static error, K's and K_rot's softest."""
-    out.print(m.describe())
+    out.print(m.describe(), markup=False)  # '[leg1 (3 joints), ...]' is text
     w = np.concatenate([F, np.zeros(3) if M is None else M])
     out.print(
         f"wrench at the tool point F = ({', '.join(fmt(v, 5) for v in w[:3])}) N, M = "
@@ -548,7 +548,8 @@ def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
     """The estimates, the fit's quality and the residual RMS per pose; its notes as warnings."""
     unit = {"static_error": "mm", "stiffness6": "N/mm, N, N*mm/rad: K6's entries"}.get(f.kind, "N/mm")
     what = "static-error readings" if f.kind == "static_error" else "stiffness entries"
-    out.print(f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}")
+    line = f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}"
+    out.print(line, markup=False)
     t = Table("parameter", "initial", "estimate ± standard error", "relative")
     for k, e, s, i in zip(f.names, f.estimate, f.std, f.initial, strict=True):
         t.add_row(k, fmt(i), fmt_pm(e, s), f"{100 * s / e:.2g} %" if e else "")

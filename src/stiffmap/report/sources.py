@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ..campaign.run import campaign_root
 from ..campaign.spec import SPEC_NAME
 from ..errors import InputError
 from .campaign import write_campaign_report
@@ -54,6 +55,8 @@ def write_report_from(
         A directory that is no campaign, no ``out_dir`` where one is needed, an unknown
         example, or a bad ``data.json`` (naming the file and the key).
     """
+    if not example and Path(source).name == SPEC_NAME and Path(source).is_file():
+        source = campaign_root(source)  # a campaign named by its campaign.toml, as `run` takes it
     if not example and Path(source).is_dir():
         if not (Path(source) / SPEC_NAME).is_file():
             raise InputError(

@@ -301,5 +301,7 @@ def validate_files(
         res = validate_stage_series(ms, [r.nominal_mm for r in rows])
     except InputError as e:
         why = "; ".join(f"line {r.line}: {m.error}" for m, r in zip(ms, rows, strict=True) if m.error)
-        raise InputError(f"{e}" + (f" ({why})" if why else ""), source=str(manifest)) from None
+        # the images' errors once, each with its line (the library's message lists them without)
+        what = str(e).split(": ", 1)[0] + f": {why}" if why else str(e)
+        raise InputError(what, source=str(manifest)) from None
     return ManifestValidation(tuple(rows), tuple(ms), res)

@@ -114,6 +114,12 @@ class StageValidation:
         return float(max(v)) if v else float("nan")
 
 
+def _named(failure: tuple[str, str]) -> str:
+    """Why an image gave no pose, naming it once (an image's error names it already)."""
+    image, why = failure
+    return why if why.startswith(f"{image}:") else f"{image}: {why}"
+
+
 def validate_stage(
     reference: Sequence[ImageMeasurement],
     moved: Sequence[tuple[float, ImageMeasurement]],
@@ -143,9 +149,7 @@ def validate_stage(
     failed = [(m.image, m.error or "no pose") for m in reference if not m.ok or m.mobile is None]
     ref = [m for m in reference if m.ok and m.mobile is not None]
     if not ref:
-        raise InputError(
-            "no usable reference image (nominal 0): " + "; ".join(f"{a}: {b}" for a, b in failed)
-        )
+        raise InputError("no usable reference image (nominal 0): " + "; ".join(map(_named, failed)))
     good = []
     for nom, m in moved:
         nom = float(nom)
@@ -156,7 +160,7 @@ def validate_stage(
         else:
             failed.append((m.image, m.error or "no pose"))
     if not good:
-        raise InputError("no usable image of a moved stage: " + "; ".join(f"{a}: {b}" for a, b in failed))
+        raise InputError("no usable image of a moved stage: " + "; ".join(map(_named, failed)))
     T0 = mean_pose([m.mobile2cam for m in ref])
     q = np.zeros(3) if point is None else np.asarray(point, dtype=np.float64).reshape(3)
     D = np.array([displacement_from_poses(T0, m.mobile2cam, q)[:3] for _, m in good])
