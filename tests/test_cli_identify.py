@@ -56,6 +56,22 @@ def test_identify_table_output(design):
     assert "method spd" in proc.stdout and "det(K)" in proc.stdout and "±" in proc.stdout
 
 
+@pytest.mark.parametrize("columns", [200, 60])
+def test_in_process_run_prints_what_the_command_prints(design, tmp_path, columns):
+    """``run_here`` (this process) against ``run_stiffmap`` (a child, ``COLUMNS``): the same
+    exit status, stdout and stderr, at 200 columns and folded at 60 -- a table, a user error
+    and the help."""
+    _, forces, disp = design
+    (tmp_path / "short.csv").write_text(disp.read_text().rsplit("\n", 2)[0] + "\n")
+    for args in (
+        ("identify", forces, disp),
+        ("identify", forces, tmp_path / "short.csv"),
+        ("identify", "--help"),
+    ):
+        here, child = run_here(*args, columns=columns), run_stiffmap(*args, columns=columns)
+        assert (here.returncode, here.stdout, here.stderr) == (child.returncode, child.stdout, child.stderr)
+
+
 def test_rank_deficient_loads(tmp_path):
     F = F9.copy()
     F[2] = 0
