@@ -30,10 +30,12 @@ def pytest_configure(config: pytest.Config) -> None:
 
 #: Modules whose tests (with their shared fixtures) take most of the suite's time: all their
 #: tests count as ``slow``, out of the fast loop (``make test-fast``), still in ``make test``.
-#: Seconds per module (calls and fixtures, 2 workers, 2026-11-29): real photographs 98, the
-#: simulate CLI 50, vision fuzzing 44, campaign paths 35, the vision CLI 34, table fuzzing 31,
-#: sensor campaigns 30, rig measurement 25 and calibration 24 (CLI 11), the browser 20, capture
-#: 18, photometric 18, detection 15, simulated campaigns 13, the sensors CLI 12, report files 11.
+#: CPU seconds per module (its tests, fixtures and subprocesses, one core, 2026-11-29): real
+#: photographs 50, rig measurement 31 and calibration 26 (CLI 12.5), photometric 24, the
+#: simulate CLI 18.5, capture 18, detection 18, vision fuzzing 17, sensor campaigns 17,
+#: simulated campaigns 15, the vision CLI 14, report files 11, campaign paths 6, the browser 6
+#: (and Chromium's own processes), table fuzzing 3.5, the sensors CLI 0.4 (the last ones since
+#: they run the commands in the test's process, ``helpers.cli_process.run_here``).
 SLOW_MODULES = frozenset(
     {
         "test_vision_real",

@@ -1,6 +1,6 @@
 """What a campaign reads and where: path safety, a run that measures nothing, a damaged database.
 
-Through the real command (``helpers.cli_process.run_stiffmap``), on the small simulated
+Through the real command (``helpers.cli_process.run_here``), on the small simulated
 campaigns of :mod:`helpers.fuzz_campaign` (two positions and four load cases of the
 virtual Delta test-bed; two LDV recordings of the 3PRR). Issue 16, "Never a traceback":
 
@@ -19,7 +19,7 @@ import os
 from pathlib import Path
 
 import pytest
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import assert_one_line_error, run_here
 from helpers.fuzz_campaign import sensor_seed, vision_seed, vision_seed_with_results
 
 OPTION = "--allow-outside-paths"
@@ -57,7 +57,7 @@ def test_recording_named_through_dotdot_is_refused_then_allowed(tmp_path):
     os.replace(c / "recordings/trace_000.csv", tmp_path / "elsewhere/trace_000.csv")
     _edit_spec(c, '"recordings/trace_000.csv"', '"recordings/../../elsewhere/trace_000.csv"')
     before = _digests(tmp_path)
-    proc = run_stiffmap("run", c, "--no-report")
+    proc = run_here("run", c, "--no-report")
     assert proc.returncode == 2
     line = assert_one_line_error(
         proc,
@@ -69,7 +69,7 @@ def test_recording_named_through_dotdot_is_refused_then_allowed(tmp_path):
     )
     assert "outside the campaign directory" in line
     assert _digests(tmp_path) == before  # refused before anything was written
-    proc = run_stiffmap("run", c, "--no-report", "--json", OPTION)
+    proc = run_here("run", c, "--no-report", "--json", OPTION)
     assert proc.returncode == 0, proc.stderr
     rows = {r["file"]: r for r in json.loads(proc.stdout)["sensor_results"]}
     assert rows["recordings/../../elsewhere/trace_000.csv"]["status"] == "ok"
@@ -81,17 +81,17 @@ def test_absolute_camera_file_is_refused_then_allowed(tmp_path):
     cam.parent.mkdir()
     os.replace(c / "camera.json", cam)
     _edit_spec(c, 'file = "camera.json"', f"file = {json.dumps(str(cam))}")
-    proc = run_stiffmap("run", c, "--quiet", "--no-report", "--workers", "1")
+    proc = run_here("run", c, "--quiet", "--no-report", "--workers", "1")
     assert proc.returncode == 2
     assert_one_line_error(proc, "campaign.toml", "key 'camera.file'", repr(str(cam)), "absolute path", OPTION)
     assert not (c / "stiffmap.db").exists()
-    proc = run_stiffmap("run", c, "--quiet", "--no-report", "--workers", "1", OPTION)
+    proc = run_here("run", c, "--quiet", "--no-report", "--workers", "1", OPTION)
     assert proc.returncode == 0, proc.stderr
     # The report reads the camera file too (its calibration section): the same rule.
-    proc = run_stiffmap("report", c, "--no-png")
+    proc = run_here("report", c, "--no-png")
     assert proc.returncode == 2
     assert_one_line_error(proc, "campaign.toml", "key 'camera.file'", "absolute path", OPTION)
-    proc = run_stiffmap("report", c, "--no-png", OPTION)
+    proc = run_here("report", c, "--no-png", OPTION)
     assert proc.returncode == 0, proc.stderr
     assert (c / "report" / "index.html").is_file()
 
@@ -103,7 +103,7 @@ def test_image_pattern_leading_outside_names_the_image(tmp_path):
         'loaded = "images/p{position:02d}/l{load:02d}_r{repeat:02d}_loaded.png"',
         'loaded = "../shared/p{position:02d}_l{load:02d}.png"',
     )
-    proc = run_stiffmap("run", c, "--quiet", "--no-report", "--workers", "1")
+    proc = run_here("run", c, "--quiet", "--no-report", "--workers", "1")
     assert proc.returncode == 2
     assert_one_line_error(
         proc,
@@ -119,7 +119,7 @@ def test_symbolic_link_leading_outside_is_refused(tmp_path):
     c = _write(tmp_path / "c", sensor_seed())
     os.replace(c / "recordings", tmp_path / "recordings")
     (c / "recordings").symlink_to(tmp_path / "recordings", target_is_directory=True)
-    proc = run_stiffmap("run", c, "--no-report")
+    proc = run_here("run", c, "--no-report")
     assert proc.returncode == 2
     assert_one_line_error(
         proc,
@@ -129,14 +129,14 @@ def test_symbolic_link_leading_outside_is_refused(tmp_path):
         str(tmp_path / "recordings"),
         OPTION,
     )
-    proc = run_stiffmap("run", c, "--no-report", OPTION)
+    proc = run_here("run", c, "--no-report", OPTION)
     assert proc.returncode == 0, proc.stderr
 
 
 def test_dotdot_that_stays_inside_is_fine(tmp_path):
     c = _write(tmp_path / "c", sensor_seed())
     _edit_spec(c, '"recordings/trace_000.csv"', '"recordings/../recordings/trace_000.csv"')
-    proc = run_stiffmap("run", c, "--no-report")
+    proc = run_here("run", c, "--no-report")
     assert proc.returncode == 0, proc.stderr
 
 
@@ -152,12 +152,12 @@ def test_index_naming_a_recording_outside_its_folder(tmp_path):
     os.replace(c / "recordings/trace_000.csv", c / "trace_000.csv")
     lines[1] = lines[1].replace("trace_000.csv", "../trace_000.csv")
     index.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    proc = run_stiffmap("sensor", "--index", index)
+    proc = run_here("sensor", "--index", index)
     assert proc.returncode == 2
     assert_one_line_error(
         proc, str(index), "line 2, column 'file'", "'../trace_000.csv'", "goes up with '..'", OPTION
     )
-    proc = run_stiffmap("sensor", "--index", index, "--json", OPTION)
+    proc = run_here("sensor", "--index", index, "--json", OPTION)
     assert proc.returncode == 0, proc.stderr
 
 
@@ -171,7 +171,7 @@ def test_run_where_no_position_can_be_measured(tmp_path):
         if name.startswith("images/"):
             files[name] = blank[: len(blank) // 3]
     c = _write(tmp_path / "c", files)
-    proc = run_stiffmap("run", c, "--quiet", "--workers", "1")
+    proc = run_here("run", c, "--quiet", "--workers", "1")
     assert proc.returncode == 2
     line = assert_one_line_error(
         proc, str(c), "no position could be measured (2 failed)", "images/p01/r01_unloaded.png: truncated PNG"
@@ -180,7 +180,7 @@ def test_run_where_no_position_can_be_measured(tmp_path):
     assert (c / "stiffmap.db").is_file()  # the failures are recorded: summary.json lists them all
     summary = json.loads((c / "exports" / "summary.json").read_text())
     assert len(summary["failures"]) >= 2
-    proc = run_stiffmap("report", c, "--no-png")
+    proc = run_here("report", c, "--no-png")
     assert proc.returncode == 2
     assert_one_line_error(proc, str(c), "no position has results")
 
@@ -200,7 +200,7 @@ def test_damaged_results_database_is_named_and_left_alone(tmp_path, content):
     db.write_bytes(content)
     before = _digests(c)
     for argv in (("run", c, "--quiet", "--no-report", "--workers", "1"), ("report", c, "--no-png")):
-        proc = run_stiffmap(*argv)
+        proc = run_here(*argv)
         assert proc.returncode == 2, proc.stderr
         assert_one_line_error(proc, str(db), "move it away")
         assert _digests(c) == before  # nothing repaired, deleted or lost; the raw inputs untouched

@@ -19,7 +19,7 @@ import tomllib
 import numpy as np
 import pytest
 from helpers.capture_campaigns import FAST_SIM
-from helpers.cli_process import run_in_process, run_stiffmap
+from helpers.cli_process import run_here, run_in_process, run_stiffmap
 
 from stiffmap.camera import load_camera
 from stiffmap.campaign.demo import demo_config
@@ -66,7 +66,10 @@ def _copy(src, dst):
 
 
 def _run(path, *args):
-    return run_stiffmap("run", path, "--quiet", "--no-report", *args, columns=100)
+    """``stiffmap run PATH --quiet --no-report ARGS`` in this process; a Dask run in its own
+    process (its local cluster's scheduler and workers end with it)."""
+    runner = run_stiffmap if "--dask" in args else run_here
+    return runner("run", path, "--quiet", "--no-report", *args, columns=100)
 
 
 def test_killed_run_resumes_to_the_same_database(campaign, campaign_db, tmp_path):
@@ -134,7 +137,7 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     c = _copy(campaign, tmp_path / "c")
     assert _run(c).returncode == 0
     # The report of a run campaign, (re)written from its directory.
-    rep = run_stiffmap("report", c, "--no-png")
+    rep = run_here("report", c, "--no-png")
     assert rep.returncode == 0, rep.stderr
     assert "stiffness map" in (c / "report" / "index.html").read_text().lower()
     spec = (c / "campaign.toml").read_text()

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from helpers.cli_process import run_stiffmap
+from helpers.cli_process import run_here, run_stiffmap
 
 from stiffmap.models.presets import PRR3_MIDDLE_LINE, prr3_points22
 from stiffmap.models.prr3 import PRR3
@@ -49,7 +49,7 @@ recordings = [
 
 def test_sensor_campaign_recovers_kj_and_static_errors(tmp_path):
     truths, model = _campaign(tmp_path)
-    proc = run_stiffmap("run", tmp_path, "--json")
+    proc = run_here("run", tmp_path, "--json")
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     fit = next(f for f in summary["model_fits"] if f["name"] == "static_error")
@@ -73,7 +73,7 @@ def test_sensor_campaign_recovers_kj_and_static_errors(tmp_path):
         true_um = 1e3 * t.static_error_mm
         assert abs(measured_um - true_um) <= 1.0 + 0.01 * abs(true_um)
     # A second run reuses every recording.
-    again = run_stiffmap("run", tmp_path, columns=80)
+    again = run_here("run", tmp_path, columns=80)
     assert again.returncode == 0, again.stderr
     assert "16 recordings: 0 analysed, 16 unchanged" in again.stdout
 
@@ -115,7 +115,7 @@ def test_sign_mistakes_and_unreachable_points_are_left_out_of_the_fit_by_name(tm
     lines[i5] = '  {point = [400.0, 900.0], direction = "y", file = "rec/trace_005.csv", sign = 1},'
     lines = [ln for ln in lines if "trace_007.csv" not in ln]
     (tmp_path / "campaign.toml").write_text("\n".join(lines) + "\n")
-    proc = run_stiffmap("run", tmp_path, "--no-report")
+    proc = run_here("run", tmp_path, "--no-report")
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     assert "rec/trace_000.csv: negative stiffness" in proc.stderr and "sign" in proc.stderr
     assert "rec/trace_005.csv: point [400.0, 900.0] outside the model" in proc.stderr
@@ -131,7 +131,7 @@ def test_sign_mistakes_and_unreachable_points_are_left_out_of_the_fit_by_name(tm
         .read_text()
         .replace('trace_000.csv", sign = 1', 'trace_000.csv", sign = -1')
     )
-    proc = run_stiffmap("run", tmp_path, "--no-report")
+    proc = run_here("run", tmp_path, "--no-report")
     assert "15 recordings: 1 analysed, 14 unchanged" in proc.stdout
     assert "negative stiffness" not in proc.stderr
 

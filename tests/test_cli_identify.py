@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import assert_one_line_error, run_here, run_stiffmap
 from helpers.random_matrices import random_spd
 
 from stiffmap import __version__
@@ -36,7 +36,7 @@ def design(tmp_path):
 
 def test_identify_json_recovers_k_with_repeats(design):
     K, forces, disp = design
-    proc = run_stiffmap("identify", forces, disp, "--json")
+    proc = run_here("identify", forces, disp, "--json")
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     for key in ("K", "K_std", "det", "eigenvalues", "flags", "method", "rank", "condition"):
@@ -51,9 +51,25 @@ def test_identify_json_recovers_k_with_repeats(design):
 
 def test_identify_table_output(design):
     _, forces, disp = design
-    proc = run_stiffmap("identify", forces, disp, "--method", "spd")
+    proc = run_here("identify", forces, disp, "--method", "spd")
     assert proc.returncode == 0, proc.stderr
     assert "method spd" in proc.stdout and "det(K)" in proc.stdout and "±" in proc.stdout
+
+
+@pytest.mark.parametrize("columns", [200, 60])
+def test_in_process_run_prints_what_the_command_prints(design, tmp_path, columns):
+    """``run_here`` (this process) against ``run_stiffmap`` (a child, ``COLUMNS``): the same
+    exit status, stdout and stderr, at 200 columns and folded at 60 -- a table, a user error
+    and the help."""
+    _, forces, disp = design
+    (tmp_path / "short.csv").write_text(disp.read_text().rsplit("\n", 2)[0] + "\n")
+    for args in (
+        ("identify", forces, disp),
+        ("identify", forces, tmp_path / "short.csv"),
+        ("identify", "--help"),
+    ):
+        here, child = run_here(*args, columns=columns), run_stiffmap(*args, columns=columns)
+        assert (here.returncode, here.stdout, here.stderr) == (child.returncode, child.stdout, child.stderr)
 
 
 def test_rank_deficient_loads(tmp_path):
@@ -62,21 +78,21 @@ def test_rank_deficient_loads(tmp_path):
     forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F.T)
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
     assert_one_line_error(
-        run_stiffmap("identify", forces, disp), "forces.csv", "rank 2", "3 linearly independent"
+        run_here("identify", forces, disp), "forces.csv", "rank 2", "3 linearly independent"
     )
 
 
 def test_mismatched_row_counts(tmp_path):
     forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F9.T)
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((8, 3)))
-    assert_one_line_error(run_stiffmap("identify", forces, disp), "disp.csv", "8 data rows", "9 load cases")
+    assert_one_line_error(run_here("identify", forces, disp), "disp.csv", "8 data rows", "9 load cases")
 
 
 def test_repeat_with_missing_row(tmp_path):
     forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F9.T)
     rows = [[1, 1, 1, 1]] * 9 + [[1, 1, 1, 2]] * 8
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz", "repeat"], rows)
-    assert_one_line_error(run_stiffmap("identify", forces, disp), "disp.csv", "repeat '2' has 8 rows")
+    assert_one_line_error(run_here("identify", forces, disp), "disp.csv", "repeat '2' has 8 rows")
 
 
 def test_nan_cell(tmp_path):
@@ -84,7 +100,7 @@ def test_nan_cell(tmp_path):
     rows = np.ones((9, 3)).astype(object)
     rows[4, 1] = "nan"
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], rows)
-    assert_one_line_error(run_stiffmap("identify", forces, disp), "disp.csv", "line 6", "'dy'")
+    assert_one_line_error(run_here("identify", forces, disp), "disp.csv", "line 6", "'dy'")
 
 
 def test_non_numeric_cell(tmp_path):
@@ -93,29 +109,29 @@ def test_non_numeric_cell(tmp_path):
     forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], rows)
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
     assert_one_line_error(
-        run_stiffmap("identify", forces, disp), "forces.csv", "line 4", "'fz'", "'abc' is not a number"
+        run_here("identify", forces, disp), "forces.csv", "line 4", "'fz'", "'abc' is not a number"
     )
 
 
 def test_missing_column(tmp_path):
     forces = _write(tmp_path / "forces.csv", ["fx", "fy"], F9.T[:, :2])
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
-    assert_one_line_error(run_stiffmap("identify", forces, disp), "forces.csv", "missing column 'fz'")
+    assert_one_line_error(run_here("identify", forces, disp), "forces.csv", "missing column 'fz'")
 
 
 def test_missing_file(tmp_path):
     disp = _write(tmp_path / "disp.csv", ["dx", "dy", "dz"], np.ones((9, 3)))
-    assert_one_line_error(run_stiffmap("identify", tmp_path / "nope.csv", disp), "nope.csv", "file not found")
+    assert_one_line_error(run_here("identify", tmp_path / "nope.csv", disp), "nope.csv", "file not found")
 
 
 def test_version_and_help():
-    proc = run_stiffmap("--version")
+    proc = run_stiffmap("--version")  # the entry point, python -m stiffmap
     assert proc.returncode == 0 and proc.stdout.strip() == f"stiffmap {__version__}"
-    proc = run_stiffmap("identify", "--help")
+    proc = run_here("identify", "--help")
     assert proc.returncode == 0 and "--method" in proc.stdout and "compliance" in proc.stdout
     # Optional parts in [brackets] are shown, not eaten as rich markup.
     assert "[and mx,my,mz (N*mm)]" in proc.stdout and "[and rx,ry,rz (rad)]" in proc.stdout
-    proc = run_stiffmap("displacement", "--help")
+    proc = run_here("displacement", "--help")
     assert "d = [dx, dy, dz] (mm)" in proc.stdout
 
 
@@ -123,13 +139,13 @@ def test_output_path_mistakes_are_one_line_errors(tmp_path):
     """An output path that is a folder, or under a file: one line naming it, no traceback."""
     (tmp_path / "afile").write_text("keep me\n")
     (tmp_path / "adir").mkdir()
-    proc = run_stiffmap("model", "delta", "--json", "-o", tmp_path / "afile" / "x.json")
+    proc = run_here("model", "delta", "--json", "-o", tmp_path / "afile" / "x.json")
     assert_one_line_error(proc, "afile", "a file is in the way")
-    proc = run_stiffmap("model", "delta", "--csv", "-o", tmp_path / "adir")
+    proc = run_here("model", "delta", "--csv", "-o", tmp_path / "adir")
     assert_one_line_error(proc, "adir", "is a directory")
-    proc = run_stiffmap("init", tmp_path / "afile" / "campaign")
+    proc = run_here("init", tmp_path / "afile" / "campaign")
     assert_one_line_error(proc, "afile")
     assert (tmp_path / "afile").read_text() == "keep me\n"
     # Text from the user is printed as written: no :emoji: codes, no [markup].
-    proc = run_stiffmap("model", "delta", "--grid=0:100:0,0,-300")
+    proc = run_here("model", "delta", "--grid=0:100:0,0,-300")
     assert_one_line_error(proc, "'0:100:0,0,-300'")

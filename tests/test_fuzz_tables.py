@@ -5,8 +5,9 @@ The fuzz property (:func:`helpers.fuzz.assert_handled`): each command either suc
 output that is sane (JSON that parses, finite numbers or an explicit null), or ends with
 exit status 1 or 2 and a message that names the bad file. The inputs are drawn by
 :mod:`helpers.fuzz_tables` from valid files (its seeds are checked here to give the right
-answer first). The regression tests run the real command in a subprocess and check the one
-line of each error: the file, the line/column/key/channel, and what was expected.
+answer first). The regression tests run the real command (in this process,
+``helpers.cli_process.run_here``) and check the one line of each error: the file, the
+line/column/key/channel, and what was expected.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import assert_one_line_error, run_here
 from helpers.fuzz import FuzzCase, assert_handled, run_case
 from helpers.fuzz_tables import (
     FUZZ_CLASSES,
@@ -138,7 +139,7 @@ def _identify(tmp_path, disp_text: str, forces_text: str = FORCES):
     d = tmp_path / "displacements.csv"
     f.write_text(forces_text)
     d.write_text(disp_text)
-    return run_stiffmap("identify", f, d, "--json")
+    return run_here("identify", f, d, "--json")
 
 
 def _disp(D) -> str:
@@ -203,7 +204,7 @@ def test_csv_never_read_as_garbage(tmp_path, data, needles):
     d = tmp_path / "displacements.csv"
     (tmp_path / "forces.csv").write_text(FORCES)
     d.write_bytes(data)
-    assert_one_line_error(run_stiffmap("identify", tmp_path / "forces.csv", d), "displacements.csv", *needles)
+    assert_one_line_error(run_here("identify", tmp_path / "forces.csv", d), "displacements.csv", *needles)
 
 
 # --------------------------------------------------------------------------- regressions: models
@@ -212,7 +213,7 @@ def test_model_points_and_fit_values_beyond_plausibility(tmp_path):
     p = tmp_path / "points.csv"
     p.write_text("x,y,z\n0,0,-310\n1e300,0,-300\n")
     assert_one_line_error(
-        run_stiffmap("model", "delta", "--points", p, "--json"),
+        run_here("model", "delta", "--points", p, "--json"),
         "points.csv",
         "line 3, column 'x'",
         "not a plausible position",
@@ -223,21 +224,21 @@ def test_model_points_and_fit_values_beyond_plausibility(tmp_path):
     m = tmp_path / "meas.csv"
     m.write_text("\n".join([*lines[:2], ",".join(cells), *lines[3:]]) + "\n")
     assert_one_line_error(
-        run_stiffmap("fit", "delta", m), "meas.csv", "line 3, column 'k12'", "not a plausible stiffness"
+        run_here("fit", "delta", m), "meas.csv", "line 3, column 'k12'", "not a plausible stiffness"
     )
 
 
 def test_simulate_names_the_positions_file_of_an_unreachable_position(tmp_path):
     p = tmp_path / "positions.csv"
     p.write_text("x,y,z\n0,0,-310\n66.67,-66.67,0\n")
-    proc = run_stiffmap("simulate", tmp_path / "out", "--truth-only", "--positions", p)
+    proc = run_here("simulate", tmp_path / "out", "--truth-only", "--positions", p)
     assert_one_line_error(proc, "positions.csv", "position 2", "unreachable")
 
     # A load that pushes the board out of the camera's view names the loads file too.
     loads = tmp_path / "loads.csv"
     loads.write_text("fx,fy,fz\n0,4.905,0\n-4.905,0,0\n0,0,-4905\n")
     p.write_text("x,y,z\n0,0,-310\n")
-    proc = run_stiffmap("simulate", tmp_path / "out2", "--truth-only", "--positions", p, "--loads", loads)
+    proc = run_here("simulate", tmp_path / "out2", "--truth-only", "--positions", p, "--loads", loads)
     line = assert_one_line_error(proc, "positions.csv", "position 1", "load 3", "leaves the image")
     assert line.endswith(f"(load 3 from {loads})"), line
 
@@ -257,7 +258,7 @@ def test_constant_displacement_asks_whether_the_sensor_is_on_the_target(tmp_path
     data = {"csv": write_text_channels, "tdms": write_tdms_channels, "mat": write_mat_variables}[fmt](ch)
     f = tmp_path / f"laser.{fmt}"
     f.write_bytes(data)
-    proc = run_stiffmap("sensor", f)
+    proc = run_here("sensor", f)
     assert proc.returncode == 2
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 2 and "Traceback" not in proc.stderr, proc.stderr
@@ -348,7 +349,7 @@ def test_recordings_with_wrong_types_and_absurd_values(tmp_path, which):
     name, build, needles = WRONG_RECORDINGS[which]
     f = tmp_path / name
     f.write_bytes(build(sensor_trace().recording))
-    proc = run_stiffmap("sensor", f)
+    proc = run_here("sensor", f)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     first = proc.stderr.splitlines()[0]
@@ -369,7 +370,7 @@ def test_an_int16_displacement_channel_is_read(tmp_path):
     }
     f = tmp_path / "rec.tdms"
     f.write_bytes(write_tdms_channels(_channels(displacement_v=_int16_codes()), scale, only="displacement_v"))
-    proc = run_stiffmap("sensor", f, "--json")
+    proc = run_here("sensor", f, "--json")
     assert proc.returncode == 0, proc.stderr
     (row,) = json.loads(proc.stdout)
     # Quantised to 1/3276.8 V (0.2 um): the static error (500 um) within 3 um.
@@ -379,7 +380,7 @@ def test_an_int16_displacement_channel_is_read(tmp_path):
     g = tmp_path / "coarse.mat"
     whole = np.round(sensor_trace().recording.displacement_v * 8).astype(np.int16)
     g.write_bytes(write_mat_variables(_channels(displacement_v=whole)))
-    proc = run_stiffmap("sensor", g, "--json")
+    proc = run_here("sensor", g, "--json")
     assert "Traceback" not in proc.stderr and "holds" not in proc.stderr, proc.stderr
 
 
@@ -389,7 +390,7 @@ def test_an_int16_load_in_kgf_is_read_as_whole_numbers(tmp_path):
     f.write_bytes(
         write_tdms_channels(_channels(load_kgf=np.round(sensor_trace().recording.load).astype(np.int16)))
     )
-    proc = run_stiffmap("sensor", f, "--json")
+    proc = run_here("sensor", f, "--json")
     assert proc.returncode == 0, proc.stderr
     (row,) = json.loads(proc.stdout)
     assert row["static_error_um"] == pytest.approx(1e3 * sensor_trace().truth.static_error_mm, abs=3.0)
@@ -405,7 +406,7 @@ def test_a_damaged_mat_file_is_refused_not_a_crash(tmp_path):
     bad.write_bytes(bytes(data))
     good = tmp_path / "good.tdms"
     good.write_bytes(sensor_recording("tdms"))
-    proc = run_stiffmap("sensor", good, bad, "--json")
+    proc = run_here("sensor", good, bad, "--json")
     assert proc.returncode == 1, proc.stderr  # one analysed, one refused
     assert_one_line_error(
         proc, "bad.mat", "not a readable MATLAB .mat file (damaged:", "variable 'time_s'", "type code 0"
@@ -418,7 +419,7 @@ def test_json_output_still_names_each_failed_recording(tmp_path):
     """With --json the failures were only in the JSON: exit 2 without a message."""
     f = tmp_path / "empty.csv"
     f.write_text("time_s,displacement_v,load_kgf\n")
-    proc = run_stiffmap("sensor", f, "--json")
+    proc = run_here("sensor", f, "--json")
     assert proc.returncode == 2
     assert json.loads(proc.stdout)[0]["error"].startswith(str(f))
     assert [ln.split(":")[0] for ln in proc.stderr.splitlines()] == ["warning", "error"]
@@ -442,21 +443,21 @@ def test_sensor_options_out_of_range_name_the_option(tmp_path, option, needles):
     """--range-v below the margin was ValueError (a bug); the others were overflows."""
     f = tmp_path / "rec.csv"
     f.write_bytes(sensor_recording("csv"))
-    assert_one_line_error(run_stiffmap("sensor", f, *option), *needles)
+    assert_one_line_error(run_here("sensor", f, *option), *needles)
 
 
 def test_index_names_its_line_for_a_bad_recording_name_or_point(tmp_path):
     idx = tmp_path / "index.csv"
     idx.write_text("x,y,ux,uy,file\n400,200,1,0,rec.tdms\n400,200,0,1,rec.tmds\n")
     assert_one_line_error(
-        run_stiffmap("sensor", "--index", idx),
+        run_here("sensor", "--index", idx),
         "index.csv",
         "line 3, column 'file'",
         "unknown recording format",
     )
     idx.write_text("x,y,ux,uy,file\n400,200,1e308,1e308,rec.tdms\n1e300,200,0,1,rec.tdms\n")
     assert_one_line_error(
-        run_stiffmap("sensor", "--index", idx), "index.csv", "line 3", "not a plausible position"
+        run_here("sensor", "--index", idx), "index.csv", "line 3", "not a plausible position"
     )
 
 
@@ -475,7 +476,7 @@ def test_report_data_json_with_numbers_beyond_float(tmp_path, change, needles):
     text = json.dumps(obj).replace(json.dumps(obj["sensor"]["error_um"]), f"[{change}, 1, 2, 3, 4, 5, 6, 7]")
     f = tmp_path / "data.json"
     f.write_text(text)
-    assert_one_line_error(run_stiffmap("report", f, tmp_path / "out", "--no-png"), "data.json", *needles)
+    assert_one_line_error(run_here("report", f, tmp_path / "out", "--no-png"), "data.json", *needles)
 
 
 def test_a_damaged_tdms_file_gives_one_line_not_nptdms_log_lines(tmp_path):
@@ -483,7 +484,7 @@ def test_a_damaged_tdms_file_gives_one_line_not_nptdms_log_lines(tmp_path):
     data = bytearray(sensor_recording("tdms"))
     f = tmp_path / "truncated.tdms"
     f.write_bytes(bytes(data[:-5000]))
-    proc = run_stiffmap("sensor", f)
+    proc = run_here("sensor", f)
     assert "[nptdms" not in proc.stderr, proc.stderr
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 2, proc.stderr
     assert "truncated.tdms: load channel 'load_kgf' has" in proc.stderr
@@ -509,7 +510,7 @@ def test_simulate_writes_a_load_label_with_a_control_character_as_valid_toml(tmp
     pos = tmp_path / "positions.csv"
     pos.write_text("x,y,z\n0,0,-310\n")
     out = tmp_path / "out"
-    proc = run_stiffmap("simulate", out, "--truth-only", "--loads", loads, "--positions", pos, "--json")
+    proc = run_here("simulate", out, "--truth-only", "--loads", loads, "--positions", pos, "--json")
     assert proc.returncode == 0, proc.stderr
     text = (out / "campaign.toml").read_text()
     assert "\x01" not in text and "\\u0001.5 kg +y" in text

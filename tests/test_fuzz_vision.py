@@ -7,8 +7,8 @@ output is checked: finite numbers (or null where unknown), rigid poses, and, whe
 input is the same picture as a valid image (re-encoded as TIFF, JPEG, 16 bit, colour...),
 the true pose or displacement.
 
-The regression tests below run the real command (a subprocess) on each defect the fuzzing
-found, and check its one line.
+The regression tests below run the real command (in this process,
+``helpers.cli_process.run_here``) on each defect the fuzzing found, and check its one line.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from helpers.board_images import quick_board_image
 from helpers.board_scenes import look_at_pose
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import assert_one_line_error, run_here
 from helpers.fuzz import FuzzCase, assert_handled, run_case
 from helpers.fuzz_vision import CALIB_BOARD, CAMERA, FUZZ_CLASSES, MOBILE, SAME_PICTURE, seeds
 from hypothesis import given
@@ -185,7 +185,7 @@ def _camera_with(d, **changes):
 
 def _pose(d, camera, *images, extra=()):
     images = images or ("ref.png", "moved.png")
-    return run_stiffmap(
+    return run_here(
         "pose", *(d / i for i in images), "--camera", camera, "--board", "7x6", "--square-mm", "10", *extra
     )
 
@@ -286,15 +286,15 @@ def test_a_bad_fixed2base_names_the_file_and_the_cell(lab):
     M = s.fixed2base.tolist()
     M[1][2] = int("9" * 400)
     (lab / "f2b.json").write_text(json.dumps({"fixed2base": M}))
-    assert_one_line_error(run_stiffmap(*base), "f2b.json", "row 2, column 3: expected a finite number")
+    assert_one_line_error(run_here(*base), "f2b.json", "row 2, column 3: expected a finite number")
     M = s.fixed2base.copy()
     M[:3, 3] = [1e300, 0.0, 0.0]
     (lab / "f2b.json").write_text(json.dumps(M.tolist()))
-    assert_one_line_error(run_stiffmap(*base), "f2b.json", "translation of 1e+300 mm")
+    assert_one_line_error(run_here(*base), "f2b.json", "translation of 1e+300 mm")
     M = s.fixed2base.copy()
     M[0, 0] = 1e308  # was an internal error (R^T R overflowed)
     (lab / "f2b.json").write_text(json.dumps({"fixed2base": M.tolist()}))
-    r = run_stiffmap(*base)
+    r = run_here(*base)
     assert_one_line_error(r, "f2b.json", "key 'fixed2base': not a rigid transform", "1e+308")
 
 
@@ -309,7 +309,7 @@ def test_a_bad_image_is_one_named_warning_without_decoder_noise(lab):
     # A 2x2 image among calibration views is one view left out, not an internal error.
     cv2.imwrite(str(lab / "tiny.png"), np.zeros((2, 2), np.uint8))
     views = [lab / f"view{k}.png" for k in range(1, 6)]
-    r = run_stiffmap(
+    r = run_here(
         "calibrate", *views, lab / "tiny.png", "--board", "7x6", "--square-mm", "20", "--out", lab / "c.json"
     )
     # A view left out of a good calibration is a note (status 0), not a warning.
@@ -339,13 +339,13 @@ def test_option_values_are_one_line_naming_the_option(lab, options, needles):
             args[args.index(options[k]) + 1] = options[k + 1]
         else:
             args += options[k : k + 2]
-    r = run_stiffmap("pose", lab / "ref.png", "--camera", lab / "camera.json", *args)
+    r = run_here("pose", lab / "ref.png", "--camera", lab / "camera.json", *args)
     assert r.returncode == 2
     assert_one_line_error(r, *needles)
 
 
 def test_displacement_point_of_1e308_mm_is_refused(lab):
-    r = run_stiffmap(
+    r = run_here(
         "displacement", lab / "moved.png", "--reference", lab / "ref.png", "--camera", lab / "camera.json",
         "--board", "7x6", "--square-mm", "10", "--point", "1e308,0,0",
     )  # fmt: skip
@@ -370,7 +370,7 @@ def test_a_stage_manifest_row_is_named(lab, row, needles):
     lines = seeds().manifest.splitlines()
     lines.insert(3, row)
     (lab / "stage_bad.csv").write_text("\n".join(lines) + "\n")
-    r = run_stiffmap(
+    r = run_here(
         "validate",
         lab / "stage_bad.csv",
         "--camera",
@@ -389,7 +389,7 @@ def test_an_image_the_manifest_lists_but_that_is_missing_names_the_manifest_line
     lines.insert(3, "absent.png,2")
     (lab / "stage_absent.csv").write_text("\n".join(lines) + "\n")
     measure = ["--camera", lab / "camera.json", "--board", "7x6", "--square-mm", "10"]
-    r = run_stiffmap("validate", lab / "stage_absent.csv", *measure, "--json")
+    r = run_here("validate", lab / "stage_absent.csv", *measure, "--json")
     assert r.returncode == 1  # the others measured
     assert_one_line_error(r, "stage_absent.csv, line 4:", "absent.png: no such file or folder")
     assert [s["n"] for s in json.loads(r.stdout)["steps"]] == [1, 1]

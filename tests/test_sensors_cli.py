@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from helpers.cli_process import run_stiffmap
+from helpers.cli_process import run_here
 from helpers.sensor_traces import FAST_DAQ_CHAIN, FAST_LOAD_STEPS, quick_trace
 
 from stiffmap.errors import InputError
@@ -42,7 +42,7 @@ def three_files(tmp_path):
 
 def test_json_reports_each_recording_and_the_bad_one_with_its_span(three_files):
     paths, (good, sat, _) = three_files
-    res = run_stiffmap("sensor", *map(str, paths), "--json")
+    res = run_here("sensor", *map(str, paths), "--json")
     assert res.returncode == 1, _output(res)  # some failed, others analysed
     objs = json.loads(res.stdout)
     assert [o["file"] for o in objs] == [str(p) for p in paths]
@@ -65,22 +65,22 @@ def test_json_reports_each_recording_and_the_bad_one_with_its_span(three_files):
 
 def test_text_output_exit_codes_and_options(three_files, tmp_path):
     paths, _ = three_files
-    res = run_stiffmap("sensor", str(paths[2]), "--axis-sign", "-1")
+    res = run_here("sensor", str(paths[2]), "--axis-sign", "-1")
     assert res.returncode == 0, _output(res)
     assert "static error at 490.5 N" in res.stdout and "flags" in res.stdout
     m = re.search(r"static error at 490\.5 N\s+(\S+) ±", res.stdout)
     assert abs(float(m.group(1)) - 300.0) <= 1 + 3.0
     # Nothing could be done: exit 2, one line on stderr, no traceback.
-    res = run_stiffmap("sensor", str(paths[1]), str(tmp_path / "missing.csv"))
+    res = run_here("sensor", str(paths[1]), str(tmp_path / "missing.csv"))
     assert res.returncode == 2
     assert "Traceback" not in _output(res)
     assert "missing.csv: file not found" in _output(res)
     # A bad option value is one line and exit 2.
-    res = run_stiffmap("sensor", str(paths[0]), "--steps-kgf", "50,abc")
+    res = run_here("sensor", str(paths[0]), "--steps-kgf", "50,abc")
     assert res.returncode == 2 and "--steps-kgf: 'abc' is not a number" in _output(res)
-    res = run_stiffmap("sensor", str(paths[0]), "--channel-map", "volts=x")
+    res = run_here("sensor", str(paths[0]), "--channel-map", "volts=x")
     assert res.returncode == 2 and "unknown key 'volts'" in _output(res)
-    res = run_stiffmap("sensor")
+    res = run_here("sensor")
     assert res.returncode == 2 and "give one or more recordings" in _output(res)
 
 
@@ -90,7 +90,7 @@ def test_table_of_steps_custom_columns_and_step_times(tmp_path):
     p = tmp_path / "ldv.csv"
     p.write_text("t,ch0\n" + "".join(f"{a:.17g},{b:.17g}\n" for a, b in zip(t, v, strict=True)))
     args = ["sensor", str(p), "--channel-map", "displacement=ch0,time=t,load=none", "--json"]
-    res = run_stiffmap(*args, "--steps-kgf", "0,50,40,30,20,10,0")
+    res = run_here(*args, "--steps-kgf", "0,50,40,30,20,10,0")
     assert res.returncode == 0, _output(res)
     (o,) = json.loads(res.stdout)
     assert [s["load_n"] for s in o["steps"]] == pytest.approx(
@@ -98,13 +98,13 @@ def test_table_of_steps_custom_columns_and_step_times(tmp_path):
     )
     assert abs(o["static_error_um"] - 600.0) <= 1 + 6.0
     # Fewer plateaus than the table: the message names the file and the spans.
-    res = run_stiffmap(*args, "--steps-kgf", "0,50,45,40,30,20,10,0")
+    res = run_here(*args, "--steps-kgf", "0,50,45,40,30,20,10,0")
     assert res.returncode == 2
     (o,) = json.loads(res.stdout)
     assert o["error"].startswith(f"{p}: found 7 plateau(s) but the table of steps has 8")
     # Plateaus by hand.
     spans = ",".join(f"{a + 0.3:.3f}-{b - 0.3:.3f}" for a, b in tr.truth.plateaus_s)
-    res = run_stiffmap(*args, "--steps-n", "0,490.5,392.4,294.3,196.2,98.1,0", "--step-times", spans)
+    res = run_here(*args, "--steps-n", "0,490.5,392.4,294.3,196.2,98.1,0", "--step-times", spans)
     assert res.returncode == 0, _output(res)
     (o2,) = json.loads(res.stdout)
     assert abs(o2["static_error_um"] - 600.0) <= 1 + 6.0
@@ -124,15 +124,15 @@ def test_load_channel_named_in_newtons_or_volts_is_found_and_scaled(tmp_path):
         "time_s,displacement_v,load_v\n"
         + "".join(",".join(r.split(",")[:2] + r.split(",")[3:]) + "\n" for r in body.splitlines())
     )
-    ref = run_stiffmap("sensor", str(write_recording(tr.recording, tmp_path / "kgf.csv")), "--json")
-    n = run_stiffmap("sensor", str(tmp_path / "n.csv"), "--json")
-    volts = run_stiffmap("sensor", str(tmp_path / "v.csv"), "--load-n-per-v", "50", "--json")
+    ref = run_here("sensor", str(write_recording(tr.recording, tmp_path / "kgf.csv")), "--json")
+    n = run_here("sensor", str(tmp_path / "n.csv"), "--json")
+    volts = run_here("sensor", str(tmp_path / "v.csv"), "--load-n-per-v", "50", "--json")
     assert ref.returncode == n.returncode == volts.returncode == 0, (_output(n), _output(volts))
     e = [json.loads(r.stdout)[0]["static_error_um"] for r in (ref, n, volts)]
     assert e[1] == pytest.approx(e[0], rel=1e-9) and e[2] == pytest.approx(e[0], rel=1e-9)
-    bad = run_stiffmap("sensor", str(tmp_path / "v.csv"), "--load-n-per-v", "50", "--load-unit", "kgf")
+    bad = run_here("sensor", str(tmp_path / "v.csv"), "--load-n-per-v", "50", "--load-unit", "kgf")
     assert bad.returncode == 2 and "--load-n-per-v" in bad.stderr
-    bad = run_stiffmap("sensor", str(tmp_path / "v.csv"), "--window-s", "-1")
+    bad = run_here("sensor", str(tmp_path / "v.csv"), "--window-s", "-1")
     assert bad.returncode == 2 and "--window-s must be" in bad.stderr
 
 
@@ -167,7 +167,7 @@ def test_static_errors_per_point_for_maps_and_fits(tmp_path):
     obs = ses.observations()
     assert obs["points"].shape == (4, 2) and obs["value_mm"].shape == (4,)
     np.testing.assert_allclose(obs["force_n"], 490.5 * np.array(dirs), rtol=0, atol=1e-12)
-    res = run_stiffmap("sensor", "--index", str(tmp_path / "index.csv"), "--json")
+    res = run_here("sensor", "--index", str(tmp_path / "index.csv"), "--json")
     assert res.returncode == 0, _output(res)
     rows = json.loads(res.stdout)
     assert [r["file"].endswith(f"trace_{i:03d}.mat") for i, r in enumerate(rows)] == [True] * 4

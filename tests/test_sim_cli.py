@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 from helpers.board_scenes import scaled_camera
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import assert_one_line_error, run_here
 
 from stiffmap.camera import load_camera, reference_camera, save_camera
 from stiffmap.campaign.spec import load_spec
@@ -19,7 +19,7 @@ from stiffmap.models.prr3 import PRR3
 
 def test_truth_only_json_summary(tmp_path):
     out = tmp_path / "sim"
-    p = run_stiffmap("simulate", out, "--select", "1,48", "--repeats", "2", "--truth-only", "--json")
+    p = run_here("simulate", out, "--select", "1,48", "--repeats", "2", "--truth-only", "--json")
     assert p.returncode == 0, p.stderr
     info = json.loads(p.stdout)
     assert info["positions"] == 2 and info["load_cases"] == 9 and info["repeats"] == 2
@@ -35,7 +35,7 @@ def test_truth_only_json_summary(tmp_path):
     # No images, nothing to calibrate from: camera.json is the true camera, and the summary says so.
     assert info["calibration"]["camera_json"] == "true camera" and "truth only" in info["calibration"]["note"]
     assert truth.calibrated_camera is None and load_camera(out / "camera.json") == truth.camera
-    table = run_stiffmap("simulate", tmp_path / "t", "--select", "1", "--truth-only", columns=80)
+    table = run_here("simulate", tmp_path / "t", "--select", "1", "--truth-only", columns=80)
     assert table.returncode == 0 and "the true camera: truth only" in table.stdout
 
 
@@ -46,8 +46,8 @@ def test_images_are_written_and_reproducible(tmp_path):
     loads.write_text("fx,fy,fz,label\n0,0,-4.905,0.5 kg down\n-2,0,0,2 N -x\n0,3,0,3 N +y\n")
     args = ["--camera", cam, "--positions", "100,-50,-250", "--loads", loads, "--repeats", "1"]
     args += ["--seed", "11", "--clutter", "--colour", "--calibration-views", "4"]
-    a = run_stiffmap("simulate", tmp_path / "a", *args, "--workers", "1")
-    b = run_stiffmap("simulate", tmp_path / "b", *args, "--workers", "2")
+    a = run_here("simulate", tmp_path / "a", *args, "--workers", "1")
+    b = run_here("simulate", tmp_path / "b", *args, "--workers", "2")
     assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
     assert "6 png + 4 calibration views" in a.stdout and "rendering" in a.stderr
     assert "calibrated from 4 of 4 views, RMS" in a.stdout and "calibration vs true camera" in a.stdout
@@ -68,11 +68,11 @@ def test_images_are_written_and_reproducible(tmp_path):
     jb["generator"].pop("command")
     assert ja == jb
     # --force overwrites a previous simulation.
-    c = run_stiffmap("simulate", tmp_path / "a", *args, "--truth-only", "--force", "--json")
+    c = run_here("simulate", tmp_path / "a", *args, "--truth-only", "--force", "--json")
     assert c.returncode == 0, c.stderr
     assert not (tmp_path / "a" / "images").exists() and not (tmp_path / "a" / "calibration").exists()
     # --true-camera: no calibration views, camera.json is the true camera exactly.
-    d = run_stiffmap("simulate", tmp_path / "d", *args[:-2], "--true-camera", "--json")
+    d = run_here("simulate", tmp_path / "d", *args[:-2], "--true-camera", "--json")
     assert d.returncode == 0, d.stderr
     info = json.loads(d.stdout)
     assert info["calibration"]["camera_json"] == "true camera" and info["calibration"]["views"] == 0
@@ -86,7 +86,7 @@ def test_images_are_written_and_reproducible(tmp_path):
 
 
 def test_six_by_six_option(tmp_path):
-    p = run_stiffmap(
+    p = run_here(
         "simulate",
         tmp_path / "s",
         "--select",
@@ -119,47 +119,45 @@ def test_six_by_six_option(tmp_path):
 def test_user_errors_are_one_line(tmp_path):
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "x.png").write_bytes(b"raw")
-    assert_one_line_error(run_stiffmap("simulate", tmp_path / "full", "--truth-only"), "not empty", "--force")
+    assert_one_line_error(run_here("simulate", tmp_path / "full", "--truth-only"), "not empty", "--force")
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "full", "--truth-only", "--force"), "nothing was deleted"
+        run_here("simulate", tmp_path / "full", "--truth-only", "--force"), "nothing was deleted"
     )
     assert (tmp_path / "full" / "x.png").read_bytes() == b"raw"
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--positions", "paper48"), "delta model"
+        run_here("simulate", tmp_path / "n", "--robot", "3prr", "--positions", "paper48"), "delta model"
     )
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--directions", "z"), "x and/or y"
+        run_here("simulate", tmp_path / "n", "--robot", "3prr", "--directions", "z"), "x and/or y"
     )
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--positions", "1,2"), "--positions", "x,y,z")
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--select", "0,49"), "between 1 and 48")
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--positions", "1,2"), "--positions", "x,y,z"
-    )
-    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--select", "0,49"), "between 1 and 48")
-    assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--positions", "0,0,-310;0,0,-900", "--truth-only"),
+        run_here("simulate", tmp_path / "n", "--positions", "0,0,-310;0,0,-900", "--truth-only"),
         "position 2 (0, 0, -900) mm",
         "no stiffness",
     )
-    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--param", "k_nope=1"), "k_nope")
-    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--select", "1,1"), "more than once")
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--param", "k_nope=1"), "k_nope")
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--select", "1,1"), "more than once")
     # Options of the other kind of simulation are refused, not silently ignored.
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--colour", "--camera", "c.json"),
+        run_here("simulate", tmp_path / "n", "--robot", "3prr", "--colour", "--camera", "c.json"),
         "--camera, --colour",
         "not used",
     )
-    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--trace-format", "mat"), "--trace-format")
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--trace-format", "mat"), "--trace-format")
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--robot", "3prr", "--true-camera"),
+        run_here("simulate", tmp_path / "n", "--robot", "3prr", "--true-camera"),
         "--true-camera",
         "not used",
     )
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--calibration-views", "2"),
+        run_here("simulate", tmp_path / "n", "--calibration-views", "2"),
         "--calibration-views 2",
         "at least 3",
     )
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--true-camera", "--calibration-views", "5"), "choose one"
+        run_here("simulate", tmp_path / "n", "--true-camera", "--calibration-views", "5"), "choose one"
     )
     # A calibration that fails (8 px of blur: the board is found in too few views) stops the
     # simulation with its reason, before any campaign image is rendered.
@@ -168,7 +166,7 @@ def test_user_errors_are_one_line(tmp_path):
     blurred = ["--camera", cam, "--select", "22", "--repeats", "1", "--blur-px", "8"]
     blurred += ["--calibration-views", "3", "--json"]  # --json: no progress bar on stderr
     assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "blur", *blurred),
+        run_here("simulate", tmp_path / "blur", *blurred),
         str(tmp_path / "blur" / "calibration"),
         "could not be calibrated from the 3 rendered calibration views",
         "at least 3 views with the board found",
@@ -176,12 +174,10 @@ def test_user_errors_are_one_line(tmp_path):
     assert not (tmp_path / "blur" / "images").exists()
     flat = tmp_path / "flat.csv"
     flat.write_text("fx,fy,fz\n1,0,0\n2,0,0\n")
-    assert_one_line_error(
-        run_stiffmap("simulate", tmp_path / "n", "--loads", flat), "1 independent direction"
-    )
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--loads", flat), "1 independent direction")
     bad = tmp_path / "loads.csv"
     bad.write_text("fx,fy\n1,2\n")
-    assert_one_line_error(run_stiffmap("simulate", tmp_path / "n", "--loads", bad), str(bad), "'fz'")
+    assert_one_line_error(run_here("simulate", tmp_path / "n", "--loads", bad), str(bad), "'fz'")
     assert not (tmp_path / "n").exists()
 
 
@@ -189,7 +185,7 @@ def test_3prr_sensor_campaign_round_trip(tmp_path):
     # The 3PRR is measured by an LDV: 'simulate --robot 3prr' writes a sensor campaign whose
     # recordings 'stiffmap run' analyses; the static errors come back to the truth.
     out = tmp_path / "s"
-    p = run_stiffmap(
+    p = run_here(
         "simulate", out, "--robot", "3prr", "--select", "2,8,19", "--repeats", "1", "--seed", "5", "--json"
     )
     assert p.returncode == 0, p.stderr
@@ -203,7 +199,7 @@ def test_3prr_sensor_campaign_round_trip(tmp_path):
     pts = prr3_points22()[[1, 7, 18]]
     np.testing.assert_allclose(truth.positions, pts)
     np.testing.assert_allclose(truth.K, PRR3().stiffness(pts), rtol=1e-12)  # N/mm
-    r = run_stiffmap("run", out, "--json")
+    r = run_here("run", out, "--json")
     assert r.returncode == 0, r.stderr
     res = {x["file"]: x for x in json.loads(r.stdout)["sensor_results"]}
     for rec in truth.data["recordings"]:

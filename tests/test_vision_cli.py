@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from helpers.board_images import quick_board_image
 from helpers.board_scenes import close_two_target_poses, moved_pose, small_camera
-from helpers.cli_process import run_stiffmap
+from helpers.cli_process import run_here
 from helpers.shared_data import CALIB_DIR
 
 from stiffmap.camera import CameraModel, save_camera
@@ -68,7 +68,7 @@ def data(tmp_path_factory):
 
 
 def _invoke(args, columns: int = 200):
-    return run_stiffmap(*args, columns=columns)
+    return run_here(*args, columns=columns)
 
 
 def _measure(command, d, board="7x6", camera="camera.json"):

@@ -27,7 +27,7 @@ from helpers.board_images import (
     testbed_board_image as render_testbed,
 )
 from helpers.board_scenes import look_at_pose, small_camera
-from helpers.cli_process import assert_one_line_error, run_stiffmap
+from helpers.cli_process import assert_one_line_error, run_here
 from helpers.finite_difference import central_jacobian
 from helpers.shared_data import CALIB_DIR
 
@@ -420,20 +420,20 @@ def test_sequence_and_cli_refine_option(tmp_path):
     cam = tmp_path / "camera.json"
     save_camera(SMALL, cam)
     common = ["--camera", cam, "--board", "8x6", "--square-mm", "10"]
-    r = run_stiffmap("pose", *common, *paths, "--json")
+    r = run_here("pose", *common, *paths, "--json")
     assert r.returncode == 0, r.stderr
     rows = json.loads(r.stdout)
     assert [x["method"] for x in rows] == ["photometric", "photometric"]
     assert 1.0 < rows[0]["photometric"]["rms_dn"] < 4.0 and rows[0]["photometric"]["n_pixels"] > 3000
-    r = run_stiffmap("pose", *common, *paths, "--json", "--refine", "corners")
+    r = run_here("pose", *common, *paths, "--json", "--refine", "corners")
     assert [x["method"] for x in json.loads(r.stdout)] == ["corners", "corners"]
-    r = run_stiffmap(
+    r = run_here(
         "displacement", *common, "--reference", paths[0], paths[1], "--json", "--refine", "photometric"
     )
     assert r.returncode == 0, r.stderr
     d = json.loads(r.stdout)[0]["d"]
     assert abs(np.asarray(d) @ los - d_true) < 4 * sd
-    assert_one_line_error(run_stiffmap("pose", *common, *paths, "--refine", "edges"), "--refine", "edges")
+    assert_one_line_error(run_here("pose", *common, *paths, "--refine", "edges"), "--refine", "edges")
 
 
 # ------------------------------------------------------------------ real optics

@@ -15,7 +15,7 @@ import json
 import cv2
 import numpy as np
 import pytest
-from helpers.cli_process import run_stiffmap
+from helpers.cli_process import run_here
 from helpers.shared_data import REAL_SETS
 
 from stiffmap.targets import Chessboard
@@ -87,13 +87,13 @@ def test_calibrate_pose_and_displacement_never_end_in_a_traceback(name, tmp_path
     files = image_files([folder])
     cam = tmp_path / "camera.json"
     board = ("--board", "9x6", "--square-mm", "25")
-    proc = run_stiffmap("calibrate", folder, *board, "--out", cam, "--json")
+    proc = run_here("calibrate", folder, *board, "--out", cam, "--json")
     _assert_no_traceback(proc)
     assert proc.returncode in (0, 1), proc.stderr
     calib = json.loads(proc.stdout)
     assert calib["rms_px"] < 1.5, calib["rms_px"]
     # Every image, default refinement: each gets a pose or its named error.
-    proc = run_stiffmap("pose", folder, "--camera", cam, *board, "--json")
+    proc = run_here("pose", folder, "--camera", cam, *board, "--json")
     _assert_no_traceback(proc)
     rows = json.loads(proc.stdout)
     assert [r["image"] for r in rows] == [str(f) for f in files]
@@ -104,9 +104,9 @@ def test_calibrate_pose_and_displacement_never_end_in_a_traceback(name, tmp_path
     # Each refinement on a few views, and a displacement between views.
     few = [str(f) for f in files if f.name not in PARTIAL.get(name, ())][:3]
     for refine in ("corners", "photometric"):
-        proc = run_stiffmap("pose", *few, "--camera", cam, *board, "--refine", refine, "--json")
+        proc = run_here("pose", *few, "--camera", cam, *board, "--refine", refine, "--json")
         _assert_no_traceback(proc)
-    proc = run_stiffmap("displacement", *few[1:], "--reference", few[0], "--camera", cam, *board, "--json")
+    proc = run_here("displacement", *few[1:], "--reference", few[0], "--camera", cam, *board, "--json")
     _assert_no_traceback(proc)
     assert proc.returncode in (0, 1), proc.stderr
 
