@@ -47,6 +47,7 @@ from ..parallel import Backend, connected
 from ..rig import Rig, load_rig
 from .derive import derive_position
 from .fingerprint import robot_fingerprint
+from .flags import campaign_flags
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .platform import fit_platform, is_platform, platform_map
@@ -163,6 +164,9 @@ def run_vision_campaign(
         failures, notes = _rig_checks(store, campaign)
         summary.failures.extend(failures)
         summary.notes.extend(notes)
+        failures, info = campaign_flags(store, campaign.spec)
+        summary.failures.extend(failures)
+        summary.info.extend(info)
         summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root, summary.info))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
