@@ -41,7 +41,7 @@ from .. import __version__
 from ..camera import load_camera
 from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
-from ..models.fit import fit_stiffness
+from ..models.fit import fit_stiffness, separation_notes
 from ..models.joint_fit import fit_joint_compliances
 from ..parallel import Backend, connected
 from ..rig import Rig, load_rig
@@ -820,6 +820,9 @@ def _fit_to_measured(model, ok: list, spec: CampaignSpec, fit_row: dict, problem
         )
         fitted = fit.model
         fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
+        problems.extend(
+            f"model fit: {n}" for n in separation_notes(fit.names, fit.estimate, fit.std, fit.correlation)
+        )
     except (InputError, ValueError) as e:
         fit_row.update(status="failed", error=str(e))
         problems.append(f"model fit: {e}")
