@@ -6,8 +6,9 @@ over a campaign:
 - the **asymmetry** test (chi-square of K - K^T against its covariance) runs on every position
   and Holm's step-down procedure keeps the family-wise level at ``FAMILY_ALPHA`` (1 %) over
   the positions tested (:func:`stiffmap.stats.holm_rejects`): at 1 % per position, 48
-  positions of a symmetric K would flag one or two by chance. A K without a covariance keeps
-  the fixed threshold (``ASYMMETRY_FLAG``) of one K;
+  positions of a symmetric K would flag one or two by chance. A K without a covariance, or
+  identified with fewer residual degrees of freedom than its rows, keeps the fixed threshold
+  (``ASYMMETRY_FLAG``, 10 %) of one K;
 - with the loads hung off the measured point (``loads.point_mm`` not zero) the asymmetry is
   not tested: the K they see is (C_tt + C_tr [r]x)^-1, not symmetric by construction
   (docs/models.md); one note says so;
@@ -88,7 +89,11 @@ def _asymmetry_flags(rows) -> dict[int, str]:
 
 
 def _p_value(r) -> float:
-    """The asymmetry test's p-value of a position's K (NaN: no finite covariance)."""
-    if r.K_cov is None or not np.all(np.isfinite(r.K_cov)):
+    """The asymmetry test's p-value of a position's K (NaN: not tested). Not tested without a
+    finite covariance, nor with fewer residual degrees of freedom than K has rows: the
+    displacements' covariance is then estimated from too few residuals to be of full rank,
+    and K - K^T's covariance near singular makes any asymmetry look significant (a
+    noise-free simulation of 4 loads, dof 1: 1 % asymmetric, p = 0)."""
+    if r.K_cov is None or not np.all(np.isfinite(r.K_cov)) or (r.dof or 0) < r.K.shape[0]:
         return float("nan")
     return asymmetry_p_value(r.K, r.K_cov)
