@@ -7,12 +7,12 @@ over a campaign:
   and Holm's step-down procedure keeps the family-wise level at ``FAMILY_ALPHA`` (1 %) over
   the positions tested (:func:`stiffmap.stats.holm_rejects`): at 1 % per position, 48
   positions of a symmetric K would flag one or two by chance. A K without a covariance, or
-  identified with fewer residual degrees of freedom than its rows, keeps the fixed threshold
-  (``ASYMMETRY_FLAG``, 10 %) of one K;
+  identified with fewer residual degrees of freedom than its rows, is flagged by the fixed
+  threshold (``ASYMMETRY_FLAG``, 10 %) of one K: a review flag, its uncertainty unknown;
 - with the loads hung off the measured point (``loads.point_mm`` not zero) the asymmetry is
   not tested: the K they see is (C_tt + C_tr [r]x)^-1, not symmetric by construction
   (docs/models.md); one note says so;
-- a K that is asymmetric (so decided), not positive definite or of det <= 0 (``HARD_FLAGS``)
+- a K that is asymmetric (by the test), not positive definite or of det <= 0 (``HARD_FLAGS``)
   is a failure of the run (``stiffmap run`` exits 1, a ``warning:`` line per position, with
   the axis whose sign looks reversed); the other flags (Cochran's repeatability outliers, the
   load design's) are review flags, in the tables only.
@@ -46,7 +46,7 @@ def campaign_flags(store: Store, spec: CampaignSpec) -> tuple[list[str], list[st
     lever = spec.loads.point_mm if spec.loads is not None else None
     notes: list[str] = []
     if lever is not None and any(v != 0.0 for v in lever):
-        asym: dict[int, str] = {}
+        asym: dict[int, tuple[str, bool]] = {}
         if rows:
             notes.append(
                 "K's asymmetry is not tested: the loads hang at loads.point_mm = "
@@ -59,20 +59,22 @@ def campaign_flags(store: Store, spec: CampaignSpec) -> tuple[list[str], list[st
     for r in rows:
         old = list(r.flags or [])
         flags = [f for f in old if not f.startswith("asymmetric")]
-        if r.position in asym:
-            flags.insert(0, asym[r.position])
+        flag, tested = asym.get(r.position, (None, False))
+        if flag is not None:
+            flags.insert(0, flag)
         if flags != old:
             store.set_stiffness_flags(r.position, flags)
-        hard = [f for f in flags if f.startswith(HARD_FLAGS)]
+        hard = [f for f in flags if f.startswith(HARD_FLAGS) and (tested or f is not flag)]
         if hard:
             hard += [f for f in flags if f.startswith(_SIGN_HINT)]
             failures.append(f"position {r.position} ({r.x:g}, {r.y:g}, {r.z:g} mm): K {'; '.join(hard)}")
     return failures, notes
 
 
-def _asymmetry_flags(rows) -> dict[int, str]:
-    """The asymmetry flag of each position whose K is asymmetric: Holm's test at
-    ``FAMILY_ALPHA`` over the positions with a covariance, the fixed threshold without."""
+def _asymmetry_flags(rows) -> dict[int, tuple[str, bool]]:
+    """The asymmetry flag of each position whose K is asymmetric, and whether a test said so:
+    Holm's test at ``FAMILY_ALPHA`` over the positions with a covariance (True), the fixed
+    threshold without one (False: a review flag, K's uncertainty being unknown)."""
     p = np.array([_p_value(r) for r in rows])
     tested = int(np.isfinite(p).sum())
     out = {}
@@ -81,10 +83,11 @@ def _asymmetry_flags(rows) -> dict[int, str]:
             out[r.position] = (
                 f"asymmetric: |K-K^T|/|K| = {stiffness_indices(r.K).asymmetry:.3g}, beyond its "
                 f"uncertainty (p = {pi:.2g}; Holm's test at {100 * FAMILY_ALPHA:g} % over the "
-                f"campaign's {tested} positions)"
+                f"campaign's {tested} positions)",
+                True,
             )
         elif not np.isfinite(pi):
-            out.update((r.position, f) for f in physical_flags(r.K) if f.startswith("asymmetric"))
+            out.update((r.position, (f, False)) for f in physical_flags(r.K) if f.startswith("asymmetric"))
     return out
 
 
