@@ -174,6 +174,54 @@ def test_results_follow_the_positions_of_campaign_toml(campaign, tmp_path):
     assert proc.stderr.count("\n") == 1 and "no image found" in proc.stderr
 
 
+def test_a_reversed_load_axis_or_an_asymmetric_K_makes_the_run_exit_1(campaign, campaign_db, tmp_path):
+    """The run of ``campaign`` exits 0 (``campaign_db``). (1) The +y loads written with the
+    wrong sign in campaign.toml: every position's K is not positive definite, one warning a
+    position names the y axis, exit 1. (2) One position's stored K made asymmetric by 30
+    standard errors of K - K^T (its images unchanged, so reused): Holm's test over the 4
+    positions flags it and only it, exit 1; (3) with the loads hung 40 mm off the measured
+    point (loads.point_mm) asymmetry is not tested: one note says why, no warning for it."""
+    a = _copy(campaign, tmp_path / "a")
+    spec = (a / "campaign.toml").read_text()
+    flipped = re.sub(r"force_n = \[0\.0, ([0-9.]+), 0\.0\]", r"force_n = [0.0, -\1, 0.0]", spec)
+    assert flipped.count("force_n = [0.0, -") == 2, flipped
+    (a / "campaign.toml").write_text(flipped)
+    proc = _run(a)
+    warned = [s for s in proc.stderr.splitlines() if s.startswith("warning: position ")]
+    assert proc.returncode == 1 and len(warned) == 4, proc.stderr
+    assert all("not positive definite: " in s and "det <= 0: " in s for s in warned), warned
+    assert "the y axis (dy or fy of the wrong sign) looks reversed" in " ".join(proc.stderr.split())
+
+    b = _copy(campaign_db.parent, tmp_path / "b")
+    with Store(b / "stiffmap.db") as st:
+        r = st.stiffness_rows()[1]
+        assert not any(f.startswith("asymmetric") for f in r.flags)  # as measured
+        # K[0,1] - K[1,0] moved by 30 of its standard errors (from K's covariance).
+        sd = np.sqrt(r.K_cov[1, 1] + r.K_cov[3, 3] - 2 * r.K_cov[1, 3])
+        K = r.K.copy()
+        K[0, 1] += 30 * sd
+        with st.transaction():
+            st.conn.execute("UPDATE stiffness SET K=? WHERE position=?", (json.dumps(K.tolist()), r.position))
+    proc = _run(b)
+    warned = [s for s in proc.stderr.splitlines() if s.startswith("warning: position ")]
+    assert proc.returncode == 1 and len(warned) == 1, proc.stderr
+    assert warned[0].startswith(f"warning: position {r.position} (") and "K asymmetric: " in warned[0]
+    assert "Holm's test at 1 % over the campaign's 4 positions" in " ".join(proc.stderr.split())
+    summary = json.loads((b / "exports" / "summary.json").read_text())
+    asym = [any(f.startswith("asymmetric") for f in p["flags"]) for p in summary["positions"]]
+    assert asym == [False, True, False, False]
+
+    spec = (b / "campaign.toml").read_text()
+    (b / "campaign.toml").write_text(spec.replace("[loads]\n", "[loads]\npoint_mm = [0.0, 0.0, 40.0]\n", 1))
+    proc = _run(b)
+    assert "warning: position" not in proc.stderr, proc.stderr
+    assert "note: K's asymmetry is not tested: the loads hang at loads.point_mm = (0, 0, 40) mm" in " ".join(
+        proc.stderr.split()
+    )
+    summary = json.loads((b / "exports" / "summary.json").read_text())
+    assert not any(f.startswith("asymmetric") for p in summary["positions"] for f in p["flags"])
+
+
 # The quick demo (six positions at full size, 120 images and 20 calibration views: about 80 s
 # to render and run) and what is measured on it are the long profile (`make test-long`, run by
 # CI after `make test`); running, resuming and Dask are tested above and below on `campaign`.

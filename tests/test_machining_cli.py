@@ -254,6 +254,35 @@ def test_a_place_far_outside_the_workspace_is_refused_in_one_line(tmp_path, monk
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_unplaced_program_out_of_reach_names_the_place_option(tmp_path, monkeypatch, capsys):
+    """Without --place the program's origin is the base frame's: the 3PRR cannot reach (0, 0),
+    which was said without saying why the program was there. The library's error names its
+    placement fields (a FieldError), the command words them as --place; with --place 0,0 given,
+    the same point is only out of reach (the user put it there)."""
+    from stiffmap.errors import FieldError
+    from stiffmap.machining import CompensateOptions, ForceSpec, compensate_file
+    from stiffmap.models import PRR3
+
+    out = tmp_path / "out.nc"
+    opts = CompensateOptions(force=ForceSpec.constant([0.0, -490.5]))
+    with pytest.raises(FieldError) as exc:
+        compensate_file(PRR3(area=100.0), PROGRAM, out, opts)
+    assert exc.value.fields == ("place_mm", "place_auto")
+    assert "unless place_mm or place_auto is given" in str(exc.value)
+    args = ["compensate", "3prr", "--path", PROGRAM, "--out", out, "-q", "--force-n", "0,-490.5"]
+    code, _, err = run_in_process(args, monkeypatch, capsys)
+    _one_line(
+        code,
+        err,
+        "own_cam_mm.nc: line 12: programmed point (0, 0) mm (base frame) unreachable: ",
+        "the program's origin is at the base frame's origin unless --place X,Y[,Z] or --place auto is given",
+    )
+    code, _, err = _run_3prr(PROGRAM, out, monkeypatch, capsys, place="0,0")
+    _one_line(code, err, "own_cam_mm.nc: line 12:", "unreachable")
+    assert "--place" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_out_onto_the_program_is_refused_and_the_program_kept(tmp_path, monkeypatch, capsys):
     """--out the program itself overwrote the program with its compensated version."""
     prog = tmp_path / "p.nc"

@@ -637,3 +637,27 @@ axis = "z"
         # 1e-6: the actuators' 1e12 N/mm in series adds 1e-7 of the tubes' axial compliance
         err = np.linalg.norm(_scaled(K6 - K6_fe, 100.0)) / np.linalg.norm(_scaled(K6_fe, 100.0))
         assert err < 1e-6, pose
+
+
+def test_cli_names_arms_the_data_cannot_separate_from_the_actuators(tmp_path, monkeypatch, capsys):
+    """The shipped delta_links at 3 positions x 6 readings with 20 um of noise: k_theta and E_arm
+    correlated -0.9997, E_arm's standard error several times its value (condition 89, below the
+    1e3 warning): one warning naming the pair, exit 1, with --json too. The noise-free fit of
+    the test above (same correlation, errors ~0) stays exit 0."""
+    from helpers.cli_process import run_in_process as cli
+
+    truth = LegRobot.from_toml(ROBOTS / "delta_links.toml")
+    rng = np.random.default_rng(2)
+    P, F, U, y = _static_error_data(truth, rng, n=3)
+    y = y + rng.normal(0.0, 0.02, y.size)
+    f = fit_static_errors(truth, P, F, U, y, params=("k_theta", "E_arm"))
+    assert f.condition < 1e3 and f.correlation[0, 1] < -0.99 and f.std[1] > f.estimate[1]  # the case
+    rows = ["x,y,z,fx,fy,fz,nx,ny,nz,value_mm"]
+    rows += [",".join(repr(float(v)) for v in (*p, *q, *u, v)) for p, q, u, v in zip(P, F, U, y, strict=True)]
+    meas = tmp_path / "meas.csv"
+    meas.write_text("\n".join(rows) + "\n")
+    for extra in ([], ["--json"]):
+        code, out, err = cli(["fit", "legs", "delta_links", meas, *extra], monkeypatch, capsys)
+        lines = [s for s in err.splitlines() if s.startswith("warning:")]
+        assert code == 1 and len(lines) == 1, err
+        assert "the data cannot separate E_arm from k_theta (correlation -0.99" in lines[0]

@@ -75,6 +75,7 @@ __all__ = [
     "identify_stiffness",
     "stiffness_indices",
     "physical_flags",
+    "asymmetry_p_value",
     "flipped_axes",
     "directional_stiffness",
     "compliance_from_stiffness",
@@ -90,6 +91,32 @@ CONDITION_WARN = 1e3
 SPD_EIGEN_FLOOR = 1e-6
 #: Relative asymmetry flagged when no covariance is available to test it.
 ASYMMETRY_FLAG = 0.1
+#: The level of the asymmetry test of one K (a campaign controls it over its positions:
+#: :mod:`stiffmap.campaign.flags`).
+ASYMMETRY_P = 0.01
+
+
+def asymmetry_p_value(K, K_cov) -> float:
+    """The probability of an asymmetry K - K^T at least as large as K's if K were symmetric:
+    the chi-square test of K - K^T's upper-triangle entries against their covariance from
+    ``K_cov`` (over K's row-major entries). 0 or 1 when that covariance is singular (the
+    asymmetry above ``ASYMMETRY_FLAG`` or not); NaN when ``K_cov`` has non-finite entries."""
+    K = np.asarray(K, dtype=np.float64)
+    K_cov = np.asarray(K_cov, dtype=np.float64)
+    if not np.all(np.isfinite(K_cov)):
+        return float("nan")
+    m = K.shape[0]
+    iu = np.triu_indices(m, 1)
+    a = (K - K.T)[iu]
+    # Linear map from K.ravel() to the upper-triangle entries of K - K^T.
+    A = np.zeros((a.size, m * m))
+    for k, (i, j) in enumerate(zip(*iu, strict=True)):
+        A[k, i * m + j] = 1.0
+        A[k, j * m + i] = -1.0
+    try:
+        return chi2_sf(float(a @ np.linalg.solve(A @ K_cov @ A.T, a)), a.size)
+    except np.linalg.LinAlgError:
+        return 0.0 if stiffness_indices(K).asymmetry > ASYMMETRY_FLAG else 1.0
 
 
 def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG) -> tuple[str, ...]:
@@ -110,22 +137,9 @@ def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG
     K = check_stiffness_matrix(K)
     idx = stiffness_indices(K)
     flags: list[str] = []
-    m = K.shape[0]
-    iu = np.triu_indices(m, 1)
-    a = (K - K.T)[iu]
     if K_cov is not None and np.all(np.isfinite(K_cov)):
-        # Linear map from K.ravel() to the upper-triangle entries of K - K^T.
-        A = np.zeros((a.size, m * m))
-        for k, (i, j) in enumerate(zip(*iu, strict=True)):
-            A[k, i * m + j] = 1.0
-            A[k, j * m + i] = -1.0
-        Sa = A @ np.asarray(K_cov) @ A.T
-        try:
-            chi2 = float(a @ np.linalg.solve(Sa, a))
-            p = chi2_sf(chi2, a.size)
-        except np.linalg.LinAlgError:
-            p = 0.0 if idx.asymmetry > asymmetry_threshold else 1.0
-        if p < 0.01:
+        p = asymmetry_p_value(K, K_cov)
+        if p < ASYMMETRY_P:
             flags.append(
                 f"asymmetric: |K-K^T|/|K| = {idx.asymmetry:.3g}, beyond its uncertainty (p = {p:.2g})"
             )

@@ -41,6 +41,7 @@ __all__ = [
     "f_ppf",
     "ExcessDispersion",
     "excess_dispersion",
+    "holm_rejects",
 ]
 
 
@@ -179,6 +180,22 @@ def excess_dispersion(
 
 STRAGGLER_ALPHA = 0.05
 OUTLIER_ALPHA = 0.01
+
+
+def holm_rejects(p_values, alpha: float) -> np.ndarray:
+    """Holm's step-down test of a family of hypotheses at family-wise level ``alpha``: the
+    k-th smallest p-value (k = 0, 1, ...) is rejected while it is below alpha / (m - k), m
+    the number of finite p-values (NaN: not tested, never rejected). Returns the mask of
+    rejected hypotheses (Holm, Scand. J. Statist. 6, 65-70, 1979)."""
+    p = np.asarray(p_values, dtype=np.float64)
+    out = np.zeros(p.shape, dtype=bool)
+    tested = np.flatnonzero(np.isfinite(p))
+    m = tested.size
+    for k, i in enumerate(tested[np.argsort(p[tested], kind="stable")]):
+        if not p[i] < alpha / (m - k):
+            break
+        out[i] = True
+    return out
 
 
 def _check_p(p: int, minimum: int) -> None:

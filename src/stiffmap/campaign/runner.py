@@ -41,12 +41,13 @@ from .. import __version__
 from ..camera import load_camera
 from ..errors import InputError
 from ..loads import LoadCase, force_covariances, forces_matrix
-from ..models.fit import fit_stiffness
+from ..models.fit import fit_stiffness, separation_notes
 from ..models.joint_fit import fit_joint_compliances
 from ..parallel import Backend, connected
 from ..rig import Rig, load_rig
 from .derive import derive_position
 from .fingerprint import robot_fingerprint
+from .flags import campaign_flags
 from .measure import ImageRow, MeasureContext, measure_positions, workers_see_images
 from .paths import campaign_file
 from .platform import fit_platform, is_platform, platform_map
@@ -163,6 +164,9 @@ def run_vision_campaign(
         failures, notes = _rig_checks(store, campaign)
         summary.failures.extend(failures)
         summary.notes.extend(notes)
+        failures, info = campaign_flags(store, campaign.spec)
+        summary.failures.extend(failures)
+        summary.info.extend(info)
         summary.failures.extend(fit_and_evaluate_model(store, campaign.spec, campaign.root, summary.info))
         summary.wall_seconds = time.perf_counter() - t_start
         store.end_run(run_id, "done", {"failures": len(summary.failures)})
@@ -816,6 +820,9 @@ def _fit_to_measured(model, ok: list, spec: CampaignSpec, fit_row: dict, problem
         )
         fitted = fit.model
         fit_row.update(model_fit_columns(fit, fit.residual_rms_per_pose))
+        problems.extend(
+            f"model fit: {n}" for n in separation_notes(fit.names, fit.estimate, fit.std, fit.correlation)
+        )
     except (InputError, ValueError) as e:
         fit_row.update(status="failed", error=str(e))
         problems.append(f"model fit: {e}")

@@ -21,7 +21,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import FieldError, InputError
-from ..models.fit import fit_static_errors
+from ..models.fit import fit_static_errors, separation_notes
 from ..sensors.analysis import SensorConfig, analyse_recording
 from ..sensors.batch import direction_from
 from ..sensors.io import read_recording
@@ -307,6 +307,9 @@ def _fit_static(model, m: dict, v: np.ndarray, fit_names, row: dict[str, Any], p
         )
         fitted = fit.model
         row.update(model_fit_columns(fit, fit.residuals))
+        problems.extend(
+            f"model fit: {n}" for n in separation_notes(fit.names, fit.estimate, fit.std, fit.correlation)
+        )
     except (InputError, ValueError) as e:
         row.update(status="failed", error=str(e))
         problems.append(f"model fit: {e}")

@@ -506,6 +506,11 @@ class Store:
                 self._upsert("repeat_stats", row)
             self._upsert("stiffness", stiffness)
 
+    def set_stiffness_flags(self, position: int, flags: list[str]) -> None:
+        """Replace the flags of a position's K (the campaign's decision: :mod:`~stiffmap.campaign.flags`)."""
+        with self.transaction():
+            self.conn.execute("UPDATE stiffness SET flags=? WHERE position=?", (to_json(flags), position))
+
     def stiffness_rows(self) -> list[StiffnessRecord]:
         """``stiffness`` by position."""
         return [

@@ -209,8 +209,10 @@ def run(
     Results go to CAMPAIGN/stiffmap.db, tables to CAMPAIGN/exports/ (CSV, Parquet, summary.json),
     the report to CAMPAIGN/report/index.html (self-contained, opens offline) with PNG figures.
 
-    Exit status: 0 all done, 1 done with failures (listed), 2 nothing could be done (a bad
-    spec or camera file, or no position or recording could be measured).
+    Exit status: 0 all done, 1 done with failures (listed: a K asymmetric by Holm's test at
+    1 % over the positions, not positive definite or det <= 0 is one; Cochran's outliers
+    are review flags, in the tables), 2 nothing could be done (a bad spec or camera file,
+    or no position or recording could be measured).
     """
     root = campaign_root(campaign)
     spec = load_spec(root)

@@ -17,7 +17,7 @@ from ..io import parse_number
 from ..kinds import kind_names, robot_from_command
 from ..machining import CompensateOptions, ForceSpec, ModelUncertainty, compensate_file
 from ..report.compensation import write_compensation_figures
-from .common import err, out, print_json, print_summary, warn
+from .common import err, options_named, out, print_json, print_summary, warn
 
 
 def _numbers(text: str | None, option: str, counts: tuple[int, ...], unit: str) -> tuple[float, ...] | None:
@@ -156,6 +156,8 @@ _OPT_FROM_CAMPAIGN = typer.Option(
     "--from-campaign",
     help="Use the model and parameters a campaign fitted (with their covariance).",
 )
+#: CompensateOptions' placement fields, as --place gives them (a library FieldError worded so).
+_PLACE_OPTIONS = {"place_mm": "--place X,Y[,Z]", "place_auto": "--place auto"}
 _OPT_PLACE = typer.Option(
     None, "--place", help="Where the program's origin lies in the base frame, X,Y[,Z] mm, or 'auto'."
 )
@@ -242,7 +244,7 @@ def compensate(
         free_tool_spin=free_tool_spin,
         **tool,
     )
-    with _progress(not quiet and not as_json and err.is_terminal) as hook:
+    with _progress(not quiet and not as_json and err.is_terminal) as hook, options_named(_PLACE_OPTIONS):
         res = compensate_file(mech, path, out_file, opts, uncertainty=unc, progress=hook)
     for w in res.warnings:
         warn(w)

@@ -508,7 +508,8 @@ def fit(
     """Fit model parameters to measured static errors or stiffness matrices (least squares).
 
     Prints each estimate with its standard error, the fit's condition, chi-square and the
-    residual RMS per pose. Refuses parameters the data cannot determine.
+    residual RMS per pose. Refuses parameters the data cannot determine; warns (exit 1) of
+    those whose standard error exceeds their value, with those they are correlated with.
 
     urdf: 'stiffmap fit urdf ROBOT.urdf MEASUREMENTS --tip FRAME --configs CONFIGS.csv --param
     k1=K1,...,kn=Kn [--param-to-fit k1 ...]' fits joint stiffnesses; each measured position is
@@ -542,10 +543,14 @@ def fit(
         print_json({**f.to_dict(), "file": str(measurements)})
     else:
         _print_fit(f, kind.name, measurements, m.dim)
+    for n in f.notes:  # with --json too: the exit status says there is something to look at
+        warn(n)
+    for n in f.info:
+        note(n)
 
 
 def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
-    """The estimates, the fit's quality and the residual RMS per pose; its notes as warnings."""
+    """The estimates, the fit's quality and the residual RMS per pose."""
     unit = {"static_error": "mm", "stiffness6": "N/mm, N, N*mm/rad: K6's entries"}.get(f.kind, "N/mm")
     what = "static-error readings" if f.kind == "static_error" else "stiffness entries"
     line = f"{mech}: {f.observed.size} {what} at {f.poses.shape[0]} pose(s) from {measurements}"
@@ -574,10 +579,6 @@ def _print_fit(f, mech: str, measurements: Path, dim: int) -> None:
         cells = [*p[:3], *np.degrees(p[3:])]
         r.add_row(*(fmt(float(x), 6) for x in cells), fmt(v, 3))
     out.print(r)
-    for n in f.notes:
-        warn(n)
-    for n in f.info:
-        note(n)
 
 
 def register(app: typer.Typer) -> None:

@@ -57,7 +57,12 @@ MAX_ARC_PIECE = math.pi / 2
 
 
 class CompensationError(InputError):
-    """A program the model cannot compensate: a point out of reach or at a singularity (named)."""
+    """A program the model cannot compensate: a point out of reach or at a singularity (named).
+
+    ``programmed_point`` is True when the point is one the program itself asks for (not a
+    commanded point the compensation moved): where the program is placed decides it."""
+
+    programmed_point: bool = False
 
 
 @dataclass(frozen=True)
@@ -139,10 +144,12 @@ def _raise_invalid(path: Toolpath, m: np.ndarray, res, fld, P: np.ndarray, what:
         return
     j = bad[np.argmin(path.line[m[bad]] * 1.0)]
     under = "" if F is None else " under F = ({:.6g}, {:.6g}, {:.6g}) N".format(*F[j])
-    raise CompensationError(
+    err = CompensationError(
         f"line {path.line[m[j]]}: {what} {fld.describe_point(P[j])}{under} "
         f"{res.reasons[j] or 'cannot be evaluated'} (nothing written)"
     )
+    err.programmed_point = what == "programmed point"
+    raise err
 
 
 def solve_commanded(fld, path: Toolpath, forces: ForceSpec, m, s, q0=None, spin=None, guess=None):

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FieldError, InputError
 from ..models.base import Mechanism
 from ..stats import chi2_ppf
 from ..stiffness import LARGE_DISPLACEMENT_MM
@@ -195,6 +195,8 @@ def compensate_file(
             mechanism, path, forces, options, uncertainty, progress
         )
     except CompensationError as e:
+        if e.programmed_point and options.place_mm is None and not options.place_auto:
+            raise _unplaced(e, program) from None
         if options.force_file is not None and " under F = " in e.detail:  # the force is from that file
             e = CompensationError(f"{e.detail}; the force of that line is from {options.force_file}")
         raise e.with_source(str(program)) from None
@@ -217,6 +219,18 @@ def compensate_file(
     )
     summary["written"] = written
     return CompensationResult(summary, comp, placement, spin, tuple(written), tuple(warnings))
+
+
+def _unplaced(e: CompensationError, program) -> FieldError:
+    """A programmed point out of reach (or singular) with the program left at the base frame's
+    origin: the error of the fields that place it (``place_mm``, ``place_auto``)."""
+    what = e.detail.removesuffix(" (nothing written)")
+    return FieldError(
+        ("place_mm", "place_auto"),
+        f"{what}: the program's origin is at the base frame's origin unless {{place_mm}} or "
+        "{place_auto} is given (nothing written)",
+        source=str(program),
+    )
 
 
 def _large_deflection(program, comp, force_file=None) -> tuple[str, ...]:

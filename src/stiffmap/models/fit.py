@@ -66,6 +66,9 @@ __all__ = [
     "MIN_RELATIVE_SENSITIVITY",
     "MIN_INVERSE_CONDITION",
     "CONDITION_WARN",
+    "MAX_RELATIVE_STD",
+    "SEPARATION_CORRELATION",
+    "separation_notes",
 ]
 
 #: Below this relative sensitivity (relative change of the predictions per relative
@@ -76,6 +79,11 @@ MIN_RELATIVE_SENSITIVITY = 1e-6
 MIN_INVERSE_CONDITION = 1e-6
 #: Above this condition number of the column-normalised Jacobian a warning is issued.
 CONDITION_WARN = 1e3
+#: A fitted parameter whose standard error exceeds this fraction of its value is named as
+#: one the data cannot determine (:func:`separation_notes`).
+MAX_RELATIVE_STD = 1.0
+#: With such a parameter, the others it is correlated with at least this much are named beside it.
+SEPARATION_CORRELATION = 0.99
 
 
 @dataclass(frozen=True)
@@ -724,6 +732,7 @@ def _model_fit(
     if not res.success:
         notes.append(f"least squares did not converge: {res.message}")
     notes.extend(_misfit_notes(names, chi2, dof, has_sigma, resid_raw, y))
+    notes.extend(separation_notes(names, est, std, corr))
     for a in (est, std, cov, corr, p0, poses, pose_index, y, yhat, w, resid_raw, rms, sens):
         a.setflags(write=False)
     return ModelFit(
@@ -753,6 +762,42 @@ def _model_fit(
         message=str(res.message),
         notes=tuple(notes),
     )
+
+
+def separation_notes(names, estimate, std, correlation) -> list[str]:
+    """The fitted parameters whose standard error exceeds ``MAX_RELATIVE_STD`` times their
+    value, named as what the data do not determine: one note per such parameter with those it
+    is correlated with at ``|r| >= SEPARATION_CORRELATION`` (what the data cannot separate it
+    from; a pair is named once).
+
+    A strong correlation alone is not named: the Delta's ``k_theta`` and ``E_arm`` are
+    correlated -0.999 and still determined to 0.02 % and 0.85 % on 48 positions (1 um).
+    Parameters without a standard error (NaN) or at 0 (held by a bound) are skipped.
+    """
+    est, sd, r = np.asarray(estimate, float), np.asarray(std, float), np.asarray(correlation, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(np.isfinite(est) & (est != 0.0) & np.isfinite(sd), sd / np.abs(est), 0.0)
+    out: list[str] = []
+    named: set[int] = set()
+    for i in np.flatnonzero(rel > MAX_RELATIVE_STD):
+        if i in named:
+            continue
+        close = [j for j in range(len(names)) if j != i and abs(r[i, j]) >= SEPARATION_CORRELATION]
+        named.update([i, *close])
+        shown = [k for k in (i, *close) if rel[k] > 0]
+        values = ", ".join(f"{names[k]} = {est[k]:.4g} ± {sd[k]:.3g} ({100 * rel[k]:.0f} %)" for k in shown)
+        if close:
+            pairs = ", ".join(f"{names[j]} (correlation {r[i, j]:+.4f})" for j in close)
+            out.append(
+                f"the data cannot separate {names[i]} from {pairs}: {values}; fix one of them or "
+                "measure where their effects differ"
+            )
+        else:
+            out.append(
+                f"the data cannot determine {names[i]}: {values} (the standard error above the value); "
+                "fix it or measure where it acts"
+            )
+    return out
 
 
 def _check_valid_poses(model: Mechanism, P: np.ndarray, what: str) -> None:

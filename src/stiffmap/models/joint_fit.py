@@ -93,6 +93,7 @@ from .fit import (
     MISFIT_P,
     MISFIT_RELATIVE,
     _group_poses,
+    separation_notes,
 )
 from .whiten import as_float, check_finite, whitener
 
@@ -1255,6 +1256,8 @@ def _fit_once(
     tables = _residual_fields(D, full, values["compliance"], d, Linv, (cidx, configs.shape[0]), by_label)
     p_value = chi2_sf(chi2, dof) if cov is not None and dof > 0 else float("nan")
     notes.extend(_misfit_notes(fitted, cov, dof, red, p_value, tables["residuals"], y))
+    stiff = values["stiffness"][idx], values["stiffness_std"][idx]
+    notes.extend(separation_notes(fitted, *stiff, s.correlation))
     return _frozen_fit(
         names=names,
         joint_types=types,
