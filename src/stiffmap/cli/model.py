@@ -544,7 +544,7 @@ def fit(
     else:
         _print_fit(f, kind.name, measurements, m.dim)
     for n in f.notes:  # with --json too: the exit status says there is something to look at
-        warn(n)
+        warn(f"{measurements}: {n}")
     for n in f.info:
         note(n)
 
