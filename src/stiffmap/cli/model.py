@@ -539,11 +539,17 @@ def fit(
         f, _ = fit_measurements_file(m, measurements, names, absolute_sigma=absolute_sigma)
     for w in caught:
         warn(str(w.message))
+    _report_fit(f, kind.name, measurements, m.dim, as_json)
+
+
+def _report_fit(f, mech: str, measurements: Path, dim: int, as_json: bool) -> None:
+    """The fit as JSON or tables, then its warnings (with --json too: the exit status says there
+    is something to look at) and notes."""
     if as_json:
         print_json({**f.to_dict(), "file": str(measurements)})
     else:
-        _print_fit(f, kind.name, measurements, m.dim)
-    for n in f.notes:  # with --json too: the exit status says there is something to look at
+        _print_fit(f, mech, measurements, dim)
+    for n in f.notes:
         warn(f"{measurements}: {n}")
     for n in f.info:
         note(n)

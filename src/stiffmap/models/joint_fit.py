@@ -1236,14 +1236,9 @@ def _fit_once(
     if rep.condition > CONDITION_WARN:
         _warn_ill_conditioned(rep, fitted)
 
-    # Subtract the fixed joints' deflection; whiten.
     c_all = np.where(np.isnan(fixed_values), 0.0, fixed_values)
-    known = np.setdiff1d(np.arange(n), idx)
     full = _full_design(J, W, B)
-    y = D - np.einsum(
-        "mkj,mj->mk", full[:, :d, :][:, :, known], np.broadcast_to(c_all[known], (M, known.size))
-    )
-    yw = np.einsum("mab,mb->ma", Linv, y).reshape(-1)
+    y, yw = _fixed_removed(D, full, c_all, np.setdiff1d(np.arange(n), idx), Linv)
     A = Aw[:, idx]
     norms = np.linalg.norm(A, axis=0)
     An = A / norms
@@ -1281,6 +1276,16 @@ def _fit_once(
         absolute_sigma=bool(absolute_sigma),
         notes=tuple(notes),
     )
+
+
+def _fixed_removed(D, full, c_all, known, Linv) -> tuple[np.ndarray, np.ndarray]:
+    """The displacements less the fixed (``known``) joints' and links' deflection, y (M, d), and
+    y whitened and stacked, yw (M d,)."""
+    M, d = D.shape[0], Linv.shape[1]
+    y = D - np.einsum(
+        "mkj,mj->mk", full[:, :d, :][:, :, known], np.broadcast_to(c_all[known], (M, known.size))
+    )
+    return y, np.einsum("mab,mb->ma", Linv, y).reshape(-1)
 
 
 @dataclass
