@@ -206,16 +206,21 @@ def test_a_mimic_of_a_moderate_multiplier_is_still_followed(tmp_path):
     assert o.kind == "ok", o.stderr
 
 
+def _misspelt_parent(path, parent: str, child: str, misspelt: str) -> None:
+    """The test robot written to ``path`` with ``child``'s parent link misspelt, and a link of
+    that name added so the file still reads (a second root)."""
+    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
+    joint = f'<parent link="{parent}"/><child link="{child}"/>'
+    assert joint in text
+    text = text.replace(joint, f'<parent link="{misspelt}"/><child link="{child}"/>')
+    path.write_text(text.replace('<link name="world"/>', f'<link name="world"/><link name="{misspelt}"/>'))
+
+
 def test_a_urdf_of_two_roots_is_said_and_the_root_used_named(tmp_path):
     """Found by the fuzzing: joint_1's parent link misspelt (a link of that name added: the file
     reads) made link 'base_lnk' a second root; the chain started there, 0.4 m below the robot's
     'world', with exit 0 and no word (the positions 400 mm off)."""
-    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
-    text = text.replace(
-        '<parent link="base_link"/><child link="link_1"/>', '<parent link="base_lnk"/><child link="link_1"/>'
-    )
-    text = text.replace('<link name="world"/>', '<link name="world"/><link name="base_lnk"/>')
-    (tmp_path / "acme_rs6.urdf").write_text(text)
+    _misspelt_parent(tmp_path / "acme_rs6.urdf", "base_link", "link_1", "base_lnk")
     (tmp_path / "q.csv").write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n10,20,-30,40,50,60\n")
     argv = [
         "model",
@@ -345,12 +350,7 @@ def test_simulate_of_configurations_at_one_point_names_the_position(tmp_path):
     """Found by the long fuzz profile: a URDF whose chain to the tip is one joint turning the tip
     about its own axis (joint_6's parent link misspelt) puts both configurations at one point;
     simulate --robot was an internal error (ValueError: the robot does not reach ... ambiguous)."""
-    text = (fr.TEST_ROBOTS / "acme_rs6.urdf").read_text()
-    text = text.replace(
-        '<parent link="link_5"/><child link="link_6"/>', '<parent link="link_55"/><child link="link_6"/>'
-    )
-    text = text.replace('<link name="world"/>', '<link name="world"/><link name="link_55"/>')
-    (tmp_path / "r.urdf").write_text(text)
+    _misspelt_parent(tmp_path / "r.urdf", "link_5", "link_6", "link_55")
     (tmp_path / "q.csv").write_text("q1_deg\n10.0\n-80.0\n")
     argv = [
         "simulate",

@@ -107,6 +107,15 @@ def test_calibration_cov_without_a_joint_one_is_the_cameras_blocks(rng):
     assert joint.calibration_cov is joint.cov
 
 
+def _load_error(tmp_path, obj) -> tuple:
+    """``obj`` written as rig.json and loaded: its path and the one-line InputError's text."""
+    path = tmp_path / "rig.json"
+    path.write_text(json.dumps(obj))
+    with pytest.raises(InputError) as info:
+        load_rig(path)
+    return path, str(info.value)
+
+
 @pytest.mark.parametrize(
     ("change", "key", "what"),
     [
@@ -138,11 +147,7 @@ def test_calibration_cov_without_a_joint_one_is_the_cameras_blocks(rng):
 def test_rig_json_errors_name_the_key(rng, tmp_path, change, key, what):
     obj = _obj(_rig(rng))
     change(obj)
-    path = tmp_path / "rig.json"
-    path.write_text(json.dumps(obj))
-    with pytest.raises(InputError) as info:
-        load_rig(path)
-    msg = str(info.value)
+    path, msg = _load_error(tmp_path, obj)
     assert str(path) in msg and what in msg and "\n" not in msg, msg
     if key:
         assert key in msg, msg
@@ -206,11 +211,7 @@ def test_the_dispersion_round_trips_and_an_older_file_has_none(rng, tmp_path):
 def test_a_bad_dispersion_is_named(rng, tmp_path, change, key, what):
     obj = _obj(_with_dispersion(_rig(rng), rng))
     change(obj)
-    path = tmp_path / "rig.json"
-    path.write_text(json.dumps(obj))
-    with pytest.raises(InputError) as info:
-        load_rig(path)
-    msg = str(info.value)
+    path, msg = _load_error(tmp_path, obj)
     assert str(path) in msg and key in msg and what in msg and "\n" not in msg, msg
     # A rig of one camera has no poses between cameras.
     one = {"cameras": [obj["cameras"][0]], "dispersion": {"matrix": [[1.0]]}}

@@ -620,15 +620,22 @@ def points_seed(forces: bool, planar: bool) -> str:
 
 
 @st.composite
+def _special_or_generic(draw, valid: str, generic: int, specials: tuple[str, ...]):
+    """None (the caller applies the generic mutations) with odds ``generic`` to 1, else the valid
+    table's header, its rows and one of ``specials`` to make of it."""
+    if draw(st.integers(0, generic)) < generic:
+        return None
+    lines = valid.splitlines()
+    return lines[0], lines[1:], draw(st.sampled_from(specials))
+
+
+@st.composite
 def points_text(draw, valid: str) -> bytes:
     """A CSV of points made wrong: the generic mutations, or a degenerate table."""
-    kind = draw(st.sampled_from(("generic", "generic", "generic", "special")))
-    if kind == "generic":
-        return draw(mutated_text(valid))
-    lines = valid.splitlines()
-    head, rows = lines[0], lines[1:]
-    special = draw(
-        st.sampled_from(
+    pick = draw(
+        _special_or_generic(
+            valid,
+            3,
             (
                 "repeat point",
                 "one point",
@@ -642,9 +649,12 @@ def points_text(draw, valid: str) -> bytes:
                 "comment",
                 "semicolons",
                 "far away",
-            )
+            ),
         )
     )
+    if pick is None:
+        return draw(mutated_text(valid))
+    head, rows, special = pick
     if special == "repeat point":
         rows = rows[:2] + rows[1:]
     elif special == "one point":
@@ -714,13 +724,10 @@ def force_seed(name: str, planar: bool) -> str:
 @st.composite
 def force_text(draw, valid: str) -> bytes:
     """A force file made wrong: the generic mutations, or rows that do not match the program."""
-    kind = draw(st.sampled_from(("generic", "generic", "special")))
-    if kind == "generic":
-        return draw(mutated_text(valid))
-    lines = valid.splitlines()
-    head, rows = lines[0], lines[1:]
-    special = draw(
-        st.sampled_from(
+    pick = draw(
+        _special_or_generic(
+            valid,
+            2,
             (
                 "row dropped",
                 "row added",
@@ -734,9 +741,12 @@ def force_text(draw, valid: str) -> bytes:
                 "line as float",
                 "line negative",
                 "huge force",
-            )
+            ),
         )
     )
+    if pick is None:
+        return draw(mutated_text(valid))
+    head, rows, special = pick
     i = draw(st.integers(0, len(rows) - 1))
     if special == "huge force":  # within the 1e9 N plausibility limit, beyond the linear model
         c = rows[i].split(",")
