@@ -52,6 +52,26 @@ def test_a_grid_threaded_through_a_larger_board_is_not_a_board(image18):
     assert e.value.reason == "wrong_size"
 
 
+def _answer(image, board) -> str:
+    """What detection says of ``board`` in ``image``: found, the larger size named, or why not."""
+    try:
+        detect_board(image, board)
+        return "found"
+    except DetectionError as e:
+        return e.larger.size if e.larger is not None else e.reason
+
+
+def test_the_same_image_gets_the_same_answer_whatever_came_before():
+    """OpenCV's SB detector draws from OpenCV's global random generator: before stiffmap reset it
+    per call, Bouguet's Image15.tif searched for 9x6 alternated between "13x12" and "partial" on
+    repeated calls, and a scan of the folder changed after detecting another set's boards."""
+    image = read_image(CALIB_DIR / "Image15.tif")
+    first = [_answer(image, SMALL) for _ in range(2)]
+    for f in image_files([REAL_SETS["greninja"][0]])[:1]:
+        _answer(read_image(f), Chessboard(9, 6, 25.0))
+    assert first + [_answer(image, SMALL)] == [first[0]] * 3
+
+
 def test_a_part_of_the_board_grows_to_the_whole_board(image18):
     """Three corners of the real board's grid seed it; growing finds all 13 x 12 (the README's)."""
     det = detect_board(image18, REAL)

@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import InputError
 from ..targets import CharucoBoard, Chessboard
 from .board_plane import board_continues, corner_saddles, mask_polygon, trim_to_saddles
-from .chessboard import GROW_REACH, grow_grid, is_board_grid, seed_grid
+from .chessboard import GROW_REACH, find_chessboard_sb, grow_grid, is_board_grid, seed_grid
 from .images import coarse_scales, read_image, reduce_image
 
 __all__ = ["AGREE", "SAMPLE", "BoardSeen", "BoardSizeError", "board_seen", "check_board_size"]
@@ -91,7 +91,7 @@ class BoardSeen:
 
 def _sb(small: np.ndarray, pattern: tuple[int, int], flags: int = 0) -> np.ndarray | None:
     """The (rows, cols, 2) grid ``findChessboardCornersSB`` finds for ``pattern``, or None."""
-    ok, c = cv2.findChessboardCornersSB(small, pattern, flags=flags)
+    ok, c = find_chessboard_sb(small, pattern, flags)
     if not ok or c is None or c.size < 2 * pattern[0] * pattern[1]:
         return None
     g = c.reshape(-1, 2).astype(np.float64)
@@ -170,7 +170,7 @@ def _look_once(small: np.ndarray, board: Chessboard) -> tuple[BoardSeen, np.ndar
 def _seed(small: np.ndarray) -> np.ndarray | None:
     """Part of a printed board to grow: the grid the detector's "larger" mode follows from a
     4x4 pattern (without its rows off the board), else a 3x3 seed among its corners."""
-    ok, c, meta = cv2.findChessboardCornersSBWithMeta(small, (4, 4), flags=cv2.CALIB_CB_LARGER)
+    ok, c, meta = find_chessboard_sb(small, (4, 4), cv2.CALIB_CB_LARGER, meta=True)
     if not ok or c is None or meta is None:
         return None
     r, q = meta.shape[:2]

@@ -358,6 +358,22 @@ def search_chessboards(
     return found
 
 
+def find_chessboard_sb(small: np.ndarray, pattern: tuple[int, int], flags: int = 0, *, meta: bool = False):
+    """``cv2.findChessboardCornersSB`` (``...WithMeta`` if ``meta``), the same answer every call.
+
+    The SB detector draws from OpenCV's global random generator (``cv::theRNG``), so one image
+    could give another grid depending on what was detected before it in the process (measured:
+    Bouguet's Image15.tif searched for a 9x6 board alternated between "a 13x12 board" and "only
+    part of a board" on repeated calls, and a scan of a folder depended on the folder scanned
+    before it). The generator is reset before every call: each call sees the state of a fresh
+    process (``setRNGSeed(0)`` gives OpenCV's initial state, 0xffffffff).
+    """
+    cv2.setRNGSeed(0)
+    if meta:
+        return cv2.findChessboardCornersSBWithMeta(small, pattern, flags=flags)
+    return cv2.findChessboardCornersSB(small, pattern, flags=flags)
+
+
 #: OpenCV's detectors in the order they are tried at each scale (cheapest, most often right first).
 DETECTORS = ("sb", "classic", "sb-exhaustive")
 #: The classic detector runs only on images up to this size (longest side, px): its quad
@@ -376,7 +392,7 @@ def _find_grid(small: np.ndarray, board: Chessboard, detector: str) -> np.ndarra
         ok, c = cv2.findChessboardCorners(small, ps, flags=flags)
     else:
         flags = cv2.CALIB_CB_EXHAUSTIVE if detector == "sb-exhaustive" else 0
-        ok, c = cv2.findChessboardCornersSB(small, ps, flags=flags)
+        ok, c = find_chessboard_sb(small, ps, flags)
     if not ok or c is None or c.size != 2 * board.n_corners:
         return None
     g = c.reshape(board.rows, board.cols, 2).astype(np.float64)
@@ -435,14 +451,14 @@ def _diagnose_at(
     want = f"{board.cols}x{board.rows}"
     # A larger board the detectors see part of (their grids seed it, then it is grown): cheap.
     for flags in (cv2.CALIB_CB_LARGER, 0):
-        ok, c = cv2.findChessboardCornersSB(small, (4, 4), flags=flags)
+        ok, c = find_chessboard_sb(small, (4, 4), flags)
         if ok and c is not None:
             big = larger_board(small, c, board)
             if big is not None:
                 return DetectionError(big.describe(board), reason="wrong_size", larger=big), []
     # Is there a grid of the expected size that continues beyond it (a larger board)?
     for ps in (board.pattern_size, (board.rows, board.cols)):
-        ok, c = cv2.findChessboardCornersSB(small, ps, flags=cv2.CALIB_CB_EXHAUSTIVE)
+        ok, c = find_chessboard_sb(small, ps, cv2.CALIB_CB_EXHAUSTIVE)
         if ok and c is not None:
             g = c.reshape(ps[1], ps[0], 2).astype(np.float64)
             is_grid, contrast = is_board_grid(small, g)
@@ -457,7 +473,7 @@ def _diagnose_at(
     # biggest grid it can follow, possibly only part of a board; found ones are masked.)
     seen: list[tuple[int, int]] = []
     for _ in range(4):
-        ok, c, meta = cv2.findChessboardCornersSBWithMeta(small, (3, 3), flags=cv2.CALIB_CB_LARGER)
+        ok, c, meta = find_chessboard_sb(small, (3, 3), cv2.CALIB_CB_LARGER, meta=True)
         if not ok or meta is None or c is None:
             break
         r, q = meta.shape[:2]
