@@ -29,7 +29,14 @@ import numpy as np
 from ..geometry import matrix_from_euler
 from .base import POSE_DIM, RANK_RTOL, as_points, constrained_directions, skew
 
-__all__ = ["Mobility", "COORDINATES", "platform_mobility", "reachable_poses", "CLOSURE_TOL_MM"]
+__all__ = [
+    "Mobility",
+    "COORDINATES",
+    "platform_mobility",
+    "reachable_poses",
+    "held_as_given",
+    "CLOSURE_TOL_MM",
+]
 
 #: The pose coordinates, in order.
 COORDINATES = ("x", "y", "z", "roll", "pitch", "yaw")
@@ -214,3 +221,42 @@ def _solve_one(model, pose: np.ndarray, follow: list[int]) -> tuple[np.ndarray, 
         p[follow] -= np.linalg.lstsq(J, r, rcond=None)[0]
     r, _ = _closure(model, p, qs, follow)
     return p, float(np.max(np.linalg.norm(r.reshape(-1, 3), axis=1)))
+
+
+def _pose_text(p: np.ndarray) -> str:
+    xyz = ", ".join(f"{v:.4g}" for v in np.round(p[:3], 4) + 0.0)
+    deg = ", ".join(f"{v:.4g}" for v in np.round(np.degrees(p[3:]), 4) + 0.0)
+    return f"({xyz}) mm, roll/pitch/yaw ({deg}) deg"
+
+
+def held_as_given(model, poses) -> np.ndarray:
+    """``poses`` when a platform of lower mobility holds each as given (its following coordinates at
+    the values its legs reach), else a ValueError naming the first it cannot and the pose it holds.
+
+    A full-mobility robot's poses pass unchanged; so do poses its legs cannot close at all (the
+    model names the leg). ``stiffmap model legs --grid`` takes this: a 3-RPS's grid must keep x,
+    y and yaw where its z, roll and pitch put them (0 with the platform level).
+
+    Raises
+    ------
+    ValueError
+        ``"3rps moves in z, roll, pitch: x, y, yaw follow: it cannot hold pose 4 ... as given
+        (it holds ... there); give ..."``.
+    """
+    P, _ = as_points(poses, POSE_DIM)
+    try:
+        mob = platform_mobility(model)
+    except ValueError:
+        return P
+    if not mob.follow:
+        return P
+    scale = np.array([1.0, 1.0, 1.0, *(3 * [model.length_mm])])
+    for i in range(len(P)):
+        near, gap = reachable_poses(model, P[i], mob)
+        if gap < 1e-6 and np.max(np.abs(near - P[i]) * scale) > 1e-6:
+            raise ValueError(
+                f"{mob.describe(model.name)}: it cannot hold pose {i + 1} {_pose_text(P[i])} as given (it "
+                f"holds {_pose_text(near)} there); give the poses it reaches, --points POSES.csv with x, y, "
+                "z, roll_deg, pitch_deg, yaw_deg (models.mobility.reachable_poses solves them)"
+            )
+    return P
