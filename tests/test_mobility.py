@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
 from importlib.resources import files
 
 import numpy as np
 import pytest
+from helpers.cli_process import run_in_process
 from helpers.poses import rps_pose, rpy_matrix
 
 from stiffmap.models.legs import LegRobot
@@ -116,3 +118,21 @@ def test_held_as_given_names_the_first_pose_a_3rps_cannot_hold_and_where_it_is()
         "3rps moves in z, roll, pitch: x, y, yaw follow: it cannot hold pose 3 (0, 0, 240) mm"
     )
     assert f"it holds (0, {round(near[1], 4):.4g}, 240) mm, roll/pitch/yaw (5, 0, 0) deg there" in msg
+
+
+def test_model_legs_grid_of_a_3rps_held_as_given_or_refused_in_one_line(monkeypatch, capsys):
+    # Level on its axis: held as given (two poses evaluated); tilted by --orientation: x, y and yaw
+    # follow, so one line naming the pose and the one it holds.
+    robot = str(ROBOTS / "3rps.toml")
+    code, out, err = run_in_process(
+        ["model", "legs", robot, "--grid", "0,0,240:260:2", "--json"], monkeypatch, capsys
+    )
+    assert code == 0, err
+    assert [p["z"] for p in json.loads(out)] == [240.0, 260.0]
+    args = ["model", "legs", robot, "--grid", "0,0,240", "--orientation", "0,-5:5:3,0"]
+    code, _, err = run_in_process(args, monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(
+        "error: --grid: 3rps moves in z, roll, pitch: x, y, yaw follow: it cannot hold pose 1 (0, 0, 240) "
+        "mm, roll/pitch/yaw (0, -5, 0) deg as given (it holds ("
+    )
