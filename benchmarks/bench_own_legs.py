@@ -76,8 +76,8 @@ def campaign(root: Path, robot: Path, loads: str, seed: int, args, extra=()) -> 
     if not sim_ok.exists():
         t0 = time.perf_counter()
         cmd = ["simulate", str(root), "--robot", str(robot), "--loads", loads, "--seed", str(seed)]
-        cmd += ["--select", args.select, "--repeats", str(args.repeats), "--workers", str(args.workers)]
-        cmd += list(extra)
+        cmd += ["--repeats", str(args.repeats), "--workers", str(args.workers), *extra]
+        cmd += ["--select", args.select] if args.select else []
         rc = stiffmap([*cmd, "--json", "--force"])
         if rc not in (0, 1, None):  # 1: the warning of the unscaled loads
             raise SystemExit(f"simulate failed ({rc})")
@@ -118,7 +118,7 @@ def main() -> None:
     ap.add_argument("--cases", default="scaled,paper9x10,paper9")
     ap.add_argument("--cache", type=Path, help="keep the simulated campaigns here and reuse them")
     ap.add_argument("--rps3", action="store_true", help="the shipped 3-RPS instead (module docstring)")
-    ap.add_argument("--rps3-select", default="1,9,14")
+    ap.add_argument("--rps3-select", default="", help="positions of its 18 (default: all)")
     args = ap.parse_args()
     if args.rps3:
         rps3(args)
@@ -181,7 +181,7 @@ def rps3(args) -> None:
     sel = replace_select(args)
     est, std, k6, times = [], [], [], []
     for seed in range(args.seeds):
-        root = base / f"rps3_s{seed}_{sel.select.replace(',', '-')}_r{sel.repeats}" / "own"
+        root = base / f"rps3_s{seed}_{sel.select.replace(',', '-') or 'all'}_r{sel.repeats}" / "own"
         root.parent.mkdir(parents=True, exist_ok=True)
         params = ",".join(f"{k}={v:g}" for k, v in RPS3_PARAMS.items())
         times.append(campaign(root, robot, "paper9", seed, sel, ("--param", params)))
@@ -206,8 +206,9 @@ def rps3(args) -> None:
     k6 = 100 * np.array(k6)
     sim = [t["simulate_s"] for t in times if t["simulate_s"] > 0]
     intro = (
-        f"`stiffmap simulate OUT --robot 3rps.toml --param k_leg2=400,k_bend3=100 --seed S --select "
-        f"{sel.select} --repeats {sel.repeats}` then `stiffmap run OUT`, seeds 0..{args.seeds - 1}: the "
+        f"`stiffmap simulate OUT --robot 3rps.toml --param k_leg2=400,k_bend3=100 --seed S "
+        f"{'--select ' + sel.select if sel.select else '(its 18 default poses)'} --repeats {sel.repeats}` "
+        f"then `stiffmap run OUT`, seeds 0..{args.seeds - 1}: the "
         "shipped 3-RPS (z, roll, pitch; its default grid roll and pitch -8, 0, 8 deg, z 235 and 265 mm, "
         "x, y and yaw solved), paper9 scaled by `simulate`, hung 100 mm below the platform's centre, one "
         "camera calibrated from 20 rendered views. The fitted model's K6 at all 18 default poses against "

@@ -159,11 +159,11 @@ def _closure(model, pose: np.ndarray, qs: list, follow: list[int]):
     coordinates; each leg's joints (least squares from ``qs``, its actuator free) updated."""
     targets, _, T = _leg_targets(model, pose)
     r, J = [], []
-    for k, lg in enumerate(model._legs):
-        res = lg.ik_chain.inverse(targets[k], q0=qs[k], max_iter=50)
+    for k, (chain, _) in enumerate(model.leg_chains()):
+        res = chain.inverse(targets[k], q0=qs[k], max_iter=50)
         qs[k] = res.q
-        e = targets[k] - lg.ik_chain.forward(res.q)[0]
-        U, held = constrained_directions(lg.ik_chain.jacobian(res.q)[:3])
+        e = targets[k] - chain.forward(res.q)[0]
+        U, held = constrained_directions(chain.jacobian(res.q)[:3])
         Q = U[:, held] @ U[:, held].T  # the leg's tip moves freely across the rest
         r.append(Q @ e)
         J.append(Q @ T[k][:, follow])
@@ -213,7 +213,7 @@ def reachable_poses(model, poses, mobility: Mobility | None = None) -> tuple[np.
 def _solve_one(model, pose: np.ndarray, follow: list[int]) -> tuple[np.ndarray, float]:
     """One pose's ``follow`` coordinates solved (Gauss-Newton); the pose and the closure left (mm)."""
     p = pose.copy()
-    qs = [lg.q0.copy() for lg in model._legs]
+    qs = [q0.copy() for _, q0 in model.leg_chains()]
     for _ in range(MAX_STEPS):
         r, J = _closure(model, p, qs, follow)
         if np.max(np.abs(r)) < CLOSURE_TOL_MM:
