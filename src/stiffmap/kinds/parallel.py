@@ -233,8 +233,8 @@ def legs_default_poses(model, mobility: Mobility) -> tuple[np.ndarray, str]:
     axes = [(j, 3) for j in three[:2]] + ([(two, 2)] if two is not None else [])
     step = {j: (s if j < 3 else np.radians(OWN_GRID_TURN_DEG)) for j, _ in axes}
     levels = [step[j] * (np.array([-1.0, 0.0, 1.0]) if n == 3 else np.array([-0.5, 0.5])) for j, n in axes]
-    mesh = np.meshgrid(*levels[::-1], indexing="ij")  # the first axis fastest
-    poses = np.tile(np.r_[home, 0.0, 0.0, 0.0], (mesh[0].size, 1))
+    mesh = np.meshgrid(*levels[::-1], indexing="ij") if axes else []  # the first axis fastest
+    poses = np.tile(np.r_[home, 0.0, 0.0, 0.0], (mesh[0].size if axes else 1, 1))
     for (j, _), v in zip(axes[::-1], mesh, strict=True):
         poses[:, j] += v.ravel()
     poses, _ = reachable_poses(model, poses, mobility)
