@@ -100,7 +100,8 @@ _OPT_GRID = typer.Option(
     None,
     "--grid",
     help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
-    "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
+    "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis). A platform of lower "
+    "mobility (a 3-RPS: z, roll, pitch) takes only grid poses it holds as given (x, y, yaw follow).",
 )
 _OPT_POINTS = typer.Option(
     None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
