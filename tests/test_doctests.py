@@ -22,6 +22,7 @@ EXAMPLES = {
     "stiffmap.kinds.registry": ["robot_from_options", "params_from_text"],
     "stiffmap.models.base": ["LegMechanism.evaluate"],
     "stiffmap.models.presets": [],
+    "stiffmap.models.mobility": ["platform_mobility", "reachable_poses"],
     "stiffmap.loads": ["scaled_loads"],
     "stiffmap.sensors.analysis": ["analyse_recording"],
     "stiffmap.sensors.plateaus": ["detect_plateaus"],

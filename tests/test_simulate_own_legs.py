@@ -16,9 +16,10 @@ from helpers.poses import rpy_matrix
 
 from stiffmap.campaign.robot import campaign_model
 from stiffmap.campaign.spec import load_spec
-from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K, legs_default_grid
+from stiffmap.kinds.parallel import HEXAPOD_TESTBED_K, legs_default_grid, legs_default_poses
 from stiffmap.loads import paper9
 from stiffmap.models.legs import LegRobot
+from stiffmap.models.mobility import platform_mobility
 
 ROBOTS = files("stiffmap.models") / "robots"
 HEXAPOD = str(ROBOTS / "hexapod.toml")
@@ -272,30 +273,53 @@ def test_own_hexapod_at_turned_poses_from_a_csv(own_toml, monkeypatch, capsys, t
         np.testing.assert_allclose(p["K_tcp"], K6, rtol=1e-9, atol=1e-9 * np.abs(K6).max())
 
 
-def test_a_3rps_keeps_the_grid_positions_its_legs_reach_and_select_numbers_those(
+def test_a_3rps_gets_a_grid_in_its_own_coordinates_and_a_pose_it_cannot_hold_names_the_nearest(
     monkeypatch, capsys, tmp_path
 ):
-    # A 3-RPS with its platform level cannot shift sideways (x, y and yaw follow z, roll and pitch:
-    # zero for the shipped symmetric one), so of its default grid (30 mm apart about (0, 0, 250))
-    # only the two centre positions (0, 0, 235) and (0, 0, 265), grid numbers 5 and 14, are kept;
-    # the note names the others and says --select numbers the kept ones.
-    args = ["--robot", ROBOTS / "3rps.toml", "--truth-only"]
-    code, _, err = _cli(["simulate", tmp_path / "all", *args], monkeypatch, capsys)
-    assert code == 0, err
-    (line,) = [t for t in err.splitlines() if t.startswith("note: ")]
-    left = ", ".join(str(i) for i in range(1, 19) if i not in (5, 14))
-    assert f"16 of the default grid's 18 positions left out (positions {left}:" in line
-    assert line.endswith("--select numbers the 2 kept)")
-    P = [p["position"] for p in _truth(tmp_path / "all")["positions"]]
-    np.testing.assert_allclose(P, [[0.0, 0.0, 235.0], [0.0, 0.0, 265.0]], atol=1e-9)
-    code, _, err = _cli(["simulate", tmp_path / "one", *args, "--select", "2"], monkeypatch, capsys)
-    assert code == 0, err
-    (p,) = _truth(tmp_path / "one")["positions"]
-    np.testing.assert_allclose(p["position"], [0.0, 0.0, 265.0], atol=1e-9)
-    # Positions given: the default grid's note is not said.
-    given = ["simulate", tmp_path / "given", *args, "--positions", "0,0,250"]
-    code, _, err = _cli(given, monkeypatch, capsys)
+    # A 3-RPS moves in z, roll and pitch (x, y and yaw follow): its default grid is 3 x 3 x 2 in
+    # those (roll and pitch -8, 0, 8 deg, z 235 and 265 mm about its home (0, 0, 250)), x, y and yaw
+    # solved so that every ball joint lies in its leg's plane (checked here from the geometry of
+    # rps3_toml: revolute axes tangent to the 200 mm circle at 90, 210, 330 deg, balls on 100 mm).
+    code, out, err = _cli(
+        ["simulate", tmp_path / "all", "--robot", ROBOTS / "3rps.toml", "--truth-only", "--json"],
+        monkeypatch,
+        capsys,
+    )
     assert code == 0 and "note:" not in err, err
+    assert (
+        "3rps moves in z, roll, pitch: x, y, yaw follow, solved at each pose"
+        in json.loads(out)["setup"]["positions"]
+    )
+    truth = _truth(tmp_path / "all")["positions"]
+    poses = np.array([np.r_[p["position"], np.radians(p["orientation_deg"])] for p in truth])
+    grid = [(r, p, z) for z in (235.0, 265.0) for p in (-8.0, 0.0, 8.0) for r in (-8.0, 0.0, 8.0)]
+    np.testing.assert_allclose(poses[:, 2], [g[2] for g in grid], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(poses[:, 3:5]), [g[:2] for g in grid], atol=1e-9)
+    ang = np.radians([90.0, 210.0, 330.0])
+    e = np.stack([np.cos(ang), np.sin(ang), 0 * ang], axis=1)
+    axes = np.stack([-np.sin(ang), np.cos(ang), 0 * ang], axis=1)
+    for p in poses:
+        tips = p[:3] + 100.0 * e @ rpy_matrix(*p[3:]).T
+        assert np.abs(np.einsum("ij,ij->i", tips - 200.0 * e, axes)).max() < 1e-9
+    assert np.abs(poses[:, :2]).max() > 0.4  # the parasitic shift of 8 deg: about 0.5 mm
+    model = LegRobot.from_toml(ROBOTS / "3rps.toml")
+    np.testing.assert_allclose([p["K_tcp"] for p in truth], model.stiffness6(poses), rtol=1e-9)
+    # A pose it cannot hold: one line naming the legs and the nearest pose it holds.
+    args = [
+        "simulate",
+        tmp_path / "o",
+        "--robot",
+        ROBOTS / "3rps.toml",
+        "--truth-only",
+        "--positions",
+        "10,0,250",
+    ]
+    code, _, err = _cli(args, monkeypatch, capsys)
+    assert code == 2 and err.count("\n") == 1 and "leg 1 (leg1) cannot reach it" in err, err
+    assert err.rstrip().endswith(
+        "3rps moves in z, roll, pitch: x, y, yaw follow: the nearest pose it holds is (0, 0, 250) mm, "
+        "roll/pitch/yaw (0, 0, 0) deg)"
+    )
 
 
 def test_poses_for_a_platform_that_keeps_its_orientation_are_refused(monkeypatch, capsys, tmp_path):
@@ -314,3 +338,29 @@ def test_poses_for_a_platform_that_keeps_its_orientation_are_refused(monkeypatch
     assert code == 0, err
     P = [p["position"] for p in _truth(tmp_path / "o")["positions"]]
     np.testing.assert_allclose(P, [[0.0, 0.0, -347.0], [10.0, 0.0, -347.0]])
+
+
+@pytest.mark.long  # 49 s of CPU (3.5 min on the shared machine): 9 loads at 3 turned poses rendered, fitted
+def test_3rps_campaign_recovers_its_six_springs_and_K6(monkeypatch, capsys, tmp_path):
+    # The shipped 3-RPS with two springs changed, three of its default poses (roll and pitch -8 and
+    # +8 deg at z 235 mm, level at 265 mm; x, y, yaw solved), one repeat, the true camera: its six
+    # springs within 1 %, and the fitted model's K6 at all 18 default poses within 2 % of the truth's
+    # (relative Frobenius, rad as L mm).
+    out = tmp_path / "rps"
+    truth = {"k_leg2": 400.0, "k_bend3": 100.0}
+    args = ["simulate", out, "--robot", ROBOTS / "3rps.toml", "--param", "k_leg2=400,k_bend3=100"]
+    args += ["--select", "1,9,14", "--repeats", "1", "--true-camera", "--workers", "2"]
+    code, _, err = _cli(args, monkeypatch, capsys)
+    assert code == 0, err
+    fit, model = run_and_fit(out, monkeypatch, capsys)
+    true_model = LegRobot.from_toml(ROBOTS / "3rps.toml")
+    true_model = true_model.with_params(**{**true_model.params(), **truth})
+    for name, k in true_model.params().items():
+        assert abs(fit.params[name] - k) < 0.01 * k, (name, fit.params)
+    poses = [np.r_[p["position"], np.radians(p["orientation_deg"])] for p in _truth(out)["positions"]]
+    np.testing.assert_allclose(
+        [p["K_tcp"] for p in _truth(out)["positions"]], true_model.stiffness6(poses), rtol=1e-9
+    )
+    grid, _ = legs_default_poses(true_model, platform_mobility(true_model))
+    for K6, T in zip(model.stiffness6(grid), true_model.stiffness6(grid), strict=True):
+        assert k6_error(K6, T, model.length_mm) < 0.02

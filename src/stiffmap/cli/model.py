@@ -24,6 +24,7 @@ from ..loads import MAX_FORCE_N, MAX_MOMENT_NMM
 from ..models.base import POSE_DIM
 from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
+from ..models.mobility import held_as_given
 from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
 from ..stiffness import stiffness_indices
@@ -99,7 +100,8 @@ _OPT_GRID = typer.Option(
     None,
     "--grid",
     help="Positions: a preset (paper48 for delta, points22 for 3prr: the defaults) or a regular "
-    "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis).",
+    "grid 'X0:X1:NX,Y0:Y1:NY[,Z0:Z1:NZ]' (mm; a single value fixes an axis). A platform of lower "
+    "mobility (a 3-RPS: z, roll, pitch) takes only grid poses it holds as given (x, y, yaw follow).",
 )
 _OPT_POINTS = typer.Option(
     None, "--points", help="CSV of positions with columns x,y (3prr) or x,y,z (delta), mm."
@@ -195,6 +197,8 @@ def model(
         _model_configurations(m, configs, as_json, output)
         return
     P = _positions(kind, m.dim, grid, points, orientation)
+    if grid is not None and six:
+        P = from_option("--grid:", held_as_given, m, P)
     F = _force(kind, 3 if six else m.dim, load_n, direction)
     M = None if moment is None else _moment(moment)
     mp = _evaluate(m, P)

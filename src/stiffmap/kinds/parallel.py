@@ -19,6 +19,7 @@ from ..errors import FieldError
 from ..models.base import check_stiffness
 from ..models.delta import DeltaRobot
 from ..models.legs import LegRobot
+from ..models.mobility import COORDINATES, Mobility, platform_mobility, reachable_poses
 from ..models.presets import paper48, prr3_points22
 from ..models.prr3 import PRR3
 from ..sim.robot import mechanism_robot, platform_robot
@@ -32,8 +33,10 @@ __all__ = [
     "BUILTIN_LEGS",
     "HEXAPOD_TESTBED_K",
     "OWN_GRID_FRACTION",
+    "OWN_GRID_TURN_DEG",
     "build_with_params",
     "legs_default_grid",
+    "legs_default_poses",
 ]
 
 
@@ -198,6 +201,57 @@ def legs_default_grid(model) -> tuple[np.ndarray, np.ndarray, float]:
     return home + np.array(steps), home, s
 
 
+#: A platform of lower mobility (a 3-RPS) on the test-bed: its default grid turns it this far
+#: either side of level (deg), as the turned test-bed hexapod's poses (about 10 deg keep both
+#: boards in view of its scene).
+OWN_GRID_TURN_DEG = 8.0
+#: The coordinates a lower-mobility grid steps three times (the first two its platform
+#: controls, in this order) and twice (z when it controls it).
+_THREE_LEVELS = (0, 1, 3, 4, 5)
+
+
+def legs_default_poses(model, mobility: Mobility) -> tuple[np.ndarray, str]:
+    """The test-bed's grid of a platform of lower mobility: 3 x 3 x 2 poses in the coordinates it controls.
+
+    The two first of x, y, roll, pitch, yaw it controls at the home's value and one step
+    either side (:func:`legs_default_grid`'s spacing for x and y, :data:`OWN_GRID_TURN_DEG`
+    for a turn), the fastest first; z (when it controls it, else the next free coordinate)
+    half a step below and above; the coordinates that follow solved at each pose
+    (:func:`~stiffmap.models.mobility.reachable_poses`). For the shipped 3-RPS: roll and pitch
+    at -8, 0, 8 deg, z 235 and 265 mm, x, y and yaw solved.
+
+    Returns
+    -------
+    poses : ndarray, shape (n, 6)
+        x, y, z (mm), roll, pitch, yaw (rad); n = 18 for three free coordinates or more.
+    where : str
+        The grid in words (the simulation's summary).
+    """
+    _, home, s = legs_default_grid(model)
+    three = [j for j in _THREE_LEVELS if j in mobility.free]
+    two = 2 if 2 in mobility.free else (three[2] if len(three) > 2 else None)
+    axes = [(j, 3) for j in three[:2]] + ([(two, 2)] if two is not None else [])
+    step = {j: (s if j < 3 else np.radians(OWN_GRID_TURN_DEG)) for j, _ in axes}
+    levels = [step[j] * (np.array([-1.0, 0.0, 1.0]) if n == 3 else np.array([-0.5, 0.5])) for j, n in axes]
+    mesh = np.meshgrid(*levels[::-1], indexing="ij") if axes else []  # the first axis fastest
+    poses = np.tile(np.r_[home, 0.0, 0.0, 0.0], (mesh[0].size if axes else 1, 1))
+    for (j, _), v in zip(axes[::-1], mesh, strict=True):
+        poses[:, j] += v.ravel()
+    poses, _ = reachable_poses(model, poses, mobility)
+    words = [
+        f"{COORDINATES[j]} "
+        + ", ".join(f"{v:g}" for v in (lv + home[j] if j < 3 else np.degrees(lv)))
+        + (" mm" if j < 3 else " deg")
+        for (j, _), lv in zip(axes, levels, strict=True)
+    ]
+    dims = " x ".join(str(n) for _, n in axes)
+    where = (
+        f"a {dims} grid about the home position {_mm(home)} mm ({'; '.join(words)}); "
+        f"{mobility.describe(model.name)}, solved at each pose"
+    )
+    return poses, where
+
+
 def _own_legs(model, description: RobotDescription, **kw):
     """A user's own legs TOML on the test-bed (:func:`~stiffmap.sim.robot.platform_robot`)."""
     return platform_robot(model, _LEGS_NAME, _LEGS_NAME, **kw)
@@ -228,12 +282,15 @@ def _own_legs_setup(model) -> OwnSetup:
     grid, home, s = legs_default_grid(model)
     turns = model.dim == 6
     load_point = HEXAPOD_LOAD_POINT_MM if turns else (0.0, 0.0, 0.0)
-    m = model.evaluate(np.c_[grid, np.zeros((len(grid), 3))] if turns else grid)
     where = f"a 3 x 3 x 2 grid {s:g} mm apart about the home position {_mm(home)} mm" + (
         ", the platform level" if turns else ""
     )
+    mobility = _mobility(model) if turns else None
+    if mobility is not None and mobility.follow:
+        grid, where = legs_default_poses(model, mobility)
+    m = model.evaluate(np.c_[grid, np.zeros((len(grid), 3))] if turns and grid.shape[1] == 3 else grid)
     out = np.flatnonzero(~m.valid)
-    first = f"position {out[0] + 1} {_mm(grid[out[0]])} mm: {m.reasons[out[0]]}" if out.size else ""
+    first = f"position {out[0] + 1} {_pose(grid[out[0]])}: {m.reasons[out[0]]}" if out.size else ""
     if out.size == len(grid):  # positions must be given: say why the default does not do
         why = f"no position of the default grid ({where}) suits {model.name} ({first})"
         return OwnSetup(None, why, turns, load_point)
@@ -251,6 +308,20 @@ def _own_legs_setup(model) -> OwnSetup:
         load_point_mm=load_point,
         notes=notes,
     )
+
+
+def _mobility(model) -> Mobility | None:
+    """The platform's mobility at home (None when the legs do not reach their home: the grid says why)."""
+    try:
+        return platform_mobility(model)
+    except ValueError:
+        return None
+
+
+def _pose(p) -> str:
+    """``(x, y, z) mm`` and, for a pose, ``roll/pitch/yaw (...) deg``."""
+    turned = f", roll/pitch/yaw {_mm(np.round(np.degrees(p[3:]), 6) + 0.0)} deg" if len(p) == 6 else ""
+    return f"{_mm(np.round(p[:3], 6) + 0.0)} mm{turned}"
 
 
 def _mm(p) -> str:

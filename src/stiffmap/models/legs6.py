@@ -130,6 +130,12 @@ class LegRobot6(LegRobot):
 
     # ------------------------------------------------------------------ kinematics
 
+    def leg_chains(self) -> tuple:
+        """Each leg's chain from the base to its platform joint without its spring joints (the
+        joints its kinematics move: actuated and passive) and that chain's seed, ``(Chain, q0)``:
+        what :mod:`~stiffmap.models.mobility` closes."""
+        return tuple((lg.ik_chain, lg.q0) for lg in self._legs)
+
     def _platform_columns(self, k: int, Rtip: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, str]:
         """Leg k's platform joint: its free rotations as 6-D columns, or why it cannot be assembled."""
         d = self.description[k]
