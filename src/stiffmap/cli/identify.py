@@ -40,9 +40,11 @@ def identify(
     """Identify the stiffness matrix K (N/mm) from load cases, with standard errors and checks.
 
     Prints K with the standard error of each entry, det(K), the principal stiffnesses, the
-    condition numbers and physical flags (asymmetry, not positive definite, det <= 0, and
-    then which axis looks reversed). In --json, "condition" is the condition number of the
-    load design and "K_condition" that of K. Exit status 0 when K passes every check, 1 when
+    condition numbers and physical flags (asymmetry beyond K's uncertainty: K - K^T tested at
+    1 % against its covariance estimated from the residuals, by Hotelling's law with their
+    degrees of freedom; not positive definite, det <= 0, and then which axis looks reversed).
+    In --json, "condition" is the condition number of the load design and "K_condition" that
+    of K. Exit status 0 when K passes every check, 1 when
     it is flagged (a warning line says so), 2 when the files are wrong.
     """
     rep = identify_from_files(forces, displacements, method=method.value)
