@@ -118,8 +118,8 @@ def asymmetry_dof(K, K_cov, dof: float, K_cov_common=None) -> float:
     matching E |V^-1/2 V_hat V^-1/2 - I|_F^2 = q (q + 1) / nu (a matrix Satterthwaite: for
     q = 1, Satterthwaite's nu = 2 V^2 / Var V_hat). Writing Sigma = R R^T, P = L L^T and
     U_k = V^-1/2 A J (r_k kron L) for the columns r_k of R, that expectation is
-    (sum_kl tr((U_l^T U_k)^2) + |sum_k U_k^T U_k|_F^2) / dof. nu >= dof for one Wishart
-    matrix spread over fewer dimensions; it grows with the known share.
+    (sum_kl tr((U_l^T U_k)^2) + |sum_k U_k^T U_k|_F^2) / dof. nu >= dof in every case
+    measured (benchmarks/results/asymmetry.md); it grows with the known share.
     """
     K = np.asarray(K, dtype=np.float64)
     K_cov = np.asarray(K_cov, dtype=np.float64)
