@@ -170,5 +170,7 @@ def test_identify_does_not_flag_a_symmetric_k_by_the_chi_square_law(tmp_path):
     disp = _write(tmp_path / "displacements.csv", ["dx", "dy", "dz"], D.T)
     proc = run_here("identify", forces, disp, "--json")
     assert proc.returncode == 0, proc.stderr
-    assert not any(f.startswith("asymmetric") for f in json.loads(proc.stdout)["flags"])
-    np.testing.assert_allclose(json.loads(proc.stdout)["K"], fit.K, rtol=1e-9)
+    out = json.loads(proc.stdout)
+    assert not any(f.startswith("asymmetric") for f in out["flags"])
+    np.testing.assert_allclose(out["K"], fit.K, rtol=1e-9)
+    assert out["asymmetry_p"] == pytest.approx(fit.asymmetry_p, rel=1e-9) and out["asymmetry_p"] >= 0.01

@@ -95,7 +95,7 @@ def _trials(rng, K, F, noise_root, n: int):
         fit = identify_stiffness(F, D0 + noise_root @ rng.normal(size=D0.shape), offset=True)
         out.append(
             (
-                asymmetry_p_value(fit.K, fit.K_cov, fit.dof),
+                fit.asymmetry_p,
                 asymmetry_p_value(fit.K, fit.K_cov),
                 any(f.startswith("asymmetric") for f in fit.flags),
             )
@@ -114,6 +114,8 @@ def test_false_alarms_hold_their_level_where_chi_square_does_not(rng):
     # At 1 %: no more than a Binomial(300, 1 %) exceeds with probability 1e-3 ...
     assert flagged.sum() <= _binomial_upper(n, 0.01)
     assert np.sum(p_new < 0.01) == flagged.sum()  # identify_stiffness's flag is this test
+    fit = identify_stiffness(F9, np.linalg.solve(K, F9) + L @ rng.normal(size=F9.shape), offset=True)
+    assert fit.asymmetry_p == asymmetry_p_value(fit.K, fit.K_cov, 5) and fit.cov_dof == 5
     # ... and p-values uniform at 10 % on both sides (too conservative fails too).
     assert _binomial_upper(n, 0.1, 1 - 1e-3) <= np.sum(p_new < 0.1) <= _binomial_upper(n, 0.1)
     # The chi-square law the test used before: several times its 1 % level (8 % in the benchmark).
@@ -143,6 +145,7 @@ def test_a_given_covariance_keeps_the_chi_square_law(rng):
     t2 = a @ np.linalg.solve(A @ fit.K_cov @ A.T, a)
     assert asymmetry_p_value(fit.K, fit.K_cov) == pytest.approx(stats.chi2.sf(t2, 3), rel=1e-10)
     assert asymmetry_p_value(fit.K, fit.K_cov, np.inf) == pytest.approx(stats.chi2.sf(t2, 3), rel=1e-10)
+    assert fit.cov_dof is None and fit.asymmetry_p == pytest.approx(stats.chi2.sf(t2, 3), rel=1e-10)
 
 
 def test_a_symmetric_K_is_not_tested_against_its_covariance(rng):

@@ -343,6 +343,9 @@ class StiffnessFit:
     K_cov_common : ndarray, shape (m*m, m*m), or None
         The share of ``K_cov`` from the displacements' common error (``common_jacobian``,
         ``common_cov``; e.g. the camera calibration's), None when none was given.
+    cov_dof : int or None
+        The residual degrees of freedom the displacements' covariance (the noise share of
+        ``K_cov``) was estimated from; None when it was given (``disp_cov``).
     """
 
     K: np.ndarray
@@ -361,10 +364,16 @@ class StiffnessFit:
     flags: tuple[str, ...] = field(default_factory=tuple)
     offset: np.ndarray | None = None
     K_cov_common: np.ndarray | None = None
+    cov_dof: int | None = None
 
     @property
     def indices(self) -> StiffnessIndices:
         return stiffness_indices(self.K)
+
+    @property
+    def asymmetry_p(self) -> float:
+        """The asymmetry test's p-value (:func:`asymmetry_p_value` with this fit's law)."""
+        return asymmetry_p_value(self.K, self.K_cov, self.cov_dof, self.K_cov_common)
 
     @property
     def common_share(self) -> np.ndarray:
@@ -906,8 +915,8 @@ def _estimate(
     K_std = np.sqrt(np.clip(np.diag(K_cov), 0, None)).reshape(m, m)
     finite = bool(np.all(np.isfinite(K_cov)))
     # The test's law: Hotelling's with Sigma estimated from the residuals, chi-square when given.
-    test_dof = None if Sd is not None else dof
-    flags.extend(physical_flags(K, K_cov if finite else None, dof=test_dof, K_cov_common=K_cov_common))
+    cov_dof = None if Sd is not None else dof
+    flags.extend(physical_flags(K, K_cov if finite else None, dof=cov_dof, K_cov_common=K_cov_common))
     return StiffnessFit(
         K=K,
         K_cov=K_cov,
@@ -925,6 +934,7 @@ def _estimate(
         flags=tuple(flags),
         offset=b_off,
         K_cov_common=K_cov_common,
+        cov_dof=cov_dof,
     )
 
 

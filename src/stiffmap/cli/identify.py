@@ -92,7 +92,7 @@ def _print_identification(rep) -> None:
     s.add_row("principal stiffnesses", ", ".join(fmt(x) for x in idx.eigenvalues))
     s.add_row("smallest principal", fmt(idx.min_principal))
     s.add_row("condition of K", fmt(idx.condition, 4))
-    s.add_row("asymmetry |K-K^T|/|K|", fmt(idx.asymmetry, 3))
+    s.add_row("asymmetry |K-K^T|/|K|", f"{fmt(idx.asymmetry, 3)} (test p = {fmt(f.asymmetry_p, 2)})")
     out.print(s)
     if rep.repeats > 1:
         r = Table(title="displacement norm per load case (mm), over repeats")
