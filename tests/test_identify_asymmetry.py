@@ -177,3 +177,18 @@ def test_a_campaign_of_symmetric_positions_raises_no_asymmetry_failure(rng):
         flagged_old += bool(holm_rejects(np.array(p_old), FAMILY_ALPHA).any())
     assert flagged_new <= 1
     assert flagged_old >= 3
+
+
+@pytest.mark.parametrize("offset", [False, True])
+def test_noise_free_data_with_a_common_error_is_not_an_overflow(offset):
+    # Exact displacements of an asymmetric K (8.5 %) with a common scale error given: K - K^T's
+    # covariance is the common share's, of rank 1 (singular). The test then falls back to the
+    # fixed 10 % threshold (p = 1 here), as for any singular covariance; the effective-dof
+    # computation once divided by the zero noise and identify_stiffness reported "no finite
+    # stiffness ... beyond floating-point range".
+    K = np.array([[6.0, 1.0, 0.0], [0.3, 4.0, 0.5], [0.0, 0.5, 9.0]])
+    F = np.hstack([2 * np.eye(3), 4 * np.eye(3), -2 * np.eye(3)])
+    D = np.linalg.solve(K, F)
+    fit = identify_stiffness(F, D, offset=offset, common_jacobian=D.T[:, :, None], common_cov=[[1e-6]])
+    assert fit.asymmetry_p == 1.0 and not any(f.startswith("asymmetric") for f in fit.flags)
+    np.testing.assert_allclose(fit.K, K, atol=1e-9)  # N/mm

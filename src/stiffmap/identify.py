@@ -120,26 +120,38 @@ def asymmetry_dof(K, K_cov, dof: float, K_cov_common=None) -> float:
     U_k = V^-1/2 A J (r_k kron L) for the columns r_k of R, that expectation is
     (sum_kl tr((U_l^T U_k)^2) + |sum_k U_k^T U_k|_F^2) / dof. nu >= dof in every case
     measured (benchmarks/results/asymmetry.md); it grows with the known share.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When the covariance of K - K^T is singular (below 1e-12 of its largest eigenvalue).
     """
     K = np.asarray(K, dtype=np.float64)
-    K_cov = np.asarray(K_cov, dtype=np.float64)
     m = K.shape[0]
     A = _asymmetry_map(m)
     q = A.shape[0]
-    noise = K_cov if K_cov_common is None else K_cov - np.asarray(K_cov_common, dtype=np.float64)
+    J = _inverse_jacobian(K)
+    V = A @ np.asarray(K_cov, dtype=np.float64) @ A.T
+    scale = float(np.abs(V).max())  # nu is unchanged by scaling K_cov: keep the numbers near 1
+    noise = np.asarray(K_cov, dtype=np.float64) / scale
+    if K_cov_common is not None:
+        noise = noise - np.asarray(K_cov_common, dtype=np.float64) / scale
     C = np.linalg.inv(K)
-    Jinv = -np.kron(C, C.T)  # the inverse of _inverse_jacobian(K)
+    Jinv = -np.kron(C, C.T)  # the inverse of J
     blocks = (Jinv @ noise @ Jinv.T).reshape(m, m, m, m).transpose(0, 2, 1, 3)  # [i, j] = Sigma_ij P
     sigma = np.einsum("ijkk->ij", blocks)
+    w, E = np.linalg.eigh(V / scale)
+    if not w.min() > 1e-12 * w.max():
+        raise np.linalg.LinAlgError("the covariance of K - K^T is singular")
+    if not np.trace(sigma) > 0:  # nothing estimated (noise-free data): the covariance is known
+        return float("inf")
     P = np.einsum("iikl->kl", blocks) / np.trace(sigma)  # Sigma kron P up to a scale that cancels
-    R = _psd_root(sigma)
-    L = _psd_root(P)
-    w, E = np.linalg.eigh(A @ K_cov @ A.T)
-    G = (E / np.sqrt(w)) @ E.T @ A @ _inverse_jacobian(K)  # V^-1/2 A J
+    R, L = _psd_root(sigma), _psd_root(P)
+    G = (E / np.sqrt(w)) @ E.T @ A @ J  # V^-1/2 A J
     U = np.stack([G @ np.kron(R[:, [k]], L) for k in range(m)])  # (m, q, m)
     Z = np.einsum("lqa,kqb->lkab", U, U)  # U_l^T U_k
     total = np.einsum("lkab,lkba->", Z, Z) + float(np.sum(np.einsum("kqa,kqb->ab", U, U) ** 2))
-    return float(dof * q * (q + 1) / total)
+    return float(dof * q * (q + 1) / total) if total > 0 else float("inf")
 
 
 def _psd_root(S: np.ndarray) -> np.ndarray:
