@@ -192,3 +192,26 @@ def test_noise_free_data_with_a_common_error_is_not_an_overflow(offset):
     fit = identify_stiffness(F, D, offset=offset, common_jacobian=D.T[:, :, None], common_cov=[[1e-6]])
     assert fit.asymmetry_p == 1.0 and not any(f.startswith("asymmetric") for f in fit.flags)
     np.testing.assert_allclose(fit.K, K, atol=1e-9)  # N/mm
+
+
+@pytest.mark.parametrize("t", [1e-3, 1e3])
+def test_6x6_test_does_not_depend_on_the_units(t, rng):
+    # Moments in N m instead of N mm (or the reverse) and rotations in mrad (or krad):
+    # F' = T F, D' = T^-1 D, K' = T K T keeps K's symmetry and the test's p-value (a Wald
+    # statistic and a Satterthwaite dof are invariant under a change of parameters), though
+    # K - K^T's variances then span 1e12 or more.
+    Z = np.zeros((3, 3))
+    K = np.block([[random_spd(rng, 3, 2.0, 20.0), Z], [Z, random_spd(rng, 3, 2e4, 2e5)]])
+    W = np.diag([5.0, 5.0, 5.0, 500.0, 500.0, 500.0])
+    F = np.tile(np.hstack([W, -W]), 2)
+    D0 = np.linalg.solve(K, F)
+    E = 0.005 * np.abs(D0).max(axis=1, keepdims=True) * rng.normal(size=D0.shape)
+    # An asymmetry of the coupling of one standard error of K[0, 4] - K[4, 0] (N).
+    cov = identify_stiffness(F, D0 + E).K_cov
+    K[0, 4] += np.sqrt(cov[4, 4] + cov[24, 24] - 2 * cov[4, 24])
+    D = np.linalg.solve(K, F) + E
+    T = np.diag([1.0, 1.0, 1.0, t, t, t])
+    a, b = identify_stiffness(F, D), identify_stiffness(T @ F, np.linalg.solve(T, D))
+    assert 1e-3 < a.asymmetry_p < 0.9  # tested (not the singular covariance's 0 or 1)
+    assert b.asymmetry_p == pytest.approx(a.asymmetry_p, rel=1e-6)
+    assert asymmetry_dof(b.K, b.K_cov, b.dof) == pytest.approx(asymmetry_dof(a.K, a.K_cov, a.dof), rel=1e-6)

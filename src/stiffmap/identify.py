@@ -140,14 +140,18 @@ def asymmetry_dof(K, K_cov, dof: float, K_cov_common=None) -> float:
     Jinv = -np.kron(C, C.T)  # the inverse of J
     blocks = (Jinv @ noise @ Jinv.T).reshape(m, m, m, m).transpose(0, 2, 1, 3)  # [i, j] = Sigma_ij P
     sigma = np.einsum("ijkk->ij", blocks)
-    w, E = np.linalg.eigh(V / scale)
+    # Whitened through V's correlation matrix (6x6 mixes N/mm and N mm/rad entries): T^T T = V^-1.
+    sd = np.sqrt(np.clip(np.diag(V / scale), 0.0, None))
+    if not sd.min() > 0:
+        raise np.linalg.LinAlgError("the covariance of K - K^T is singular")
+    w, E = np.linalg.eigh(V / scale / np.outer(sd, sd))
     if not w.min() > 1e-12 * w.max():
         raise np.linalg.LinAlgError("the covariance of K - K^T is singular")
     if not np.trace(sigma) > 0:  # nothing estimated (noise-free data): the covariance is known
         return float("inf")
     P = np.einsum("iikl->kl", blocks) / np.trace(sigma)  # Sigma kron P up to a scale that cancels
     R, L = _psd_root(sigma), _psd_root(P)
-    G = (E / np.sqrt(w)) @ E.T @ A @ J  # V^-1/2 A J
+    G = (E / np.sqrt(w)) @ E.T @ (A @ J / sd[:, None])  # T A J: M_kl's traces are those of V^-1/2
     U = np.stack([G @ np.kron(R[:, [k]], L) for k in range(m)])  # (m, q, m)
     Z = np.einsum("lqa,kqb->lkab", U, U)  # U_l^T U_k
     total = np.einsum("lkab,lkba->", Z, Z) + float(np.sum(np.einsum("kqa,kqb->ab", U, U) ** 2))
