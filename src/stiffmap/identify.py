@@ -57,7 +57,7 @@ from typing import Literal
 import numpy as np
 
 from .errors import DesignError, IllConditionedWarning
-from .stats import chi2_sf, t_ppf
+from .stats import chi2_sf, hotelling_t2_sf, t_ppf
 from .stiffness import (
     DISPLACEMENT_FLOOR_MM,
     StiffnessIndices,
@@ -76,6 +76,7 @@ __all__ = [
     "stiffness_indices",
     "physical_flags",
     "asymmetry_p_value",
+    "asymmetry_dof",
     "flipped_axes",
     "directional_stiffness",
     "compliance_from_stiffness",
@@ -96,35 +97,114 @@ ASYMMETRY_FLAG = 0.1
 ASYMMETRY_P = 0.01
 
 
-def asymmetry_p_value(K, K_cov) -> float:
+def _asymmetry_map(m: int) -> np.ndarray:
+    """The linear map from K.ravel() (row-major) to the upper-triangle entries of K - K^T."""
+    iu = np.triu_indices(m, 1)
+    A = np.zeros((iu[0].size, m * m))
+    for k, (i, j) in enumerate(zip(*iu, strict=True)):
+        A[k, i * m + j] = 1.0
+        A[k, j * m + i] = -1.0
+    return A
+
+
+def asymmetry_dof(K, K_cov, dof: float, K_cov_common=None) -> float:
+    """The effective degrees of freedom of K - K^T's covariance when the displacements'
+    covariance Sigma was estimated from ``dof`` residual degrees of freedom.
+
+    ``K_cov`` (less the known ``K_cov_common``) is J (Sigma_hat kron P) J^T with J = dK/dC
+    and Sigma_hat ~ Wishart(Sigma, dof) / dof (module docstring, "Uncertainty"). The q x q
+    covariance V_hat = A K_cov A^T of the q upper-triangle entries of K - K^T is linear in
+    Sigma_hat but not itself a Wishart matrix; it is taken as Wishart(V, nu) / nu with nu
+    matching E |V^-1/2 V_hat V^-1/2 - I|_F^2 = q (q + 1) / nu (a matrix Satterthwaite: for
+    q = 1, Satterthwaite's nu = 2 V^2 / Var V_hat). Writing Sigma = R R^T, P = L L^T and
+    U_k = V^-1/2 A J (r_k kron L) for the columns r_k of R, that expectation is
+    (sum_kl tr((U_l^T U_k)^2) + |sum_k U_k^T U_k|_F^2) / dof. nu >= dof in every case
+    measured (benchmarks/results/asymmetry.md); it grows with the known share.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When the covariance of K - K^T is singular (below 1e-12 of its largest eigenvalue).
+    """
+    K = np.asarray(K, dtype=np.float64)
+    m = K.shape[0]
+    A = _asymmetry_map(m)
+    q = A.shape[0]
+    J = _inverse_jacobian(K)
+    V = A @ np.asarray(K_cov, dtype=np.float64) @ A.T
+    scale = float(np.abs(V).max())  # nu is unchanged by scaling K_cov: keep the numbers near 1
+    noise = np.asarray(K_cov, dtype=np.float64) / scale
+    if K_cov_common is not None:
+        noise = noise - np.asarray(K_cov_common, dtype=np.float64) / scale
+    C = np.linalg.inv(K)
+    Jinv = -np.kron(C, C.T)  # the inverse of J
+    blocks = (Jinv @ noise @ Jinv.T).reshape(m, m, m, m).transpose(0, 2, 1, 3)  # [i, j] = Sigma_ij P
+    sigma = np.einsum("ijkk->ij", blocks)
+    # Whitened through V's correlation matrix (6x6 mixes N/mm and N mm/rad entries): T^T T = V^-1.
+    sd = np.sqrt(np.clip(np.diag(V / scale), 0.0, None))
+    if not sd.min() > 0:
+        raise np.linalg.LinAlgError("the covariance of K - K^T is singular")
+    w, E = np.linalg.eigh(V / scale / np.outer(sd, sd))
+    if not w.min() > 1e-12 * w.max():
+        raise np.linalg.LinAlgError("the covariance of K - K^T is singular")
+    if not np.trace(sigma) > 0:  # nothing estimated (noise-free data): the covariance is known
+        return float("inf")
+    P = np.einsum("iikl->kl", blocks) / np.trace(sigma)  # Sigma kron P up to a scale that cancels
+    R, L = _psd_root(sigma), _psd_root(P)
+    G = (E / np.sqrt(w)) @ E.T @ (A @ J / sd[:, None])  # T A J: M_kl's traces are those of V^-1/2
+    U = np.stack([G @ np.kron(R[:, [k]], L) for k in range(m)])  # (m, q, m)
+    Z = np.einsum("lqa,kqb->lkab", U, U)  # U_l^T U_k
+    total = np.einsum("lkab,lkba->", Z, Z) + float(np.sum(np.einsum("kqa,kqb->ab", U, U) ** 2))
+    return float(dof * q * (q + 1) / total) if total > 0 else float("inf")
+
+
+def _psd_root(S: np.ndarray) -> np.ndarray:
+    """R with R R^T = S for a symmetric positive semi-definite S (rounding's negatives clipped)."""
+    w, V = np.linalg.eigh(0.5 * (S + S.T))
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def asymmetry_p_value(K, K_cov, dof: float | None = None, K_cov_common=None) -> float:
     """The probability of an asymmetry K - K^T at least as large as K's if K were symmetric:
-    the chi-square test of K - K^T's upper-triangle entries against their covariance from
-    ``K_cov`` (over K's row-major entries). 0 or 1 when that covariance is singular (the
-    asymmetry above ``ASYMMETRY_FLAG`` or not); NaN when ``K_cov`` has non-finite entries."""
+    the Wald statistic T^2 of K - K^T's q upper-triangle entries against their covariance
+    from ``K_cov`` (over K's row-major entries), referred to Hotelling's law with the
+    effective degrees of freedom of :func:`asymmetry_dof` when that covariance was
+    estimated from ``dof`` residual degrees of freedom (the chi-square law of q, too eager
+    then, when ``dof`` is None: a given, known covariance). ``K_cov_common``: the known share
+    of ``K_cov`` (``StiffnessFit.K_cov_common``). 1 when K is symmetric; 0 or 1 when the
+    covariance is singular (the asymmetry above ``ASYMMETRY_FLAG`` or not); NaN when
+    ``K_cov`` has non-finite entries or the effective dof is below q (not tested)."""
     K = np.asarray(K, dtype=np.float64)
     K_cov = np.asarray(K_cov, dtype=np.float64)
     if not np.all(np.isfinite(K_cov)):
         return float("nan")
-    m = K.shape[0]
-    iu = np.triu_indices(m, 1)
-    a = (K - K.T)[iu]
-    # Linear map from K.ravel() to the upper-triangle entries of K - K^T.
-    A = np.zeros((a.size, m * m))
-    for k, (i, j) in enumerate(zip(*iu, strict=True)):
-        A[k, i * m + j] = 1.0
-        A[k, j * m + i] = -1.0
+    A = _asymmetry_map(K.shape[0])
+    a = A @ K.ravel()
+    if not np.any(a):
+        return 1.0
     try:
-        return chi2_sf(float(a @ np.linalg.solve(A @ K_cov @ A.T, a)), a.size)
+        t2 = float(a @ np.linalg.solve(A @ K_cov @ A.T, a))
+        nu = np.inf if dof is None else asymmetry_dof(K, K_cov, dof, K_cov_common)
     except np.linalg.LinAlgError:
         return 0.0 if stiffness_indices(K).asymmetry > ASYMMETRY_FLAG else 1.0
+    return hotelling_t2_sf(t2, a.size, nu)
 
 
-def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG) -> tuple[str, ...]:
+def physical_flags(
+    K,
+    K_cov=None,
+    *,
+    dof: float | None = None,
+    K_cov_common=None,
+    asymmetry_threshold: float = ASYMMETRY_FLAG,
+) -> tuple[str, ...]:
     """Physical admissibility checks of an identified stiffness.
 
-    - ``asymmetric``: K differs from K^T more than its uncertainty allows
-      (chi-square test of the antisymmetric part at 1 % when ``K_cov`` is
-      given), or by more than ``asymmetry_threshold`` relative otherwise;
+    - ``asymmetric``: K differs from K^T more than its uncertainty allows (the test of
+      :func:`asymmetry_p_value` at 1 % when ``K_cov`` is given: Hotelling's law when it was
+      estimated from ``dof`` residual degrees of freedom, chi-square when ``dof`` is None),
+      or by more than ``asymmetry_threshold`` relative otherwise (or when the covariance's
+      effective degrees of freedom are too few to test);
     - ``not positive definite``: the symmetric part has an eigenvalue <= 0
       (the robot would give way under some load);
     - ``det <= 0``: the reference paper published such matrices without comment.
@@ -137,13 +217,12 @@ def physical_flags(K, K_cov=None, *, asymmetry_threshold: float = ASYMMETRY_FLAG
     K = check_stiffness_matrix(K)
     idx = stiffness_indices(K)
     flags: list[str] = []
+    p = float("nan")
     if K_cov is not None and np.all(np.isfinite(K_cov)):
-        p = asymmetry_p_value(K, K_cov)
-        if p < ASYMMETRY_P:
-            flags.append(
-                f"asymmetric: |K-K^T|/|K| = {idx.asymmetry:.3g}, beyond its uncertainty (p = {p:.2g})"
-            )
-    elif idx.asymmetry > asymmetry_threshold:
+        p = asymmetry_p_value(K, K_cov, dof, K_cov_common)
+    if p < ASYMMETRY_P:
+        flags.append(f"asymmetric: |K-K^T|/|K| = {idx.asymmetry:.3g}, beyond its uncertainty (p = {p:.2g})")
+    elif np.isnan(p) and idx.asymmetry > asymmetry_threshold:
         flags.append(f"asymmetric: |K-K^T|/|K| = {idx.asymmetry:.3g} > {asymmetry_threshold:g}")
     S = 0.5 * (K + K.T)
     w = np.linalg.eigvalsh(S)
@@ -280,6 +359,9 @@ class StiffnessFit:
     K_cov_common : ndarray, shape (m*m, m*m), or None
         The share of ``K_cov`` from the displacements' common error (``common_jacobian``,
         ``common_cov``; e.g. the camera calibration's), None when none was given.
+    cov_dof : int or None
+        The residual degrees of freedom the displacements' covariance (the noise share of
+        ``K_cov``) was estimated from; None when it was given (``disp_cov``).
     """
 
     K: np.ndarray
@@ -298,10 +380,16 @@ class StiffnessFit:
     flags: tuple[str, ...] = field(default_factory=tuple)
     offset: np.ndarray | None = None
     K_cov_common: np.ndarray | None = None
+    cov_dof: int | None = None
 
     @property
     def indices(self) -> StiffnessIndices:
         return stiffness_indices(self.K)
+
+    @property
+    def asymmetry_p(self) -> float:
+        """The asymmetry test's p-value (:func:`asymmetry_p_value` with this fit's law)."""
+        return asymmetry_p_value(self.K, self.K_cov, self.cov_dof, self.K_cov_common)
 
     @property
     def common_share(self) -> np.ndarray:
@@ -841,7 +929,10 @@ def _estimate(
             common, K_cov, dof_eff, F, Fa, Dm, K, W, Sd is not None, method, offset
         )
     K_std = np.sqrt(np.clip(np.diag(K_cov), 0, None)).reshape(m, m)
-    flags.extend(physical_flags(K, K_cov if np.all(np.isfinite(K_cov)) else None))
+    finite = bool(np.all(np.isfinite(K_cov)))
+    # The test's law: Hotelling's with Sigma estimated from the residuals, chi-square when given.
+    cov_dof = None if Sd is not None else dof
+    flags.extend(physical_flags(K, K_cov if finite else None, dof=cov_dof, K_cov_common=K_cov_common))
     return StiffnessFit(
         K=K,
         K_cov=K_cov,
@@ -859,6 +950,7 @@ def _estimate(
         flags=tuple(flags),
         offset=b_off,
         K_cov_common=K_cov_common,
+        cov_dof=cov_dof,
     )
 
 

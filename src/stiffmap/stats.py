@@ -15,8 +15,8 @@ conditions this module computes:
   formulas), not read from tables.
 
 It is also the one home of the probability laws the package uses (:func:`chi2_sf`,
-:func:`chi2_ppf`, :func:`t_ppf`, :func:`f_ppf`): SciPy's, with ``scipy.stats`` imported on
-first use (it takes 0.35 s, and most commands never need it).
+:func:`chi2_ppf`, :func:`t_ppf`, :func:`f_ppf`, :func:`f_sf`, :func:`hotelling_t2_sf`):
+SciPy's, with ``scipy.stats`` imported on first use (it takes 0.35 s, and most commands never need it).
 """
 
 from __future__ import annotations
@@ -39,6 +39,8 @@ __all__ = [
     "chi2_ppf",
     "t_ppf",
     "f_ppf",
+    "f_sf",
+    "hotelling_t2_sf",
     "ExcessDispersion",
     "excess_dispersion",
     "holm_rejects",
@@ -74,6 +76,27 @@ def t_ppf(q, dof):
 def f_ppf(q, dfn, dfd):
     """The ``q`` quantile of Fisher's F with (``dfn``, ``dfd``) degrees of freedom (elementwise)."""
     return _value(_laws().f.ppf(q, dfn, dfd))
+
+
+def f_sf(x, dfn, dfd):
+    """P(X > x) for X of Fisher's F law with (``dfn``, ``dfd``) degrees of freedom (elementwise)."""
+    return _value(_laws().f.sf(x, dfn, dfd))
+
+
+def hotelling_t2_sf(t2, q: int, dof):
+    """P(T^2 > t2) for Hotelling's T^2 = a^T S^-1 a of a q-vector a ~ N(0, V) and an
+    independent covariance estimate S ~ Wishart(V, dof) / dof: (dof - q + 1) T^2 / (q dof)
+    follows F(q, dof - q + 1). ``dof`` may be fractional (an effective one) and infinite (V
+    known: the chi-square law of q degrees of freedom); NaN when dof < q (S then singular
+    by construction, the law undefined). Elementwise over ``t2`` and ``dof``."""
+    t2 = np.asarray(t2, dtype=np.float64)
+    dof = np.asarray(dof, dtype=np.float64)
+    known = np.isinf(dof)
+    d2 = np.where(known | (dof < q), 1.0, dof - q + 1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p_f = f_sf(t2 * d2 / (q * np.where(known, 1.0, dof)), q, d2)
+    p = np.where(known, chi2_sf(t2, q), np.where(dof < q, np.nan, p_f))
+    return _value(p)
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,9 @@
 Each position's K is identified with its own flags (:func:`stiffmap.identify.physical_flags`);
 over a campaign:
 
-- the **asymmetry** test (chi-square of K - K^T against its covariance) runs on every position
+- the **asymmetry** test (K - K^T against its covariance, estimated from the position's
+  residuals: Hotelling's law with the effective degrees of freedom of
+  :func:`stiffmap.identify.asymmetry_dof`, the calibration's share known) runs on every position
   and Holm's step-down procedure keeps the family-wise level at ``FAMILY_ALPHA`` (1 %) over
   the positions tested (:func:`stiffmap.stats.holm_rejects`): at 1 % per position, 48
   positions of a symmetric K would flag one or two by chance. A K without a covariance, or
@@ -99,4 +101,4 @@ def _p_value(r) -> float:
     noise-free simulation of 4 loads, dof 1: 1 % asymmetric, p = 0)."""
     if r.K_cov is None or not np.all(np.isfinite(r.K_cov)) or (r.dof or 0) < r.K.shape[0]:
         return float("nan")
-    return asymmetry_p_value(r.K, r.K_cov)
+    return asymmetry_p_value(r.K, r.K_cov, r.dof, r.K_cov_calibration)

@@ -72,6 +72,7 @@ class IdentifyReport:
             "min_principal": idx.min_principal,
             "K_condition": idx.condition,
             "asymmetry": idx.asymmetry,
+            "asymmetry_p": f.asymmetry_p,
             "flags": list(f.flags),
             "rank": f.rank,
             "condition": f.condition,

@@ -40,9 +40,11 @@ def identify(
     """Identify the stiffness matrix K (N/mm) from load cases, with standard errors and checks.
 
     Prints K with the standard error of each entry, det(K), the principal stiffnesses, the
-    condition numbers and physical flags (asymmetry, not positive definite, det <= 0, and
-    then which axis looks reversed). In --json, "condition" is the condition number of the
-    load design and "K_condition" that of K. Exit status 0 when K passes every check, 1 when
+    condition numbers and physical flags (asymmetry beyond K's uncertainty: K - K^T tested at
+    1 % against its covariance estimated from the residuals, by Hotelling's law with their
+    degrees of freedom; not positive definite, det <= 0, and then which axis looks reversed).
+    In --json, "condition" is the condition number of the load design and "K_condition" that
+    of K. Exit status 0 when K passes every check, 1 when
     it is flagged (a warning line says so), 2 when the files are wrong.
     """
     rep = identify_from_files(forces, displacements, method=method.value)
@@ -90,7 +92,7 @@ def _print_identification(rep) -> None:
     s.add_row("principal stiffnesses", ", ".join(fmt(x) for x in idx.eigenvalues))
     s.add_row("smallest principal", fmt(idx.min_principal))
     s.add_row("condition of K", fmt(idx.condition, 4))
-    s.add_row("asymmetry |K-K^T|/|K|", fmt(idx.asymmetry, 3))
+    s.add_row("asymmetry |K-K^T|/|K|", f"{fmt(idx.asymmetry, 3)} (test p = {fmt(f.asymmetry_p, 2)})")
     out.print(s)
     if rep.repeats > 1:
         r = Table(title="displacement norm per load case (mm), over repeats")
