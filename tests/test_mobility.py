@@ -120,6 +120,23 @@ def test_held_as_given_names_the_first_pose_a_3rps_cannot_hold_and_where_it_is()
     assert f"it holds (0, {round(near[1], 4):.4g}, 240) mm, roll/pitch/yaw (5, 0, 0) deg there" in msg
 
 
+def test_held_as_given_names_no_pose_the_model_cannot_evaluate(monkeypatch, capsys):
+    # Rolled 179 deg the 3-RPS's legs close at y = -100 mm (the platform's radius: its ball joint
+    # under the base's revolute), but leg 1 would be 361 mm long, beyond its 360 mm stroke. The
+    # grid refusal once said "it holds (0, -99.99, 250) mm ... there"; now the pose passes to the
+    # evaluation, which names the leg and its stroke.
+    robot = LegRobot.from_toml(ROBOTS / "3rps.toml")
+    asked = np.array([[0.0, 0.0, 250.0, np.radians(179.0), 0.0, 0.0]])
+    near, gap = reachable_poses(robot, asked[0])
+    assert gap < 1e-9 and near[1] == pytest.approx(-99.99, abs=0.01)
+    assert not robot.evaluate(near).valid[0]
+    np.testing.assert_array_equal(held_as_given(robot, asked), asked)
+    args = ["model", "legs", str(ROBOTS / "3rps.toml"), "--grid", "0,0,250", "--orientation", "179,0,0"]
+    code, out, err = run_in_process([*args, "--json"], monkeypatch, capsys)
+    assert code == 2 and "holds" not in err, err
+    assert "joint stroke at 361" in json.loads(out)[0]["error"]
+
+
 def test_model_legs_grid_of_a_3rps_held_as_given_or_refused_in_one_line(monkeypatch, capsys):
     # Level on its axis: held as given (two poses evaluated); tilted by --orientation: x, y and yaw
     # follow, so one line naming the pose and the one it holds.

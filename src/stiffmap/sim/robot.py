@@ -36,7 +36,7 @@ from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
 from ..models import arm6
 from ..models.base import PoseError
 from ..models.delta import DeltaRobot
-from ..models.mobility import platform_mobility, reachable_poses
+from ..models.mobility import lower_mobility, nearest_held, pose_text
 
 __all__ = [
     "VirtualRobot",
@@ -497,21 +497,11 @@ class PlatformField:
     def _nearest(self, pose: np.ndarray) -> str:
         """A platform of lower mobility (a 3-RPS): ``"; 3rps moves in ...: the nearest pose it holds
         is ..."`` when the pose its legs reach with the same free coordinates is valid ("" else)."""
-        try:
-            mob = platform_mobility(self.model)
-        except ValueError:
+        mob = lower_mobility(self.model)
+        near = None if mob is None else nearest_held(self.model, pose, mob)
+        if near is None:
             return ""
-        if not mob.follow:
-            return ""
-        near, gap = reachable_poses(self.model, pose, mob)
-        if gap > 1e-6 or not self.model.evaluate(near).valid[0]:
-            return ""
-        deg = np.round(np.degrees(near[3:]), 4) + 0.0
-        return (
-            f"; {mob.describe(self.model.name)}: the nearest pose it holds is "
-            f"({', '.join(f'{v:.4g}' for v in np.round(near[:3], 4) + 0.0)}) mm, roll/pitch/yaw "
-            f"({', '.join(f'{v:.4g}' for v in deg)}) deg"
-        )
+        return f"; {mob.describe(self.model.name)}: the nearest pose it holds is {pose_text(near)}"
 
 
 #: The name of a legs TOML in a simulated campaign's folder.
