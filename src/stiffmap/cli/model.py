@@ -24,7 +24,7 @@ from ..loads import MAX_FORCE_N, MAX_MOMENT_NMM
 from ..models.base import POSE_DIM
 from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
-from ..models.mobility import held_as_given
+from ..models.mobility import held_as_given, nearest_note
 from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
 from ..stiffness import stiffness_indices
@@ -212,6 +212,8 @@ def model(
         _print_map(m, mp, F)
     nbad = len(mp) - mp.n_valid
     of = f"; points from {points}" if points is not None else ""
+    if nbad and six:
+        of += nearest_note(m, P, mp.valid)
     if nbad == len(mp):
         raise fail(
             f"none of the {len(mp)} point(s) can be evaluated by the {kind.name} model (see 'error'){of}"

@@ -37,6 +37,7 @@ __all__ = [
     "held_as_given",
     "lower_mobility",
     "nearest_held",
+    "nearest_note",
     "pose_text",
     "CLOSURE_TOL_MM",
     "HELD_TOL_MM",
@@ -249,11 +250,36 @@ def nearest_held(model, pose, mobility: Mobility) -> np.ndarray | None:
     return near
 
 
+#: How many of the poses a model could not evaluate :func:`nearest_note` tries (10 ms each).
+NOTE_TRIES = 10
+
+
+def nearest_note(model, poses, valid) -> str:
+    """``"; 3rps moves in ...: x, y, yaw follow: the nearest pose it holds to point 2 is ..."``: for a
+    platform of lower mobility, the first of ``poses`` the model could not evaluate (``valid``
+    False; of the first :data:`NOTE_TRIES`) whose nearest held pose (:func:`nearest_held`) it can;
+    "" for a full-mobility robot or when there is none (``stiffmap model legs --points``)."""
+    mob = lower_mobility(model)
+    if mob is None:
+        return ""
+    P, _ = as_points(poses, POSE_DIM)
+    for i in np.flatnonzero(~np.asarray(valid, dtype=bool))[:NOTE_TRIES]:
+        near = nearest_held(model, P[i], mob)
+        if near is not None:
+            return (
+                f"; {mob.describe(model.name)}: the nearest pose it holds to point {i + 1} is "
+                f"{pose_text(near)}"
+            )
+    return ""
+
+
 def pose_text(p) -> str:
-    """``"(x, y, z) mm, roll/pitch/yaw (r, p, y) deg"`` of a pose (mm, rad), 4 significant digits."""
+    """``"(x, y, z) mm, roll/pitch/yaw (r, p, y) deg"`` of a pose (mm, rad) to 1e-6 mm and deg:
+    a held pose copied into a POSES.csv closes its legs (to 4 significant digits, the 3-RPS
+    rolled 30 deg at y = -6.699 mm missed by 2.3e-4 mm and could not be evaluated)."""
     p = np.asarray(p, dtype=float)
-    xyz = ", ".join(f"{v:.4g}" for v in np.round(p[:3], 4) + 0.0)
-    deg = ", ".join(f"{v:.4g}" for v in np.round(np.degrees(p[3:]), 4) + 0.0)
+    xyz = ", ".join(f"{v:.12g}" for v in np.round(p[:3], 6) + 0.0)
+    deg = ", ".join(f"{v:.12g}" for v in np.round(np.degrees(p[3:]), 6) + 0.0)
     return f"({xyz}) mm, roll/pitch/yaw ({deg}) deg"
 
 
