@@ -136,3 +136,22 @@ def test_model_legs_grid_of_a_3rps_held_as_given_or_refused_in_one_line(monkeypa
         "error: --grid: 3rps moves in z, roll, pitch: x, y, yaw follow: it cannot hold pose 1 (0, 0, 240) "
         "mm, roll/pitch/yaw (0, -5, 0) deg as given (it holds ("
     )
+
+
+def test_model_legs_points_a_3rps_cannot_hold_name_the_nearest_pose_it_holds(tmp_path, monkeypatch, capsys):
+    # A point off the axis with the platform level: unreachable (the legs named in the table), and
+    # one note giving the pose the legs reach with the same z, roll, pitch (the independent solver).
+    _, axes, attach = _rps_geometry([90.0, 210.0, 330.0])
+    near = rps_pose(250.0, np.radians(4.0), 0.0, attach, axes)
+    csv = tmp_path / "poses.csv"
+    csv.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,250,0,0,0\n10,0,250,4,0,0\n")
+    args = ["model", "legs", str(ROBOTS / "3rps.toml"), "--points", str(csv)]
+    code, _, err = run_in_process(args, monkeypatch, capsys)
+    assert code == 1, err
+    xyz = ", ".join(f"{v:.4g}" for v in np.round(near[:3], 4) + 0.0)
+    deg = ", ".join(f"{v:.4g}" for v in np.round(np.degrees(near[3:]), 4) + 0.0)
+    assert (
+        f"note: pose 2: 3rps moves in z, roll, pitch: x, y, yaw follow: the nearest pose it holds is "
+        f"({xyz}) mm, roll/pitch/yaw ({deg}) deg\n" in err
+    )
+    assert err.endswith(f"warning: 1 of 2 point(s) cannot be evaluated (see 'error'); points from {csv}\n")

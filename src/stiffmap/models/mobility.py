@@ -35,6 +35,7 @@ __all__ = [
     "platform_mobility",
     "reachable_poses",
     "held_as_given",
+    "nearest_pose_note",
     "CLOSURE_TOL_MM",
 ]
 
@@ -227,6 +228,22 @@ def _pose_text(p: np.ndarray) -> str:
     xyz = ", ".join(f"{v:.4g}" for v in np.round(p[:3], 4) + 0.0)
     deg = ", ".join(f"{v:.4g}" for v in np.round(np.degrees(p[3:]), 4) + 0.0)
     return f"({xyz}) mm, roll/pitch/yaw ({deg}) deg"
+
+
+def nearest_pose_note(model, pose) -> str:
+    """For a platform of lower mobility (a 3-RPS) and a pose it cannot hold: ``"3rps moves in ...:
+    the nearest pose it holds is ..."``, the pose its legs reach with the same free coordinates,
+    when that pose is valid; "" otherwise (a full-mobility robot, or no valid pose near)."""
+    try:
+        mob = platform_mobility(model)
+    except ValueError:
+        return ""
+    if not mob.follow:
+        return ""
+    near, gap = reachable_poses(model, np.asarray(pose, dtype=np.float64), mob)
+    if gap > 1e-6 or not model.evaluate(near).valid[0]:
+        return ""
+    return f"{mob.describe(model.name)}: the nearest pose it holds is {_pose_text(near)}"
 
 
 def held_as_given(model, poses) -> np.ndarray:

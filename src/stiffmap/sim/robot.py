@@ -36,7 +36,7 @@ from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
 from ..models import arm6
 from ..models.base import PoseError
 from ..models.delta import DeltaRobot
-from ..models.mobility import platform_mobility, reachable_poses
+from ..models.mobility import nearest_pose_note
 
 __all__ = [
     "VirtualRobot",
@@ -485,7 +485,8 @@ class PlatformField:
             where = f"{poses[i, :3].tolist()} mm"
             if np.any(poses[i, 3:]):
                 where += f", roll/pitch/yaw {np.round(np.degrees(poses[i, 3:]), 9).tolist()} deg"
-            reason = m.reasons[i] + self._nearest(poses[i])
+            note = nearest_pose_note(self.model, poses[i])
+            reason = m.reasons[i] + (f"; {note}" if note else "")
             raise PoseError(
                 f"the robot cannot hold its platform at {where}: {reason}",
                 pose=poses[i],
@@ -493,25 +494,6 @@ class PlatformField:
                 reason=reason,
             )
         return m.K6
-
-    def _nearest(self, pose: np.ndarray) -> str:
-        """A platform of lower mobility (a 3-RPS): ``"; 3rps moves in ...: the nearest pose it holds
-        is ..."`` when the pose its legs reach with the same free coordinates is valid ("" else)."""
-        try:
-            mob = platform_mobility(self.model)
-        except ValueError:
-            return ""
-        if not mob.follow:
-            return ""
-        near, gap = reachable_poses(self.model, pose, mob)
-        if gap > 1e-6 or not self.model.evaluate(near).valid[0]:
-            return ""
-        deg = np.round(np.degrees(near[3:]), 4) + 0.0
-        return (
-            f"; {mob.describe(self.model.name)}: the nearest pose it holds is "
-            f"({', '.join(f'{v:.4g}' for v in np.round(near[:3], 4) + 0.0)}) mm, roll/pitch/yaw "
-            f"({', '.join(f'{v:.4g}' for v in deg)}) deg"
-        )
 
 
 #: The name of a legs TOML in a simulated campaign's folder.
