@@ -5,6 +5,7 @@ writes the program, its figures and a summary; a campaign's fitted model compens
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -567,6 +568,24 @@ def test_a_shorter_chain_of_the_arm_takes_its_seed_and_springs(tmp_path, monkeyp
     assert np.max(distance_to_path(programmed, C + d)) <= 1e-3 + 1e-9
     code, _, err = run_in_process([*argv, "--q-seed-deg", "0,40,-10,0,60,0"], monkeypatch, capsys)
     _one_line(code, err, "--q-seed-deg", "expected 5 joint angles", "joint_5", "got 6")
+
+
+@pytest.mark.parametrize("spin", [[], ["--free-tool-spin"]])
+def test_a_placement_far_out_of_the_arms_reach_is_refused_at_once(tmp_path, monkeypatch, capsys, spin):
+    """--place 1e6,0,0 on arm6: the inverse kinematics was tried along the program (2 s) and, with
+    --free-tool-spin, at every spin (6 s, 13 s on a busy machine) before 'no smooth choice of spins
+    keeps every point reachable'. Now one line names the program's first line and the reach (1264
+    mm from joint_1's origin: test_models_chain), before any search, within a generous 3 s here."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X20\nG1 Y20\n")
+    out = tmp_path / "o.ngc"
+    argv = ["compensate", "urdf", "arm6", "--path", prog, "--out", out, "--place", "1e6,0,0"]
+    where = ["p.ngc: line 2:", "(1e+06, 0, 0) mm (base frame)", "out of the arm's reach", " 1264 mm"]
+    t0 = time.perf_counter()
+    code, _, err = run_in_process([*argv, "--force-n", "0,0,-50", *spin], monkeypatch, capsys)
+    assert time.perf_counter() - t0 < 3.0
+    _one_line(code, err, *where)
+    assert not out.exists()
 
 
 def _campaign(tmp_path, seed: str, *sql) -> Path:

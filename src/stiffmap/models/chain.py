@@ -740,6 +740,22 @@ class Chain:
         """The columns of the mimic joints' own motions (for a spring of their own), shape (6, m)."""
         return self._full_jacobian(q)[:, self._mimic_rows]
 
+    def reach_mm(self) -> tuple[np.ndarray, float]:
+        """A sphere that holds every point the measured point can reach: its centre (the first
+        moving joint's origin, fixed in the base frame; the point itself on a chain without joints)
+        and its radius (mm): the distances between successive joints' origins and from the last
+        to the point, at zero coordinates (what the link between two revolute joints fixes), plus
+        each prismatic joint's largest travel (inf when a prismatic joint is unlimited)."""
+        p, _, o, _ = self._frames_many(np.zeros((1, self.n)))
+        if o.shape[1] == 0:
+            return p[0], 0.0
+        seg = np.linalg.norm(np.diff(np.concatenate([o[0], p]), axis=0), axis=1)
+        lim = np.maximum(np.abs(self.lower), np.abs(self.upper))
+        travel = [
+            np.abs(b) + np.sum(np.abs(g[g != 0]) * lim[g != 0]) for g, b in zip(self._G, self._b, strict=True)
+        ]
+        return o[0, 0], float(seg.sum() + sum(t for t, pr in zip(travel, self._prismatic, strict=True) if pr))
+
     def forward_many(self, Q) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`forward` of many configurations: positions (N, 3) mm, rotations (N, 3, 3)."""
         p, R = self._frames_many(Q)[:2]
