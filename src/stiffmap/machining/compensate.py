@@ -163,13 +163,13 @@ def check_reach(fld, path: Toolpath) -> None:
     if not isinstance(fld, ArmField) or len(path) == 0:
         return
     ch = fld.robot.chain
-    centre, radius = ch.reach_mm()
     P = np.stack([path.start, path.end], axis=1).reshape(-1, 3)
-    d = np.linalg.norm(fld.base_points(P) - centre, axis=1)
-    far = np.flatnonzero(d > radius * (1 + 1e-9) + 1e-6)  # NaN (an axis unknown) is not far
+    far = np.flatnonzero(fld.beyond_reach(P))  # NaN (an axis unknown) is not far
     if far.size == 0:
         return
     j = int(far[0])
+    centre, radius = ch.reach_mm()
+    d = np.linalg.norm(fld.base_points(P) - centre, axis=1)
     err = CompensationError(
         f"line {path.line[j // 2]}: programmed point {fld.describe_point(P[j])} is out of the arm's "
         f"reach: {d[j]:.4g} mm from {ch.joint_names[0]}'s origin {format_pose(centre)}, where {ch.name}'s "

@@ -197,14 +197,16 @@ def objective_at(fld, place, P, F, feed, objective: str) -> float:
 
 
 def _evaluate(
-    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None, origin=None
+    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None, origin=None, *, all_or_none: bool = False
 ) -> tuple[np.ndarray, np.ndarray, object]:
     """Deflections (K, N, 3) at N points under K placements T (K, 3), which points are feasible
     under each placement (K, N: valid, conditioning at least MIN_CONDITIONING), and an arm's
     configurations (K, N, n) (else None). P is (N, 3), or (K, N, 3) for points that differ per
     placement. One evaluation for a mechanism's map; placement by placement for an arm: its
     inverse kinematics from ``q0`` (K, N, n), else followed from ``origin`` (a nearby placement
-    and its configurations at P, :func:`_follow`), else along the points in order."""
+    and its configurations at P, :func:`_follow`), else along the points in order (with
+    ``all_or_none``, for a caller that only asks whether every point is feasible, up to the first
+    that does not converge)."""
     K = T.shape[0]
     PK = np.broadcast_to(P, (K, *P.shape[-2:]))
     N = PK.shape[1]
@@ -219,9 +221,9 @@ def _evaluate(
             if q0 is None and origin is not None:
                 Qf, conv = _follow(fld, origin[0], origin[1], t, PK[i])
                 same = _seed_branch(f, PK[i], Qf, conv)  # else solved afresh, as without origin
-                out.append(f.deflect(PK[i], F, Qf, conv) if same else f(PK[i], F))
+                out.append(f.deflect(PK[i], F, Qf, conv) if same else f(PK[i], F, stop=all_or_none))
             else:
-                out.append(f(PK[i], F, q0=None if q0 is None else q0[i]))
+                out.append(f(PK[i], F, q0=None if q0 is None else q0[i], stop=all_or_none))
         Q = np.stack([r.q for r in out]) if all(r.q is not None for r in out) else None
         valid = np.concatenate([r.valid for r in out])
         cond = np.concatenate([r.conditioning for r in out])
@@ -281,10 +283,10 @@ def _many(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tuple[
     ok = np.ones(T.shape[0], dtype=bool)
     if origin is None and P.shape[0] > 6 * 4:
         ext = _extremes(P)
-        ok = _evaluate(fld, T, P[ext], F[ext])[1].all(axis=1)
+        ok = _evaluate(fld, T, P[ext], F[ext], all_or_none=True)[1].all(axis=1)
     Q = None
     if np.any(ok):
-        out[ok], Qok, _ = _many_all(fld, T[ok], P, F, feed, objective, origin)
+        out[ok], Qok, _ = _many_all(fld, T[ok], P, F, feed, objective, origin, all_or_none=True)
         if Qok is not None:
             Q = np.full((T.shape[0], *Qok.shape[1:]), np.nan)
             Q[ok] = Qok
@@ -297,25 +299,56 @@ def _extremes(P: np.ndarray) -> np.ndarray:
 
 
 def _many_all(
-    fld, T: np.ndarray, P, F, feed, objective: str, origin=None
+    fld, T: np.ndarray, P, F, feed, objective: str, origin=None, *, all_or_none: bool = False
 ) -> tuple[np.ndarray, object, np.ndarray]:
     """:func:`_many` on every point, and which points are feasible under each placement (K, N):
-    the programmed point and its commanded points."""
-    delta, okp, Q = _evaluate(fld, T, P, F, origin=origin)
+    the programmed point and its commanded points (``all_or_none``: up to the first that fails
+    to converge, :func:`_evaluate`)."""
+    delta, okp, Q = _evaluate(fld, T, P, F, origin=origin, all_or_none=all_or_none)
     ok = okp.all(axis=1)
     if np.any(ok):
         sub = np.flatnonzero(ok)
-        near = None if Q is None else Q[sub]  # an arm's solutions: seeds for the nearby commanded points
-        d1, ok1, _ = _evaluate(fld, T[sub], P[None] - delta[sub], F, near)
-        C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
-        okp[sub] &= ok1 & _evaluate(fld, T[sub], C, F, near)[1]
-        ok = okp.all(axis=1)
+        okp[sub] &= _commanded_ok(fld, T[sub], P, F, delta[sub], None if Q is None else Q[sub])
+    return np.where(okp.all(axis=1), _value(delta, feed, objective), np.inf), Q, okp
+
+
+def _commanded_ok(fld, T: np.ndarray, P, F, delta, near) -> np.ndarray:
+    """Which commanded points (K, N) are feasible under placements T (K, 3): ``c = p - delta(c)``
+    (two fixed-point steps from the programmed points' deflections ``delta`` (K, N, 3)), and the
+    same pushed outwards by :data:`REACH_MARGIN_MM`; ``near``: an arm's configurations at the
+    programmed points (K, N, n), the seeds there (else None)."""
+    d1, ok1, _ = _evaluate(fld, T, P[None] - delta, F, near)
+    C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
+    return ok1 & _evaluate(fld, T, C, F, near)[1]
+
+
+def _value(delta: np.ndarray, feed, objective: str) -> np.ndarray:
+    """The objective (K,) of deflections (K, N, 3) along the feed points (NaN counts 0)."""
     d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
     if d.shape[1] == 0:
-        val = np.zeros(T.shape[0])
-    else:
-        val = d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
-    return np.where(ok, val, np.inf), Q, okp
+        return np.zeros(delta.shape[0])
+    return d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
+
+
+def _best_below(fld, T: np.ndarray, P, F, feed, objective: str, origin, v: float):
+    """The best feasible of placements T (K, 3) if its objective is below ``v``: its index, objective
+    and an arm's configurations at P (else None); (None, inf, None) if none is. As the argmin of
+    :func:`_many`, but the commanded points are checked only for the placements whose programmed
+    points are feasible and whose objective beats ``v``, best first (a compass search's step keeps
+    one neighbour at most: most steps keep none, and need no such check)."""
+    if origin is None:  # no configurations to follow: every point of every placement, as _many
+        vals, QK = _many(fld, T, P, F, feed, objective)
+        i = int(np.argmin(vals))
+        return (i, float(vals[i]), None if QK is None else QK[i]) if vals[i] < v else (None, math.inf, None)
+    delta, okp, Q = _evaluate(fld, T, P, F, origin=origin, all_or_none=True)
+    vals = np.where(okp.all(axis=1), _value(delta, feed, objective), np.inf)
+    for i in np.argsort(vals, kind="stable"):
+        if not vals[i] < v:
+            break
+        near = None if Q is None else Q[i : i + 1]
+        if np.all(_commanded_ok(fld, T[i : i + 1], P, F, delta[i : i + 1], near)):
+            return int(i), float(vals[i]), None if Q is None else Q[i]
+    return None, math.inf, None
 
 
 def place_program(
@@ -556,13 +589,12 @@ def _compass(
                 if np.all((c[dims] >= lo) & (c[dims] <= hi)):
                     cand.append(c)
         origin = None if Q is None or not np.isfinite(v) else (t, Q)
-        vals, QK = (
-            _many(fld, np.array(cand), P, F, feed, objective, origin) if cand else (np.full(1, np.inf), None)
+        i, vi, Qi = (
+            (None, v, Q) if not cand else _best_below(fld, np.array(cand), P, F, feed, objective, origin, v)
         )
         n += len(cand)
-        i = int(np.argmin(vals))
-        if vals[i] < v:
-            t, v, Q = cand[i], float(vals[i]), None if QK is None else QK[i]
+        if i is not None:
+            t, v, Q = cand[i], vi, Qi
         else:
             step /= 2
             if tick is not None:

@@ -496,6 +496,7 @@ class Chain:
         self.lower = np.array([c.lower for c in coords], dtype=float)
         self.upper = np.array([c.upper for c in coords], dtype=float)
         self._neutral = np.zeros(nf)
+        self._reach: tuple[np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ construction
 
@@ -746,6 +747,12 @@ class Chain:
         and its radius (mm): the distances between successive joints' origins and from the last
         to the point, at zero coordinates (what the link between two revolute joints fixes), plus
         each prismatic joint's largest travel (inf when a prismatic joint is unlimited)."""
+        if self._reach is None:
+            self._reach = self._sphere()
+        return self._reach[0].copy(), self._reach[1]
+
+    def _sphere(self) -> tuple[np.ndarray, float]:
+        """:meth:`reach_mm`, computed."""
         p, _, o, _ = self._frames_many(np.zeros((1, self.n)))
         if o.shape[1] == 0:
             return p[0], 0.0
