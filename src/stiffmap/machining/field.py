@@ -196,8 +196,8 @@ class ArmField:
         """Configurations along a path in order: the first from ``q_seed`` (damped least squares,
         :meth:`~stiffmap.models.chain.Chain.inverse`), each next from the previous one; a point
         beyond the arm's reach (:meth:`beyond_reach`) is not tried (it would not converge). With
-        ``stop``, the points after the first that does not converge are not tried either (for a
-        caller that only asks whether all do)."""
+        ``stop``, the points after the first that does not converge or puts a joint beyond its
+        limits are not tried either (for a caller that only asks whether all are valid)."""
         ch = self.robot.chain
         far = self.beyond_reach(points)
         P = self.base_points(points)
@@ -214,19 +214,26 @@ class ArmField:
                     break
                 continue
             Q[i], ok[i] = r.q, True
+            if stop and self._beyond_limits(r.q[None])[0]:  # invalid (deflect says why): stop
+                break
             q = r.q
         return Q, ok
 
     def __call__(self, points, forces, q0=None, spin=None, *, stop: bool = False) -> FieldResult:
         """Deflections at program points (N, 3) mm under forces (N, 3) N; ``q0`` (N, n) are
         configurations near each point (None: solved along the points in order, ``stop``ping at
-        the first that does not converge: :meth:`solve_path`)."""
+        the first that does not converge or is beyond the limits: :meth:`solve_path`)."""
         P = np.asarray(points, dtype=float)
         if q0 is None:
             Q, conv = self.solve_path(P, spin, stop=stop)
         else:
             Q, conv = self.solve(P, q0, spin)
         return self.deflect(P, forces, Q, conv)
+
+    def _beyond_limits(self, Q) -> np.ndarray:
+        """Which configurations (N, n) put a joint beyond its limits (1e-12 rad or mm of slack)."""
+        ch = self.robot.chain
+        return np.any((Q < ch.lower - 1e-12) | (Q > ch.upper + 1e-12), axis=1)
 
     def deflect(self, points, forces, Q, conv) -> FieldResult:
         """Deflections at program points (N, 3) under forces (N, 3) with the arm at configurations
@@ -239,8 +246,7 @@ class ArmField:
         valid = conv.copy()
         for i in np.flatnonzero(~conv):
             reasons[i] = "unreachable: the inverse kinematics holding the tool orientation did not converge"
-        lo, hi = robot.chain.lower, robot.chain.upper
-        beyond = valid & np.any((Q < lo - 1e-12) | (Q > hi + 1e-12), axis=1)
+        beyond = valid & self._beyond_limits(Q)
         for i in np.flatnonzero(beyond):
             reasons[i] = "unreachable: " + "; ".join(robot.chain.beyond_limits(Q[i]))
         valid &= ~beyond

@@ -931,7 +931,7 @@ class Chain:
         Rt = None if rotation is None else np.asarray(rotation, dtype=float).reshape(3, 3)
         q = np.zeros(self.n) if q0 is None else self.check_q(q0, "q0").copy()
         q_start = q.copy()
-        p, R = self.forward(q)
+        p, R = self._forward_iterate(q)
         L = float(length_mm) if length_mm else max(100.0, float(np.linalg.norm(p)))
         lam = 1e-3
         it = 0
@@ -945,10 +945,10 @@ class Chain:
 
         e_p, e_r = error(p, R)
         for it in range(1, max_iter + 1):
-            ep, er = float(np.linalg.norm(e_p)), float(np.linalg.norm(e_r)) if e_r.size else 0.0
+            ep, er = math.sqrt(e_p @ e_p), math.sqrt(e_r @ e_r) if e_r.size else 0.0  # np.linalg.norm's
             if ep < tol_mm and er < tol_rad:
                 return IKResult(self._near(q, q_start), True, ep, er, it - 1)
-            J = self.jacobian(q)
+            J = self._jacobian_iterate(q)
             A = J[:3] if Rt is None else np.vstack([J[:3], L * J[3:]])
             e = e_p if Rt is None else np.concatenate([e_p, L * e_r])
             cost = float(e @ e)
@@ -966,16 +966,32 @@ class Chain:
         """A Levenberg-Marquardt step of :meth:`inverse`: the damping ``lam`` raised tenfold until
         the step lowers the weighted cost (or ``lam`` passes 1e6); the new joints, their position
         and rotation errors, weighted cost, and the damping."""
+        H = A @ A.T
+        scale, eye = np.trace(H) / H.shape[0] + 1e-30, np.eye(H.shape[0])
         while True:
-            H = A @ A.T
-            step = A.T @ np.linalg.solve(H + lam * (np.trace(H) / H.shape[0] + 1e-30) * np.eye(H.shape[0]), e)
+            step = A.T @ np.linalg.solve(H + lam * scale * eye, e)
             qn = q + step
-            pn, Rn = self.forward(qn)
+            pn, Rn = self._forward_iterate(qn)
             n_p, n_r = error(pn, Rn)
             en = n_p if position_only else np.concatenate([n_p, L * n_r])
             if float(en @ en) < cost or lam > 1e6:
                 return qn, n_p, n_r, float(en @ en), lam
             lam *= 10.0
+
+    def _forward_iterate(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`forward` of an iterate of :meth:`inverse` (a float array of shape (n,)): the same
+        numbers, without :meth:`check_q`'s conversions (unless q is not finite: its error)."""
+        if not np.isfinite(q).all():
+            self.check_q(q)
+        pin.framesForwardKinematics(self._model, self._data, self._G @ q + self._b)
+        M = self._data.oMf[self._fid]
+        return np.array(M.translation), np.array(M.rotation)
+
+    def _jacobian_iterate(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`jacobian` of an iterate of :meth:`inverse` (as :meth:`_forward_iterate`)."""
+        qf = self._G @ q + self._b
+        J = pin.computeFrameJacobian(self._model, self._data, qf, self._fid, pin.LOCAL_WORLD_ALIGNED)
+        return np.array(J).reshape(6, -1) @ self._G
 
     def _near(self, q: np.ndarray, seed: np.ndarray) -> np.ndarray:
         """``q`` with each revolute joint turned by whole turns to lie within half a turn of ``seed``."""
