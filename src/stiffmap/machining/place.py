@@ -537,11 +537,13 @@ def _refine(
     return None, math.inf, evals
 
 
-def _feasible_near(fld, t, dims, sample, objective, box) -> tuple[np.ndarray | None, int]:
+def _feasible_near(fld, t, dims, sample, objective, box, known=None) -> tuple[np.ndarray | None, int]:
     """The best feasible placement on ``sample`` (points, forces, feed flags) among t's neighbours
     along each placed axis, POLISH_MM away, then twice as far... up to 32 POLISH_MM (within the box);
-    None if there is none. And the placements evaluated."""
+    None if there is none. And the placements evaluated. An arm's configurations are followed
+    from ``known`` (:func:`_near_origin`) when given and that works."""
     lo, hi = box[0][dims] - 1e-9, box[1][dims] + 1e-9
+    origin = None if known is None else _near_origin(fld, known, np.asarray(t, dtype=float), sample[0])
     evals = 0
     for k in range(6):
         cand = []
@@ -553,7 +555,7 @@ def _feasible_near(fld, t, dims, sample, objective, box) -> tuple[np.ndarray | N
                     cand.append(c)
         if not cand:
             continue
-        vals = _many(fld, np.array(cand), *sample, objective)[0]
+        vals = _many(fld, np.array(cand), *sample, objective, origin)[0]
         evals += len(cand)
         if np.any(np.isfinite(vals)):
             return cand[int(np.argmin(vals))], evals
@@ -595,7 +597,7 @@ def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> tuple[float, np.ndarr
     points Ps (:func:`_follow`, all at once), and are solved along the points in order (as without
     Qs) if that does not converge everywhere or turns a joint more than :data:`FOLLOW_JUMP_RAD`
     between two points."""
-    origin = None if Qs is None else _near_origin(fld, (t, Ps, Qs), t, P)
+    origin = None if Qs is None else _near_origin(fld, (t, Ps, Qs), t, P, ordered=True)
     if origin is None:  # solved along the points in order: screened on the extremes first
         ext = _extremes(P)
         ok = _evaluate(fld, t[None], P[ext], F[ext])[1][0]
@@ -605,17 +607,21 @@ def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> tuple[float, np.ndarr
     return float(val[0]), np.flatnonzero(~okp[0])
 
 
-def _near_origin(fld, known, t, P) -> tuple[np.ndarray, np.ndarray] | None:
+def _near_origin(fld, known, t, P, ordered: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
     """An arm's configurations at the points P placed at t, as an ``origin`` for :func:`_evaluate`
     (t, Q): followed (:func:`_follow`, all at once) from ``known`` (t0, Ps, Qs), its configurations
     Qs at the points Ps placed at t0, each point from the nearest of Ps; None (solve along the
-    points in order) if that does not converge everywhere or turns a joint more than
-    :data:`FOLLOW_JUMP_RAD` between two points."""
+    points in order) if that does not converge everywhere or, for points in the program's order
+    (``ordered``), turns a joint more than :data:`FOLLOW_JUMP_RAD` between two points (a sample's
+    points are not in order: each is held within that of its nearest known one by :func:`_follow`,
+    as a compass search's neighbours are)."""
     t0, Ps, Qs = known
     Q, conv = _follow(fld, t0, Qs[cKDTree(Ps).query(P)[1]], t, P)
-    if np.all(conv) and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) <= FOLLOW_JUMP_RAD:
-        return t, Q
-    return None
+    if not np.all(conv):
+        return None
+    if ordered and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) > FOLLOW_JUMP_RAD:
+        return None
+    return t, Q
 
 
 def _checked(fld, t, Q, dense, fine, dims, objective, box, ticks):
@@ -636,7 +642,7 @@ def _checked(fld, t, Q, dense, fine, dims, objective, box, ticks):
         pick = bad[np.linspace(0, bad.size - 1, min(bad.size, REPAIR_POINTS)).round().astype(int)]
         known = None if Q is None else (t, fine[0], Q)
         fine = tuple(np.concatenate([a, b[pick]]) for a, b in zip(fine, dense, strict=True))
-        t, n = _feasible_near(fld, t, dims, fine, objective, box)
+        t, n = _feasible_near(fld, t, dims, fine, objective, box, known)
         evals += n
         if t is None:
             break
