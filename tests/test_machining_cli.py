@@ -5,6 +5,7 @@ writes the program, its figures and a summary; a campaign's fitted model compens
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -12,12 +13,14 @@ import pytest
 from helpers.cli_process import run_in_process, run_stiffmap
 from helpers.fuzz import FuzzCase, assert_handled, mutated_text, run_case
 from helpers.fuzz_machining import campaign_files, edited_db
-from helpers.machining_checks import distance_to_path, output_samples, truss_3prr
+from helpers.machining_checks import arm_deflection, distance_to_path, output_samples, truss_3prr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stiffmap.machining.io import read_program
 from stiffmap.machining.path import toolpath_from_moves
+from stiffmap.models import arm6
+from stiffmap.models.chain import Chain
 
 DATA = Path(__file__).parent / "data" / "gcode"
 PROGRAM = DATA / "own_cam_mm.nc"
@@ -532,6 +535,57 @@ def test_an_arm_seed_or_springs_it_cannot_take_are_refused(tmp_path, monkeypatch
     code, _, err = run_in_process([*argv, "--force-n", "20,-15,10", *args], monkeypatch, capsys)
     _one_line(code, err, *needles)
     assert list(tmp_path.iterdir()) == []
+
+
+#: A program in the plane of arm6's first joint through its base (y = 0 when placed at y = 0): the
+#: five joints to link_5 can hold link_5's orientation there (off that plane they cannot).
+IN_PLANE = "G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X20\nG1 Z10\n"
+
+
+def test_a_shorter_chain_of_the_arm_takes_its_seed_and_springs(tmp_path, monkeypatch, capsys):
+    """``--tip link_5`` on arm6 (five joints): the arm's six-joint seed was refused ('q_seed_deg: 6
+    joint values; the robot has 5 joints') though no --q-seed-deg was given. Now the chain takes the
+    arm's seed and springs of its five joints, and the written program, deflected by an independent
+    solver (central-difference Jacobian, C = J K^-1 J^T on the chain to link_5, the orientation of
+    link_5 at the seed held), lies within the tolerance (1 um) of the programmed path."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text(IN_PLANE)
+    out = tmp_path / "o.ngc"
+    place, force = np.array([400.0, 0.0, 300.0]), np.array([0.0, 0.0, -50.0])
+    argv = ["compensate", "urdf", "arm6", "--tip", "link_5", "--path", prog, "--out", out, "-q", "--json"]
+    argv += ["--place", "400,0,300", "--force-n", "0,0,-50"]
+    code, text, err = run_in_process(argv, monkeypatch, capsys)
+    assert code == 0, err
+    assert json.loads(text)["deflection_before_um"]["worst"] > 100.0  # something worth checking
+    chain = Chain.from_urdf(arm6.URDF, "link_5")
+    seed = np.radians(arm6.Q_SEED_DEG[:5])
+    done, _ = read_program(out)
+    _, _, C = output_samples(toolpath_from_moves(done.moves), per_mm=2.0)
+    d, _ = arm_deflection(
+        chain, arm6.K_THETA[:5], chain.forward(seed)[1], C + place, np.tile(force, (len(C), 1)), seed
+    )
+    programmed = toolpath_from_moves(read_program(prog)[0].moves)
+    assert np.max(distance_to_path(programmed, C + d)) <= 1e-3 + 1e-9
+    code, _, err = run_in_process([*argv, "--q-seed-deg", "0,40,-10,0,60,0"], monkeypatch, capsys)
+    _one_line(code, err, "--q-seed-deg", "expected 5 joint angles", "joint_5", "got 6")
+
+
+@pytest.mark.parametrize("spin", [[], ["--free-tool-spin"]])
+def test_a_placement_far_out_of_the_arms_reach_is_refused_at_once(tmp_path, monkeypatch, capsys, spin):
+    """--place 1e6,0,0 on arm6: the inverse kinematics was tried along the program (2 s) and, with
+    --free-tool-spin, at every spin (6 s, 13 s on a busy machine) before 'no smooth choice of spins
+    keeps every point reachable'. Now one line names the program's first line and the reach (1264
+    mm from joint_1's origin: test_models_chain), before any search, within a generous 3 s here."""
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z0 F100\nG1 X20\nG1 Y20\n")
+    out = tmp_path / "o.ngc"
+    argv = ["compensate", "urdf", "arm6", "--path", prog, "--out", out, "--place", "1e6,0,0"]
+    where = ["p.ngc: line 2:", "(1e+06, 0, 0) mm (base frame)", "out of the arm's reach", " 1264 mm"]
+    t0 = time.perf_counter()
+    code, _, err = run_in_process([*argv, "--force-n", "0,0,-50", *spin], monkeypatch, capsys)
+    assert time.perf_counter() - t0 < 3.0
+    _one_line(code, err, *where)
+    assert not out.exists()
 
 
 def _campaign(tmp_path, seed: str, *sql) -> Path:

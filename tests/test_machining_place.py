@@ -275,6 +275,44 @@ def test_place_auto_arm_keeps_a_placement_that_passes_on_every_point(tmp_path, m
     assert found.value <= 1.01 * best, f"kept {found.value}, the best on the sample {best}"
 
 
+def test_arm_compass_screening_skips_only_neighbours_that_cannot_be_chosen(tmp_path, monkeypatch):
+    """An arm's compass step evaluates on every point only the neighbours that may beat the
+    placement it stands at on a few points (``_may_beat``: the first point, the most deflected,
+    where earlier neighbours failed), and checks the commanded points of those that beat it, best
+    first. From the same start near the 200 mm square's best placement (docs/machining.md), on 80
+    of its points, the search ends at the same placement, objective (to the last bit) and count of
+    placements as the search that evaluates every neighbour on every point (the argmin of
+    ``_many``, as before the screening); and the screening did skip neighbours (else this tests
+    nothing)."""
+    robot, forces = arm6.model(), ForceSpec.feed_frame((20.0, 15.0, 10.0))  # as bench_place_arm.py
+    path = toolpath_from_moves(read_program(_stacked_squares_nc(tmp_path, 1, 200.0))[0].moves)
+    P, F, feed = place_mod.search_samples(path, forces, 80)
+    fld, dims, step = field_for(robot), [0, 1, 2], np.full(3, 4.0)
+    box = (np.full(3, -1e4), np.full(3, 1e4))
+    t0 = np.array([-50.0, -315.0, 545.0])
+    skipped = []
+    may_beat = place_mod._may_beat
+
+    def spy(*args):
+        out = may_beat(*args)
+        skipped.append(int(np.sum(~out)))
+        return out
+
+    monkeypatch.setattr(place_mod, "_may_beat", spy)
+    ours = place_mod._compass(fld, t0, dims, step, P, F, feed, "worst", box)
+
+    def every_neighbour(fld, T, P, F, feed, objective, origin, v, watch=None):
+        vals, QK = place_mod._many(fld, T, P, F, feed, objective, origin)
+        i = int(np.argmin(vals))
+        return (i, float(vals[i]), QK[i]) if vals[i] < v else (None, np.inf, None)
+
+    monkeypatch.setattr(place_mod, "_best_below", every_neighbour)
+    before = place_mod._compass(fld, t0, dims, step, P, F, feed, "worst", box)
+    assert np.isfinite(ours[1]) and sum(skipped) > 0, skipped
+    same = np.array_equal(ours[0], before[0]) and ours[1] == before[1] and ours[2] == before[2]
+    assert same, (ours[:3], before[:3])
+
+
 def _arm_check(robot, points, force):
     return arm_deflection(
         robot.chain,

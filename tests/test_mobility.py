@@ -159,13 +159,10 @@ def _numbers(text: str) -> list[float]:
     return [float(v) for v in text.split(", ")]
 
 
-def test_the_pose_a_refusal_names_can_be_copied_and_points_it_cannot_hold_name_theirs(
-    monkeypatch, capsys, tmp_path
-):
+def test_the_pose_a_refusal_names_can_be_copied(monkeypatch, capsys, tmp_path):
     # The pose a --grid refusal names, written into a POSES.csv as printed, is evaluated (its
     # legs close): to 4 significant digits (0.2283, -0.1212, yaw -0.131 deg) they missed and the
-    # model could not evaluate it. A --points pose it cannot hold ends the error line with the
-    # nearest pose it holds, as simulate's message does.
+    # model could not evaluate it.
     robot = str(ROBOTS / "3rps.toml")
     args = ["model", "legs", robot, "--grid", "0,0,240", "--orientation", "5,-3,0"]
     code, _, err = run_in_process(args, monkeypatch, capsys)
@@ -180,10 +177,22 @@ def test_the_pose_a_refusal_names_can_be_copied_and_points_it_cannot_hold_name_t
     )
     assert code == 0, err
     assert json.loads(out)[0]["yaw_deg"] == pytest.approx(-0.131013, abs=1e-6)
-    csv.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,250,0,0,0\n0,0,240,5,-3,0\n")
-    code, _, err = run_in_process(["model", "legs", robot, "--points", str(csv)], monkeypatch, capsys)
-    assert code == 1 and err.count("\n") == 1, err
-    assert err.rstrip().endswith(
-        f"points from {csv}; 3rps moves in z, roll, pitch: x, y, yaw follow: the nearest pose it holds to "
-        f"point 2 is ({xyz}) mm, roll/pitch/yaw ({rpy}) deg"
+
+
+def test_model_legs_points_a_3rps_cannot_hold_name_the_nearest_pose_it_holds(tmp_path, monkeypatch, capsys):
+    # A point off the axis with the platform level: unreachable (the legs named in the table), and
+    # one note giving the pose the legs reach with the same z, roll, pitch (the independent solver).
+    _, axes, attach = _rps_geometry([90.0, 210.0, 330.0])
+    near = rps_pose(250.0, np.radians(4.0), 0.0, attach, axes)
+    csv = tmp_path / "poses.csv"
+    csv.write_text("x,y,z,roll_deg,pitch_deg,yaw_deg\n0,0,250,0,0,0\n10,0,250,4,0,0\n")
+    args = ["model", "legs", str(ROBOTS / "3rps.toml"), "--points", str(csv)]
+    code, _, err = run_in_process(args, monkeypatch, capsys)
+    assert code == 1, err
+    xyz = ", ".join(f"{v:.12g}" for v in np.round(near[:3], 6) + 0.0)  # to 1e-6 mm and deg
+    deg = ", ".join(f"{v:.12g}" for v in np.round(np.degrees(near[3:]), 6) + 0.0)
+    assert (
+        f"note: pose 2: 3rps moves in z, roll, pitch: x, y, yaw follow: the nearest pose it holds is "
+        f"({xyz}) mm, roll/pitch/yaw ({deg}) deg\n" in err
     )
+    assert err.endswith(f"warning: 1 of 2 point(s) cannot be evaluated (see 'error'); points from {csv}\n")

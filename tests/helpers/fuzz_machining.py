@@ -923,9 +923,9 @@ ARM_VALUES = {
         ("0,0,100", "0,0,0", "0,0,150", "20,-10,120", "0,0,-50", "0,0,1e5"),
         ("0,0", "nan,0,0", "1e9,0,0", "0,0,1e7", "", "x,0,0"),
     ),
-    # not link_5: arm6's own seed (6 joints, for tool0) is refused on its 5-joint chain, naming
-    # q_seed_deg, which the user did not give (not fixed: the built-in keys are the tool0 chain's)
-    "--tip": (("tool0", "link_6"), ("nope", "", "TOOL0", "base_link")),
+    # link_5: the five joints to the wrist take arm6's seed and springs of those joints (its own
+    # six-value seed was refused, naming q_seed_deg, which the user did not give)
+    "--tip": (("tool0", "link_6", "link_5"), ("nope", "", "TOOL0", "base_link")),
     "--param": (
         ("k_theta=1e7", "k_theta=1e12", "k_theta=1e3", "k_theta=1e-3"),
         ("k_theta=-5", "k_theta=0", "k_theta=nan", "k_theta=inf", "nope=1", "k1", "k_theta=1e300", "k1=5e6"),

@@ -24,7 +24,7 @@ from ..loads import MAX_FORCE_N, MAX_MOMENT_NMM
 from ..models.base import POSE_DIM
 from ..models.chunked import CHUNK_POSES, evaluate_in_chunks
 from ..models.io import configuration_file_records, fit_measurements_file, map_csv, map_records, read_points
-from ..models.mobility import held_as_given, nearest_note
+from ..models.mobility import held_as_given, nearest_pose_note
 from ..models.poses import orientations_from_text, poses_from
 from ..models.presets import force_direction
 from ..stiffness import stiffness_indices
@@ -211,9 +211,9 @@ def model(
     else:
         _print_map(m, mp, F)
     nbad = len(mp) - mp.n_valid
+    if six and nbad:
+        _note_nearest(m, P, mp.valid)
     of = f"; points from {points}" if points is not None else ""
-    if nbad and six:
-        of += nearest_note(m, P, mp.valid)
     if nbad == len(mp):
         raise fail(
             f"none of the {len(mp)} point(s) can be evaluated by the {kind.name} model (see 'error'){of}"
@@ -221,6 +221,14 @@ def model(
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _note_nearest(m, P: np.ndarray, valid: np.ndarray) -> None:
+    """A platform of lower mobility (a 3-RPS): the nearest pose it holds to the first it cannot."""
+    i = int(np.flatnonzero(~np.asarray(valid))[0])
+    text = nearest_pose_note(m, P[i])
+    if text:
+        note(f"pose {i + 1}: {text}")
 
 
 def _refuse_option_conflicts(kind, grid, points, load_n, direction, as_json: bool, as_csv: bool) -> None:

@@ -155,6 +155,8 @@ def description_from_command(
     values = _params(kind, params)
     own = kind.builtin_defaults.get(str(robot)) if builtin_defaults and robot is not None else None
     if own is not None and kind.builtin_file(robot) is not None:
+        if kind.builtin_on_keys is not None:
+            own = kind.builtin_on_keys(own, kind.builtin_file(robot), keys)
         keys = {**own.keys, **keys}
         values = values or dict(own.params)
     _require(kind, keys, robot)

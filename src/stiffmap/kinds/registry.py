@@ -208,6 +208,10 @@ class RobotKind:
         seed), by the file's name: what a command that offers them takes when the user names
         the file alone (``stiffmap compensate urdf arm6``; :func:`~stiffmap.kinds.robot_from_command`
         with ``builtin_defaults=True``).
+    builtin_on_keys : callable, optional
+        ``builtin_on_keys(own, file, given) -> RobotDescription``: a shipped file's defaults
+        (``own``) fitted to the keys the command line gives (``given``), e.g. a serial arm's seed
+        and springs on the joints of the chain ``--tip`` picks.
     builtin_files : mapping of str to str
         Files that ship with stiffmap, by name (``arm6``): a name without a file of that
         name is that file.
@@ -255,6 +259,7 @@ class RobotKind:
     file_suffixes: tuple[str, ...] = ()
     builtin_files: Mapping[str, str] = field(default_factory=dict)
     builtin_defaults: Mapping[str, RobotDescription] = field(default_factory=dict)
+    builtin_on_keys: Callable[[RobotDescription, str, Mapping[str, object]], RobotDescription] | None = None
     keys: type[BaseModel] | None = None
     path_keys: tuple[str, ...] = ()
     options: Mapping[str, str] = field(default_factory=dict)

@@ -27,7 +27,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, Strict
 
-from ..errors import FieldError
+from ..errors import FieldError, InputError
 from ..geometry import matrix_from_euler
 from ..models import arm6
 from ..models.chain import Chain
@@ -164,7 +164,7 @@ def _build(d: RobotDescription) -> SerialRobot:
         1.0,
         links=() if links is None else read_links_toml(links),
         tool_rotation=None if rpy is None else matrix_from_euler(np.radians(rpy)),
-        q_seed=None if seed is None else _radians(seed, chain.joint_types, "q_seed_deg"),
+        q_seed=None if seed is None else _radians(seed, chain, "q_seed_deg"),
     )
     params = _joint_stiffnesses(d.params, robot)
     Q = _configurations(d, robot)
@@ -174,14 +174,16 @@ def _build(d: RobotDescription) -> SerialRobot:
         raise FieldError("params", str(e)) from None
 
 
-def _radians(q, robot_types, field: str = "q_seed_deg") -> np.ndarray:
-    """Joint values in degrees (mm for a prismatic joint) as rad (mm), by the joints' types."""
+def _radians(q, chain: Chain, field: str = "q_seed_deg") -> np.ndarray:
+    """Joint values in degrees (mm for a prismatic joint) as rad (mm), by the chain's joint types."""
     a = np.asarray(q, dtype=float)
-    if a.shape[-1:] != (len(robot_types),):
+    if a.shape[-1:] != (chain.n,):
         raise FieldError(
-            field, f"{a.shape[-1] if a.ndim else 0} joint values; the robot has {len(robot_types)} joints"
+            field,
+            f"{a.shape[-1] if a.ndim else 0} joint values; the chain to {chain.tip_frame} has {chain.n} "
+            f"joints ({', '.join(chain.joint_names)})",
         )
-    rev = np.array([t != "prismatic" for t in robot_types])
+    rev = np.array([t != "prismatic" for t in chain.joint_types])
     return np.where(rev, np.radians(a), a)
 
 
@@ -200,7 +202,42 @@ def _configurations(d: RobotDescription, robot: SerialRobot) -> np.ndarray | Non
             f"{Q.shape[-1] if Q.ndim else 0} joint values per position; {robot.chain.name} has "
             f"{robot.n} joints ({', '.join(robot.chain.joint_names)})",
         )
-    return _radians(Q, robot.chain.joint_types, "configurations_deg")
+    return _radians(Q, robot.chain, "configurations_deg")
+
+
+#: A shipped arm's keys that belong to its own tip frame (its tool): left out on another chain.
+_OF_TIP = ("tip_offset_mm", "tool_rpy_deg")
+
+
+def _on_chain(own: RobotDescription, file: str, given: Mapping[str, object]) -> RobotDescription:
+    """A shipped arm's defaults (``own``) on the chain the command line picks (``--tip``,
+    ``--base`` in ``given``): its seed and joint springs for that chain's joints, by name (a
+    shorter chain, ``--tip link_5``, takes the first five of the six); without the seed (the
+    chain's own default) and the springs (``--param`` then required) when a joint of that chain
+    is not one of the arm's; never its tool's offset and orientation (:data:`_OF_TIP`, of its own
+    tip frame: the point is the new tip frame's origin, held at the chain's orientation at the
+    seed, unless ``--tip-offset-mm`` or ``--tool-rpy-deg`` say otherwise). Unchanged when the
+    chain is the arm's or cannot be built (the build reports why)."""
+    tip = given.get("tip_frame", own.keys["tip_frame"])
+    base = given.get("base_frame", own.keys.get("base_frame"))
+    if tip == own.keys["tip_frame"] and base == own.keys.get("base_frame"):
+        return own
+    try:
+        arm = Chain.from_urdf(file, own.keys["tip_frame"], base_frame=own.keys.get("base_frame"))
+        chain = Chain.from_urdf(file, str(tip), base_frame=None if base is None else str(base))
+    except (InputError, FieldError):
+        return own
+    where = {name: i for i, name in enumerate(arm.joint_names)}
+    keys = {k: v for k, v in own.keys.items() if k not in ("q_seed_deg", *_OF_TIP)}
+    params = {k: v for k, v in own.params.items() if not (k[:1] == "k" and k[1:].isdigit())}
+    if all(name in where for name in chain.joint_names):
+        idx = [where[name] for name in chain.joint_names]
+        if own.keys.get("q_seed_deg") is not None:
+            keys["q_seed_deg"] = [own.keys["q_seed_deg"][i] for i in idx]
+        springs = [own.params.get(f"k{i + 1}") for i in idx]
+        if all(k is not None for k in springs):
+            params.update({f"k{j}": k for j, k in enumerate(springs, start=1)})
+    return RobotDescription(own.kind, params, own.file, keys)
 
 
 def _own(model: SerialRobot, d: RobotDescription, **kw):
@@ -223,6 +260,7 @@ URDF_KIND = RobotKind(
     file_key="urdf",
     file_suffixes=(".urdf", ".xacro"),
     builtin_files=BUILTIN_URDFS,
+    builtin_on_keys=_on_chain,
     builtin_defaults={
         "arm6": RobotDescription(
             SerialRobot.name,

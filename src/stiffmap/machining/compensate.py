@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..models.base import format_pose
+from .field import ArmField
 from .forces import ForceSpec, force_at
 from .path import Toolpath
 
@@ -149,6 +151,31 @@ def _raise_invalid(path: Toolpath, m: np.ndarray, res, fld, P: np.ndarray, what:
         f"{res.reasons[j] or 'cannot be evaluated'} (nothing written)"
     )
     err.programmed_point = what == "programmed point"
+    raise err
+
+
+def check_reach(fld, path: Toolpath) -> None:
+    """Refuse at once a placement that puts a programmed point (a move's start or end) beyond a
+    serial arm's reach (:meth:`~stiffmap.models.chain.Chain.reach_mm`): a
+    :class:`CompensationError` naming the first such point in program order, its distance from
+    the arm's first joint and the reach. Without it, such a program fails only after the inverse
+    kinematics (and every tool spin of ``--free-tool-spin``) has been tried at its points."""
+    if not isinstance(fld, ArmField) or len(path) == 0:
+        return
+    ch = fld.robot.chain
+    P = np.stack([path.start, path.end], axis=1).reshape(-1, 3)
+    far = np.flatnonzero(fld.beyond_reach(P))  # NaN (an axis unknown) is not far
+    if far.size == 0:
+        return
+    j = int(far[0])
+    centre, radius = ch.reach_mm()
+    d = np.linalg.norm(fld.base_points(P) - centre, axis=1)
+    err = CompensationError(
+        f"line {path.line[j // 2]}: programmed point {fld.describe_point(P[j])} is out of the arm's "
+        f"reach: {d[j]:.4g} mm from {ch.joint_names[0]}'s origin {format_pose(centre)}, where {ch.name}'s "
+        f"tool point is never more than {radius:.4g} mm away (nothing written)"
+    )
+    err.programmed_point = True
     raise err
 
 

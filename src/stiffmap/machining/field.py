@@ -152,6 +152,14 @@ class ArmField:
     def describe_point(self, p) -> str:
         return format_pose(self.base_points(np.atleast_2d(p))[0]) + " (base frame)"
 
+    def beyond_reach(self, points) -> np.ndarray:
+        """Which program points (N, 3) no configuration reaches: farther from the arm's first joint
+        than its reach (:meth:`~stiffmap.models.chain.Chain.reach_mm`; margins of 1e-6 mm and 1e-9
+        of the reach, below what the inverse kinematics calls converged)."""
+        centre, radius = self.robot.chain.reach_mm()
+        d = np.linalg.norm(self.base_points(points) - centre, axis=-1)
+        return d > radius * (1 + 1e-9) + 1e-6
+
     def _rotations(self, n: int, spin) -> np.ndarray:
         if spin is None:
             return np.broadcast_to(self.rotation, (n, 3, 3))
@@ -184,32 +192,48 @@ class ArmField:
             Q[idx] += _solve_steps(A, e)
         return Q, done
 
-    def solve_path(self, points, spin=None) -> tuple[np.ndarray, np.ndarray]:
+    def solve_path(self, points, spin=None, *, stop: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Configurations along a path in order: the first from ``q_seed`` (damped least squares,
-        :meth:`~stiffmap.models.chain.Chain.inverse`), each next from the previous one."""
+        :meth:`~stiffmap.models.chain.Chain.inverse`), each next from the previous one; a point
+        beyond the arm's reach (:meth:`beyond_reach`) is not tried (it would not converge). With
+        ``stop``, the points after the first that does not converge or puts a joint beyond its
+        limits are not tried either (for a caller that only asks whether all are valid)."""
         ch = self.robot.chain
+        far = self.beyond_reach(points)
         P = self.base_points(points)
         Rt = self._rotations(P.shape[0], spin)
         Q = np.full((P.shape[0], self.robot.n), np.nan)
         ok = np.zeros(P.shape[0], dtype=bool)
         q = self.q_seed
-        for i in range(P.shape[0]):
+        if stop and np.any(far):
+            far[np.argmax(far) :] = True
+        for i in np.flatnonzero(~far):
             r = ch.inverse(P[i], Rt[i], q0=q, length_mm=self.robot.length)
             if not r.converged:
+                if stop:
+                    break
                 continue
             Q[i], ok[i] = r.q, True
+            if stop and self._beyond_limits(r.q[None])[0]:  # invalid (deflect says why): stop
+                break
             q = r.q
         return Q, ok
 
-    def __call__(self, points, forces, q0=None, spin=None) -> FieldResult:
+    def __call__(self, points, forces, q0=None, spin=None, *, stop: bool = False) -> FieldResult:
         """Deflections at program points (N, 3) mm under forces (N, 3) N; ``q0`` (N, n) are
-        configurations near each point (None: solved along the points in order)."""
+        configurations near each point (None: solved along the points in order, ``stop``ping at
+        the first that does not converge or is beyond the limits: :meth:`solve_path`)."""
         P = np.asarray(points, dtype=float)
         if q0 is None:
-            Q, conv = self.solve_path(P, spin)
+            Q, conv = self.solve_path(P, spin, stop=stop)
         else:
             Q, conv = self.solve(P, q0, spin)
         return self.deflect(P, forces, Q, conv)
+
+    def _beyond_limits(self, Q) -> np.ndarray:
+        """Which configurations (N, n) put a joint beyond its limits (1e-12 rad or mm of slack)."""
+        ch = self.robot.chain
+        return np.any((Q < ch.lower - 1e-12) | (Q > ch.upper + 1e-12), axis=1)
 
     def deflect(self, points, forces, Q, conv) -> FieldResult:
         """Deflections at program points (N, 3) under forces (N, 3) with the arm at configurations
@@ -222,8 +246,7 @@ class ArmField:
         valid = conv.copy()
         for i in np.flatnonzero(~conv):
             reasons[i] = "unreachable: the inverse kinematics holding the tool orientation did not converge"
-        lo, hi = robot.chain.lower, robot.chain.upper
-        beyond = valid & np.any((Q < lo - 1e-12) | (Q > hi + 1e-12), axis=1)
+        beyond = valid & self._beyond_limits(Q)
         for i in np.flatnonzero(beyond):
             reasons[i] = "unreachable: " + "; ".join(robot.chain.beyond_limits(Q[i]))
         valid &= ~beyond

@@ -77,6 +77,10 @@ REPAIR_POINTS = 200
 #: this (mm); a point whose joint turns more than FOLLOW_JUMP_RAD in one step is not followed.
 FOLLOW_MM = 20.0
 FOLLOW_JUMP_RAD = 0.5
+#: An arm's compass search (objective "worst") evaluates a neighbour on every point only if it
+#: beats the incumbent on the program's first point and on these many points the incumbent
+#: deflects most (:func:`_may_beat`).
+WATCH_POINTS = 16
 #: Commanded points are checked this far (mm) beyond where they are, away from the program's centre.
 REACH_MARGIN_MM = 0.01
 
@@ -197,14 +201,16 @@ def objective_at(fld, place, P, F, feed, objective: str) -> float:
 
 
 def _evaluate(
-    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None, origin=None
+    fld, T: np.ndarray, P: np.ndarray, F: np.ndarray, q0=None, origin=None, *, all_or_none: bool = False
 ) -> tuple[np.ndarray, np.ndarray, object]:
     """Deflections (K, N, 3) at N points under K placements T (K, 3), which points are feasible
     under each placement (K, N: valid, conditioning at least MIN_CONDITIONING), and an arm's
     configurations (K, N, n) (else None). P is (N, 3), or (K, N, 3) for points that differ per
     placement. One evaluation for a mechanism's map; placement by placement for an arm: its
     inverse kinematics from ``q0`` (K, N, n), else followed from ``origin`` (a nearby placement
-    and its configurations at P, :func:`_follow`), else along the points in order."""
+    and its configurations at P, :func:`_follow`), else along the points in order (with
+    ``all_or_none``, for a caller that only asks whether every point is feasible, up to the first
+    that does not converge or puts a joint beyond its limits: :meth:`ArmField.solve_path`)."""
     K = T.shape[0]
     PK = np.broadcast_to(P, (K, *P.shape[-2:]))
     N = PK.shape[1]
@@ -219,9 +225,9 @@ def _evaluate(
             if q0 is None and origin is not None:
                 Qf, conv = _follow(fld, origin[0], origin[1], t, PK[i])
                 same = _seed_branch(f, PK[i], Qf, conv)  # else solved afresh, as without origin
-                out.append(f.deflect(PK[i], F, Qf, conv) if same else f(PK[i], F))
+                out.append(f.deflect(PK[i], F, Qf, conv) if same else f(PK[i], F, stop=all_or_none))
             else:
-                out.append(f(PK[i], F, q0=None if q0 is None else q0[i]))
+                out.append(f(PK[i], F, q0=None if q0 is None else q0[i], stop=all_or_none))
         Q = np.stack([r.q for r in out]) if all(r.q is not None for r in out) else None
         valid = np.concatenate([r.valid for r in out])
         cond = np.concatenate([r.conditioning for r in out])
@@ -281,10 +287,10 @@ def _many(fld, T: np.ndarray, P, F, feed, objective: str, origin=None) -> tuple[
     ok = np.ones(T.shape[0], dtype=bool)
     if origin is None and P.shape[0] > 6 * 4:
         ext = _extremes(P)
-        ok = _evaluate(fld, T, P[ext], F[ext])[1].all(axis=1)
+        ok = _evaluate(fld, T, P[ext], F[ext], all_or_none=True)[1].all(axis=1)
     Q = None
     if np.any(ok):
-        out[ok], Qok, _ = _many_all(fld, T[ok], P, F, feed, objective, origin)
+        out[ok], Qok, _ = _many_all(fld, T[ok], P, F, feed, objective, origin, all_or_none=True)
         if Qok is not None:
             Q = np.full((T.shape[0], *Qok.shape[1:]), np.nan)
             Q[ok] = Qok
@@ -297,25 +303,120 @@ def _extremes(P: np.ndarray) -> np.ndarray:
 
 
 def _many_all(
-    fld, T: np.ndarray, P, F, feed, objective: str, origin=None
+    fld, T: np.ndarray, P, F, feed, objective: str, origin=None, *, all_or_none: bool = False
 ) -> tuple[np.ndarray, object, np.ndarray]:
     """:func:`_many` on every point, and which points are feasible under each placement (K, N):
-    the programmed point and its commanded points."""
-    delta, okp, Q = _evaluate(fld, T, P, F, origin=origin)
+    the programmed point and its commanded points (``all_or_none``: up to the first invalid one,
+    :func:`_evaluate`)."""
+    delta, okp, Q = _evaluate(fld, T, P, F, origin=origin, all_or_none=all_or_none)
     ok = okp.all(axis=1)
     if np.any(ok):
         sub = np.flatnonzero(ok)
-        near = None if Q is None else Q[sub]  # an arm's solutions: seeds for the nearby commanded points
-        d1, ok1, _ = _evaluate(fld, T[sub], P[None] - delta[sub], F, near)
-        C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
-        okp[sub] &= ok1 & _evaluate(fld, T[sub], C, F, near)[1]
-        ok = okp.all(axis=1)
+        okp[sub] &= _commanded_ok(fld, T[sub], P, F, delta[sub], None if Q is None else Q[sub])
+    return np.where(okp.all(axis=1), _value(delta, feed, objective), np.inf), Q, okp
+
+
+def _commanded_ok(fld, T: np.ndarray, P, F, delta, near) -> np.ndarray:
+    """Which commanded points (K, N) are feasible under placements T (K, 3): ``c = p - delta(c)``
+    (two fixed-point steps from the programmed points' deflections ``delta`` (K, N, 3)), and the
+    same pushed outwards by :data:`REACH_MARGIN_MM`; ``near``: an arm's configurations at the
+    programmed points (K, N, n), the seeds there (else None)."""
+    d1, ok1, _ = _evaluate(fld, T, P[None] - delta, F, near)
+    C = P[None] - np.nan_to_num(d1) + REACH_MARGIN_MM * _outward(P, list(fld.corrected))[None]
+    return ok1 & _evaluate(fld, T, C, F, near)[1]
+
+
+def _value(delta: np.ndarray, feed, objective: str) -> np.ndarray:
+    """The objective (K,) of deflections (K, N, 3) along the feed points (NaN counts 0)."""
     d = np.linalg.norm(np.nan_to_num(delta), axis=2)[:, feed]
     if d.shape[1] == 0:
-        val = np.zeros(T.shape[0])
-    else:
-        val = d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
-    return np.where(ok, val, np.inf), Q, okp
+        return np.zeros(delta.shape[0])
+    return d.max(axis=1) if objective == "worst" else np.sqrt(np.mean(d * d, axis=1))
+
+
+def _best_below(fld, T: np.ndarray, P, F, feed, objective: str, origin, v: float, watch=None):
+    """The best feasible of placements T (K, 3) if its objective is below ``v``: its index, objective
+    and an arm's configurations at P (else None); (None, inf, None) if none is. As the argmin of
+    :func:`_many`, but the commanded points are checked only for the placements whose programmed
+    points are feasible and whose objective beats ``v``, best first (a compass search's step keeps
+    one neighbour at most: most steps keep none, and need no such check); with ``watch``
+    (:class:`_Watch`), only the placements that may beat ``v`` on its points (:func:`_may_beat`)
+    are evaluated on every point, and the points where they fail are added to it."""
+    if origin is None:  # no configurations to follow: every point of every placement, as _many
+        vals, QK = _many(fld, T, P, F, feed, objective)
+        i = int(np.argmin(vals))
+        return (i, float(vals[i]), None if QK is None else QK[i]) if vals[i] < v else (None, math.inf, None)
+    idx = np.arange(T.shape[0])
+    if watch is not None:
+        idx = np.flatnonzero(_may_beat(fld, T, P, F, feed, origin, v, watch.points()))
+        if idx.size == 0:
+            return None, math.inf, None
+    delta, okp, Q = _evaluate(fld, T[idx], P, F, origin=origin, all_or_none=True)
+    if watch is not None:
+        watch.learn(okp)
+    vals = np.where(okp.all(axis=1), _value(delta, feed, objective), np.inf)
+    for i in np.argsort(vals, kind="stable"):
+        if not vals[i] < v:
+            break
+        near = None if Q is None else Q[i : i + 1]
+        if np.all(_commanded_ok(fld, T[idx[i : i + 1]], P, F, delta[i : i + 1], near)):
+            return int(idx[i]), float(vals[i]), None if Q is None else Q[i]
+    return None, math.inf, None
+
+
+def _may_beat(fld, T: np.ndarray, P, F, feed, origin, v: float, w: np.ndarray) -> np.ndarray:
+    """Which of an arm's placements T (K, 3) may have a worst deflection below ``v``, from the points
+    P[w] alone (w[0] = 0: the program's first point, whose solution from the seed says whether
+    the followed configurations are the compensation's): not one whose configurations there,
+    followed from ``origin`` as :func:`_evaluate` follows them, are infeasible or deflect a feed
+    point by ``v`` or more (its objective on every point would be at least that). A placement whose
+    first point is on another branch (solved afresh along every point) may."""
+    t0, Q0 = origin
+    Pw, Fw, fw = P[w], F[w], feed[w]
+    out = np.ones(T.shape[0], dtype=bool)
+    for i, t in enumerate(T):
+        f = fld.with_place(t)
+        Qf, conv = _follow(fld, t0, Q0[w], t, Pw)
+        if not _seed_branch(f, Pw, Qf, conv):
+            continue
+        res = f.deflect(Pw, Fw, Qf, conv)
+        ok = res.valid & (np.nan_to_num(res.conditioning, nan=-1.0) >= MIN_CONDITIONING)
+        d = np.linalg.norm(np.nan_to_num(res.delta), axis=1)[fw]
+        out[i] = bool(np.all(ok)) and not (d.size and d.max() >= v)
+    return out
+
+
+class _Watch:
+    """The points an arm's compass search (objective ``"worst"``) screens its neighbours on
+    (:func:`_may_beat`): the program's first point, the :data:`WATCH_POINTS` feed points the
+    incumbent deflects most (:meth:`at`), and the first point where each neighbour evaluated on
+    every point was infeasible (:meth:`learn`; the optimum is often on the edge of the workspace,
+    its neighbours beyond it at a few points), at most :data:`WATCH_POINTS` of them."""
+
+    def __init__(self) -> None:
+        self.top = np.zeros(0, dtype=int)
+        self.failed: list[int] = []
+
+    def at(self, fld, t, P, F, feed, Q) -> _Watch:
+        """Watch the feed points the placement t (configurations Q at P, all feasible) deflects most."""
+        d = np.linalg.norm(fld.with_place(t).deflect(P, F, Q, np.ones(P.shape[0], dtype=bool)).delta, axis=1)
+        d = np.where(feed, np.nan_to_num(d), -1.0)
+        top = np.argsort(-d, kind="stable")[:WATCH_POINTS]
+        self.top = top[d[top] >= 0]
+        return self
+
+    def learn(self, okp: np.ndarray) -> None:
+        """Watch the first infeasible point of each row of okp (K, N) too."""
+        for row in okp:
+            bad = np.flatnonzero(~row)
+            if bad.size and int(bad[0]) not in self.failed and len(self.failed) < WATCH_POINTS:
+                self.failed.append(int(bad[0]))
+
+    def points(self) -> np.ndarray:
+        """The watched points' indices, the program's first (0) first."""
+        rest = np.concatenate([self.top, np.asarray(self.failed, dtype=int)])
+        rest = rest[rest != 0]
+        return np.concatenate([[0], rest[np.sort(np.unique(rest, return_index=True)[1])]])
 
 
 def place_program(
@@ -419,7 +520,9 @@ def _refine(
             found.append((v, t, Q))
         for v, t, Q in sorted(found, key=lambda c: c[0]):
             if arm and np.isfinite(v):
-                t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, box, ticks.tick)
+                t, v, n, Q = _compass(
+                    fld, t, dims, polish, *fine, objective, box, ticks.tick, (t, coarse[0], Q)
+                )
                 evals += n
             if full and (not arm or np.isfinite(v)):
                 ticks.finish()
@@ -434,11 +537,13 @@ def _refine(
     return None, math.inf, evals
 
 
-def _feasible_near(fld, t, dims, sample, objective, box) -> tuple[np.ndarray | None, int]:
+def _feasible_near(fld, t, dims, sample, objective, box, known=None) -> tuple[np.ndarray | None, int]:
     """The best feasible placement on ``sample`` (points, forces, feed flags) among t's neighbours
     along each placed axis, POLISH_MM away, then twice as far... up to 32 POLISH_MM (within the box);
-    None if there is none. And the placements evaluated."""
+    None if there is none. And the placements evaluated. An arm's configurations are followed
+    from ``known`` (:func:`_near_origin`) when given and that works."""
     lo, hi = box[0][dims] - 1e-9, box[1][dims] + 1e-9
+    origin = None if known is None else _near_origin(fld, known, np.asarray(t, dtype=float), sample[0])
     evals = 0
     for k in range(6):
         cand = []
@@ -450,7 +555,7 @@ def _feasible_near(fld, t, dims, sample, objective, box) -> tuple[np.ndarray | N
                     cand.append(c)
         if not cand:
             continue
-        vals = _many(fld, np.array(cand), *sample, objective)[0]
+        vals = _many(fld, np.array(cand), *sample, objective, origin)[0]
         evals += len(cand)
         if np.any(np.isfinite(vals)):
             return cand[int(np.argmin(vals))], evals
@@ -492,11 +597,7 @@ def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> tuple[float, np.ndarr
     points Ps (:func:`_follow`, all at once), and are solved along the points in order (as without
     Qs) if that does not converge everywhere or turns a joint more than :data:`FOLLOW_JUMP_RAD`
     between two points."""
-    origin = None
-    if Qs is not None:
-        Q, conv = _follow(fld, t, Qs[cKDTree(Ps).query(P)[1]], t, P)
-        if np.all(conv) and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) <= FOLLOW_JUMP_RAD:
-            origin = (t, Q)
+    origin = None if Qs is None else _near_origin(fld, (t, Ps, Qs), t, P, ordered=True)
     if origin is None:  # solved along the points in order: screened on the extremes first
         ext = _extremes(P)
         ok = _evaluate(fld, t[None], P[ext], F[ext])[1][0]
@@ -504,6 +605,23 @@ def _every_point(fld, t, P, F, feed, objective, Ps, Qs) -> tuple[float, np.ndarr
             return math.inf, ext[~ok]
     val, _, okp = _many_all(fld, t[None], P, F, feed, objective, origin)
     return float(val[0]), np.flatnonzero(~okp[0])
+
+
+def _near_origin(fld, known, t, P, ordered: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+    """An arm's configurations at the points P placed at t, as an ``origin`` for :func:`_evaluate`
+    (t, Q): followed (:func:`_follow`, all at once) from ``known`` (t0, Ps, Qs), its configurations
+    Qs at the points Ps placed at t0, each point from the nearest of Ps; None (solve along the
+    points in order) if that does not converge everywhere or, for points in the program's order
+    (``ordered``), turns a joint more than :data:`FOLLOW_JUMP_RAD` between two points (a sample's
+    points are not in order: each is held within that of its nearest known one by :func:`_follow`,
+    as a compass search's neighbours are)."""
+    t0, Ps, Qs = known
+    Q, conv = _follow(fld, t0, Qs[cKDTree(Ps).query(P)[1]], t, P)
+    if not np.all(conv):
+        return None
+    if ordered and np.max(np.abs(np.diff(Q, axis=0)), initial=0.0) > FOLLOW_JUMP_RAD:
+        return None
+    return t, Q
 
 
 def _checked(fld, t, Q, dense, fine, dims, objective, box, ticks):
@@ -522,28 +640,35 @@ def _checked(fld, t, Q, dense, fine, dims, objective, box, ticks):
         if np.isfinite(v_all) or attempt == REPAIRS or bad.size == 0:
             break
         pick = bad[np.linspace(0, bad.size - 1, min(bad.size, REPAIR_POINTS)).round().astype(int)]
+        known = None if Q is None else (t, fine[0], Q)
         fine = tuple(np.concatenate([a, b[pick]]) for a, b in zip(fine, dense, strict=True))
-        t, n = _feasible_near(fld, t, dims, fine, objective, box)
+        t, n = _feasible_near(fld, t, dims, fine, objective, box, known)
         evals += n
         if t is None:
             break
         polish = np.full(len(dims), POLISH_MM)
         ticks.plan(_halvings(polish))
-        t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, box, ticks.tick)
+        t, v, n, Q = _compass(fld, t, dims, polish, *fine, objective, box, ticks.tick, known)
         evals += n
     return t, v_all if np.isfinite(v_all) else math.inf, evals, fine
 
 
 def _compass(
-    fld, t0, dims, step, P, F, feed, objective, box, tick=None
+    fld, t0, dims, step, P, F, feed, objective, box, tick=None, known=None
 ) -> tuple[np.ndarray, float, int, object]:
     """Compass search from t0 on the points P: the best neighbour along each axis within the box
     (lo, hi) of placements, steps halved (``tick()`` called at each halving). Returns the
     placement, its objective, the placements evaluated, and an arm's configurations at P there
-    (else None); an arm's are followed from the current placement to its neighbours."""
+    (else None); an arm's are followed from the current placement to its neighbours, and at t0
+    from ``known`` (t, Ps, Qs: its configurations Qs at points Ps placed at t, :func:`_near_origin`)
+    when given and that works, else solved along the points in order."""
     t = t0.copy()
-    vals, QK = _many(fld, t[None], P, F, feed, objective)
+    origin = None if known is None else _near_origin(fld, known, t, P)
+    vals, QK = _many(fld, t[None], P, F, feed, objective, origin)
     v, Q = float(vals[0]), None if QK is None else QK[0]
+    watch = _Watch() if objective == "worst" and Q is not None else None
+    if watch is not None and np.isfinite(v):
+        watch.at(fld, t, P, F, feed, Q)
     n = 1
     step = step.copy()
     lo, hi = box[0][dims] - 1e-9, box[1][dims] + 1e-9
@@ -556,13 +681,16 @@ def _compass(
                 if np.all((c[dims] >= lo) & (c[dims] <= hi)):
                     cand.append(c)
         origin = None if Q is None or not np.isfinite(v) else (t, Q)
-        vals, QK = (
-            _many(fld, np.array(cand), P, F, feed, objective, origin) if cand else (np.full(1, np.inf), None)
+        i, vi, Qi = (
+            (None, v, Q)
+            if not cand
+            else _best_below(fld, np.array(cand), P, F, feed, objective, origin, v, watch)
         )
         n += len(cand)
-        i = int(np.argmin(vals))
-        if vals[i] < v:
-            t, v, Q = cand[i], float(vals[i]), None if QK is None else QK[i]
+        if i is not None:
+            t, v, Q = cand[i], vi, Qi
+            if watch is not None:
+                watch.at(fld, t, P, F, feed, Q)
         else:
             step /= 2
             if tick is not None:

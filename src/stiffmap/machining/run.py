@@ -23,7 +23,14 @@ from ..errors import FieldError, InputError
 from ..models.base import Mechanism
 from ..stats import chi2_ppf
 from ..stiffness import LARGE_DISPLACEMENT_MM
-from .compensate import CHECK_FRACTION, FIXED_POINT_TOL_MM, Compensation, CompensationError, compensate_path
+from .compensate import (
+    CHECK_FRACTION,
+    FIXED_POINT_TOL_MM,
+    Compensation,
+    CompensationError,
+    check_reach,
+    compensate_path,
+)
 from .field import ArmField, field_for
 from .forces import ForceSpec, force_at
 from .gcode import render_program, written_resolution_mm
@@ -258,6 +265,7 @@ def _compensate(mechanism, path, forces, options: CompensateOptions, uncertainty
             fld, path, forces, region=options.place_region_mm, objective=options.objective, progress=progress
         )
         fld = fld.with_place(placement.place)
+    check_reach(fld, path)
     spin = choose_spin(fld, path, forces) if options.free_tool_spin else None
     spin_of = None if spin is None else spin.spin_of
     moves = None if progress is None else (lambda done, total: progress("compensating", done, total))

@@ -496,6 +496,7 @@ class Chain:
         self.lower = np.array([c.lower for c in coords], dtype=float)
         self.upper = np.array([c.upper for c in coords], dtype=float)
         self._neutral = np.zeros(nf)
+        self._reach: tuple[np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ construction
 
@@ -740,6 +741,28 @@ class Chain:
         """The columns of the mimic joints' own motions (for a spring of their own), shape (6, m)."""
         return self._full_jacobian(q)[:, self._mimic_rows]
 
+    def reach_mm(self) -> tuple[np.ndarray, float]:
+        """A sphere that holds every point the measured point can reach: its centre (the first
+        moving joint's origin, fixed in the base frame; the point itself on a chain without joints)
+        and its radius (mm): the distances between successive joints' origins and from the last
+        to the point, at zero coordinates (what the link between two revolute joints fixes), plus
+        each prismatic joint's largest travel (inf when a prismatic joint is unlimited)."""
+        if self._reach is None:
+            self._reach = self._sphere()
+        return self._reach[0].copy(), self._reach[1]
+
+    def _sphere(self) -> tuple[np.ndarray, float]:
+        """:meth:`reach_mm`, computed."""
+        p, _, o, _ = self._frames_many(np.zeros((1, self.n)))
+        if o.shape[1] == 0:
+            return p[0], 0.0
+        seg = np.linalg.norm(np.diff(np.concatenate([o[0], p]), axis=0), axis=1)
+        lim = np.maximum(np.abs(self.lower), np.abs(self.upper))
+        travel = [
+            np.abs(b) + np.sum(np.abs(g[g != 0]) * lim[g != 0]) for g, b in zip(self._G, self._b, strict=True)
+        ]
+        return o[0, 0], float(seg.sum() + sum(t for t, pr in zip(travel, self._prismatic, strict=True) if pr))
+
     def forward_many(self, Q) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`forward` of many configurations: positions (N, 3) mm, rotations (N, 3, 3)."""
         p, R = self._frames_many(Q)[:2]
@@ -908,7 +931,7 @@ class Chain:
         Rt = None if rotation is None else np.asarray(rotation, dtype=float).reshape(3, 3)
         q = np.zeros(self.n) if q0 is None else self.check_q(q0, "q0").copy()
         q_start = q.copy()
-        p, R = self.forward(q)
+        p, R = self._forward_iterate(q)
         L = float(length_mm) if length_mm else max(100.0, float(np.linalg.norm(p)))
         lam = 1e-3
         it = 0
@@ -922,10 +945,10 @@ class Chain:
 
         e_p, e_r = error(p, R)
         for it in range(1, max_iter + 1):
-            ep, er = float(np.linalg.norm(e_p)), float(np.linalg.norm(e_r)) if e_r.size else 0.0
+            ep, er = math.sqrt(e_p @ e_p), math.sqrt(e_r @ e_r) if e_r.size else 0.0  # np.linalg.norm's
             if ep < tol_mm and er < tol_rad:
                 return IKResult(self._near(q, q_start), True, ep, er, it - 1)
-            J = self.jacobian(q)
+            J = self._jacobian_iterate(q)
             A = J[:3] if Rt is None else np.vstack([J[:3], L * J[3:]])
             e = e_p if Rt is None else np.concatenate([e_p, L * e_r])
             cost = float(e @ e)
@@ -943,16 +966,32 @@ class Chain:
         """A Levenberg-Marquardt step of :meth:`inverse`: the damping ``lam`` raised tenfold until
         the step lowers the weighted cost (or ``lam`` passes 1e6); the new joints, their position
         and rotation errors, weighted cost, and the damping."""
+        H = A @ A.T
+        scale, eye = np.trace(H) / H.shape[0] + 1e-30, np.eye(H.shape[0])
         while True:
-            H = A @ A.T
-            step = A.T @ np.linalg.solve(H + lam * (np.trace(H) / H.shape[0] + 1e-30) * np.eye(H.shape[0]), e)
+            step = A.T @ np.linalg.solve(H + lam * scale * eye, e)
             qn = q + step
-            pn, Rn = self.forward(qn)
+            pn, Rn = self._forward_iterate(qn)
             n_p, n_r = error(pn, Rn)
             en = n_p if position_only else np.concatenate([n_p, L * n_r])
             if float(en @ en) < cost or lam > 1e6:
                 return qn, n_p, n_r, float(en @ en), lam
             lam *= 10.0
+
+    def _forward_iterate(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`forward` of an iterate of :meth:`inverse` (a float array of shape (n,)): the same
+        numbers, without :meth:`check_q`'s conversions (unless q is not finite: its error)."""
+        if not np.isfinite(q).all():
+            self.check_q(q)
+        pin.framesForwardKinematics(self._model, self._data, self._G @ q + self._b)
+        M = self._data.oMf[self._fid]
+        return np.array(M.translation), np.array(M.rotation)
+
+    def _jacobian_iterate(self, q: np.ndarray) -> np.ndarray:
+        """:meth:`jacobian` of an iterate of :meth:`inverse` (as :meth:`_forward_iterate`)."""
+        qf = self._G @ q + self._b
+        J = pin.computeFrameJacobian(self._model, self._data, qf, self._fid, pin.LOCAL_WORLD_ALIGNED)
+        return np.array(J).reshape(6, -1) @ self._G
 
     def _near(self, q: np.ndarray, seed: np.ndarray) -> np.ndarray:
         """``q`` with each revolute joint turned by whole turns to lie within half a turn of ``seed``."""

@@ -37,7 +37,7 @@ __all__ = [
     "held_as_given",
     "lower_mobility",
     "nearest_held",
-    "nearest_note",
+    "nearest_pose_note",
     "pose_text",
     "CLOSURE_TOL_MM",
     "HELD_TOL_MM",
@@ -250,29 +250,6 @@ def nearest_held(model, pose, mobility: Mobility) -> np.ndarray | None:
     return near
 
 
-#: How many of the poses a model could not evaluate :func:`nearest_note` tries (10 ms each).
-NOTE_TRIES = 10
-
-
-def nearest_note(model, poses, valid) -> str:
-    """``"; 3rps moves in ...: x, y, yaw follow: the nearest pose it holds to point 2 is ..."``: for a
-    platform of lower mobility, the first of ``poses`` the model could not evaluate (``valid``
-    False; of the first :data:`NOTE_TRIES`) whose nearest held pose (:func:`nearest_held`) it can;
-    "" for a full-mobility robot or when there is none (``stiffmap model legs --points``)."""
-    mob = lower_mobility(model)
-    if mob is None:
-        return ""
-    P, _ = as_points(poses, POSE_DIM)
-    for i in np.flatnonzero(~np.asarray(valid, dtype=bool))[:NOTE_TRIES]:
-        near = nearest_held(model, P[i], mob)
-        if near is not None:
-            return (
-                f"; {mob.describe(model.name)}: the nearest pose it holds to point {i + 1} is "
-                f"{pose_text(near)}"
-            )
-    return ""
-
-
 def pose_text(p) -> str:
     """``"(x, y, z) mm, roll/pitch/yaw (r, p, y) deg"`` of a pose (mm, rad) to 1e-6 mm and deg:
     a held pose copied into a POSES.csv closes its legs (to 4 significant digits, the 3-RPS
@@ -281,6 +258,17 @@ def pose_text(p) -> str:
     xyz = ", ".join(f"{v:.12g}" for v in np.round(p[:3], 6) + 0.0)
     deg = ", ".join(f"{v:.12g}" for v in np.round(np.degrees(p[3:]), 6) + 0.0)
     return f"({xyz}) mm, roll/pitch/yaw ({deg}) deg"
+
+
+def nearest_pose_note(model, pose) -> str:
+    """For a platform of lower mobility (a 3-RPS) and a pose it cannot hold: ``"3rps moves in ...:
+    the nearest pose it holds is ..."``, the pose its legs reach with the same free coordinates,
+    when that pose is valid; "" otherwise (a full-mobility robot, or no valid pose near)."""
+    mob = lower_mobility(model)
+    near = None if mob is None else nearest_held(model, np.asarray(pose, dtype=np.float64), mob)
+    if near is None:
+        return ""
+    return f"{mob.describe(model.name)}: the nearest pose it holds is {pose_text(near)}"
 
 
 def held_as_given(model, poses) -> np.ndarray:

@@ -36,7 +36,7 @@ from ..geometry import euler_from_matrix, matrix_from_rotvec, transform_from
 from ..models import arm6
 from ..models.base import PoseError
 from ..models.delta import DeltaRobot
-from ..models.mobility import lower_mobility, nearest_held, pose_text
+from ..models.mobility import nearest_pose_note
 
 __all__ = [
     "VirtualRobot",
@@ -485,7 +485,8 @@ class PlatformField:
             where = f"{poses[i, :3].tolist()} mm"
             if np.any(poses[i, 3:]):
                 where += f", roll/pitch/yaw {np.round(np.degrees(poses[i, 3:]), 9).tolist()} deg"
-            reason = m.reasons[i] + self._nearest(poses[i])
+            note = nearest_pose_note(self.model, poses[i])
+            reason = m.reasons[i] + (f"; {note}" if note else "")
             raise PoseError(
                 f"the robot cannot hold its platform at {where}: {reason}",
                 pose=poses[i],
@@ -493,15 +494,6 @@ class PlatformField:
                 reason=reason,
             )
         return m.K6
-
-    def _nearest(self, pose: np.ndarray) -> str:
-        """A platform of lower mobility (a 3-RPS): ``"; 3rps moves in ...: the nearest pose it holds
-        is ..."`` when the pose its legs reach with the same free coordinates is valid ("" else)."""
-        mob = lower_mobility(self.model)
-        near = None if mob is None else nearest_held(self.model, pose, mob)
-        if near is None:
-            return ""
-        return f"; {mob.describe(self.model.name)}: the nearest pose it holds is {pose_text(near)}"
 
 
 #: The name of a legs TOML in a simulated campaign's folder.
