@@ -174,3 +174,26 @@ def test_identify_does_not_flag_a_symmetric_k_by_the_chi_square_law(tmp_path):
     assert not any(f.startswith("asymmetric") for f in out["flags"])
     np.testing.assert_allclose(out["K"], fit.K, rtol=1e-9)
     assert out["asymmetry_p"] == pytest.approx(fit.asymmetry_p, rel=1e-9) and out["asymmetry_p"] >= 0.01
+
+
+@pytest.mark.parametrize("asym", [0.0, 0.3])
+def test_identify_with_too_few_independent_residuals_does_not_claim_a_test(tmp_path, asym):
+    # Four load cases of a 3x3 K (1 residual dof): K - K^T's covariance is of rank 2 of 3, no
+    # p-value exists. The command printed "test p = 1" for a symmetric K and, for an asymmetric
+    # one, "beyond its uncertainty (p = 0)": a sentinel read as a test. Now --json gives null
+    # and the fixed 10 % threshold (ASYMMETRY_FLAG) decides, its message saying so.
+    rng = np.random.default_rng(3)
+    K = random_spd(rng, 3, 1.0, 10.0)
+    K[0, 1] += asym * np.linalg.norm(K)
+    F = F9[:, :4]
+    D = np.linalg.solve(K, F) + rng.normal(scale=1e-3, size=F.shape)
+    forces = _write(tmp_path / "forces.csv", ["fx", "fy", "fz"], F.T)
+    disp = _write(tmp_path / "displacements.csv", ["dx", "dy", "dz"], D.T)
+    proc = run_here("identify", forces, disp, "--json")
+    out = json.loads(proc.stdout)
+    assert out["dof"] == 1 and out["asymmetry_p"] is None
+    flags = [f for f in out["flags"] if f.startswith("asymmetric")]
+    assert flags == ([f"asymmetric: |K-K^T|/|K| = {out['asymmetry']:.3g} > 0.1"] if asym else [])
+    assert proc.returncode == (1 if asym else 0), proc.stderr
+    table = run_here("identify", forces, disp)
+    assert "(test p = n/a)" in table.stdout

@@ -183,15 +183,15 @@ def test_a_campaign_of_symmetric_positions_raises_no_asymmetry_failure(rng):
 @pytest.mark.parametrize("offset", [False, True])
 def test_noise_free_data_with_a_common_error_is_not_an_overflow(offset):
     # Exact displacements of an asymmetric K (8.5 %) with a common scale error given: K - K^T's
-    # covariance is the common share's, of rank 1 (singular). The test then falls back to the
-    # fixed 10 % threshold (p = 1 here), as for any singular covariance; the effective-dof
+    # covariance is the common share's, of rank 1 (singular). The test is then not made (p NaN)
+    # and the fixed 10 % threshold decides, as for any singular covariance; the effective-dof
     # computation once divided by the zero noise and identify_stiffness reported "no finite
     # stiffness ... beyond floating-point range".
     K = np.array([[6.0, 1.0, 0.0], [0.3, 4.0, 0.5], [0.0, 0.5, 9.0]])
     F = np.hstack([2 * np.eye(3), 4 * np.eye(3), -2 * np.eye(3)])
     D = np.linalg.solve(K, F)
     fit = identify_stiffness(F, D, offset=offset, common_jacobian=D.T[:, :, None], common_cov=[[1e-6]])
-    assert fit.asymmetry_p == 1.0 and not any(f.startswith("asymmetric") for f in fit.flags)
+    assert np.isnan(fit.asymmetry_p) and not any(f.startswith("asymmetric") for f in fit.flags)
     np.testing.assert_allclose(fit.K, K, atol=1e-9)  # N/mm
 
 
@@ -216,3 +216,20 @@ def test_6x6_test_does_not_depend_on_the_units(t, rng):
     assert 1e-3 < a.asymmetry_p < 0.9  # tested (not the singular covariance's 0 or 1)
     assert b.asymmetry_p == pytest.approx(a.asymmetry_p, rel=1e-6)
     assert asymmetry_dof(b.K, b.K_cov, b.dof) == pytest.approx(asymmetry_dof(a.K, a.K_cov, a.dof), rel=1e-6)
+
+
+def test_a_copied_design_is_not_tested(rng):
+    # Four load cases written twice (5 residual dof, but the residuals come in equal pairs):
+    # Sigma_hat is of rank 1 and K - K^T's covariance singular. The p-value is NaN (not a
+    # sentinel 0 that Holm's test would count as a rejection) and the 10 % threshold decides.
+    K = random_spd(rng, 3, 1.0, 10.0)
+    K[1, 2] += 0.2 * np.linalg.norm(K)
+    F = np.tile(F9[:, :4], 2)
+    D = np.linalg.solve(K, F) + np.tile(rng.normal(scale=1e-3, size=(3, 4)), 2)
+    fit = identify_stiffness(F, D)
+    assert fit.dof == 5 and np.isnan(fit.asymmetry_p)
+    assert [f for f in fit.flags if f.startswith("asymmetric")] == [
+        f"asymmetric: |K-K^T|/|K| = {fit.indices.asymmetry:.3g} > 0.1"
+    ]
+    rows = [SimpleNamespace(position=1, K=fit.K, K_cov=fit.K_cov, dof=fit.dof, K_cov_calibration=None)]
+    assert _asymmetry_flags(rows)[1][1] is False  # a review flag, not a tested failure

@@ -117,7 +117,24 @@ def test_held_as_given_names_the_first_pose_a_3rps_cannot_hold_and_where_it_is()
     assert msg.startswith(
         "3rps moves in z, roll, pitch: x, y, yaw follow: it cannot hold pose 3 (0, 0, 240) mm"
     )
-    assert f"it holds (0, {round(near[1], 4):.4g}, 240) mm, roll/pitch/yaw (5, 0, 0) deg there" in msg
+    assert f"it holds (0, {round(near[1], 6):.12g}, 240) mm, roll/pitch/yaw (5, 0, 0) deg there" in msg
+
+
+def test_held_as_given_names_no_pose_the_model_cannot_evaluate(monkeypatch, capsys):
+    # Rolled 179 deg the 3-RPS's legs close at y = -100 mm (the platform's radius: its ball joint
+    # under the base's revolute), but leg 1 would be 361 mm long, beyond its 360 mm stroke. The
+    # grid refusal once said "it holds (0, -99.99, 250) mm ... there"; now the pose passes to the
+    # evaluation, which names the leg and its stroke.
+    robot = LegRobot.from_toml(ROBOTS / "3rps.toml")
+    asked = np.array([[0.0, 0.0, 250.0, np.radians(179.0), 0.0, 0.0]])
+    near, gap = reachable_poses(robot, asked[0])
+    assert gap < 1e-9 and near[1] == pytest.approx(-99.99, abs=0.01)
+    assert not robot.evaluate(near).valid[0]
+    np.testing.assert_array_equal(held_as_given(robot, asked), asked)
+    args = ["model", "legs", str(ROBOTS / "3rps.toml"), "--grid", "0,0,250", "--orientation", "179,0,0"]
+    code, out, err = run_in_process([*args, "--json"], monkeypatch, capsys)
+    assert code == 2 and "holds" not in err, err
+    assert "joint stroke at 361" in json.loads(out)[0]["error"]
 
 
 def test_model_legs_grid_of_a_3rps_held_as_given_or_refused_in_one_line(monkeypatch, capsys):
@@ -138,6 +155,30 @@ def test_model_legs_grid_of_a_3rps_held_as_given_or_refused_in_one_line(monkeypa
     )
 
 
+def _numbers(text: str) -> list[float]:
+    return [float(v) for v in text.split(", ")]
+
+
+def test_the_pose_a_refusal_names_can_be_copied(monkeypatch, capsys, tmp_path):
+    # The pose a --grid refusal names, written into a POSES.csv as printed, is evaluated (its
+    # legs close): to 4 significant digits (0.2283, -0.1212, yaw -0.131 deg) they missed and the
+    # model could not evaluate it.
+    robot = str(ROBOTS / "3rps.toml")
+    args = ["model", "legs", robot, "--grid", "0,0,240", "--orientation", "5,-3,0"]
+    code, _, err = run_in_process(args, monkeypatch, capsys)
+    held = err.split("(it holds (")[1]
+    xyz, rpy = held.split(") mm, roll/pitch/yaw (")[0], held.split("roll/pitch/yaw (")[1].split(") deg")[0]
+    csv = tmp_path / "poses.csv"
+    csv.write_text(
+        "x,y,z,roll_deg,pitch_deg,yaw_deg\n" + ",".join(map(repr, _numbers(xyz) + _numbers(rpy))) + "\n"
+    )
+    code, out, err = run_in_process(
+        ["model", "legs", robot, "--points", str(csv), "--json"], monkeypatch, capsys
+    )
+    assert code == 0, err
+    assert json.loads(out)[0]["yaw_deg"] == pytest.approx(-0.131013, abs=1e-6)
+
+
 def test_model_legs_points_a_3rps_cannot_hold_name_the_nearest_pose_it_holds(tmp_path, monkeypatch, capsys):
     # A point off the axis with the platform level: unreachable (the legs named in the table), and
     # one note giving the pose the legs reach with the same z, roll, pitch (the independent solver).
@@ -148,8 +189,8 @@ def test_model_legs_points_a_3rps_cannot_hold_name_the_nearest_pose_it_holds(tmp
     args = ["model", "legs", str(ROBOTS / "3rps.toml"), "--points", str(csv)]
     code, _, err = run_in_process(args, monkeypatch, capsys)
     assert code == 1, err
-    xyz = ", ".join(f"{v:.4g}" for v in np.round(near[:3], 4) + 0.0)
-    deg = ", ".join(f"{v:.4g}" for v in np.round(np.degrees(near[3:]), 4) + 0.0)
+    xyz = ", ".join(f"{v:.12g}" for v in np.round(near[:3], 6) + 0.0)  # to 1e-6 mm and deg
+    deg = ", ".join(f"{v:.12g}" for v in np.round(np.degrees(near[3:]), 6) + 0.0)
     assert (
         f"note: pose 2: 3rps moves in z, roll, pitch: x, y, yaw follow: the nearest pose it holds is "
         f"({xyz}) mm, roll/pitch/yaw ({deg}) deg\n" in err

@@ -171,9 +171,10 @@ def asymmetry_p_value(K, K_cov, dof: float | None = None, K_cov_common=None) -> 
     effective degrees of freedom of :func:`asymmetry_dof` when that covariance was
     estimated from ``dof`` residual degrees of freedom (the chi-square law of q, too eager
     then, when ``dof`` is None: a given, known covariance). ``K_cov_common``: the known share
-    of ``K_cov`` (``StiffnessFit.K_cov_common``). 1 when K is symmetric; 0 or 1 when the
-    covariance is singular (the asymmetry above ``ASYMMETRY_FLAG`` or not); NaN when
-    ``K_cov`` has non-finite entries or the effective dof is below q (not tested)."""
+    of ``K_cov`` (``StiffnessFit.K_cov_common``). 1 when K is symmetric; NaN (not tested:
+    :func:`physical_flags` then applies ``ASYMMETRY_FLAG``) when ``K_cov`` has non-finite
+    entries, when K - K^T's covariance is singular (too few independent residuals: 4 load
+    cases of a 3x3 K, or the same load cases copied) or the effective dof is below q."""
     K = np.asarray(K, dtype=np.float64)
     K_cov = np.asarray(K_cov, dtype=np.float64)
     if not np.all(np.isfinite(K_cov)):
@@ -185,8 +186,8 @@ def asymmetry_p_value(K, K_cov, dof: float | None = None, K_cov_common=None) -> 
     try:
         t2 = float(a @ np.linalg.solve(A @ K_cov @ A.T, a))
         nu = np.inf if dof is None else asymmetry_dof(K, K_cov, dof, K_cov_common)
-    except np.linalg.LinAlgError:
-        return 0.0 if stiffness_indices(K).asymmetry > ASYMMETRY_FLAG else 1.0
+    except np.linalg.LinAlgError:  # no p-value: a sentinel 0 or 1 would read as a test's
+        return float("nan")
     return hotelling_t2_sf(t2, a.size, nu)
 
 
@@ -203,8 +204,8 @@ def physical_flags(
     - ``asymmetric``: K differs from K^T more than its uncertainty allows (the test of
       :func:`asymmetry_p_value` at 1 % when ``K_cov`` is given: Hotelling's law when it was
       estimated from ``dof`` residual degrees of freedom, chi-square when ``dof`` is None),
-      or by more than ``asymmetry_threshold`` relative otherwise (or when the covariance's
-      effective degrees of freedom are too few to test);
+      or by more than ``asymmetry_threshold`` relative otherwise (or when the test cannot be
+      made: K - K^T's covariance singular, its effective degrees of freedom too few);
     - ``not positive definite``: the symmetric part has an eigenvalue <= 0
       (the robot would give way under some load);
     - ``det <= 0``: the reference paper published such matrices without comment.

@@ -8,8 +8,9 @@ over a campaign:
   :func:`stiffmap.identify.asymmetry_dof`, the calibration's share known) runs on every position
   and Holm's step-down procedure keeps the family-wise level at ``FAMILY_ALPHA`` (1 %) over
   the positions tested (:func:`stiffmap.stats.holm_rejects`): at 1 % per position, 48
-  positions of a symmetric K would flag one or two by chance. A K without a covariance, or
-  identified with fewer residual degrees of freedom than its rows, is flagged by the fixed
+  positions of a symmetric K would flag one or two by chance. A K without a covariance,
+  identified with fewer residual degrees of freedom than its rows, or whose K - K^T
+  covariance is singular (:func:`stiffmap.identify.asymmetry_p_value` NaN), is flagged by the fixed
   threshold (``ASYMMETRY_FLAG``, 10 %) of one K: a review flag, its uncertainty unknown;
 - with the loads hung off the measured point (``loads.point_mm`` not zero) the asymmetry is
   not tested: the K they see is (C_tt + C_tr [r]x)^-1, not symmetric by construction

@@ -177,7 +177,9 @@ _OPT_POSITIONS = typer.Option(
     "arm6: arm20 (default: 20 positions in front of the arm), a CSV file or a list. hexapod: 18 "
     "level positions (default), a list, or a CSV file with x, y, z and optionally roll_deg, pitch_deg, "
     "yaw_deg (degrees): the platform turned; the same for a dim = 6 legs TOML of your own, whose "
-    "default is a 3 x 3 x 2 grid about its home position, spacing 0.12 of its size.",
+    "default is a 3 x 3 x 2 grid about its home position, spacing 0.12 of its size (a platform of "
+    "lower mobility, a 3-RPS: in the coordinates it controls, roll and pitch -8, 0, 8 deg and z "
+    "half a step either side, x, y and yaw solved).",
     show_default=False,
 )
 _OPT_SELECT = typer.Option(

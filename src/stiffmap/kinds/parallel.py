@@ -19,7 +19,7 @@ from ..errors import FieldError
 from ..models.base import check_stiffness
 from ..models.delta import DeltaRobot
 from ..models.legs import LegRobot
-from ..models.mobility import COORDINATES, Mobility, platform_mobility, reachable_poses
+from ..models.mobility import COORDINATES, Mobility, lower_mobility, reachable_poses
 from ..models.presets import paper48, prr3_points22
 from ..models.prr3 import PRR3
 from ..sim.robot import mechanism_robot, platform_robot
@@ -285,8 +285,8 @@ def _own_legs_setup(model) -> OwnSetup:
     where = f"a 3 x 3 x 2 grid {s:g} mm apart about the home position {_mm(home)} mm" + (
         ", the platform level" if turns else ""
     )
-    mobility = _mobility(model) if turns else None
-    if mobility is not None and mobility.follow:
+    mobility = lower_mobility(model) if turns else None
+    if mobility is not None:
         grid, where = legs_default_poses(model, mobility)
     m = model.evaluate(np.c_[grid, np.zeros((len(grid), 3))] if turns and grid.shape[1] == 3 else grid)
     out = np.flatnonzero(~m.valid)
@@ -308,14 +308,6 @@ def _own_legs_setup(model) -> OwnSetup:
         load_point_mm=load_point,
         notes=notes,
     )
-
-
-def _mobility(model) -> Mobility | None:
-    """The platform's mobility at home (None when the legs do not reach their home: the grid says why)."""
-    try:
-        return platform_mobility(model)
-    except ValueError:
-        return None
 
 
 def _pose(p) -> str:

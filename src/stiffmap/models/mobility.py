@@ -35,14 +35,20 @@ __all__ = [
     "platform_mobility",
     "reachable_poses",
     "held_as_given",
+    "lower_mobility",
+    "nearest_held",
     "nearest_pose_note",
+    "pose_text",
     "CLOSURE_TOL_MM",
+    "HELD_TOL_MM",
 ]
 
 #: The pose coordinates, in order.
 COORDINATES = ("x", "y", "z", "roll", "pitch", "yaw")
 #: A pose is closed when every leg's platform joint is this close to where its chain reaches (mm).
 CLOSURE_TOL_MM = 1e-10
+#: A solved pose is one the platform holds when its legs close this well (mm).
+HELD_TOL_MM = 1e-6
 #: Most Gauss-Newton steps per pose.
 MAX_STEPS = 30
 
@@ -224,9 +230,33 @@ def _solve_one(model, pose: np.ndarray, follow: list[int]) -> tuple[np.ndarray, 
     return p, float(np.max(np.linalg.norm(r.reshape(-1, 3), axis=1)))
 
 
-def _pose_text(p: np.ndarray) -> str:
-    xyz = ", ".join(f"{v:.4g}" for v in np.round(p[:3], 4) + 0.0)
-    deg = ", ".join(f"{v:.4g}" for v in np.round(np.degrees(p[3:]), 4) + 0.0)
+def lower_mobility(model) -> Mobility | None:
+    """The platform's mobility at home when it is below six (a 3-RPS); None for a platform that
+    moves in all six coordinates, or whose legs do not reach their home (the model says why)."""
+    try:
+        mob = platform_mobility(model)
+    except ValueError:
+        return None
+    return mob if mob.follow else None
+
+
+def nearest_held(model, pose, mobility: Mobility) -> np.ndarray | None:
+    """The pose the platform holds with ``pose``'s free coordinates (:func:`reachable_poses`), when
+    its legs close there and the model can evaluate it (within its strokes and joint limits); None
+    otherwise (a 3-RPS rolled 179 deg closes its legs at y = -100 mm, beyond a leg's stroke)."""
+    near, gap = reachable_poses(model, pose, mobility)
+    if not gap < HELD_TOL_MM or not model.evaluate(near).valid[0]:
+        return None
+    return near
+
+
+def pose_text(p) -> str:
+    """``"(x, y, z) mm, roll/pitch/yaw (r, p, y) deg"`` of a pose (mm, rad) to 1e-6 mm and deg:
+    a held pose copied into a POSES.csv closes its legs (to 4 significant digits, the 3-RPS
+    rolled 30 deg at y = -6.699 mm missed by 2.3e-4 mm and could not be evaluated)."""
+    p = np.asarray(p, dtype=float)
+    xyz = ", ".join(f"{v:.12g}" for v in np.round(p[:3], 6) + 0.0)
+    deg = ", ".join(f"{v:.12g}" for v in np.round(np.degrees(p[3:]), 6) + 0.0)
     return f"({xyz}) mm, roll/pitch/yaw ({deg}) deg"
 
 
@@ -234,25 +264,21 @@ def nearest_pose_note(model, pose) -> str:
     """For a platform of lower mobility (a 3-RPS) and a pose it cannot hold: ``"3rps moves in ...:
     the nearest pose it holds is ..."``, the pose its legs reach with the same free coordinates,
     when that pose is valid; "" otherwise (a full-mobility robot, or no valid pose near)."""
-    try:
-        mob = platform_mobility(model)
-    except ValueError:
+    mob = lower_mobility(model)
+    near = None if mob is None else nearest_held(model, np.asarray(pose, dtype=np.float64), mob)
+    if near is None:
         return ""
-    if not mob.follow:
-        return ""
-    near, gap = reachable_poses(model, np.asarray(pose, dtype=np.float64), mob)
-    if gap > 1e-6 or not model.evaluate(near).valid[0]:
-        return ""
-    return f"{mob.describe(model.name)}: the nearest pose it holds is {_pose_text(near)}"
+    return f"{mob.describe(model.name)}: the nearest pose it holds is {pose_text(near)}"
 
 
 def held_as_given(model, poses) -> np.ndarray:
     """``poses`` when a platform of lower mobility holds each as given (its following coordinates at
     the values its legs reach), else a ValueError naming the first it cannot and the pose it holds.
 
-    A full-mobility robot's poses pass unchanged; so do poses its legs cannot close at all (the
-    model names the leg). ``stiffmap model legs --grid`` takes this: a 3-RPS's grid must keep x,
-    y and yaw where its z, roll and pitch put them (0 with the platform level).
+    A full-mobility robot's poses pass unchanged; so do poses its legs cannot close at all, or
+    close only where the model cannot evaluate it (:func:`nearest_held`: the model names the
+    leg). ``stiffmap model legs --grid`` takes this: a 3-RPS's grid must keep x, y and yaw where
+    its z, roll and pitch put them (0 with the platform level).
 
     Raises
     ------
@@ -261,19 +287,16 @@ def held_as_given(model, poses) -> np.ndarray:
         (it holds ... there); give ..."``.
     """
     P, _ = as_points(poses, POSE_DIM)
-    try:
-        mob = platform_mobility(model)
-    except ValueError:
-        return P
-    if not mob.follow:
+    mob = lower_mobility(model)
+    if mob is None:
         return P
     scale = np.array([1.0, 1.0, 1.0, *(3 * [model.length_mm])])
     for i in range(len(P)):
-        near, gap = reachable_poses(model, P[i], mob)
-        if gap < 1e-6 and np.max(np.abs(near - P[i]) * scale) > 1e-6:
+        near = nearest_held(model, P[i], mob)
+        if near is not None and np.max(np.abs(near - P[i]) * scale) > HELD_TOL_MM:
             raise ValueError(
-                f"{mob.describe(model.name)}: it cannot hold pose {i + 1} {_pose_text(P[i])} as given (it "
-                f"holds {_pose_text(near)} there); give the poses it reaches, --points POSES.csv with x, y, "
+                f"{mob.describe(model.name)}: it cannot hold pose {i + 1} {pose_text(P[i])} as given (it "
+                f"holds {pose_text(near)} there); give the poses it reaches, --points POSES.csv with x, y, "
                 "z, roll_deg, pitch_deg, yaw_deg (models.mobility.reachable_poses solves them)"
             )
     return P
