@@ -92,11 +92,13 @@ def compensate_case(
     note: str = "",
     out: str = OUT,
     expect: str | None = None,
+    must_refuse: bool = False,
 ) -> FuzzCase:
     """``stiffmap compensate ROBOT --path {dir}/PATH --out {dir}/OUT --json -q --no-figures OPTIONS``
     (ROBOT: the words before --path: ``3prr``, ``urdf arm6``, ``--from-campaign {dir}/c``),
     its outcome re-checked by :func:`check_compensation`; ``expect``: what an error or warning must
-    say when the run gives results (``FuzzCase.expect``)."""
+    say when the run gives results (``FuzzCase.expect``); ``must_refuse``: a value no run may take
+    (``FuzzCase.must_refuse``: a run that takes it is ``late``)."""
     argv = (
         "compensate",
         *robot.split(),
@@ -110,13 +112,14 @@ def compensate_case(
     if "--figures" not in options:
         argv += ("--no-figures",)
     argv += tuple(o for o in options if o != "--figures")
-    case = FuzzCase(files=files, argv=argv, blamed=blamed, note=note, expect=expect)
+    case = FuzzCase(files=files, argv=argv, blamed=blamed, note=note, expect=expect, must_refuse=must_refuse)
     return FuzzCase(
         files=files,
         argv=argv,
         blamed=blamed,
         note=note,
         expect=expect,
+        must_refuse=must_refuse,
         check=functools.partial(check_compensation, case),
     )
 
@@ -948,11 +951,49 @@ ARM_VALUES = {
 }
 
 
+#: The arm's links a user may give as --tip (base_link is not one: no joint before it).
+ARM_LINKS = ("link_1", "link_2", "link_3", "link_4", "link_5", "link_6", "tool0")
+#: arm6's own seed (deg, joint_1..joint_6): the first n of it are a chain of n joints' seed.
+ARM_SEED = (0.0, 40.0, -10.0, 0.0, 60.0, 0.0)
+#: Placements beyond the arm's reach (1264 mm from joint_1: Chain.reach_mm) and within it.
+ARM_FAR_PLACES = ("1300,0,380", "0,0,1500", "-900,-900,380", "1e6,0,0")
+ARM_NEAR_PLACES = ("480,-30,380", "300,0,600")
+
+
+@st.composite
+def arm_tip_cases(draw) -> FuzzCase:
+    """``compensate urdf arm6 --tip LINK`` (any link from link_1 to tool0) with or without
+    --q-seed-deg (the chain's joints, or arm6's six), --tool-rpy-deg and --tip-offset-mm, placed
+    within or beyond the arm's reach: compensated (re-checked by the independent solver on the
+    chain to that link) or refused in one line naming the option or the program's line."""
+    tip = draw(st.sampled_from(ARM_LINKS))
+    n = ARM_LINKS.index(tip) + 1 if tip != "tool0" else 6
+    place = draw(st.sampled_from(ARM_NEAR_PLACES + ARM_FAR_PLACES))
+    opts: dict[str, str] = {"--place": place, "--force-n": ARM_FORCE, "--tip": tip}
+    if draw(st.booleans()):
+        opts["--q-seed-deg"] = ",".join(f"{v:g}" for v in (ARM_SEED[:n] if draw(st.booleans()) else ARM_SEED))
+    if draw(st.booleans()):
+        opts["--tool-rpy-deg"] = draw(st.sampled_from(ARM_VALUES["--tool-rpy-deg"][0][:4]))
+    if draw(st.booleans()):
+        opts["--tip-offset-mm"] = draw(st.sampled_from(("0,0,100", "0,0,0", "20,-10,120")))
+    args = [a for kv in opts.items() for a in kv]
+    return compensate_case(
+        {"p.nc": (DATA / "own_cam_mm.nc").read_bytes()},
+        ARM,
+        "p.nc",
+        *args,
+        note="arm6: " + " ".join(args[4:]),
+    )
+
+
 @st.composite
 def arm_cases(draw) -> FuzzCase:
     """``compensate urdf arm6`` of the seed program (own_cam_mm.nc) with one to three of the arm's
     options set: values a user may give, or wrong ones. When exactly one is wrong, the message must
-    name that option; the outputs of the others are re-checked by the arm's independent solver."""
+    name that option; the outputs of the others are re-checked by the arm's independent solver.
+    One case in three: :func:`arm_tip_cases`."""
+    if draw(st.integers(0, 2)) == 0:
+        return draw(arm_tip_cases())
     opts: dict[str, str | None] = {"--place": ARM_PLACE, "--force-n": ARM_FORCE}
     wrong, notes = [], []
     for name in draw(st.lists(st.sampled_from(sorted(ARM_VALUES)), min_size=1, max_size=3, unique=True)):
@@ -972,6 +1013,7 @@ def arm_cases(draw) -> FuzzCase:
         *args,
         blamed=wrong[0] if len(wrong) == 1 else None,
         note="arm6: " + ", ".join(notes),
+        must_refuse=bool(wrong),  # a wrong value is refused before anything is done, whatever the rest
     )
 
 
