@@ -180,14 +180,15 @@ class _Unchecked(Exception):
     """The run cannot be re-checked (a force file this check cannot read): not a finding."""
 
 
-def _solver(argv):
+def _solver(argv, lead_in=None):
     """The robot of a command line for :func:`_deflection`: "3prr" or "delta" (their paper and
-    default parameters), or a solver of the arm (:func:`_arm_solver`) or of a campaign's fitted
-    3PRR (its parameters read here from campaign.toml and stiffmap.db: :func:`_campaign_params`)."""
+    default parameters), or a solver of the arm (:func:`_arm_solver`, ``lead_in`` its programmed
+    points before the first cut) or of a campaign's fitted 3PRR (its parameters read here from
+    campaign.toml and stiffmap.db: :func:`_campaign_params`)."""
     if argv[1] == "--from-campaign":
         return functools.partial(_truss, _campaign_params(Path(argv[2])))
     if argv[1] == "urdf":
-        return _arm_solver(argv)
+        return _arm_solver(argv, lead_in)
     return argv[1]
 
 
@@ -228,11 +229,14 @@ def _campaign_params(root: Path) -> dict:
     return params
 
 
-def _arm_solver(argv):
+def _arm_solver(argv, lead_in=None):
     """The arm of ``compensate urdf arm6 OPTIONS`` (built as the command builds it), deflected by
     :func:`helpers.machining_checks.arm_deflection` (its own inverse kinematics in order from the
     seed, central-difference Jacobians) holding the tool orientation of --tool-rpy-deg (else the
-    arm's). A run that chose the tool's spin is not re-checked (the spins between the knots)."""
+    arm's). ``lead_in``: the program's points (base frame, mm) before its first cut, the arm walked
+    through them from the seed first (the cut then starts on the branch the program reaches it on,
+    not the one the seed gives there: it may put a joint beyond its limits). A run that chose the
+    tool's spin is not re-checked (the spins between the knots)."""
     if "--free-tool-spin" in argv:
         raise _Unchecked("the tool spin chosen along the path")
     params = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--param"]
@@ -247,6 +251,12 @@ def _arm_solver(argv):
     else:
         R = robot.tool_rotation if robot.tool_rotation is not None else robot.chain.forward(q0)[1]
 
+    if lead_in is not None and len(lead_in):
+        try:
+            q0 = arm_deflection(robot.chain, robot.k_theta, R, lead_in, np.zeros_like(lead_in), q0)[1]
+        except AssertionError as e:  # a rapid's point the check's inverse kinematics does not reach
+            raise _Unchecked(str(e)) from None
+
     def solve(X, F):
         return arm_deflection(robot.chain, robot.k_theta, R, X, F, q0)[0]
 
@@ -255,7 +265,7 @@ def _arm_solver(argv):
 
 def _off_path(argv, out: Path, o: Outcome) -> str:
     """The independent re-check of a written program (module docstring)."""
-    robot, src = _solver(argv), Path(_option(argv, "--path"))
+    src = Path(_option(argv, "--path"))
     summary = json.loads(o.stdout)
     if summary["deflection_before_um"]["worst"] > MAX_CHECKED_DEFLECTION_MM * 1e3:
         raise _Unchecked("a deflection beyond the small deflections the oracle's landing follows")
@@ -271,6 +281,7 @@ def _off_path(argv, out: Path, o: Outcome) -> str:
         done = toolpath_from_moves(read_program(out)[0].moves)
         forces = _per_move_file(argv, prog)
     force = forces or _force_of_options(argv)
+    robot = _solver(argv, _lead_in(prog) + place)
     L = float(np.sum(prog.length()[prog.feed])) if np.any(prog.feed) else 0.0
     if not np.any(prog.feed) or L == 0:
         return ""
@@ -291,6 +302,19 @@ def _off_path(argv, out: Path, o: Outcome) -> str:
     if np.max(gap) > tol_mm + 0.01:  # 10 um: the chords between the samples of an arc
         return f"the output misses part of the programmed path ({np.max(gap):.3f} mm from it)"
     return ""
+
+
+def _lead_in(prog) -> np.ndarray:
+    """The programmed points (program frame, mm) before the first feed move, in order: each move's
+    start and end where the program knows them (not after G28), the first cut's start last."""
+    first = int(np.argmax(prog.feed)) if np.any(prog.feed) else len(prog)
+    pts = []
+    for i in range(min(first + 1, len(prog))):
+        if np.all(prog.known_start[i]):
+            pts.append(prog.start[i])
+        if i < first and np.all(prog.known[i]):
+            pts.append(prog.end[i])
+    return np.array(pts, dtype=float).reshape(-1, 3)
 
 
 def _to_polyline(Q: np.ndarray, D: np.ndarray, dm: np.ndarray) -> np.ndarray:

@@ -1238,8 +1238,15 @@ RPS3_POSITIONS = ("0,0,250", "0,0,250;0,0,240", "10,0,250", "0,0,nan", "0,0,1e30
 @st.composite
 def simulate_rps3_case(draw, argv: tuple[str, ...]) -> RobotCase:
     """The shipped 3-RPS (lower mobility) with odd --positions: a list, or a poses CSV mutated
-    (huge angles, NaN, poses off the ones it holds); --param within or out of its range."""
+    (huge angles, NaN, poses off the ones it holds); --param within or out of its range. One case
+    in four: its TOML mutated (:func:`legs_data`) at its default positions (the truth then only
+    finite: the closed form is the shipped geometry's)."""
     files = {"3rps.toml": (SHIPPED / "3rps.toml").read_bytes()}
+    if draw(st.integers(0, 3)) == 0:
+        files["3rps.toml"], what = draw(legs_data("3rps.toml"))
+        return RobotCase(
+            files, (*argv, "--robot", "{dir}/3rps.toml"), None, f"3rps.toml: {what}", check=_truth_finite
+        )
     if draw(st.booleans()):
         pos = draw(st.sampled_from(RPS3_POSITIONS))
         what = f"--positions {pos!r}"
@@ -1251,6 +1258,12 @@ def simulate_rps3_case(draw, argv: tuple[str, ...]) -> RobotCase:
     extra = ("--robot", "{dir}/3rps.toml", f"--positions={pos}", *((f"--param={param}",) if param else ()))
     note = f"3rps.toml: {what}" + (f" --param {param}" if param else "")
     return RobotCase(files, (*argv, *extra), None, note, check=_rps3_truth_check(override))
+
+
+def _truth_finite(directory: Path, o: Outcome) -> str:
+    """A run that wrote truth.json: only finite numbers or null in it."""
+    truth = directory / "out" / "truth.json"
+    return (_finite_json(truth.read_text()) or "") if o.code == 0 and truth.is_file() else ""
 
 
 def _rps3_truth_check(params: dict[str, float] | None) -> Callable[[Path, Outcome], str]:
