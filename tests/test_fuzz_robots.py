@@ -1,5 +1,6 @@
 """Fuzz tests of the robot descriptions (helpers.fuzz_robots): legs TOMLs (dim 2, 3, 6), the
-hexapod's poses CSV and options, URDF, xacro, configurations CSV, ``simulate --robot``.
+hexapod's and the 3-RPS's poses CSV and options, URDF, xacro, configurations CSV, ``simulate
+--robot`` (the 3-RPS with odd --positions among them).
 
 Each class is one hypothesis test: the command succeeds with the right answer where it can be
 computed independently (the closed-form K6 of UPS legs, helpers.urdf_reference for a URDF; the

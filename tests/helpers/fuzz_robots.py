@@ -17,6 +17,10 @@ Exit 0 is not enough where the answer can be checked independently (:class:`Robo
 - a dim-6 legs TOML whose legs are still UPS legs (a universal joint, the actuated prismatic
   leg, a ball joint on the platform): K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i) at the pose
   read from the input (Gosselin's closed form, the form ``tests/test_models_legs6.py`` checks);
+- the shipped 3-RPS (lower mobility: it holds only poses whose x, y, yaw follow z, roll, pitch):
+  a pose printed with a K6 lies in every leg's plane (1e-6 mm) and within its stroke, its K6 is
+  the closed form of the legs' axial and bending springs (:func:`rps3_k6`), and a pose printed
+  without one says why; the same for the K_tcp of ``simulate --robot 3rps.toml``'s truth.json;
 - legs given as URDFs (one URDF's Cartesian chain listed as three legs, each with another joint
   actuated): K = diag(k1, k2, k3) whatever [params] says;
 - a URDF: the measured point and K of :mod:`helpers.urdf_reference` (forward kinematics in
