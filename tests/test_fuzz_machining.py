@@ -129,3 +129,26 @@ def test_every_class_is_tested():
         "compensate urdf arm6 options",
         "compensate --from-campaign folder",
     }
+
+
+# ------------------------------------------------------------------------ findings
+@pytest.mark.parametrize("command", ["compensate", "model"])
+def test_an_empty_tip_offset_is_refused_naming_the_option(tmp_path, command):
+    """Found by the fuzzing (``--tip-offset-mm ''`` among the arm's wrong values): an empty offset
+    was taken for none given, the tool point moved to the flange (0, 0, 0) instead of arm6's
+    (0, 0, 100) mm: exit 0, a program compensated for another tool (worst deflection 454 um
+    instead of 618 um), or a model at another point. Now one line naming the option."""
+    arm6 = "urdf arm6"
+    if command == "compensate":
+        shutil.copy(DATA / "own_cam_mm.nc", tmp_path / "p.nc")
+        argv = ["compensate", *arm6.split(), "--path", str(tmp_path / "p.nc")]
+        argv += ["--out", str(tmp_path / "o.nc"), "--place", PLACES[arm6], "--force-n", FORCES[arm6]]
+        argv += ["--json", "-q", "--no-figures"]
+    else:
+        (tmp_path / "q.csv").write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n0,40,-10,0,60,0\n")
+        argv = ["model", *arm6.split(), "--tip", "tool0", "--configs", str(tmp_path / "q.csv"), "--json"]
+    o = run_argv([*argv, "--tip-offset-mm", ""])
+    lines = [ln for ln in o.stderr.splitlines() if ln.strip()]
+    assert o.code == 2 and len(lines) == 1, (o.code, o.stderr)
+    assert "--tip-offset-mm" in lines[0] and "got ''" in lines[0], lines[0]
+    assert not (tmp_path / "o.nc").exists()

@@ -1,5 +1,6 @@
 """Fuzz tests of the robot descriptions (helpers.fuzz_robots): legs TOMLs (dim 2, 3, 6), the
-hexapod's poses CSV and options, URDF, xacro, configurations CSV, ``simulate --robot``.
+hexapod's and the 3-RPS's poses CSV and options, URDF, xacro, configurations CSV, ``simulate
+--robot`` (the 3-RPS with odd --positions among them).
 
 Each class is one hypothesis test: the command succeeds with the right answer where it can be
 computed independently (the closed-form K6 of UPS legs, helpers.urdf_reference for a URDF; the
@@ -106,6 +107,33 @@ def test_the_urdf_oracle_accepts_the_model_and_refuses_a_point_moved_by_a_microm
     recs[1]["position"][0] += 1e-3
     o.stdout = json.dumps(recs)
     assert "configuration 2: position" in case.oracle(o)
+
+
+def test_the_3rps_oracle_accepts_the_model_and_refuses_a_K6_off_or_a_pose_it_does_not_hold():
+    # The three poses the independent solver (helpers.poses.rps_pose) says the shipped 3-RPS holds:
+    # exit 0, and each K6 the closed form of its legs and bending springs (rps3_k6, 1e-5).
+    rows = fr.rps3_poses()
+    case = fr.RobotCase(
+        {"3rps.toml": (fr.SHIPPED / "3rps.toml").read_bytes(), "poses.csv": fr._pose_text(rows).encode()},
+        ("model", "legs", "{dir}/3rps.toml", "--points", "{dir}/poses.csv", "--json"),
+        "poses.csv",
+        oracle=fr.rps3_check(),
+    )
+    o = run_case(case)
+    assert o.kind == "ok", o.stderr
+    recs = json.loads(o.stdout)
+    assert len(recs) == 3 and all(r["K6"] is not None for r in recs)
+    bent = json.loads(o.stdout)
+    bent[1]["K6"][0][0] *= 1.01  # K6 off by 1 % along x
+    o.stdout = json.dumps(bent)
+    assert "differs from the closed form" in case.oracle(o)
+    moved = json.loads(json.dumps(recs))
+    moved[2]["x"] += 1e-3  # a pose 1 um off the one it holds, printed with a K6
+    o.stdout = json.dumps(moved)
+    assert "pose 3 printed with a K6: a ball joint" in case.oracle(o)
+    del moved[2]["K6"]  # left without a K6 and without a reason
+    o.stdout = json.dumps(moved)
+    assert case.oracle(o) == "pose 3: no K6 and no reason"
 
 
 def test_every_class_is_tested():

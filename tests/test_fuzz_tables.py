@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from helpers.fuzz_tables import (
     FUZZ_CLASSES,
     K_TRUE,
     csv_text,
+    identify_check,
     identify_files,
     model_seeds,
     report_data_json,
@@ -88,6 +90,30 @@ def test_never_a_traceback(fuzz_class):
             check_output(case, o.stdout)
 
     check()
+
+
+@pytest.mark.parametrize("as_json", [True, False])
+def test_the_identify_check_refuses_a_p_printed_as_nan_out_of_range_or_against_its_flag(as_json):
+    # The valid seed: exit 0, p tested and printed (JSON and text), no asymmetric flag; then the
+    # same output with the p made nan, 1.5, or below 1 % without the flag: each one found.
+    forces, disp = identify_files()
+    argv = ("identify", "{dir}/forces.csv", "{dir}/displacements.csv", *(("--json",) if as_json else ()))
+    case = FuzzCase({"forces.csv": forces.encode(), "displacements.csv": disp.encode()}, argv, None)
+    o = run_case(case)
+    assert o.kind == "ok" and identify_check(None, o) == "", o.stderr
+    if as_json:
+        p = json.loads(o.stdout)["asymmetry_p"]
+        assert 0.01 <= p <= 1
+        head, tail = o.stdout.split(f'"asymmetry_p": {p!r}', 1)
+        bad = {"NaN": "printed 'NaN' as a value", "1.5": "outside [0, 1]", "0.004": "asymmetric flag missing"}
+        written = {v: f'{head}"asymmetry_p": {v}{tail}' for v in bad}
+    else:
+        p = re.search(r"\(test p = ([^)]*)\)", o.stdout).group(1)
+        bad = {"nan": "printed 'nan' as a value", "1.5": "outside [0, 1]", "0.004": "asymmetric flag missing"}
+        written = {v: o.stdout.replace(f"(test p = {p})", f"(test p = {v})") for v in bad}
+    for v, needle in bad.items():
+        o.stdout = written[v]
+        assert needle in identify_check(None, o), v
 
 
 # --------------------------------------------------------------------------- the seeds are right

@@ -114,6 +114,36 @@ def test_arm6_programs_deflect_onto_the_programmed_path(tmp_path, name):
     assert res.summary["deflection_before_um"]["worst"] > 100.0
 
 
+def test_arm6_cuts_on_the_branch_the_program_reaches_them_on(tmp_path):
+    # Placed where --place auto puts own_cam_mm.nc (20, -15, 10 N): the cut's first point solved
+    # from the seed alone (skipping the rapids to it) puts joint_3 at 155.5 deg, beyond its limit
+    # of 50 deg; the arm that follows the program from the seed, rapids included, reaches it at
+    # 39.5 deg. The compensation once refused the program there ("line 15: programmed point ...
+    # unreachable: joint joint_3 at 155.536 deg"), so --place auto chose a placement it then
+    # refused. Checked: the arm walked (arm_deflection, in order from the seed) through the
+    # program's points before the first cut stays within the joint limits, and from there the
+    # output deflects onto the path.
+    robot = arm6.model()
+    place = np.array([0.0, 230.58305695, 462.36989469])
+    force = np.array([20.0, -15.0, 10.0])
+    res, prog_path, out_path = _compensated(tmp_path, robot, "own_cam_mm.nc", place, force)
+    first = int(np.argmax(prog_path.feed))
+    lead_in = [prog_path.start[i] for i in range(first) if np.all(prog_path.known_start[i])]
+    lead_in = np.array(lead_in + [prog_path.start[first]]) + place  # every move's start, the cut's last
+    walk = dict(chain=robot.chain, k_theta=arm6.K_THETA, rotation=arm6.TOOL_ROTATION)
+    _, q = arm_deflection(
+        **walk, points=lead_in, forces=np.zeros_like(lead_in), q0=np.radians(arm6.Q_SEED_DEG)
+    )
+    assert np.all((q >= robot.chain.lower) & (q <= robot.chain.upper)), np.degrees(q)
+    _, q_seed_only = arm_deflection(**walk, points=prog_path.start[first][None] + place,
+                                    forces=np.zeros((1, 3)), q0=np.radians(arm6.Q_SEED_DEG))  # fmt: skip
+    assert q_seed_only[2] > robot.chain.upper[2]  # the branch the seed alone gives: joint_3 beyond
+    _, _, C = output_samples(out_path, per_mm=PER_MM)
+    d, _ = arm_deflection(**walk, points=C + place, forces=np.tile(force, (C.shape[0], 1)), q0=q)
+    _check(prog_path, C + d, 1 / PER_MM)
+    assert res.summary["deflection_before_um"]["worst"] > 100.0
+
+
 @pytest.mark.parametrize("name", ["cncjs_toolpath.nc", "own_inch_r_planes.nc"])
 def test_delta_programs_deflect_onto_the_programmed_path(tmp_path, name):
     robot = DeltaRobot()

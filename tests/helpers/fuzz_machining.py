@@ -92,11 +92,13 @@ def compensate_case(
     note: str = "",
     out: str = OUT,
     expect: str | None = None,
+    must_refuse: bool = False,
 ) -> FuzzCase:
     """``stiffmap compensate ROBOT --path {dir}/PATH --out {dir}/OUT --json -q --no-figures OPTIONS``
     (ROBOT: the words before --path: ``3prr``, ``urdf arm6``, ``--from-campaign {dir}/c``),
     its outcome re-checked by :func:`check_compensation`; ``expect``: what an error or warning must
-    say when the run gives results (``FuzzCase.expect``)."""
+    say when the run gives results (``FuzzCase.expect``); ``must_refuse``: a value no run may take
+    (``FuzzCase.must_refuse``: a run that takes it is ``late``)."""
     argv = (
         "compensate",
         *robot.split(),
@@ -110,13 +112,14 @@ def compensate_case(
     if "--figures" not in options:
         argv += ("--no-figures",)
     argv += tuple(o for o in options if o != "--figures")
-    case = FuzzCase(files=files, argv=argv, blamed=blamed, note=note, expect=expect)
+    case = FuzzCase(files=files, argv=argv, blamed=blamed, note=note, expect=expect, must_refuse=must_refuse)
     return FuzzCase(
         files=files,
         argv=argv,
         blamed=blamed,
         note=note,
         expect=expect,
+        must_refuse=must_refuse,
         check=functools.partial(check_compensation, case),
     )
 
@@ -177,14 +180,15 @@ class _Unchecked(Exception):
     """The run cannot be re-checked (a force file this check cannot read): not a finding."""
 
 
-def _solver(argv):
+def _solver(argv, lead_in=None):
     """The robot of a command line for :func:`_deflection`: "3prr" or "delta" (their paper and
-    default parameters), or a solver of the arm (:func:`_arm_solver`) or of a campaign's fitted
-    3PRR (its parameters read here from campaign.toml and stiffmap.db: :func:`_campaign_params`)."""
+    default parameters), or a solver of the arm (:func:`_arm_solver`, ``lead_in`` its programmed
+    points before the first cut) or of a campaign's fitted 3PRR (its parameters read here from
+    campaign.toml and stiffmap.db: :func:`_campaign_params`)."""
     if argv[1] == "--from-campaign":
         return functools.partial(_truss, _campaign_params(Path(argv[2])))
     if argv[1] == "urdf":
-        return _arm_solver(argv)
+        return _arm_solver(argv, lead_in)
     return argv[1]
 
 
@@ -225,11 +229,14 @@ def _campaign_params(root: Path) -> dict:
     return params
 
 
-def _arm_solver(argv):
+def _arm_solver(argv, lead_in=None):
     """The arm of ``compensate urdf arm6 OPTIONS`` (built as the command builds it), deflected by
     :func:`helpers.machining_checks.arm_deflection` (its own inverse kinematics in order from the
     seed, central-difference Jacobians) holding the tool orientation of --tool-rpy-deg (else the
-    arm's). A run that chose the tool's spin is not re-checked (the spins between the knots)."""
+    arm's). ``lead_in``: the program's points (base frame, mm) before its first cut, the arm walked
+    through them from the seed first (the cut then starts on the branch the program reaches it on,
+    not the one the seed gives there: it may put a joint beyond its limits). A run that chose the
+    tool's spin is not re-checked (the spins between the knots)."""
     if "--free-tool-spin" in argv:
         raise _Unchecked("the tool spin chosen along the path")
     params = [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--param"]
@@ -244,6 +251,12 @@ def _arm_solver(argv):
     else:
         R = robot.tool_rotation if robot.tool_rotation is not None else robot.chain.forward(q0)[1]
 
+    if lead_in is not None and len(lead_in):
+        try:
+            q0 = arm_deflection(robot.chain, robot.k_theta, R, lead_in, np.zeros_like(lead_in), q0)[1]
+        except AssertionError as e:  # a rapid's point the check's inverse kinematics does not reach
+            raise _Unchecked(str(e)) from None
+
     def solve(X, F):
         return arm_deflection(robot.chain, robot.k_theta, R, X, F, q0)[0]
 
@@ -252,7 +265,7 @@ def _arm_solver(argv):
 
 def _off_path(argv, out: Path, o: Outcome) -> str:
     """The independent re-check of a written program (module docstring)."""
-    robot, src = _solver(argv), Path(_option(argv, "--path"))
+    src = Path(_option(argv, "--path"))
     summary = json.loads(o.stdout)
     if summary["deflection_before_um"]["worst"] > MAX_CHECKED_DEFLECTION_MM * 1e3:
         raise _Unchecked("a deflection beyond the small deflections the oracle's landing follows")
@@ -268,6 +281,7 @@ def _off_path(argv, out: Path, o: Outcome) -> str:
         done = toolpath_from_moves(read_program(out)[0].moves)
         forces = _per_move_file(argv, prog)
     force = forces or _force_of_options(argv)
+    robot = _solver(argv, _lead_in(prog) + place)
     L = float(np.sum(prog.length()[prog.feed])) if np.any(prog.feed) else 0.0
     if not np.any(prog.feed) or L == 0:
         return ""
@@ -288,6 +302,19 @@ def _off_path(argv, out: Path, o: Outcome) -> str:
     if np.max(gap) > tol_mm + 0.01:  # 10 um: the chords between the samples of an arc
         return f"the output misses part of the programmed path ({np.max(gap):.3f} mm from it)"
     return ""
+
+
+def _lead_in(prog) -> np.ndarray:
+    """The programmed points (program frame, mm) before the first feed move, in order: each move's
+    start and end where the program knows them (not after G28), the first cut's start last."""
+    first = int(np.argmax(prog.feed)) if np.any(prog.feed) else len(prog)
+    pts = []
+    for i in range(min(first + 1, len(prog))):
+        if np.all(prog.known_start[i]):
+            pts.append(prog.start[i])
+        if i < first and np.all(prog.known[i]):
+            pts.append(prog.end[i])
+    return np.array(pts, dtype=float).reshape(-1, 3)
 
 
 def _to_polyline(Q: np.ndarray, D: np.ndarray, dm: np.ndarray) -> np.ndarray:
@@ -948,11 +975,49 @@ ARM_VALUES = {
 }
 
 
+#: The arm's links a user may give as --tip (base_link is not one: no joint before it).
+ARM_LINKS = ("link_1", "link_2", "link_3", "link_4", "link_5", "link_6", "tool0")
+#: arm6's own seed (deg, joint_1..joint_6): the first n of it are a chain of n joints' seed.
+ARM_SEED = (0.0, 40.0, -10.0, 0.0, 60.0, 0.0)
+#: Placements beyond the arm's reach (1264 mm from joint_1: Chain.reach_mm) and within it.
+ARM_FAR_PLACES = ("1300,0,380", "0,0,1500", "-900,-900,380", "1e6,0,0")
+ARM_NEAR_PLACES = ("480,-30,380", "300,0,600")
+
+
+@st.composite
+def arm_tip_cases(draw) -> FuzzCase:
+    """``compensate urdf arm6 --tip LINK`` (any link from link_1 to tool0) with or without
+    --q-seed-deg (the chain's joints, or arm6's six), --tool-rpy-deg and --tip-offset-mm, placed
+    within or beyond the arm's reach: compensated (re-checked by the independent solver on the
+    chain to that link) or refused in one line naming the option or the program's line."""
+    tip = draw(st.sampled_from(ARM_LINKS))
+    n = ARM_LINKS.index(tip) + 1 if tip != "tool0" else 6
+    place = draw(st.sampled_from(ARM_NEAR_PLACES + ARM_FAR_PLACES))
+    opts: dict[str, str] = {"--place": place, "--force-n": ARM_FORCE, "--tip": tip}
+    if draw(st.booleans()):
+        opts["--q-seed-deg"] = ",".join(f"{v:g}" for v in (ARM_SEED[:n] if draw(st.booleans()) else ARM_SEED))
+    if draw(st.booleans()):
+        opts["--tool-rpy-deg"] = draw(st.sampled_from(ARM_VALUES["--tool-rpy-deg"][0][:4]))
+    if draw(st.booleans()):
+        opts["--tip-offset-mm"] = draw(st.sampled_from(("0,0,100", "0,0,0", "20,-10,120")))
+    args = [a for kv in opts.items() for a in kv]
+    return compensate_case(
+        {"p.nc": (DATA / "own_cam_mm.nc").read_bytes()},
+        ARM,
+        "p.nc",
+        *args,
+        note="arm6: " + " ".join(args[4:]),
+    )
+
+
 @st.composite
 def arm_cases(draw) -> FuzzCase:
     """``compensate urdf arm6`` of the seed program (own_cam_mm.nc) with one to three of the arm's
     options set: values a user may give, or wrong ones. When exactly one is wrong, the message must
-    name that option; the outputs of the others are re-checked by the arm's independent solver."""
+    name that option; the outputs of the others are re-checked by the arm's independent solver.
+    One case in three: :func:`arm_tip_cases`."""
+    if draw(st.integers(0, 2)) == 0:
+        return draw(arm_tip_cases())
     opts: dict[str, str | None] = {"--place": ARM_PLACE, "--force-n": ARM_FORCE}
     wrong, notes = [], []
     for name in draw(st.lists(st.sampled_from(sorted(ARM_VALUES)), min_size=1, max_size=3, unique=True)):
@@ -972,6 +1037,7 @@ def arm_cases(draw) -> FuzzCase:
         *args,
         blamed=wrong[0] if len(wrong) == 1 else None,
         note="arm6: " + ", ".join(notes),
+        must_refuse=bool(wrong),  # a wrong value is refused before anything is done, whatever the rest
     )
 
 

@@ -17,6 +17,10 @@ Exit 0 is not enough where the answer can be checked independently (:class:`Robo
 - a dim-6 legs TOML whose legs are still UPS legs (a universal joint, the actuated prismatic
   leg, a ball joint on the platform): K6 = sum k_i a_i a_i^T, a_i = (n_i, r_i x n_i) at the pose
   read from the input (Gosselin's closed form, the form ``tests/test_models_legs6.py`` checks);
+- the shipped 3-RPS (lower mobility: it holds only poses whose x, y, yaw follow z, roll, pitch):
+  a pose printed with a K6 lies in every leg's plane (1e-6 mm) and within its stroke, its K6 is
+  the closed form of the legs' axial and bending springs (:func:`rps3_k6`), and a pose printed
+  without one says why; the same for the K_tcp of ``simulate --robot 3rps.toml``'s truth.json;
 - legs given as URDFs (one URDF's Cartesian chain listed as three legs, each with another joint
   actuated): K = diag(k1, k2, k3) whatever [params] says;
 - a URDF: the measured point and K of :mod:`helpers.urdf_reference` (forward kinematics in
@@ -42,6 +46,7 @@ from hypothesis import strategies as st
 
 from helpers import urdf_reference as ref
 from helpers.fuzz import FuzzCase, FuzzClass, Outcome, mutated_text
+from helpers.poses import rps_pose
 from stiffmap.models.legs_file import parse_legs_text
 
 __all__ = ["FUZZ_CLASSES", "RobotCase", "toml_text", "ups_k6", "urdf_check", "legs_check"]
@@ -625,11 +630,13 @@ def _pose_text(rows, cols=POSE_COLUMNS) -> str:
 
 
 @st.composite
-def poses_csv(draw) -> tuple[bytes, str]:
+def poses_csv(draw, robot: str = "hexapod.toml") -> tuple[bytes, str]:
     kind = draw(
-        st.sampled_from(("text", "orientation alone", "unreachable", "value", "huge degrees", "columns"))
+        st.sampled_from(
+            ("text", "orientation alone", "unreachable", "not held", "value", "huge degrees", "columns")
+        )
     )
-    rows = [list(p) for p in POSES]
+    rows = [list(p) for p in (POSES if robot == "hexapod.toml" else rps3_poses())]
     if kind == "text":
         return draw(mutated_text(_pose_text(rows))), "text mutation"
     if kind == "orientation alone":
@@ -642,6 +649,10 @@ def poses_csv(draw) -> tuple[bytes, str]:
     if kind == "unreachable":
         rows[i][2] = draw(st.sampled_from((1000.0, 0.0, -300.0, 600.0)))
         what = f"row {i + 1}: z = {rows[i][2]}"
+    elif kind == "not held":  # off a 3-RPS's held poses (x, y, yaw follow z, roll, pitch)
+        c = draw(st.sampled_from((0, 1, 5)))
+        rows[i][c] += draw(st.sampled_from((10.0, -3.0, 0.5)))
+        what = f"row {i + 1}: {POSE_COLUMNS[c]} moved to {rows[i][c]:.6g}"
     elif kind == "value":
         c = draw(st.integers(0, 5))
         rows[i][c] = draw(st.sampled_from(BAD_NUMBERS))
@@ -656,6 +667,90 @@ def poses_csv(draw) -> tuple[bytes, str]:
         cols[j] = draw(st.sampled_from(("roll", "roll_rad", "X", "", "z", "rx_deg")))
         return _pose_text(rows, cols).encode(), f"column {j + 1} named {cols[j]!r}"
     return _pose_text(rows).encode(), what
+
+
+# ------------------------------------------------------------------ the 3-RPS (lower mobility)
+def _rps3_legs(data: dict) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, float, float]]:
+    """(revolute centre mm, ball joint mm in the platform frame, revolute axis, k_leg, k_bend) per
+    leg of the shipped 3rps.toml as its header describes it: base revolutes on a circle with axes
+    tangent to it (horizontal), the actuated leg along the leg, a bending spring along the axis."""
+    out = []
+    for i, leg in enumerate(data["legs"], start=1):
+        b = np.array(leg["joints"][0]["xyz_mm"], dtype=float)
+        w = np.cross([0.0, 0.0, 1.0], b)
+        out.append(
+            (b, np.array(leg["attach_mm"], dtype=float), w / np.linalg.norm(w),
+             float(data["params"][f"k_leg{i}"]), float(data["params"][f"k_bend{i}"]))
+        )  # fmt: skip
+    return out
+
+
+@functools.cache
+def rps3_poses() -> tuple[tuple[float, ...], ...]:
+    """Poses the shipped 3-RPS holds (mm, deg): z, roll, pitch chosen, x, y, yaw solved by the
+    independent solver of helpers.poses (every ball joint in its leg's plane)."""
+    legs = _rps3_legs(legs_seed("3rps.toml"))
+    attach, axes = np.array([lg[1] for lg in legs]), np.array([lg[2] for lg in legs])
+    out = []
+    for z, roll, pitch in ((250.0, 0.0, 0.0), (240.0, 4.0, -3.0), (270.0, -6.0, 5.0)):
+        p = rps_pose(z, math.radians(roll), math.radians(pitch), attach, axes)
+        out.append((*(float(v) for v in p[:3]), *(float(v) for v in np.degrees(p[3:]))))
+    return tuple(out)
+
+
+def rps3_k6(legs, pose) -> np.ndarray:
+    """The 3-RPS's K6 at ``pose`` (mm, rad): each leg holds the platform's ball joint along the leg
+    (k_leg) and along its revolute's axis (k_bend, the bending across its plane); the wrench of a
+    force u at r is (u, r x u), K6 = sum k u_w u_w^T (no load: no geometric term)."""
+    R = _rpy(*pose[3:])
+    K6 = np.zeros((6, 6))
+    for b, a, w, k_leg, k_bend in legs:
+        r = R @ a
+        n = np.asarray(pose[:3]) + r - b
+        for k, u in ((k_leg, n / np.linalg.norm(n)), (k_bend, w)):
+            v = np.r_[u, np.cross(r, u)]
+            K6 += k * np.outer(v, v)
+    return K6
+
+
+#: The shipped 3-RPS's stroke (mm) and the distance from a leg's plane a held pose may have.
+RPS3_STROKE = (180.0, 360.0)
+PLANE_TOL_MM = 1e-6
+
+
+def rps3_check(params: dict[str, float] | None = None) -> Callable[[Outcome], str | None]:
+    """The oracle of ``model legs 3rps.toml --json``: finite JSON; a pose printed with a K6 is one
+    the 3-RPS holds (every ball joint in its leg's plane, every leg within its stroke) and its K6
+    is :func:`rps3_k6`'s; a pose printed without one says why (its ``error``)."""
+
+    def check(o: Outcome) -> str | None:
+        bad = _finite_json(o.stdout)
+        if bad or not o.stdout.strip():
+            return bad
+        data = json.loads(json.dumps(legs_seed("3rps.toml")))
+        data["params"].update(params or {})
+        legs = _rps3_legs(data)
+        for i, rec in enumerate(json.loads(o.stdout), start=1):
+            if rec.get("K6") is None:
+                if not rec.get("error"):
+                    return f"pose {i}: no K6 and no reason"
+                continue
+            pose = np.r_[[rec[c] for c in "xyz"], np.radians([rec[c] for c in POSE_COLUMNS[3:]])]
+            R = _rpy(*pose[3:])
+            for b, a, w, _, _ in legs:
+                tip = pose[:3] + R @ a
+                off = abs((tip - b) @ w)
+                if off > PLANE_TOL_MM:
+                    return f"pose {i} printed with a K6: a ball joint {off:.3g} mm off its leg's plane"
+                if not RPS3_STROKE[0] - 1e-6 <= np.linalg.norm(tip - b) <= RPS3_STROKE[1] + 1e-6:
+                    return f"pose {i} printed with a K6: a leg {np.linalg.norm(tip - b):.6g} mm long"
+            d = np.array([1, 1, 1, 1e-2, 1e-2, 1e-2])
+            K6 = rps3_k6(legs, pose)
+            if _rel(np.array(rec["K6"]) * d[:, None] * d, K6 * d[:, None] * d) > REL_TOL:
+                return f"pose {i}: K6 differs from the closed form of the 3-RPS's legs and bending springs"
+        return None
+
+    return check
 
 
 #: Option values of ``model legs`` on a dim-6 robot.
@@ -679,27 +774,46 @@ TOO_MANY_POSES = (
 )
 
 
+#: --grid, --orientation and --param values of the 3-RPS: poses it holds as given (level on its
+#: axis), poses it does not (off the axis, tilted: refused naming the pose it holds), strokes out.
+RPS3_GRID_VALUES = ("0,0,240:260:2", "0,0,250", "-5:5:3,0,250", "0,0,100", "0,0,400", "0,0:10:2,250",
+                    "nan,0,250", "0,0,1e300", "0,0")  # fmt: skip
+RPS3_ORIENTATION_VALUES = ("0,0,0", "0,-5:5:3,0", "5,0,0", "0,0,10", "1e6,0,0", "nan,0,0", "0,0,0,0")
+RPS3_PARAM_VALUES = ("k_leg1=800", "k_bend2=1e-300", "k_bend3=0", "k_leg1=nan", "k_leg1=1e300", "k_leg4=5")
+#: --param values of the 3-RPS within its range (drawn 3 times in 4: a refused --param hides the rest).
+RPS3_PARAM_OK = ("", "k_leg1=800", "k_bend2=260,k_leg3=450")
+
+
+def _rps3_param(draw) -> str:
+    return draw(st.sampled_from(RPS3_PARAM_OK if draw(st.integers(0, 3)) else RPS3_PARAM_VALUES))
+
+
 @st.composite
 def poses_cases(draw) -> RobotCase:
-    hexapod = (SHIPPED / "hexapod.toml").read_bytes()
+    robot = draw(st.sampled_from(("hexapod.toml", "hexapod.toml", "3rps.toml")))
+    text = (SHIPPED / robot).read_bytes()
+    hexapod = robot == "hexapod.toml"
     opts: tuple[str, ...]
     override = None
     if draw(st.booleans()):
-        text, what = draw(poses_csv())
-        files = {"hexapod.toml": hexapod, "poses.csv": text}
+        csv_text, what = draw(poses_csv(robot))
+        files = {robot: text, "poses.csv": csv_text}
         opts, blamed = ("--points", "{dir}/poses.csv"), "poses.csv"
     else:
-        g, o, m = (draw(st.sampled_from(v)) for v in (GRID_VALUES, ORIENTATION_VALUES, MOMENT_VALUES))
-        if draw(st.integers(0, 4)) == 0:
+        values = (GRID_VALUES, ORIENTATION_VALUES) if hexapod else (RPS3_GRID_VALUES, RPS3_ORIENTATION_VALUES)
+        g, o = (draw(st.sampled_from(v)) for v in values)
+        m = draw(st.sampled_from(MOMENT_VALUES))
+        if hexapod and draw(st.integers(0, 4)) == 0:
             g, o = draw(st.sampled_from(TOO_MANY_POSES))
-        p = draw(st.sampled_from(PARAM_VALUES))
-        files, blamed = {"hexapod.toml": hexapod}, None
+        p = draw(st.sampled_from(PARAM_VALUES)) if hexapod else _rps3_param(draw)
+        files, blamed = {robot: text}, None
         what = f"--grid {g!r} --orientation {o!r} --moment-nmm {m!r} --param {p!r}"
-        opts = (f"--grid={g}", f"--orientation={o}", f"--moment-nmm={m}", f"--param={p}")
-        override = _param_override(p)
-    argv = ("model", "legs", "{dir}/hexapod.toml", *opts, "--json")
-    k6 = legs_check(hexapod, override)
-    return RobotCase(files, argv, blamed, what, oracle=_poses_check(files.get("poses.csv"), k6))
+        opts = (f"--grid={g}", f"--orientation={o}", f"--moment-nmm={m}", *((f"--param={p}",) if p else ()))
+        override = _param_override(p) if p else None
+    argv = ("model", "legs", f"{{dir}}/{robot}", *opts, "--json")
+    k6 = legs_check(text, override) if hexapod else rps3_check(override)
+    note = what if hexapod else f"3rps: {what}"
+    return RobotCase(files, argv, blamed, note, oracle=_poses_check(files.get("poses.csv"), k6))
 
 
 def _param_override(text: str) -> dict[str, float] | None:
@@ -1119,10 +1233,70 @@ def _configs_check(text: bytes, urdf: bytes) -> Callable[[Outcome], str | None]:
 
 
 # --------------------------------------------------------------------------- simulate --robot
+#: --positions of the 3-RPS: poses it holds, poses it cannot (off its axis level, tilted with x,
+#: y, yaw not solved), legs beyond their stroke, not numbers, absurd angles.
+RPS3_POSITIONS = ("0,0,250", "0,0,250;0,0,240", "10,0,250", "0,0,nan", "0,0,1e300", "0,0,100", "0,0",
+                  "", "0,0,250;;0,0,240", "inf,0,250", "0,0,-250", "0,0,400")  # fmt: skip
+
+
+@st.composite
+def simulate_rps3_case(draw, argv: tuple[str, ...]) -> RobotCase:
+    """The shipped 3-RPS (lower mobility) with odd --positions: a list, or a poses CSV mutated
+    (huge angles, NaN, poses off the ones it holds); --param within or out of its range. One case
+    in four: its TOML mutated (:func:`legs_data`) at its default positions (the truth then only
+    finite: the closed form is the shipped geometry's)."""
+    files = {"3rps.toml": (SHIPPED / "3rps.toml").read_bytes()}
+    if draw(st.integers(0, 3)) == 0:
+        files["3rps.toml"], what = draw(legs_data("3rps.toml"))
+        return RobotCase(
+            files, (*argv, "--robot", "{dir}/3rps.toml"), None, f"3rps.toml: {what}", check=_truth_finite
+        )
+    if draw(st.booleans()):
+        pos = draw(st.sampled_from(RPS3_POSITIONS))
+        what = f"--positions {pos!r}"
+    else:
+        files["positions.csv"], what = draw(poses_csv("3rps.toml"))
+        pos, what = "{dir}/positions.csv", f"positions.csv: {what}"
+    param = _rps3_param(draw)
+    override = _param_override(param) if param else None
+    extra = ("--robot", "{dir}/3rps.toml", f"--positions={pos}", *((f"--param={param}",) if param else ()))
+    note = f"3rps.toml: {what}" + (f" --param {param}" if param else "")
+    return RobotCase(files, (*argv, *extra), None, note, check=_rps3_truth_check(override))
+
+
+def _truth_finite(directory: Path, o: Outcome) -> str:
+    """A run that wrote truth.json: only finite numbers or null in it."""
+    truth = directory / "out" / "truth.json"
+    return (_finite_json(truth.read_text()) or "") if o.code == 0 and truth.is_file() else ""
+
+
+def _rps3_truth_check(params: dict[str, float] | None) -> Callable[[Path, Outcome], str]:
+    """A run that wrote truth.json: every position a pose the 3-RPS holds, its K_tcp the closed
+    form's (:func:`rps3_k6`); the JSON finite."""
+
+    def check(directory: Path, o: Outcome) -> str:
+        truth = directory / "out" / "truth.json"
+        if o.code != 0 or not truth.is_file():
+            return ""
+        data = json.loads(json.dumps(legs_seed("3rps.toml")))
+        data["params"].update(params or {})
+        rows = []
+        for p in json.loads(truth.read_text())["positions"]:
+            rows.append({**dict(zip("xyz", p["position"], strict=True)),
+                         **dict(zip(POSE_COLUMNS[3:], p.get("orientation_deg", [0.0] * 3), strict=True)),
+                         "K6": p["K_tcp"]})  # fmt: skip
+        return rps3_check(params)(Outcome(0, json.dumps(rows), "")) or ""
+
+    return check
+
+
 @st.composite
 def simulate_cases(draw) -> RobotCase:
     argv = ("simulate", "{dir}/out", "--truth-only", "--select", "1", "--json")
-    if draw(st.booleans()):
+    which = draw(st.sampled_from(("hexapod", "urdf", "3rps")))
+    if which == "3rps":
+        return draw(simulate_rps3_case(argv))
+    if which == "hexapod":
         text, what = draw(legs_data("hexapod.toml"))
         return RobotCase(
             {"hexapod.toml": text}, (*argv, "--robot", "{dir}/hexapod.toml"), None, f"hexapod.toml: {what}"
@@ -1148,7 +1322,7 @@ FUZZ_CLASSES: list[FuzzClass] = [
     FuzzClass(
         "robots: poses CSV x model legs",
         poses_cases(),
-        "the hexapod's --points, --grid, --orientation, --moment-nmm",
+        "the hexapod's and the 3-RPS's --points, --grid, --orientation, --moment-nmm",
     ),
     FuzzClass(
         "robots: URDF x model urdf",
@@ -1164,7 +1338,7 @@ FUZZ_CLASSES: list[FuzzClass] = [
     FuzzClass(
         "robots: robot file x simulate --robot",
         simulate_cases(),
-        "legs TOML and URDF, --truth-only",
+        "legs TOML and URDF, the 3-RPS's --positions, --truth-only",
         slow=True,
     ),
 ]

@@ -18,6 +18,7 @@ import functools
 import io
 import json
 import math
+import re
 import tempfile
 from pathlib import Path
 
@@ -109,7 +110,52 @@ def wrench_texts() -> tuple[str, str]:
 def _identify_case(forces: str | bytes, disp: str | bytes, blamed: str | None, note: str = "", json_out=True):
     enc = lambda x: x if isinstance(x, bytes) else x.encode()  # noqa: E731
     argv = ("identify", "{dir}/forces.csv", "{dir}/displacements.csv") + (("--json",) if json_out else ())
-    return FuzzCase({"forces.csv": enc(forces), "displacements.csv": enc(disp)}, argv, blamed, note)
+    files = {"forces.csv": enc(forces), "displacements.csv": enc(disp)}
+    return FuzzCase(files, argv, blamed, note, check=identify_check)
+
+
+#: The asymmetry test's level (a flag below it): stiffmap.identify.ASYMMETRY_P, 1 % (docs/identification.md).
+ASYMMETRY_LEVEL = 0.01
+_NOT_A_NUMBER = re.compile(r"(?<![\w/])(nan|-?inf(inity)?)(?![\w/])", re.IGNORECASE)
+
+
+def identify_check(directory: Path, o) -> str:
+    """What a run of ``identify`` that printed K left wrong: a value printed as nan or inf (the
+    text prints ``n/a``, the JSON ``null``); the asymmetry test's p outside [0, 1]; p and the
+    ``asymmetric`` flag disagreeing (p below 1 % flags it, p at or above 1 % does not)."""
+    if o.code not in (0, 1) or not o.stdout.strip():
+        return ""
+    if _NOT_A_NUMBER.search(o.stdout):
+        return f"printed {_NOT_A_NUMBER.search(o.stdout).group(0)!r} as a value"
+    if o.stdout.lstrip().startswith("{"):
+
+        def refuse(name):
+            raise ValueError(name)
+
+        try:
+            data = json.loads(o.stdout, parse_constant=refuse)
+        except ValueError as e:
+            return f"JSON output not finite: {e}"
+        p, flags = data.get("asymmetry_p"), data.get("flags", [])
+    else:
+        m = re.search(r"\(test p = ([^)]*)\)", o.stdout)
+        if m is None:
+            return "no asymmetry test p printed beside K's asymmetry"
+        try:
+            p = None if m.group(1) == "n/a" else float(m.group(1))
+        except ValueError:
+            return f"test p = {m.group(1)!r}: not a number"
+        flags = [ln.split("flag:", 1)[1].strip() for ln in o.stdout.splitlines() if ln.startswith("flag:")]
+    if p is None:
+        return ""
+    if not 0.0 <= p <= 1.0:
+        return f"asymmetry test p = {p} outside [0, 1]"
+    flagged = any(f.startswith("asymmetric:") for f in flags)
+    if not o.stdout.lstrip().startswith("{") and abs(p - ASYMMETRY_LEVEL) < 6e-4:
+        return ""  # printed to 2 digits: 0.0095-0.0105 print as 0.0095..0.01 either side of the level
+    if (p < ASYMMETRY_LEVEL) != flagged:
+        return f"asymmetry test p = {p:.3g} but the asymmetric flag {'given' if flagged else 'missing'}"
+    return ""
 
 
 @st.composite
@@ -169,10 +215,43 @@ def identify_wrench_cases(draw) -> FuzzCase:
     return _identify_case(ft, draw(mutated_text(dt)), "displacements.csv", "mutated 6-column displacements")
 
 
+def _rows_text(text: str, n: int) -> str:
+    """A CSV text's header and its first ``n`` rows."""
+    return "".join(text.splitlines(keepends=True)[: n + 1])
+
+
+@st.composite
+def identify_test_paths(draw) -> FuzzCase:
+    """The asymmetry test's edge paths: fewer residual degrees of freedom than K - K^T has
+    entries (q = 3 of a 3x3 K, 15 of a 6x6: the law undefined), none at all, and noise-free
+    displacements (K's covariance zero: singular)."""
+    six = draw(st.booleans())
+    ft, dt = wrench_texts() if six else (forces_text(), displacements_text(with_repeat=False))
+    m = 6 if six else 3
+    kind = draw(st.sampled_from(("few cases", "noise-free")))
+    if kind == "few cases":  # dof = (n - m) per component: 0 .. q-1 and one above
+        n = draw(st.integers(m, m + (3 if six else 2)))
+        ft, dt = _rows_text(ft, n), _rows_text(dt, n)
+        what = f"{n} load cases of a {m}x{m} K"
+    else:
+        F = np.array([[float(v) for v in ln.split(",")] for ln in ft.splitlines()[1:]]).T
+        K = np.zeros((6, 6)) if six else K_TRUE
+        if six:
+            K[:3, :3], K[3:, 3:] = K_TRUE, np.diag([4e5, 5e5, 9e5])
+        scale = draw(st.sampled_from((1.0, 1.0 + 1e-9, -1.0)))  # exact, a common scale, K^T's sign
+        D = np.linalg.solve(K if scale > 0 else -K.T, F) * abs(scale)
+        cols = ("dx", "dy", "dz", "rx", "ry", "rz")[:m]
+        dt = csv_text(cols, D.T, "{:.17g}")
+        what = f"noise-free displacements of a {m}x{m} K (scale {scale:g})"
+    return _identify_case(ft, dt, None, what, json_out=draw(st.booleans()))
+
+
 @st.composite
 def identify_degenerate_cases(draw) -> FuzzCase:
     F, D, _ = identify_design()
     n = F.shape[1]
+    if draw(st.integers(0, 3)) == 0:
+        return draw(identify_test_paths())
     if draw(st.booleans()):
         D2, what = draw(degenerate_matrix(D[:, :n]))
         if D2.shape[1] != n:  # a single case: the forces file says one too
@@ -181,7 +260,7 @@ def identify_degenerate_cases(draw) -> FuzzCase:
         method = draw(st.sampled_from(("compliance", "paper", "spd")))
         case = _identify_case(forces_text(F), text, None, f"displacements {what}, --method {method}")
         blamed = "displacements.csv" if D2.shape[1] == n else None
-        return FuzzCase(case.files, case.argv + ("--method", method), blamed, case.note)
+        return FuzzCase(case.files, case.argv + ("--method", method), blamed, case.note, check=identify_check)
     F2, what = draw(degenerate_matrix(F))
     D2 = D[:, : F2.shape[1]]
     return _identify_case(
@@ -729,7 +808,7 @@ FUZZ_CLASSES: list[FuzzClass] = [
     FuzzClass(
         "identify: degenerate data",
         identify_degenerate_cases(),
-        "constant, all-zero, tiny or huge, repeated or single load cases",
+        "constant, all-zero, tiny or huge, repeated or single load cases; the asymmetry test's paths",
     ),
     FuzzClass("model: --points CSV", model_points_cases(), "stiffmap model delta|3prr --points"),
     FuzzClass("fit: measurements CSV", fit_cases(), "stiffmap fit, static errors (3prr) and K (delta)"),

@@ -147,7 +147,8 @@ def _build(d: RobotDescription) -> SerialRobot:
         raise FieldError(
             "tip_frame", f"no tip frame: give the link of {d.file} that carries the measured point"
         )
-    offset = d.keys.get("tip_offset_mm") or (0.0, 0.0, 0.0)
+    offset = d.keys.get("tip_offset_mm")
+    offset = (0.0, 0.0, 0.0) if offset is None else offset  # '' is a wrong value, not none given
     rpy = d.keys.get("tool_rpy_deg")
     seed = d.keys.get("q_seed_deg")
     links = d.keys.get("links")

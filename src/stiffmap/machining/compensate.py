@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -371,7 +371,7 @@ def compensate_path(
         if progress is not None:
             progress(min(total, sum(int(d[0].m.size) for d in done)), total)
         pc = _split(fld, path, forces, pc.take(~ok), spin_of)
-    return _assemble(fld, path, forces, feed, done, tolerance_mm, spin_of)
+    return _assemble(fld, path, forces, feed, done, tolerance_mm, spin_of, q_prog)
 
 
 def _check_known(path: Toolpath, feed: np.ndarray) -> None:
@@ -486,7 +486,7 @@ def _split(fld, path, forces, pc: _Pieces, spin_of) -> _Pieces:
     return _with_midpoints(fld, path, forces, new, spin_of)
 
 
-def _assemble(fld, path, forces, feed, done, tolerance_mm, spin_of) -> Compensation:
+def _assemble(fld, path, forces, feed, done, tolerance_mm, spin_of, q_prog=None) -> Compensation:
     """Gather the accepted pieces per move, the rapids into cuts, the corners and the summary."""
     m = np.concatenate([d[0].m for d in done]) if done else np.zeros(0, dtype=np.intp)
     sa = np.concatenate([d[0].sa for d in done]) if done else np.zeros(0)
@@ -508,7 +508,7 @@ def _assemble(fld, path, forces, feed, done, tolerance_mm, spin_of) -> Compensat
     _rapids_into_cuts(path, pieces, feed, spin_of)
     L = path.length()
     cum = np.concatenate([[0.0], np.cumsum(np.where(path.feed, L, 0.0))])
-    before, before_at = _before(fld, path, forces, feed, cum, spin_of)
+    before, before_at = _before(fld, path, forces, feed, cum, spin_of, q_prog)
     after_at = cum[m] + 0.5 * (sa + sb) * L[m]
     n_points = int(sum(p.s.size for p in pieces.values()) + len(transitions))
     return Compensation(pieces, transitions, tolerance_mm, before, before_at, dev, after_at, n_points)
@@ -538,8 +538,9 @@ def _rapids_into_cuts(path: Toolpath, pieces: dict[int, MovePieces], feed: np.nd
             )
 
 
-def _before(fld, path, forces, feed, cum, spin_of) -> tuple[np.ndarray, np.ndarray]:
-    """|delta| along the feed moves, uncompensated: at their ends and CHECK_SAMPLES points inside each."""
+def _before(fld, path, forces, feed, cum, spin_of, q_prog=None) -> tuple[np.ndarray, np.ndarray]:
+    """|delta| along the feed moves, uncompensated: at their ends and CHECK_SAMPLES points inside each
+    (an arm's configurations there: :func:`_along_moves`)."""
     if feed.size == 0:
         return np.zeros(0), np.zeros(0)
     k = CHECK_SAMPLES + 2
@@ -549,7 +550,23 @@ def _before(fld, path, forces, feed, cum, spin_of) -> tuple[np.ndarray, np.ndarr
     F = force_at(path, forces, m, t)
     q0 = None
     if hasattr(fld, "solve_path"):
-        q0 = fld.solve_path(P, spin_of(m, t))[0]
+        q0 = _along_moves(fld, P, spin_of(m, t), k, None if q_prog is None else q_prog[0][feed])
     res = fld(P, F, q0, spin_of(m, t))
     _raise_invalid(path, m, res, fld, P, "programmed point")
     return np.linalg.norm(res.delta, axis=1), cum[m] + t * path.length()[m]
+
+
+def _along_moves(fld: ArmField, P: np.ndarray, spin, k: int, starts) -> np.ndarray:
+    """An arm's configurations at ``k`` points of each feed move (P: k rows a move), solved in
+    order from the configuration at the move's start on the program's branch (``starts``: from
+    :func:`_programmed_configurations`, which follows every programmed point, rapids' too); from
+    the seed along all the points when not known. The feed points alone, solved in order from the
+    seed, skip the rapids' points: the first cut's start may then land on another branch (a joint
+    beyond its limits at a point the program reaches)."""
+    if starts is None:
+        return fld.solve_path(P, spin)[0]
+    out = []
+    for i, q in enumerate(starts):
+        rows = slice(i * k, (i + 1) * k)
+        out.append(replace(fld, q_seed=q).solve_path(P[rows], None if spin is None else spin[rows])[0])
+    return np.concatenate(out)
