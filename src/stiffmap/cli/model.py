@@ -198,7 +198,7 @@ def model(
         return
     P = _positions(kind, m.dim, grid, points, orientation)
     if grid is not None and six:
-        P = from_option("--grid:", held_as_given, m, P)
+        P = from_option("--grid:", _held_grid, m, P)
     F = _force(kind, 3 if six else m.dim, load_n, direction)
     M = None if moment is None else _moment(moment)
     mp = _evaluate(m, P)
@@ -221,6 +221,18 @@ def model(
     if nbad:
         warn(f"{nbad} of {len(mp)} point(s) cannot be evaluated (see 'error'){of}")
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _held_grid(m, P: np.ndarray) -> np.ndarray:
+    """``--grid`` poses a platform of lower mobility holds as given (:func:`held_as_given`), else
+    its ValueError with how to give the poses it reaches."""
+    try:
+        return held_as_given(m, P)
+    except ValueError as e:
+        raise ValueError(
+            f"{e}; give the poses it reaches, --points POSES.csv with x, y, z, roll_deg, pitch_deg, "
+            "yaw_deg (models.mobility.reachable_poses solves them)"
+        ) from None
 
 
 def _note_nearest(m, P: np.ndarray, valid: np.ndarray) -> None:

@@ -19,7 +19,7 @@ from ..errors import FieldError
 from ..models.base import check_stiffness
 from ..models.delta import DeltaRobot
 from ..models.legs import LegRobot
-from ..models.mobility import COORDINATES, Mobility, lower_mobility, reachable_poses
+from ..models.mobility import COORDINATES, Mobility, lower_mobility, pose_text, reachable_poses
 from ..models.presets import paper48, prr3_points22
 from ..models.prr3 import PRR3
 from ..sim.robot import mechanism_robot, platform_robot
@@ -290,7 +290,7 @@ def _own_legs_setup(model) -> OwnSetup:
         grid, where = legs_default_poses(model, mobility)
     m = model.evaluate(np.c_[grid, np.zeros((len(grid), 3))] if turns and grid.shape[1] == 3 else grid)
     out = np.flatnonzero(~m.valid)
-    first = f"position {out[0] + 1} {_pose(grid[out[0]])}: {m.reasons[out[0]]}" if out.size else ""
+    first = f"position {out[0] + 1} {pose_text(grid[out[0]])}: {m.reasons[out[0]]}" if out.size else ""
     if out.size == len(grid):  # positions must be given: say why the default does not do
         why = f"no position of the default grid ({where}) suits {model.name} ({first})"
         return OwnSetup(None, why, turns, load_point)
@@ -308,12 +308,6 @@ def _own_legs_setup(model) -> OwnSetup:
         load_point_mm=load_point,
         notes=notes,
     )
-
-
-def _pose(p) -> str:
-    """``(x, y, z) mm`` and, for a pose, ``roll/pitch/yaw (...) deg``."""
-    turned = f", roll/pitch/yaw {_mm(np.round(np.degrees(p[3:]), 6) + 0.0)} deg" if len(p) == 6 else ""
-    return f"{_mm(np.round(p[:3], 6) + 0.0)} mm{turned}"
 
 
 def _mm(p) -> str:

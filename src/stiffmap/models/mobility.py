@@ -231,8 +231,9 @@ def _solve_one(model, pose: np.ndarray, follow: list[int]) -> tuple[np.ndarray, 
 
 
 def lower_mobility(model) -> Mobility | None:
-    """The platform's mobility at home when it is below six (a 3-RPS); None for a platform that
-    moves in all six coordinates, or whose legs do not reach their home (the model says why)."""
+    """The platform's mobility at home (:func:`platform_mobility`) when it is below six (a 3-RPS);
+    None for a platform that moves in all six coordinates, or whose legs do not reach their home
+    (the model says why)."""
     try:
         mob = platform_mobility(model)
     except ValueError:
@@ -241,7 +242,8 @@ def lower_mobility(model) -> Mobility | None:
 
 
 def nearest_held(model, pose, mobility: Mobility) -> np.ndarray | None:
-    """The pose the platform holds with ``pose``'s free coordinates (:func:`reachable_poses`), when
+    """The pose (x, y, z mm, roll, pitch, yaw rad, base frame) the platform holds with ``pose``'s
+    free coordinates (:func:`reachable_poses`; ``pose`` in the same units), when
     its legs close there and the model can evaluate it (within its strokes and joint limits); None
     otherwise (a 3-RPS rolled 179 deg closes its legs at y = -100 mm, beyond a leg's stroke)."""
     near, gap = reachable_poses(model, pose, mobility)
@@ -251,17 +253,21 @@ def nearest_held(model, pose, mobility: Mobility) -> np.ndarray | None:
 
 
 def pose_text(p) -> str:
-    """``"(x, y, z) mm, roll/pitch/yaw (r, p, y) deg"`` of a pose (mm, rad) to 1e-6 mm and deg:
-    a held pose copied into a POSES.csv closes its legs (to 4 significant digits, the 3-RPS
-    rolled 30 deg at y = -6.699 mm missed by 2.3e-4 mm and could not be evaluated)."""
+    """``"(x, y, z) mm, roll/pitch/yaw (r, p, y) deg"`` of a pose (mm, rad; ``"(x, y, z) mm"`` of a
+    position) to 1e-6 mm and deg: a held pose copied into a POSES.csv closes its legs (to 4
+    significant digits, the 3-RPS rolled 30 deg at y = -6.699 mm missed by 2.3e-4 mm and could
+    not be evaluated)."""
     p = np.asarray(p, dtype=float)
     xyz = ", ".join(f"{v:.12g}" for v in np.round(p[:3], 6) + 0.0)
+    if p.size == 3:
+        return f"({xyz}) mm"
     deg = ", ".join(f"{v:.12g}" for v in np.round(np.degrees(p[3:]), 6) + 0.0)
     return f"({xyz}) mm, roll/pitch/yaw ({deg}) deg"
 
 
 def nearest_pose_note(model, pose) -> str:
-    """For a platform of lower mobility (a 3-RPS) and a pose it cannot hold: ``"3rps moves in ...:
+    """For a platform of lower mobility (a 3-RPS) and a pose (x, y, z mm, roll, pitch, yaw rad, base
+    frame) it cannot hold: ``"3rps moves in ...:
     the nearest pose it holds is ..."``, the pose its legs reach with the same free coordinates,
     when that pose is valid; "" otherwise (a full-mobility robot, or no valid pose near)."""
     mob = lower_mobility(model)
@@ -284,7 +290,7 @@ def held_as_given(model, poses) -> np.ndarray:
     ------
     ValueError
         ``"3rps moves in z, roll, pitch: x, y, yaw follow: it cannot hold pose 4 ... as given
-        (it holds ... there); give ..."``.
+        (it holds ... there)"`` (the caller says how to give the poses it reaches).
     """
     P, _ = as_points(poses, POSE_DIM)
     mob = lower_mobility(model)
@@ -296,7 +302,6 @@ def held_as_given(model, poses) -> np.ndarray:
         if near is not None and np.max(np.abs(near - P[i]) * scale) > HELD_TOL_MM:
             raise ValueError(
                 f"{mob.describe(model.name)}: it cannot hold pose {i + 1} {pose_text(P[i])} as given (it "
-                f"holds {pose_text(near)} there); give the poses it reaches, --points POSES.csv with x, y, "
-                "z, roll_deg, pitch_deg, yaw_deg (models.mobility.reachable_poses solves them)"
+                f"holds {pose_text(near)} there)"
             )
     return P
